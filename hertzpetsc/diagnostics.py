@@ -1,0 +1,105 @@
+"""Diagnostics of a travelling-wave profile and of a branch (paper section 3.1). Pure numpy.
+
+Profiles are given on the half period: ``u_half[j] = u(j h)``, j = 0..K, h = pi/K, extended by oddness.
+"""
+import math
+
+import numpy as np
+
+from .hertz import HertzPotential
+from .stencil import full_period, shifted
+
+
+def sup_norm(u_half):
+    """||u||_inf, refined by the parabola through the largest grid value and its neighbours.
+
+    The grid maximum alone jumps by O(h^2) as the maximiser moves between grid points, which would hide the
+    scheme's smooth h^2 convergence; the parabolic vertex is a smooth functional of the grid values.
+    """
+    u = np.abs(np.asarray(u_half, dtype=float))
+    j = int(np.argmax(u))
+    if j == 0 or j == len(u) - 1:
+        return float(u[j])
+    a, b, c = u[j - 1], u[j], u[j + 1]
+    curv = a - 2 * b + c
+    return float(b - (a - c) ** 2 / (8 * curv)) if curv < 0 else float(b)
+
+
+def slope_at_origin(u_half, h):
+    """p(q) = u'(0) by the centred difference (u_1 - u_{-1}) / 2h = u_1 / h (u odd); exact on the free flight."""
+    return float(u_half[1] / h)
+
+
+def free_flight_half_length(u_half, q, h):
+    """ell(q): both shift differences u(xi+q) - u(xi) and u(xi) - u(xi-q) are >= 0 on [-ell, ell].
+
+    On the grid, g_j = min(d+_j, d-_j) for xi_j in [0, pi]; ell is where g first changes sign, located by linear
+    interpolation between the last grid point with g >= 0 and the first with g < 0 (ell = 0 if g_0 <= 0, as at
+    q = pi where u(xi + pi) - u(xi) = -2 u(xi)). Returns pi if g never becomes negative on [0, pi].
+    """
+    u_full = full_period(u_half)
+    sigma = q / h
+    K = len(u_half) - 1
+    dplus = (shifted(u_full, sigma) - u_full)[:K + 1]
+    dminus = (u_full - shifted(u_full, -sigma))[:K + 1]
+    g = np.minimum(dplus, dminus)
+    # g_0 = u(q) > 0 in exact arithmetic for q < pi; round-off on an exact zero must not count as contact.
+    tiny = 64 * np.finfo(float).eps * np.max(np.abs(u_half))
+    neg = np.nonzero(g < -tiny)[0]
+    if len(neg) == 0:
+        return math.pi
+    j = int(neg[0])
+    if j == 0 or g[j - 1] <= tiny:
+        return (j - 1) * h if j > 0 else 0.0
+    return (j - 1) * h + h * g[j - 1] / (g[j - 1] - g[j])
+
+
+def point_diagnostics(u_half, q, h, alpha):
+    """All scalar diagnostics of one branch point (section 3.1, eqs. defnq, invv, dispers)."""
+    pot = HertzPotential(alpha)
+    a = pot.alpha
+    norm = sup_norm(u_half)
+    ell = free_flight_half_length(u_half, q, h)
+    A0 = float(pot.amplitude(pot.p0))  # ||u0||_inf, so that omega(pi, A0) = 1 (fig. dispersplot)
+    return dict(
+        norm_inf=norm,
+        slope=slope_at_origin(u_half, h),
+        ell=ell,
+        N=2 * (math.pi - ell) / q,                    # eq. defnq: mean number of adjacent interacting beads
+        F=2 * ell / q,                                # mean number of adjacent beads in free flight
+        T=q * norm ** ((a - 1) / 2),                  # inverse velocity script-T(q), eq. invv
+        omega_A0=dispersion(norm, A0, a),             # omega(q, A0), eq. dispers
+        rescaled_norm=norm * q ** pot.rescaling_exponent,   # ||u||_inf q^(2/(alpha-1)) -> k_alpha (eq. normscaling)
+    )
+
+
+def dispersion(norm_inf, A, alpha):
+    """omega(q, A) = A^((alpha-1)/2) ||u(.;q)||_inf^((1-alpha)/2) (eq. dispers)."""
+    return A ** ((alpha - 1) / 2) * np.asarray(norm_inf, dtype=float) ** ((1 - alpha) / 2)
+
+
+def dispersion_long_wave(q, A, alpha, k_alpha):
+    """The linear approximation omega ~ k_alpha^((1-alpha)/2) A^((alpha-1)/2) q as q -> 0 (eq. disperseq)."""
+    return k_alpha ** ((1 - alpha) / 2) * A ** ((alpha - 1) / 2) * np.asarray(q, dtype=float)
+
+
+def crossing(q, values, level):
+    """The q where ``values`` (sampled along the branch at ``q``) crosses ``level``, by linear interpolation.
+
+    Returns the crossing at the largest q if there are several, and nan if there is none.
+    """
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(values, dtype=float) - level
+    order = np.argsort(q)[::-1]
+    q, v = q[order], v[order]
+    for i in range(len(q) - 1):
+        if v[i] == 0:
+            return float(q[i])
+        if v[i] * v[i + 1] < 0:
+            return float(q[i] + (q[i + 1] - q[i]) * v[i] / (v[i] - v[i + 1]))
+    return float(q[-1]) if len(v) and v[-1] == 0 else math.nan
+
+
+def q_k(q, F):
+    """q_k where F(q_k) = 1 (paper: q_k ~ 1.8): below it, compression packets are separated by free flight."""
+    return crossing(q, F, 1.0)

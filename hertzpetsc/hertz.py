@@ -1,0 +1,80 @@
+"""The Hertz contact potential and the closed forms of the binary oscillation (paper section 2.1).
+
+Pure numpy, no PETSc. ``x`` may be a scalar or an array everywhere.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import ParameterError
+
+
+def check_alpha(alpha):
+    """Return ``alpha`` as a float, or raise :class:`ParameterError` unless alpha > 1 (eq. vhertz)."""
+    try:
+        a = float(alpha)
+    except (TypeError, ValueError):
+        raise ParameterError("alpha", alpha, "must be a real number > 1") from None
+    if not (a > 1.0 and math.isfinite(a)):
+        raise ParameterError("alpha", alpha, "the Hertz exponent must be a finite real number > 1")
+    return a
+
+
+@dataclass(frozen=True)
+class HertzPotential:
+    """V(x) = |x|^(1+alpha) H(-x) / (1+alpha) (eq. vhertz) and the symmetrised W (eq. int), for alpha > 1."""
+
+    alpha: float = 1.5
+
+    def __post_init__(self):
+        object.__setattr__(self, "alpha", check_alpha(self.alpha))
+
+    # --- V and its derivatives (eq. vhertz); H(-x) makes them vanish for x >= 0 (no contact) ---
+    def V(self, x):
+        c = np.minimum(x, 0.0)
+        return np.abs(c) ** (1.0 + self.alpha) / (1.0 + self.alpha)
+
+    def dV(self, x):
+        """V'(x) = -|x|^alpha H(-x): the contact force, non-positive."""
+        return -np.abs(np.minimum(x, 0.0)) ** self.alpha
+
+    def d2V(self, x):
+        """V''(x) = alpha |x|^(alpha-1) H(-x), continuous for alpha > 1."""
+        return self.alpha * np.abs(np.minimum(x, 0.0)) ** (self.alpha - 1.0)
+
+    # --- symmetrised potential W(x) = V(-2|x|)/2 = 2^alpha |x|^(1+alpha)/(1+alpha) (theorem 1) ---
+    def W(self, x):
+        return 2.0 ** self.alpha * np.abs(x) ** (1.0 + self.alpha) / (1.0 + self.alpha)
+
+    def dW(self, x):
+        return 2.0 ** self.alpha * np.abs(x) ** self.alpha * np.sign(x)
+
+    # --- closed forms of lemma binary ---
+    @property
+    def c_alpha(self):
+        """c_alpha of the period law (eq. period)."""
+        a = self.alpha
+        z = 1.0 / (1.0 + a)
+        return 2.0 * math.sqrt(math.pi) * (1.0 + a) ** (-a / (1.0 + a)) * math.gamma(z) / math.gamma(z + 0.5)
+
+    def period(self, p):
+        """Period T(p) = c_alpha p^((1-alpha)/(1+alpha)) of u'' + W'(u) = 0, u(0) = 0, u'(0) = p (eq. period)."""
+        return self.c_alpha * np.asarray(p, dtype=float) ** ((1.0 - self.alpha) / (1.0 + self.alpha))
+
+    @property
+    def p0(self):
+        """Initial slope p0 of the binary oscillation, T(p0) = 2 pi (eq. ci)."""
+        a = self.alpha
+        z = 1.0 / (1.0 + a)
+        g = math.sqrt(math.pi) * math.gamma(z + 0.5) / math.gamma(z)
+        return (1.0 + a) ** (a / (1.0 - a)) * g ** ((1.0 + a) / (1.0 - a))
+
+    def amplitude(self, p):
+        """u_max = [p^2 (1+alpha)]^(1/(1+alpha)) / 2, the maximum of the solution with slope p at 0 (lemma binary)."""
+        return 0.5 * (np.asarray(p, dtype=float) ** 2 * (1.0 + self.alpha)) ** (1.0 / (1.0 + self.alpha))
+
+    @property
+    def rescaling_exponent(self):
+        """2/(alpha-1): u ~ k_alpha q^(-2/(alpha-1)) as q -> 0 (eq. normscaling)."""
+        return 2.0 / (self.alpha - 1.0)

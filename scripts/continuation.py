@@ -1,0 +1,98 @@
+#!/usr/bin/env python3
+"""Compute the travelling-wave branch q = pi -> m_stop pi / M (paper section 3.1) and its figures.
+
+    mpiexec -n 2 python scripts/continuation.py [options]
+
+Application options (defaults reproduce the paper):
+  -alpha 1.5            Hertz exponent (> 1)
+  -M 50                 target wavenumbers q = m pi / M
+  -cells_per_pi 1000    grid step h = pi / cells_per_pi
+  -m_stop 1             stop at q = m_stop pi / M
+  -max_halvings 8       step reductions allowed per target q
+  -max_corrector 0.25   relative change of the rescaled profile that makes a step be rejected and halved
+  -output branch.npz    branch file, rewritten after every converged point
+  -resume               continue the branch stored in -output (which must exist and match the parameters)
+  -figures DIR          write the figures of section 3.1 there (omit for none)
+PETSc prefixes: -tw_ for the travelling-wave SNES and its KSP/PC (e.g. -tw_snes_monitor, -tw_snes_type qn,
+-tw_ksp_type gmres, -tw_pc_factor_mat_solver_type mumps); -log_view for timings.
+Prints one line per converged point on rank 0: q, Newton iterations, residual, ||u||_inf.
+"""
+import os
+import sys
+
+import petsc4py
+
+petsc4py.init(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.branchfile import BranchWriter, read_branch  # noqa: E402
+from hertzpetsc.cli import AppOptions, guarded_main, print0, run_metadata  # noqa: E402
+from hertzpetsc.continuation import BranchContinuation, ContinuationParameters  # noqa: E402
+from hertzpetsc.errors import BranchFileError, ParameterError  # noqa: E402
+
+
+def read_parameters(opts):
+    return ContinuationParameters(
+        alpha=opts.real("alpha", 1.5),
+        M=opts.integer("M", 50, minimum=1),
+        cells_per_pi=opts.integer("cells_per_pi", 1000, minimum=4),
+        m_stop=opts.integer("m_stop", 1, minimum=1),
+        max_halvings=opts.integer("max_halvings", 8, minimum=0),
+        max_corrector=opts.real("max_corrector", 0.25, valid=(lambda x: x > 0, "must be > 0")),
+    )
+
+
+def check_resumable(branch, params, path):
+    """The stored branch must have been computed with the same discretisation."""
+    for name in ("alpha", "M", "cells_per_pi"):
+        stored, wanted = branch[name], getattr(params, name)
+        if abs(float(stored) - float(wanted)) > 1e-12 * abs(float(wanted)):
+            raise ParameterError(f"-{name}", wanted, f"must equal the value {stored} stored in {path} to resume it")
+    if len(branch["m"]) == 0:
+        raise BranchFileError(f"branch file {path!r} holds no point to resume from")
+
+
+def main():
+    opts = AppOptions()
+    params = read_parameters(opts)
+    path = opts.string("output", "branch.npz")
+    figures = opts.string("figures", "")
+    resume = opts.flag("resume")
+    comm = PETSc.COMM_WORLD
+    rank0 = comm.getRank() == 0
+
+    cont = BranchContinuation(params, comm)
+    scalars = dict(alpha=params.alpha, cells_per_pi=params.cells_per_pi, h=params.h, M=params.M)
+    start_m, existing = None, None
+    if resume:
+        existing = read_branch(path)
+        check_resumable(existing, params, path)
+        last_m = int(existing["m"][-1])
+        print0(f"resuming {path}: {len(existing['m'])} points, last q = {existing['q'][-1]:.6f} (m = {last_m})")
+        cont.resume_from(existing["q"], existing["u"])
+        start_m = last_m - 1
+    meta = run_metadata(params=dict(vars(params)), prefix="tw_")
+    writer = BranchWriter(path, scalars, cont.grid.xi_half(), meta, existing) if rank0 else None
+
+    print0(f"# alpha = {params.alpha}, h = pi/{params.cells_per_pi}, M = {params.M}, ranks = {comm.getSize()}")
+    print0(f"# {'q':>10} {'m':>3} {'newton':>6} {'residual':>10} {'|u|_inf':>12} {'N(q)':>7} {'T(q)':>7} {'substeps':>8}")
+    try:
+        for pt in cont.points(start_m):
+            if rank0:
+                writer.append(pt.u_half, **pt.record())
+            d = pt.diagnostics
+            print0(f"  {pt.q:10.6f} {pt.m:3d} {pt.solve.iterations:6d} {pt.solve.residual_norm:10.3e} "
+                   f"{d['norm_inf']:12.6g} {d['N']:7.4f} {d['T']:7.4f} {pt.substeps:8d}")
+    finally:
+        cont.destroy()
+
+    if figures and rank0:
+        from hertzpetsc import plotting
+        os.makedirs(figures, exist_ok=True)
+        for name in plotting.plot_branch_figures(read_branch(path), figures):
+            print0(f"wrote {name}")
+    print0(f"wrote {path}")
+
+
+if __name__ == "__main__":
+    guarded_main(main)

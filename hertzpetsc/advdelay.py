@@ -29,16 +29,16 @@ from .stencil import shift_stencil
 TW_PREFIX = "tw_"
 
 
-def check_wavenumber(q, h=None):
-    """q must lie in (0, pi] (and span at least one grid step h if h is given)."""
+def check_wavenumber(q, h=None, name="q"):
+    """q must lie in (0, pi] (and span at least one grid step h if h is given); ``name`` is used in errors."""
     try:
         qf = float(q)
     except (TypeError, ValueError):
-        raise ParameterError("q", q, "must be a real number in (0, pi]") from None
+        raise ParameterError(name, q, "must be a real number in (0, pi]") from None
     if not (0.0 < qf <= math.pi * (1 + 1e-14)):
-        raise ParameterError("q", q, "the wavenumber must lie in (0, pi]")
+        raise ParameterError(name, q, "the wavenumber must lie in (0, pi]")
     if h is not None and qf < h * (1 - 1e-12):
-        raise ParameterError("q", q, f"must be at least one grid step h = {h:.6g} (refine the grid for smaller q)")
+        raise ParameterError(name, q, f"must be at least one grid step h = {h:.6g} (refine the grid for smaller q)")
     return min(qf, math.pi)
 
 

@@ -11,9 +11,8 @@ format             ()           the string ``hertzpetsc-branch-1``
 alpha              ()           Hertz exponent (eq. vhertz)
 cells_per_pi       ()           K; grid step h = pi / K
 h                  ()           grid step
-M                  ()           target wavenumbers are q = m pi / M
-m                  (P,)         index m of each point (q = m pi / M), decreasing from M
-q                  (P,)         wavenumber
+M                  ()           target wavenumbers are q = m pi / M (and q_stop)
+q                  (P,)         wavenumber, decreasing from pi
 xi                 (K+1,)       grid points j h on the half period [0, pi]
 u                  (P, K+1)     profile u(xi; q) on [0, pi]; u is odd and 2 pi-periodic (u(2 pi - xi) = -u(xi))
 norm_inf           (P,)         ||u||_inf (parabolic refinement of the grid maximum)
@@ -43,9 +42,9 @@ from .errors import BranchFileError
 
 FORMAT = "hertzpetsc-branch-1"
 SCALARS = ("alpha", "cells_per_pi", "h", "M")
-POINT_FIELDS = ("m", "q", "norm_inf", "slope", "ell", "N", "F", "T", "omega_A0", "rescaled_norm",
+POINT_FIELDS = ("q", "norm_inf", "slope", "ell", "N", "F", "T", "omega_A0", "rescaled_norm",
                 "snes_iterations", "ksp_iterations", "residual_norm", "snes_reason", "substeps", "wall_time")
-INT_FIELDS = ("m", "snes_iterations", "ksp_iterations", "snes_reason", "substeps")
+INT_FIELDS = ("snes_iterations", "ksp_iterations", "snes_reason", "substeps")
 
 
 def atomic_savez(path, **arrays):
@@ -115,8 +114,8 @@ def read_branch(path):
 
 def point_index(branch, q, tol=1e-12):
     """Index of the point at wavenumber ``q`` in a loaded branch, or :class:`BranchFileError`."""
-    i = int(np.argmin(np.abs(branch["q"] - q)))
-    if len(branch["q"]) == 0 or abs(branch["q"][i] - q) > tol * max(1.0, abs(q)):
+    i = int(np.argmin(np.abs(branch["q"] - q))) if len(branch["q"]) else -1
+    if i < 0 or abs(branch["q"][i] - q) > tol * max(1.0, abs(q)):
         raise BranchFileError(f"the branch has no point at q = {q:.12g} "
                               f"(it has q in [{branch['q'].min():.6g}, {branch['q'].max():.6g}])")
     return i

@@ -1,5 +1,5 @@
-"""Continuation of odd travelling waves in q, from the binary oscillation at q = pi down to q = m_stop pi / M
-(paper section 3.1).
+"""Continuation of odd travelling waves in q, from the binary oscillation at q = pi down to q_stop (default pi/M)
+through the targets q = m pi / M (paper section 3.1).
 
 Predictor: secant extrapolation of the rescaled profile q^(2/(alpha-1)) u, which stays O(1) along the whole
 branch while u grows like q^(-2/(alpha-1)) (eq. normscaling). Step control: the targets are q = m pi / M; if
@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
-from .advdelay import TW_PREFIX, AdvanceDelayProblem, SolveResult, solve_travelling_wave
+from .advdelay import TW_PREFIX, check_wavenumber, AdvanceDelayProblem, SolveResult, solve_travelling_wave
 from .binary import binary_oscillation
 from .diagnostics import point_diagnostics
 from .errors import ConvergenceError, ParameterError
@@ -28,7 +28,7 @@ class ContinuationParameters:
     alpha: float = 1.5
     M: int = 50
     cells_per_pi: int = 1000
-    m_stop: int = 1
+    q_stop: float = None
     max_halvings: int = 8
     max_corrector: float = 0.25
 
@@ -37,12 +37,12 @@ class ContinuationParameters:
         if not (isinstance(self.M, (int, np.integer)) and self.M >= 1):
             raise ParameterError("M", self.M, "must be an integer >= 1 (wavenumbers q = m pi / M)")
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        if not (isinstance(self.m_stop, (int, np.integer)) and 1 <= self.m_stop <= self.M):
-            raise ParameterError("m_stop", self.m_stop, f"must be an integer in [1, M] = [1, {self.M}]")
-        if self.q(self.m_stop) < self.h:
-            raise ParameterError("m_stop", self.m_stop,
-                                 f"q = {self.q(self.m_stop):.6g} is below the grid step h = {self.h:.6g}; "
-                                 "increase cells_per_pi or m_stop")
+        if self.q_stop is None:
+            object.__setattr__(self, "q_stop", math.pi / self.M)
+        object.__setattr__(self, "q_stop", check_wavenumber(self.q_stop, name="q_stop"))
+        if self.q_stop < self.h:
+            raise ParameterError("q_stop", self.q_stop, f"must be at least the grid step h = pi/{self.cells_per_pi}"
+                                 f" = {self.h:.6g}; increase cells_per_pi")
         if not (isinstance(self.max_halvings, (int, np.integer)) and self.max_halvings >= 0):
             raise ParameterError("max_halvings", self.max_halvings, "must be an integer >= 0")
         if not self.max_corrector > 0:
@@ -52,15 +52,18 @@ class ContinuationParameters:
     def h(self):
         return math.pi / self.cells_per_pi
 
-    def q(self, m):
-        return m * math.pi / self.M
+    def targets(self):
+        """The wavenumbers to report: m pi / M from pi down to q_stop, then q_stop itself if it is off that grid."""
+        qs = [m * math.pi / self.M for m in range(self.M, 0, -1) if m * math.pi / self.M >= self.q_stop * (1 - 1e-12)]
+        if abs(qs[-1] - self.q_stop) > 1e-12 * self.q_stop:
+            qs.append(self.q_stop)
+        return qs
 
 
 @dataclass
 class BranchPoint:
     """One converged point: its profile on [0, pi] (on every rank), solver statistics and diagnostics."""
 
-    m: int
     q: float
     u_half: np.ndarray
     solve: SolveResult
@@ -70,7 +73,7 @@ class BranchPoint:
 
     def record(self):
         """The per-point fields of the branch file (:data:`hertzpetsc.branchfile.POINT_FIELDS`)."""
-        return dict(m=self.m, q=self.q, snes_iterations=self.solve.iterations,
+        return dict(q=self.q, snes_iterations=self.solve.iterations,
                     ksp_iterations=self.solve.linear_iterations, residual_norm=self.solve.residual_norm,
                     snes_reason=self.solve.reason, substeps=self.substeps, wall_time=self.wall_time,
                     **self.diagnostics)
@@ -81,9 +84,10 @@ class ContinuationError(ConvergenceError):
 
     def __init__(self, last_q, failed_q, reason):
         self.last_q, self.failed_q = last_q, failed_q
+        last = (f"last converged q = {last_q:.12g}, everything up to it is saved" if last_q == last_q
+                else "no point converged")
         RuntimeError.__init__(self, f"continuation stopped: no convergence at q = {failed_q:.12g} even after step "
-                                    f"reduction ({reason}); last converged q = {last_q:.12g}, everything up to it "
-                                    "is saved")
+                                    f"reduction ({reason}); {last}")
         self.what, self.reason, self.where = "continuation", reason, dict(q=failed_q)
 
 
@@ -138,28 +142,27 @@ class BranchContinuation:
         diff.destroy()
         return size
 
-    def _point(self, m, q, u, result, substeps, wall):
+    def _point(self, q, u, result, substeps, wall):
         u_half = self.grid.half_profile(u)
         diag = point_diagnostics(u_half, q, self.grid.h, self.params.alpha)
-        return BranchPoint(m=m, q=q, u_half=u_half, solve=result, substeps=substeps, wall_time=wall,
+        return BranchPoint(q=q, u_half=u_half, solve=result, substeps=substeps, wall_time=wall,
                            diagnostics=diag)
 
     def start(self):
         """Solve at q = pi from the sampled binary oscillation u0 (lemma binary)."""
         u = self.grid.vec_from_half_profile(binary_oscillation(self.potential, self.grid.xi_half()))
-        q = self.params.q(self.params.M)
+        q = math.pi
         try:
             result = self._solve_at(q, u)
         except ConvergenceError as err:
             raise ContinuationError(float("nan"), q, err.reason) from None
         self._remember(q, u)
-        point = self._point(self.params.M, q, u, result, 1, result.wall_time)
+        point = self._point(q, u, result, 1, result.wall_time)
         u.destroy()
         return point
 
-    def step_to(self, m):
-        """Continue from the last converged point to q = m pi / M, halving the step on failure."""
-        q_target = self.params.q(m)
+    def step_to(self, q_target):
+        """Continue from the last converged point to ``q_target``, halving the step on failure."""
         q_last = self.history[-1][0]
         dq = q_target - q_last
         substeps, wall, halvings = 0, 0.0, 0
@@ -187,21 +190,23 @@ class BranchContinuation:
             substeps += 1
             self._remember(q, u)
             if q == q_target:
-                point = self._point(m, q, u, result, substeps, wall)
+                point = self._point(q, u, result, substeps, wall)
                 u.destroy()
                 return point
             u.destroy()
             q_last = q
             dq = q_target - q_last if abs(2 * dq) >= abs(q_target - q_last) else 2 * dq
 
-    def points(self, start_m=None):
-        """Yield the branch points from q = start_m pi / M (default: pi, from u0) down to m_stop pi / M."""
-        p = self.params
-        if start_m is None:
+    def points(self):
+        """Yield the branch points at the targets not yet computed (all of them, from u0 at q = pi, unless
+        :meth:`resume_from` seeded the continuation)."""
+        targets = self.params.targets()
+        if not self.history:
             yield self.start()
-            start_m = p.M - 1
-        for m in range(start_m, p.m_stop - 1, -1):
-            yield self.step_to(m)
+        q_done = self.history[-1][0]
+        for q in targets:
+            if q < q_done * (1 - 1e-12):
+                yield self.step_to(q)
 
     def destroy(self):
         for _, r in self.history:

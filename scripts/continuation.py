@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Compute the travelling-wave branch q = pi -> m_stop pi / M (paper section 3.1) and its figures.
+"""Compute the travelling-wave branch q = pi -> q_stop (paper section 3.1) and its figures.
 
     mpiexec -n 2 python scripts/continuation.py [options]
 
@@ -7,7 +7,7 @@ Application options (defaults reproduce the paper):
   -alpha 1.5            Hertz exponent (> 1)
   -M 50                 target wavenumbers q = m pi / M
   -cells_per_pi 1000    grid step h = pi / cells_per_pi
-  -m_stop 1             stop at q = m_stop pi / M
+  -q_stop pi/M          last wavenumber (any value in (0, pi]; "pi/50" style expressions allowed)
   -max_halvings 8       step reductions allowed per target q
   -max_corrector 0.25   relative change of the rescaled profile that makes a step be rejected and halved
   -output branch.npz    branch file, rewritten after every converged point
@@ -36,7 +36,7 @@ def read_parameters(opts):
         alpha=opts.real("alpha", 1.5),
         M=opts.integer("M", 50, minimum=1),
         cells_per_pi=opts.integer("cells_per_pi", 1000, minimum=4),
-        m_stop=opts.integer("m_stop", 1, minimum=1),
+        q_stop=opts.real("q_stop", None, expr=True),
         max_halvings=opts.integer("max_halvings", 8, minimum=0),
         max_corrector=opts.real("max_corrector", 0.25, valid=(lambda x: x > 0, "must be > 0")),
     )
@@ -48,7 +48,7 @@ def check_resumable(branch, params, path):
         stored, wanted = branch[name], getattr(params, name)
         if abs(float(stored) - float(wanted)) > 1e-12 * abs(float(wanted)):
             raise ParameterError(f"-{name}", wanted, f"must equal the value {stored} stored in {path} to resume it")
-    if len(branch["m"]) == 0:
+    if len(branch["q"]) == 0:
         raise BranchFileError(f"branch file {path!r} holds no point to resume from")
 
 
@@ -63,25 +63,23 @@ def main():
 
     cont = BranchContinuation(params, comm)
     scalars = dict(alpha=params.alpha, cells_per_pi=params.cells_per_pi, h=params.h, M=params.M)
-    start_m, existing = None, None
+    existing = None
     if resume:
         existing = read_branch(path)
         check_resumable(existing, params, path)
-        last_m = int(existing["m"][-1])
-        print0(f"resuming {path}: {len(existing['m'])} points, last q = {existing['q'][-1]:.6f} (m = {last_m})")
+        print0(f"resuming {path}: {len(existing['q'])} points, last q = {existing['q'][-1]:.6f}")
         cont.resume_from(existing["q"], existing["u"])
-        start_m = last_m - 1
     meta = run_metadata(params=dict(vars(params)), prefix="tw_")
     writer = BranchWriter(path, scalars, cont.grid.xi_half(), meta, existing) if rank0 else None
 
     print0(f"# alpha = {params.alpha}, h = pi/{params.cells_per_pi}, M = {params.M}, ranks = {comm.getSize()}")
-    print0(f"# {'q':>10} {'m':>3} {'newton':>6} {'residual':>10} {'|u|_inf':>12} {'N(q)':>7} {'T(q)':>7} {'substeps':>8}")
+    print0(f"# {'q':>10} {'newton':>6} {'residual':>10} {'|u|_inf':>12} {'N(q)':>7} {'T(q)':>7} {'substeps':>8}")
     try:
-        for pt in cont.points(start_m):
+        for pt in cont.points():
             if rank0:
                 writer.append(pt.u_half, **pt.record())
             d = pt.diagnostics
-            print0(f"  {pt.q:10.6f} {pt.m:3d} {pt.solve.iterations:6d} {pt.solve.residual_norm:10.3e} "
+            print0(f"  {pt.q:10.6f} {pt.solve.iterations:6d} {pt.solve.residual_norm:10.3e} "
                    f"{d['norm_inf']:12.6g} {d['N']:7.4f} {d['T']:7.4f} {pt.substeps:8d}")
     finally:
         cont.destroy()

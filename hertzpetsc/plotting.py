@@ -1,0 +1,136 @@
+"""Figures of the paper, from result files (numpy dicts). Called by scripts, never by solvers.
+
+matplotlib is imported lazily with the Agg backend, so this module can be imported on a machine without a screen.
+"""
+import math
+import os
+
+import numpy as np
+
+from .diagnostics import dispersion, dispersion_long_wave, q_k
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    return plt
+
+
+def _save(fig, directory, name):
+    path = os.path.join(directory, name)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    _pyplot().close(fig)
+    return path
+
+
+def _nearest(branch, q):
+    return int(np.argmin(np.abs(branch["q"] - q)))
+
+
+def branch_k_alpha(branch):
+    """Estimate of k_alpha from the branch: ||u||_inf q^(2/(alpha-1)) at its smallest q (eq. normscaling)."""
+    return float(branch["rescaled_norm"][np.argmin(branch["q"])])
+
+
+def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50)):
+    """Fig. profiles: u(xi; q) on a period for the branch points nearest to ``qs``."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(len(qs), 1, figsize=(6, 2.2 * len(qs)))
+    xi = branch["xi"]
+    xfull = np.concatenate([xi[:-1], 2 * math.pi - xi[:0:-1]])
+    for ax, q in zip(np.atleast_1d(axes), qs):
+        i = _nearest(branch, q)
+        u = branch["u"][i]
+        ax.plot(xfull, np.concatenate([u[:-1], -u[:0:-1]]), "k-", lw=1)
+        ax.set_xlim(0, 2 * math.pi)
+        ax.set_ylabel(r"$u(\xi)$")
+        ax.set_title(rf"$q = {branch['q'][i]:.4f}$", fontsize=10)
+    np.atleast_1d(axes)[-1].set_xlabel(r"$\xi$")
+    return _save(fig, directory, "profiles.png")
+
+
+def plot_norms(branch, directory, k_alpha=None):
+    """Fig. normes: ||u||_inf vs q (log scale) and the line k_alpha q^(2/(1-alpha))."""
+    plt = _pyplot()
+    a = branch["alpha"]
+    k = branch_k_alpha(branch) if k_alpha is None else k_alpha
+    q = branch["q"]
+    qq = np.linspace(q.min(), math.pi, 200)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.semilogy(q, branch["norm_inf"], "ko", ms=3, label="computed")
+    ax.semilogy(qq, k * qq ** (2 / (1 - a)), "b-", lw=1, label=rf"$k_\alpha q^{{2/(1-\alpha)}}$, $k_\alpha$ = {k:.4f}" + (" (branch, min q)" if k_alpha is None else ""))
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$\|u\|_\infty$")
+    ax.legend()
+    return _save(fig, directory, "normes.png")
+
+
+def plot_slopes(branch, directory, k_alpha=None):
+    """Fig. pentes: free-flight slope p(q) = u'(0) vs q (log scale) and the line (k_alpha/pi) q^(2/(1-alpha))."""
+    plt = _pyplot()
+    a = branch["alpha"]
+    k = branch_k_alpha(branch) if k_alpha is None else k_alpha
+    q = branch["q"]
+    qq = np.linspace(q.min(), math.pi, 200)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.semilogy(q, branch["slope"], "ko", ms=3, label="computed $u'(0)$")
+    ax.semilogy(qq, k / math.pi * qq ** (2 / (1 - a)), "b-", lw=1, label=r"$(k_\alpha/\pi)\, q^{2/(1-\alpha)}$")
+    ax.set_xlabel("$q$")
+    ax.set_ylabel("$u'$")
+    ax.legend()
+    return _save(fig, directory, "pentes.png")
+
+
+def plot_number(branch, directory):
+    """Fig. number: N(q), the mean number of adjacent interacting beads."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(branch["q"], branch["N"], "k.-", ms=4, lw=0.8)
+    ax.set_xlabel("$q$")
+    ax.set_ylabel("$N(q)$")
+    ax.grid(alpha=0.3)
+    return _save(fig, directory, "number.png")
+
+
+def plot_free_flight(branch, directory):
+    """Fig. lsq: F(q) = 2 ell(q) / q, with F = 1 and q_k marked."""
+    plt = _pyplot()
+    qk = q_k(branch["q"], branch["F"])
+    fig, ax = plt.subplots(figsize=(6, 4))
+    pos = branch["F"] > 0  # F(pi) = 0: no free flight for the binary oscillation
+    ax.semilogy(branch["q"][pos], branch["F"][pos], "k.-", ms=4, lw=0.8)
+    ax.axhline(1.0, color="gray", lw=0.6)
+    if np.isfinite(qk):
+        ax.axvline(qk, color="b", lw=0.6, ls="--", label=rf"$q_k = {qk:.3f}$")
+        ax.legend()
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$F(q) = 2\ell(q)/q$")
+    return _save(fig, directory, "lsq.png")
+
+
+def plot_dispersion(branch, directory, k_alpha=None):
+    """Fig. dispersplot: omega(q, A0) (eq. dispers) and its linear approximation at q = 0 (eq. disperseq)."""
+    plt = _pyplot()
+    from .hertz import HertzPotential
+    pot = HertzPotential(branch["alpha"])
+    A0 = float(pot.amplitude(pot.p0))
+    k = branch_k_alpha(branch) if k_alpha is None else k_alpha
+    q = branch["q"]
+    qq = np.linspace(0, math.pi, 200)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(q, dispersion(branch["norm_inf"], A0, pot.alpha), "k.-", ms=4, lw=0.8, label=r"$\omega(q, A_0)$")
+    ax.plot(qq, dispersion_long_wave(qq, A0, pot.alpha, k), "b--", lw=0.8, label="linear approximation")
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$\omega$")
+    ax.set_ylim(0, 1.1 * max(1.0, float(np.max(dispersion(branch["norm_inf"], A0, pot.alpha)))))
+    ax.legend()
+    return _save(fig, directory, "dispersplot.png")
+
+
+def plot_branch_figures(branch, directory, k_alpha=None):
+    """All figures of section 3.1; returns the paths written."""
+    return [plot_profiles(branch, directory), plot_norms(branch, directory, k_alpha),
+            plot_slopes(branch, directory, k_alpha), plot_number(branch, directory),
+            plot_free_flight(branch, directory), plot_dispersion(branch, directory, k_alpha)]

@@ -12,7 +12,7 @@ stencils of :func:`hertzpetsc.stencil.shift_stencil`; the exact Jacobian
 
 is assembled as a parallel AIJ matrix. :func:`solve_travelling_wave` solves R(u) = 0 with PETSc SNES under the
 options prefix ``tw_`` (defaults: Newton with backtracking line search, direct LU, MUMPS on several ranks;
-the paper's Broyden is ``-tw_snes_type qn``).
+quasi-Newton, as in the paper, is ``-tw_snes_type qn``, see :data:`QN_DEFAULTS`).
 """
 import math
 import time
@@ -127,6 +127,17 @@ def default_tolerances(grid, u_scale):
     return dict(rtol=1e-12, atol=atol, stol=1e-12, max_it=50)
 
 
+# Defaults for -tw_snes_type qn (the paper used Broyden's method). With PETSc 3.18, L-BFGS scaled by the
+# Jacobian with the critical-point line search converges along the whole branch; the Broyden variants
+# (-tw_snes_qn_type broyden) diverge at the first step from u0 whatever the scaling. Inserted only for the
+# solve, and only where the user did not set them.
+QN_DEFAULTS = {"snes_qn_scale_type": "jacobian", "snes_linesearch_type": "cp"}
+
+# A converged point must satisfy ||R||_2 <= ACCEPT_FACTOR * atol (atol from the solution's own scale): guards
+# against SNES stopping on a small relative step far from a solution (possible with -snes_divergence_tolerance -1).
+ACCEPT_FACTOR = 1e3
+
+
 def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None):
     """SNES with the paper-reproducing defaults, then the options database under ``prefix`` (read once)."""
     comm = problem.grid.comm
@@ -144,7 +155,18 @@ def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None):
     pc.setType(PETSc.PC.Type.LU)
     if comm.getSize() > 1:
         pc.setFactorSolverType("mumps")
-    snes.setFromOptions()
+    opts = PETSc.Options()
+    inserted = []
+    if opts.getString(prefix + "snes_type", "") == "qn":
+        for key, value in QN_DEFAULTS.items():
+            if not opts.hasName(prefix + key):
+                opts.setValue(prefix + key, value)
+                inserted.append(prefix + key)
+    try:
+        snes.setFromOptions()
+    finally:
+        for key in inserted:
+            opts.delValue(key)
     F.destroy()
     return snes
 
@@ -171,4 +193,9 @@ def solve_travelling_wave(problem, u, prefix=TW_PREFIX, tolerances=None):
         J.destroy()
     if result.reason <= 0:
         raise ConvergenceError("travelling-wave SNES (prefix -%s)" % prefix, result.reason, q=problem.q)
+    accept = ACCEPT_FACTOR * default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))["atol"]
+    if not result.residual_norm <= accept:
+        raise ConvergenceError("travelling-wave SNES (prefix -%s)" % prefix,
+                               f"{result.reason}, but residual {result.residual_norm:.3g} > {accept:.3g}",
+                               q=problem.q)
     return result

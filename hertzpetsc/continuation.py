@@ -5,7 +5,8 @@ Predictor: secant extrapolation of the rescaled profile q^(2/(alpha-1)) u, which
 branch while u grows like q^(-2/(alpha-1)) (eq. normscaling). Step control: the targets are q = m pi / M; if
 SNES fails, or the corrector moves the rescaled profile by more than ``max_corrector`` (relative, sup norm),
 the step is halved (intermediate q need not be on the grid: shifts are interpolated) and retried, up to
-``max_halvings`` times. Each target point is yielded as soon as it has converged, so the caller can save it.
+``max_halvings`` consecutive times; after a success the step doubles again (up to the next target). Each
+target point is yielded as soon as it has converged, so the caller can save it.
 """
 import math
 from dataclasses import dataclass, field
@@ -188,6 +189,7 @@ class BranchContinuation:
                 dq *= 0.5
                 continue
             substeps += 1
+            halvings = 0          # max_halvings bounds consecutive reductions, not their total
             self._remember(q, u)
             if q == q_target:
                 point = self._point(q, u, result, substeps, wall)

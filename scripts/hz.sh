@@ -73,9 +73,9 @@ case "$cmd" in
     test)
         setup
         cd "$ROOT"
-        "$PY" -m pytest -p no:cacheprovider -q tests "$@"
+        "$PY" -m pytest -p no:cacheprovider -q --color=no tests "$@"
         log "re-running the parallel-capable tests under mpiexec -n 2"
-        timeout 900 mpiexec -n 2 "$PY" -m pytest -p no:cacheprovider -q -m "not serial" tests "$@" ;;
+        timeout 900 mpiexec -n 2 "$PY" -m pytest -p no:cacheprovider -q --color=no -m "not serial" tests "$@" ;;
     run)
         setup
         cd "$ROOT"

@@ -31,18 +31,22 @@ def slope_at_origin(u_half, h):
 
 
 def free_flight_half_length(u_half, q, h):
-    """ell(q): both shift differences u(xi+q) - u(xi) and u(xi) - u(xi-q) are >= 0 on [-ell, ell].
+    """ell(q): both shift differences d+ = u(xi+q) - u(xi) and d- = u(xi) - u(xi-q) are >= 0 on [-ell, ell].
 
-    On the grid, g_j = min(d+_j, d-_j) for xi_j in [0, pi]; ell is where g first changes sign, located by linear
-    interpolation between the last grid point with g >= 0 and the first with g < 0 (ell = 0 if g_0 <= 0, as at
-    q = pi where u(xi + pi) - u(xi) = -2 u(xi)). Returns pi if g never becomes negative on [0, pi].
+    On the grid, g_j = min(d+_j, d-_j) for xi_j in [0, pi]; ell lies between the last grid point with g >= 0
+    and the first with g < 0. It is located as the root, in that cell, of the cubic interpolating the
+    difference that changes sign there at the four surrounding grid points (linear interpolation would leave
+    an O(h^2 d''/d') error that oscillates with the crossing's position in its cell and is large where the
+    compression region is steep). ell = 0 if g_0 <= 0, as at q = pi where u(xi + pi) - u(xi) = -2 u(xi);
+    ell = pi if g never becomes negative on [0, pi].
     """
     u_full = full_period(u_half)
     sigma = q / h
     K = len(u_half) - 1
-    dplus = (shifted(u_full, sigma) - u_full)[:K + 1]
-    dminus = (u_full - shifted(u_full, -sigma))[:K + 1]
-    g = np.minimum(dplus, dminus)
+    n = 2 * K
+    dplus = shifted(u_full, sigma) - u_full
+    dminus = u_full - shifted(u_full, -sigma)
+    g = np.minimum(dplus, dminus)[:K + 1]
     # g_0 = u(q) > 0 in exact arithmetic for q < pi; round-off on an exact zero must not count as contact.
     tiny = 64 * np.finfo(float).eps * np.max(np.abs(u_half))
     neg = np.nonzero(g < -tiny)[0]
@@ -51,7 +55,17 @@ def free_flight_half_length(u_half, q, h):
     j = int(neg[0])
     if j == 0 or g[j - 1] <= tiny:
         return (j - 1) * h if j > 0 else 0.0
-    return (j - 1) * h + h * g[j - 1] / (g[j - 1] - g[j])
+    d = dplus if dplus[j] < -tiny else dminus
+    y = d[np.arange(j - 2, j + 2) % n]           # values at t = -1, 0, 1, 2 with t = (xi - xi_{j-1}) / h
+    c = np.polyfit([-1.0, 0.0, 1.0, 2.0], y, 3)
+    lo, hi = 0.0, 1.0                            # y(0) >= 0 > y(1): bisection keeps the cubic's root in the cell
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if np.polyval(c, mid) >= 0:
+            lo = mid
+        else:
+            hi = mid
+    return (j - 1 + 0.5 * (lo + hi)) * h
 
 
 def point_diagnostics(u_half, q, h, alpha):

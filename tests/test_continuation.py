@@ -53,14 +53,14 @@ def test_other_exponents_run_unchanged(alpha):
 
 
 def test_second_order_convergence_in_h():
-    """||u||_inf and p(q) converge like h^2 (observed on three grids) at a few q."""
+    """||u||_inf, p(q) and N(q) converge like h^2 (observed on three grids) at a few q."""
     q_check = [0.8 * math.pi, 0.5 * math.pi, 0.3 * math.pi]
     vals = {}
     for K in (100, 200, 400):
         pts = branch(M=10, cells_per_pi=K, q_stop=0.3 * math.pi)
-        vals[K] = {round(p.q, 9): (p.diagnostics["norm_inf"], p.diagnostics["slope"]) for p in pts}
+        vals[K] = {round(p.q, 9): tuple(p.diagnostics[k] for k in ("norm_inf", "slope", "N")) for p in pts}
     for q in q_check:
-        for i in (0, 1):
+        for i in (0, 1, 2):
             a, b, c = (vals[K][round(q, 9)][i] for K in (100, 200, 400))
             order = math.log2(abs(a - b) / abs(b - c))
             # three-grid estimate; the C^{3,1/2} regularity of u adds O(h^2.5) terms: +- 0.3 on these grids

@@ -99,3 +99,22 @@ def test_divergence_is_reported_not_accepted(tmp_path):
                    tmp_path / "b.npz", "-tw_snes_type", "qn", "-tw_snes_qn_type", "broyden",
                    "-tw_snes_linesearch_type", "basic", "-tw_snes_divergence_tolerance", -1, "-tw_snes_max_it", 200)
     assert r.returncode == 3 and "continuation stopped" in r.stderr, r.stderr
+
+
+def test_convergence_study_script(tmp_path):
+    out = tmp_path / "conv.md"
+    r = run_script("convergence_h.py", "-M", 10, "-cells", "100,200,400", "-output", out)
+    assert r.returncode == 0, r.stderr
+    rows = [l for l in out.read_text().splitlines() if l.startswith("| 3pi/10 | norm_inf")]
+    assert len(rows) == 1 and abs(float(rows[0].split("|")[-3]) - 2) < 0.3   # observed order column
+    assert run_script("convergence_h.py", "-cells", "100,200").returncode == 2
+
+
+def test_benchmark_script(tmp_path):
+    out = tmp_path / "bench.md"
+    r = run_script("bench_branch.py", "-cells", 100, "-repeats", 1, "-M", 10, "-output", out, timeout=600)
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    assert text.count("| pi/100 |") == 3 and "SciPy spsolve" in text
+    # both routes solve the same discretisation: the last column (relative difference) is at round-off level
+    assert all(float(l.split("|")[-2]) < 1e-10 for l in text.splitlines() if l.startswith("| pi/100 |"))

@@ -1,0 +1,252 @@
+"""The Hertzian chain (eq. nc) on PETSc: state, right-hand side, exact Jacobian, energy, variational equations.
+
+    x_n'' = V'(x_{n+1} - x_n) - V'(x_n - x_{n-1}),   V'(r) = -|r|^alpha H(-r),
+
+for N beads with periodic boundary conditions x_{n+N} = x_n (eq. pbcl), free ends (no force beyond the first and
+last bead) or fixed ends (walls at rest at x_0 = x_{N+1} = 0). The state X = (x_n, xdot_n)_n is a PETSc Vec on a
+1-D DMDA (bead-major, 2 dof per bead, stencil width 1: nearest neighbours are a genuine stencil here).
+
+With ``n_tangent = k`` the DMDA carries k tangent vectors Y_i = (y_n, ydot_n) next to X, and the right-hand
+side is that of the variational equations Y' = Df(X) Y as well: one TS then integrates the flow and its
+tangent-linear map together (the resolvent R(t; 0) of the paper's sections 3.4-3.5).
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from petsc4py import PETSc
+
+from .errors import ConvergenceError, ParameterError
+from .hertz import HertzPotential, check_alpha
+
+BOUNDARIES = ("periodic", "free", "fixed")
+CHAIN_PREFIX = "chain_"
+
+
+@dataclass(frozen=True)
+class ChainParameters:
+    """A chain of N beads with Hertz exponent alpha and the given boundary condition."""
+
+    alpha: float = 1.5
+    N: int = 100
+    boundary: str = "periodic"
+
+    def __post_init__(self):
+        object.__setattr__(self, "alpha", check_alpha(self.alpha))
+        if not (isinstance(self.N, (int, np.integer)) and self.N >= 3):
+            raise ParameterError("N", self.N, "the number of beads must be an integer >= 3")
+        if self.boundary not in BOUNDARIES:
+            raise ParameterError("boundary", self.boundary, f"must be one of {', '.join(BOUNDARIES)}")
+
+
+@dataclass(frozen=True)
+class IntegrationTolerances:
+    """Adaptive time-stepping tolerances; the defaults are the paper's (rtol 1e-12, atol 1e-14)."""
+
+    rtol: float = 1e-12
+    atol: float = 1e-14
+
+    def __post_init__(self):
+        for name in ("rtol", "atol"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                raise ParameterError(name, v, "the integration tolerance must be a positive real number")
+
+
+class Chain:
+    """eq. nc on a DMDA; the methods ``rhs`` and ``rhs_jacobian`` are TS callbacks."""
+
+    def __init__(self, params, comm=None, n_tangent=0):
+        self.params = params
+        self.potential = HertzPotential(params.alpha)
+        self.comm = comm if comm is not None else PETSc.COMM_WORLD
+        self.n_tangent = int(n_tangent)
+        self.dof = 2 * (1 + self.n_tangent)
+        periodic = params.boundary == "periodic"
+        bt = PETSc.DM.BoundaryType.PERIODIC if periodic else PETSc.DM.BoundaryType.GHOSTED
+        if self.comm.getSize() > params.N:
+            raise ParameterError("N", params.N, f"must be at least the number of ranks ({self.comm.getSize()})")
+        self.da = PETSc.DMDA().create(dim=1, sizes=(params.N,), dof=self.dof, stencil_width=1, boundary_type=(bt,),
+                                      stencil_type=PETSc.DMDA.StencilType.STAR, comm=self.comm)
+        self.da.setUp()
+        (self.xs, self.xe), = self.da.getRanges()
+        self.nloc = self.xe - self.xs
+        self.local = self.da.createLocalVec()
+        self.first = self.xs == 0 and not periodic
+        self.last = self.xe == params.N and not periodic
+        self._shift = None
+
+    # --- layout helpers ---------------------------------------------------------------------------------------
+    def create_state(self):
+        return self.da.createGlobalVec()
+
+    def _ghosted(self, X):
+        """Local values with one ghost bead on each side, shape (nloc + 2, dof); walls for fixed ends."""
+        self.da.globalToLocal(X, self.local)
+        a = self.local.getArray(readonly=True).reshape(self.nloc + 2, self.dof)
+        if self.params.boundary == "fixed" and (self.first or self.last):
+            a = a.copy()
+            if self.first:
+                a[0] = 0.0
+            if self.last:
+                a[-1] = 0.0
+        return a
+
+    def _bond_mask(self):
+        """1 for bonds that carry a force, 0 for the missing bonds beyond free ends (bond i joins ghosted i, i+1)."""
+        m = np.ones(self.nloc + 1)
+        if self.params.boundary == "free":
+            if self.first:
+                m[0] = 0.0
+            if self.last:
+                m[-1] = 0.0
+        return m
+
+    # --- eq. nc and its variational equations -------------------------------------------------------------
+    def rhs(self, ts, t, X, F):
+        a = self._ghosted(X)
+        V = self.potential
+        x = a[:, 0]
+        r = x[1:] - x[:-1]                          # bond lengths x_{n+1} - x_n
+        mask = self._bond_mask()
+        bond = V.dV(r) * mask
+        out = F.getArray().reshape(self.nloc, self.dof)
+        out[:, 0] = a[1:-1, 1]
+        out[:, 1] = bond[1:] - bond[:-1]
+        if self.n_tangent:
+            stiff = (V.d2V(r) * mask)[:, None]
+            y = a[:, 2::2]                           # (nloc + 2, k) tangent displacements
+            dy = y[1:] - y[:-1]
+            out[:, 2::2] = a[1:-1, 3::2]
+            out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1]
+
+    def rhs_jacobian(self, ts, t, X, J, P):
+        """Exact Jacobian Df(X) of eq. nc (for implicit integrators); only for the chain without tangents.
+        Assembled entry by entry: adequate for the chain lengths where implicit integration is used."""
+        a = self._ghosted(X)
+        r = a[1:, 0] - a[:-1, 0]
+        s = self.potential.d2V(r) * self._bond_mask()    # bond stiffness V''(x_{n+1} - x_n)
+        N = self.params.N
+        n = np.arange(self.xs, self.xe)
+        rows_x = 2 * n
+        rows_v = 2 * n + 1
+        left, right = (n - 1) % N, (n + 1) % N
+        P.zeroEntries()
+        for i in range(self.nloc):
+            P.setValue(rows_x[i], rows_v[i], 1.0)
+            sl, sr = s[i], s[i + 1]
+            P.setValue(rows_v[i], 2 * n[i], -(sl + sr), addv=True)
+            if not (self.first and i == 0):
+                P.setValue(rows_v[i], 2 * left[i], sl, addv=True)
+            if not (self.last and i == self.nloc - 1):
+                P.setValue(rows_v[i], 2 * right[i], sr, addv=True)
+        P.assemble()
+        if J.handle != P.handle:
+            J.assemble()
+
+    def create_jacobian(self):
+        J = self.da.createMatrix()
+        J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        return J
+
+    # --- diagnostics --------------------------------------------------------------------------------------
+    def energy(self, X):
+        """Total energy (eq. ham): sum of v^2/2 and of V over the bonds (with the walls for fixed ends)."""
+        a = self._ghosted(X)
+        r = a[1:, 0] - a[:-1, 0]
+        Vb = self.potential.V(r) * self._bond_mask()
+        # each rank counts the bonds to the right of its beads, plus the left wall bond for fixed ends
+        local = 0.5 * np.sum(a[1:-1, 1] ** 2) + np.sum(Vb[1:])
+        if self.params.boundary == "fixed" and self.first:
+            local += Vb[0]
+        return self.comm.tompi4py().allreduce(float(local))
+
+    # --- the spatial shift S X = (X_2, ..., X_N, X_1) of section 3.5 -------------------------------------------
+    def shift(self, X, out):
+        """out = S X (periodic chains): bead n of ``out`` holds bead n+1 of ``X``, all dof."""
+        if self.params.boundary != "periodic":
+            raise ParameterError("boundary", self.params.boundary, "the shift S needs a periodic chain")
+        if self._shift is None:
+            N, d = self.params.N, self.dof
+            src = ((np.arange(self.xs, self.xe)[:, None] + 1) % N * d + np.arange(d)[None, :]).ravel()
+            dst = (np.arange(self.xs, self.xe)[:, None] * d + np.arange(d)[None, :]).ravel()
+            isf = PETSc.IS().createGeneral(src.astype(PETSc.IntType), comm=self.comm)
+            ist = PETSc.IS().createGeneral(dst.astype(PETSc.IntType), comm=self.comm)
+            self._shift = PETSc.Scatter().create(X, isf, out, ist)
+            isf.destroy()
+            ist.destroy()
+        self._shift.scatter(X, out, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+
+    def gather(self, X):
+        """The whole state as a numpy array of shape (N, dof) on every rank."""
+        scatter, full = PETSc.Scatter.toAll(X)
+        scatter.scatter(X, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+        out = full.getArray(readonly=True).reshape(self.params.N, self.dof).copy()
+        scatter.destroy()
+        full.destroy()
+        return out
+
+    def set_from_array(self, X, values):
+        """Set X from a (N, dof) array given on every rank."""
+        values = np.asarray(values, dtype=float).reshape(self.params.N, self.dof)
+        X.getArray()[:] = values[self.xs:self.xe].ravel()
+
+    def destroy(self):
+        if self._shift is not None:
+            self._shift.destroy()
+        self.local.destroy()
+        self.da.destroy()
+
+
+class ChainIntegrator:
+    """PETSc TS for a chain, under the options prefix ``chain_`` (e.g. -chain_ts_type, -chain_ts_rk_type,
+    -chain_ts_rtol). Default: adaptive explicit Runge-Kutta 8(7) (Verner), rtol 1e-12, atol 1e-14 as in the
+    paper, steps matched to the final time."""
+
+    def __init__(self, chain, tolerances=None, prefix=CHAIN_PREFIX, rk_type="8vr"):
+        self.chain = chain
+        tol = tolerances or IntegrationTolerances()
+        ts = PETSc.TS().create(comm=chain.comm)
+        ts.setOptionsPrefix(prefix)
+        ts.setProblemType(PETSc.TS.ProblemType.NONLINEAR)
+        ts.setType(PETSc.TS.Type.RK)
+        ts.setRKType(rk_type)
+        self._F = chain.create_state()
+        ts.setRHSFunction(chain.rhs, self._F)
+        if chain.n_tangent == 0:
+            self._J = chain.create_jacobian()
+            ts.setRHSJacobian(chain.rhs_jacobian, self._J, self._J)
+        else:
+            self._J = None
+        ts.setTolerances(rtol=tol.rtol, atol=tol.atol)
+        ts.setExactFinalTime(PETSc.TS.ExactFinalTime.MATCHSTEP)
+        ts.setMaxSteps(10 ** 9)
+        ts.setTimeStep(1e-3)
+        ts.setFromOptions()
+        self.ts = ts
+        self.steps = 0
+
+    @PETSc.Log.EventDecorator("hz_chain_integrate")
+    def integrate(self, X, t0, t1, dt=None):
+        """Advance X (in place) from t0 to t1; returns the number of steps. Raises ConvergenceError on failure."""
+        if not t1 > t0:
+            raise ParameterError("time", t1, f"the final time must exceed the initial time {t0}")
+        ts = self.ts
+        ts.setTime(t0)
+        ts.setMaxTime(t1)
+        ts.setStepNumber(0)
+        if dt is not None:
+            ts.setTimeStep(dt)
+        ts.solve(X)
+        reason = ts.getConvergedReason()
+        if reason < 0 or abs(ts.getTime() - t1) > 1e-12 * max(1.0, abs(t1)):
+            raise ConvergenceError("chain TS (prefix -%s)" % ts.getOptionsPrefix(), int(reason), t=ts.getTime())
+        n = ts.getStepNumber()
+        self.steps += n
+        return n
+
+    def destroy(self):
+        self.ts.destroy()
+        self._F.destroy()
+        if self._J is not None:
+            self._J.destroy()

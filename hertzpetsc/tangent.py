@@ -1,0 +1,95 @@
+"""The tangent-linear flow of the chain over a time T, built once and used twice: by the Gauss-Newton refinement
+(section 3.4, Jacobian S R(script-T; 0) - I) and by the Floquet analysis (section 3.5, F_q = S R(script-T; 0)).
+
+:class:`TangentFlow` integrates X' = f(X) together with k tangent vectors Y' = Df(X) Y in one TS (the chain DMDA
+with 2(1+k) dof per bead), so that R(T; 0) Y0 comes out with the same adaptive steps as X(T).
+:meth:`TangentFlow.monodromy_mod_shift` assembles S R(T; 0) densely (k = 2N columns, for N up to a few hundred);
+:class:`MonodromyModShift` is the same map as a matrix-free ``Mat.createPython`` operator (one product = one
+integration with k = 1) for SLEPc.
+"""
+import numpy as np
+from petsc4py import PETSc
+
+from .chain import CHAIN_PREFIX, Chain, ChainIntegrator
+
+
+class TangentFlow:
+    """Flow and tangent-linear flow of a chain over [0, T], with k tangent vectors at a time."""
+
+    def __init__(self, params, n_tangent, comm=None, tolerances=None, prefix=CHAIN_PREFIX):
+        self.params = params
+        self.k = int(n_tangent)
+        self.aug = Chain(params, comm, n_tangent=self.k)
+        self.base = Chain(params, self.aug.comm)       # same N and comm: same ownership ranges
+        self.integrator = ChainIntegrator(self.aug, tolerances, prefix)
+        self.Z = self.aug.create_state()
+
+    def run(self, x0, T, Y0):
+        """Integrate from the state ``x0`` (N, 2) and tangent columns ``Y0`` (N, 2, k), both given on every rank.
+
+        Returns (X(T) as (N, 2), R(T; 0) Y0 as (N, 2, k)) on every rank.
+        """
+        N, k = self.params.N, self.k
+        z = np.concatenate([np.asarray(x0, float).reshape(N, 2), np.asarray(Y0, float).reshape(N, 2, k)
+                            .transpose(0, 2, 1).reshape(N, 2 * k)], axis=1)
+        self.aug.set_from_array(self.Z, z)
+        self.integrator.integrate(self.Z, 0.0, T)
+        out = self.aug.gather(self.Z)
+        return out[:, :2].copy(), out[:, 2:].reshape(N, k, 2).transpose(0, 2, 1).copy()
+
+    def monodromy_mod_shift(self, x0, T):
+        """Dense S R(T; 0) (2N x 2N, index 2n + c for bead n, component c) and S X(T), on every rank.
+
+        Requires k = 2N; the columns are the images of the unit vectors e_{2n+c}.
+        """
+        N = self.params.N
+        if self.k != 2 * N:
+            raise ValueError(f"the dense monodromy needs n_tangent = 2N = {2 * N}, not {self.k}")
+        eye = np.eye(2 * N).reshape(N, 2, 2 * N)
+        xT, RY = self.run(x0, T, eye)
+        R = RY.reshape(2 * N, 2 * N)
+        return np.roll(R, -2, axis=0), np.roll(xT, -1, axis=0)
+
+    def destroy(self):
+        self.Z.destroy()
+        self.integrator.destroy()
+        self.aug.destroy()
+        self.base.destroy()
+
+
+class MonodromyModShift:
+    """Matrix-free F = S R(T; 0) around the orbit from ``x0``: a ``Mat.createPython`` context.
+
+    Each product integrates the chain and one tangent vector over [0, T] (the orbit is recomputed, which keeps
+    memory at O(N)); ``products`` counts them.
+    """
+
+    def __init__(self, params, x0, T, comm=None, tolerances=None, prefix=CHAIN_PREFIX):
+        self.flow = TangentFlow(params, 1, comm, tolerances, prefix)
+        self.x0 = np.asarray(x0, dtype=float).reshape(params.N, 2)
+        self.T = float(T)
+        self.products = 0
+        chain = self.flow.aug
+        self._zero_tangent = np.zeros((params.N, 2, 1))
+        self._ownership = (chain.xs, chain.xe)
+
+    def mult(self, mat, x, y):
+        comm_chain = self.flow.base
+        full = comm_chain.gather(x)                      # (N, 2) on every rank
+        _, RY = self.flow.run(self.x0, self.T, full[:, :, None])
+        shifted = np.roll(RY[:, :, 0], -1, axis=0)
+        xs, xe = self._ownership
+        y.getArray()[:] = shifted[xs:xe].ravel()
+        self.products += 1
+
+    def create_mat(self):
+        """The PETSc shell matrix (2N x 2N, the chain's layout)."""
+        base = self.flow.base
+        n_local = 2 * base.nloc
+        N2 = 2 * self.flow.params.N
+        mat = PETSc.Mat().createPython(((n_local, N2), (n_local, N2)), context=self, comm=base.comm)
+        mat.setUp()
+        return mat
+
+    def destroy(self):
+        self.flow.destroy()

@@ -133,7 +133,7 @@ class Chain:
         left, right = (n - 1) % N, (n + 1) % N
         P.zeroEntries()
         for i in range(self.nloc):
-            P.setValue(rows_x[i], rows_v[i], 1.0)
+            P.setValue(rows_x[i], rows_v[i], 1.0, addv=True)
             sl, sr = s[i], s[i + 1]
             P.setValue(rows_v[i], 2 * n[i], -(sl + sr), addv=True)
             if not (self.first and i == 0):

@@ -119,3 +119,61 @@ def point_index(branch, q, tol=1e-12):
         raise BranchFileError(f"the branch has no point at q = {q:.12g} "
                               f"(it has q in [{branch['q'].min():.6g}, {branch['q'].max():.6g}])")
     return i
+
+
+# --- refined travelling-wave states (section 3.4), one file per chain length -----------------------------------
+REFINED_FORMAT = "hertzpetsc-refined-1"
+REFINED_FIELDS = ("q", "E_before_paper_flow", "E_before", "E_after", "E_after_paper_flow", "r", "iterations",
+                  "jacobians", "wall_time", "sigma_min")
+
+
+class RefinedWriter:
+    """Refined states X^(q) (N, 2) with their residuals, rewritten atomically after each q. One rank only.
+
+    Fields (P = number of q): ``q`` (P,); ``x`` (P, N, 2) refined (x_n, xdot_n); ``E_before`` / ``E_after``
+    E(q) of the interpolated branch wave / of the refined state, measured with the tight flow (rtol 1e-14);
+    ``E_before_paper_flow`` / ``E_after_paper_flow`` the same with the paper's rtol 1e-12; ``r`` relative
+    difference of the last two Gauss-Newton iterates; ``iterations``, ``jacobians``, ``wall_time``;
+    ``sigma_min`` the smallest singular value of the Jacobian restricted by the phase conditions;
+    scalars ``alpha``, ``N``, ``branch`` (path), ``format``.
+    """
+
+    def __init__(self, path, alpha, N, branch_path, existing=None):
+        self.path, self.alpha, self.N, self.branch_path = path, alpha, N, branch_path
+        self.rows = {k: list(existing[k]) for k in REFINED_FIELDS} if existing else {k: [] for k in REFINED_FIELDS}
+        self.x = list(existing["x"]) if existing else []
+
+    def append(self, x, **fields):
+        for k in REFINED_FIELDS:
+            self.rows[k].append(fields[k])
+        self.x.append(np.asarray(x, dtype=float))
+        atomic_savez(self.path, format=np.array(REFINED_FORMAT), alpha=np.asarray(self.alpha),
+                     N=np.asarray(self.N), branch=np.array(self.branch_path),
+                     x=np.array(self.x).reshape(len(self.x), self.N, 2),
+                     **{k: np.asarray(v, dtype=float) for k, v in self.rows.items()})
+
+
+def read_refined(path):
+    """Load a refinement file (dict of arrays); :class:`RunFileError` if unusable."""
+    from .errors import RunFileError
+    if not os.path.exists(path):
+        raise RunFileError(f"refinement file {path!r} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+        raise RunFileError(f"refinement file {path!r} is corrupt ({err})") from None
+    if str(data.get("format", "")) != REFINED_FORMAT or set(REFINED_FIELDS) - set(data):
+        raise RunFileError(f"{path!r} is not a hertzpetsc refinement file")
+    data["N"], data["alpha"] = int(data["N"]), float(data["alpha"])
+    return data
+
+
+def refined_state(path, q, N):
+    """The refined (N, 2) state at wavenumber q from a refinement file, or None if the file lacks that q."""
+    from .errors import RunFileError
+    data = read_refined(path)
+    if data["N"] != N:
+        raise RunFileError(f"refinement file {path!r} is for N = {data['N']} beads, not {N}")
+    i = np.nonzero(np.abs(data["q"] - q) <= 1e-12 * max(1.0, q))[0]
+    return data["x"][i[0]] if len(i) else None

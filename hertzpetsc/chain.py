@@ -223,6 +223,11 @@ class ChainIntegrator:
         ts.setMaxSteps(10 ** 9)
         ts.setTimeStep(1e-3)
         ts.setFromOptions()
+        rtol, atol = ts.getTolerances()
+        for name, value in (("rtol", rtol), ("atol", atol)):
+            if not (value > 0 and math.isfinite(value)):
+                ts.destroy()
+                raise ParameterError(f"-{prefix}ts_{name}", value, "the integration tolerance must be positive")
         self.ts = ts
         self.steps = 0
 

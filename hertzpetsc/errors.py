@@ -28,3 +28,7 @@ class ConvergenceError(HertzPetscError, RuntimeError):
 
 class BranchFileError(HertzPetscError, IOError):
     """A branch file is missing, corrupt, or belongs to another computation."""
+
+
+class RunFileError(BranchFileError):
+    """A snapshot directory or refinement file is missing, corrupt, or belongs to another run."""

@@ -134,3 +134,66 @@ def plot_branch_figures(branch, directory, k_alpha=None):
     return [plot_profiles(branch, directory), plot_norms(branch, directory, k_alpha),
             plot_slopes(branch, directory, k_alpha), plot_number(branch, directory),
             plot_free_flight(branch, directory), plot_dispersion(branch, directory, k_alpha)]
+
+
+# --- section 3.4: residuals and chain dynamics ---------------------------------------------------------------
+def plot_errors(refined, directory):
+    """Fig. errors: E(q) before (dotted) and after (full) refinement, and r(q) (dash-dot), semi-log."""
+    plt = _pyplot()
+    order = np.argsort(refined["q"])
+    q = refined["q"][order]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.semilogy(q, refined["E_before_paper_flow"][order], "k:", label="E(q), branch wave (rtol 1e-12 flow)")
+    ax.semilogy(q, refined["E_after"][order], "k-", label="E(q), refined (rtol 1e-14 flow)")
+    ax.semilogy(q, refined["r"][order], "k-.", lw=0.8, label="r(q), last Gauss-Newton step")
+    ax.set_xlabel("$q$")
+    ax.set_ylabel("errors")
+    ax.legend(fontsize=8)
+    return _save(fig, directory, "errors.png")
+
+
+def bond_forces(states, boundary="periodic"):
+    """V'(x_{n+1} - x_n) / (-|.|^alpha) without alpha: the bond compressions min(x_{n+1} - x_n, 0), per snapshot."""
+    x = states[..., 0]
+    r = np.roll(x, -1, axis=-1) - x if boundary == "periodic" else np.diff(x, axis=-1)
+    return np.minimum(r, 0.0)
+
+
+def plot_snapshot(x0, xt, t, directory, name, title=""):
+    """Bead displacements at time t (line) against the initial state (dots), as in figs. stabletw, shockbis."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 3))
+    n = np.arange(1, len(x0) + 1)
+    ax.plot(n, xt, "k-", lw=1, label=f"$t = {t:.1f}$")
+    ax.plot(n, x0, "b.", ms=3, label="$t = 0$")
+    ax.set_xlabel("$n$")
+    ax.set_ylabel("$x_n$")
+    ax.set_title(title, fontsize=9)
+    ax.legend(fontsize=8)
+    return _save(fig, directory, name)
+
+
+def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
+    """Interaction forces V'(x_{n+1} - x_n) in grey levels over (n, t) (figs. stabletw ... structures)."""
+    plt = _pyplot()
+    f = -np.abs(bond_forces(states)) ** alpha
+    fig, ax = plt.subplots(figsize=(6, 4))
+    im = ax.imshow(f, aspect="auto", origin="lower", cmap="gray",
+                   extent=(0.5, states.shape[1] + 0.5, times[0], times[-1]))
+    fig.colorbar(im, ax=ax, label=r"$V'(x_{n+1}-x_n)$")
+    ax.set_xlabel("$n$")
+    ax.set_ylabel("$t$")
+    ax.set_title(title, fontsize=9)
+    return _save(fig, directory, name)
+
+
+def plot_deviation(runs, directory, name="deviation.png"):
+    """D(t) = ||S^k X(k T) - X(0)|| / ||X(0)|| for several runs (dict label -> (t, D)), log scale."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for label, (t, D) in runs.items():
+        ax.semilogy(t, np.maximum(D, 1e-16), lw=0.8, label=label)
+    ax.set_xlabel("$t$")
+    ax.set_ylabel("deviation from the travelling wave")
+    ax.legend(fontsize=8)
+    return _save(fig, directory, name)

@@ -4,11 +4,14 @@
 
 The refinement minimises ||G(X0)||_2^2, G(X0) = S X(script-T; X0) - X0, by Gauss-Newton with the Jacobian
 S R(script-T; 0) - I from :class:`~hertzpetsc.tangent.TangentFlow`. That Jacobian is singular at a travelling
-wave: translation x_n -> x_n + c and time translation are exact symmetries, so it has a two-dimensional kernel
-(their Jordan partners, the Galilean boost and the amplitude, are not in it). Each step is the least-squares
-solution with those two directions removed: a truncated SVD dropping the ``nullity`` smallest singular values
-(reported, with the gap to the next one). As in the paper, the Jacobian is kept across iterations and only
-re-evaluated when a step fails to reduce the residual.
+wave: translation x_n -> x_n + c and time translation (direction f(X0)) are exact symmetries, and slow modes
+(Floquet multipliers near 1) make it nearly singular in a few more directions, with singular values as small as
+the residual itself. Steps are therefore restricted to the orthogonal complement of the two symmetry directions
+(phase conditions, basis Q) and computed from the SVD of J Q truncated at a relative level; since a residual
+evaluation costs one flow and a Jacobian 2N tangent flows, each iteration tries the truncation levels
+:data:`TRUNCATIONS` and keeps the step that reduces E most. The dense algebra is done on rank 0 and broadcast,
+so every rank applies the same step. As in the paper, the Jacobian is kept across iterations and re-evaluated
+only when the steps it gives stop reducing the residual.
 """
 import time
 from dataclasses import dataclass, field
@@ -77,20 +80,47 @@ class RefinementResult:
     iterations: int
     jacobians: int
     history: list = field(default_factory=list)
-    dropped_singular_values: np.ndarray = None
-    next_singular_value: float = None
+    sigma_min: float = None                # smallest singular value of the phase-conditioned Jacobian
     wall_time: float = 0.0
 
 
-def truncated_lstsq(J, g, nullity):
-    """argmin ||J d + g||_2 over the complement of the ``nullity`` weakest right singular directions."""
-    U, s, Vt = np.linalg.svd(J)
-    keep = len(s) - nullity
-    d = -(Vt[:keep].T @ ((U[:, :keep].T @ g) / s[:keep]))
-    return d, s[keep:], s[keep - 1]
+def symmetry_complement(chain_params, x, comm=None):
+    """Orthonormal basis (2N x (2N-2)) of the complement of the translation and time-shift directions at x."""
+    N = chain_params.N
+    chain = Chain(chain_params, comm)
+    X, F = chain.create_state(), chain.create_state()
+    chain.set_from_array(X, x)
+    chain.rhs(None, 0.0, X, F)
+    f = chain.gather(F).ravel()
+    for v in (X, F):
+        v.destroy()
+    chain.destroy()
+    translation = np.tile([1.0, 0.0], N)
+    Q, _ = np.linalg.qr(np.stack([translation, f], axis=1), mode="complete")
+    return Q[:, 2:]
 
 
-def refine(params, x0, T, comm=None, tol=1e-10, max_iterations=20, nullity=2, tolerances=MEASURE_TOLERANCES,
+# Relative singular-value cut-offs tried at each Gauss-Newton iteration (0: plain least squares on J Q).
+TRUNCATIONS = (0.0, 1e-9, 1e-7, 1e-5, 1e-3)
+
+
+def phase_conditioned_steps(J, g, Q, comm):
+    """Candidate steps d = Q c, c the SVD-truncated least-squares solution of J Q c = -g at each level of
+    :data:`TRUNCATIONS`; computed on rank 0 and broadcast. Also returns the smallest singular value of J Q."""
+    mpi = comm.tompi4py()
+    out = None
+    if mpi.rank == 0:
+        U, sv, Vt = np.linalg.svd(J @ Q, full_matrices=False)
+        coef = U.T @ -g
+        steps = []
+        for cut in TRUNCATIONS:
+            keep = sv > cut * sv[0]
+            steps.append(Q @ (Vt[keep].T @ (coef[keep] / sv[keep])))
+        out = (steps, float(sv[-1]))
+    return mpi.bcast(out, root=0)
+
+
+def refine(params, x0, T, comm=None, tol=1e-10, max_iterations=20, tolerances=MEASURE_TOLERANCES,
            prefix=CHAIN_PREFIX):
     """Gauss-Newton refinement of the travelling-wave initial state ``x0`` (N, 2) until E <= ``tol``.
 
@@ -108,32 +138,43 @@ def refine(params, x0, T, comm=None, tol=1e-10, max_iterations=20, nullity=2, to
         scale = np.max(np.abs(x))
         E0 = E = float(np.max(np.abs(g)) / scale)
         history, jacobians, J, fresh, r = [E], 0, None, False, float("nan")
-        dropped, nxt = None, None
+        sigma_min = None
         it = 0
+        comm = smap.chain.comm
         while E > tol and it < max_iterations:
             if J is None:
                 M, _ = flow.monodromy_mod_shift(x, T)
                 J = M - np.eye(2 * N)
+                Q = symmetry_complement(params, x, comm)
                 jacobians += 1
                 fresh = True
-            d, dropped, nxt = truncated_lstsq(J, g, nullity)
-            x_new = x + d.reshape(N, 2)
-            g_new = (smap(x_new, T) - x_new).ravel()
-            E_new = float(np.max(np.abs(g_new)) / np.max(np.abs(x_new)))
-            if E_new < E or fresh:
+                steps, sigma_min = phase_conditioned_steps(J, g, Q, comm)
+            else:
+                steps, _ = phase_conditioned_steps(J, g, Q, comm)
+            best = None
+            for d in steps:
+                x_new = x + d.reshape(N, 2)
+                g_new = (smap(x_new, T) - x_new).ravel()
+                E_new = float(np.max(np.abs(g_new)) / np.max(np.abs(x_new)))
+                if best is None or E_new < best[2]:
+                    best = (x_new, g_new, E_new)
+            x_new, g_new, E_new = best
+            if E_new < E:
                 r = float(np.max(np.abs(x_new - x)) / np.max(np.abs(x_new)))
                 x, g, E = x_new, g_new, E_new
                 history.append(E)
                 it += 1
-                if E_new >= history[-2] * 0.5 and not fresh:
+                if E > 0.1 * history[-2] and not fresh:
                     J = None          # slow progress with a stale Jacobian: re-evaluate it
                 fresh = False
+            elif not fresh:
+                J = None              # the stale Jacobian gives no decrease: re-evaluate and retry
             else:
-                J = None              # the stale Jacobian gave no decrease: re-evaluate and retry
+                break                 # no decrease even with a fresh Jacobian
         if E > tol:
             raise ConvergenceError("Gauss-Newton refinement", f"E = {E:.3g} > {tol:g}", iterations=it)
         return RefinementResult(x=x, E_initial=E0, E=E, r=r, iterations=it, jacobians=jacobians, history=history,
-                                dropped_singular_values=dropped, next_singular_value=nxt,
+                                sigma_min=sigma_min,
                                 wall_time=time.perf_counter() - t0)
     finally:
         smap.destroy()

@@ -1,0 +1,77 @@
+"""Section 3.4 drivers as subprocesses: refinement table, long runs with snapshots, resume, bad input."""
+import json
+import math
+
+import numpy as np
+import pytest
+
+from conftest import run_script
+from hertzpetsc.branchfile import read_refined
+from hertzpetsc.simulation import SnapshotFile
+
+pytestmark = pytest.mark.serial
+
+
+@pytest.fixture(scope="module")
+def coarse_branch(tmp_path_factory):
+    d = tmp_path_factory.mktemp("branch")
+    r = run_script("continuation.py", "-M", 10, "-cells_per_pi", 200, "-q_stop", "0.3*pi", "-output", d / "b.npz")
+    assert r.returncode == 0, r.stderr
+    return d / "b.npz"
+
+
+def test_refinement_script(coarse_branch, tmp_path):
+    out = tmp_path / "ref.npz"
+    args = ("-branch", coarse_branch, "-N", 20, "-output", out, "-table", tmp_path / "t.md", "-figures", tmp_path)
+    r = run_script("refine_branch.py", *args, "-q", "0.4*pi")
+    assert r.returncode == 0, r.stderr
+    r = run_script("refine_branch.py", *args, "-resume")          # adds the missing q, keeps the first
+    assert r.returncode == 0, r.stderr
+    data = read_refined(str(out))
+    assert sorted(np.round(data["q"] / math.pi * 10).astype(int)) == list(range(3, 11))   # q = 2 pi m / 20
+    assert np.all(data["E_after"] <= 1e-10) and np.all(data["E_before"] > 1e-7)
+    assert (tmp_path / "errors.png").exists() and "| 1.2566 |" in (tmp_path / "t.md").read_text()
+
+
+def test_long_run_resumes_to_the_same_trajectory(coarse_branch, tmp_path):
+    common = ("-branch", coarse_branch, "-q", "0.4*pi", "-N", 20, "-snapshots_per_T", 2)
+    r = run_script("long_run.py", *common, "-t_final", 10, "-output", tmp_path / "a")
+    assert r.returncode == 0, r.stderr
+    run_script("long_run.py", *common, "-t_final", 5, "-output", tmp_path / "b")
+    with open(tmp_path / "b" / "snapshots.f64", "ab") as f:          # a killed run: half a record in flight
+        f.write(b"\0" * 100)
+    r = run_script("long_run.py", *common, "-t_final", 10, "-output", tmp_path / "b", "-resume")
+    assert r.returncode == 0 and "resuming" in r.stdout, r.stderr
+    hdr = json.loads((tmp_path / "a" / "run.json").read_text())
+    ta, Ea, Xa = SnapshotFile(str(tmp_path / "a"), hdr).read()
+    tb, Eb, Xb = SnapshotFile(str(tmp_path / "b"), hdr).read()
+    assert np.array_equal(ta, tb)
+    # the resumed run restarts its step-size controller at the snapshot: same trajectory to rtol x steps
+    assert np.max(np.abs(Xa - Xb)) < 1e-9
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert summary["energy_drift"] < 1e-9 and summary["max_deviation"] < 1e-3
+    assert math.isnan(summary["destruction_time"])
+
+
+def test_long_run_refuses_snapshots_of_another_run(coarse_branch, tmp_path):
+    common = ("-branch", coarse_branch, "-N", 20, "-t_final", 3, "-output", tmp_path / "a")
+    assert run_script("long_run.py", *common, "-q", "0.4*pi").returncode == 0
+    r = run_script("long_run.py", *common, "-q", "0.6*pi", "-resume")
+    assert r.returncode == 4 and "another run" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("args,needle", [
+    (("-N", 21, "-q", "0.4*pi"), "N q / (2 pi)"),
+    (("-q", "0.45*pi", "-N", 20), "no point at q"),
+    (("-t_final", -1), "t_final"),
+    (("-t_final", 0), "t_final"),
+    (("-chain_ts_rtol", "0"), "rtol"),
+    (("-chain_ts_atol", "-1e-3"), "atol"),
+])
+def test_long_run_bad_input(coarse_branch, tmp_path, args, needle):
+    base = {"-N": 20, "-q": "0.4*pi", "-t_final": 2}
+    base.update(dict(zip(args[::2], args[1::2])))
+    flat = [str(a) for kv in base.items() for a in kv]
+    r = run_script("long_run.py", "-branch", coarse_branch, "-output", tmp_path / "x", *flat)
+    assert r.returncode != 0
+    assert needle in r.stderr and r.stderr.strip().splitlines()[-1].startswith("error:"), r.stderr

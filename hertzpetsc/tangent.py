@@ -66,20 +66,21 @@ class MonodromyModShift:
 
     def __init__(self, params, x0, T, comm=None, tolerances=None, prefix=CHAIN_PREFIX):
         self.flow = TangentFlow(params, 1, comm, tolerances, prefix)
-        self.x0 = np.asarray(x0, dtype=float).reshape(params.N, 2)
+        base = self.flow.base
+        self.x0_local = np.asarray(x0, dtype=float).reshape(params.N, 2)[base.xs:base.xe].copy()
         self.T = float(T)
         self.products = 0
-        chain = self.flow.aug
-        self._zero_tangent = np.zeros((params.N, 2, 1))
-        self._ownership = (chain.xs, chain.xe)
+        self._RY = base.create_state()
 
     def mult(self, mat, x, y):
-        comm_chain = self.flow.base
-        full = comm_chain.gather(x)                      # (N, 2) on every rank
-        _, RY = self.flow.run(self.x0, self.T, full[:, :, None])
-        shifted = np.roll(RY[:, :, 0], -1, axis=0)
-        xs, xe = self._ownership
-        y.getArray()[:] = shifted[xs:xe].ravel()
+        """y = S R(T; 0) x, all in the chain's distributed layout (no gathering)."""
+        flow, base = self.flow, self.flow.base
+        z = flow.Z.getArray().reshape(base.nloc, 4)
+        z[:, :2] = self.x0_local
+        z[:, 2:] = x.getArray(readonly=True).reshape(base.nloc, 2)
+        flow.integrator.integrate(flow.Z, 0.0, self.T)
+        self._RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
+        base.shift(self._RY, y)
         self.products += 1
 
     def create_mat(self):
@@ -91,5 +92,9 @@ class MonodromyModShift:
         mat.setUp()
         return mat
 
-    def destroy(self):
-        self.flow.destroy()
+    def destroy(self, mat=None):
+        """Free the flow; also called by petsc4py (with the matrix) when the shell matrix is destroyed."""
+        if self.flow is not None:
+            self._RY.destroy()
+            self.flow.destroy()
+            self.flow = None

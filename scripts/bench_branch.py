@@ -15,12 +15,10 @@ import json
 import math
 import os
 import platform
-import resource
-import subprocess
 import sys
 import time
 
-HERE = os.path.dirname(os.path.abspath(__file__))
+from hertzpetsc.benchmarking import best_of, peak_rss_mb
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -106,42 +104,20 @@ def worker(kind, alpha, M, K):
         res = hertzpetsc_branch(alpha, M, K)
         comm.Barrier()
         wall = time.perf_counter() - t0
-        rss = comm.gather(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, root=0)
+        rss = comm.gather(peak_rss_mb(), root=0)
         if comm.rank == 0:
             print(json.dumps(dict(wall=wall, rss_mb=rss, **res)))
     else:
         t0 = time.perf_counter()
         res = scipy_branch(alpha, M, K)
         wall = time.perf_counter() - t0
-        print(json.dumps(dict(wall=wall, rss_mb=[resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0],
+        print(json.dumps(dict(wall=wall, rss_mb=[peak_rss_mb()],
                               **res)))
 
 
-def launch(kind, ranks, alpha, M, K, extra, timeout):
-    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
-    cmd = [sys.executable, os.path.abspath(__file__), "--worker", kind, "--alpha", str(alpha), "--M", str(M),
-           "--K", str(K), *extra]
-    if kind == "petsc":
-        cmd = ["mpiexec", "-n", str(ranks), *cmd]
-    try:
-        r = subprocess.run(["timeout", str(timeout), *cmd], capture_output=True, text=True, env=env)
-    except subprocess.TimeoutExpired:
-        return None
-    if r.returncode != 0:
-        if r.returncode == 124:
-            return None
-        raise RuntimeError(f"{kind} run failed: {r.stderr.strip()[-500:]}")
-    return json.loads(r.stdout.strip().splitlines()[-1])
-
-
 def best(kind, ranks, alpha, M, K, extra, repeats, timeout):
-    runs = []
-    for _ in range(repeats):
-        res = launch(kind, ranks, alpha, M, K, extra, timeout)
-        if res is None:
-            return None
-        runs.append(res)
-    return min(runs, key=lambda r: r["wall"])
+    args = ["--worker", kind, "--alpha", alpha, "--M", M, "--K", K, *extra]
+    return best_of(repeats, os.path.abspath(__file__), args, ranks if kind == "petsc" else None, timeout)
 
 
 def main():

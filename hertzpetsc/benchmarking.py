@@ -1,0 +1,38 @@
+"""Helpers for the benchmark scripts: run a worker in its own process (optionally under mpiexec) and keep the
+best of several repeats. Wall times are measured inside the worker, around the computation only."""
+import json
+import os
+import resource
+import subprocess
+import sys
+
+
+def peak_rss_mb():
+    """This process's peak resident set size in MB (Linux reports KB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def launch(script, args, ranks=None, timeout=3600):
+    """Run ``python script args`` (under ``mpiexec -n ranks`` if ranks), return its last stdout line as JSON,
+    or None if it ran out of time."""
+    env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
+    cmd = [sys.executable, script, *map(str, args)]
+    if ranks:
+        cmd = ["mpiexec", "-n", str(ranks), *cmd]
+    r = subprocess.run(["timeout", str(timeout), *cmd], capture_output=True, text=True, env=env)
+    if r.returncode == 124:
+        return None
+    if r.returncode != 0:
+        raise RuntimeError(f"{' '.join(cmd)} failed: {r.stderr.strip()[-800:]}")
+    return json.loads(r.stdout.strip().splitlines()[-1])
+
+
+def best_of(repeats, script, args, ranks=None, timeout=3600):
+    """The run with the smallest ``wall`` among ``repeats`` runs (None if one timed out)."""
+    runs = []
+    for _ in range(repeats):
+        res = launch(script, args, ranks, timeout)
+        if res is None:
+            return None
+        runs.append(res)
+    return min(runs, key=lambda r: r["wall"])

@@ -197,3 +197,32 @@ def plot_deviation(runs, directory, name="deviation.png"):
     ax.set_ylabel("deviation from the travelling wave")
     ax.legend(fontsize=8)
     return _save(fig, directory, name)
+
+
+# --- section 3.5: Floquet multipliers ---------------------------------------------------------------------------
+def plot_floquet_radius(q, rho, tol_rho, directory):
+    """Fig. floquet: spectral radius of the monodromy matrix modulo shifts vs q."""
+    plt = _pyplot()
+    order = np.argsort(q)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(np.asarray(q)[order], np.asarray(rho)[order], "k.-", ms=4, lw=0.8)
+    ax.axhline(1 + tol_rho, color="gray", lw=0.6, ls="--", label=rf"$1 + {tol_rho:g}$")
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$\rho(\mathcal{F}_q)$")
+    ax.legend(fontsize=8)
+    return _save(fig, directory, "floquet.png")
+
+
+def plot_multipliers(panels, directory):
+    """Fig. eigen: multipliers in the complex plane with the unit circle; ``panels`` = [(label, multipliers)]."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 2, figsize=(8, 8))
+    th = np.linspace(0, 2 * math.pi, 400)
+    for ax, (label, lam) in zip(axes.ravel(), panels):
+        lam = np.asarray(lam)
+        lam = lam[np.isfinite(lam)]
+        ax.plot(np.cos(th), np.sin(th), "b-", lw=0.6)
+        ax.plot(lam.real, lam.imag, "k+", ms=5)
+        ax.set_aspect("equal")
+        ax.set_title(f"q = {label}", fontsize=10)
+    return _save(fig, directory, "eigen.png")

@@ -4,8 +4,8 @@
     python scripts/dynamics_figures.py -runs runs/q3pi10,runs/q7pi25,runs/q9pi50,runs/qpi50 -figures figures \
         -table results/long_runs.md
 
-For each run directory written by long_run.py: the displacements at the last snapshot against the initial
-state, the interaction forces V'(x_{n+1} - x_n) in grey levels over the last 220 time units (or around
+For each run directory written by long_run.py: the displacements at the last snapshot taken after a whole
+number of time periods against the initial state, the interaction forces V'(x_{n+1} - x_n) in grey levels over the last 220 time units (or around
 -window T0,T1 when given as name:T0:T1), and the deviation D(t) from the travelling wave for all runs in one
 plot. The table lists, per run, the destruction time (first D > 0.1), the first times D > 1e-6 and 1e-3,
 max D, and the relative energy drift. Needs numpy and matplotlib only.
@@ -49,7 +49,12 @@ def main(argv=None):
             t0, t1 = (float(parts[1]), float(parts[2])) if len(parts) == 3 else (max(0.0, t[-1] - 220), t[-1])
             sel = (t >= t0) & (t <= t1)
             title = f"q = {header['q']:.4f}, N = {header['N']}"
-            plotting.plot_snapshot(X[0, :, 0], X[-1, :, 0], t[-1], args.figures, f"{name}_snapshot.png", title)
+            # the last snapshot after a whole number of time periods tau = 2 pi script-T / q: an intact wave is
+            # then back on the initial state, unshifted (as in fig. stabletw)
+            periods = t / (2 * np.pi * header["T"] / header["q"])
+            whole = np.nonzero(np.abs(periods - np.round(periods)) < 1e-6 * np.maximum(1, periods))[0]
+            j = whole[-1] if len(whole) else len(t) - 1
+            plotting.plot_snapshot(X[0, :, 0], X[j, :, 0], t[j], args.figures, f"{name}_snapshot.png", title)
             plotting.plot_spacetime_forces(t[sel], X[sel], header["alpha"], args.figures, f"{name}_forces.png",
                                            title + f", t in [{t0:.0f}, {t1:.0f}]")
             deviations[f"q = {header['q']:.4f}"] = wave_deviation(t, X, X[0], header["T"])

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import run_script
+from conftest import ROOT, run_script
 from hertzpetsc.branchfile import read_refined
 from hertzpetsc.simulation import SnapshotFile
 
@@ -75,3 +75,25 @@ def test_long_run_bad_input(coarse_branch, tmp_path, args, needle):
     r = run_script("long_run.py", "-branch", coarse_branch, "-output", tmp_path / "x", *flat)
     assert r.returncode != 0
     assert needle in r.stderr and r.stderr.strip().splitlines()[-1].startswith("error:"), r.stderr
+
+
+def test_dynamics_figures_script(coarse_branch, tmp_path):
+    run = tmp_path / "r"
+    assert run_script("long_run.py", "-branch", coarse_branch, "-q", "0.4*pi", "-N", 20, "-t_final", 6,
+                      "-output", run).returncode == 0
+    r = run_script("dynamics_figures.py", "-runs", f"{run}:0:6", "-figures", tmp_path / "f", "-table",
+                   tmp_path / "t.md")
+    assert r.returncode == 0, r.stderr
+    assert {p.name for p in (tmp_path / "f").iterdir()} == {"r_snapshot.png", "r_forces.png", "deviation.png"}
+    assert "| r | 1.2566 |" in (tmp_path / "t.md").read_text()
+    assert run_script("dynamics_figures.py", "-runs", tmp_path / "missing").returncode == 4
+
+
+def test_chain_benchmark_script(tmp_path):
+    out = tmp_path / "b.md"
+    r = run_script("bench_chain.py", "-branch", f"{ROOT}/results/branch_alpha1.5.npz", "-sizes", 20,
+                   "-repeats", 1, "-output", out, timeout=600)
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    assert text.count("| 20 |") == 3 and "| 2 |" in text
+    assert run_script("bench_chain.py", "-sizes", 30).returncode == 2

@@ -57,6 +57,17 @@ def atomic_savez(path, **arrays):
     os.replace(tmp, path)
 
 
+def load_npz(path, what, error):
+    """All arrays of an npz archive as a dict; ``error`` (naming ``what``) if it is missing or unreadable."""
+    if not os.path.exists(path):
+        raise error(f"{what} {path!r} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+        raise error(f"{what} {path!r} is corrupt or not an npz archive ({err})") from None
+
+
 class BranchWriter:
     """Accumulates branch points and rewrites the file after each one. Call from one rank only."""
 
@@ -87,13 +98,7 @@ class BranchWriter:
 
 def read_branch(path):
     """Load a branch file into a dict of numpy arrays (``meta`` decoded); :class:`BranchFileError` if unusable."""
-    if not os.path.exists(path):
-        raise BranchFileError(f"branch file {path!r} does not exist")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
-        raise BranchFileError(f"branch file {path!r} is corrupt or not an npz archive ({err})") from None
+    data = load_npz(path, "branch file", BranchFileError)
     if str(data.get("format", "")) != FORMAT:
         raise BranchFileError(f"{path!r} is not a hertzpetsc branch file (format {FORMAT!r} expected)")
     required = set(SCALARS) | set(POINT_FIELDS) | {"u", "xi", "meta"}
@@ -156,13 +161,7 @@ class RefinedWriter:
 def read_refined(path):
     """Load a refinement file (dict of arrays); :class:`RunFileError` if unusable."""
     from .errors import RunFileError
-    if not os.path.exists(path):
-        raise RunFileError(f"refinement file {path!r} does not exist")
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
-        raise RunFileError(f"refinement file {path!r} is corrupt ({err})") from None
+    data = load_npz(path, "refinement file", RunFileError)
     if str(data.get("format", "")) != REFINED_FORMAT or set(REFINED_FIELDS) - set(data):
         raise RunFileError(f"{path!r} is not a hertzpetsc refinement file")
     data["N"], data["alpha"] = int(data["N"]), float(data["alpha"])

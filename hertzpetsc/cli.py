@@ -84,22 +84,18 @@ def run_metadata(**extra):
     return meta
 
 
+# Exit status per error class; the first matching class wins (ConvergenceError before its base classes).
+EXIT_CODES = ((ParameterError, EXIT_PARAMETER), (ConvergenceError, EXIT_CONVERGENCE), (BranchFileError, EXIT_FILE),
+              (HertzPetscError, EXIT_PARAMETER))
+
+
 def guarded_main(main):
     """Run ``main()``; turn the package's and PETSc's errors into one line on stderr and a non-zero exit."""
     try:
         main()
-    except ParameterError as err:
-        print0(f"error: {err}", file=sys.stderr)
-        sys.exit(EXIT_PARAMETER)
-    except ConvergenceError as err:
-        print0(f"error: {err}", file=sys.stderr)
-        sys.exit(EXIT_CONVERGENCE)
-    except BranchFileError as err:
-        print0(f"error: {err}", file=sys.stderr)
-        sys.exit(EXIT_FILE)
     except HertzPetscError as err:
         print0(f"error: {err}", file=sys.stderr)
-        sys.exit(EXIT_PARAMETER)
+        sys.exit(next(code for cls, code in EXIT_CODES if isinstance(err, cls)))
     except PETSc.Error as err:
         print0(f"error: PETSc error {err.ierr}: see the PETSc message above (check the -tw_* / -chain_* options)",
                file=sys.stderr)

@@ -51,36 +51,33 @@ def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50
     return _save(fig, directory, "profiles.png")
 
 
-def plot_norms(branch, directory, k_alpha=None):
-    """Fig. normes: ||u||_inf vs q (log scale) and the line k_alpha q^(2/(1-alpha))."""
+def _plot_power_law(branch, directory, name, field, factor, k_alpha, ylabel, data_label, line_label):
+    """Branch values of ``field`` vs q (log scale) with the line factor k_alpha q^(2/(1-alpha))."""
     plt = _pyplot()
     a = branch["alpha"]
     k = branch_k_alpha(branch) if k_alpha is None else k_alpha
     q = branch["q"]
     qq = np.linspace(q.min(), math.pi, 200)
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.semilogy(q, branch["norm_inf"], "ko", ms=3, label="computed")
-    ax.semilogy(qq, k * qq ** (2 / (1 - a)), "b-", lw=1, label=rf"$k_\alpha q^{{2/(1-\alpha)}}$, $k_\alpha$ = {k:.4f}" + (" (branch, min q)" if k_alpha is None else ""))
+    ax.semilogy(q, branch[field], "ko", ms=3, label=data_label)
+    ax.semilogy(qq, factor * k * qq ** (2 / (1 - a)), "b-", lw=1,
+                label=line_label + f", $k_\\alpha$ = {k:.4f}" + (" (branch, min q)" if k_alpha is None else ""))
     ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$\|u\|_\infty$")
+    ax.set_ylabel(ylabel)
     ax.legend()
-    return _save(fig, directory, "normes.png")
+    return _save(fig, directory, name)
+
+
+def plot_norms(branch, directory, k_alpha=None):
+    """Fig. normes: ||u||_inf vs q (log scale) and the line k_alpha q^(2/(1-alpha))."""
+    return _plot_power_law(branch, directory, "normes.png", "norm_inf", 1.0, k_alpha, r"$\|u\|_\infty$",
+                           "computed", r"$k_\alpha q^{2/(1-\alpha)}$")
 
 
 def plot_slopes(branch, directory, k_alpha=None):
     """Fig. pentes: free-flight slope p(q) = u'(0) vs q (log scale) and the line (k_alpha/pi) q^(2/(1-alpha))."""
-    plt = _pyplot()
-    a = branch["alpha"]
-    k = branch_k_alpha(branch) if k_alpha is None else k_alpha
-    q = branch["q"]
-    qq = np.linspace(q.min(), math.pi, 200)
-    fig, ax = plt.subplots(figsize=(6, 4))
-    ax.semilogy(q, branch["slope"], "ko", ms=3, label="computed $u'(0)$")
-    ax.semilogy(qq, k / math.pi * qq ** (2 / (1 - a)), "b-", lw=1, label=r"$(k_\alpha/\pi)\, q^{2/(1-\alpha)}$")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel("$u'$")
-    ax.legend()
-    return _save(fig, directory, "pentes.png")
+    return _plot_power_law(branch, directory, "pentes.png", "slope", 1 / math.pi, k_alpha, "$u'$",
+                           "computed $u'(0)$", r"$(k_\alpha/\pi)\, q^{2/(1-\alpha)}$")
 
 
 def plot_number(branch, directory):

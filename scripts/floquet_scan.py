@@ -33,7 +33,6 @@ import numpy as np  # noqa: E402
 from hertzpetsc.branchfile import atomic_savez, read_branch, read_refined  # noqa: E402
 from hertzpetsc.chain import ChainParameters  # noqa: E402
 from hertzpetsc.cli import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.diagnostics import crossing  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.floquet import (dense_monodromy, dense_multipliers, dominant_multipliers, spectral_radius,  # noqa
                                 trivial_multipliers)
@@ -123,8 +122,8 @@ def main():
     if unstable.any() and (~unstable).any():
         qc_hi = q[~unstable & (q > q[unstable].max())].min() if (~unstable & (q > q[unstable].max())).any() else None
         qc = q[unstable].max()
-        lines.append(f"\nq_c: largest unstable q = {qc:.4f}; next stable q = {qc_hi:.4f}; "
-                     f"rho - 1 crosses tol_rho at q = {crossing(q, rho - 1, tol_rho):.4f} (linear interpolation)")
+        lines.append(f"\nq_c in ({qc:.4f}, {qc_hi:.4f}]: largest unstable q = {qc:.4f}, next stable q = {qc_hi:.4f} "
+                     "(rho - 1 jumps from 0 at the threshold, so the bracket is the resolution of the q grid)")
     im = int(np.argmax(rho))
     lines.append(f"q_m (max rho) = {q[im]:.4f}, rho = {rho[im]:.6f}; max growth per unit time at q = "
                  f"{q[int(np.argmax(rows['growth']))]:.4f}")

@@ -36,3 +36,12 @@ def best_of(repeats, script, args, ranks=None, timeout=3600):
             return None
         runs.append(res)
     return min(runs, key=lambda r: r["wall"])
+
+
+def emit(comm=None, **fields):
+    """Print a worker's result as one JSON line on rank 0, with every rank's peak memory (``rss_mb``).
+
+    ``comm`` is an mpi4py communicator (None for a serial worker)."""
+    rss = comm.gather(peak_rss_mb(), root=0) if comm is not None else [peak_rss_mb()]
+    if comm is None or comm.rank == 0:
+        print(json.dumps(dict(rss_mb=rss, **fields)), flush=True)

@@ -15,7 +15,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from petsc4py import PETSc
 
 from .chain import CHAIN_PREFIX
 from .errors import ConvergenceError, ParameterError

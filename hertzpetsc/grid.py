@@ -97,7 +97,7 @@ class StencilGather:
     def __init__(self, grid, stencils):
         self.grid = grid
         rows = grid.owned_points()
-        self.cols, self.coef, pos = {}, {}, {}
+        self.cols, self.coef = {}, {}
         needed = [np.arange(grid.rstart, grid.rend, dtype=np.int64)]
         for name, (offsets, weights) in stencils.items():
             idx, sign = grid.fold(rows[:, None] + np.asarray(offsets)[None, :])

@@ -17,7 +17,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from petsc4py import PETSc
 
 from .chain import CHAIN_PREFIX, Chain, ChainIntegrator, IntegrationTolerances
 from .errors import ConvergenceError, ParameterError

@@ -11,14 +11,13 @@ computation (imports excluded), best of -repeats; peak memory is each process's 
 Measure on an otherwise idle machine: two ranks share the machine's two cores.
 """
 import argparse
-import json
 import math
 import os
 import platform
 import sys
 import time
 
-from hertzpetsc.benchmarking import best_of, peak_rss_mb
+from hertzpetsc.benchmarking import best_of, emit
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -104,15 +103,12 @@ def worker(kind, alpha, M, K):
         res = hertzpetsc_branch(alpha, M, K)
         comm.Barrier()
         wall = time.perf_counter() - t0
-        rss = comm.gather(peak_rss_mb(), root=0)
-        if comm.rank == 0:
-            print(json.dumps(dict(wall=wall, rss_mb=rss, **res)))
+        emit(comm, wall=wall, **res)
     else:
         t0 = time.perf_counter()
         res = scipy_branch(alpha, M, K)
         wall = time.perf_counter() - t0
-        print(json.dumps(dict(wall=wall, rss_mb=[peak_rss_mb()],
-                              **res)))
+        emit(None, wall=wall, **res)
 
 
 def best(kind, ranks, alpha, M, K, extra, repeats, timeout):

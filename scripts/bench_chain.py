@@ -11,14 +11,13 @@ its own process; wall time excludes start-up and the construction of the initial
 (one run for N >= 1e6). Peak memory is each process's maximum resident set. Run on an idle machine.
 """
 import argparse
-import json
 import math
 import os
 import platform
 import sys
 import time
 
-from hertzpetsc.benchmarking import best_of, peak_rss_mb
+from hertzpetsc.benchmarking import best_of, emit
 
 Q = 3 * math.pi / 10
 RTOL, ATOL = 1e-12, 1e-14
@@ -48,7 +47,7 @@ def scipy_worker(branch_path, N):
     yT = sol.y[:, -1]
     E = float(np.max(np.abs(np.concatenate([np.roll(yT[:N], -1), np.roll(yT[N:], -1)]) - y0)) / np.max(np.abs(y0)))
     steps = len(sol.t) - 1
-    print(json.dumps(dict(wall=wall, steps=steps, rhs=int(sol.nfev), E=E, rss_mb=[peak_rss_mb()])))
+    emit(None, wall=wall, steps=steps, E=E)
 
 
 def petsc_worker(branch_path, N, refine_only):
@@ -67,9 +66,7 @@ def petsc_worker(branch_path, N, refine_only):
         t0 = time.perf_counter()
         res = refine(params, w.as_array(), w.T, PETSc.COMM_WORLD)
         wall = time.perf_counter() - t0
-        rss = comm.gather(peak_rss_mb(), root=0)
-        if comm.rank == 0:
-            print(json.dumps(dict(wall=wall, steps=res.iterations, rhs=res.jacobians, E=res.E, rss_mb=rss)))
+        emit(comm, wall=wall, steps=res.iterations, rhs=res.jacobians, E=res.E)
         return
     chain = Chain(params, PETSc.COMM_WORLD)
     X = chain.create_state()
@@ -86,9 +83,7 @@ def petsc_worker(branch_path, N, refine_only):
     chain.set_from_array(X0, w.as_array())
     SX.axpy(-1.0, X0)
     E = SX.norm(PETSc.NormType.NORM_INFINITY) / X0.norm(PETSc.NormType.NORM_INFINITY)
-    rss = comm.gather(peak_rss_mb(), root=0)
-    if comm.rank == 0:
-        print(json.dumps(dict(wall=wall, steps=steps, E=E, rss_mb=rss)))
+    emit(comm, wall=wall, steps=steps, E=E)
 
 
 def main():

@@ -1,12 +1,10 @@
 """The chain (eq. nc) on TS: Jacobian, tangent-linear flow, energy, boundaries, rank independence, interpolation."""
 import math
-import os
 
 import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.branchfile import read_branch
 from hertzpetsc.chain import Chain, ChainIntegrator, ChainParameters, IntegrationTolerances
 from hertzpetsc.continuation import BranchContinuation, ContinuationParameters
 from hertzpetsc.errors import ParameterError

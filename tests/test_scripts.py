@@ -1,5 +1,4 @@
 """Driver scripts as subprocesses: the paper's branch, 2 ranks vs 1, resume, and one-line errors on bad input."""
-import math
 
 import numpy as np
 import pytest

@@ -29,13 +29,26 @@ def check_cells_per_pi(cells_per_pi):
 
 
 class OddPeriodicGrid:
-    """The uniform grid of [0, 2 pi) with step h = pi/K, restricted to odd profiles, on a communicator."""
+    """The uniform grid of [0, 2 pi) with step h = pi/K, restricted to odd profiles, on a communicator.
 
-    def __init__(self, cells_per_pi, comm=None):
+    With ``parity = +1`` the profiles are even instead (u_{2K-j} = u_j, unknowns u_0 .. u_K); ``length``
+    replaces 2 pi by another period. With ``dirichlet`` (even profiles only) the profile lives on the line and
+    vanishes beyond +-length/2 instead of being periodic: the solitary wave of :mod:`hertzpetsc.solitary` (on a
+    period, sum_j R_j = 0 for eq. adr and its Jacobian would be singular).
+    """
+
+    def __init__(self, cells_per_pi, comm=None, parity=-1, length=2 * math.pi, dirichlet=False):
         self.K = check_cells_per_pi(cells_per_pi)
-        self.h = math.pi / self.K
+        if parity not in (-1, 1):
+            raise ParameterError("parity", parity, "must be -1 (odd profiles) or +1 (even profiles)")
+        if dirichlet and parity < 0:
+            raise ParameterError("dirichlet", dirichlet, "is only available for even profiles (parity +1)")
+        self.parity = parity
+        self.dirichlet = dirichlet
+        self.h = 0.5 * length / self.K
         self.comm = comm if comm is not None else PETSc.COMM_WORLD
-        self.size = self.K - 1
+        self.offset = 1 if parity < 0 else 0          # unknown index = grid index - offset
+        self.size = self.K - 1 if parity < 0 else self.K + 1
         # The PETSc default layout, fixed once so that every Vec and Mat of this grid shares it.
         self._template = PETSc.Vec().createMPI(self.size, comm=self.comm)
         self.rstart, self.rend = self._template.getOwnershipRange()
@@ -53,23 +66,29 @@ class OddPeriodicGrid:
 
     def owned_points(self):
         """Grid indices j of the unknowns owned by this rank."""
-        return np.arange(self.rstart, self.rend, dtype=np.int64) + 1
+        return np.arange(self.rstart, self.rend, dtype=np.int64) + self.offset
 
     def fold(self, g):
-        """Map full-grid indices g (any integers) to (unknown index, sign); sign 0 where u vanishes (xi = 0, pi)."""
+        """Map full-grid indices g (any integers) to (unknown index, sign); for odd profiles sign 0 where u
+        vanishes (xi = 0, pi), -1 on the second half period."""
+        if self.dirichlet:
+            j = np.abs(np.asarray(g))
+            return np.minimum(j, self.K).astype(np.int64), np.where(j <= self.K, 1.0, 0.0)
         r = np.mod(g, 2 * self.K)
+        j = np.where(r <= self.K, r, 2 * self.K - r)
+        if self.parity > 0:
+            return j.astype(np.int64), np.ones(np.shape(g))
         sign = np.where(r < self.K, 1.0, -1.0)
         sign[(r == 0) | (r == self.K)] = 0.0
-        j = np.where(r < self.K, r, 2 * self.K - r)
         idx = np.where(sign != 0.0, j - 1, 0)
         return idx.astype(np.int64), sign
 
     def half_profile(self, vec):
-        """The profile on [0, pi] (K+1 values, zeros at both ends) as a numpy array on every rank."""
+        """The profile on the half period (K+1 values; zeros at both ends if odd) as a numpy array on every rank."""
         scatter, full = PETSc.Scatter.toAll(vec)
         scatter.scatter(vec, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
         out = np.zeros(self.K + 1)
-        out[1:self.K] = full.getArray(readonly=True)
+        out[self.offset:self.offset + self.size] = full.getArray(readonly=True)
         scatter.destroy()
         full.destroy()
         return out
@@ -81,7 +100,7 @@ class OddPeriodicGrid:
             raise ParameterError("profile", f"array of shape {values.shape}",
                                  f"must have K+1 = {self.K + 1} values on [0, pi] for cells_per_pi = {self.K}")
         vec = self.create_vec()
-        vec.setArray(values[self.rstart + 1:self.rend + 1])
+        vec.setArray(values[self.rstart + self.offset:self.rend + self.offset])
         return vec
 
 
@@ -103,7 +122,7 @@ class StencilGather:
             idx, sign = grid.fold(rows[:, None] + np.asarray(offsets)[None, :])
             # Points where u vanishes by symmetry contribute nothing: point them at the row's own unknown
             # (a column every row has anyway) with coefficient 0, so they add no matrix entries.
-            idx = np.where(sign != 0.0, idx, (rows - 1)[:, None])
+            idx = np.where(sign != 0.0, idx, (rows - grid.offset)[:, None])
             self.cols[name] = idx
             self.coef[name] = sign * np.asarray(weights, dtype=float)[None, :]
             needed.append(idx.ravel())

@@ -223,3 +223,22 @@ def plot_multipliers(panels, directory):
         ax.set_aspect("equal")
         ax.set_title(f"q = {label}", fontsize=10)
     return _save(fig, directory, "eigen.png")
+
+
+# --- appendix: the solitary wave -------------------------------------------------------------------------------
+def plot_solitary(wave, directory):
+    """Fig. ondesol: r(s) (top) and the displacement y(s) (bottom) of the unit-velocity solitary wave."""
+    plt = _pyplot()
+    s = np.concatenate([-wave.s[:0:-1], wave.s])
+    r = np.concatenate([wave.r[:0:-1], wave.r])
+    y = np.concatenate([-wave.y[:0:-1], wave.y])
+    fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 5))
+    a1.plot(s, r, "k-", lw=1)
+    a1.set_ylabel("$r(s)$")
+    a2.plot(s, y, "k-", lw=1)
+    a2.axhline(wave.k_alpha, color="gray", lw=0.5, ls="--")
+    a2.axhline(-wave.k_alpha, color="gray", lw=0.5, ls="--")
+    a2.set_ylabel("$y(s)$")
+    a2.set_xlabel("$s$")
+    a1.set_title(rf"$\alpha = {wave.params.alpha}$, $k_\alpha = {wave.k_alpha:.5f}$", fontsize=10)
+    return _save(fig, directory, "ondesol.png")

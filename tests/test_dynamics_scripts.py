@@ -97,3 +97,13 @@ def test_chain_benchmark_script(tmp_path):
     text = out.read_text()
     assert text.count("| 20 |") == 3 and "| 2 |" in text
     assert run_script("bench_chain.py", "-sizes", 30).returncode == 2
+
+
+def test_solitary_wave_script(tmp_path):
+    out = tmp_path / "s.md"
+    r = run_script("solitary_wave.py", "-alphas", "1.5", "-cells", "10,20,40", "-lengths", "5,6", "-output", out,
+                   "-figures", tmp_path)
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    assert "| k_alpha (L = 8) | 1.350" in text and (tmp_path / "ondesol.png").exists()
+    assert run_script("solitary_wave.py", "-cells", "10,20").returncode == 2

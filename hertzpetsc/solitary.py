@@ -1,0 +1,184 @@
+"""The solitary wave of unit velocity and k_alpha (paper appendix, eqs. adr, kal2, depsol2).
+
+Relative displacements r(s) = y(s + 1/2) - y(s - 1/2) of the solitary wave x_n(t) = y(n - t) solve
+
+    r''(s) = V'(r(s+1)) - 2 V'(r(s)) + V'(r(s-1))                                   (eq. adr)
+
+with r even, negative and decaying super-exponentially. We solve it on [-L, L] with step delta = 1/n (n even,
+so that the unit shift and the half-integers are grid points), second-order differences, r even and r = 0
+beyond +-L (justified once |r| has decayed below the tail tolerance at |s| >= L - 1, which is checked; on a
+period instead, the equations would sum to zero and the Jacobian be singular). PETSc SNES under the prefix ``sol_``, started from the exact compacton of the continuum limit
+w'' = 12 (w^(1/alpha) - w), w = |r|^alpha (Nesterenko's and Ahnert-Pikovsky's profile): w = A cos^m(kappa s),
+m = 2 alpha/(alpha-1), kappa = sqrt(12)/m, A = (m/(m-1))^(alpha/(alpha-1)), for |kappa s| < pi/2.
+Then k_alpha = -sum_{k>=0} r(k + 1/2) (eq. kal2) and y(s) = sum_{k>=0} r(k+1/2-s) - r(k+1/2) (eq. depsol2).
+"""
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from petsc4py import PETSc
+
+from .errors import ConvergenceError, ParameterError
+from .grid import OddPeriodicGrid, RowAssembler, StencilGather
+from .hertz import HertzPotential, check_alpha
+
+SOL_PREFIX = "sol_"
+
+
+@dataclass(frozen=True)
+class SolitaryParameters:
+    """alpha > 1; grid step 1/cells_per_unit (even); half-length L of the truncated line; tail tolerance."""
+
+    alpha: float = 1.5
+    cells_per_unit: int = 40
+    half_length: float = 8.0
+    tail_tolerance: float = 1e-13
+
+    def __post_init__(self):
+        object.__setattr__(self, "alpha", check_alpha(self.alpha))
+        n = self.cells_per_unit
+        if not (isinstance(n, (int, np.integer)) and n >= 2 and n % 2 == 0):
+            raise ParameterError("cells_per_unit", n, "must be an even integer >= 2 (unit shift and half-integers "
+                                 "on the grid)")
+        K = self.half_length * n
+        if not (self.half_length >= 3 and abs(K - round(K)) < 1e-9):
+            raise ParameterError("half_length", self.half_length, "must be >= 3 and a multiple of the grid step "
+                                 f"1/{n}")
+        if not self.tail_tolerance > 0:
+            raise ParameterError("tail_tolerance", self.tail_tolerance, "must be > 0")
+
+    @property
+    def K(self):
+        return int(round(self.half_length * self.cells_per_unit))
+
+
+def continuum_compacton(alpha, s):
+    """The compacton r(s) of the continuum limit (the initial guess; exact for w'' = 12 (w^(1/alpha) - w))."""
+    m = 2 * alpha / (alpha - 1)
+    kappa = math.sqrt(12.0) / m
+    A = (m / (m - 1)) ** (alpha / (alpha - 1))
+    c = np.cos(np.clip(kappa * np.asarray(s, dtype=float), -math.pi / 2, math.pi / 2))
+    return -(A ** (1 / alpha)) * c ** (m / alpha)
+
+
+class SolitaryWaveProblem:
+    """Residual and exact Jacobian of the discretised eq. adr for even r; methods are SNES callbacks."""
+
+    def __init__(self, params, comm=None):
+        self.params = params
+        self.potential = HertzPotential(params.alpha)
+        self.grid = OddPeriodicGrid(params.K, comm, parity=1, length=2 * params.half_length, dirichlet=True)
+        p = params.cells_per_unit
+        self.stencils = StencilGather(self.grid, {
+            "d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) * p ** 2),
+            "plus": (np.array([p]), np.array([1.0])),
+            "minus": (np.array([-p]), np.array([1.0])),
+        })
+        st = self.stencils
+        self_cols = np.arange(self.grid.rstart, self.grid.rend, dtype=np.int64)[:, None]
+        self.assembler = RowAssembler(self.grid, [st.cols["d2"], self_cols, st.cols["plus"], st.cols["minus"]])
+
+    def formFunction(self, snes, X, F):
+        st, V = self.stencils, self.potential
+        g = st.gather(X)
+        f = V.dV(g)
+        r = X.getArray(readonly=True)
+        F.getArray()[:] = st.apply("d2", g) - (st.apply("plus", f) - 2 * V.dV(r) + st.apply("minus", f))
+
+    def _blocks(self, X):
+        st, V = self.stencils, self.potential
+        g = st.gather(X)
+        k = V.d2V(g)
+        r = X.getArray(readonly=True)
+        return [st.coef["d2"], 2 * V.d2V(r)[:, None], -st.coef["plus"] * k[st.pos["plus"]],
+                -st.coef["minus"] * k[st.pos["minus"]]]
+
+    def formJacobian(self, snes, X, J, P):
+        self.assembler.update(P, self._blocks(X))
+        if J.handle != P.handle:
+            J.assemble()
+
+    def destroy(self):
+        self.stencils.destroy()
+
+
+@dataclass
+class SolitaryWave:
+    """r and y on s = j / cells_per_unit, j = 0..K (r even, y odd), k_alpha and solver statistics."""
+
+    params: SolitaryParameters
+    s: np.ndarray
+    r: np.ndarray
+    y: np.ndarray
+    k_alpha: float
+    iterations: int
+    residual_norm: float
+    tail: float
+    wall_time: float
+
+
+def displacement_profile(r_half, n):
+    """y(s_j) of eq. depsol2 and k_alpha of eq. kal2 from r on s_j = j/n, j = 0..K (r = 0 beyond)."""
+    K = len(r_half) - 1
+    half = n // 2
+    k_idx = np.arange(half, 2 * K + 1, n)      # grid indices of k + 1/2, k = 0, 1, ... (shifted by s <= L below)
+    k_alpha = -float(np.sum(r_half[k_idx[k_idx <= K]]))
+
+    def r_at(idx):
+        idx = np.abs(idx)
+        return np.where(idx <= K, r_half[np.minimum(idx, K)], 0.0)
+
+    j = np.arange(K + 1)
+    y = np.array([np.sum(r_at(k_idx - jj)) for jj in j]) + k_alpha
+    return y, k_alpha
+
+
+@PETSc.Log.EventDecorator("hz_solitary_solve")
+def solve_solitary_wave(params, comm=None, prefix=SOL_PREFIX):
+    """Compute the unit-velocity solitary wave and k_alpha; ParameterError if L is too short for the tail
+    tolerance, ConvergenceError if SNES fails or lands on the trivial solution r = 0."""
+    t0 = time.perf_counter()
+    prob = SolitaryWaveProblem(params, comm)
+    grid = prob.grid
+    s = np.arange(params.K + 1) / params.cells_per_unit
+    X = grid.vec_from_half_profile(continuum_compacton(params.alpha, s))
+    J = prob.assembler.create(prob._blocks(X))
+    snes = PETSc.SNES().create(comm=grid.comm)
+    F = grid.create_vec()
+    try:
+        snes.setOptionsPrefix(prefix)
+        snes.setType(PETSc.SNES.Type.NEWTONLS)
+        snes.setFunction(prob.formFunction, F)
+        snes.setJacobian(prob.formJacobian, J, J)
+        # round-off floor of the residual: ~4 eps |r| n^2 per row (|r| <= 1.5), times sqrt(K) in the 2-norm
+        atol = 10 * 4 * np.finfo(float).eps * 1.5 * params.cells_per_unit ** 2 * math.sqrt(params.K + 1)
+        snes.setTolerances(rtol=1e-13, atol=atol, stol=1e-14, max_it=100)
+        ksp = snes.getKSP()
+        ksp.setType(PETSc.KSP.Type.PREONLY)
+        ksp.getPC().setType(PETSc.PC.Type.LU)
+        if grid.comm.getSize() > 1:
+            ksp.getPC().setFactorSolverType("mumps")
+        snes.setFromOptions()
+        snes.solve(None, X)
+        reason, its, fnorm = snes.getConvergedReason(), snes.getIterationNumber(), snes.getFunctionNorm()
+        r = grid.half_profile(X)
+    finally:
+        snes.destroy()
+        J.destroy()
+        F.destroy()
+        X.destroy()
+        prob.destroy()
+    if reason <= 0:
+        raise ConvergenceError("solitary-wave SNES (prefix -%s)" % prefix, int(reason), alpha=params.alpha)
+    if not r.min() < -0.1:
+        raise ConvergenceError("solitary-wave SNES (prefix -%s)" % prefix, "converged to the trivial solution r = 0",
+                               alpha=params.alpha)
+    tail = float(np.max(np.abs(r[s >= params.half_length - 1])) / np.max(np.abs(r)))
+    if tail > params.tail_tolerance:
+        raise ParameterError("half_length", params.half_length,
+                             f"too short: |r| at |s| >= L - 1 is {tail:.1e} of its maximum, above the tolerance "
+                             f"{params.tail_tolerance:g}; increase L")
+    y, k_alpha = displacement_profile(r, params.cells_per_unit)
+    return SolitaryWave(params=params, s=s, r=r, y=y, k_alpha=k_alpha, iterations=its, residual_norm=float(fnorm),
+                        tail=tail, wall_time=time.perf_counter() - t0)

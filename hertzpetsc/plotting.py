@@ -242,3 +242,28 @@ def plot_solitary(wave, directory):
     a2.set_xlabel("$s$")
     a1.set_title(rf"$\alpha = {wave.params.alpha}$, $k_\alpha = {wave.k_alpha:.5f}$", fontsize=10)
     return _save(fig, directory, "ondesol.png")
+
+
+def plot_long_wave(wave, q, u_half, alpha, directory, zoom=0.3):
+    """Figs. approxz (the rescaled profile near pi against the inner solution) and approx (against the
+    composite approximation of eq. solapprox over the period)."""
+    from .longwave import composite_profile, inner_solution
+    plt = _pyplot()
+    K = len(u_half) - 1
+    xi = np.arange(2 * K + 1) * math.pi / K
+    ut = q ** (2 / (alpha - 1)) * np.concatenate([u_half, -u_half[-2::-1]])
+    near = np.abs(xi - math.pi) <= zoom
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(xi[near], ut[near], "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")
+    ax.plot(xi[near], inner_solution(wave, (xi[near] - math.pi) / q), "b-", lw=0.8, label="inner solution (eq. inner)")
+    ax.set_xlabel(r"$\xi$")
+    ax.set_ylabel(r"$\tilde u(\xi)$")
+    ax.legend(fontsize=8)
+    first = _save(fig, directory, "approxz.png")
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.plot(xi, ut, "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")
+    ax.plot(xi, composite_profile(wave, q, xi), "b-", lw=0.8, label="composite (eq. solapprox)")
+    ax.set_xlabel(r"$\xi$")
+    ax.set_ylabel(r"$\tilde u(\xi)$")
+    ax.legend(fontsize=8)
+    return [first, _save(fig, directory, "approx.png")]

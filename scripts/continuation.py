@@ -12,7 +12,8 @@ Application options (defaults reproduce the paper):
   -max_corrector 0.25   relative change of the rescaled profile that makes a step be rejected and halved
   -output branch.npz    branch file, rewritten after every converged point
   -resume               continue the branch stored in -output (which must exist and match the parameters)
-  -figures DIR          write the figures of section 3.1 there (omit for none)
+  -figures DIR          write the figures of section 3.1 there (omit for none); the line of figs. normes and
+                        pentes uses k_alpha of the solitary wave (hertzpetsc.solitary, -sol_ prefix)
 PETSc prefixes: -tw_ for the travelling-wave SNES and its KSP/PC (e.g. -tw_snes_monitor, -tw_snes_type qn,
 -tw_ksp_type gmres, -tw_pc_factor_mat_solver_type mumps); -log_view for timings.
 Prints one line per converged point on rank 0: q, Newton iterations, residual, ||u||_inf.
@@ -86,8 +87,15 @@ def main():
 
     if figures and rank0:
         from hertzpetsc import plotting
+        from hertzpetsc.errors import HertzPetscError
+        from hertzpetsc.solitary import SolitaryParameters, solve_solitary_wave
         os.makedirs(figures, exist_ok=True)
-        for name in plotting.plot_branch_figures(read_branch(path), figures):
+        try:     # the line of figs. normes and pentes uses k_alpha of the solitary wave (eq. kal2)
+            k_alpha = solve_solitary_wave(SolitaryParameters(params.alpha, 80, 8.0), PETSc.COMM_SELF).k_alpha
+        except HertzPetscError as err:
+            k_alpha = None
+            print0(f"note: no k_alpha from the solitary wave ({err}); the figures use the branch estimate")
+        for name in plotting.plot_branch_figures(read_branch(path), figures, k_alpha):
             print0(f"wrote {name}")
     print0(f"wrote {path}")
 

@@ -107,3 +107,12 @@ def test_solitary_wave_script(tmp_path):
     text = out.read_text()
     assert "| k_alpha (L = 8) | 1.350" in text and (tmp_path / "ondesol.png").exists()
     assert run_script("solitary_wave.py", "-cells", "10,20").returncode == 2
+
+
+def test_long_wave_script(tmp_path):
+    out = tmp_path / "lw.md"
+    r = run_script("long_wave.py", "-branch", f"{ROOT}/results/branch_alpha1.5.npz", "-cells_per_unit", 20,
+                   "-output", out, "-figures", tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "| 0.0628 |" in out.read_text() and (tmp_path / "approxz.png").exists()
+    assert run_script("long_wave.py", "-window", 4).returncode == 2

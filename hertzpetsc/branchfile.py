@@ -174,5 +174,10 @@ def refined_state(path, q, N):
     data = read_refined(path)
     if data["N"] != N:
         raise RunFileError(f"refinement file {path!r} is for N = {data['N']} beads, not {N}")
+    return refined_lookup(data, q)
+
+
+def refined_lookup(data, q):
+    """The refined (N, 2) state at wavenumber q in loaded refinement data, or None if it lacks that q."""
     i = np.nonzero(np.abs(data["q"] - q) <= 1e-12 * max(1.0, q))[0]
     return data["x"][i[0]] if len(i) else None

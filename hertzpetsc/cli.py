@@ -28,19 +28,38 @@ class AppOptions:
     def _raw(self, name):
         return self.db.getString(name, None) if self.db.hasName(name) else None
 
+    @staticmethod
+    def _number(text, expr):
+        """float of ``text``; with ``expr`` arithmetic with ``pi`` is allowed (``pi/50``, ``2*pi*1e-3``)."""
+        return float(eval(text, {"__builtins__": {}}, {"pi": math.pi}) if expr else float(text))
+
     def real(self, name, default, valid=None, expr=False):
         """A real option; with ``expr``, values like ``pi/50`` or ``2*pi*1e-3`` are accepted."""
         raw = self._raw(name)
         if raw is None:
             return default
         try:
-            value = eval(raw, {"__builtins__": {}}, {"pi": math.pi}) if expr else float(raw)
-            value = float(value)
+            value = self._number(raw, expr)
         except Exception:
             raise ParameterError(f"-{name}", raw, "must be a real number" + (" (pi allowed)" if expr else "")) from None
         if valid is not None and not valid[0](value):
             raise ParameterError(f"-{name}", raw, valid[1])
         return value
+
+    def numbers(self, name, default, expr=True, kind=float):
+        """A comma-separated list option (``default`` is the list's text), each item converted by ``kind``."""
+        raw = self._raw(name)
+        text = default if raw is None else raw
+        if not text:
+            return []
+        try:
+            values = [self._number(v, expr) for v in text.split(",")]
+            if kind is int and any(v != int(v) for v in values):
+                raise ValueError
+        except Exception:
+            raise ParameterError(f"-{name}", text, "must be a comma-separated list of "
+                                 + ("integers" if kind is int else "numbers")) from None
+        return [kind(v) for v in values]
 
     def integer(self, name, default, minimum=None):
         raw = self._raw(name)

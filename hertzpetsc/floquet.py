@@ -28,11 +28,7 @@ def dense_monodromy(params, x0, T, comm=None, tolerances=None, shift=True):
     """Assembled S R(T; 0) (``shift``) or R(T; 0), 2N x 2N, on every rank (2N tangent vectors at once)."""
     flow = TangentFlow(params, 2 * params.N, comm, tolerances)
     try:
-        if shift:
-            return flow.monodromy_mod_shift(x0, T)[0]
-        N = params.N
-        _, RY = flow.run(x0, T, np.eye(2 * N).reshape(N, 2, 2 * N))
-        return RY.reshape(2 * N, 2 * N)
+        return flow.monodromy_mod_shift(x0, T)[0] if shift else flow.resolvent(x0, T)[0]
     finally:
         flow.destroy()
 

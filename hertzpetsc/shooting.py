@@ -83,17 +83,15 @@ class RefinementResult:
     wall_time: float = 0.0
 
 
-def symmetry_complement(chain_params, x, comm=None):
+def symmetry_complement(chain, x):
     """Orthonormal basis (2N x (2N-2)) of the complement of the translation and time-shift directions at x."""
-    N = chain_params.N
-    chain = Chain(chain_params, comm)
+    N = chain.params.N
     X, F = chain.create_state(), chain.create_state()
     chain.set_from_array(X, x)
     chain.rhs(None, 0.0, X, F)
     f = chain.gather(F).ravel()
     for v in (X, F):
         v.destroy()
-    chain.destroy()
     translation = np.tile([1.0, 0.0], N)
     Q, _ = np.linalg.qr(np.stack([translation, f], axis=1), mode="complete")
     return Q[:, 2:]
@@ -133,9 +131,9 @@ def refine(params, x0, T, comm=None, tol=1e-10, max_iterations=20, tolerances=ME
     flow = TangentFlow(params, 2 * N, comm, tolerances, prefix)
     try:
         x = np.asarray(x0, dtype=float).reshape(N, 2).copy()
-        g = (smap(x, T) - x).ravel()
-        scale = np.max(np.abs(x))
-        E0 = E = float(np.max(np.abs(g)) / scale)
+        sx = smap(x, T)
+        g = (sx - x).ravel()
+        E0 = E = relative_residual(x, sx)
         history, jacobians, J, fresh, r = [E], 0, None, False, float("nan")
         sigma_min = None
         it = 0
@@ -144,7 +142,7 @@ def refine(params, x0, T, comm=None, tol=1e-10, max_iterations=20, tolerances=ME
             if J is None:
                 M, _ = flow.monodromy_mod_shift(x, T)
                 J = M - np.eye(2 * N)
-                Q = symmetry_complement(params, x, comm)
+                Q = symmetry_complement(smap.chain, x)
                 jacobians += 1
                 fresh = True
                 steps, sigma_min = phase_conditioned_steps(J, g, Q, comm)
@@ -153,8 +151,8 @@ def refine(params, x0, T, comm=None, tol=1e-10, max_iterations=20, tolerances=ME
             best = None
             for d in steps:
                 x_new = x + d.reshape(N, 2)
-                g_new = (smap(x_new, T) - x_new).ravel()
-                E_new = float(np.max(np.abs(g_new)) / np.max(np.abs(x_new)))
+                sx = smap(x_new, T)
+                g_new, E_new = (sx - x_new).ravel(), relative_residual(x_new, sx)
                 if best is None or E_new < best[2]:
                     best = (x_new, g_new, E_new)
             x_new, g_new, E_new = best

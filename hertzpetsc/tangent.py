@@ -37,17 +37,20 @@ class TangentFlow:
         out = self.aug.gather(self.Z)
         return out[:, :2].copy(), out[:, 2:].reshape(N, k, 2).transpose(0, 2, 1).copy()
 
-    def monodromy_mod_shift(self, x0, T):
-        """Dense S R(T; 0) (2N x 2N, index 2n + c for bead n, component c) and S X(T), on every rank.
+    def resolvent(self, x0, T):
+        """Dense R(T; 0) (2N x 2N, index 2n + c for bead n, component c) and X(T), on every rank.
 
         Requires k = 2N; the columns are the images of the unit vectors e_{2n+c}.
         """
         N = self.params.N
         if self.k != 2 * N:
-            raise ValueError(f"the dense monodromy needs n_tangent = 2N = {2 * N}, not {self.k}")
-        eye = np.eye(2 * N).reshape(N, 2, 2 * N)
-        xT, RY = self.run(x0, T, eye)
-        R = RY.reshape(2 * N, 2 * N)
+            raise ValueError(f"the dense resolvent needs n_tangent = 2N = {2 * N}, not {self.k}")
+        xT, RY = self.run(x0, T, np.eye(2 * N).reshape(N, 2, 2 * N))
+        return RY.reshape(2 * N, 2 * N), xT
+
+    def monodromy_mod_shift(self, x0, T):
+        """Dense S R(T; 0) and S X(T), on every rank (S moves bead n+1 to bead n)."""
+        R, xT = self.resolvent(x0, T)
         return np.roll(R, -2, axis=0), np.roll(xT, -1, axis=0)
 
     def destroy(self):

@@ -38,10 +38,21 @@ class TravellingWaveState:
         return np.stack([self.x, self.v], axis=1)
 
 
+def fits_chain(q, N):
+    """Whether N q / (2 pi) is a positive whole number (a whole number of wavelengths on N beads)."""
+    m = N * q / (2 * math.pi)
+    return abs(m - round(m)) <= 1e-9 * max(1.0, m) and round(m) >= 1
+
+
+def chain_wavenumbers(qs, N):
+    """The wavenumbers among ``qs`` that fit a periodic chain of N beads, as floats."""
+    return [float(q) for q in qs if fits_chain(q, N)]
+
+
 def check_chain_wavenumber(q, N):
     """m = N q / (2 pi) must be a whole number: returns m, or raises ParameterError naming N."""
     m = N * q / (2 * math.pi)
-    if abs(m - round(m)) > 1e-9 * max(1.0, m) or round(m) < 1:
+    if not fits_chain(q, N):
         raise ParameterError("N", N, f"N q / (2 pi) = {m:.6g} must be a positive integer for q = {q:.6g} "
                                      "(the chain must hold a whole number of wavelengths)")
     return int(round(m))

@@ -62,13 +62,9 @@ def main():
     opts = AppOptions()
     alpha = opts.real("alpha", 1.5)
     M = opts.integer("M", 50, minimum=1)
-    raw = opts.string("cells", "250,500,1000,2000,4000")
-    try:
-        cells = sorted(int(c) for c in raw.split(","))
-    except ValueError:
-        raise ParameterError("-cells", raw, "must be a comma-separated list of integers") from None
+    cells = sorted(opts.numbers("cells", "250,500,1000,2000,4000", expr=False, kind=int))
     if len(cells) < 3:
-        raise ParameterError("-cells", raw, "needs at least three grids for an observed order")
+        raise ParameterError("-cells", cells, "needs at least three grids for an observed order")
     output = opts.string("output", "results/convergence_h.md")
     text = report(alpha, M, cells, study(alpha, M, cells))
     if PETSc.COMM_WORLD.getRank() == 0:

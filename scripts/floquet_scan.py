@@ -30,14 +30,14 @@ from petsc4py import PETSc  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from hertzpetsc.branchfile import atomic_savez, read_branch, read_refined  # noqa: E402
+from hertzpetsc.branchfile import atomic_savez, read_branch, read_refined, refined_lookup  # noqa: E402
 from hertzpetsc.chain import ChainParameters  # noqa: E402
 from hertzpetsc.cli import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.floquet import (dense_monodromy, dense_multipliers, dominant_multipliers, spectral_radius,  # noqa
                                 trivial_multipliers)
 from hertzpetsc.shooting import MEASURE_TOLERANCES  # noqa: E402
-from hertzpetsc.waves import wave_on_chain  # noqa: E402
+from hertzpetsc.waves import chain_wavenumbers, wave_on_chain  # noqa: E402
 
 EIGEN_Q = (("3pi/10", 3 * math.pi / 10), ("7pi/25", 7 * math.pi / 25), ("9pi/50", 9 * math.pi / 50),
            ("pi/50", math.pi / 50))
@@ -46,10 +46,9 @@ EIGEN_Q = (("3pi/10", 3 * math.pi / 10), ("7pi/25", 7 * math.pi / 25), ("9pi/50"
 def states(branch, refined, N, q):
     """Initial state (refined if available) and script-T for wavenumber q."""
     w = wave_on_chain(branch, q, N)
-    if refined is not None:
-        i = np.nonzero(np.abs(refined["q"] - w.q) <= 1e-12 * w.q)[0]
-        if len(i):
-            return refined["x"][i[0]], w.T, "refined"
+    x = refined_lookup(refined, w.q) if refined is not None else None
+    if x is not None:
+        return x, w.T, "refined"
     return w.as_array(), w.T, "branch"
 
 
@@ -67,7 +66,7 @@ def main():
     output = opts.string("output", f"results/floquet_N{N}.npz")
     table_path = opts.string("table", f"results/floquet_table_N{N}.md")
     figures = opts.string("figures", "")
-    q_list = opts.string("q", "")
+    q_list = opts.numbers("q", "")
     comm = PETSc.COMM_WORLD
     rank0 = comm.getRank() == 0
 
@@ -76,10 +75,7 @@ def main():
     if refined is not None and refined["N"] != N:
         refined = None
     params = ChainParameters(float(branch["alpha"]), N)
-    if q_list:
-        qs = [float(eval(s, {"__builtins__": {}}, {"pi": math.pi})) for s in q_list.split(",")]
-    else:
-        qs = [float(q) for q in branch["q"] if abs(N * q / (2 * math.pi) - round(N * q / (2 * math.pi))) < 1e-9]
+    qs = q_list or chain_wavenumbers(branch["q"], N)
     rows = dict(q=[], rho=[], outside=[], trivial_spread=[], growth=[], source=[], seconds=[])
     spectra = []
     print0(f"# N = {N}, method {method}, tol_rho = {tol_rho:g}")

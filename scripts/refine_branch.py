@@ -26,7 +26,7 @@ from hertzpetsc.chain import ChainParameters, IntegrationTolerances  # noqa: E40
 from hertzpetsc.cli import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.errors import ParameterError, RunFileError  # noqa: E402
 from hertzpetsc.shooting import refine, residual_E  # noqa: E402
-from hertzpetsc.waves import wave_on_chain  # noqa: E402
+from hertzpetsc.waves import chain_wavenumbers, wave_on_chain  # noqa: E402
 
 PAPER_FLOW = IntegrationTolerances(1e-12, 1e-14)
 
@@ -61,8 +61,7 @@ def main():
     branch = read_branch(branch_path)
     alpha = float(branch["alpha"])
     params = ChainParameters(alpha, N)
-    qs = [float(q) for q in branch["q"]
-          if abs(N * q / (2 * math.pi) - round(N * q / (2 * math.pi))) < 1e-9 and round(N * q / (2 * math.pi)) >= 1]
+    qs = chain_wavenumbers(branch["q"], N)
     if q_only is not None:
         qs = [q for q in qs if abs(q - q_only) <= 1e-12 * q_only]
         if not qs:

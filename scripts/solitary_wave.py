@@ -24,19 +24,11 @@ from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.solitary import SolitaryParameters, solve_solitary_wave  # noqa: E402
 
 
-def int_list(opts, name, default):
-    raw = opts.string(name, default)
-    try:
-        return [float(v) if "." in v else int(v) for v in raw.split(",")]
-    except ValueError:
-        raise ParameterError(f"-{name}", raw, "must be a comma-separated list of numbers") from None
-
-
 def main():
     opts = AppOptions()
-    alphas = [float(a) for a in int_list(opts, "alphas", "1.5,2,2.5")]
-    cells = sorted(int(c) for c in int_list(opts, "cells", "10,20,40,80,160"))
-    lengths = sorted(float(v) for v in int_list(opts, "lengths", "5,6,7,8,10"))
+    alphas = opts.numbers("alphas", "1.5,2,2.5", expr=False)
+    cells = sorted(opts.numbers("cells", "10,20,40,80,160", expr=False, kind=int))
+    lengths = sorted(opts.numbers("lengths", "5,6,7,8,10", expr=False))
     output = opts.string("output", "results/solitary.md")
     figures = opts.string("figures", "")
     if len(cells) < 3:

@@ -267,3 +267,35 @@ def plot_long_wave(wave, q, u_half, alpha, directory, zoom=0.3):
     ax.set_ylabel(r"$\tilde u(\xi)$")
     ax.legend(fontsize=8)
     return [first, _save(fig, directory, "approx.png")]
+
+
+# --- section 3.3: compactons ------------------------------------------------------------------------------------
+def plot_compacton_profiles(single, double, directory):
+    """Fig. graphulin: U_q (eq. extens, top) and U^(2)_{q, theta} (eq. extens2, bottom), with the compression
+    regions (ell, 2 pi - ell) + s_j shaded."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(2, 1, figsize=(6, 6))
+    for ax, train in zip(axes, (single, double)):
+        xi = np.linspace(-2 * math.pi, train.offsets[-1] + 4 * math.pi, 2000)
+        ax.plot(xi, train(xi), "k-", lw=1)
+        for s in train.offsets:
+            ax.axvspan(s + train.ell, s + 2 * math.pi - train.ell, color="0.85", lw=0)
+        ax.set_xlabel(r"$\xi$")
+        theta = "" if train.count == 1 else rf", $\theta = {train.offsets[1] - 2 * math.pi:.3g}$"
+        ax.set_ylabel("$U_q$" if train.count == 1 else "$U^{(2)}_{q,\\theta}$")
+        ax.set_title(rf"$q = {train.q:.4f}$, $F(q) = {train.F:.3f}$" + theta, fontsize=9)
+    return _save(fig, directory, "graphulin.png")
+
+
+def plot_spacetime_velocities(times, states, directory, name, title=""):
+    """Bead velocities xdot_n over (n, t): compactons travel through beads at rest (white = exactly 0)."""
+    plt = _pyplot()
+    v = states[..., 1]
+    fig, ax = plt.subplots(figsize=(6, 4))
+    im = ax.imshow(v, aspect="auto", origin="lower", cmap="gray_r",
+                   extent=(-0.5, states.shape[1] - 0.5, times[0], times[-1]))
+    fig.colorbar(im, ax=ax, label=r"$\dot x_n$")
+    ax.set_xlabel("$n$")
+    ax.set_ylabel("$t$")
+    ax.set_title(title, fontsize=9)
+    return _save(fig, directory, name)

@@ -116,3 +116,18 @@ def test_long_wave_script(tmp_path):
     assert r.returncode == 0, r.stderr
     assert "| 0.0628 |" in out.read_text() and (tmp_path / "approxz.png").exists()
     assert run_script("long_wave.py", "-window", 4).returncode == 2
+
+
+def test_compacton_script_table_and_bad_input(coarse_branch, tmp_path):
+    """Section 3.3 driver under mpiexec -n 2: the table has both cases with beads ahead exactly at rest; a q above
+    q_k and a negative theta are refused in one line with exit status 2."""
+    common = ("-branches", coarse_branch, "-margin", 4, "-travel", 20, "-dt_snapshot", 0.1)
+    out = tmp_path / "c.md"
+    r = run_script("compactons.py", *common, "-q", "0.3*pi", "-output", out, "-figures", tmp_path, ranks=2)
+    assert r.returncode == 0, r.stderr
+    rows = [l for l in out.read_text().splitlines() if l.startswith("| pi/200 ")]
+    assert len(rows) == 2 and all(l.split("|")[7].strip() == "0.0e+00" for l in rows)
+    assert (tmp_path / "graphulin.png").exists() and (tmp_path / "compacton2_spacetime.png").exists()
+    for bad, what in ((("-q", "0.7*pi"), "q_k"), (("-q", "0.3*pi", "-theta", "-3"), "spacings")):
+        r = run_script("compactons.py", *common, *bad, "-output", tmp_path / "x.md")
+        assert r.returncode == 2 and what in r.stderr and len(r.stderr.strip().splitlines()) == 1, r.stderr

@@ -61,3 +61,10 @@ def test_p0_gives_period_two_pi(alpha):
     if alpha == 2.0:
         g = math.sqrt(math.pi) * math.gamma(1 / 3 + 0.5) / math.gamma(1 / 3)
         assert abs(pot.p0 - 3.0 ** -2 * g ** -3) < 1e-14
+
+
+@pytest.mark.parametrize("e", [0.5, 1.0, 1.5, 2.0, 2.5, 3.5, 1.3, 4.5])
+def test_abs_power_matches_the_general_power(e):
+    from hertzpetsc.hertz import abs_power
+    a = np.concatenate([[0.0], np.logspace(-12, 3, 200)])
+    assert np.allclose(abs_power(a, e), a ** e, rtol=8 * np.finfo(float).eps, atol=0)

@@ -10,19 +10,30 @@ stencils of :func:`hertzpetsc.stencil.shift_stencil`; the exact Jacobian
     J = D2 + diag(V''(d+) + V''(d-)) - diag(V''(d+)) tau_q - diag(V''(d-)) tau_{-q},
     d+ = tau_q u - u,  d- = u - tau_{-q} u,  V''(x) = alpha |x|^(alpha-1) H(-x),
 
-is assembled as a parallel AIJ matrix. :func:`solve_travelling_wave` solves R(u) = 0 with PETSc SNES under the
-options prefix ``tw_`` (defaults: Newton with backtracking line search, direct LU, MUMPS on several ranks;
-quasi-Newton, as in the paper, is ``-tw_snes_type qn``, see :data:`QN_DEFAULTS`).
+is applied matrix-free or assembled as a parallel AIJ matrix. :class:`TravellingWaveSolver` (kept across a
+continuation) and :func:`solve_travelling_wave` solve R(u) = 0 with PETSc SNES under the options prefix ``tw_``.
+Two linear-solver paths, chosen by ``-tw_solver``:
+
+* ``direct`` (default): Newton with backtracking line search, assembled J, LU (MUMPS on several ranks). The
+  shifts couple points up to half a period apart, so the factors fill in and the cost grows faster than the
+  number of grid points.
+* ``nk``: Newton-Krylov. J = D2 + K with K bounded as h -> 0, so GMRES preconditioned by the exact inverse of D2
+  (:class:`SecondDifferencePC`, O(n), partition-independent) needs a number of iterations independent of h;
+  J is applied matrix-free (``-tw_jacobian shell``, default) or assembled (``-tw_jacobian aij``, for algebraic
+  preconditioners such as ``-tw_pc_type hypre``). All KSP/PC knobs stay reachable as -tw_ksp_*, -tw_pc_*.
+
+Quasi-Newton, as in the paper, is ``-tw_snes_type qn``, see :data:`QN_DEFAULTS`.
 """
 import math
 import time
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
 from petsc4py import PETSc
 
 from .errors import ConvergenceError, ParameterError
-from .grid import RowAssembler, StencilGather
+from .grid import RowAssembler, StencilGather, merged_csr
 from .hertz import HertzPotential
 from .stencil import shift_stencil
 
@@ -43,7 +54,14 @@ def check_wavenumber(q, h=None, name="q"):
 
 
 class AdvanceDelayProblem:
-    """Residual and Jacobian of eqs. ad-pbc at one wavenumber q; its methods are the SNES callbacks."""
+    """Residual and Jacobian of eqs. ad-pbc at one wavenumber q; its methods are the SNES callbacks.
+
+    The three linear maps of eq. ad, D2, tau_q and tau_{-q}, are stacked into one parallel AIJ matrix T (3 rows
+    per unknown, built once per q), so that one MatMult (one scatter, compiled code) gives D2 u, tau_q u and
+    tau_{-q} u for the residual, for the Jacobian's coefficients V''(d+-), and for the matrix-free Jacobian
+    products of the Newton-Krylov path. :meth:`create_jacobian` builds either the assembled AIJ Jacobian
+    (``kind='aij'``, for LU and algebraic preconditioners) or that matrix-free operator (``kind='shell'``).
+    """
 
     def __init__(self, potential, grid, q):
         self.potential = potential if isinstance(potential, HertzPotential) else HertzPotential(potential)
@@ -55,40 +73,77 @@ class AdvanceDelayProblem:
             "d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / h2),
             "plus": shift_stencil(self.sigma),
             "minus": shift_stencil(-self.sigma),
-        })
+        }, scatter=False)
+        self._assembler = None
         st = self.stencils
-        self_cols = np.arange(grid.rstart, grid.rend, dtype=np.int64)[:, None]
-        self.assembler = RowAssembler(grid, [st.cols["d2"], self_cols, st.cols["plus"], st.cols["minus"]])
+        nloc = grid.rend - grid.rstart
+        self.nloc = nloc
+        parts = [_d2_csr(grid, st)] + [merged_csr(st.cols[k], st.coef[k]) for k in ("plus", "minus")]
+        offsets = np.cumsum([0] + [p[0][-1] for p in parts])
+        indptr = np.concatenate([parts[0][0]] + [p[0][1:] + offsets[i] for i, p in enumerate(parts) if i > 0])
+        csr = (indptr.astype(PETSc.IntType), np.concatenate([p[1] for p in parts]),
+               np.concatenate([p[2] for p in parts]))
+        # the arrays are used in place on one rank (petsc4py keeps them alive), copied once on several
+        self.T = PETSc.Mat().createAIJWithArrays(((3 * nloc, 3 * grid.size), (nloc, grid.size)), csr,
+                                                 comm=grid.comm)
+        self.T.assemble()
+        self.w = self.T.createVecLeft()
+        self.a = self.b = None            # V''(d+), V''(d-) at the last Jacobian evaluation
 
     @property
     def integer_shift(self):
         return len(self.stencils.coef["plus"][0]) == 1 if self.grid.rend > self.grid.rstart else True
 
+    @property
+    def assembler(self):
+        """The CSR pattern of the assembled Jacobian (built on first use: the matrix-free path never needs it)."""
+        if self._assembler is None:
+            st = self.stencils
+            self_cols = np.arange(self.grid.rstart, self.grid.rend, dtype=np.int64)[:, None]
+            self._assembler = RowAssembler(self.grid, [st.cols["d2"], self_cols, st.cols["plus"], st.cols["minus"]])
+        return self._assembler
+
     def shift_differences(self, X):
-        """d+ = tau_q u - u and d- = u - tau_{-q} u on the owned rows, and D2 u, and the gathered values."""
-        st = self.stencils
-        g = st.gather(X)
+        """d+ = tau_q u - u, d- = u - tau_{-q} u and D2 u on the owned rows (one MatMult with T)."""
+        self.T.mult(X, self.w)
+        w = self.w.getArray(readonly=True)
         u = X.getArray(readonly=True)
-        return st.apply("plus", g) - u, u - st.apply("minus", g), st.apply("d2", g)
+        n = self.nloc
+        return w[n:2 * n] - u, u - w[2 * n:], w[:n]
 
     def formFunction(self, snes, X, F):
         dplus, dminus, d2u = self.shift_differences(X)
         V = self.potential
-        F.getArray()[:] = d2u - V.dV(dplus) + V.dV(dminus)
+        F.getArray()[:] = d2u - _on_contact(V.dV, dplus) + _on_contact(V.dV, dminus)
 
-    def _jacobian_blocks(self, X):
+    def _coefficients(self, X):
         dplus, dminus, _ = self.shift_differences(X)
-        a = self.potential.d2V(dplus)[:, None]
-        b = self.potential.d2V(dminus)[:, None]
+        self.a = _on_contact(self.potential.d2V, dplus)
+        self.b = _on_contact(self.potential.d2V, dminus)
+
+    def _jacobian_blocks(self):
+        a, b = self.a[:, None], self.b[:, None]
         c = self.stencils.coef
         return [c["d2"], a + b, -a * c["plus"], -b * c["minus"]]
 
-    def create_jacobian(self, X):
-        """A new parallel AIJ matrix holding J(X), with this q's nonzero pattern."""
-        return self.assembler.create(self._jacobian_blocks(X))
+    def create_jacobian(self, X, kind="aij"):
+        """J(X) as a new parallel AIJ matrix with this q's pattern (``kind='aij'``), or as a matrix-free operator
+        J v = D2 v + (a + b) v - a tau_q v - b tau_{-q} v, a = V''(d+), b = V''(d-) (``kind='shell'``)."""
+        self._coefficients(X)
+        if kind == "aij":
+            return self.assembler.create(self._jacobian_blocks())
+        if kind != "shell":
+            raise ParameterError("kind", kind, "must be 'aij' or 'shell'")
+        g = self.grid
+        nloc = g.rend - g.rstart
+        J = PETSc.Mat().createPython(((nloc, g.size), (nloc, g.size)), _JacobianProduct(self), comm=g.comm)
+        J.setUp()
+        return J
 
     def formJacobian(self, snes, X, J, P):
-        self.assembler.update(P, self._jacobian_blocks(X))
+        self._coefficients(X)
+        if P.getType() != PETSc.Mat.Type.PYTHON:
+            self.assembler.update(P, self._jacobian_blocks())
         if J.handle != P.handle:
             J.assemble()
 
@@ -101,6 +156,154 @@ class AdvanceDelayProblem:
 
     def destroy(self):
         self.stencils.destroy()
+        self.T.destroy()
+        self.w.destroy()
+
+
+_D2_CACHE = weakref.WeakKeyDictionary()
+
+
+def _d2_csr(grid, stencils):
+    """CSR rows of the second difference on ``grid`` (independent of q: built once per grid)."""
+    csr = _D2_CACHE.get(grid)
+    if csr is None:
+        csr = _D2_CACHE[grid] = merged_csr(stencils.cols["d2"], stencils.coef["d2"])
+    return csr
+
+
+def _on_contact(f, x):
+    """f(x) where x < 0 (in contact), 0 elsewhere: V' and V'' vanish for x >= 0, and few entries are in contact."""
+    out = np.zeros_like(x)
+    m = x < 0.0
+    out[m] = f(x[m])
+    return out
+
+
+class _JacobianProduct:
+    """Matrix-free Jacobian of eq. ad (the ``shell`` kind of :meth:`AdvanceDelayProblem.create_jacobian`)."""
+
+    def __init__(self, problem):
+        self.problem = problem
+
+    @PETSc.Log.EventDecorator("hz_tw_jacobian_mult")
+    def mult(self, mat, x, y):
+        p = self.problem
+        p.T.mult(x, p.w)
+        w = p.w.getArray(readonly=True)
+        v = x.getArray(readonly=True)
+        n = p.nloc
+        y.getArray()[:] = w[:n] + (p.a + p.b) * v - p.a * w[n:2 * n] - p.b * w[2 * n:]
+
+
+class SecondDifferencePC:
+    """Exact distributed solve with the second difference D2 of eq. ad: the preconditioner of ``-tw_solver nk``.
+
+    The Jacobian of eq. ad is J = D2 + K, where D2 (the tridiagonal (1, -2, 1)/h^2, with u_0 = u_K = 0 for odd
+    profiles) carries the 1/h^2 and K (the V''-weighted shift couplings) stays bounded as h -> 0; hence D2^{-1} J
+    is the identity plus a compact operator and GMRES needs a number of iterations independent of h.
+
+    D2 is taken from the ``d2`` stencil of a :class:`~hertzpetsc.grid.StencilGather` (any tridiagonal stencil
+    works) and does not depend on u or q, so it is factored once per problem. The solve is exact and independent
+    of the partition: each rank factors its diagonal block (LU, natural ordering: O(n) for a tridiagonal), and
+    the couplings between neighbouring ranks are restored by the two "spikes" B^{-1} e_first, B^{-1} e_last of
+    each block and a 2p x 2p interface system (p ranks), solved redundantly after one allgather of 2 numbers per
+    rank per application.
+    """
+
+    def __init__(self, grid, stencils, name="d2"):
+        self.grid = grid
+        rstart, rend = grid.rstart, grid.rend
+        nloc = rend - rstart
+        self.nloc = nloc
+        rows = np.arange(rstart, rend)[:, None]
+        cols, coef = stencils.cols[name], stencils.coef[name]
+        lower = np.where(cols == rows - 1, coef, 0.0).sum(axis=1)
+        diag = np.where(cols == rows, coef, 0.0).sum(axis=1)
+        upper = np.where(cols == rows + 1, coef, 0.0).sum(axis=1)
+        if np.any((np.abs(cols - rows) > 1) & (coef != 0.0)):
+            raise ParameterError("stencil", name, "must be tridiagonal for SecondDifferencePC")
+        # the diagonal block, as sequential AIJ (CSR rows: lower, diagonal, upper within the block)
+        local = np.arange(nloc)
+        entries = [(local - 1, lower, local > 0), (local, diag, local >= 0), (local + 1, upper, local < nloc - 1)]
+        c = np.stack([e[0] for e in entries], axis=1)
+        v = np.stack([e[1] for e in entries], axis=1)
+        keep = np.stack([e[2] for e in entries], axis=1)
+        indptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))]).astype(PETSc.IntType)
+        self.block = PETSc.Mat().createAIJ((nloc, nloc), csr=(indptr, c[keep].astype(PETSc.IntType), v[keep]),
+                                           comm=PETSc.COMM_SELF)
+        self.block.assemble()
+        self.ksp = PETSc.KSP().create(comm=PETSc.COMM_SELF)
+        self.ksp.setOperators(self.block)
+        self.ksp.setType(PETSc.KSP.Type.PREONLY)
+        lpc = self.ksp.getPC()
+        lpc.setType(PETSc.PC.Type.LU)
+        lpc.setFactorOrdering(PETSc.Mat.OrderingType.NATURAL)
+        self.rhs = PETSc.Vec().createSeq(nloc, comm=PETSc.COMM_SELF)
+        self.sol = self.rhs.duplicate()
+        # spikes: the response of the block to the coupling with the last row of the previous rank (g) and the
+        # first row of the next rank (k); x_local = B^{-1} f - x_prev g - x_next k
+        self.spikes = np.zeros((2, nloc))
+        if nloc:
+            self.ksp.setUp()
+            for i, (pos, weight) in enumerate(((0, lower[0]), (nloc - 1, upper[-1]))):
+                self.rhs.set(0.0)
+                self.rhs.setValue(pos, weight)
+                self.rhs.assemble()
+                self.ksp.solve(self.rhs, self.sol)
+                self.spikes[i] = self.sol.getArray(readonly=True)
+        self.mpi = grid.comm.tompi4py() if grid.comm.getSize() > 1 else None
+        if self.mpi is not None:
+            ends = np.array([self.spikes[0, 0], self.spikes[0, -1], self.spikes[1, 0], self.spikes[1, -1]]
+                            if nloc else [0.0] * 4)
+            allends = np.empty((self.mpi.size, 4))
+            self.mpi.Allgather(ends, allends)
+            counts = np.array(self.mpi.allgather(nloc))
+            self._interface_system(allends, counts)
+
+    def _interface_system(self, ends, counts):
+        """The 2p x 2p system for z = (x_prev, x_next) of every non-empty rank: x_prev of one rank is the last
+        entry of the previous non-empty rank, x_next the first entry of the next one (0 beyond the ends)."""
+        self.active = np.flatnonzero(counts > 0)
+        p = len(self.active)
+        e = ends[self.active]                     # g_first, g_last, k_first, k_last per active rank
+        A = np.eye(2 * p)
+        for r in range(p):
+            if r > 0:        # x_prev[r] = y_last[r-1] - x_prev[r-1] g_last[r-1] - x_next[r-1] k_last[r-1]
+                A[r, r - 1] += e[r - 1, 1]
+                A[r, p + r - 1] += e[r - 1, 3]
+            if r < p - 1:    # x_next[r] = y_first[r+1] - x_prev[r+1] g_first[r+1] - x_next[r+1] k_first[r+1]
+                A[p + r, r + 1] += e[r + 1, 0]
+                A[p + r, p + r + 1] += e[r + 1, 2]
+        self.interface_inverse = np.linalg.inv(A)
+        self.my_index = int(np.searchsorted(self.active, self.mpi.rank)) if counts[self.mpi.rank] else -1
+
+    def setUp(self, pc):
+        pass
+
+    def apply(self, pc, x, y):
+        out = y.getArray()
+        if self.nloc:
+            self.rhs.getArray()[:] = x.getArray(readonly=True)
+            self.ksp.solve(self.rhs, self.sol)
+            out[:] = self.sol.getArray(readonly=True)
+        if self.mpi is None:
+            return
+        ends = np.array([out[0], out[-1]] if self.nloc else [0.0, 0.0])
+        allends = np.empty((self.mpi.size, 2))
+        self.mpi.Allgather(ends, allends)
+        if self.my_index < 0:
+            return
+        p = len(self.active)
+        b = np.zeros(2 * p)
+        b[1:p] = allends[self.active[:-1], 1]       # y_last of the previous active rank
+        b[p:2 * p - 1] = allends[self.active[1:], 0]  # y_first of the next active rank
+        r = self.my_index
+        x_prev, x_next = self.interface_inverse[r] @ b, self.interface_inverse[p + r] @ b
+        out -= x_prev * self.spikes[0] + x_next * self.spikes[1]
+
+    def destroy(self, pc=None):
+        for obj in (self.ksp, self.block, self.rhs, self.sol):
+            obj.destroy()
 
 
 @dataclass(frozen=True)
@@ -138,23 +341,43 @@ QN_DEFAULTS = {"snes_qn_scale_type": "jacobian", "snes_linesearch_type": "cp"}
 ACCEPT_FACTOR = 1e3
 
 
-def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None):
-    """SNES with the paper-reproducing defaults, then the options database under ``prefix`` (read once)."""
-    comm = problem.grid.comm
-    snes = PETSc.SNES().create(comm=comm)
-    snes.setOptionsPrefix(prefix)
-    snes.setType(PETSc.SNES.Type.NEWTONLS)
-    F = problem.grid.create_vec()
-    snes.setFunction(problem.formFunction, F)
-    snes.setJacobian(problem.formJacobian, J, J)
-    if tolerances:
-        snes.setTolerances(**tolerances)
+TW_SOLVERS = ("direct", "nk")
+
+# Defaults of the Newton-Krylov path (-tw_solver nk): GMRES preconditioned by the exact inverse of the second
+# difference (:class:`SecondDifferencePC`). J = D2 + K with K bounded as h -> 0 (V''-weighted shifts), so
+# D2^{-1} J = I + compact and the Krylov iteration count does not grow as the grid is refined. The linear
+# tolerance keeps Newton quadratic down to round-off of the discrete equations.
+NK_KSP_RTOL = 1e-10
+
+
+def tw_solver(prefix=TW_PREFIX, solver=None):
+    """The linear-solver path: ``solver`` if given, else ``-<prefix>solver`` from the options database, else
+    'direct'. 'direct' is LU (MUMPS on several ranks); 'nk' is Newton-Krylov (GMRES + exact D2 solve)."""
+    if solver is None:
+        solver = PETSc.Options().getString(prefix + "solver", "direct")
+    if solver not in TW_SOLVERS:
+        raise ParameterError(f"-{prefix}solver", solver, "must be one of " + ", ".join(TW_SOLVERS))
+    return solver
+
+
+def _set_linear_defaults(snes, solver, grid, stencils):
+    """The code defaults of the linear solves (before the options database is read)."""
     ksp = snes.getKSP()
-    ksp.setType(PETSc.KSP.Type.PREONLY)
     pc = ksp.getPC()
-    pc.setType(PETSc.PC.Type.LU)
-    if comm.getSize() > 1:
-        pc.setFactorSolverType("mumps")
+    if solver == "direct":
+        ksp.setType(PETSc.KSP.Type.PREONLY)
+        pc.setType(PETSc.PC.Type.LU)
+        if grid.comm.getSize() > 1:
+            pc.setFactorSolverType("mumps")
+    else:
+        ksp.setType(PETSc.KSP.Type.GMRES)
+        ksp.setTolerances(rtol=NK_KSP_RTOL)
+        pc.setType(PETSc.PC.Type.PYTHON)
+        pc.setPythonContext(SecondDifferencePC(grid, stencils))
+
+
+def _set_from_options(snes, prefix):
+    """snes.setFromOptions(), with :data:`QN_DEFAULTS` inserted for the call only (where the user set none)."""
     opts = PETSc.Options()
     inserted = []
     if opts.getString(prefix + "snes_type", "") == "qn":
@@ -167,35 +390,114 @@ def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None):
     finally:
         for key in inserted:
             opts.delValue(key)
+
+
+def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None, solver=None):
+    """SNES with the paper-reproducing defaults, then the options database under ``prefix`` (read once).
+
+    ``solver`` (or ``-<prefix>solver``) picks the defaults of the linear solves: 'direct' (PREONLY + LU, MUMPS
+    on several ranks) or 'nk' (GMRES preconditioned by :class:`SecondDifferencePC`, which needs the problem's
+    ``stencils["d2"]``). Either can be changed afterwards by -<prefix>ksp_type, -<prefix>pc_type, ...
+    """
+    solver = tw_solver(prefix, solver)
+    snes = PETSc.SNES().create(comm=problem.grid.comm)
+    snes.setOptionsPrefix(prefix)
+    snes.setType(PETSc.SNES.Type.NEWTONLS)
+    F = problem.grid.create_vec()
+    snes.setFunction(problem.formFunction, F)
+    snes.setJacobian(problem.formJacobian, J, J)
+    if tolerances:
+        snes.setTolerances(**tolerances)
+    _set_linear_defaults(snes, solver, problem.grid, getattr(problem, "stencils", None))
+    _set_from_options(snes, prefix)
     F.destroy()
     return snes
 
 
-@PETSc.Log.EventDecorator("hz_tw_solve")
-def solve_travelling_wave(problem, u, prefix=TW_PREFIX, tolerances=None):
-    """Solve eqs. ad-pbc at ``problem.q`` by SNES from the initial guess ``u`` (overwritten by the solution).
+class TravellingWaveSolver:
+    """One SNES for eqs. ad-pbc, kept across the solves of a continuation on one grid.
 
-    Raises :class:`ConvergenceError` with the converged reason and q if SNES fails.
+    The SNES, its KSP/PC (for 'nk' the factored second difference) and work vectors are built, and the options
+    database under ``prefix`` read, once; each :meth:`solve` hands SNES the problem at the new q and a Jacobian
+    with that q's pattern. ``solver`` as in :func:`create_snes`. Tolerances given to :meth:`solve` (by default
+    :func:`default_tolerances`) apply unless the user set -<prefix>snes_rtol/atol/stol/max_it.
     """
-    t0 = time.perf_counter()
-    if tolerances is None:
-        tolerances = default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))
-    J = problem.create_jacobian(u)
-    snes = create_snes(problem, J, prefix, tolerances)
+
+    _TOLERANCE_OPTIONS = dict(rtol="snes_rtol", atol="snes_atol", stol="snes_stol", max_it="snes_max_it")
+
+    def __init__(self, grid, prefix=TW_PREFIX, solver=None):
+        self.grid, self.prefix = grid, prefix
+        self.solver = tw_solver(prefix, solver)
+        self.problem = None
+        self.snes = PETSc.SNES().create(comm=grid.comm)
+        self.snes.setOptionsPrefix(prefix)
+        self.snes.setType(PETSc.SNES.Type.NEWTONLS)
+        self.F = grid.create_vec()
+        self.snes.setFunction(self._function, self.F)
+        d2 = None
+        if self.solver == "nk":
+            d2 = StencilGather(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2)},
+                               scatter=False)
+        _set_linear_defaults(self.snes, self.solver, grid, d2)
+        if d2 is not None:
+            d2.destroy()
+        _set_from_options(self.snes, prefix)
+        opts = PETSc.Options()
+        default_kind = "shell" if self.solver == "nk" else "aij"
+        self.jacobian_kind = opts.getString(prefix + "jacobian", default_kind)
+        if self.jacobian_kind not in ("aij", "shell"):
+            raise ParameterError(f"-{prefix}jacobian", self.jacobian_kind, "must be 'aij' (assembled, for LU and "
+                                 "algebraic preconditioners) or 'shell' (matrix-free)")
+        self._user_set = {k for k, name in self._TOLERANCE_OPTIONS.items() if opts.hasName(prefix + name)}
+
+    def _function(self, snes, X, F):
+        self.problem.formFunction(snes, X, F)
+
+    def _jacobian(self, snes, X, J, P):
+        self.problem.formJacobian(snes, X, J, P)
+
+    @PETSc.Log.EventDecorator("hz_tw_solve")
+    def solve(self, problem, u, tolerances=None):
+        """Solve eqs. ad-pbc at ``problem.q`` from the initial guess ``u`` (overwritten by the solution).
+
+        Raises :class:`ConvergenceError` with the converged reason and q if SNES fails.
+        """
+        t0 = time.perf_counter()
+        if tolerances is None:
+            tolerances = default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))
+        self.snes.setTolerances(**{k: v for k, v in tolerances.items() if k not in self._user_set})
+        J = problem.create_jacobian(u, self.jacobian_kind)
+        self.problem = problem
+        self.snes.setJacobian(self._jacobian, J, J)
+        try:
+            self.snes.solve(None, u)
+            snes = self.snes
+            result = SolveResult(q=problem.q, reason=int(snes.getConvergedReason()),
+                                 iterations=snes.getIterationNumber(),
+                                 linear_iterations=snes.getLinearSolveIterations(),
+                                 residual_norm=float(snes.getFunctionNorm()), wall_time=time.perf_counter() - t0)
+        finally:
+            self.problem = None
+            J.destroy()        # SNES keeps its reference until the next solve
+        what = "travelling-wave SNES (prefix -%s)" % self.prefix
+        if result.reason <= 0:
+            raise ConvergenceError(what, result.reason, q=problem.q)
+        accept = ACCEPT_FACTOR * default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))["atol"]
+        if not result.residual_norm <= accept:
+            raise ConvergenceError(what, f"{result.reason}, but residual {result.residual_norm:.3g} > {accept:.3g}",
+                                   q=problem.q)
+        return result
+
+    def destroy(self):
+        self.snes.destroy()
+        self.F.destroy()
+
+
+def solve_travelling_wave(problem, u, prefix=TW_PREFIX, tolerances=None, solver=None):
+    """Solve eqs. ad-pbc at ``problem.q`` by SNES from the initial guess ``u`` (overwritten by the solution),
+    with a one-off :class:`TravellingWaveSolver`. Raises :class:`ConvergenceError` if SNES fails."""
+    tws = TravellingWaveSolver(problem.grid, prefix, solver)
     try:
-        snes.solve(None, u)
-        reason = snes.getConvergedReason()
-        result = SolveResult(q=problem.q, reason=int(reason), iterations=snes.getIterationNumber(),
-                             linear_iterations=snes.getLinearSolveIterations(),
-                             residual_norm=float(snes.getFunctionNorm()), wall_time=time.perf_counter() - t0)
+        return tws.solve(problem, u, tolerances)
     finally:
-        snes.destroy()
-        J.destroy()
-    if result.reason <= 0:
-        raise ConvergenceError("travelling-wave SNES (prefix -%s)" % prefix, result.reason, q=problem.q)
-    accept = ACCEPT_FACTOR * default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))["atol"]
-    if not result.residual_norm <= accept:
-        raise ConvergenceError("travelling-wave SNES (prefix -%s)" % prefix,
-                               f"{result.reason}, but residual {result.residual_norm:.3g} > {accept:.3g}",
-                               q=problem.q)
-    return result
+        tws.destroy()

@@ -14,12 +14,14 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
-from .advdelay import TW_PREFIX, check_wavenumber, AdvanceDelayProblem, SolveResult, solve_travelling_wave
+from .advdelay import (TW_PREFIX, check_wavenumber, tw_solver, AdvanceDelayProblem, SolveResult,
+                       TravellingWaveSolver)
 from .binary import binary_oscillation
 from .diagnostics import point_diagnostics
 from .errors import ConvergenceError, ParameterError
 from .grid import OddPeriodicGrid, check_cells_per_pi
 from .hertz import HertzPotential, check_alpha
+from .resources import check_memory
 
 
 @dataclass(frozen=True)
@@ -95,11 +97,15 @@ class ContinuationError(ConvergenceError):
 class BranchContinuation:
     """Continuation of eqs. ad-pbc in q. Iterate :meth:`points` to get the branch point by point."""
 
-    def __init__(self, params, comm=None, prefix=TW_PREFIX):
+    def __init__(self, params, comm=None, prefix=TW_PREFIX, solver=None):
         self.params = params
         self.potential = HertzPotential(params.alpha)
-        self.grid = OddPeriodicGrid(params.cells_per_pi, comm)
         self.prefix = prefix
+        solver = tw_solver(prefix, solver)
+        check_memory(params.cells_per_pi, comm if comm is not None else PETSc.COMM_WORLD, solver)
+        self.grid = OddPeriodicGrid(params.cells_per_pi, comm)
+        # one SNES (and KSP/PC) for the whole branch, options read once (-tw_solver direct|nk, -tw_ksp_type, ...)
+        self.solver = TravellingWaveSolver(self.grid, prefix, solver)
         self.exponent = self.potential.rescaling_exponent
         self.history = []   # the last two converged (q, rescaled profile Vec), intermediate q included
 
@@ -131,7 +137,7 @@ class BranchContinuation:
     def _solve_at(self, q, guess):
         problem = AdvanceDelayProblem(self.potential, self.grid, q)
         try:
-            result = solve_travelling_wave(problem, guess, self.prefix)
+            result = self.solver.solve(problem, guess)
         finally:
             problem.destroy()
         return result
@@ -214,3 +220,6 @@ class BranchContinuation:
         for _, r in self.history:
             r.destroy()
         self.history = []
+        if self.solver is not None:
+            self.solver.destroy()
+            self.solver = None

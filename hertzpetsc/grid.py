@@ -113,7 +113,7 @@ class StencilGather:
     The scatter is built once, here.
     """
 
-    def __init__(self, grid, stencils):
+    def __init__(self, grid, stencils, scatter=True):
         self.grid = grid
         rows = grid.owned_points()
         self.cols, self.coef = {}, {}
@@ -126,8 +126,18 @@ class StencilGather:
             self.cols[name] = idx
             self.coef[name] = sign * np.asarray(weights, dtype=float)[None, :]
             needed.append(idx.ravel())
-        self.needed = np.unique(np.concatenate(needed))
-        self.pos = {name: np.searchsorted(self.needed, self.cols[name]) for name in stencils}
+        self.scatter = self.local = None
+        if not scatter:         # only cols/coef wanted (e.g. to assemble matrices); gather() unavailable
+            return
+        # the sorted set of needed unknowns and each entry's position in it, in O(n) (a mask, not a sort)
+        mask = np.zeros(grid.size, dtype=bool)
+        for idx in needed:
+            mask[idx] = True
+        self.needed = np.flatnonzero(mask)
+        lookup = np.cumsum(mask, dtype=np.int64) - 1
+        del mask
+        self.pos = {name: lookup[self.cols[name]] for name in stencils}
+        del lookup
         self.local = PETSc.Vec().createSeq(len(self.needed), comm=PETSc.COMM_SELF)
         iset = PETSc.IS().createGeneral(self.needed.astype(PETSc.IntType), comm=PETSc.COMM_SELF)
         self.scatter = PETSc.Scatter().create(grid._template, iset, self.local, None)
@@ -142,8 +152,49 @@ class StencilGather:
         return (self.coef[name] * gathered[self.pos[name]]).sum(axis=1)
 
     def destroy(self):
-        self.scatter.destroy()
-        self.local.destroy()
+        if self.scatter is not None:
+            self.scatter.destroy()
+            self.local.destroy()
+
+
+def merged_csr(cols, vals):
+    """CSR arrays (indptr, indices, values) of rows given as (rows x width) column and value arrays, with the
+    entries of a row that hit the same column summed and columns sorted.
+
+    Rows whose columns already increase strictly (all rows of a shift stencil away from the folding points
+    xi = 0, pi) are copied as they are; only the others are sorted and merged. O(n w), no global sort.
+    """
+    cols = np.asarray(cols, dtype=np.int64)
+    vals = np.broadcast_to(np.asarray(vals, dtype=float), cols.shape)
+    nrows, width = cols.shape
+    good = (np.diff(cols, axis=1) > 0).all(axis=1)
+    bad = np.flatnonzero(~good)
+    counts = np.full(nrows, width, dtype=np.int64)
+    if len(bad):
+        bcols, bvals = cols[bad], vals[bad]
+        order = np.argsort(bcols, axis=1, kind="stable")
+        bcols = np.take_along_axis(bcols, order, axis=1)
+        bvals = np.take_along_axis(bvals, order, axis=1)
+        first = np.ones(bcols.shape, dtype=bool)
+        first[:, 1:] = bcols[:, 1:] != bcols[:, :-1]
+        group = np.cumsum(first.ravel()) - 1
+        bvalues = np.bincount(group, weights=bvals.ravel(), minlength=group[-1] + 1)
+        bcount = first.sum(axis=1)
+        counts[bad] = bcount
+        bindices = bcols[first]
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    indices = np.empty(indptr[-1], dtype=np.int64)
+    values = np.empty(indptr[-1])
+    if len(bad) < nrows:
+        pos = (indptr[:-1][good][:, None] + np.arange(width)[None, :]).ravel()
+        indices[pos] = cols[good].ravel()
+        values[pos] = vals[good].ravel()
+    if len(bad):
+        starts = np.repeat(indptr[bad], bcount)
+        within = np.arange(len(bindices)) - np.repeat(np.cumsum(bcount) - bcount, bcount)
+        indices[starts + within] = bindices
+        values[starts + within] = bvalues
+    return indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType), values
 
 
 class RowAssembler:
@@ -158,12 +209,18 @@ class RowAssembler:
         self.grid = grid
         nrows = grid.rend - grid.rstart
         cols = np.concatenate([np.asarray(b, dtype=np.int64).reshape(nrows, -1) for b in blocks], axis=1)
-        keys = (np.arange(nrows, dtype=np.int64)[:, None] * grid.size + cols).ravel()
-        ukeys, self.entry_to_csr = np.unique(keys, return_inverse=True)
-        self.indices = (ukeys % grid.size).astype(PETSc.IntType)
-        counts = np.bincount(ukeys // grid.size, minlength=nrows)
-        self.indptr = np.concatenate([[0], np.cumsum(counts)]).astype(PETSc.IntType)
-        self.nnz = len(ukeys)
+        width = cols.shape[1]
+        # sort each (short) row, merge repeated columns: O(n w log w), no global sort
+        order = np.argsort(cols, axis=1, kind="stable")
+        cols = np.take_along_axis(cols, order, axis=1)
+        first = np.ones(cols.shape, dtype=bool)
+        first[:, 1:] = cols[:, 1:] != cols[:, :-1]
+        self.entry_to_csr = np.empty(nrows * width, dtype=np.int64)
+        self.entry_to_csr[(np.arange(nrows, dtype=np.int64)[:, None] * width + order).ravel()] = \
+            np.cumsum(first.ravel()) - 1
+        self.indices = cols[first].astype(PETSc.IntType)
+        self.indptr = np.concatenate([[0], np.cumsum(first.sum(axis=1))]).astype(PETSc.IntType)
+        self.nnz = len(self.indices)
 
     def values(self, blocks):
         flat = np.concatenate([np.asarray(b, dtype=float).reshape(len(self.indptr) - 1, -1) for b in blocks],
@@ -178,6 +235,7 @@ class RowAssembler:
         mat.setType(PETSc.Mat.Type.AIJ)
         mat.setPreallocationCSR((self.indptr, self.indices, self.values(blocks)))
         mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
+        mat.setOption(PETSc.Mat.Option.NO_OFF_PROC_ENTRIES, True)      # rows are owned: no stash exchange
         mat.assemble()
         return mat
 

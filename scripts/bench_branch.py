@@ -2,8 +2,12 @@
 """Benchmark: the full branch q = pi -> pi/50 (alpha = 3/2), hertzpetsc on 1 and 2 ranks against a plain SciPy
 implementation of the same discretisation (scipy.sparse Newton with spsolve), in the same run.
 
-    python scripts/bench_branch.py [-cells 1000,50000] [-repeats 3] [-output results/bench_branch.md]
-                                   [-scipy_timeout 600]
+    python scripts/bench_branch.py [-cells 1000,50000] [-repeats 3] [-direct_repeats 1]
+                                   [-output results/bench_branch.md] [-scipy_timeout 600]
+
+hertzpetsc runs both linear-solver paths: -tw_solver direct (LU; MUMPS on 2 ranks) and -tw_solver nk
+(Newton-Krylov: GMRES + exact second-difference preconditioner, matrix-free Jacobian), with one OpenBLAS thread
+per rank; the SciPy route keeps the library defaults.
 
 Each measurement runs in its own process (hertzpetsc under mpiexec); wall time is that of the branch
 computation (imports excluded), best of -repeats; peak memory is each process's maximum resident set size
@@ -83,13 +87,14 @@ def hertzpetsc_branch(alpha, M, K):
 
     from hertzpetsc.continuation import BranchContinuation, ContinuationParameters
     cont = BranchContinuation(ContinuationParameters(alpha=alpha, M=M, cells_per_pi=K), PETSc.COMM_WORLD)
-    newton, last = 0, None
+    newton, krylov, last = 0, 0, None
     for pt in cont.points():
         newton += pt.solve.iterations
+        krylov += pt.solve.linear_iterations
         last = pt
     cont.destroy()
     # the grid maximum, as in the SciPy route (the diagnostics' sup norm is parabola-refined)
-    return dict(points=M, newton=newton, norm_inf_last=float(abs(last.u_half).max()))
+    return dict(points=M, newton=newton, krylov=krylov, norm_inf_last=float(abs(last.u_half).max()))
 
 
 def worker(kind, alpha, M, K):
@@ -113,13 +118,26 @@ def worker(kind, alpha, M, K):
 
 def best(kind, ranks, alpha, M, K, extra, repeats, timeout):
     args = ["--worker", kind, "--alpha", alpha, "--M", M, "--K", K, *extra]
-    return best_of(repeats, os.path.abspath(__file__), args, ranks if kind == "petsc" else None, timeout)
+    if kind != "petsc":
+        return best_of(repeats, os.path.abspath(__file__), args, None, timeout)
+    # one OpenBLAS/OpenMP thread per MPI rank (the SciPy route keeps the library defaults)
+    saved = {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
+    os.environ.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    try:
+        return best_of(repeats, os.path.abspath(__file__), args, ranks, timeout)
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("-cells", default="1000,50000", help="grids h = pi/K (comma-separated K)")
     ap.add_argument("-repeats", type=int, default=3)
+    ap.add_argument("-direct_repeats", type=int, default=1, help="repeats of the (slow) direct path")
     ap.add_argument("-output", default="results/bench_branch.md")
     ap.add_argument("-scipy_timeout", type=int, default=600)
     ap.add_argument("-alpha", type=float, default=1.5)
@@ -145,24 +163,27 @@ def main():
              f"{args.repeats}), peak resident memory per process. Machine: {os.cpu_count()} cores, "
              f"{platform.processor() or platform.machine()}; load average at start {load:.2f}; "
              f"{time.strftime('%Y-%m-%d')}.\n",
-             "| h | unknowns | route | ranks | wall (s) | Newton its | peak MB/rank | SciPy / this | "
+             "| h | unknowns | route | ranks | wall (s) | Newton its | Krylov its | peak MB/rank | SciPy / this | "
              "rel. diff of max u(pi/50) vs SciPy |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|"]
     for K in cells:
         sci = best("scipy", 1, args.alpha, args.M, K, [], 1 if K > 20000 else args.repeats, args.scipy_timeout)
         rows = [("SciPy spsolve", 1, sci)]
-        for ranks in (1, 2):
-            rows.append(("hertzpetsc", ranks, best("petsc", ranks, args.alpha, args.M, K, extra, args.repeats, 3600)))
+        for solver, repeats in (("direct", args.direct_repeats), ("nk", args.repeats)):
+            for ranks in (1, 2):
+                res = best("petsc", ranks, args.alpha, args.M, K, ["-tw_solver", solver, *extra], repeats, 3600)
+                rows.append((f"hertzpetsc {solver}", ranks, res))
         for name, ranks, res in rows:
             if res is None:
                 lines.append(f"| pi/{K} | {K - 1} | {name} | {ranks} | > {args.scipy_timeout} (not finished) "
-                             "| | | | |")
+                             "| | | | | |")
                 continue
             ratio = f"{sci['wall'] / res['wall']:.2f}" if sci else "n/a"
             diff = abs(res["norm_inf_last"] - sci["norm_inf_last"]) / sci["norm_inf_last"] if sci else float("nan")
             lines.append(f"| pi/{K} | {K - 1} | {name} | {ranks} | {res['wall']:.2f} | {res['newton']} | "
-                         f"{max(res['rss_mb']):.0f} | {ratio} | {diff:.1e} |")
+                         f"{res.get('krylov', '')} | {max(res['rss_mb']):.0f} | {ratio} | {diff:.1e} |")
         print("\n".join(lines[-3:]), flush=True)
+    lines.append(f"\nload average at the end {os.getloadavg()[0]:.2f}")
     text = "\n".join(lines) + "\n"
     os.makedirs(os.path.dirname(os.path.abspath(args.output)), exist_ok=True)
     with open(args.output, "w") as f:

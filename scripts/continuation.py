@@ -16,6 +16,10 @@ Application options (defaults reproduce the paper):
                         pentes uses k_alpha of the solitary wave (hertzpetsc.solitary, -sol_ prefix)
 PETSc prefixes: -tw_ for the travelling-wave SNES and its KSP/PC (e.g. -tw_snes_monitor, -tw_snes_type qn,
 -tw_ksp_type gmres, -tw_pc_factor_mat_solver_type mumps); -log_view for timings.
+  -tw_solver direct     linear solves: 'direct' (LU, MUMPS on several ranks) or 'nk' (Newton-Krylov: GMRES +
+                        exact second-difference preconditioner, cost ~ linear in the grid size; for fine grids)
+  -tw_jacobian shell    with nk: 'shell' (matrix-free) or 'aij' (assembled, for -tw_pc_type hypre/gamg/...)
+A grid that would not fit in memory is refused up front with an estimate (hertzpetsc.resources).
 Prints one line per converged point on rank 0: q, Newton iterations, residual, ||u||_inf.
 """
 import os

@@ -114,6 +114,6 @@ def test_benchmark_script(tmp_path):
     r = run_script("bench_branch.py", "-cells", 100, "-repeats", 1, "-M", 10, "-output", out, timeout=600)
     assert r.returncode == 0, r.stderr
     text = out.read_text()
-    assert text.count("| pi/100 |") == 3 and "SciPy spsolve" in text
+    assert text.count("| pi/100 |") == 5 and "SciPy spsolve" in text and "hertzpetsc nk" in text
     # both routes solve the same discretisation: the last column (relative difference) is at round-off level
     assert all(float(l.split("|")[-2]) < 1e-10 for l in text.splitlines() if l.startswith("| pi/100 |"))

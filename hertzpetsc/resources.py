@@ -1,0 +1,74 @@
+"""Memory needed by the travelling-wave solvers, checked before anything is allocated.
+
+A request that would not fit (a grid too fine for the machine) is refused up front with
+:class:`~hertzpetsc.errors.ParameterError`, naming cells_per_pi, the estimated memory and the largest grid that
+fits, instead of being killed by the kernel part-way. The estimates are per unknown, measured as peak resident
+memory (results/bench_newton.md) with a safety margin, plus a fixed per-process cost (Python, numpy, PETSc, MPI).
+"""
+import math
+import os
+
+from petsc4py import PETSc
+
+from .errors import ParameterError
+
+GIB = 2.0 ** 30
+# fixed cost of one process (interpreter, numpy, petsc4py, MPI), bytes
+PROCESS_BYTES = 150e6
+# peak bytes per unknown over all ranks, measured (results/bench_newton.md, bench_branch.md) plus ~50 % margin:
+# 'nk' (stencil arrays, the stacked shift matrix T, GMRES basis, tridiagonal factor; 650 B measured) and
+# 'direct' (LU fill of the long-range shifts, up to ~4 kB measured along the branch)
+BYTES_PER_UNKNOWN = {"nk": 1000.0, "direct": 6000.0}
+# fraction of the available memory a run may plan to use
+USABLE_FRACTION = 0.9
+# PETSc's index type bounds the number of unknowns
+MAX_UNKNOWNS = int(2 ** (8 * PETSc.IntType(0).itemsize - 1) - 1)
+
+
+def available_memory():
+    """Memory available to new processes, bytes (MemAvailable of /proc/meminfo, else physical memory)."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+
+
+def estimate_memory(cells_per_pi, ranks, solver="nk"):
+    """(bytes per rank, bytes in total) for a travelling-wave solve with K - 1 unknowns on ``ranks`` ranks."""
+    if solver not in BYTES_PER_UNKNOWN:
+        raise ParameterError("solver", solver, "must be one of " + ", ".join(BYTES_PER_UNKNOWN))
+    unknowns = max(int(cells_per_pi) - 1, 0)
+    per_rank = PROCESS_BYTES + BYTES_PER_UNKNOWN[solver] * unknowns / ranks
+    return per_rank, per_rank * ranks
+
+
+def check_memory(cells_per_pi, comm=None, solver="nk", available=None):
+    """Raise :class:`ParameterError` (naming cells_per_pi) if the grid would not fit on this machine.
+
+    All ranks of ``comm`` are assumed to share one machine's memory (the ranks of a run on this 2-core box);
+    rank 0's figure of the available memory is used on every rank, so all ranks agree. Collective on ``comm``.
+    """
+    comm = comm if comm is not None else PETSc.COMM_WORLD
+    ranks = comm.getSize()
+    if available is None:
+        available = available_memory()
+        if ranks > 1:
+            available = comm.tompi4py().bcast(available, root=0)
+    K = int(cells_per_pi)
+    if K - 1 > MAX_UNKNOWNS:
+        raise ParameterError("cells_per_pi", cells_per_pi, f"gives {K - 1} unknowns, more than PETSc's index type "
+                             f"allows ({MAX_UNKNOWNS}): must be <= {MAX_UNKNOWNS + 1}")
+    per_rank, total = estimate_memory(K, ranks, solver)
+    usable = USABLE_FRACTION * available
+    if total > usable:
+        k_max = int((usable / ranks - PROCESS_BYTES) * ranks / BYTES_PER_UNKNOWN[solver]) + 1
+        fits = f"must be <= {k_max}" if k_max >= 4 else "no grid fits"
+        raise ParameterError("cells_per_pi", cells_per_pi,
+                             f"needs about {total / GIB:.1f} GiB ({per_rank / GIB:.2f} GiB on each of {ranks} "
+                             f"rank(s), solver '{solver}') but {available / GIB:.1f} GiB are available: {fits} "
+                             "on this machine")
+    return per_rank, total

@@ -299,3 +299,19 @@ def plot_spacetime_velocities(times, states, directory, name, title=""):
     ax.set_ylabel("$t$")
     ax.set_title(title, fontsize=9)
     return _save(fig, directory, name)
+
+
+# --- section 3.2 beyond the paper: small q -------------------------------------------------------------------------
+def plot_small_q(q, levels, extrapolated, k_alpha, directory):
+    """||u||_inf q^(2/(alpha-1)) against q on each grid level and extrapolated in h, with k_alpha (eq.
+    normscaling): the long-wave limit beyond the paper's q = pi/50."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for lev, values in enumerate(levels):
+        ax.semilogx(q, values, ".-", lw=0.6, ms=3, color=str(0.7 - 0.25 * lev), label=f"level {lev}")
+    ax.semilogx(q, extrapolated, "k.-", lw=1.2, label="extrapolated in $h$")
+    ax.axhline(k_alpha, color="b", lw=0.8, ls="--", label=rf"$k_\alpha = {k_alpha:.5f}$")
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$\|u\|_\infty\, q^{2/(\alpha-1)}$")
+    ax.legend(fontsize=8)
+    return _save(fig, directory, "smallq.png")

@@ -83,9 +83,12 @@ class AdvanceDelayProblem:
         indptr = np.concatenate([parts[0][0]] + [p[0][1:] + offsets[i] for i, p in enumerate(parts) if i > 0])
         csr = (indptr.astype(PETSc.IntType), np.concatenate([p[1] for p in parts]),
                np.concatenate([p[2] for p in parts]))
-        # the arrays are used in place on one rank (petsc4py keeps them alive), copied once on several
-        self.T = PETSc.Mat().createAIJWithArrays(((3 * nloc, 3 * grid.size), (nloc, grid.size)), csr,
-                                                 comm=grid.comm)
+        sizes = ((3 * nloc, 3 * grid.size), (nloc, grid.size))
+        if grid.comm.getSize() == 1:     # the arrays are used in place (petsc4py keeps them alive)
+            self.T = PETSc.Mat().createAIJWithArrays(sizes, csr, comm=grid.comm)
+        else:                            # copied into the diagonal and off-diagonal blocks: let ours go
+            self.T = PETSc.Mat().createAIJ(sizes, csr=csr, comm=grid.comm)
+        del parts, csr, indptr
         self.T.assemble()
         self.w = self.T.createVecLeft()
         self.a = self.b = None            # V''(d+), V''(d-) at the last Jacobian evaluation

@@ -69,26 +69,35 @@ class AdvanceDelayProblem:
         self.q = check_wavenumber(q, grid.h)
         self.sigma = self.q / grid.h
         h2 = grid.h ** 2
+        # One rank: T is an AIJ matrix on the grid's Vec layout. Several ranks: T is a rank-local SeqAIJ block
+        # acting on the values gathered by one VecScatter (the stencils' ``needed`` set): one set of per-row
+        # arrays instead of MPIAIJ's diagonal and off-diagonal blocks, which doubled the memory per rank.
+        self.parallel = grid.comm.getSize() > 1
         self.stencils = StencilGather(grid, {
             "d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / h2),
             "plus": shift_stencil(self.sigma),
             "minus": shift_stencil(-self.sigma),
-        }, scatter=False)
+        }, scatter=self.parallel)
         self._assembler = None
         st = self.stencils
         nloc = grid.rend - grid.rstart
         self.nloc = nloc
-        parts = [_d2_csr(grid, st)] + [merged_csr(st.cols[k], st.coef[k]) for k in ("plus", "minus")]
+        if self.parallel:
+            parts = [merged_csr(st.pos[k], st.coef[k]) for k in ("d2", "plus", "minus")]
+            st.pos = {}                   # positions are folded into T's columns
+        else:
+            parts = [_d2_csr(grid, st)] + [merged_csr(st.cols[k], st.coef[k]) for k in ("plus", "minus")]
         offsets = np.cumsum([0] + [p[0][-1] for p in parts])
         indptr = np.concatenate([parts[0][0]] + [p[0][1:] + offsets[i] for i, p in enumerate(parts) if i > 0])
         csr = (indptr.astype(PETSc.IntType), np.concatenate([p[1] for p in parts]),
                np.concatenate([p[2] for p in parts]))
-        sizes = ((3 * nloc, 3 * grid.size), (nloc, grid.size))
-        if grid.comm.getSize() == 1:     # the arrays are used in place (petsc4py keeps them alive)
-            self.T = PETSc.Mat().createAIJWithArrays(sizes, csr, comm=grid.comm)
-        else:                            # copied into the diagonal and off-diagonal blocks: let ours go
-            self.T = PETSc.Mat().createAIJ(sizes, csr=csr, comm=grid.comm)
-        del parts, csr, indptr
+        del parts, indptr
+        # the arrays are used in place (petsc4py keeps them alive)
+        if self.parallel:
+            self.T = PETSc.Mat().createAIJWithArrays((3 * nloc, len(st.needed)), csr, comm=PETSc.COMM_SELF)
+        else:
+            self.T = PETSc.Mat().createAIJWithArrays(((3 * nloc, 3 * grid.size), (nloc, grid.size)), csr,
+                                                     comm=grid.comm)
         self.T.assemble()
         self.w = self.T.createVecLeft()
         self.a = self.b = None            # V''(d+), V''(d-) at the last Jacobian evaluation
@@ -106,9 +115,19 @@ class AdvanceDelayProblem:
             self._assembler = RowAssembler(self.grid, [st.cols["d2"], self_cols, st.cols["plus"], st.cols["minus"]])
         return self._assembler
 
+    def stacked(self, X):
+        """w = T X = (D2 X, tau_q X, tau_{-q} X) on the owned rows (one scatter and one MatMult)."""
+        if self.parallel:
+            st = self.stencils
+            st.scatter.scatter(X, st.local, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+            self.T.mult(st.local, self.w)
+        else:
+            self.T.mult(X, self.w)
+        return self.w
+
     def shift_differences(self, X):
         """d+ = tau_q u - u, d- = u - tau_{-q} u and D2 u on the owned rows (one MatMult with T)."""
-        self.T.mult(X, self.w)
+        self.stacked(X)
         w = self.w.getArray(readonly=True)
         u = X.getArray(readonly=True)
         n = self.nloc
@@ -191,8 +210,7 @@ class _JacobianProduct:
     @PETSc.Log.EventDecorator("hz_tw_jacobian_mult")
     def mult(self, mat, x, y):
         p = self.problem
-        p.T.mult(x, p.w)
-        w = p.w.getArray(readonly=True)
+        w = p.stacked(x).getArray(readonly=True)
         v = x.getArray(readonly=True)
         n = p.nloc
         y.getArray()[:] = w[:n] + (p.a + p.b) * v - p.a * w[n:2 * n] - p.b * w[2 * n:]

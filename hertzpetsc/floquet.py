@@ -65,10 +65,13 @@ class EigenResult:
 
 
 def dominant_multipliers(params, x0, T, nev=10, comm=None, tolerances=None, prefix=FLOQUET_PREFIX,
-                         chain_prefix=CHAIN_PREFIX, initial_space=None, keep_vectors=False):
+                         chain_prefix=CHAIN_PREFIX, initial_space=None, keep_vectors=False, ncv=None,
+                         tol=1e-10):
     """The ``nev`` multipliers of largest magnitude of F = S R(T; 0), by SLEPc on the matrix-free operator.
 
     ``initial_space``: PETSc Vecs (e.g. the previous branch point's eigenvectors) to warm-start Krylov-Schur.
+    ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N; -floquet_eps_ncv overrides);
+    ``tol``: Krylov-Schur relative tolerance (-floquet_eps_tol overrides).
     Raises ParameterError if nev exceeds the dimension 2N, ConvergenceError if fewer than nev pairs converge.
     """
     import time
@@ -88,8 +91,8 @@ def dominant_multipliers(params, x0, T, nev=10, comm=None, tolerances=None, pref
         eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
         eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
         # clustered multipliers on the unit circle need a generous subspace (the default ncv converged nothing)
-        eps.setDimensions(nev=nev, ncv=min(dim, max(2 * nev + 20, 60)))
-        eps.setTolerances(tol=1e-10, max_it=500)
+        eps.setDimensions(nev=nev, ncv=min(dim, max(2 * nev + 20, 60) if ncv is None else ncv))
+        eps.setTolerances(tol=tol, max_it=500)
         if initial_space:
             eps.setInitialSpace(initial_space)
         eps.setFromOptions()

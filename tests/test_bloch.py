@@ -1,0 +1,136 @@
+"""Bloch sectors of F_q on long chains (section 3.5): union of sector spectra = dense spectrum of the tiled chain,
+theta = 0 = the cell's own F_q, full-chain residuals, seeded SLEPc, ranks, bad input."""
+import math
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from hertzpetsc.bloch import (BlochSectors, bloch_multipliers, bloch_residuals, real_pairs, sector_angles,
+                              seeded_dominant_multipliers, tile_mode)
+from hertzpetsc.chain import ChainParameters
+from hertzpetsc.errors import ParameterError
+from hertzpetsc.floquet import dense_monodromy, dense_multipliers, trivial_multipliers
+from hertzpetsc.shooting import MEASURE_TOLERANCES, refine
+from hertzpetsc.waves import wave_on_chain
+from test_chain import branch_dict
+
+M = 20          # the cell: q = pi/5 = 2 pi 2 / 20 (unstable, rho(F_q) = 1.2356 as at N = 100)
+CELL = ChainParameters(1.5, M)
+
+
+@pytest.fixture(scope="module")
+def cell_wave():
+    """The refined wave q = pi/5 on 20 beads (E <= 1e-10), the cell of the longer chains."""
+    q = math.pi / 5
+    w = wave_on_chain(branch_dict(1.5, K=200, q_stop=q), q, M)
+    res = refine(CELL, w.as_array(), w.T, comm=PETSc.COMM_SELF)
+    return res.x, w.T
+
+
+def nearest(a, b):
+    """max over a of the distance to the nearest element of b."""
+    return max(float(np.min(np.abs(b - v))) for v in a)
+
+
+@pytest.mark.parametrize("L", [3, 4])
+def test_union_of_sectors_is_the_dense_spectrum(cell_wave, L):
+    """N = 60 (odd L: conjugate pairs only) and N = 80 (L = 4: also theta = pi): every multiplier of the dense
+    2N x 2N F_q of the tiled chain is a sector multiplier and conversely, with the same count 2N."""
+    x, T = cell_wave
+    N = L * M
+    b = bloch_multipliers(CELL, x, T, N, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    lam = dense_multipliers(dense_monodromy(ChainParameters(1.5, N), np.tile(x, (L, 1)), T, PETSc.COMM_SELF,
+                                            MEASURE_TOLERANCES))
+    assert len(b.values) == len(lam) == 2 * N
+    assert b.runs == L // 2 + 1 and np.bincount(b.sector, minlength=L).tolist() == [2 * M] * L
+    # Without the 4 trivial multipliers (split by O(sqrt(eps)) differently in the two runs): the two flows take
+    # different adaptive steps at rtol 1e-14; measured <= 5e-8 (double multipliers on the unit circle split as
+    # the square root of the flow difference); 1e-6 leaves a factor 20.
+    bt, lt = (np.delete(v, trivial_multipliers(v)) for v in (b.values, lam))
+    assert nearest(lt, bt) < 1e-6 and nearest(bt, lt) < 1e-6
+    # simple dominant multipliers agree to the flow accuracy (measured 1e-13)
+    assert abs(abs(b.values[0]) - abs(lam[0])) < 1e-9
+
+
+def test_theta_zero_is_the_cell_itself(cell_wave):
+    """Sector 0 (untwisted, 2M complex columns) against the dense F_q of the M-bead periodic chain."""
+    x, T = cell_wave
+    sec = BlochSectors(CELL, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    try:
+        F0 = sec.monodromy(x, T, 0.0)
+    finally:
+        sec.destroy()
+    F = dense_monodromy(CELL, x, T, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    assert np.max(np.abs(F0.imag)) == 0.0          # w = 0 stays 0 without a twist
+    # same equations, different number of tangents in the TS error norm: entries agree to ~rtol * ||F||
+    assert np.max(np.abs(F0.real - F)) < 1e-9 * np.max(np.abs(F))
+    b = bloch_multipliers(CELL, x, T, M, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    assert b.L == 1 and abs(abs(b.values[0]) - abs(dense_multipliers(F)[0])) < 1e-9
+
+
+def test_tiled_modes_are_eigenvectors_of_the_full_chain(cell_wave):
+    """||F Y - lambda Y|| / (|lambda| ||Y||) on N = 100 beads (matrix-free, on all ranks) for the tiled Bloch
+    modes of the 6 dominant multipliers: measured ~1e-12, the flow's accuracy."""
+    x, T = cell_wave
+    L = 5
+    b = bloch_multipliers(CELL, x, T, L * M, PETSc.COMM_WORLD, MEASURE_TOLERANCES, n_modes=6)
+    pairs = real_pairs(b.modes, L)
+    assert 3 <= len(pairs) <= 6
+    for lam, Y in pairs:
+        assert Y.shape == (L * M, 2)
+        # Bloch form y_{n+M} = e^{i theta_j} y_n for one of the sectors theta_j = 2 pi j / L
+        assert any(np.allclose(Y[M:2 * M], np.exp(2j * math.pi * j / L) * Y[:M]) for j in range(L))
+    res, products = bloch_residuals(ChainParameters(1.5, L * M), np.tile(x, (L, 1)), T, pairs, PETSc.COMM_WORLD,
+                                    MEASURE_TOLERANCES)
+    assert products <= 2 * len(pairs) and np.max(res) < 1e-9
+
+
+def test_seeded_slepc_on_the_full_chain(cell_wave):
+    """Krylov-Schur on the N = 80 shell (distributed under mpiexec -n 2), started from the Bloch modes, converges
+    to the Bloch multipliers (eigensolver tolerance 1e-8 on relative residuals, the seeded default; measured
+    agreement 4e-12 since the flows at rtol 1e-14 make the residuals ~1e-13 after a few restarts)."""
+    x, T = cell_wave
+    L = 4
+    b = bloch_multipliers(CELL, x, T, L * M, PETSc.COMM_WORLD, MEASURE_TOLERANCES, n_modes=10)
+    res = seeded_dominant_multipliers(ChainParameters(1.5, L * M), np.tile(x, (L, 1)), T, b, nev=10,
+                                      comm=PETSc.COMM_WORLD, tolerances=MEASURE_TOLERANCES)
+    assert nearest(res.values, b.values[:12]) < 1e-7
+    assert res.products <= 2 * 30         # measured 45 with ncv = 30 (plain Krylov-Schur needs more, see README)
+
+
+def test_ranks_and_splits_agree(cell_wave):
+    """Sectors dealt to ranks (each on one rank) vs every sector distributed over COMM_WORLD (the twisted ghost
+    exchange across ranks under mpiexec -n 2) vs one rank: the same multipliers to the flow tolerance."""
+    x, T = cell_wave
+    N = 3 * M
+    ref = bloch_multipliers(CELL, x, T, N, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    for split in ("sectors", "beads"):
+        b = bloch_multipliers(CELL, x, T, N, PETSc.COMM_WORLD, MEASURE_TOLERANCES, split=split)
+        assert np.array_equal(np.sort(b.sector), np.sort(ref.sector))
+        # the same TS on 1 or 2 ranks: only the reduction order of the error norm differs, which can change an
+        # adaptive step; simple dominant multipliers move by ~rtol (measured 1e-13), double ones on the unit
+        # circle and the trivial ones by its square root (measured 3e-9 under mpiexec -n 2)
+        assert abs(abs(b.values[0]) - abs(ref.values[0])) < 1e-10
+        assert nearest(b.values, ref.values) < 1e-6 and nearest(ref.values, b.values) < 1e-6
+        if split == "sectors":      # each sector on one rank, every run from the same first step: same arithmetic
+            assert np.array_equal(b.values, ref.values)
+
+
+def test_sector_angles_and_tiling():
+    assert sector_angles(1) == [0.0]
+    assert np.allclose(sector_angles(4), [0, math.pi / 2, math.pi])
+    Y = tile_mode(np.arange(4, dtype=complex), 1, 4)          # M = 2 beads, theta = pi/2
+    assert np.allclose(Y[2:4], 1j * Y[:2]) and np.allclose(Y[6:8], -1j * Y[:2])
+
+
+def test_bad_input_is_refused(cell_wave):
+    x, T = cell_wave
+    with pytest.raises(ParameterError, match=r"invalid N = 50: .*multiple of the wave's period M = 20"):
+        bloch_multipliers(CELL, x, T, 50)
+    with pytest.raises(ParameterError, match=r"invalid x0 = \(10, 2\): .*\(M, 2\) = \(20, 2\)"):
+        bloch_multipliers(CELL, x[:10], T, 40)
+    with pytest.raises(ParameterError, match=r"n_modes.*\[0, 2N\] = \[0, 80\]"):
+        bloch_multipliers(CELL, x, T, 40, n_modes=81)
+    with pytest.raises(ParameterError, match="split"):
+        bloch_multipliers(CELL, x, T, 40, split="rows")

@@ -5,7 +5,6 @@ A request that would not fit (a grid too fine for the machine) is refused up fro
 fits, instead of being killed by the kernel part-way. The estimates are per unknown, measured as peak resident
 memory (results/bench_newton.md) with a safety margin, plus a fixed per-process cost (Python, numpy, PETSc, MPI).
 """
-import math
 import os
 
 from petsc4py import PETSc

@@ -35,7 +35,7 @@ from hertzpetsc.bloch import (bloch_multipliers, bloch_residuals, check_cell, re
 from hertzpetsc.branchfile import atomic_savez, read_branch, read_refined, refined_lookup  # noqa: E402
 from hertzpetsc.chain import ChainParameters, IntegrationTolerances  # noqa: E402
 from hertzpetsc.cli import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.errors import ParameterError, RunFileError  # noqa: E402
+from hertzpetsc.errors import RunFileError  # noqa: E402
 from hertzpetsc.floquet import spectral_radius  # noqa: E402
 from hertzpetsc.waves import check_chain_wavenumber, wave_on_chain  # noqa: E402
 

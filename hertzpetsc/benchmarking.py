@@ -45,3 +45,13 @@ def emit(comm=None, **fields):
     rss = comm.gather(peak_rss_mb(), root=0) if comm is not None else [peak_rss_mb()]
     if comm is None or comm.rank == 0:
         print(json.dumps(dict(rss_mb=rss, **fields)), flush=True)
+
+
+def write_report(path, lines):
+    """Write a benchmark's table (a list of lines) to ``path`` atomically and print it."""
+    text = "\n".join(lines) + "\n"
+    os.makedirs(os.path.dirname(os.path.abspath(path)), exist_ok=True)
+    with open(path + ".tmp", "w") as f:
+        f.write(text)
+    os.replace(path + ".tmp", path)
+    print(text)

@@ -17,7 +17,7 @@ import platform
 import sys
 import time
 
-from hertzpetsc.benchmarking import best_of, emit
+from hertzpetsc.benchmarking import best_of, emit, write_report
 
 Q = 3 * math.pi / 10
 RTOL, ATOL = 1e-12, 1e-14
@@ -138,10 +138,7 @@ def main():
         res = best_of(args.repeats, me, ["--worker", "refine", "-branch", args.branch, "--N", 100], ranks)
         lines.append(f"| {ranks} | {res['wall']:.2f} | {res['steps']} | {res['rhs']} | {res['E']:.1e} | "
                      f"{max(res['rss_mb']):.0f} |")
-    text = "\n".join(lines) + "\n"
-    with open(args.output, "w") as f:
-        f.write(text)
-    print(text)
+    write_report(args.output, lines)
 
 
 if __name__ == "__main__":

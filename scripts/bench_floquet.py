@@ -24,7 +24,7 @@ import platform
 import sys
 import time
 
-from hertzpetsc.benchmarking import best_of, emit
+from hertzpetsc.benchmarking import best_of, emit, write_report
 
 Q = 9 * math.pi / 50
 RTOL, ATOL = 1e-12, 1e-14
@@ -201,10 +201,7 @@ def main():
                  "1e-6 after 25 min; about 600 unstable multipliers crowd annuli of nearly equal moduli) and the dense "
                  "2N-tangent TS (state of (4N + 2) N doubles: 32 MB per vector at N = 1000, 3.2 GB at N = 10^4). "
                  f"Seeded SLEPc not run above -slepc_max = {args.slepc_max} (about 50-120 shell products).")
-    text = "\n".join(lines) + "\n"
-    with open(args.output, "w") as f:
-        f.write(text)
-    print(text)
+    write_report(args.output, lines)
 
 
 if __name__ == "__main__":

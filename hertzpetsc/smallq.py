@@ -76,8 +76,7 @@ def continue_refining(params, level, comm=None, done=None, on_point=None):
     save it before the next one is attempted.
     """
     targets = params.targets()
-    done = list(done or [])
-    history = [(q, K, u) for q, K, u in done][-2:]
+    history = list(done or [])[-2:]
     cont, K_cur = None, None
     try:
         if not history:

@@ -104,8 +104,8 @@ def main():
             pass
     k_alpha = k_alpha_extrapolated(params.alpha)
     targets = params.targets()
-    table = {f: np.array([[dict((round(q, 12), d[f]) for q, K, d in rows[lev])[round(q, 12)]
-                           for q in targets] for lev in range(levels)]) for f in FIELDS}
+    lookup = [{round(q, 12): d for q, K, d in rows[lev]} for lev in range(levels)]
+    table = {f: np.array([[lookup[lev][round(q, 12)][f] for q in targets] for lev in range(levels)]) for f in FIELDS}
     K_fine = dict((round(q, 12), K) for q, K, d in rows[levels - 1])
     ext = {f: [richardson(table[f][-3:, i]) for i in range(len(targets))] for f in FIELDS}
     lines = [f"alpha = {params.alpha}; level l keeps q/h >= {params.cells_per_q} 2^l (grid doubled each time q "

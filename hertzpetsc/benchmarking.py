@@ -14,11 +14,13 @@ def peak_rss_mb():
 
 def launch(script, args, ranks=None, timeout=3600):
     """Run ``python script args`` (under ``mpiexec -n ranks`` if ranks), return its last stdout line as JSON,
-    or None if it ran out of time."""
+    or None if it ran out of time. MPI runs get one OpenBLAS/OpenMP thread per rank (idle library threads
+    otherwise spin on the cores the ranks need); serial runs (the SciPy routes) keep the library defaults."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1")
     cmd = [sys.executable, script, *map(str, args)]
     if ranks:
         cmd = ["mpiexec", "-n", str(ranks), *cmd]
+        env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
     r = subprocess.run(["timeout", str(timeout), *cmd], capture_output=True, text=True, env=env)
     if r.returncode == 124:
         return None

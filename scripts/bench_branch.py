@@ -118,19 +118,7 @@ def worker(kind, alpha, M, K):
 
 def best(kind, ranks, alpha, M, K, extra, repeats, timeout):
     args = ["--worker", kind, "--alpha", alpha, "--M", M, "--K", K, *extra]
-    if kind != "petsc":
-        return best_of(repeats, os.path.abspath(__file__), args, None, timeout)
-    # one OpenBLAS/OpenMP thread per MPI rank (the SciPy route keeps the library defaults)
-    saved = {k: os.environ.get(k) for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")}
-    os.environ.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    try:
-        return best_of(repeats, os.path.abspath(__file__), args, ranks, timeout)
-    finally:
-        for k, v in saved.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
+    return best_of(repeats, os.path.abspath(__file__), args, ranks if kind == "petsc" else None, timeout)
 
 
 def main():

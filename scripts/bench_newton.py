@@ -94,7 +94,6 @@ def main():
         return 2
     if not extra or "-tw_solver" not in extra:
         extra = ["-tw_solver", "nk", *extra]
-    os.environ.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
     script = os.path.abspath(__file__)
     load = os.getloadavg()
     lines = [f"One Newton solve of eq. ad at q = {q / math.pi:.4g} pi (alpha = 3/2, from the rescaled u0), options "

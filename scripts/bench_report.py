@@ -35,43 +35,28 @@ def script(name):
     return os.path.join(SCRIPTS, name)
 
 
-def single_thread():
-    os.environ.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-
-
-def default_threads():
-    for k in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
-        os.environ.pop(k, None)
-
-
 def workloads(repeats, scipy_timeout, which):
     """Yield (workload, unknowns, {route: result}) with routes 'scipy', 1, 2."""
     q = 0.9 * math.pi
     if "branch" in which:
         for K in (1000, 50000):
-            default_threads()
             sci = best_of(1 if K > 20000 else repeats, script("bench_branch.py"),
                           ["--worker", "scipy", "--alpha", 1.5, "--M", 50, "--K", K], None, scipy_timeout)
-            single_thread()
             runs = {r: best_of(repeats, script("bench_branch.py"), ["--worker", "petsc", "--alpha", 1.5, "--M", 50,
                                                                      "--K", K, "-tw_solver", "nk"], r) for r in (1, 2)}
             yield f"full branch, h = pi/{K}", K - 1, {"scipy": sci, **runs}
     if "newton" in which:
-        single_thread()
         K = 10 ** 6
         runs = {r: best_of(repeats, script("bench_newton.py"), ["--worker", "--K", K, "--q", q, "-tw_solver", "nk"], r)
                 for r in (1, 2)}
         yield "one Newton solve, h = pi 1e-6", K - 1, {"scipy": None, **runs}
     if "chain" in which:
         N = 10 ** 6
-        default_threads()
         sci = best_of(1, script("bench_chain.py"), ["--worker", "scipy", "--N", N], None, scipy_timeout)
-        single_thread()
         runs = {r: best_of(repeats, script("bench_chain.py"), ["--worker", "petsc", "--N", N], r) for r in (1, 2)}
         yield "chain, N = 1e6, one script-T", 2 * N, {"scipy": sci, **runs}
     if "floquet" in which:
         N = 10 ** 4
-        single_thread()
         runs = {r: best_of(1, script("bench_floquet.py"), ["--worker", "bloch", "--N", N], r) for r in (1, 2)}
         yield "Floquet, N = 1e4, 10 dominant multipliers", 2 * N, {"scipy": None, **runs}
 
@@ -93,10 +78,9 @@ def log_events(path):
     return out
 
 
-def scaling_section(repeats_unused=None):
+def scaling_section():
     q = 0.9 * math.pi
     rows = []
-    single_thread()
     for name, sname, args, event, unit in (
             ("Newton solve, h = pi 1e-6", "bench_newton.py", ["--worker", "--K", 10 ** 6, "--q", q, "-tw_solver", "nk"],
              "SNESSolve", "Newton step"),

@@ -1,4 +1,4 @@
-"""The advance-delay problem for periodic travelling waves (eqs. ad, pbc) on PETSc.
+"""The advance-delay problem for periodic travelling waves (eqs. ad, pbc) on PETSc: residual and Jacobian.
 
 For odd 2 pi-periodic u on the grid of :mod:`hertzpetsc.grid`, the second-order discretisation of eq. ad is
 
@@ -8,36 +8,21 @@ j = 1 .. K-1 (the equations at xi = 0, pi and on (pi, 2 pi) follow by oddness). 
 stencils of :func:`hertzpetsc.stencil.shift_stencil`; the exact Jacobian
 
     J = D2 + diag(V''(d+) + V''(d-)) - diag(V''(d+)) tau_q - diag(V''(d-)) tau_{-q},
-    d+ = tau_q u - u,  d- = u - tau_{-q} u,  V''(x) = alpha |x|^(alpha-1) H(-x),
+    d+ = tau_q u - u,  d- = u - tau_{-q} u,
 
-is applied matrix-free or assembled as a parallel AIJ matrix. :class:`TravellingWaveSolver` (kept across a
-continuation) and :func:`solve_travelling_wave` solve R(u) = 0 with PETSc SNES under the options prefix ``tw_``.
-Two linear-solver paths, chosen by ``-tw_solver``:
-
-* ``direct`` (default): Newton with backtracking line search, assembled J, LU (MUMPS on several ranks). The
-  shifts couple points up to half a period apart, so the factors fill in and the cost grows faster than the
-  number of grid points.
-* ``nk``: Newton-Krylov. J = D2 + K with K bounded as h -> 0, so GMRES preconditioned by the exact inverse of D2
-  (:class:`SecondDifferencePC`, O(n), partition-independent) needs a number of iterations independent of h;
-  J is applied matrix-free (``-tw_jacobian shell``, default) or assembled (``-tw_jacobian aij``, for algebraic
-  preconditioners such as ``-tw_pc_type hypre``). All KSP/PC knobs stay reachable as -tw_ksp_*, -tw_pc_*.
-
-Quasi-Newton, as in the paper, is ``-tw_snes_type qn``, see :data:`QN_DEFAULTS`.
+is applied matrix-free or assembled as a parallel AIJ matrix. V' and V'' are the lattice model's
+(:class:`hertzpetsc.model.LatticeModel`). :mod:`hertzpetsc.twsolver` solves R(u) = 0 with SNES.
 """
 import math
-import time
 import weakref
-from dataclasses import dataclass
 
 import numpy as np
 from petsc4py import PETSc
 
-from .errors import ConvergenceError, ParameterError
-from .grid import RowAssembler, StencilGather, merged_csr
-from .hertz import HertzPotential
+from .assembly import RowAssembler, StencilGather, merged_csr
+from .errors import ParameterError
+from .model import LatticeModel
 from .stencil import shift_stencil
-
-TW_PREFIX = "tw_"
 
 
 def check_wavenumber(q, h=None, name="q"):
@@ -63,8 +48,11 @@ class AdvanceDelayProblem:
     (``kind='aij'``, for LU and algebraic preconditioners) or that matrix-free operator (``kind='shell'``).
     """
 
-    def __init__(self, potential, grid, q):
-        self.potential = potential if isinstance(potential, HertzPotential) else HertzPotential(potential)
+    def __init__(self, model, grid, q):
+        if not isinstance(model, LatticeModel):
+            raise ParameterError("model", model, "must be a LatticeModel")
+        model.require_uniform_masses("the advance-delay problem of eq. ad")
+        self.model = model
         self.grid = grid
         self.q = check_wavenumber(q, grid.h)
         self.sigma = self.q / grid.h
@@ -135,13 +123,13 @@ class AdvanceDelayProblem:
 
     def formFunction(self, snes, X, F):
         dplus, dminus, d2u = self.shift_differences(X)
-        V = self.potential
-        F.getArray()[:] = d2u - _on_contact(V.dV, dplus) + _on_contact(V.dV, dminus)
+        force = self.model.force
+        F.getArray()[:] = d2u - _on_contact(force, dplus) + _on_contact(force, dminus)
 
     def _coefficients(self, X):
         dplus, dminus, _ = self.shift_differences(X)
-        self.a = _on_contact(self.potential.d2V, dplus)
-        self.b = _on_contact(self.potential.d2V, dminus)
+        self.a = _on_contact(self.model.stiffness, dplus)
+        self.b = _on_contact(self.model.stiffness, dminus)
 
     def _jacobian_blocks(self):
         a, b = self.a[:, None], self.b[:, None]
@@ -214,311 +202,3 @@ class _JacobianProduct:
         v = x.getArray(readonly=True)
         n = p.nloc
         y.getArray()[:] = w[:n] + (p.a + p.b) * v - p.a * w[n:2 * n] - p.b * w[2 * n:]
-
-
-class SecondDifferencePC:
-    """Exact distributed solve with the second difference D2 of eq. ad: the preconditioner of ``-tw_solver nk``.
-
-    The Jacobian of eq. ad is J = D2 + K, where D2 (the tridiagonal (1, -2, 1)/h^2, with u_0 = u_K = 0 for odd
-    profiles) carries the 1/h^2 and K (the V''-weighted shift couplings) stays bounded as h -> 0; hence D2^{-1} J
-    is the identity plus a compact operator and GMRES needs a number of iterations independent of h.
-
-    D2 is taken from the ``d2`` stencil of a :class:`~hertzpetsc.grid.StencilGather` (any tridiagonal stencil
-    works) and does not depend on u or q, so it is factored once per problem. The solve is exact and independent
-    of the partition: each rank factors its diagonal block (LU, natural ordering: O(n) for a tridiagonal), and
-    the couplings between neighbouring ranks are restored by the two "spikes" B^{-1} e_first, B^{-1} e_last of
-    each block and a 2p x 2p interface system (p ranks), solved redundantly after one allgather of 2 numbers per
-    rank per application.
-    """
-
-    def __init__(self, grid, stencils, name="d2"):
-        self.grid = grid
-        rstart, rend = grid.rstart, grid.rend
-        nloc = rend - rstart
-        self.nloc = nloc
-        rows = np.arange(rstart, rend)[:, None]
-        cols, coef = stencils.cols[name], stencils.coef[name]
-        lower = np.where(cols == rows - 1, coef, 0.0).sum(axis=1)
-        diag = np.where(cols == rows, coef, 0.0).sum(axis=1)
-        upper = np.where(cols == rows + 1, coef, 0.0).sum(axis=1)
-        if np.any((np.abs(cols - rows) > 1) & (coef != 0.0)):
-            raise ParameterError("stencil", name, "must be tridiagonal for SecondDifferencePC")
-        # the diagonal block, as sequential AIJ (CSR rows: lower, diagonal, upper within the block)
-        local = np.arange(nloc)
-        entries = [(local - 1, lower, local > 0), (local, diag, local >= 0), (local + 1, upper, local < nloc - 1)]
-        c = np.stack([e[0] for e in entries], axis=1)
-        v = np.stack([e[1] for e in entries], axis=1)
-        keep = np.stack([e[2] for e in entries], axis=1)
-        indptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))]).astype(PETSc.IntType)
-        self.block = PETSc.Mat().createAIJ((nloc, nloc), csr=(indptr, c[keep].astype(PETSc.IntType), v[keep]),
-                                           comm=PETSc.COMM_SELF)
-        self.block.assemble()
-        self.ksp = PETSc.KSP().create(comm=PETSc.COMM_SELF)
-        self.ksp.setOperators(self.block)
-        self.ksp.setType(PETSc.KSP.Type.PREONLY)
-        lpc = self.ksp.getPC()
-        lpc.setType(PETSc.PC.Type.LU)
-        lpc.setFactorOrdering(PETSc.Mat.OrderingType.NATURAL)
-        self.rhs = PETSc.Vec().createSeq(nloc, comm=PETSc.COMM_SELF)
-        self.sol = self.rhs.duplicate()
-        # spikes: the response of the block to the coupling with the last row of the previous rank (g) and the
-        # first row of the next rank (k); x_local = B^{-1} f - x_prev g - x_next k
-        self.spikes = np.zeros((2, nloc))
-        if nloc:
-            self.ksp.setUp()
-            for i, (pos, weight) in enumerate(((0, lower[0]), (nloc - 1, upper[-1]))):
-                self.rhs.set(0.0)
-                self.rhs.setValue(pos, weight)
-                self.rhs.assemble()
-                self.ksp.solve(self.rhs, self.sol)
-                self.spikes[i] = self.sol.getArray(readonly=True)
-        self.mpi = grid.comm.tompi4py() if grid.comm.getSize() > 1 else None
-        if self.mpi is not None:
-            ends = np.array([self.spikes[0, 0], self.spikes[0, -1], self.spikes[1, 0], self.spikes[1, -1]]
-                            if nloc else [0.0] * 4)
-            allends = np.empty((self.mpi.size, 4))
-            self.mpi.Allgather(ends, allends)
-            counts = np.array(self.mpi.allgather(nloc))
-            self._interface_system(allends, counts)
-
-    def _interface_system(self, ends, counts):
-        """The 2p x 2p system for z = (x_prev, x_next) of every non-empty rank: x_prev of one rank is the last
-        entry of the previous non-empty rank, x_next the first entry of the next one (0 beyond the ends)."""
-        self.active = np.flatnonzero(counts > 0)
-        p = len(self.active)
-        e = ends[self.active]                     # g_first, g_last, k_first, k_last per active rank
-        A = np.eye(2 * p)
-        for r in range(p):
-            if r > 0:        # x_prev[r] = y_last[r-1] - x_prev[r-1] g_last[r-1] - x_next[r-1] k_last[r-1]
-                A[r, r - 1] += e[r - 1, 1]
-                A[r, p + r - 1] += e[r - 1, 3]
-            if r < p - 1:    # x_next[r] = y_first[r+1] - x_prev[r+1] g_first[r+1] - x_next[r+1] k_first[r+1]
-                A[p + r, r + 1] += e[r + 1, 0]
-                A[p + r, p + r + 1] += e[r + 1, 2]
-        self.interface_inverse = np.linalg.inv(A)
-        self.my_index = int(np.searchsorted(self.active, self.mpi.rank)) if counts[self.mpi.rank] else -1
-
-    def setUp(self, pc):
-        pass
-
-    def apply(self, pc, x, y):
-        out = y.getArray()
-        if self.nloc:
-            self.rhs.getArray()[:] = x.getArray(readonly=True)
-            self.ksp.solve(self.rhs, self.sol)
-            out[:] = self.sol.getArray(readonly=True)
-        if self.mpi is None:
-            return
-        ends = np.array([out[0], out[-1]] if self.nloc else [0.0, 0.0])
-        allends = np.empty((self.mpi.size, 2))
-        self.mpi.Allgather(ends, allends)
-        if self.my_index < 0:
-            return
-        p = len(self.active)
-        b = np.zeros(2 * p)
-        b[1:p] = allends[self.active[:-1], 1]       # y_last of the previous active rank
-        b[p:2 * p - 1] = allends[self.active[1:], 0]  # y_first of the next active rank
-        r = self.my_index
-        x_prev, x_next = self.interface_inverse[r] @ b, self.interface_inverse[p + r] @ b
-        out -= x_prev * self.spikes[0] + x_next * self.spikes[1]
-
-    def destroy(self, pc=None):
-        for obj in (self.ksp, self.block, self.rhs, self.sol):
-            obj.destroy()
-
-
-@dataclass(frozen=True)
-class SolveResult:
-    """Outcome of one SNES solve at one q."""
-
-    q: float
-    reason: int
-    iterations: int
-    linear_iterations: int
-    residual_norm: float
-    wall_time: float
-
-
-def default_tolerances(grid, u_scale):
-    """SNES tolerances that reach round-off of the discrete equations.
-
-    Round-off in the second difference is about 4 eps |u| / h^2 per row, so the 2-norm of the residual cannot
-    go much below sqrt(K) times that; atol is ten times this floor. stol stops once the Newton update is
-    1e-12 of the solution (the next update would be far below round-off).
-    """
-    eps = np.finfo(float).eps
-    atol = 10 * 4 * eps * max(u_scale, 1e-300) / grid.h ** 2 * math.sqrt(grid.size)
-    return dict(rtol=1e-12, atol=atol, stol=1e-12, max_it=50)
-
-
-# Defaults for -tw_snes_type qn (the paper used Broyden's method). With PETSc 3.18, L-BFGS scaled by the
-# Jacobian with the critical-point line search converges along the whole branch; the Broyden variants
-# (-tw_snes_qn_type broyden) diverge at the first step from u0 whatever the scaling. Inserted only for the
-# solve, and only where the user did not set them.
-QN_DEFAULTS = {"snes_qn_scale_type": "jacobian", "snes_linesearch_type": "cp"}
-
-# A converged point must satisfy ||R||_2 <= ACCEPT_FACTOR * atol (atol from the solution's own scale): guards
-# against SNES stopping on a small relative step far from a solution (possible with -snes_divergence_tolerance -1).
-ACCEPT_FACTOR = 1e3
-
-
-TW_SOLVERS = ("direct", "nk")
-
-# Defaults of the Newton-Krylov path (-tw_solver nk): GMRES preconditioned by the exact inverse of the second
-# difference (:class:`SecondDifferencePC`). J = D2 + K with K bounded as h -> 0 (V''-weighted shifts), so
-# D2^{-1} J = I + compact and the Krylov iteration count does not grow as the grid is refined. The linear
-# tolerance keeps Newton quadratic down to round-off of the discrete equations.
-NK_KSP_RTOL = 1e-10
-
-
-def tw_solver(prefix=TW_PREFIX, solver=None):
-    """The linear-solver path: ``solver`` if given, else ``-<prefix>solver`` from the options database, else
-    'direct'. 'direct' is LU (MUMPS on several ranks); 'nk' is Newton-Krylov (GMRES + exact D2 solve)."""
-    if solver is None:
-        solver = PETSc.Options().getString(prefix + "solver", "direct")
-    if solver not in TW_SOLVERS:
-        raise ParameterError(f"-{prefix}solver", solver, "must be one of " + ", ".join(TW_SOLVERS))
-    return solver
-
-
-def _set_linear_defaults(snes, solver, grid, stencils):
-    """The code defaults of the linear solves (before the options database is read)."""
-    ksp = snes.getKSP()
-    pc = ksp.getPC()
-    if solver == "direct":
-        ksp.setType(PETSc.KSP.Type.PREONLY)
-        pc.setType(PETSc.PC.Type.LU)
-        if grid.comm.getSize() > 1:
-            pc.setFactorSolverType("mumps")
-    else:
-        ksp.setType(PETSc.KSP.Type.GMRES)
-        ksp.setTolerances(rtol=NK_KSP_RTOL)
-        pc.setType(PETSc.PC.Type.PYTHON)
-        pc.setPythonContext(SecondDifferencePC(grid, stencils))
-
-
-def _set_from_options(snes, prefix):
-    """snes.setFromOptions(), with :data:`QN_DEFAULTS` inserted for the call only (where the user set none)."""
-    opts = PETSc.Options()
-    inserted = []
-    if opts.getString(prefix + "snes_type", "") == "qn":
-        for key, value in QN_DEFAULTS.items():
-            if not opts.hasName(prefix + key):
-                opts.setValue(prefix + key, value)
-                inserted.append(prefix + key)
-    try:
-        snes.setFromOptions()
-    finally:
-        for key in inserted:
-            opts.delValue(key)
-
-
-def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None, solver=None):
-    """SNES with the paper-reproducing defaults, then the options database under ``prefix`` (read once).
-
-    ``solver`` (or ``-<prefix>solver``) picks the defaults of the linear solves: 'direct' (PREONLY + LU, MUMPS
-    on several ranks) or 'nk' (GMRES preconditioned by :class:`SecondDifferencePC`, which needs the problem's
-    ``stencils["d2"]``). Either can be changed afterwards by -<prefix>ksp_type, -<prefix>pc_type, ...
-    """
-    solver = tw_solver(prefix, solver)
-    snes = PETSc.SNES().create(comm=problem.grid.comm)
-    snes.setOptionsPrefix(prefix)
-    snes.setType(PETSc.SNES.Type.NEWTONLS)
-    F = problem.grid.create_vec()
-    snes.setFunction(problem.formFunction, F)
-    snes.setJacobian(problem.formJacobian, J, J)
-    if tolerances:
-        snes.setTolerances(**tolerances)
-    _set_linear_defaults(snes, solver, problem.grid, getattr(problem, "stencils", None))
-    _set_from_options(snes, prefix)
-    F.destroy()
-    return snes
-
-
-class TravellingWaveSolver:
-    """One SNES for eqs. ad-pbc, kept across the solves of a continuation on one grid.
-
-    The SNES, its KSP/PC (for 'nk' the factored second difference) and work vectors are built, and the options
-    database under ``prefix`` read, once; each :meth:`solve` hands SNES the problem at the new q and a Jacobian
-    with that q's pattern. ``solver`` as in :func:`create_snes`. Tolerances given to :meth:`solve` (by default
-    :func:`default_tolerances`) apply unless the user set -<prefix>snes_rtol/atol/stol/max_it.
-    """
-
-    _TOLERANCE_OPTIONS = dict(rtol="snes_rtol", atol="snes_atol", stol="snes_stol", max_it="snes_max_it")
-
-    def __init__(self, grid, prefix=TW_PREFIX, solver=None):
-        self.grid, self.prefix = grid, prefix
-        self.solver = tw_solver(prefix, solver)
-        self.problem = None
-        self.snes = PETSc.SNES().create(comm=grid.comm)
-        self.snes.setOptionsPrefix(prefix)
-        self.snes.setType(PETSc.SNES.Type.NEWTONLS)
-        self.F = grid.create_vec()
-        self.snes.setFunction(self._function, self.F)
-        d2 = None
-        if self.solver == "nk":
-            d2 = StencilGather(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2)},
-                               scatter=False)
-        _set_linear_defaults(self.snes, self.solver, grid, d2)
-        if d2 is not None:
-            d2.destroy()
-        _set_from_options(self.snes, prefix)
-        opts = PETSc.Options()
-        default_kind = "shell" if self.solver == "nk" else "aij"
-        self.jacobian_kind = opts.getString(prefix + "jacobian", default_kind)
-        if self.jacobian_kind not in ("aij", "shell"):
-            raise ParameterError(f"-{prefix}jacobian", self.jacobian_kind, "must be 'aij' (assembled, for LU and "
-                                 "algebraic preconditioners) or 'shell' (matrix-free)")
-        self._user_set = {k for k, name in self._TOLERANCE_OPTIONS.items() if opts.hasName(prefix + name)}
-
-    def _function(self, snes, X, F):
-        self.problem.formFunction(snes, X, F)
-
-    def _jacobian(self, snes, X, J, P):
-        self.problem.formJacobian(snes, X, J, P)
-
-    @PETSc.Log.EventDecorator("hz_tw_solve")
-    def solve(self, problem, u, tolerances=None):
-        """Solve eqs. ad-pbc at ``problem.q`` from the initial guess ``u`` (overwritten by the solution).
-
-        Raises :class:`ConvergenceError` with the converged reason and q if SNES fails.
-        """
-        t0 = time.perf_counter()
-        if tolerances is None:
-            tolerances = default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))
-        self.snes.setTolerances(**{k: v for k, v in tolerances.items() if k not in self._user_set})
-        J = problem.create_jacobian(u, self.jacobian_kind)
-        self.problem = problem
-        self.snes.setJacobian(self._jacobian, J, J)
-        try:
-            self.snes.solve(None, u)
-            snes = self.snes
-            result = SolveResult(q=problem.q, reason=int(snes.getConvergedReason()),
-                                 iterations=snes.getIterationNumber(),
-                                 linear_iterations=snes.getLinearSolveIterations(),
-                                 residual_norm=float(snes.getFunctionNorm()), wall_time=time.perf_counter() - t0)
-        finally:
-            self.problem = None
-            J.destroy()        # SNES keeps its reference until the next solve
-        what = "travelling-wave SNES (prefix -%s)" % self.prefix
-        if result.reason <= 0:
-            raise ConvergenceError(what, result.reason, q=problem.q)
-        accept = ACCEPT_FACTOR * default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))["atol"]
-        if not result.residual_norm <= accept:
-            raise ConvergenceError(what, f"{result.reason}, but residual {result.residual_norm:.3g} > {accept:.3g}",
-                                   q=problem.q)
-        return result
-
-    def destroy(self):
-        self.snes.destroy()
-        self.F.destroy()
-
-
-def solve_travelling_wave(problem, u, prefix=TW_PREFIX, tolerances=None, solver=None):
-    """Solve eqs. ad-pbc at ``problem.q`` by SNES from the initial guess ``u`` (overwritten by the solution),
-    with a one-off :class:`TravellingWaveSolver`. Raises :class:`ConvergenceError` if SNES fails."""
-    tws = TravellingWaveSolver(problem.grid, prefix, solver)
-    try:
-        return tws.solve(problem, u, tolerances)
-    finally:
-        tws.destroy()

@@ -11,19 +11,19 @@ import math
 
 import numpy as np
 
-from .hertz import HertzPotential
+from .hertz import HertzLaw
 
 
-def quarter_period_solution(potential, steps=1 << 15):
-    """RK4 nodes (xi, u, u') on [0, pi/2] for the binary oscillation of ``potential``."""
-    a = potential.alpha
+def quarter_period_solution(law, steps=1 << 15):
+    """RK4 nodes (xi, u, u') on [0, pi/2] for the binary oscillation of the Hertz ``law``."""
+    a = law.alpha
     c = 2.0 ** a
     step = 0.5 * math.pi / steps
 
     def force(u):
         return -c * abs(u) ** a * (1.0 if u > 0 else -1.0 if u < 0 else 0.0)
 
-    u, v = 0.0, potential.p0
+    u, v = 0.0, law.p0
     us = np.empty(steps + 1)
     vs = np.empty(steps + 1)
     us[0], vs[0] = u, v
@@ -43,8 +43,8 @@ def binary_oscillation(alpha, xi, steps=1 << 15, derivative=False):
 
     Uses u0(pi - xi) = u0(xi) on [0, pi] (from oddness and eq. sym), oddness, and 2 pi-periodicity.
     """
-    pot = alpha if isinstance(alpha, HertzPotential) else HertzPotential(alpha)
-    nodes, us, vs = quarter_period_solution(pot, steps)
+    law = alpha if isinstance(alpha, HertzLaw) else HertzLaw(alpha)
+    nodes, us, vs = quarter_period_solution(law, steps)
     xi = np.asarray(xi, dtype=float)
     x = np.mod(xi, 2.0 * math.pi)
     sign = np.where(x > math.pi, -1.0, 1.0)          # u0(xi) = -u0(2 pi - xi)

@@ -31,12 +31,10 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import CHAIN_PREFIX, Chain, ChainIntegrator
+from .chain import Chain, ChainIntegrator
 from .errors import ParameterError
-from .floquet import FLOQUET_PREFIX, dominant_multipliers
+from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, dominant_multipliers
 from .tangent import MonodromyModShift
-
-FIRST_STEP = 1e-3       # the chain TS's initial step, reset for every sector so that sectors are independent
 
 
 def check_cell(N, M):
@@ -59,10 +57,11 @@ class TwistedChain(Chain):
     M-periodic. ``theta`` is an attribute: one chain (and its TS) serves every sector.
     """
 
-    def __init__(self, params, n_modes, theta=0.0, comm=None):
-        if params.boundary != "periodic":
-            raise ParameterError("boundary", params.boundary, "Bloch sectors need a periodic cell")
-        super().__init__(params, comm, n_tangent=2 * int(n_modes))
+    def __init__(self, spec, n_modes, comm, theta=0.0):
+        if spec.boundary != "periodic":
+            raise ParameterError("boundary", spec.boundary, "Bloch sectors need a periodic cell")
+        spec.model.require_uniform_masses("the Bloch decomposition")
+        super().__init__(spec, comm, n_tangent=2 * int(n_modes))
         self.n_modes = int(n_modes)
         self.theta = float(theta)
 
@@ -73,7 +72,7 @@ class TwistedChain(Chain):
         if self.theta != 0.0:
             c, s = math.cos(self.theta), math.sin(self.theta)
             t = a[:, 2:].reshape(self.nloc + 2, self.n_modes, 2, 2)     # bead, mode, (u, w), (y, ydot)
-            for row, sign, wraps in ((0, -1.0, self.xs == 0), (-1, 1.0, self.xe == self.params.N)):
+            for row, sign, wraps in ((0, -1.0, self.xs == 0), (-1, 1.0, self.xe == self.spec.N)):
                 if wraps:
                     u, w = t[row, :, 0, :].copy(), t[row, :, 1, :].copy()
                     t[row, :, 0, :] = c * u - sign * s * w
@@ -84,9 +83,9 @@ class TwistedChain(Chain):
 class BlochSectors:
     """Dense F_theta = S_theta R_theta(T; 0) of an M-bead cell, one TS run (2M complex columns) per sector."""
 
-    def __init__(self, params, comm=None, tolerances=None, prefix=CHAIN_PREFIX):
-        self.params = params
-        self.chain = TwistedChain(params, 2 * params.N, 0.0, comm)
+    def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+        self.spec = spec
+        self.chain = TwistedChain(spec, 2 * spec.N, comm)
         self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
         self.Z = self.chain.create_state()
         self.runs = 0
@@ -94,7 +93,7 @@ class BlochSectors:
     @PETSc.Log.EventDecorator("hz_bloch_sector")
     def monodromy(self, x0, T, theta):
         """F_theta (2M x 2M complex, index 2n + c) around the orbit from the M-bead state ``x0`` (M, 2)."""
-        M = self.params.N
+        M = self.spec.N
         ch = self.chain
         ch.theta = float(theta)
         z = np.zeros((M, ch.dof))
@@ -103,7 +102,7 @@ class BlochSectors:
         k = np.arange(2 * M)
         cols[k // 2, k, 0, k % 2] = 1.0                          # u = e_k, w = 0
         ch.set_from_array(self.Z, z)
-        self.integrator.integrate(self.Z, 0.0, T, dt=FIRST_STEP)   # same first step whatever ran before
+        self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)   # whatever ran before
         out = ch.gather(self.Z)[:, 2:].reshape(M, 2 * M, 2, 2)
         R = (out[:, :, 0, :] + 1j * out[:, :, 1, :]).transpose(0, 2, 1).reshape(2 * M, 2 * M)
         F = np.roll(R, -2, axis=0)                               # (S y)_n = y_{n+1}
@@ -140,16 +139,25 @@ class BlochResult:
         return self.values[self.sector == j]
 
 
-def bloch_multipliers(params, x0, T, N, comm=None, tolerances=None, prefix=CHAIN_PREFIX, split="sectors",
-                      n_modes=0):
-    """All multipliers of F_q on N beads from the M-bead cell (``params.N`` = M, ``x0`` its (M, 2) state).
+def sector_solver(spec, comm, split="sectors", tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+    """The :class:`BlochSectors` that :func:`bloch_multipliers` uses for ``split`` (each sector on one rank, or
+    distributed over ``comm``), to be built once and reused for several wavenumbers."""
+    if split not in ("sectors", "beads"):
+        raise ParameterError("split", split, "must be 'sectors' or 'beads'")
+    return BlochSectors(spec, PETSc.COMM_SELF if split == "sectors" else comm, tolerances, prefix)
+
+
+def bloch_multipliers(cell, N, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, split="sectors",
+                      n_modes=0, sectors=None):
+    """All multipliers of F_q on N beads from the orbit ``cell`` on the M-bead cell (M = ``cell.N``).
 
     ``split="sectors"``: the sectors are dealt round-robin to the ranks of ``comm``, each integrated on one
     rank (no communication inside a run, the same arithmetic on any number of ranks); ``"beads"``: every sector
     on all ranks of ``comm`` (the cell's DMDA distributed). ``n_modes``: keep the eigenvectors of that many
-    dominant multipliers (for :func:`tile_mode`). The result is the same on every rank.
+    dominant multipliers (for :func:`tile_mode`). ``sectors``: a :func:`sector_solver` for this split to reuse
+    (one is built and freed otherwise). The result is the same on every rank.
     """
-    comm = comm if comm is not None else PETSc.COMM_WORLD
+    params, x0, T = cell.spec, cell.x, cell.T
     M = params.N
     L = check_cell(N, M)
     if split not in ("sectors", "beads"):
@@ -163,7 +171,9 @@ def bloch_multipliers(params, x0, T, N, comm=None, tolerances=None, prefix=CHAIN
     thetas = sector_angles(L)
     size, rank = comm.getSize(), comm.getRank()
     mine = [j for j in range(len(thetas)) if split == "beads" or j % size == rank]
-    sectors = BlochSectors(params, PETSc.COMM_SELF if split == "sectors" else comm, tolerances, prefix)
+    own = sectors is None
+    if own:
+        sectors = sector_solver(params, comm, split, tolerances, prefix)
     local = []
     try:
         for j in mine:
@@ -171,7 +181,8 @@ def bloch_multipliers(params, x0, T, N, comm=None, tolerances=None, prefix=CHAIN
             top = np.argsort(-np.abs(lam), kind="stable")[:n_modes]
             local.append((j, lam, [(lam[i], V[:, i] / np.linalg.norm(V[:, i])) for i in top]))
     finally:
-        sectors.destroy()
+        if own:
+            sectors.destroy()
     if split == "sectors" and size > 1:
         local = [item for part in comm.tompi4py().allgather(local) for item in part]
     local.sort(key=lambda item: item[0])
@@ -217,14 +228,14 @@ def real_pairs(modes, L):
     return out
 
 
-def bloch_residuals(params, x0, T, pairs, comm=None, tolerances=None, prefix=CHAIN_PREFIX):
+def bloch_residuals(orbit, pairs, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
     """Relative residuals ||F Y - lambda Y|| / (|lambda| ||Y||) on the full N-bead chain, matrix-free.
 
-    ``params.N`` = N, ``x0`` the (N, 2) tiled wave, ``pairs`` from :func:`real_pairs`. F is real, so
+    ``orbit``: the tiled wave on N beads, ``pairs`` from :func:`real_pairs`. F is real, so
     F Re Y = Re(lambda Y) and F Im Y = Im(lambda Y): two shell products per pair (one if Y is real).
     Returns (residuals, products).
     """
-    op = MonodromyModShift(params, x0, T, comm, tolerances, prefix)
+    op = MonodromyModShift(orbit.spec, orbit.x, orbit.T, comm, tolerances, prefix)
     base = op.flow.base
     x, y = base.create_state(), base.create_state()
     res = []
@@ -245,11 +256,11 @@ def bloch_residuals(params, x0, T, pairs, comm=None, tolerances=None, prefix=CHA
         op.destroy()
 
 
-def seed_vectors(params, pairs, comm=None):
+def seed_vectors(spec, pairs, comm):
     """One PETSc start vector in the N-bead chain layout: the sum of Re Y + Im Y over the pairs, each normalised."""
-    ch = Chain(params, comm)
+    ch = Chain(spec, comm)
     v = ch.create_state()
-    s = np.zeros((params.N, 2))
+    s = np.zeros((spec.N, 2))
     for _, Y in pairs:
         w = Y.real + Y.imag
         s += w / np.linalg.norm(w)
@@ -258,8 +269,8 @@ def seed_vectors(params, pairs, comm=None):
     return [v]
 
 
-def seeded_dominant_multipliers(params, x0, T, bloch, nev=10, comm=None, tolerances=None, prefix=FLOQUET_PREFIX,
-                                chain_prefix=CHAIN_PREFIX, ncv=None, tol=1e-8):
+def seeded_dominant_multipliers(orbit, bloch, nev=10, comm=None, tolerances=FLOQUET_TOLERANCES,
+                                prefix=FLOQUET_PREFIX, ncv=None, tol=1e-8):
     """SLEPc Krylov-Schur (prefix ``floquet_``) on the full-chain shell, started from the Bloch modes.
 
     ``bloch``: a :class:`BlochResult` with at least ``nev`` modes. Krylov-Schur iterates on one start vector,
@@ -273,10 +284,10 @@ def seeded_dominant_multipliers(params, x0, T, bloch, nev=10, comm=None, toleran
     if len(bloch.modes) < nev:
         raise ParameterError("nev", nev, f"the Bloch result keeps {len(bloch.modes)} modes; ask for at most that "
                                          "many (bloch_multipliers(n_modes=...))")
-    seed = seed_vectors(params, real_pairs(bloch.modes[:nev], bloch.L), comm)
+    seed = seed_vectors(orbit.spec, real_pairs(bloch.modes[:nev], bloch.L), comm)
     try:
-        return dominant_multipliers(params, x0, T, nev, comm, tolerances, prefix, chain_prefix, initial_space=seed,
-                                    ncv=ncv if ncv is not None else min(2 * params.N, 2 * nev + 10), tol=tol)
+        return dominant_multipliers(orbit, nev, comm, tolerances, prefix, initial_space=seed,
+                                    ncv=ncv if ncv is not None else min(2 * orbit.N, 2 * nev + 10), tol=tol)
     finally:
         for v in seed:
             v.destroy()

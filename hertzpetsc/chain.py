@@ -1,10 +1,11 @@
-"""The Hertzian chain (eq. nc) on PETSc: state, right-hand side, exact Jacobian, energy, variational equations.
+"""The chain (eq. nc) on PETSc: state, right-hand side, exact Jacobian, energy, variational equations.
 
-    x_n'' = V'(x_{n+1} - x_n) - V'(x_n - x_{n-1}),   V'(r) = -|r|^alpha H(-r),
+    m_n x_n'' = V'(x_{n+1} - x_n) - V'(x_n - x_{n-1}),
 
-for N beads with periodic boundary conditions x_{n+N} = x_n (eq. pbcl), free ends (no force beyond the first and
-last bead) or fixed ends (walls at rest at x_0 = x_{N+1} = 0). The state X = (x_n, xdot_n)_n is a PETSc Vec on a
-1-D DMDA (bead-major, 2 dof per bead, stencil width 1: nearest neighbours are a genuine stencil here).
+for the N beads of a :class:`~hertzpetsc.model.ChainSpec` (the law V' and the masses m_n are its lattice model's)
+with periodic boundary conditions x_{n+N} = x_n (eq. pbcl), free ends (no force beyond the first and last bead)
+or fixed ends (walls at rest at x_0 = x_{N+1} = 0). The state X = (x_n, xdot_n)_n is a PETSc Vec on a 1-D DMDA
+(bead-major, 2 dof per bead, stencil width 1: nearest neighbours are a genuine stencil here).
 
 With ``n_tangent = k`` the DMDA carries k tangent vectors Y_i = (y_n, ydot_n) next to X, and the right-hand
 side is that of the variational equations Y' = Df(X) Y as well: one TS then integrates the flow and its
@@ -17,26 +18,11 @@ import numpy as np
 from petsc4py import PETSc
 
 from .errors import ConvergenceError, ParameterError
-from .hertz import HertzPotential, check_alpha
+from .model import ChainSpec
 
-BOUNDARIES = ("periodic", "free", "fixed")
+# The options prefix of the TS of simulations (long runs, compactons on the chain); the refinement's and the
+# Floquet analysis' flows have their own (shoot_, floquet_).
 CHAIN_PREFIX = "chain_"
-
-
-@dataclass(frozen=True)
-class ChainParameters:
-    """A chain of N beads with Hertz exponent alpha and the given boundary condition."""
-
-    alpha: float = 1.5
-    N: int = 100
-    boundary: str = "periodic"
-
-    def __post_init__(self):
-        object.__setattr__(self, "alpha", check_alpha(self.alpha))
-        if not (isinstance(self.N, (int, np.integer)) and self.N >= 3):
-            raise ParameterError("N", self.N, "the number of beads must be an integer >= 3")
-        if self.boundary not in BOUNDARIES:
-            raise ParameterError("boundary", self.boundary, f"must be one of {', '.join(BOUNDARIES)}")
 
 
 @dataclass(frozen=True)
@@ -56,24 +42,29 @@ class IntegrationTolerances:
 class Chain:
     """eq. nc on a DMDA; the methods ``rhs`` and ``rhs_jacobian`` are TS callbacks."""
 
-    def __init__(self, params, comm=None, n_tangent=0):
-        self.params = params
-        self.potential = HertzPotential(params.alpha)
-        self.comm = comm if comm is not None else PETSc.COMM_WORLD
+    def __init__(self, spec, comm, n_tangent=0):
+        if not isinstance(spec, ChainSpec):
+            raise ParameterError("spec", spec, "must be a ChainSpec")
+        self.spec = spec
+        self.model = spec.model
+        self.comm = comm
         self.n_tangent = int(n_tangent)
         self.dof = 2 * (1 + self.n_tangent)
-        periodic = params.boundary == "periodic"
+        periodic = spec.boundary == "periodic"
         bt = PETSc.DM.BoundaryType.PERIODIC if periodic else PETSc.DM.BoundaryType.GHOSTED
-        if self.comm.getSize() > params.N:
-            raise ParameterError("N", params.N, f"must be at least the number of ranks ({self.comm.getSize()})")
-        self.da = PETSc.DMDA().create(dim=1, sizes=(params.N,), dof=self.dof, stencil_width=1, boundary_type=(bt,),
+        if self.comm.getSize() > spec.N:
+            raise ParameterError("N", spec.N, f"must be at least the number of ranks ({self.comm.getSize()})")
+        self.da = PETSc.DMDA().create(dim=1, sizes=(spec.N,), dof=self.dof, stencil_width=1, boundary_type=(bt,),
                                       stencil_type=PETSc.DMDA.StencilType.STAR, comm=self.comm)
         self.da.setUp()
         (self.xs, self.xe), = self.da.getRanges()
         self.nloc = self.xe - self.xs
         self.local = self.da.createLocalVec()
         self.first = self.xs == 0 and not periodic
-        self.last = self.xe == params.N and not periodic
+        self.last = self.xe == spec.N and not periodic
+        # 1/m_n of the owned beads, or None for unit masses (the paper's chain: no extra arithmetic)
+        self.inverse_mass = None if self.model.uniform_masses else \
+            1.0 / self.model.mass(np.arange(self.xs, self.xe))
         self._shift = None
 
     # --- layout helpers ---------------------------------------------------------------------------------------
@@ -84,7 +75,7 @@ class Chain:
         """Local values with one ghost bead on each side, shape (nloc + 2, dof); walls for fixed ends."""
         self.da.globalToLocal(X, self.local)
         a = self.local.getArray(readonly=True).reshape(self.nloc + 2, self.dof)
-        if self.params.boundary == "fixed" and (self.first or self.last):
+        if self.spec.boundary == "fixed" and (self.first or self.last):
             a = a.copy()
             if self.first:
                 a[0] = 0.0
@@ -95,7 +86,7 @@ class Chain:
     def _bond_mask(self):
         """1 for bonds that carry a force, 0 for the missing bonds beyond free ends (bond i joins ghosted i, i+1)."""
         m = np.ones(self.nloc + 1)
-        if self.params.boundary == "free":
+        if self.spec.boundary == "free":
             if self.first:
                 m[0] = 0.0
             if self.last:
@@ -105,28 +96,31 @@ class Chain:
     # --- eq. nc and its variational equations -------------------------------------------------------------
     def rhs(self, ts, t, X, F):
         a = self._ghosted(X)
-        V = self.potential
+        model = self.model
         x = a[:, 0]
         r = x[1:] - x[:-1]                          # bond lengths x_{n+1} - x_n
         mask = self._bond_mask()
-        bond = V.dV(r) * mask
+        bond = model.force(r) * mask
         out = F.getArray().reshape(self.nloc, self.dof)
         out[:, 0] = a[1:-1, 1]
         out[:, 1] = bond[1:] - bond[:-1]
         if self.n_tangent:
-            stiff = (V.d2V(r) * mask)[:, None]
+            stiff = (model.stiffness(r) * mask)[:, None]
             y = a[:, 2::2]                           # (nloc + 2, k) tangent displacements
             dy = y[1:] - y[:-1]
             out[:, 2::2] = a[1:-1, 3::2]
             out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1]
+        if self.inverse_mass is not None:
+            out[:, 1::2] *= self.inverse_mass[:, None]
 
     def rhs_jacobian(self, ts, t, X, J, P):
         """Exact Jacobian Df(X) of eq. nc (for implicit integrators); only for the chain without tangents.
         Assembled entry by entry: adequate for the chain lengths where implicit integration is used."""
         a = self._ghosted(X)
         r = a[1:, 0] - a[:-1, 0]
-        s = self.potential.d2V(r) * self._bond_mask()    # bond stiffness V''(x_{n+1} - x_n)
-        N = self.params.N
+        s = self.model.stiffness(r) * self._bond_mask()    # bond stiffness V''(x_{n+1} - x_n)
+        inv = self.inverse_mass if self.inverse_mass is not None else np.ones(self.nloc)
+        N = self.spec.N
         n = np.arange(self.xs, self.xe)
         rows_x = 2 * n
         rows_v = 2 * n + 1
@@ -134,7 +128,7 @@ class Chain:
         P.zeroEntries()
         for i in range(self.nloc):
             P.setValue(rows_x[i], rows_v[i], 1.0, addv=True)
-            sl, sr = s[i], s[i + 1]
+            sl, sr = s[i] * inv[i], s[i + 1] * inv[i]
             P.setValue(rows_v[i], 2 * n[i], -(sl + sr), addv=True)
             if not (self.first and i == 0):
                 P.setValue(rows_v[i], 2 * left[i], sl, addv=True)
@@ -151,24 +145,26 @@ class Chain:
 
     # --- diagnostics --------------------------------------------------------------------------------------
     def energy(self, X):
-        """Total energy (eq. ham): sum of v^2/2 and of V over the bonds (with the walls for fixed ends)."""
+        """Total energy (eq. ham): sum of m v^2/2 and of V over the bonds (with the walls for fixed ends)."""
         a = self._ghosted(X)
         r = a[1:, 0] - a[:-1, 0]
-        Vb = self.potential.V(r) * self._bond_mask()
+        Vb = self.model.potential(r) * self._bond_mask()
         # each rank counts the bonds to the right of its beads, plus the left wall bond for fixed ends
-        local = 0.5 * np.sum(a[1:-1, 1] ** 2) + np.sum(Vb[1:])
-        if self.params.boundary == "fixed" and self.first:
+        kinetic = a[1:-1, 1] ** 2 if self.inverse_mass is None else a[1:-1, 1] ** 2 / self.inverse_mass
+        local = 0.5 * np.sum(kinetic) + np.sum(Vb[1:])
+        if self.spec.boundary == "fixed" and self.first:
             local += Vb[0]
         return self.comm.tompi4py().allreduce(float(local))
 
     # --- the spatial shift S X = (X_2, ..., X_N, X_1) of section 3.5 -------------------------------------------
     def shift(self, X, out):
-        """out = S X (periodic chains): bead n of ``out`` holds bead n+1 of ``X``, all dof."""
-        if self.params.boundary != "periodic":
-            raise ParameterError("boundary", self.params.boundary, "the shift S needs a periodic chain")
+        """out = S X (periodic chains): bead n of ``out`` holds bead n+c of ``X``, all dof, c the mass pattern's
+        length (one bead for the paper's chain: S moves bead n+1 to bead n)."""
+        if self.spec.boundary != "periodic":
+            raise ParameterError("boundary", self.spec.boundary, "the shift S needs a periodic chain")
         if self._shift is None:
-            N, d = self.params.N, self.dof
-            src = ((np.arange(self.xs, self.xe)[:, None] + 1) % N * d + np.arange(d)[None, :]).ravel()
+            N, d, c = self.spec.N, self.dof, self.model.cell
+            src = ((np.arange(self.xs, self.xe)[:, None] + c) % N * d + np.arange(d)[None, :]).ravel()
             dst = (np.arange(self.xs, self.xe)[:, None] * d + np.arange(d)[None, :]).ravel()
             isf = PETSc.IS().createGeneral(src.astype(PETSc.IntType), comm=self.comm)
             ist = PETSc.IS().createGeneral(dst.astype(PETSc.IntType), comm=self.comm)
@@ -181,14 +177,14 @@ class Chain:
         """The whole state as a numpy array of shape (N, dof) on every rank."""
         scatter, full = PETSc.Scatter.toAll(X)
         scatter.scatter(X, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-        out = full.getArray(readonly=True).reshape(self.params.N, self.dof).copy()
+        out = full.getArray(readonly=True).reshape(self.spec.N, self.dof).copy()
         scatter.destroy()
         full.destroy()
         return out
 
     def set_from_array(self, X, values):
         """Set X from a (N, dof) array given on every rank."""
-        values = np.asarray(values, dtype=float).reshape(self.params.N, self.dof)
+        values = np.asarray(values, dtype=float).reshape(self.spec.N, self.dof)
         X.getArray()[:] = values[self.xs:self.xe].ravel()
 
     def destroy(self):
@@ -223,6 +219,7 @@ class ChainIntegrator:
         ts.setMaxSteps(10 ** 9)
         ts.setTimeStep(1e-3)
         ts.setFromOptions()
+        self.initial_step = ts.getTimeStep()     # flows that measure something start from it every time
         rtol, atol = ts.getTolerances()
         for name, value in (("rtol", rtol), ("atol", atol)):
             if not (value > 0 and math.isfinite(value)):
@@ -233,7 +230,10 @@ class ChainIntegrator:
 
     @PETSc.Log.EventDecorator("hz_chain_integrate")
     def integrate(self, X, t0, t1, dt=None):
-        """Advance X (in place) from t0 to t1; returns the number of steps. Raises ConvergenceError on failure."""
+        """Advance X (in place) from t0 to t1; returns the number of steps. Raises ConvergenceError on failure.
+
+        ``dt``: the first step (the integrator's :attr:`initial_step` for a measurement that must not depend on what
+        ran before); None carries on with the step the last integration ended with (a simulation in intervals)."""
         if not t1 > t0:
             raise ParameterError("time", t1, f"the final time must exceed the initial time {t0}")
         ts = self.ts
@@ -255,3 +255,15 @@ class ChainIntegrator:
         self._F.destroy()
         if self._J is not None:
             self._J.destroy()
+
+
+def configure_options(spec, comm, prefix=CHAIN_PREFIX, tolerances=None):
+    """Read and check the TS options under ``prefix`` on a small chain of ``spec``'s lattice, for studies that
+    build their integrators later (a bad value fails here, before any computation)."""
+    n = max(3, comm.getSize(), spec.model.cell)
+    n += (-n) % spec.model.cell
+    chain = Chain(spec.with_length(n), comm)
+    try:
+        ChainIntegrator(chain, tolerances, prefix).destroy()
+    finally:
+        chain.destroy()

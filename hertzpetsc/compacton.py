@@ -18,22 +18,20 @@ at c = omega / q beads per unit time, the gaps outside them are Delta = a p q, a
 branch profile; outside, U is exactly linear, so beads ahead of the train have exactly zero velocity.
 """
 import math
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .branchfile import point_index
-from .diagnostics import q_k as crossing_q_k
 from .errors import ParameterError
-from .hertz import HertzPotential
-from .stencil import full_period, lagrange_periodic
+from .model import ChainSpec, LatticeModel
+from .stencil import lagrange_periodic
 
 
 @dataclass(frozen=True)
 class CompactonTrain:
     """n >= 1 compactons of wavenumber q (eqs. extens, extens2), built from one branch point."""
 
-    alpha: float
+    model: LatticeModel
     q: float
     h: float
     p: float              # free-flight slope p(q) = u'(0)
@@ -105,15 +103,14 @@ class CompactonTrain:
         return U
 
 
-def advance_delay_residual(U, sigma, h, alpha):
+def advance_delay_residual(U, sigma, h, model):
     """The discrete eq. ad at the interior points of consecutive grid values U_j (shift q = sigma h, sigma an
     integer): (U_{j+1} - 2 U_j + U_{j-1}) / h^2 - V'(U_{j+sigma} - U_j) + V'(U_j - U_{j-sigma})."""
-    V = HertzPotential(alpha)
     U = np.asarray(U, dtype=float)
     c = slice(sigma, len(U) - sigma)
     Uc = U[c]
     d2 = (U[sigma + 1:len(U) - sigma + 1] - 2 * Uc + U[sigma - 1:len(U) - sigma - 1]) / h ** 2
-    return d2 - V.dV(U[2 * sigma:] - Uc) + V.dV(Uc - U[:len(U) - 2 * sigma])
+    return d2 - model.force(U[2 * sigma:] - Uc) + model.force(Uc - U[:len(U) - 2 * sigma])
 
 
 def free_flight_deviation(train):
@@ -135,9 +132,9 @@ def extension_residuals(train, periods=1.0):
         raise ParameterError("q", train.q, "grid residuals need q to be a whole number of steps h")
     pad = int(round(periods * K2)) + sigma + 1
     j = np.arange(int(round(train.offsets[0] / h)) - pad, int(round(train.offsets[-1] / h)) + K2 + pad + 1)
-    extended = advance_delay_residual(train.grid_values(j), sigma, h, train.alpha)
+    extended = advance_delay_residual(train.grid_values(j), sigma, h, train.model)
     jp = np.arange(-sigma - 1, K2 + sigma + 1)
-    period = advance_delay_residual(train.u_full[jp % K2], sigma, h, train.alpha)
+    period = advance_delay_residual(train.u_full[jp % K2], sigma, h, train.model)
     return float(np.max(np.abs(extended))), float(np.max(np.abs(period))), 2 * free_flight_deviation(train) / h ** 2
 
 
@@ -148,18 +145,18 @@ def min_spacing(F):
     return min(0.0, 2.0 - F)
 
 
-def compacton_train(branch, q, spacings=()):
-    """The n-compacton of branch point q, n = len(spacings) + 1, spacings d_j in beads (theta_j = q d_j).
+def compacton_train(point, spacings=(), q_k=None):
+    """The n-compacton of the branch point ``point``, n = len(spacings) + 1, spacings d_j in beads
+    (theta_j = q d_j); ``q_k`` (the branch's, if known) only makes the error message more precise.
 
     Raises ParameterError when F(q) < 1 (q above q_k: no linear extension, eq. extens) or a spacing is below
     :func:`min_spacing` (the compactons would overlap).
     """
-    i = point_index(branch, q)
-    q = float(branch["q"][i])
-    F = float(branch["F"][i])
+    q = point.q
+    F = point.diagnostics.F
     if F < 1.0:
-        qk = crossing_q_k(branch["q"], branch["F"])
-        raise ParameterError("q", q, f"compactons need F(q) = 2 ell(q)/q >= 1, i.e. q <= q_k = {qk:.4f} "
+        bound = f"q <= q_k = {q_k:.4f}" if q_k is not None and q_k == q_k else "q <= q_k"
+        raise ParameterError("q", q, f"compactons need F(q) = 2 ell(q)/q >= 1, i.e. {bound} "
                                      f"(here F = {F:.4f}, eq. extens)")
     d = [float(x) for x in spacings]
     d_min = min_spacing(F)
@@ -171,9 +168,9 @@ def compacton_train(branch, q, spacings=()):
     offsets = [0.0]
     for dj in d:
         offsets.append(offsets[-1] + 2 * math.pi + q * dj)
-    return CompactonTrain(alpha=float(branch["alpha"]), q=q, h=float(branch["h"]), p=float(branch["slope"][i]),
-                          ell=float(branch["ell"][i]), norm_inf=float(branch["norm_inf"][i]),
-                          u_full=full_period(branch["u"][i]), offsets=tuple(offsets))
+    d = point.diagnostics
+    return CompactonTrain(model=point.model, q=q, h=point.h, p=d.slope, ell=d.ell, norm_inf=d.norm_inf,
+                          u_full=point.u_full, offsets=tuple(offsets))
 
 
 # --- on the chain ---------------------------------------------------------------------------------------------------
@@ -193,8 +190,9 @@ class CompactonScales:
         """The scales that make the compactons travel at c > 0 beads per unit time (a = (c q)^(2/(alpha-1)))."""
         if not (math.isfinite(c) and c > 0):
             raise ParameterError("c", c, "the compacton velocity must be a positive number of beads per unit time")
-        a = (c * train.q) ** (2 / (train.alpha - 1))
-        omega = a ** ((train.alpha - 1) / 2)
+        alpha = train.model.alpha
+        a = (c * train.q) ** (2 / (alpha - 1))
+        omega = a ** ((alpha - 1) / 2)
         return cls(a=a, omega=omega, v=a * omega * train.p, c=omega / train.q, gap=a * train.p * train.q,
                    shift=2 * math.pi * a * train.p)
 
@@ -223,13 +221,13 @@ def chain_length(train, margin, travel):
     return int(math.ceil(2 * margin + train_span(train) + travel))
 
 
-def simulate_on_chain(train, scales, N, phi, t_final, dt_snapshot, comm=None, tolerances=None):
+def simulate_on_chain(train, scales, N, phi, t_final, dt_snapshot, comm, tolerances=None):
     """Integrate the chain (eq. nc, free ends, TS prefix -chain_) from :func:`chain_state` at t = 0; returns the
     snapshot times and the (snapshots, N, 2) states, on every rank."""
-    from .chain import Chain, ChainIntegrator, ChainParameters
+    from .chain import Chain, ChainIntegrator
     if not (t_final > 0 and dt_snapshot > 0 and dt_snapshot <= t_final):
         raise ParameterError("dt_snapshot", dt_snapshot, f"must lie in (0, t_final = {t_final}]")
-    chain = Chain(ChainParameters(train.alpha, N, "free"), comm)
+    chain = Chain(ChainSpec(train.model, N, "free"), comm)
     integ = ChainIntegrator(chain, tolerances)
     X = chain.create_state()
     chain.set_from_array(X, chain_state(train, scales, N, phi))
@@ -245,6 +243,32 @@ def simulate_on_chain(train, scales, N, phi, t_final, dt_snapshot, comm=None, to
         integ.destroy()
         chain.destroy()
     return times, np.array(states)
+
+
+@dataclass(frozen=True)
+class LatticeChecks:
+    """What :func:`lattice_checks` measured (errors relative as documented there)."""
+
+    c: float
+    shift: float
+    gap: float
+    v_peak: float
+    t_final: float
+    max_velocity_ahead: float
+    max_displacement_ahead: float
+    arrival_delay_min: float
+    arrival_delay_max: float
+    dt_snapshot: float
+    measured_c: list
+    beads_passed: int
+    shift_error: float
+    max_velocity_behind: float
+    gap_error: float
+    profile_error_x: float
+    profile_error_v: float
+
+    def as_dict(self):
+        return asdict(self)
 
 
 def lattice_checks(train, scales, phi, times, states):
@@ -315,4 +339,4 @@ def lattice_checks(train, scales, phi, times, states):
     exact = chain_state(train, scales, N, phi, times[-1])
     out["profile_error_x"] = float(np.max(np.abs(x[-1] - exact[:, 0])) / scales.shift)
     out["profile_error_v"] = float(np.max(np.abs(v[-1] - exact[:, 1])) / v_peak)
-    return out
+    return LatticeChecks(**out)

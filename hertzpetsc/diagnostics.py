@@ -3,11 +3,37 @@
 Profiles are given on the half period: ``u_half[j] = u(j h)``, j = 0..K, h = pi/K, extended by oddness.
 """
 import math
+from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-from .hertz import HertzPotential
+from .hertz import HertzLaw
 from .stencil import full_period, shifted
+
+
+@dataclass(frozen=True)
+class WaveDiagnostics:
+    """The scalar diagnostics of one branch point (section 3.1, eqs. defnq, invv, dispers, normscaling)."""
+
+    norm_inf: float          # ||u||_inf
+    slope: float             # p(q) = u'(0), the free-flight slope
+    ell: float               # free-flight half-length ell(q)
+    N: float                 # N(q) = 2 (pi - ell)/q, mean number of adjacent interacting beads (eq. defnq)
+    F: float                 # F(q) = 2 ell/q, mean number of adjacent beads in free flight
+    T: float                 # inverse velocity script-T(q) = q ||u||^((alpha-1)/2) (eq. invv)
+    omega_A0: float          # omega(q, A0), A0 = ||u0||_inf (eq. dispers)
+    rescaled_norm: float     # ||u||_inf q^(2/(alpha-1)) -> k_alpha (eq. normscaling)
+
+    @classmethod
+    def names(cls):
+        return tuple(f.name for f in fields(cls))
+
+    def as_dict(self):
+        return asdict(self)
+
+    def __getitem__(self, name):
+        """``diagnostics["N"]``: the spelling of the time when diagnostics were a dict."""
+        return getattr(self, name)
 
 
 def sup_norm(u_half):
@@ -70,12 +96,12 @@ def free_flight_half_length(u_half, q, h):
 
 def point_diagnostics(u_half, q, h, alpha):
     """All scalar diagnostics of one branch point (section 3.1, eqs. defnq, invv, dispers)."""
-    pot = HertzPotential(alpha)
-    a = pot.alpha
+    law = HertzLaw(alpha)
+    a = law.alpha
     norm = sup_norm(u_half)
     ell = free_flight_half_length(u_half, q, h)
-    A0 = float(pot.amplitude(pot.p0))  # ||u0||_inf, so that omega(pi, A0) = 1 (fig. dispersplot)
-    return dict(
+    A0 = float(law.amplitude(law.p0))  # ||u0||_inf, so that omega(pi, A0) = 1 (fig. dispersplot)
+    return WaveDiagnostics(
         norm_inf=norm,
         slope=slope_at_origin(u_half, h),
         ell=ell,
@@ -83,7 +109,7 @@ def point_diagnostics(u_half, q, h, alpha):
         F=2 * ell / q,                                # mean number of adjacent beads in free flight
         T=q * norm ** ((a - 1) / 2),                  # inverse velocity script-T(q), eq. invv
         omega_A0=dispersion(norm, A0, a),             # omega(q, A0), eq. dispers
-        rescaled_norm=norm * q ** pot.rescaling_exponent,   # ||u||_inf q^(2/(alpha-1)) -> k_alpha (eq. normscaling)
+        rescaled_norm=norm * q ** law.rescaling_exponent,   # ||u||_inf q^(2/(alpha-1)) -> k_alpha (eq. normscaling)
     )
 
 

@@ -1,24 +1,51 @@
-"""Exceptions raised by hertzpetsc.
+"""Exceptions raised by hertzpetsc, and the exit status each one gives a driver.
 
-Every error names the offending parameter (and its valid range) or the continuation parameter at which a solver
-failed, in one line, so that drivers can print ``str(err)`` and exit non-zero.
+Every error names the offending parameter (and its valid range), option, file, or the continuation parameter at
+which a solver failed, in one line, so that drivers print ``error: <message>`` and exit with ``exit_status``:
+
+=======  ==================================================================================================
+status   class
+=======  ==================================================================================================
+2        :class:`ParameterError` (a value out of range, an unknown option, a malformed list)
+3        :class:`ConvergenceError` (a solver did not converge; the message names the parameter value)
+4        :class:`RecordFileError` (an input file missing, corrupt or of another kind; an output that cannot
+         be written or would overwrite a record file without -resume/-force)
+5        :class:`PetscFailure` (PETSc refused an operation; the message is PETSc's own)
+=======  ==================================================================================================
+
+Errors are raised on every rank at once: parameters and input files are checked on all ranks (or on rank 0 and
+the verdict broadcast), and solver verdicts are collective, so a driver can print on rank 0 and exit on all.
 """
 
 
 class HertzPetscError(Exception):
     """Base class of the package's errors."""
 
+    exit_status = 2
+
 
 class ParameterError(HertzPetscError, ValueError):
     """A parameter is outside its valid range."""
+
+    exit_status = 2
 
     def __init__(self, name, value, valid):
         self.name, self.value, self.valid = name, value, valid
         super().__init__(f"invalid {name} = {value!r}: {valid}")
 
 
+class OptionError(ParameterError):
+    """An option on the command line that no part of the driver reads (a typo), or a malformed option."""
+
+    def __init__(self, message):
+        self.name, self.value, self.valid = None, None, message
+        Exception.__init__(self, message)
+
+
 class ConvergenceError(HertzPetscError, RuntimeError):
     """A PETSc solver did not converge; carries the converged reason and the parameter value."""
+
+    exit_status = 3
 
     def __init__(self, what, reason, **where):
         self.what, self.reason, self.where = what, reason, where
@@ -26,9 +53,18 @@ class ConvergenceError(HertzPetscError, RuntimeError):
         super().__init__(f"{what} did not converge (reason {reason}) at {at}")
 
 
-class BranchFileError(HertzPetscError, IOError):
-    """A branch file is missing, corrupt, or belongs to another computation."""
+class RecordFileError(HertzPetscError, IOError):
+    """A record file is missing, corrupt, of another kind, belongs to another computation, or cannot be written."""
+
+    exit_status = 4
 
 
-class RunFileError(BranchFileError):
-    """A snapshot directory or refinement file is missing, corrupt, or belongs to another run."""
+# The names under which these errors were raised before the record store existed (still caught by old code).
+BranchFileError = RecordFileError
+RunFileError = RecordFileError
+
+
+class PetscFailure(HertzPetscError, RuntimeError):
+    """PETSc refused an operation (an unknown solver type, a bad option value ...): PETSc's own message."""
+
+    exit_status = 5

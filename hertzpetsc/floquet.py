@@ -9,28 +9,58 @@ N up to a few hundred) and :func:`dominant_multipliers` (SLEPc Krylov-Schur on t
 the nev multipliers of largest magnitude, options prefix ``floquet_``: -floquet_eps_nev, -floquet_eps_ncv,
 -floquet_eps_tol, -floquet_eps_type ...). Translation and time shift give multipliers at 1 with Jordan partners
 (Galilean boost, amplitude): four trivial multipliers, which an orbit that is off by epsilon splits by about
-sqrt(epsilon); :func:`trivial_multipliers` identifies them.
+sqrt(epsilon); :func:`trivial_multipliers` identifies them. A :class:`Spectrum` is the result: the
+multipliers, which are trivial, rho and the verdict.
+
+Options: the prefix ``floquet_`` holds the flow of the variational equations (``-floquet_ts_rtol`` ...) and the
+eigensolver (``-floquet_eps_nev`` ...).
 """
 import math
+import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from .chain import CHAIN_PREFIX
+from .chain import IntegrationTolerances
 from .errors import ConvergenceError, ParameterError
 from .tangent import MonodromyModShift, TangentFlow
 
 FLOQUET_PREFIX = "floquet_"
 N_TRIVIAL = 4
+# Stability criterion: an O(eps) orbit error splits double multipliers by O(sqrt(eps)); with eps ~ 1e-10 (refined
+# E plus the flow's error) that is ~1e-5, and 1e-4 keeps a factor 10.
+TOL_RHO = 1e-4
+# The flow of the spectra along the refined waves (as tight as the refinement's).
+FLOQUET_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
 
 
-def dense_monodromy(params, x0, T, comm=None, tolerances=None, shift=True):
-    """Assembled S R(T; 0) (``shift``) or R(T; 0), 2N x 2N, on every rank (2N tangent vectors at once)."""
-    flow = TangentFlow(params, 2 * params.N, comm, tolerances)
+class DenseFloquet:
+    """The dense monodromy of orbits on one chain: one TS with 2N tangent vectors, configured once (prefix
+    ``floquet_``), serving every orbit of a scan."""
+
+    def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+        self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
+
+    def monodromy(self, orbit, shift=True, T=None):
+        """Assembled S R(T; 0) (``shift``) or R(T; 0), 2N x 2N, on every rank; T defaults to script-T."""
+        T = orbit.T if T is None else T
+        return self.flow.monodromy_mod_shift(orbit.x, T)[0] if shift else self.flow.resolvent(orbit.x, T)[0]
+
+    def spectrum(self, orbit, tol_rho=None):
+        """All 2N multipliers of F_q as a :class:`Spectrum`."""
+        return Spectrum(dense_multipliers(self.monodromy(orbit)), True, TOL_RHO if tol_rho is None else tol_rho)
+
+    def destroy(self):
+        self.flow.destroy()
+
+
+def dense_monodromy(orbit, comm, tolerances=FLOQUET_TOLERANCES, shift=True, prefix=FLOQUET_PREFIX, T=None):
+    """One-off :meth:`DenseFloquet.monodromy`."""
+    dense = DenseFloquet(orbit.spec, comm, tolerances, prefix)
     try:
-        return flow.monodromy_mod_shift(x0, T)[0] if shift else flow.resolvent(x0, T)[0]
+        return dense.monodromy(orbit, shift, T)
     finally:
-        flow.destroy()
+        dense.destroy()
 
 
 def dense_multipliers(F):
@@ -53,6 +83,46 @@ def spectral_radius(lam, exclude_trivial=True):
 
 
 @dataclass
+class Spectrum:
+    """Multipliers of F_q (sorted by decreasing modulus) with the trivial ones identified, and the verdict.
+
+    ``complete``: all 2N multipliers (dense route) or only the dominant ones (SLEPc); the trivial multipliers are
+    only identified, and left out of rho, in a complete spectrum.
+    """
+
+    multipliers: np.ndarray
+    complete: bool
+    tol_rho: float = TOL_RHO
+
+    @property
+    def trivial(self):
+        return trivial_multipliers(self.multipliers) if self.complete else np.zeros(0, dtype=int)
+
+    @property
+    def rho(self):
+        return spectral_radius(self.multipliers, exclude_trivial=self.complete)
+
+    @property
+    def trivial_spread(self):
+        """max |mu - 1| over the trivial multipliers (their numerical splitting), nan if not identified."""
+        t = self.trivial
+        return float(np.max(np.abs(self.multipliers[t] - 1))) if len(t) else math.nan
+
+    @property
+    def outside(self):
+        """Multipliers with |mu| > 1 + tol_rho."""
+        return int(np.sum(np.abs(self.multipliers) > 1 + self.tol_rho))
+
+    @property
+    def unstable(self):
+        return self.rho - 1 > self.tol_rho
+
+    def growth(self, T):
+        """ln(rho) / script-T, the growth per unit time of the most unstable mode."""
+        return growth_rate(self.rho, T)
+
+
+@dataclass
 class EigenResult:
     """Dominant multipliers from SLEPc and the work it took."""
 
@@ -64,49 +134,58 @@ class EigenResult:
     wall_time: float
 
 
-def dominant_multipliers(params, x0, T, nev=10, comm=None, tolerances=None, prefix=FLOQUET_PREFIX,
-                         chain_prefix=CHAIN_PREFIX, initial_space=None, keep_vectors=False, ncv=None,
-                         tol=1e-10):
-    """The ``nev`` multipliers of largest magnitude of F = S R(T; 0), by SLEPc on the matrix-free operator.
+class DominantFloquet:
+    """The ``nev`` multipliers of largest magnitude of F = S R(T; 0) by SLEPc Krylov-Schur on the matrix-free
+    operator (:class:`~hertzpetsc.tangent.MonodromyModShift`), for orbits of one chain; the operator and the EPS
+    (prefix ``floquet_``: -floquet_eps_nev, -floquet_eps_ncv, -floquet_eps_tol, -floquet_eps_type ...) are
+    configured once.
 
-    ``initial_space``: PETSc Vecs (e.g. the previous branch point's eigenvectors) to warm-start Krylov-Schur.
-    ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N; -floquet_eps_ncv overrides);
-    ``tol``: Krylov-Schur relative tolerance (-floquet_eps_tol overrides).
-    Raises ParameterError if nev exceeds the dimension 2N, ConvergenceError if fewer than nev pairs converge.
+    ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N; clustered multipliers on the unit
+    circle need a generous subspace: the default ncv converged nothing); ``tol``: relative tolerance.
     """
-    import time
 
-    from slepc4py import SLEPc
-    dim = 2 * params.N
-    if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
-        raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
-    t0 = time.perf_counter()
-    op = MonodromyModShift(params, x0, T, comm, tolerances, chain_prefix)
-    A = op.create_mat()
-    eps = SLEPc.EPS().create(comm=op.flow.base.comm)
-    try:
-        eps.setOperators(A)
+    def __init__(self, spec, comm, nev=10, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, ncv=None,
+                 tol=1e-10):
+        from slepc4py import SLEPc
+        dim = 2 * spec.N
+        if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
+            raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
+        self.prefix, self.dim = prefix, dim
+        self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix)
+        self.A = self.op.create_mat()
+        eps = self.eps = SLEPc.EPS().create(comm=self.op.flow.base.comm)
+        eps.setOperators(self.A)
         eps.setOptionsPrefix(prefix)
         eps.setProblemType(SLEPc.EPS.ProblemType.NHEP)
         eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
         eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
-        # clustered multipliers on the unit circle need a generous subspace (the default ncv converged nothing)
         eps.setDimensions(nev=nev, ncv=min(dim, max(2 * nev + 20, 60) if ncv is None else ncv))
         eps.setTolerances(tol=tol, max_it=500)
+        eps.setFromOptions()
+        self.nev = eps.getDimensions()[0]
+        if self.nev > dim:
+            self.destroy()
+            raise ParameterError("-%seps_nev" % prefix, self.nev, f"must not exceed the dimension 2N = {dim}")
+
+    def solve(self, orbit, initial_space=None, keep_vectors=False):
+        """The dominant multipliers around ``orbit`` (an :class:`EigenResult`); ``initial_space``: PETSc Vecs
+        (e.g. the previous branch point's eigenvectors) to warm-start Krylov-Schur. ConvergenceError if fewer
+        than nev pairs converge."""
+        t0 = time.perf_counter()
+        op, eps, A = self.op, self.eps, self.A
+        op.set_orbit(orbit.x, orbit.T)
+        products0 = op.products
+        eps.setOperators(A)
         if initial_space:
             eps.setInitialSpace(initial_space)
-        eps.setFromOptions()
-        nev_eff = eps.getDimensions()[0]
-        if nev_eff > dim:
-            raise ParameterError("-%seps_nev" % prefix, nev_eff, f"must not exceed the dimension 2N = {dim}")
         eps.solve()
         nconv = eps.getConverged()
-        if nconv < nev_eff:
-            raise ConvergenceError("Floquet eigensolver (prefix -%s)" % prefix,
-                                   f"{nconv} of {nev_eff} multipliers converged ({eps.getConvergedReason()})",
-                                   T=float(T))
+        if nconv < self.nev:
+            raise ConvergenceError("Floquet eigensolver (prefix -%s)" % self.prefix,
+                                   f"{nconv} of {self.nev} multipliers converged ({eps.getConvergedReason()})",
+                                   q=float(orbit.q))
         vals, vecs = [], []
-        for i in range(nev_eff):
+        for i in range(self.nev):
             vals.append(eps.getEigenvalue(i))
             if keep_vectors:
                 vr = A.createVecRight()
@@ -115,12 +194,23 @@ def dominant_multipliers(params, x0, T, nev=10, comm=None, tolerances=None, pref
         vals = np.array(vals)
         order = np.argsort(-np.abs(vals), kind="stable")
         return EigenResult(values=vals[order], vectors=[vecs[i] for i in order] if vecs else [], converged=nconv,
-                           iterations=eps.getIterationNumber(), products=op.products,
+                           iterations=eps.getIterationNumber(), products=op.products - products0,
                            wall_time=time.perf_counter() - t0)
+
+    def destroy(self):
+        self.eps.destroy()
+        self.A.destroy()
+        self.op.destroy()
+
+
+def dominant_multipliers(orbit, nev=10, comm=None, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX,
+                         initial_space=None, keep_vectors=False, ncv=None, tol=1e-10):
+    """One-off :meth:`DominantFloquet.solve` (ParameterError if nev exceeds the dimension 2N)."""
+    solver = DominantFloquet(orbit.spec, comm, nev, tolerances, prefix, ncv, tol)
+    try:
+        return solver.solve(orbit, initial_space, keep_vectors)
     finally:
-        eps.destroy()
-        A.destroy()
-        op.destroy()
+        solver.destroy()
 
 
 def growth_rate(rho, T):

@@ -1,6 +1,7 @@
-"""The Hertz contact potential and the closed forms of the binary oscillation (paper section 2.1).
+"""The Hertz contact law between neighbouring beads and the closed forms of the binary oscillation (section 2.1).
 
-Pure numpy, no PETSc. ``x`` may be a scalar or an array everywhere.
+Pure numpy, no PETSc. ``x`` may be a scalar or an array everywhere. The law is one part of the chain's physics;
+:class:`hertzpetsc.model.LatticeModel` puts it together with the masses.
 """
 import math
 from dataclasses import dataclass
@@ -36,7 +37,7 @@ def abs_power(a, e):
 
 
 @dataclass(frozen=True)
-class HertzPotential:
+class HertzLaw:
     """V(x) = |x|^(1+alpha) H(-x) / (1+alpha) (eq. vhertz) and the symmetrised W (eq. int), for alpha > 1."""
 
     alpha: float = 1.5
@@ -91,3 +92,4 @@ class HertzPotential:
     def rescaling_exponent(self):
         """2/(alpha-1): u ~ k_alpha q^(-2/(alpha-1)) as q -> 0 (eq. normscaling)."""
         return 2.0 / (self.alpha - 1.0)
+

@@ -10,8 +10,21 @@ y_sol is taken from the solitary wave's grid by linear interpolation (error delt
 default delta = 1/160, below the long-wave errors compared here) and set to -+k_alpha beyond its domain.
 """
 import math
+from dataclasses import dataclass
 
 import numpy as np
+
+
+@dataclass(frozen=True)
+class LongWaveComparison:
+    """Errors of the composite and inner approximations at one q, relative to k_alpha (eq. solapprox)."""
+
+    q: float
+    max_error: float             # max |u~ - u~_app| over the period
+    window_error: float          # the same over |xi - pi| <= window
+    inner_window_error: float    # max |u~ - y_sol((xi - pi)/q)| over the window
+    rescaled_norm: float         # ||u~||_inf, against k_alpha (eq. normscaling)
+    k_alpha: float
 
 
 def inner_solution(wave, s):
@@ -30,21 +43,19 @@ def composite_profile(wave, q, xi):
     return np.where(xi <= math.pi, k / math.pi * xi + inner - k, k / math.pi * (xi - 2 * math.pi) + inner + k)
 
 
-def compare_with_branch(wave, q, u_half, alpha, window=0.1):
-    """Errors of the composite and inner approximations against the computed profile at wavenumber q.
-
-    Returns the max |u~ - u~_app| over the period and over |xi - pi| <= window, the max |u~ - inner| over the
-    window, all relative to k_alpha, and the rescaled norm ||u~||_inf against k_alpha (eq. normscaling).
-    """
-    K = len(u_half) - 1
+def compare_with_branch(wave, point, window=0.1):
+    """Errors of the composite and inner approximations against the branch point's profile (a
+    :class:`LongWaveComparison`: over the period and over |xi - pi| <= window, relative to k_alpha)."""
+    q = point.q
+    u_full = point.u_full
+    K = len(u_full) // 2
     xi = np.arange(2 * K) * math.pi / K
-    u_full = np.concatenate([u_half[:-1], -u_half[:0:-1]])
-    ut = q ** (2 / (alpha - 1)) * u_full
+    ut = q ** point.model.law.rescaling_exponent * u_full
     app = composite_profile(wave, q, xi)
     near = np.abs(xi - math.pi) <= window
     inner = inner_solution(wave, (xi - math.pi) / q)
     k = wave.k_alpha
-    return dict(q=q, max_error=float(np.max(np.abs(ut - app)) / k),
-                window_error=float(np.max(np.abs(ut - app)[near]) / k),
-                inner_window_error=float(np.max(np.abs(ut - inner)[near]) / k),
-                rescaled_norm=float(np.max(np.abs(ut))), k_alpha=k)
+    return LongWaveComparison(q=q, max_error=float(np.max(np.abs(ut - app)) / k),
+                              window_error=float(np.max(np.abs(ut - app)[near]) / k),
+                              inner_window_error=float(np.max(np.abs(ut - inner)[near]) / k),
+                              rescaled_norm=float(np.max(np.abs(ut))), k_alpha=k)

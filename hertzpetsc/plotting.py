@@ -1,4 +1,5 @@
-"""Figures of the paper, from result files (numpy dicts). Called by scripts, never by solvers.
+"""Figures of the paper, from results (branches, refinement and Floquet records, snapshots, waves). Called by
+scripts, never by solvers; each figure is written atomically on the calling rank.
 
 matplotlib is imported lazily with the Agg backend, so this module can be imported on a machine without a screen.
 """
@@ -7,7 +8,9 @@ import os
 
 import numpy as np
 
-from .diagnostics import dispersion, dispersion_long_wave, q_k
+from .diagnostics import dispersion, dispersion_long_wave
+from .hertz import HertzLaw
+from .records import save_figure
 
 
 def _pyplot():
@@ -18,35 +21,34 @@ def _pyplot():
 
 
 def _save(fig, directory, name):
-    path = os.path.join(directory, name)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    _pyplot().close(fig)
-    return path
+    try:
+        return save_figure(fig, os.path.join(directory, name))
+    finally:
+        _pyplot().close(fig)
 
 
 def _nearest(branch, q):
-    return int(np.argmin(np.abs(branch["q"] - q)))
+    return int(np.argmin(np.abs(branch.q - q)))
 
 
 def branch_k_alpha(branch):
     """Estimate of k_alpha from the branch: ||u||_inf q^(2/(alpha-1)) at its smallest q (eq. normscaling)."""
-    return float(branch["rescaled_norm"][np.argmin(branch["q"])])
+    return float(branch.column("rescaled_norm")[np.argmin(branch.q)])
 
 
 def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50)):
     """Fig. profiles: u(xi; q) on a period for the branch points nearest to ``qs``."""
     plt = _pyplot()
     fig, axes = plt.subplots(len(qs), 1, figsize=(6, 2.2 * len(qs)))
-    xi = branch["xi"]
+    xi = branch.xi
     xfull = np.concatenate([xi[:-1], 2 * math.pi - xi[:0:-1]])
     for ax, q in zip(np.atleast_1d(axes), qs):
-        i = _nearest(branch, q)
-        u = branch["u"][i]
-        ax.plot(xfull, np.concatenate([u[:-1], -u[:0:-1]]), "k-", lw=1)
+        point = branch.points[_nearest(branch, q)]
+        ax.plot(xfull, point.u_full, "k-", lw=1)
         ax.set_xlim(0, 2 * math.pi)
         ax.set_ylabel(r"$u(\xi)$")
-        ax.set_title(rf"$q = {branch['q'][i]:.4f}$", fontsize=10)
+        ax.set_title(rf"$q = {point.q:.4f}$", fontsize=10)
     np.atleast_1d(axes)[-1].set_xlabel(r"$\xi$")
     return _save(fig, directory, "profiles.png")
 
@@ -54,12 +56,12 @@ def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50
 def _plot_power_law(branch, directory, name, field, factor, k_alpha, ylabel, data_label, line_label):
     """Branch values of ``field`` vs q (log scale) with the line factor k_alpha q^(2/(1-alpha))."""
     plt = _pyplot()
-    a = branch["alpha"]
+    a = branch.alpha
     k = branch_k_alpha(branch) if k_alpha is None else k_alpha
-    q = branch["q"]
+    q = branch.q
     qq = np.linspace(q.min(), math.pi, 200)
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.semilogy(q, branch[field], "ko", ms=3, label=data_label)
+    ax.semilogy(q, branch.column(field), "ko", ms=3, label=data_label)
     ax.semilogy(qq, factor * k * qq ** (2 / (1 - a)), "b-", lw=1,
                 label=line_label + f", $k_\\alpha$ = {k:.4f}" + (" (branch, min q)" if k_alpha is None else ""))
     ax.set_xlabel("$q$")
@@ -84,7 +86,7 @@ def plot_number(branch, directory):
     """Fig. number: N(q), the mean number of adjacent interacting beads."""
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot(branch["q"], branch["N"], "k.-", ms=4, lw=0.8)
+    ax.plot(branch.q, branch.column("N"), "k.-", ms=4, lw=0.8)
     ax.set_xlabel("$q$")
     ax.set_ylabel("$N(q)$")
     ax.grid(alpha=0.3)
@@ -94,10 +96,11 @@ def plot_number(branch, directory):
 def plot_free_flight(branch, directory):
     """Fig. lsq: F(q) = 2 ell(q) / q, with F = 1 and q_k marked."""
     plt = _pyplot()
-    qk = q_k(branch["q"], branch["F"])
+    qk = branch.q_k()
+    F = branch.column("F")
     fig, ax = plt.subplots(figsize=(6, 4))
-    pos = branch["F"] > 0  # F(pi) = 0: no free flight for the binary oscillation
-    ax.semilogy(branch["q"][pos], branch["F"][pos], "k.-", ms=4, lw=0.8)
+    pos = F > 0  # F(pi) = 0: no free flight for the binary oscillation
+    ax.semilogy(branch.q[pos], F[pos], "k.-", ms=4, lw=0.8)
     ax.axhline(1.0, color="gray", lw=0.6)
     if np.isfinite(qk):
         ax.axvline(qk, color="b", lw=0.6, ls="--", label=rf"$q_k = {qk:.3f}$")
@@ -110,18 +113,17 @@ def plot_free_flight(branch, directory):
 def plot_dispersion(branch, directory, k_alpha=None):
     """Fig. dispersplot: omega(q, A0) (eq. dispers) and its linear approximation at q = 0 (eq. disperseq)."""
     plt = _pyplot()
-    from .hertz import HertzPotential
-    pot = HertzPotential(branch["alpha"])
-    A0 = float(pot.amplitude(pot.p0))
+    law = HertzLaw(branch.alpha)
+    A0 = float(law.amplitude(law.p0))
     k = branch_k_alpha(branch) if k_alpha is None else k_alpha
-    q = branch["q"]
+    q, norm = branch.q, branch.column("norm_inf")
     qq = np.linspace(0, math.pi, 200)
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.plot(q, dispersion(branch["norm_inf"], A0, pot.alpha), "k.-", ms=4, lw=0.8, label=r"$\omega(q, A_0)$")
-    ax.plot(qq, dispersion_long_wave(qq, A0, pot.alpha, k), "b--", lw=0.8, label="linear approximation")
+    ax.plot(q, dispersion(norm, A0, law.alpha), "k.-", ms=4, lw=0.8, label=r"$\omega(q, A_0)$")
+    ax.plot(qq, dispersion_long_wave(qq, A0, law.alpha, k), "b--", lw=0.8, label="linear approximation")
     ax.set_xlabel("$q$")
     ax.set_ylabel(r"$\omega$")
-    ax.set_ylim(0, 1.1 * max(1.0, float(np.max(dispersion(branch["norm_inf"], A0, pot.alpha)))))
+    ax.set_ylim(0, 1.1 * max(1.0, float(np.max(dispersion(norm, A0, law.alpha)))))
     ax.legend()
     return _save(fig, directory, "dispersplot.png")
 
@@ -135,14 +137,15 @@ def plot_branch_figures(branch, directory, k_alpha=None):
 
 # --- section 3.4: residuals and chain dynamics ---------------------------------------------------------------
 def plot_errors(refined, directory):
-    """Fig. errors: E(q) before (dotted) and after (full) refinement, and r(q) (dash-dot), semi-log."""
+    """Fig. errors: E(q) before (dotted) and after (full) refinement, and r(q) (dash-dot), semi-log, from a
+    :class:`~hertzpetsc.studies.refinement.RefinedStates`."""
     plt = _pyplot()
-    order = np.argsort(refined["q"])
-    q = refined["q"][order]
+    order = np.argsort(refined.q)
+    q = refined.q[order]
     fig, ax = plt.subplots(figsize=(6, 4))
-    ax.semilogy(q, refined["E_before_paper_flow"][order], "k:", label="E(q), branch wave (rtol 1e-12 flow)")
-    ax.semilogy(q, refined["E_after"][order], "k-", label="E(q), refined (rtol 1e-14 flow)")
-    ax.semilogy(q, refined["r"][order], "k-.", lw=0.8, label="r(q), last Gauss-Newton step")
+    ax.semilogy(q, refined.column("E_before_paper_flow")[order], "k:", label="E(q), branch wave (rtol 1e-12 flow)")
+    ax.semilogy(q, refined.column("E_after")[order], "k-", label="E(q), refined (rtol 1e-14 flow)")
+    ax.semilogy(q, refined.column("r")[order], "k-.", lw=0.8, label="r(q), last Gauss-Newton step")
     ax.set_xlabel("$q$")
     ax.set_ylabel("errors")
     ax.legend(fontsize=8)
@@ -244,14 +247,15 @@ def plot_solitary(wave, directory):
     return _save(fig, directory, "ondesol.png")
 
 
-def plot_long_wave(wave, q, u_half, alpha, directory, zoom=0.3):
-    """Figs. approxz (the rescaled profile near pi against the inner solution) and approx (against the
-    composite approximation of eq. solapprox over the period)."""
+def plot_long_wave(wave, point, directory, zoom=0.3):
+    """Figs. approxz (the rescaled profile of a branch point near pi against the inner solution) and approx
+    (against the composite approximation of eq. solapprox over the period)."""
     from .longwave import composite_profile, inner_solution
     plt = _pyplot()
+    u_half, q = point.u_half, point.q
     K = len(u_half) - 1
     xi = np.arange(2 * K + 1) * math.pi / K
-    ut = q ** (2 / (alpha - 1)) * np.concatenate([u_half, -u_half[-2::-1]])
+    ut = q ** point.model.law.rescaling_exponent * np.concatenate([u_half, -u_half[-2::-1]])
     near = np.abs(xi - math.pi) <= zoom
     fig, ax = plt.subplots(figsize=(6, 4))
     ax.plot(xi[near], ut[near], "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")

@@ -1,21 +1,25 @@
-"""Long chain simulations with snapshots written as they are taken (paper section 3.4, figs. stabletw ...).
+"""The long-run file format: a run directory of snapshots written as they are taken (section 3.4).
 
-A run directory holds ``run.json`` (what the run is: chain, initial state digest, tolerances, snapshot interval)
-and ``snapshots.f64``, an append-only file of float64 records ``[t, energy, x_1..x_N, xdot_1..xdot_N]``, each
-flushed to disk when taken. A killed run loses at most the interval in flight: resuming reads the last complete
-record (a partial trailing record is discarded) and integrates on from it. Resuming with another run's
-parameters is refused. Read without PETSc: ``np.fromfile(path).reshape(-1, 2 + 2N)``.
+A run directory holds ``run.json`` (what the run is: chain, initial state digest, tolerances, snapshot interval;
+``format`` = ``hertzpetsc-longrun-2``) and ``snapshots.f64``, an append-only file of float64 records
+``[t, energy, dt, x_1..x_N, xdot_1..xdot_N]``, each flushed to disk when taken (the record store's append layout,
+:class:`hertzpetsc.records.AppendRecords`). ``dt`` is the time step the integrator will start the next interval
+with, so that a resumed run repeats the uninterrupted one's arithmetic: a killed run loses at most the interval in
+flight and resumes to the same trajectory. Resuming with another run's parameters is refused. Directories of the
+first format (no ``format`` key, records ``[t, energy, x, xdot]``) are still read, but cannot be resumed exactly.
+Read without PETSc: ``np.fromfile(path).reshape(-1, 3 + 2N)``.
 """
 import hashlib
-import json
 import os
 from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ParameterError, RunFileError
+from .errors import ParameterError, RecordFileError
+from .records import AppendRecords
 
-
+LONGRUN_FORMAT = "hertzpetsc-longrun-2"
+HEADER, DATA = "run.json", "snapshots.f64"
 # header keys that define a run: resuming requires them to be equal
 IDENTITY = ("alpha", "N", "boundary", "initial_state_sha256", "snapshot_dt", "rtol", "atol", "ts")
 
@@ -24,76 +28,58 @@ def state_digest(state):
     return hashlib.sha256(np.ascontiguousarray(np.asarray(state, dtype=np.float64)).tobytes()).hexdigest()
 
 
-class SnapshotFile:
-    """The snapshot record file of a run directory (open on one rank only for writing)."""
-
-    def __init__(self, directory, header):
-        self.directory = directory
-        self.header = header
-        self.record = 2 + 2 * int(header["N"])
-        self.path = os.path.join(directory, "snapshots.f64")
-
-    @classmethod
-    def create(cls, directory, header):
-        os.makedirs(directory, exist_ok=True)
-        tmp = os.path.join(directory, "run.json.tmp")
-        with open(tmp, "w") as f:
-            json.dump(header, f, indent=1)
-        os.replace(tmp, os.path.join(directory, "run.json"))
-        open(os.path.join(directory, "snapshots.f64"), "wb").close()
-        return cls(directory, header)
-
-    @classmethod
-    def open(cls, directory, expected=None):
-        """Open an existing run; if ``expected`` is given its identity keys must match the stored header."""
-        path = os.path.join(directory, "run.json")
-        if not os.path.exists(path):
-            raise RunFileError(f"no run to resume in {directory!r} (run.json missing)")
-        try:
-            with open(path) as f:
-                header = json.load(f)
-        except ValueError:
-            raise RunFileError(f"{path!r} is corrupt") from None
-        if expected is not None:
-            for key in IDENTITY:
-                if header.get(key) != expected.get(key):
-                    raise RunFileError(f"the snapshots in {directory!r} belong to another run: {key} = "
-                                       f"{header.get(key)!r} there, {expected.get(key)!r} requested")
-        return cls(directory, header)
-
-    def read(self):
-        """(times, energies, states (n, N, 2)) of the complete records."""
-        raw = np.fromfile(self.path, dtype=np.float64) if os.path.exists(self.path) else np.zeros(0)
-        n = len(raw) // self.record
-        rec = raw[: n * self.record].reshape(n, self.record)
-        N = int(self.header["N"])
-        states = np.stack([rec[:, 2:2 + N], rec[:, 2 + N:]], axis=2)
-        return rec[:, 0], rec[:, 1], states
-
-    def truncate_partial(self):
-        """Drop a partial trailing record left by a killed run."""
-        size = os.path.getsize(self.path)
-        whole = size // (8 * self.record) * 8 * self.record
-        if whole != size:
-            with open(self.path, "r+b") as f:
-                f.truncate(whole)
-
-    def append(self, t, energy, state):
-        state = np.asarray(state, dtype=np.float64)
-        rec = np.concatenate([[t, energy], state[:, 0], state[:, 1]])
-        with open(self.path, "ab") as f:
-            f.write(rec.tobytes())
-            f.flush()
-            os.fsync(f.fileno())
-
-
 @dataclass
-class RunSummary:
-    t_final: float
-    snapshots: int
-    steps: int
-    energy_drift: float
-    wall_time: float
+class Snapshots:
+    """The records of a run directory: times, energies, integrator steps dt (nan for the first format) and
+    states (n, N, 2)."""
+
+    header: dict
+    times: np.ndarray
+    energies: np.ndarray
+    steps: np.ndarray
+    states: np.ndarray
+
+
+def record_length(N):
+    return 3 + 2 * int(N)
+
+
+def snapshot_store(directory, header, comm, mode):
+    """The record store of a long run (collective). ``header`` must hold the :data:`IDENTITY` keys and N."""
+    if mode == "resume":
+        stored = AppendRecords.read_header(directory) if os.path.exists(os.path.join(directory, HEADER)) else {}
+        if stored and stored.get("format") != LONGRUN_FORMAT:
+            raise RecordFileError(f"{directory!r} was written by an older hertzpetsc (no integrator step in its "
+                                  "records): it can be read, but not resumed exactly; rerun with -force")
+    return AppendRecords(directory, LONGRUN_FORMAT, header, {k: header[k] for k in IDENTITY},
+                         record_length(header["N"]), comm, mode, HEADER, DATA, what="run directory")
+
+
+def snapshot_record(t, energy, dt, state):
+    state = np.asarray(state, dtype=np.float64)
+    return np.concatenate([[t, energy, dt], state[:, 0], state[:, 1]])
+
+
+def decode(rows, N, has_step=True):
+    """Snapshots fields from an (n, record) array."""
+    rows = np.asarray(rows, dtype=np.float64).reshape(len(rows), -1)
+    k = 3 if has_step else 2
+    steps = rows[:, 2] if has_step else np.full(len(rows), np.nan)
+    states = np.stack([rows[:, k:k + N], rows[:, k + N:]], axis=2)
+    return rows[:, 0], rows[:, 1], steps, states
+
+
+def read_snapshots(directory):
+    """All complete records of a run directory (either format), without PETSc."""
+    header = AppendRecords.read_header(directory)
+    N = int(header["N"])
+    has_step = header.get("format") == LONGRUN_FORMAT
+    length = record_length(N) if has_step else 2 + 2 * N
+    path = os.path.join(directory, DATA)
+    raw = np.fromfile(path, dtype=np.float64) if os.path.exists(path) else np.zeros(0)
+    n = len(raw) // length
+    times, energies, steps, states = decode(raw[:n * length].reshape(n, length), N, has_step)
+    return Snapshots(header, times, energies, steps, states)
 
 
 def check_times(t_final, snapshot_dt):

@@ -20,10 +20,12 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
+from .assembly import RowAssembler, StencilGather
 from .errors import ConvergenceError, ParameterError
-from .advdelay import ACCEPT_FACTOR, create_snes
-from .grid import OddPeriodicGrid, RowAssembler, StencilGather
-from .hertz import HertzPotential, check_alpha
+from .grid import ProfileGrid
+from .hertz import check_alpha
+from .model import LatticeModel
+from .twsolver import ACCEPT_FACTOR, create_snes
 
 SOL_PREFIX = "sol_"
 
@@ -67,10 +69,10 @@ def continuum_compacton(alpha, s):
 class SolitaryWaveProblem:
     """Residual and exact Jacobian of the discretised eq. adr for even r; methods are SNES callbacks."""
 
-    def __init__(self, params, comm=None):
+    def __init__(self, params, comm):
         self.params = params
-        self.potential = HertzPotential(params.alpha)
-        self.grid = OddPeriodicGrid(params.K, comm, parity=1, length=2 * params.half_length, dirichlet=True)
+        self.model = LatticeModel.hertz(params.alpha)
+        self.grid = ProfileGrid(params.K, comm, parity=1, length=2 * params.half_length, dirichlet=True)
         p = params.cells_per_unit
         self.stencils = StencilGather(self.grid, {
             "d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) * p ** 2),
@@ -82,18 +84,18 @@ class SolitaryWaveProblem:
         self.assembler = RowAssembler(self.grid, [st.cols["d2"], self_cols, st.cols["plus"], st.cols["minus"]])
 
     def formFunction(self, snes, X, F):
-        st, V = self.stencils, self.potential
+        st, force = self.stencils, self.model.force
         g = st.gather(X)
-        f = V.dV(g)
+        f = force(g)
         r = X.getArray(readonly=True)
-        F.getArray()[:] = st.apply("d2", g) - (st.apply("plus", f) - 2 * V.dV(r) + st.apply("minus", f))
+        F.getArray()[:] = st.apply("d2", g) - (st.apply("plus", f) - 2 * force(r) + st.apply("minus", f))
 
     def _blocks(self, X):
-        st, V = self.stencils, self.potential
+        st, stiffness = self.stencils, self.model.stiffness
         g = st.gather(X)
-        k = V.d2V(g)
+        k = stiffness(g)
         r = X.getArray(readonly=True)
-        return [st.coef["d2"], 2 * V.d2V(r)[:, None], -st.coef["plus"] * k[st.pos["plus"]],
+        return [st.coef["d2"], 2 * stiffness(r)[:, None], -st.coef["plus"] * k[st.pos["plus"]],
                 -st.coef["minus"] * k[st.pos["minus"]]]
 
     def formJacobian(self, snes, X, J, P):
@@ -137,7 +139,7 @@ def displacement_profile(r_half, n):
 
 
 @PETSc.Log.EventDecorator("hz_solitary_solve")
-def solve_solitary_wave(params, comm=None, prefix=SOL_PREFIX):
+def solve_solitary_wave(params, comm, prefix=SOL_PREFIX):
     """Compute the unit-velocity solitary wave and k_alpha; ParameterError if L is too short for the tail
     tolerance, ConvergenceError if SNES fails or lands on the trivial solution r = 0."""
     t0 = time.perf_counter()
@@ -173,3 +175,17 @@ def solve_solitary_wave(params, comm=None, prefix=SOL_PREFIX):
     y, k_alpha = displacement_profile(r, params.cells_per_unit)
     return SolitaryWave(params=params, s=s, r=r, y=y, k_alpha=k_alpha, iterations=its, residual_norm=float(fnorm),
                         tail=tail, wall_time=time.perf_counter() - t0)
+
+
+def configure_options(comm, prefix=SOL_PREFIX):
+    """Read and check the options under ``prefix`` by configuring the SNES of a small solitary-wave problem, for
+    studies that solve later (a bad value fails here, before any computation)."""
+    prob = SolitaryWaveProblem(SolitaryParameters(1.5, 2, 3.0), comm)
+    X = prob.grid.vec_from_half_profile(continuum_compacton(1.5, np.arange(prob.params.K + 1) / 2))
+    J = prob.assembler.create(prob._blocks(X))
+    try:
+        create_snes(prob, J, prefix).destroy()
+    finally:
+        J.destroy()
+        X.destroy()
+        prob.destroy()

@@ -10,17 +10,18 @@ integration with k = 1) for SLEPc.
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import CHAIN_PREFIX, Chain, ChainIntegrator
+from .chain import Chain, ChainIntegrator
 
 
 class TangentFlow:
-    """Flow and tangent-linear flow of a chain over [0, T], with k tangent vectors at a time."""
+    """Flow and tangent-linear flow of a chain over [0, T], with k tangent vectors at a time; its TS has the
+    options prefix of the role it serves (``shoot_`` for the refinement, ``floquet_`` for the spectra)."""
 
-    def __init__(self, params, n_tangent, comm=None, tolerances=None, prefix=CHAIN_PREFIX):
-        self.params = params
+    def __init__(self, spec, n_tangent, comm, tolerances, prefix):
+        self.spec = spec
         self.k = int(n_tangent)
-        self.aug = Chain(params, comm, n_tangent=self.k)
-        self.base = Chain(params, self.aug.comm)       # same N and comm: same ownership ranges
+        self.aug = Chain(spec, comm, n_tangent=self.k)
+        self.base = Chain(spec, comm)                  # same N and comm: same ownership ranges
         self.integrator = ChainIntegrator(self.aug, tolerances, prefix)
         self.Z = self.aug.create_state()
 
@@ -29,11 +30,11 @@ class TangentFlow:
 
         Returns (X(T) as (N, 2), R(T; 0) Y0 as (N, 2, k)) on every rank.
         """
-        N, k = self.params.N, self.k
+        N, k = self.spec.N, self.k
         z = np.concatenate([np.asarray(x0, float).reshape(N, 2), np.asarray(Y0, float).reshape(N, 2, k)
                             .transpose(0, 2, 1).reshape(N, 2 * k)], axis=1)
         self.aug.set_from_array(self.Z, z)
-        self.integrator.integrate(self.Z, 0.0, T)
+        self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)
         out = self.aug.gather(self.Z)
         return out[:, :2].copy(), out[:, 2:].reshape(N, k, 2).transpose(0, 2, 1).copy()
 
@@ -42,16 +43,17 @@ class TangentFlow:
 
         Requires k = 2N; the columns are the images of the unit vectors e_{2n+c}.
         """
-        N = self.params.N
+        N = self.spec.N
         if self.k != 2 * N:
             raise ValueError(f"the dense resolvent needs n_tangent = 2N = {2 * N}, not {self.k}")
         xT, RY = self.run(x0, T, np.eye(2 * N).reshape(N, 2, 2 * N))
         return RY.reshape(2 * N, 2 * N), xT
 
     def monodromy_mod_shift(self, x0, T):
-        """Dense S R(T; 0) and S X(T), on every rank (S moves bead n+1 to bead n)."""
+        """Dense S R(T; 0) and S X(T), on every rank (S moves bead n+c to bead n, c the mass pattern's length)."""
         R, xT = self.resolvent(x0, T)
-        return np.roll(R, -2, axis=0), np.roll(xT, -1, axis=0)
+        c = self.spec.model.cell
+        return np.roll(R, -2 * c, axis=0), np.roll(xT, -c, axis=0)
 
     def destroy(self):
         self.Z.destroy()
@@ -67,13 +69,19 @@ class MonodromyModShift:
     memory at O(N)); ``products`` counts them.
     """
 
-    def __init__(self, params, x0, T, comm=None, tolerances=None, prefix=CHAIN_PREFIX):
-        self.flow = TangentFlow(params, 1, comm, tolerances, prefix)
+    def __init__(self, spec, x0, T, comm, tolerances, prefix):
+        self.flow = TangentFlow(spec, 1, comm, tolerances, prefix)
         base = self.flow.base
-        self.x0_local = np.asarray(x0, dtype=float).reshape(params.N, 2)[base.xs:base.xe].copy()
+        self.x0_local = np.asarray(x0, dtype=float).reshape(spec.N, 2)[base.xs:base.xe].copy()
         self.T = float(T)
         self.products = 0
         self._RY = base.create_state()
+
+    def set_orbit(self, x0, T):
+        """Move the operator to another orbit of the same chain (the next wavenumber of a scan)."""
+        base = self.flow.base
+        self.x0_local = np.asarray(x0, dtype=float).reshape(self.flow.spec.N, 2)[base.xs:base.xe].copy()
+        self.T = float(T)
 
     def mult(self, mat, x, y):
         """y = S R(T; 0) x, all in the chain's distributed layout (no gathering)."""
@@ -81,7 +89,7 @@ class MonodromyModShift:
         z = flow.Z.getArray().reshape(base.nloc, 4)
         z[:, :2] = self.x0_local
         z[:, 2:] = x.getArray(readonly=True).reshape(base.nloc, 2)
-        flow.integrator.integrate(flow.Z, 0.0, self.T)
+        flow.integrator.integrate(flow.Z, 0.0, self.T, dt=flow.integrator.initial_step)
         self._RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
         base.shift(self._RY, y)
         self.products += 1
@@ -90,7 +98,7 @@ class MonodromyModShift:
         """The PETSc shell matrix (2N x 2N, the chain's layout)."""
         base = self.flow.base
         n_local = 2 * base.nloc
-        N2 = 2 * self.flow.params.N
+        N2 = 2 * self.flow.spec.N
         mat = PETSc.Mat().createPython(((n_local, N2), (n_local, N2)), context=self, comm=base.comm)
         mat.setUp()
         return mat

@@ -3,25 +3,22 @@
 implementation of the same discretisation (scipy.sparse Newton with spsolve), in the same run.
 
     python scripts/bench_branch.py [-cells 1000,50000] [-repeats 3] [-direct_repeats 1]
-                                   [-output results/bench_branch.md] [-scipy_timeout 600]
+                                   [-output results/bench_branch.md] [-scipy_timeout 600] [-tw_... options]
 
 hertzpetsc runs both linear-solver paths: -tw_solver direct (LU; MUMPS on 2 ranks) and -tw_solver nk
 (Newton-Krylov: GMRES + exact second-difference preconditioner, matrix-free Jacobian), with one OpenBLAS thread
-per rank; the SciPy route keeps the library defaults.
-
-Each measurement runs in its own process (hertzpetsc under mpiexec); wall time is that of the branch
-computation (imports excluded), best of -repeats; peak memory is each process's maximum resident set size
-(per rank for hertzpetsc). Extra arguments after -- go to the hertzpetsc runs (e.g. -- -tw_pc_type lu).
+per rank; the SciPy route keeps the library defaults. Each measurement runs in its own process (hertzpetsc under
+mpiexec); wall time is that of the branch computation (imports excluded), best of -repeats; peak memory is each
+process's maximum resident set size (per rank for hertzpetsc). Other -tw_* options go to the hertzpetsc runs
+(e.g. -tw_pc_type lu). -records FILE keeps the measurements as they are taken (-resume continues).
 Measure on an otherwise idle machine: two ranks share the machine's two cores.
 """
-import argparse
 import math
 import os
-import platform
 import sys
 import time
 
-from hertzpetsc.benchmarking import best_of, emit
+from benchlib import BenchRecords, best_of, declare_common, emit, machine, main_or_worker, write_report
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -97,87 +94,68 @@ def hertzpetsc_branch(alpha, M, K):
     return dict(points=M, newton=newton, krylov=krylov, norm_inf_last=float(abs(last.u_half).max()))
 
 
-def worker(kind, alpha, M, K):
-    if kind == "petsc":
+def worker(name, req, petsc_args):
+    if name == "petsc":
         import petsc4py
-        petsc4py.init(sys.argv[:1] + [a for a in sys.argv[1:] if a.startswith("-tw_") or not a.startswith("--")])
+        petsc4py.init(sys.argv[:1] + petsc_args)
         from mpi4py import MPI
         comm = MPI.COMM_WORLD
         comm.Barrier()
         t0 = time.perf_counter()
-        res = hertzpetsc_branch(alpha, M, K)
+        res = hertzpetsc_branch(req["alpha"], req["M"], req["K"])
         comm.Barrier()
-        wall = time.perf_counter() - t0
-        emit(comm, wall=wall, **res)
+        emit(comm, wall=time.perf_counter() - t0, **res)
     else:
         t0 = time.perf_counter()
-        res = scipy_branch(alpha, M, K)
-        wall = time.perf_counter() - t0
-        emit(None, wall=wall, **res)
-
-
-def best(kind, ranks, alpha, M, K, extra, repeats, timeout):
-    args = ["--worker", kind, "--alpha", alpha, "--M", M, "--K", K, *extra]
-    return best_of(repeats, os.path.abspath(__file__), args, ranks if kind == "petsc" else None, timeout)
+        res = scipy_branch(req["alpha"], req["M"], req["K"])
+        emit(None, wall=time.perf_counter() - t0, **res)
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-cells", default="1000,50000", help="grids h = pi/K (comma-separated K)")
-    ap.add_argument("-repeats", type=int, default=3)
-    ap.add_argument("-direct_repeats", type=int, default=1, help="repeats of the (slow) direct path")
-    ap.add_argument("-output", default="results/bench_branch.md")
-    ap.add_argument("-scipy_timeout", type=int, default=600)
-    ap.add_argument("-alpha", type=float, default=1.5)
-    ap.add_argument("-M", type=int, default=50)
-    ap.add_argument("--worker")
-    ap.add_argument("--alpha", dest="walpha", type=float)
-    ap.add_argument("--M", dest="wM", type=int)
-    ap.add_argument("--K", dest="wK", type=int)
-    args, extra = ap.parse_known_args()
-    if args.worker:
-        return worker(args.worker, args.walpha, args.wM, args.wK)
-    extra = [a for a in extra if a != "--"]
-    try:
-        cells = [int(c) for c in args.cells.split(",")]
-    except ValueError:
-        print(f"error: invalid -cells = {args.cells!r}: must be a comma-separated list of integers", file=sys.stderr)
-        return 2
-    if args.repeats < 1:
-        print(f"error: invalid -repeats = {args.repeats}: must be >= 1", file=sys.stderr)
-        return 2
-    load = os.getloadavg()[0]
-    lines = [f"Full branch q = pi -> pi/{args.M}, alpha = {args.alpha}: wall time of the computation (best of "
-             f"{args.repeats}), peak resident memory per process. Machine: {os.cpu_count()} cores, "
-             f"{platform.processor() or platform.machine()}; load average at start {load:.2f}; "
-             f"{time.strftime('%Y-%m-%d')}.\n",
+    from petsc4py import PETSc
+
+    from hertzpetsc.options import AppOptions
+    opts = AppOptions(__doc__, {"tw_": ("the hertzpetsc runs' travelling-wave SNES (passed on)", ("snes",))})
+    cells = opts.numbers("cells", "1000,50000", "grids h = pi/K", expr=False, kind=int, valid=(lambda K: K >= 4,
+                         ">= 4"), distinct=True)
+    direct_repeats = opts.integer("direct_repeats", 1, "repeats of the (slow) direct path", minimum=1)
+    scipy_timeout = opts.integer("scipy_timeout", 600, "seconds before a SciPy run is given up", minimum=1)
+    alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
+    M = opts.integer("M", 50, "targets q = m pi / M", minimum=1)
+    output, repeats, records_path, mode = declare_common(opts, "results/bench_branch.md")
+    opts.done()
+    extra = [w for k, v in PETSc.Options().getAll().items() if k.startswith("tw_")
+             for w in ([f"-{k}"] + ([v] if v not in (None, "") else []))]
+    opts.check_unused(passed_on=("tw_",))
+    me = os.path.abspath(__file__)
+    rec = BenchRecords(records_path, "hertzpetsc-bench-branch-1", dict(alpha=alpha, M=M, extra=extra), mode)
+    lines = [f"Full branch q = pi -> pi/{M}, alpha = {alpha}: wall time of the computation, peak resident memory "
+             f"per process; {machine(repeats)}.\n",
              "| h | unknowns | route | ranks | wall (s) | Newton its | Krylov its | peak MB/rank | SciPy / this | "
              "rel. diff of max u(pi/50) vs SciPy |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for K in cells:
-        sci = best("scipy", 1, args.alpha, args.M, K, [], 1 if K > 20000 else args.repeats, args.scipy_timeout)
+        req = dict(alpha=alpha, M=M, K=K)
+        sci = rec.measure(f"{K} scipy", lambda: best_of(1 if K > 20000 else repeats, me, "scipy", req, None,
+                                                        scipy_timeout))
         rows = [("SciPy spsolve", 1, sci)]
-        for solver, repeats in (("direct", args.direct_repeats), ("nk", args.repeats)):
+        for solver, reps in (("direct", direct_repeats), ("nk", repeats)):
             for ranks in (1, 2):
-                res = best("petsc", ranks, args.alpha, args.M, K, ["-tw_solver", solver, *extra], repeats, 3600)
+                res = rec.measure(f"{K} {solver} {ranks}", lambda: best_of(reps, me, "petsc", req, ranks, 3600,
+                                                                           ["-tw_solver", solver, *extra]))
                 rows.append((f"hertzpetsc {solver}", ranks, res))
         for name, ranks, res in rows:
             if res is None:
-                lines.append(f"| pi/{K} | {K - 1} | {name} | {ranks} | > {args.scipy_timeout} (not finished) "
-                             "| | | | | |")
+                lines.append(f"| pi/{K} | {K - 1} | {name} | {ranks} | > {scipy_timeout} (not finished) | | | | | |")
                 continue
             ratio = f"{sci['wall'] / res['wall']:.2f}" if sci else "n/a"
             diff = abs(res["norm_inf_last"] - sci["norm_inf_last"]) / sci["norm_inf_last"] if sci else float("nan")
             lines.append(f"| pi/{K} | {K - 1} | {name} | {ranks} | {res['wall']:.2f} | {res['newton']} | "
                          f"{res.get('krylov', '')} | {max(res['rss_mb']):.0f} | {ratio} | {diff:.1e} |")
-        print("\n".join(lines[-3:]), flush=True)
+        print("\n".join(lines[-5:]), flush=True)
     lines.append(f"\nload average at the end {os.getloadavg()[0]:.2f}")
-    text = "\n".join(lines) + "\n"
-    os.makedirs(os.path.dirname(os.path.abspath(args.output)), exist_ok=True)
-    with open(args.output, "w") as f:
-        f.write(text)
-    print(text)
+    write_report(output, lines)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main_or_worker(main, worker)

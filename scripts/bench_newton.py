@@ -3,61 +3,53 @@
 as the grid is refined, h = pi*1e-3 .. pi*1e-6 (2 million grid points), on 1 and 2 ranks.
 
     python scripts/bench_newton.py [-cells 1000,10000,100000,1000000] [-q 0.9*pi] [-repeats 2]
-                                   [-output results/bench_newton.md] [-logview_cells 1000000] [-- PETSc options]
+                                   [-output results/bench_newton.md] [-logview_cells 1000000] [-tw_... options]
 
 One Newton solve of eqs. ad-pbc at q (default 0.9 pi, a shift that is neither 0 nor the half-period reflection)
 from the binary oscillation u0 rescaled by (pi/q)^(2/(alpha-1)), alpha = 3/2. Each measurement runs in its own
 process (under mpiexec for 2 ranks, one OpenBLAS thread per rank); reported: Newton and Krylov iterations,
 wall time of the SNES solve per Newton step (set-up excluded, reported apart), peak resident memory per rank,
 best of -repeats. Parallel efficiency = t(1 rank) / (2 t(2 ranks)) per Newton step. For -logview_cells the solve
-is run once more with -log_view on 1 and 2 ranks, into results/logview_newton_np{1,2}.txt.
-Before anything is allocated the memory is checked (:func:`hertzpetsc.resources.check_memory`): a grid that
-would not fit is refused with the estimate. Measure on an otherwise idle machine: 2 ranks share its 2 cores.
+is run once more with -log_view on 1 and 2 ranks, into results/logview_newton_np{1,2}.txt. -tw_* options go to
+the solves (default -tw_solver nk). Before anything is allocated the memory is checked
+(:func:`hertzpetsc.resources.check_memory`): a grid that would not fit is refused with the estimate.
+Measure on an otherwise idle machine: 2 ranks share its 2 cores.
 """
-import argparse
 import math
 import os
-import platform
 import sys
 import time
 
+from benchlib import BenchRecords, best_of, declare_common, emit, machine, main_or_worker, write_report
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
-
-from hertzpetsc.benchmarking import best_of, emit  # noqa: E402
 
 
-def worker(K, q):
+def worker(name, req, petsc_args):
     import petsc4py
-    argv, skip = sys.argv[:1], 0
-    for a in sys.argv[1:]:                       # PETSc options only (drop --worker, --K value, --q value)
-        if skip or a == "--worker":
-            skip = 0
-        elif a in ("--K", "--q"):
-            skip = 1
-        else:
-            argv.append(a)
-    petsc4py.init(argv)
+    petsc4py.init(sys.argv[:1] + petsc_args)
     from mpi4py import MPI
     from petsc4py import PETSc
 
-    from hertzpetsc.advdelay import AdvanceDelayProblem, TravellingWaveSolver, tw_solver
+    from hertzpetsc.advdelay import AdvanceDelayProblem
     from hertzpetsc.binary import binary_oscillation
-    from hertzpetsc.grid import OddPeriodicGrid
-    from hertzpetsc.hertz import HertzPotential
+    from hertzpetsc.grid import ProfileGrid
+    from hertzpetsc.model import LatticeModel
     from hertzpetsc.resources import check_memory
+    from hertzpetsc.twsolver import TravellingWaveSolver, tw_solver
 
+    K, q = req["K"], req["q"]
     comm = MPI.COMM_WORLD
     solver = tw_solver()
     check_memory(K, PETSc.COMM_WORLD, solver)
-    pot = HertzPotential(1.5)
-    grid = OddPeriodicGrid(K, PETSc.COMM_WORLD)
+    model = LatticeModel.hertz(1.5)
+    grid = ProfileGrid(K, PETSc.COMM_WORLD)
     u = grid.create_vec()          # u0 at the owned points only (nothing of global size on any rank)
-    u.setArray(binary_oscillation(pot, grid.owned_points() * grid.h))
-    u.scale((math.pi / q) ** pot.rescaling_exponent)
+    u.setArray(binary_oscillation(model.law, grid.owned_points() * grid.h))
+    u.scale((math.pi / q) ** model.law.rescaling_exponent)
     comm.Barrier()
     t0 = time.perf_counter()
-    problem = AdvanceDelayProblem(pot, grid, q)
+    problem = AdvanceDelayProblem(model, grid, q)
     tws = TravellingWaveSolver(grid)
     comm.Barrier()
     setup = time.perf_counter() - t0
@@ -72,45 +64,35 @@ def worker(K, q):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-cells", default="1000,10000,100000,1000000")
-    ap.add_argument("-q", default="0.9*pi")
-    ap.add_argument("-repeats", type=int, default=2)
-    ap.add_argument("-output", default="results/bench_newton.md")
-    ap.add_argument("-logview_cells", type=int, default=1000000, help="0 for no -log_view runs")
-    ap.add_argument("-timeout", type=int, default=1800)
-    ap.add_argument("--worker", action="store_true")
-    ap.add_argument("--K", type=int)
-    ap.add_argument("--q", dest="wq", type=float)
-    args, extra = ap.parse_known_args()
-    if args.worker:
-        return worker(args.K, args.wq)
-    extra = [a for a in extra if a != "--"]
-    try:
-        cells = [int(c) for c in args.cells.split(",")]
-        q = float(eval(args.q, {"__builtins__": {}}, {"pi": math.pi}))
-    except Exception:
-        print(f"error: invalid -cells = {args.cells!r} or -q = {args.q!r}", file=sys.stderr)
-        return 2
-    if not extra or "-tw_solver" not in extra:
+    from petsc4py import PETSc
+
+    from hertzpetsc.options import AppOptions
+    opts = AppOptions(__doc__, {"tw_": ("the solves' travelling-wave SNES (passed on)", ("snes",))})
+    cells = opts.numbers("cells", "1000,10000,100000,1000000", "grids h = pi/K", expr=False, kind=int,
+                         valid=(lambda K: K >= 4, ">= 4"), distinct=True)
+    q = opts.real("q", 0.9 * math.pi, "wavenumber", expr=True, valid=(lambda x: 0 < x <= math.pi, "in (0, pi]"))
+    logview = opts.integer("logview_cells", 1000000, "grid of the -log_view runs (0: none)", minimum=0)
+    timeout = opts.integer("timeout", 1800, "seconds before a run is given up", minimum=1)
+    output, repeats, records_path, mode = declare_common(opts, "results/bench_newton.md", repeats=2)
+    opts.done()
+    extra = [w for k, v in PETSc.Options().getAll().items() if k.startswith("tw_")
+             for w in ([f"-{k}"] + ([v] if v not in (None, "") else []))]
+    opts.check_unused(passed_on=("tw_",))
+    if "-tw_solver" not in extra:
         extra = ["-tw_solver", "nk", *extra]
     script = os.path.abspath(__file__)
-    load = os.getloadavg()
+    rec = BenchRecords(records_path, "hertzpetsc-bench-newton-1", dict(q=q, extra=extra), mode)
     lines = [f"One Newton solve of eq. ad at q = {q / math.pi:.4g} pi (alpha = 3/2, from the rescaled u0), options "
-             f"`{' '.join(extra)}`; best of {args.repeats}. Machine: {os.cpu_count()} cores, "
-             f"{platform.processor() or platform.machine()}; load average (1, 5, 15 min) at start "
-             f"{load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f}; {time.strftime('%Y-%m-%d %H:%M')}.\n",
+             f"`{' '.join(extra)}`; {machine(repeats)}.\n",
              "| h | unknowns | ranks | Newton its | Krylov its | Krylov / Newton | s / Newton step | set-up (s) | "
              "peak MB/rank | parallel eff. | rel. diff max u (2 vs 1 rank) |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for K in cells:
-        runs = {}
-        for ranks in (1, 2):
-            runs[ranks] = best_of(args.repeats, script, ["--worker", "--K", K, "--q", q, *extra], ranks,
-                                  args.timeout)
+        runs = {ranks: rec.measure(f"{K} {ranks}", lambda: best_of(repeats, script, "newton", dict(K=K, q=q), ranks,
+                                                                    timeout, extra)) for ranks in (1, 2)}
         for ranks, r in runs.items():
             if r is None:
-                lines.append(f"| pi/{K} | {K - 1} | {ranks} | timed out ({args.timeout} s) | | | | | | | |")
+                lines.append(f"| pi/{K} | {K - 1} | {ranks} | timed out ({timeout} s) | | | | | | | |")
                 continue
             per = r["wall"] / max(r["newton"], 1)
             eff = diff = ""
@@ -121,22 +103,13 @@ def main():
                          f"{r['krylov'] / max(r['newton'], 1):.1f} | {per:.3g} | {r['setup']:.2f} | "
                          f"{max(r['rss_mb']):.0f} | {eff} | {diff} |")
         print("\n".join(lines[-2:]), flush=True)
-    if args.logview_cells:
-        K = args.logview_cells
+    if logview:
         for ranks in (1, 2):
             path = os.path.join(ROOT, "results", f"logview_newton_np{ranks}.txt")
-            best_of(1, script, ["--worker", "--K", K, "--q", q, *extra, "-log_view", f":{path}"], ranks,
-                    args.timeout)
-            lines.append(f"\n-log_view of the h = pi/{K} solve on {ranks} rank(s): `{os.path.relpath(path, ROOT)}`")
-    text = "\n".join(lines) + "\n"
-    out = os.path.join(ROOT, args.output) if not os.path.isabs(args.output) else args.output
-    os.makedirs(os.path.dirname(out), exist_ok=True)
-    tmp = out + ".tmp"
-    with open(tmp, "w") as f:
-        f.write(text)
-    os.replace(tmp, out)
-    print(text)
+            best_of(1, script, "newton", dict(K=logview, q=q), ranks, timeout, [*extra, "-log_view", f":{path}"])
+            lines.append(f"\n-log_view of the h = pi/{logview} solve on {ranks} rank(s): `{os.path.relpath(path, ROOT)}`")
+    write_report(output, lines)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main_or_worker(main, worker)

@@ -3,9 +3,9 @@
 SciPy route, in one run, with parallel efficiency, memory per unknown and a -log_view scaling section.
 
     python scripts/bench_report.py [-output results/performance.md] [-repeats 2] [-scipy_timeout 600]
-                                   [-workloads branch,newton,chain,floquet]
+                                   [-workloads branch,newton,chain,floquet] [-records FILE [-resume]]
 
-Workloads (each measurement in its own process, through the --worker modes of the bench_*.py scripts):
+Workloads (each measurement in its own process, through the workers of the bench_*.py scripts):
   branch   full branch q = pi -> pi/50 at h = pi 1e-3 and pi 2e-5, -tw_solver nk (bench_branch.py)
   newton   one Newton solve at h = pi 1e-6, q = 0.9 pi, -tw_solver nk (bench_newton.py)
   chain    one script-T of the q = 3pi/10 wave on N = 1e6 beads, RK 8(7) (bench_chain.py)
@@ -15,49 +15,53 @@ Parallel efficiency = t1 / (2 t2); memory per unknown = sum over ranks of the pe
 solve and the chain with -log_view (through PETSC_OPTIONS) and reports time, messages, bytes and reductions per
 Newton step and per time step. Run on an otherwise idle machine: two ranks share its two cores.
 """
-import argparse
 import math
 import os
-import platform
 import re
 import sys
-import time
+
+from benchlib import BenchRecords, best_of, declare_common, machine, write_report
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, ROOT)
-
-from hertzpetsc.benchmarking import best_of  # noqa: E402
-
 SCRIPTS = os.path.join(ROOT, "scripts")
+BRANCH = os.path.join(ROOT, "results", "branch_alpha1.5.npz")
+REFINED = os.path.join(ROOT, "results", "refined_N100.npz")
 
 
 def script(name):
     return os.path.join(SCRIPTS, name)
 
 
-def workloads(repeats, scipy_timeout, which):
+def workloads(rec, repeats, scipy_timeout, which):
     """Yield (workload, unknowns, {route: result}) with routes 'scipy', 1, 2."""
     q = 0.9 * math.pi
+    nk = ["-tw_solver", "nk"]
     if "branch" in which:
         for K in (1000, 50000):
-            sci = best_of(1 if K > 20000 else repeats, script("bench_branch.py"),
-                          ["--worker", "scipy", "--alpha", 1.5, "--M", 50, "--K", K], None, scipy_timeout)
-            runs = {r: best_of(repeats, script("bench_branch.py"), ["--worker", "petsc", "--alpha", 1.5, "--M", 50,
-                                                                     "--K", K, "-tw_solver", "nk"], r) for r in (1, 2)}
+            req = dict(alpha=1.5, M=50, K=K)
+            sci = rec.measure(f"branch {K} scipy", lambda: best_of(1 if K > 20000 else repeats, script(
+                "bench_branch.py"), "scipy", req, None, scipy_timeout))
+            runs = {r: rec.measure(f"branch {K} {r}", lambda: best_of(repeats, script("bench_branch.py"), "petsc", req,
+                                                                      r, 3600, nk)) for r in (1, 2)}
             yield f"full branch, h = pi/{K}", K - 1, {"scipy": sci, **runs}
     if "newton" in which:
         K = 10 ** 6
-        runs = {r: best_of(repeats, script("bench_newton.py"), ["--worker", "--K", K, "--q", q, "-tw_solver", "nk"], r)
-                for r in (1, 2)}
+        runs = {r: rec.measure(f"newton {r}", lambda: best_of(repeats, script("bench_newton.py"), "newton",
+                                                              dict(K=K, q=q), r, 3600, nk)) for r in (1, 2)}
         yield "one Newton solve, h = pi 1e-6", K - 1, {"scipy": None, **runs}
     if "chain" in which:
         N = 10 ** 6
-        sci = best_of(1, script("bench_chain.py"), ["--worker", "scipy", "--N", N], None, scipy_timeout)
-        runs = {r: best_of(repeats, script("bench_chain.py"), ["--worker", "petsc", "--N", N], r) for r in (1, 2)}
+        req = dict(branch=BRANCH, N=N)
+        sci = rec.measure("chain scipy", lambda: best_of(1, script("bench_chain.py"), "scipy", req, None,
+                                                         scipy_timeout))
+        runs = {r: rec.measure(f"chain {r}", lambda: best_of(repeats, script("bench_chain.py"), "petsc", req, r))
+                for r in (1, 2)}
         yield "chain, N = 1e6, one script-T", 2 * N, {"scipy": sci, **runs}
     if "floquet" in which:
         N = 10 ** 4
-        runs = {r: best_of(1, script("bench_floquet.py"), ["--worker", "bloch", "--N", N], r) for r in (1, 2)}
+        req = dict(branch=BRANCH, refined=REFINED, N=N)
+        runs = {r: rec.measure(f"floquet {r}", lambda: best_of(1, script("bench_floquet.py"), "bloch", req, r))
+                for r in (1, 2)}
         yield "Floquet, N = 1e4, 10 dominant multipliers", 2 * N, {"scipy": None, **runs}
 
 
@@ -81,17 +85,13 @@ def log_events(path):
 def scaling_section():
     q = 0.9 * math.pi
     rows = []
-    for name, sname, args, event, unit in (
-            ("Newton solve, h = pi 1e-6", "bench_newton.py", ["--worker", "--K", 10 ** 6, "--q", q, "-tw_solver", "nk"],
+    for name, sname, worker, req, args, event, unit in (
+            ("Newton solve, h = pi 1e-6", "bench_newton.py", "newton", dict(K=10 ** 6, q=q), ["-tw_solver", "nk"],
              "SNESSolve", "Newton step"),
-            ("chain, N = 1e6", "bench_chain.py", ["--worker", "petsc", "--N", 10 ** 6], "TSStep", "time step")):
+            ("chain, N = 1e6", "bench_chain.py", "petsc", dict(branch=BRANCH, N=10 ** 6), [], "TSStep", "time step")):
         for ranks in (1, 2):
             path = os.path.join(ROOT, "results", f"logview_{sname.split('_')[1].split('.')[0]}_np{ranks}.txt")
-            os.environ["PETSC_OPTIONS"] = f"-log_view :{path}"
-            try:
-                res = best_of(1, script(sname), args, ranks)
-            finally:
-                os.environ.pop("PETSC_OPTIONS", None)
+            res = best_of(1, script(sname), worker, req, ranks, 3600, [*args, "-log_view", f":{path}"])
             ev = log_events(path)
             if event not in ev:
                 rows.append(f"| {name} | {ranks} | (no {event} in {os.path.relpath(path, ROOT)}) | | | | |")
@@ -123,28 +123,22 @@ MODEL = """Model of the growth with the number of ranks P (n unknowns, k Krylov 
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-output", default="results/performance.md")
-    ap.add_argument("-repeats", type=int, default=2)
-    ap.add_argument("-scipy_timeout", type=int, default=600)
-    ap.add_argument("-workloads", default="branch,newton,chain,floquet")
-    args = ap.parse_args()
-    which = set(args.workloads.split(","))
-    bad = which - {"branch", "newton", "chain", "floquet"}
-    if bad or args.repeats < 1:
-        print(f"error: invalid -workloads {sorted(bad)} or -repeats {args.repeats}: workloads among "
-              "branch,newton,chain,floquet; repeats >= 1", file=sys.stderr)
-        return 2
-    load0 = os.getloadavg()
-    lines = [f"Performance report, {time.strftime('%Y-%m-%d %H:%M')}; machine: {os.cpu_count()} cores, "
-             f"{platform.processor() or platform.machine()}; load average at start {load0[0]:.2f} (1 min), "
-             f"{load0[1]:.2f} (5 min). hertzpetsc best of {args.repeats}, one OpenBLAS thread per rank; SciPy one "
-             "run with library defaults. Efficiency = t1 / (2 t2). Memory per unknown = peak resident set summed "
-             "over ranks / unknowns (includes about 70 MB of interpreter and libraries per process).\n",
+    from hertzpetsc.options import AppOptions
+    opts = AppOptions(__doc__)
+    scipy_timeout = opts.integer("scipy_timeout", 600, "seconds before a SciPy run is given up", minimum=1)
+    which = set(opts.words("workloads", "branch,newton,chain,floquet", "workloads to run",
+                           choices=("branch", "newton", "chain", "floquet")))
+    output, repeats, records_path, mode = declare_common(opts, "results/performance.md", repeats=2)
+    opts.done()
+    opts.check_unused()
+    rec = BenchRecords(records_path, "hertzpetsc-bench-report-1", dict(which=sorted(which)), mode)
+    lines = [f"Performance report; {machine(repeats)}. hertzpetsc best of {repeats}, one OpenBLAS thread per rank; "
+             "SciPy one run with library defaults. Efficiency = t1 / (2 t2). Memory per unknown = peak resident set "
+             "summed over ranks / unknowns (includes about 70 MB of interpreter and libraries per process).\n",
              "| workload | unknowns | SciPy (s) | SciPy MB | hertzpetsc 1 rank (s) | MB | 2 ranks (s) | MB/rank | "
              "SciPy / 1 rank | SciPy / 2 ranks | 1 -> 2 efficiency | MB/rank 2 vs 1 | bytes/unknown (1 rank) |",
              "|---" * 13 + "|"]
-    for name, n, r in workloads(args.repeats, args.scipy_timeout, which):
+    for name, n, r in workloads(rec, repeats, scipy_timeout, which):
         sci, one, two = r["scipy"], r[1], r[2]
 
         def fmt(x, key="wall"):
@@ -167,14 +161,11 @@ def main():
               "|---|---|---|---|---|---|---|---|"]
     lines += scaling_section()
     lines += ["", MODEL]
-    text = "\n".join(lines) + "\n"
-    out = args.output if os.path.isabs(args.output) else os.path.join(ROOT, args.output)
-    with open(out + ".tmp", "w") as f:
-        f.write(text)
-    os.replace(out + ".tmp", out)
-    print(text)
-    return 0
+    write_report(output if os.path.isabs(output) else os.path.join(ROOT, output), lines)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    import petsc4py
+    petsc4py.init(sys.argv)
+    from hertzpetsc.options import guarded_main
+    guarded_main(main)

@@ -4,75 +4,93 @@
     python scripts/dynamics_figures.py -runs runs/q3pi10,runs/q7pi25,runs/q9pi50,runs/qpi50 -figures figures \
         -table results/long_runs.md
 
-For each run directory written by long_run.py: the displacements at the last snapshot taken after a whole
-number of time periods against the initial state, the interaction forces V'(x_{n+1} - x_n) in grey levels over the last 220 time units (or around
--window T0,T1 when given as name:T0:T1), and the deviation D(t) from the travelling wave for all runs in one
-plot. The table lists, per run, the destruction time (first D > 0.1), the first times D > 1e-6 and 1e-3,
-max D, and the relative energy drift. Needs numpy and matplotlib only.
+For each run directory written by long_run.py (either snapshot format): the displacements at the last snapshot
+taken after a whole number of time periods against the initial state, the interaction forces V'(x_{n+1} - x_n)
+in grey levels over the last 220 time units (or over a window given as dir:T0:T1), and the deviation D(t) from
+the travelling wave for all runs in one plot. The table lists, per run, the destruction time (first D > 0.1),
+the first times D > 1e-6 and 1e-3, max D, and the relative energy drift.
 """
-import argparse
 import json
 import os
 import sys
 
-import numpy as np
+import petsc4py
 
-from hertzpetsc import plotting
-from hertzpetsc.errors import HertzPetscError
-from hertzpetsc.simulation import SnapshotFile, wave_deviation
+petsc4py.init(sys.argv)
+
+import numpy as np  # noqa: E402
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc import plotting  # noqa: E402
+from hertzpetsc.errors import ParameterError, RecordFileError  # noqa: E402
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_output, write_text  # noqa: E402
+from hertzpetsc.simulation import read_snapshots, wave_deviation  # noqa: E402
 
 
-def load(directory):
-    snaps = SnapshotFile.open(directory)
-    t, E, X = snaps.read()
-    with open(os.path.join(directory, "summary.json")) as f:
-        summary = json.load(f)
-    return snaps.header, summary, t, E, X
+def parse_run(spec):
+    """dir or dir:t0:t1."""
+    parts = spec.split(":")
+    if len(parts) not in (1, 3) or not parts[0]:
+        raise ParameterError("-runs", spec, "each run is a directory, or directory:t0:t1")
+    try:
+        window = (float(parts[1]), float(parts[2])) if len(parts) == 3 else None
+    except ValueError:
+        raise ParameterError("-runs", spec, "the window t0:t1 must be two numbers") from None
+    return parts[0], window
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("-runs", required=True, help="comma-separated run directories, each optionally dir:t0:t1")
-    ap.add_argument("-figures", default="figures")
-    ap.add_argument("-table", default="results/long_runs.md")
-    args = ap.parse_args(argv)
-    os.makedirs(args.figures, exist_ok=True)
+def main():
+    opts = AppOptions(__doc__)
+    runs = opts.path("runs", "", "comma-separated run directories, each optionally dir:t0:t1")
+    figures = opts.path("figures", "figures", "directory for the figures")
+    table = opts.path("table", "results/long_runs.md", "table")
+    opts.done()
+    opts.check_unused()
+    specs = [parse_run(s) for s in runs.split(",")] if runs.strip() else []
+    if not specs:
+        raise ParameterError("-runs", runs, "must name at least one run directory")
+    prepare_output(table)
+    prepare_output(os.path.join(figures, "deviation.png"), what="figure")
+    rank0 = PETSc.COMM_WORLD.getRank() == 0     # figures are drawn on rank 0
     rows = ["| run | q | script-T | initial state | t_final | destruction time (D > 0.1) | D > 1e-6 at | "
             "D > 1e-3 at | max D | energy drift | integrator |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     deviations = {}
-    try:
-        for spec in args.runs.split(","):
-            parts = spec.split(":")
-            d = parts[0]
-            name = os.path.basename(os.path.normpath(d))
-            header, s, t, E, X = load(d)
-            t0, t1 = (float(parts[1]), float(parts[2])) if len(parts) == 3 else (max(0.0, t[-1] - 220), t[-1])
-            sel = (t >= t0) & (t <= t1)
-            title = f"q = {header['q']:.4f}, N = {header['N']}"
-            # the last snapshot after a whole number of time periods tau = 2 pi script-T / q: an intact wave is
-            # then back on the initial state, unshifted (as in fig. stabletw)
-            periods = t / (2 * np.pi * header["T"] / header["q"])
-            whole = np.nonzero(np.abs(periods - np.round(periods)) < 1e-6 * np.maximum(1, periods))[0]
-            j = whole[-1] if len(whole) else len(t) - 1
-            plotting.plot_snapshot(X[0, :, 0], X[j, :, 0], t[j], args.figures, f"{name}_snapshot.png", title)
-            plotting.plot_spacetime_forces(t[sel], X[sel], header["alpha"], args.figures, f"{name}_forces.png",
+    for d, window in specs:
+        name = os.path.basename(os.path.normpath(d))
+        snaps = read_snapshots(d)
+        header, t, X = snaps.header, snaps.times, snaps.states
+        try:
+            with open(os.path.join(d, "summary.json")) as f:
+                s = json.load(f)
+        except (OSError, ValueError):
+            raise RecordFileError(f"run {d!r} has no readable summary.json (finish it with long_run.py -resume)")
+        if len(t) == 0:
+            raise RecordFileError(f"run {d!r} has no snapshot")
+        t0, t1 = window if window else (max(0.0, t[-1] - 220), t[-1])
+        sel = (t >= t0) & (t <= t1)
+        title = f"q = {header['q']:.4f}, N = {header['N']}"
+        # the last snapshot after a whole number of time periods tau = 2 pi script-T / q: an intact wave is then
+        # back on the initial state, unshifted (as in fig. stabletw)
+        periods = t / (2 * np.pi * header["T"] / header["q"])
+        whole = np.nonzero(np.abs(periods - np.round(periods)) < 1e-6 * np.maximum(1, periods))[0]
+        j = whole[-1] if len(whole) else len(t) - 1
+        if rank0:
+            plotting.plot_snapshot(X[0, :, 0], X[j, :, 0], t[j], figures, f"{name}_snapshot.png", title)
+            plotting.plot_spacetime_forces(t[sel], X[sel], header["alpha"], figures, f"{name}_forces.png",
                                            title + f", t in [{t0:.0f}, {t1:.0f}]")
-            deviations[f"q = {header['q']:.4f}"] = wave_deviation(t, X, X[0], header["T"])
-            rows.append(f"| {name} | {header['q']:.4f} | {header['T']:.4f} | {header['initial_state']} | "
-                        f"{s['t_final']:.0f} | {s['destruction_time']:.1f} | {s['time_D_above_1em6']:.1f} | "
-                        f"{s['time_D_above_1em3']:.1f} | {s['max_deviation']:.2e} | {s['energy_drift']:.1e} | "
-                        f"{s['ts']}, rtol {s['rtol']:g} |")
-    except (HertzPetscError, OSError, KeyError) as err:
-        print(f"error: cannot read the runs: {err}", file=sys.stderr)
-        return 4
-    plotting.plot_deviation(deviations, args.figures)
+        deviations[f"q = {header['q']:.4f}"] = wave_deviation(t, X, X[0], header["T"])
+        rows.append(f"| {name} | {header['q']:.4f} | {header['T']:.4f} | {header['initial_state']} | "
+                    f"{s['t_final']:.0f} | {s['destruction_time']:.1f} | {s['time_D_above_1em6']:.1f} | "
+                    f"{s['time_D_above_1em3']:.1f} | {s['max_deviation']:.2e} | {s['energy_drift']:.1e} | "
+                    f"{s['ts']}, rtol {s['rtol']:g} |")
+    if rank0:
+        plotting.plot_deviation(deviations, figures)
     text = ("D(t) = ||S^k X(k script-T) - X(0)||_inf / ||X(0)||_inf; 'nan' = never reached.\n\n"
             + "\n".join(rows) + "\n")
-    with open(args.table, "w") as f:
-        f.write(text)
-    print(text)
-    return 0
+    write_text(table, text)
+    print0(text)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    guarded_main(main)

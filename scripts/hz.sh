@@ -2,6 +2,7 @@
 # hertzpetsc entry point: sets up whatever is missing, then runs a job.
 #
 #   bash scripts/hz.sh main    # set up, then compute the alpha = 3/2 branch on 2 ranks, its figures and table
+#   bash scripts/hz.sh paper   # set up, then run every study of sections 3.1-3.5 and the appendix (resumable)
 #   bash scripts/hz.sh test    # set up, then run the test suite (serial, then under mpiexec -n 2)
 #   bash scripts/hz.sh setup   # set up only
 #   bash scripts/hz.sh run CMD...   # run CMD with the project's environment (venv, MPI-as-root variables)
@@ -15,13 +16,14 @@ ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 VENV=${HZ_VENV:-$ROOT/.venv}
 PY=$VENV/bin/python
 NRANKS=${HZ_NRANKS:-2}
-PETSC_PY=/usr/lib/petscdir/petsc3.18/x86_64-linux-gnu-real/lib/python3/dist-packages
-SLEPC_PY=/usr/lib/slepcdir/slepc3.18/x86_64-linux-gnu-real/lib/python3/dist-packages
 DEB_PACKAGES="python3-petsc4py python3-slepc4py python3-mpi4py python3-numpy python3-matplotlib python3-pytest \
 python3-scipy python3-venv python3-pip python3-setuptools openmpi-bin time"
 
 # Open MPI refuses to run as root unless told; two ranks on two cores need no oversubscription, more do.
+# A process started without mpiexec initialises MPI alone (no daemon: no host name lookup, which takes seconds
+# where the host has no /etc/hosts entry), and the launcher adds no banner to a driver's one-line error.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
+export OMPI_MCA_ess_singleton_isolated=1 OMPI_MCA_orte_execute_quiet=1
 export MPLBACKEND=Agg PYTHONDONTWRITEBYTECODE=1
 
 log() { echo "[hz] $*" >&2; }
@@ -40,7 +42,20 @@ need_debian_packages() {
     fi
 }
 
+# The dist-packages folder of Debian's petsc4py or slepc4py, found from the files of the installed packages
+# python3-petsc4py* / python3-slepc4py* (whatever the architecture: .../<multiarch>-real/lib/python3/dist-packages).
+debian_dist_packages() {
+    local mod=$1 init
+    init=$(dpkg-query -W -f='${Package}\n' "python3-$mod*" 2>/dev/null | while read -r pkg; do
+        dpkg-query -L "$pkg" 2>/dev/null; done | grep "/$mod/__init__.py\$" | head -n 1)
+    [ -n "$init" ] || { log "cannot find $mod in the files of the installed python3-$mod packages"; exit 1; }
+    dirname "$(dirname "$init")"
+}
+
 need_venv() {
+    local PETSC_PY SLEPC_PY
+    PETSC_PY=$(debian_dist_packages petsc4py)
+    SLEPC_PY=$(debian_dist_packages slepc4py)
     if [ ! -x "$PY" ]; then
         log "creating venv $VENV from /usr/bin/python3"
         /usr/bin/python3 -m venv --system-site-packages "$VENV"
@@ -68,8 +83,12 @@ case "$cmd" in
         setup
         cd "$ROOT"
         mkdir -p results figures
-        mpiexec -n "$NRANKS" "$PY" scripts/continuation.py -output results/branch_alpha1.5.npz -figures figures "$@"
+        mpiexec -n "$NRANKS" "$PY" scripts/continuation.py -output results/branch_alpha1.5.npz -force -figures figures "$@"
         "$PY" scripts/paper_table.py -branch results/branch_alpha1.5.npz -output results/paper_table.md ;;
+    paper)
+        setup
+        cd "$ROOT"
+        "$PY" scripts/paper.py -ranks "$NRANKS" "$@" ;;
     test)
         setup
         cd "$ROOT"
@@ -81,6 +100,6 @@ case "$cmd" in
         cd "$ROOT"
         "$@" ;;
     *)
-        echo "usage: bash scripts/hz.sh {main|test|setup|run CMD...}" >&2
+        echo "usage: bash scripts/hz.sh {main|paper|test|setup|run CMD...}" >&2
         exit 2 ;;
 esac

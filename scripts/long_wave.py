@@ -7,56 +7,40 @@ the composite approximation (eq. solapprox); the rescaled norm ||u||_inf q^(2/(a
 
 Errors are relative to k_alpha: over the period, and over |xi - pi| <= window (the paper: agreement in a domain
 of width ~0.2 around pi). Figures approxz.png (zoom near pi, with the inner solution) and approx.png (the
-composite over the period) at the smallest q of the branch.
-PETSc prefix: -sol_ (the solitary-wave SNES).
+composite over the period) at the smallest q of the branch. Solver prefix: -sol_ (the solitary-wave SNES).
 """
 import math
-import os
 import sys
 
 import petsc4py
 
 petsc4py.init(sys.argv)
+from petsc4py import PETSc  # noqa: E402
 
-import numpy as np  # noqa: E402
-
-from hertzpetsc.branchfile import read_branch  # noqa: E402
-from hertzpetsc.cli import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.longwave import compare_with_branch  # noqa: E402
-from hertzpetsc.solitary import SolitaryParameters, solve_solitary_wave  # noqa: E402
-
-Q_REPORT = 10     # the branch points with the 10 smallest q
+from hertzpetsc.branch import Branch  # noqa: E402
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.longwave import LongWaveStudy  # noqa: E402
 
 
 def main():
-    opts = AppOptions()
-    branch = read_branch(opts.string("branch", "results/branch_alpha1.5.npz"))
-    n = opts.integer("cells_per_unit", 160, minimum=2)
-    window = opts.real("window", 0.1, valid=(lambda x: 0 < x < math.pi, "must lie in (0, pi)"))
-    output = opts.string("output", "results/long_wave.md")
-    figures = opts.string("figures", "")
-    alpha = float(branch["alpha"])
-    from petsc4py import PETSc
-    wave = solve_solitary_wave(SolitaryParameters(alpha, n, 8.0), PETSc.COMM_SELF)
-    order = np.argsort(branch["q"])[:Q_REPORT]
-    rows = [compare_with_branch(wave, float(branch["q"][i]), branch["u"][i], alpha, window) for i in order]
-    lines = [f"alpha = {alpha}, branch h = pi/{branch['cells_per_pi']}; k_alpha = {wave.k_alpha:.7f} (solitary wave, "
-             f"delta = 1/{n}). Errors relative to k_alpha; window |xi - pi| <= {window}.\n",
-             "| q | composite, max over the period | composite, max in the window | inner solution, max in the window "
-             "| \\|u\\|_inf q^(2/(alpha-1)) | minus k_alpha |", "|---|---|---|---|---|---|"]
-    for r in rows:
-        lines.append(f"| {r['q']:.4f} | {r['max_error']:.4f} | {r['window_error']:.4f} | {r['inner_window_error']:.4f} "
-                     f"| {r['rescaled_norm']:.5f} | {r['rescaled_norm'] - wave.k_alpha:+.5f} |")
-    text = "\n".join(lines) + "\n"
-    if PETSc.COMM_WORLD.getRank() == 0:
-        with open(output, "w") as f:
-            f.write(text)
-        if figures:
-            from hertzpetsc import plotting
-            os.makedirs(figures, exist_ok=True)
-            i = order[0]
-            for path in plotting.plot_long_wave(wave, float(branch["q"][i]), branch["u"][i], alpha, figures):
-                print0("wrote " + path)
+    opts = AppOptions(__doc__, {"sol_": ("solitary-wave SNES", ("snes",))})
+    branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
+    n = opts.integer("cells_per_unit", 160, "grid of the solitary wave (delta = 1/n, even)", minimum=2)
+    window = opts.real("window", 0.1, "half-width of the window around pi", valid=(lambda x: 0 < x < math.pi,
+                                                                                  "in (0, pi)"))
+    output, figures = opts.table_and_figures("results/long_wave.md", "approxz.png and approx.png")
+    opts.done()
+    comm = PETSc.COMM_WORLD
+    prepare_outputs(comm, output, figures=figures)
+    study = LongWaveStudy(Branch.load(branch_path, comm), n, window)
+    opts.check_unused()
+    text = study.table()
+    write_text(output, text, comm)
+    if figures and comm.getRank() == 0:
+        from hertzpetsc import plotting
+        for path in plotting.plot_long_wave(study.wave, study.smallest, figures):
+            print("wrote " + path, flush=True)
     print0(text)
 
 

@@ -1,6 +1,8 @@
-"""Shared fixtures. The suite runs serially and again under ``mpiexec -n 2`` (tests marked ``serial`` skip
-there); tests that compare 1 and 2 ranks do so within one process via COMM_SELF vs COMM_WORLD, or launch
+"""Shared fixtures and helpers. The suite runs serially and again under ``mpiexec -n 2`` (tests marked ``serial``
+skip there); tests that compare 1 and 2 ranks do so within one process via COMM_SELF vs COMM_WORLD, or launch
 mpiexec themselves (serial-marked, with a timeout)."""
+import functools
+import math
 import os
 import subprocess
 import sys
@@ -8,8 +10,13 @@ import sys
 import pytest
 from petsc4py import PETSc
 
+from hertzpetsc.branch import Branch
+from hertzpetsc.continuation import BranchContinuation, ContinuationParameters
+from hertzpetsc.model import ChainSpec, LatticeModel
+
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPTS = os.path.join(ROOT, "scripts")
+RESULTS = os.path.join(ROOT, "results")
 
 
 def pytest_collection_modifyitems(config, items):
@@ -24,7 +31,9 @@ def script_env():
     # A process that imported petsc4py must hand its environment explicitly to mpiexec children.
     env = dict(os.environ)
     env.update(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1", MPLBACKEND="Agg")
+               OMPI_MCA_rmaps_base_oversubscribe="1", OMPI_MCA_ess_singleton_isolated="1",
+               OMPI_MCA_orte_execute_quiet="1", MPLBACKEND="Agg")
+    env.pop("HZ_TRACEBACK", None)
     env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
     return env
 
@@ -36,6 +45,34 @@ def run_script(name, *args, ranks=1, timeout=300, cwd=None):
         cmd = ["mpiexec", "-n", str(ranks), *cmd]
     return subprocess.run(["timeout", str(timeout), *cmd], capture_output=True, text=True, env=script_env(),
                           cwd=cwd)
+
+
+def one_error_line(result):
+    """The stderr of a failed driver is one line starting with 'error:' (returned without the prefix)."""
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode != 0 and len(lines) == 1 and lines[0].startswith("error:"), result.stderr
+    return lines[0]
+
+
+@functools.lru_cache(maxsize=None)
+def _branch(alpha, K, M, q_stop, size):
+    comm = PETSc.COMM_SELF
+    params = ContinuationParameters(alpha=alpha, M=M, cells_per_pi=K, q_stop=q_stop)
+    cont = BranchContinuation(params, comm)
+    try:
+        points = list(cont.points())
+    finally:
+        cont.destroy()
+    return Branch(params.model, K, M, points)
+
+
+def small_branch(alpha=1.5, K=200, M=10, q_stop=math.pi / 5):
+    """A coarse branch (h = pi/K, q = m pi / M down to q_stop) on one rank, computed once per session."""
+    return _branch(alpha, K, M, q_stop, PETSc.COMM_WORLD.getSize())
+
+
+def chain(N, alpha=1.5, boundary="periodic"):
+    return ChainSpec(LatticeModel.hertz(alpha), N, boundary)
 
 
 @pytest.fixture

@@ -5,12 +5,13 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.advdelay import AdvanceDelayProblem, check_wavenumber, solve_travelling_wave
+from hertzpetsc.advdelay import AdvanceDelayProblem, check_wavenumber
 from hertzpetsc.binary import binary_oscillation
 from hertzpetsc.diagnostics import sup_norm
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.grid import OddPeriodicGrid
-from hertzpetsc.hertz import HertzPotential
+from hertzpetsc.grid import ProfileGrid
+from hertzpetsc.model import LatticeModel
+from hertzpetsc.twsolver import solve_travelling_wave
 
 
 def residual(problem, u):
@@ -20,7 +21,7 @@ def residual(problem, u):
 
 
 def test_fold_implements_oddness_and_periodicity():
-    g = OddPeriodicGrid(8, PETSc.COMM_SELF)
+    g = ProfileGrid(8, PETSc.COMM_SELF)
     idx, sign = g.fold(np.array([0, 3, 8, 11, 16, -3, 19]))
     assert list(sign) == [0, 1, 0, -1, 0, -1, 1]          # u_0 = u_K = 0, u_{2K-j} = -u_j, period 2K
     assert list(idx[sign != 0]) == [2, 4, 2, 2]           # unknown index of u_3, u_5, u_3, u_3
@@ -28,12 +29,12 @@ def test_fold_implements_oddness_and_periodicity():
 
 @pytest.mark.parametrize("q", [0.7 * math.pi, 0.7, math.pi])   # integer, interpolated, half-period shifts
 def test_jacobian_matches_finite_differences(q):
-    pot = HertzPotential(1.5)
-    g = OddPeriodicGrid(120)
+    pot = LatticeModel.hertz(1.5)
+    g = ProfileGrid(120, PETSc.COMM_WORLD)
     xi = g.xi_half()
     rng = np.random.default_rng(7)
     # a generic odd state: u0 plus a smooth odd perturbation (not a solution, shift differences of both signs)
-    u = g.vec_from_half_profile(binary_oscillation(pot, xi) + 0.05 * np.sin(3 * xi) * rng.uniform(0.5, 1))
+    u = g.vec_from_half_profile(binary_oscillation(pot.law, xi) + 0.05 * np.sin(3 * xi) * rng.uniform(0.5, 1))
     v = g.vec_from_half_profile(np.sin(xi) + 0.3 * np.sin(5 * xi + 0.2) * np.sin(xi))
     prob = AdvanceDelayProblem(pot, g, q)
     J = prob.create_jacobian(u)
@@ -57,11 +58,11 @@ def test_jacobian_matches_finite_differences(q):
 def test_binary_oscillation_residual_is_the_truncation_error(alpha):
     """R(u0) at q = pi is the scheme's truncation error h^2 u0^(4) / 12: O(h^2) where u0 is smooth, but
     u0^(4) ~ |u0|^(alpha-2) at the zeros of u0, so the sup norm is O(h^min(2, alpha))."""
-    pot = HertzPotential(alpha)
+    pot = LatticeModel.hertz(alpha)
     errs = []
     for K in (100, 200, 400):
-        g = OddPeriodicGrid(K)
-        u = g.vec_from_half_profile(binary_oscillation(pot, g.xi_half()))
+        g = ProfileGrid(K, PETSc.COMM_WORLD)
+        u = g.vec_from_half_profile(binary_oscillation(pot.law, g.xi_half()))
         prob = AdvanceDelayProblem(pot, g, math.pi)
         errs.append(residual(prob, u).norm(PETSc.NormType.NORM_INFINITY))
         prob.destroy()
@@ -69,11 +70,11 @@ def test_binary_oscillation_residual_is_the_truncation_error(alpha):
     assert np.all(np.abs(orders - min(2.0, alpha)) < 0.15), orders
 
 
-def solve(K, q, alpha=1.5, comm=None, guess_q=math.pi):
+def solve(K, q, alpha=1.5, comm=PETSc.COMM_WORLD, guess_q=math.pi):
     """Solve at q by a short continuation from u0 (in steps of at most pi/10)."""
-    pot = HertzPotential(alpha)
-    g = OddPeriodicGrid(K, comm)
-    u = g.vec_from_half_profile(binary_oscillation(pot, g.xi_half()))
+    pot = LatticeModel.hertz(alpha)
+    g = ProfileGrid(K, comm)
+    u = g.vec_from_half_profile(binary_oscillation(pot.law, g.xi_half()))
     qs = list(np.arange(math.pi, q, -math.pi / 10)) + [q]
     for qq in qs:
         u.scale((guess_q / qq) ** (2 / (alpha - 1)))
@@ -115,12 +116,18 @@ def test_wavenumber_outside_range_is_rejected(q):
 
 
 def test_wavenumber_below_grid_step_is_rejected():
-    g = OddPeriodicGrid(10, PETSc.COMM_SELF)
+    g = ProfileGrid(10, PETSc.COMM_SELF)
     with pytest.raises(ParameterError, match="grid step"):
-        AdvanceDelayProblem(1.5, g, 0.1)
+        AdvanceDelayProblem(LatticeModel.hertz(1.5), g, 0.1)
+
+
+def test_mass_patterns_are_refused_until_written_for():
+    g = ProfileGrid(10, PETSc.COMM_SELF)
+    with pytest.raises(ParameterError, match="masses"):
+        AdvanceDelayProblem(LatticeModel.hertz(1.5, masses=(1.0, 0.5)), g, 1.0)
 
 
 @pytest.mark.parametrize("K", [3, 10.5, "many"])
 def test_bad_grid_is_rejected(K):
     with pytest.raises(ParameterError, match="cells_per_pi"):
-        OddPeriodicGrid(K, PETSc.COMM_SELF)
+        ProfileGrid(K, PETSc.COMM_SELF)

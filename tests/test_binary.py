@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from hertzpetsc.binary import binary_oscillation
-from hertzpetsc.hertz import HertzPotential
+from hertzpetsc.hertz import HertzLaw
 
 
 def full_period_rk4(pot, steps):
@@ -26,7 +26,7 @@ def full_period_rk4(pot, steps):
 
 @pytest.mark.parametrize("alpha", [1.5, 2.0, 2.5])
 def test_closed_forms_at_quarter_period(alpha):
-    pot = HertzPotential(alpha)
+    pot = HertzLaw(alpha)
     u, du = binary_oscillation(pot, np.array([0.5 * math.pi]), derivative=True)
     assert abs(u[0] - pot.amplitude(pot.p0)) < 1e-12
     assert abs(du[0]) < 1e-11
@@ -43,7 +43,7 @@ def test_sampled_profile_is_accurate_to_1e10(alpha):
 
 @pytest.mark.parametrize("alpha", [1.5, 2.0])
 def test_period_oddness_antiperiodicity_against_unsymmetrised_integration(alpha):
-    pot = HertzPotential(alpha)
+    pot = HertzLaw(alpha)
     xi, u = full_period_rk4(pot, 1 << 16)
     # RK4 over a whole period with step 1e-4: global error ~1e-13 (measured); the sampler is checked against it
     assert np.max(np.abs(binary_oscillation(pot, xi) - u)) < 1e-10

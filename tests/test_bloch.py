@@ -8,24 +8,20 @@ from petsc4py import PETSc
 
 from hertzpetsc.bloch import (BlochSectors, bloch_multipliers, bloch_residuals, real_pairs, sector_angles,
                               seeded_dominant_multipliers, tile_mode)
-from hertzpetsc.chain import ChainParameters
+from conftest import chain, small_branch
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.floquet import dense_monodromy, dense_multipliers, trivial_multipliers
 from hertzpetsc.shooting import MEASURE_TOLERANCES, refine
-from hertzpetsc.waves import wave_on_chain
-from test_chain import branch_dict
+from hertzpetsc.waves import orbit_on_chain
 
 M = 20          # the cell: q = pi/5 = 2 pi 2 / 20 (unstable, rho(F_q) = 1.2356 as at N = 100)
-CELL = ChainParameters(1.5, M)
+CELL = chain(M)
 
 
 @pytest.fixture(scope="module")
 def cell_wave():
     """The refined wave q = pi/5 on 20 beads (E <= 1e-10), the cell of the longer chains."""
-    q = math.pi / 5
-    w = wave_on_chain(branch_dict(1.5, K=200, q_stop=q), q, M)
-    res = refine(CELL, w.as_array(), w.T, comm=PETSc.COMM_SELF)
-    return res.x, w.T
+    return refine(orbit_on_chain(small_branch().point(math.pi / 5), CELL), PETSc.COMM_SELF).orbit
 
 
 def nearest(a, b):
@@ -37,11 +33,10 @@ def nearest(a, b):
 def test_union_of_sectors_is_the_dense_spectrum(cell_wave, L):
     """N = 60 (odd L: conjugate pairs only) and N = 80 (L = 4: also theta = pi): every multiplier of the dense
     2N x 2N F_q of the tiled chain is a sector multiplier and conversely, with the same count 2N."""
-    x, T = cell_wave
+    cell = cell_wave
     N = L * M
-    b = bloch_multipliers(CELL, x, T, N, PETSc.COMM_SELF, MEASURE_TOLERANCES)
-    lam = dense_multipliers(dense_monodromy(ChainParameters(1.5, N), np.tile(x, (L, 1)), T, PETSc.COMM_SELF,
-                                            MEASURE_TOLERANCES))
+    b = bloch_multipliers(cell, N, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    lam = dense_multipliers(dense_monodromy(cell.tiled(L), PETSc.COMM_SELF, MEASURE_TOLERANCES))
     assert len(b.values) == len(lam) == 2 * N
     assert b.runs == L // 2 + 1 and np.bincount(b.sector, minlength=L).tolist() == [2 * M] * L
     # Without the 4 trivial multipliers (split by O(sqrt(eps)) differently in the two runs): the two flows take
@@ -55,34 +50,34 @@ def test_union_of_sectors_is_the_dense_spectrum(cell_wave, L):
 
 def test_theta_zero_is_the_cell_itself(cell_wave):
     """Sector 0 (untwisted, 2M complex columns) against the dense F_q of the M-bead periodic chain."""
-    x, T = cell_wave
+    cell = cell_wave
+    x, T = cell.x, cell.T
     sec = BlochSectors(CELL, PETSc.COMM_SELF, MEASURE_TOLERANCES)
     try:
         F0 = sec.monodromy(x, T, 0.0)
     finally:
         sec.destroy()
-    F = dense_monodromy(CELL, x, T, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    F = dense_monodromy(cell, PETSc.COMM_SELF, MEASURE_TOLERANCES)
     assert np.max(np.abs(F0.imag)) == 0.0          # w = 0 stays 0 without a twist
     # same equations, different number of tangents in the TS error norm: entries agree to ~rtol * ||F||
     assert np.max(np.abs(F0.real - F)) < 1e-9 * np.max(np.abs(F))
-    b = bloch_multipliers(CELL, x, T, M, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    b = bloch_multipliers(cell, M, PETSc.COMM_SELF, MEASURE_TOLERANCES)
     assert b.L == 1 and abs(abs(b.values[0]) - abs(dense_multipliers(F)[0])) < 1e-9
 
 
 def test_tiled_modes_are_eigenvectors_of_the_full_chain(cell_wave):
     """||F Y - lambda Y|| / (|lambda| ||Y||) on N = 100 beads (matrix-free, on all ranks) for the tiled Bloch
     modes of the 6 dominant multipliers: measured ~1e-12, the flow's accuracy."""
-    x, T = cell_wave
+    cell = cell_wave
     L = 5
-    b = bloch_multipliers(CELL, x, T, L * M, PETSc.COMM_WORLD, MEASURE_TOLERANCES, n_modes=6)
+    b = bloch_multipliers(cell, L * M, PETSc.COMM_WORLD, MEASURE_TOLERANCES, n_modes=6)
     pairs = real_pairs(b.modes, L)
     assert 3 <= len(pairs) <= 6
     for lam, Y in pairs:
         assert Y.shape == (L * M, 2)
         # Bloch form y_{n+M} = e^{i theta_j} y_n for one of the sectors theta_j = 2 pi j / L
         assert any(np.allclose(Y[M:2 * M], np.exp(2j * math.pi * j / L) * Y[:M]) for j in range(L))
-    res, products = bloch_residuals(ChainParameters(1.5, L * M), np.tile(x, (L, 1)), T, pairs, PETSc.COMM_WORLD,
-                                    MEASURE_TOLERANCES)
+    res, products = bloch_residuals(cell.tiled(L), pairs, PETSc.COMM_WORLD, MEASURE_TOLERANCES)
     assert products <= 2 * len(pairs) and np.max(res) < 1e-9
 
 
@@ -90,11 +85,10 @@ def test_seeded_slepc_on_the_full_chain(cell_wave):
     """Krylov-Schur on the N = 80 shell (distributed under mpiexec -n 2), started from the Bloch modes, converges
     to the Bloch multipliers (eigensolver tolerance 1e-8 on relative residuals, the seeded default; measured
     agreement 4e-12 since the flows at rtol 1e-14 make the residuals ~1e-13 after a few restarts)."""
-    x, T = cell_wave
+    cell = cell_wave
     L = 4
-    b = bloch_multipliers(CELL, x, T, L * M, PETSc.COMM_WORLD, MEASURE_TOLERANCES, n_modes=10)
-    res = seeded_dominant_multipliers(ChainParameters(1.5, L * M), np.tile(x, (L, 1)), T, b, nev=10,
-                                      comm=PETSc.COMM_WORLD, tolerances=MEASURE_TOLERANCES)
+    b = bloch_multipliers(cell, L * M, PETSc.COMM_WORLD, MEASURE_TOLERANCES, n_modes=10)
+    res = seeded_dominant_multipliers(cell.tiled(L), b, nev=10, comm=PETSc.COMM_WORLD, tolerances=MEASURE_TOLERANCES)
     assert nearest(res.values, b.values[:12]) < 1e-7
     assert res.products <= 2 * 30         # measured 45 with ncv = 30 (plain Krylov-Schur needs more, see README)
 
@@ -102,11 +96,11 @@ def test_seeded_slepc_on_the_full_chain(cell_wave):
 def test_ranks_and_splits_agree(cell_wave):
     """Sectors dealt to ranks (each on one rank) vs every sector distributed over COMM_WORLD (the twisted ghost
     exchange across ranks under mpiexec -n 2) vs one rank: the same multipliers to the flow tolerance."""
-    x, T = cell_wave
+    cell = cell_wave
     N = 3 * M
-    ref = bloch_multipliers(CELL, x, T, N, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    ref = bloch_multipliers(cell, N, PETSc.COMM_SELF, MEASURE_TOLERANCES)
     for split in ("sectors", "beads"):
-        b = bloch_multipliers(CELL, x, T, N, PETSc.COMM_WORLD, MEASURE_TOLERANCES, split=split)
+        b = bloch_multipliers(cell, N, PETSc.COMM_WORLD, MEASURE_TOLERANCES, split=split)
         assert np.array_equal(np.sort(b.sector), np.sort(ref.sector))
         # the same TS on 1 or 2 ranks: only the reduction order of the error norm differs, which can change an
         # adaptive step; simple dominant multipliers move by ~rtol (measured 1e-13), double ones on the unit
@@ -125,12 +119,14 @@ def test_sector_angles_and_tiling():
 
 
 def test_bad_input_is_refused(cell_wave):
-    x, T = cell_wave
+    cell = cell_wave
+    x = cell.x
+    comm = PETSc.COMM_WORLD
     with pytest.raises(ParameterError, match=r"invalid N = 50: .*multiple of the wave's period M = 20"):
-        bloch_multipliers(CELL, x, T, 50)
-    with pytest.raises(ParameterError, match=r"invalid x0 = \(10, 2\): .*\(M, 2\) = \(20, 2\)"):
-        bloch_multipliers(CELL, x[:10], T, 40)
+        bloch_multipliers(cell, 50, comm)
+    with pytest.raises(ParameterError, match=r"invalid state = \(10, 2\): .*\(N, 2\) = \(20, 2\)"):
+        cell.with_state(x[:10], "truncated")
     with pytest.raises(ParameterError, match=r"n_modes.*\[0, 2N\] = \[0, 80\]"):
-        bloch_multipliers(CELL, x, T, 40, n_modes=81)
+        bloch_multipliers(cell, 40, comm, n_modes=81)
     with pytest.raises(ParameterError, match="split"):
-        bloch_multipliers(CELL, x, T, 40, split="rows")
+        bloch_multipliers(cell, 40, comm, split="rows")

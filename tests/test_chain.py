@@ -5,18 +5,20 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.chain import Chain, ChainIntegrator, ChainParameters, IntegrationTolerances
-from hertzpetsc.continuation import BranchContinuation, ContinuationParameters
+from conftest import chain, small_branch
+from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
 from hertzpetsc.errors import ParameterError
+from hertzpetsc.model import ChainSpec
 from hertzpetsc.stencil import lagrange_periodic
 from hertzpetsc.tangent import TangentFlow
-from hertzpetsc.waves import check_chain_wavenumber, wave_on_chain
+from hertzpetsc.waves import check_chain_wavenumber, orbit_on_chain
+
+COMM = PETSc.COMM_WORLD
 
 
-@pytest.fixture(scope="module")
-def small_branch():
-    """A coarse alpha = 3/2 branch to q = pi/5 (h = pi/200), as a branch-file-like dict."""
-    return branch_dict(1.5)
+def wave(N, m, alpha=1.5):
+    """The coarse branch's wave with m wavelengths on N beads."""
+    return orbit_on_chain(small_branch(alpha).point(2 * math.pi * m / N), chain(N, alpha))
 
 
 def random_state(N, seed=0):
@@ -26,7 +28,7 @@ def random_state(N, seed=0):
 
 @pytest.mark.parametrize("boundary", ["periodic", "free", "fixed"])
 def test_jacobian_matches_finite_differences(boundary):
-    ch = Chain(ChainParameters(1.5, 12, boundary))
+    ch = Chain(chain(12, 1.5, boundary), COMM)
     X = ch.create_state()
     ch.set_from_array(X, random_state(12))
     J = ch.create_jacobian()
@@ -49,14 +51,6 @@ def test_jacobian_matches_finite_differences(boundary):
     ch.destroy()
 
 
-def branch_dict(alpha, K=200, M=10, q_stop=math.pi / 5):
-    cont = BranchContinuation(ContinuationParameters(alpha=alpha, M=M, cells_per_pi=K, q_stop=q_stop), PETSc.COMM_SELF)
-    pts = list(cont.points())
-    cont.destroy()
-    return dict(alpha=alpha, h=math.pi / K, q=np.array([p.q for p in pts]), u=np.array([p.u_half for p in pts]),
-                norm_inf=np.array([p.diagnostics["norm_inf"] for p in pts]))
-
-
 # Central differences with eps = 1e-4 through fixed RK4 steps (dt = 1e-3, the same steps for every run, so the
 # discrete flow itself is differentiated). alpha = 5/2: V'' is C^1, the error is O(eps^2) ~ 1e-9 (measured
 # 2e-9). alpha = 3/2: V'' is only C^{0,1/2} where contacts open and close, and the difference quotient has an
@@ -65,30 +59,29 @@ def branch_dict(alpha, K=200, M=10, q_stop=math.pi / 5):
 @pytest.mark.parametrize("alpha,bound", [(2.5, 1e-8), (1.5, 1e-5)])
 def test_tangent_flow_matches_finite_differences_of_the_flow(alpha, bound):
     N = 20
-    w = wave_on_chain(branch_dict(alpha), 2 * math.pi * 2 / N, N)
+    w = wave(N, 2, alpha)
     opts = PETSc.Options()
     fixed = {"chain_ts_adapt_type": "none", "chain_ts_rk_type": "4"}
     for k, val in fixed.items():
         opts.setValue(k, val)
     try:
-        flow = TangentFlow(ChainParameters(alpha, N), 1)
+        flow = TangentFlow(chain(N, alpha), 1, COMM, None, "chain_")
     finally:
         for k in fixed:
             opts.delValue(k)
     v = random_state(N, seed=3)[:, :, None]
-    _, Rv = flow.run(w.as_array(), w.T, v)
+    _, Rv = flow.run(w.x, w.T, v)
     zero = np.zeros((N, 2, 1))
     eps = 1e-4
-    xp, _ = flow.run(w.as_array() + eps * v[:, :, 0], w.T, zero)
-    xm, _ = flow.run(w.as_array() - eps * v[:, :, 0], w.T, zero)
+    xp, _ = flow.run(w.x + eps * v[:, :, 0], w.T, zero)
+    xm, _ = flow.run(w.x - eps * v[:, :, 0], w.T, zero)
     flow.destroy()
     fd = (xp - xm) / (2 * eps)
     assert np.max(np.abs(fd - Rv[:, :, 0])) <= bound * np.max(np.abs(Rv))
 
 
 def test_energy_is_conserved_and_momentum_too():
-    params = ChainParameters(1.5, 30, "periodic")
-    ch = Chain(params)
+    ch = Chain(chain(30), COMM)
     X = ch.create_state()
     s = random_state(30, seed=5)
     ch.set_from_array(X, s)
@@ -107,7 +100,7 @@ def test_energy_is_conserved_and_momentum_too():
 def test_fixed_walls_and_free_ends():
     """A compressed bead next to a wall is pushed back; a free end bead feels nothing beyond the chain."""
     for boundary, expect_sign in (("fixed", 1.0), ("free", 0.0)):
-        ch = Chain(ChainParameters(1.5, 5, boundary))
+        ch = Chain(chain(5, 1.5, boundary), COMM)
         X, F = ch.create_state(), ch.create_state()
         s = np.zeros((5, 2))
         s[0, 0] = -0.1                                      # bead 1 moved towards the left wall
@@ -119,9 +112,9 @@ def test_fixed_walls_and_free_ends():
 
 
 def _run_on(comm, w, N, t, tol=None):
-    ch = Chain(ChainParameters(1.5, N), comm)
+    ch = Chain(chain(N), comm)
     X = ch.create_state()
-    ch.set_from_array(X, w.as_array())
+    ch.set_from_array(X, w.x)
     integ = ChainIntegrator(ch, tol)
     integ.integrate(X, 0.0, t, dt=1e-2)
     out = ch.gather(X)
@@ -130,7 +123,7 @@ def _run_on(comm, w, N, t, tol=None):
     return out
 
 
-def test_one_rank_equals_all_ranks(small_branch, clean_options):
+def test_one_rank_equals_all_ranks(clean_options):
     """Under mpiexec -n 2: the same trajectory on COMM_WORLD and COMM_SELF.
 
     With fixed steps every bead's update is the same arithmetic on any partition: identical to round-off. With the
@@ -138,7 +131,7 @@ def test_one_rank_equals_all_ranks(small_branch, clean_options):
     then within the integrator's global error of the exact flow, checked against a rtol 1e-14 run (measured
     1e-10 to 4e-10 relative over 5 script-T of this unstable wave; bound 1e-8)."""
     N = 40
-    w = wave_on_chain(small_branch, 2 * math.pi * 4 / N, N)
+    w = wave(N, 4)
     for key, value in (("chain_ts_adapt_type", "none"), ("chain_ts_rk_type", "4")):
         clean_options.setValue(key, value)
     fixed = [_run_on(comm, w, N, 2 * w.T) for comm in (PETSc.COMM_SELF, PETSc.COMM_WORLD)]
@@ -174,10 +167,11 @@ def test_chain_must_hold_whole_wavelengths(N, q):
         check_chain_wavenumber(q, N)
 
 
-@pytest.mark.parametrize("kw,name", [(dict(N=2), "N"), (dict(boundary="loose"), "boundary"), (dict(alpha=0.9), "alpha")])
+@pytest.mark.parametrize("kw,name", [(dict(N=2), "N"), (dict(boundary="loose"), "boundary"), (dict(alpha=0.9), "alpha"),
+                                     (dict(N=7, masses=(1.0, 0.5)), "N"), (dict(masses=()), "masses")])
 def test_bad_chain_parameters(kw, name):
     with pytest.raises(ParameterError, match=name):
-        ChainParameters(**kw)
+        ChainSpec.hertz(**kw)
 
 
 @pytest.mark.parametrize("rtol,atol", [(0, 1e-14), (1e-12, -1), (float("nan"), 1e-14)])
@@ -187,7 +181,7 @@ def test_bad_tolerances(rtol, atol):
 
 
 def test_nonpositive_time_is_rejected():
-    ch = Chain(ChainParameters(1.5, 10))
+    ch = Chain(chain(10), COMM)
     integ = ChainIntegrator(ch)
     with pytest.raises(ParameterError, match="final time"):
         integ.integrate(ch.create_state(), 0.0, 0.0)
@@ -195,16 +189,15 @@ def test_nonpositive_time_is_rejected():
     ch.destroy()
 
 
-def test_matrix_free_monodromy_equals_dense(small_branch):
+def test_matrix_free_monodromy_equals_dense():
     """The shell operator's product equals the dense S R(T; 0) applied to the same vector (same flow)."""
     from hertzpetsc.tangent import MonodromyModShift
     N = 10
-    w = wave_on_chain(small_branch, 2 * math.pi * 2 / N, N)
-    params = ChainParameters(1.5, N)
-    dense_flow = TangentFlow(params, 2 * N)
-    F, _ = dense_flow.monodromy_mod_shift(w.as_array(), w.T)
+    w = wave(N, 2)
+    dense_flow = TangentFlow(w.spec, 2 * N, COMM, None, "chain_")
+    F, _ = dense_flow.monodromy_mod_shift(w.x, w.T)
     dense_flow.destroy()
-    op = MonodromyModShift(params, w.as_array(), w.T)
+    op = MonodromyModShift(w.spec, w.x, w.T, COMM, None, "chain_")
     A = op.create_mat()
     x, y = A.createVecs()
     v = random_state(N, seed=11).ravel()
@@ -220,13 +213,13 @@ def test_matrix_free_monodromy_equals_dense(small_branch):
 
 def test_implicit_integrator_uses_the_exact_jacobian(clean_options):
     """Crank-Nicolson (needs the Jacobian) with small fixed steps agrees with the explicit default to O(dt^2)."""
-    params = ChainParameters(1.5, 16, "fixed")
+    params = chain(16, 1.5, "fixed")
     s = random_state(16, seed=9)
     out = []
     for opts in ({}, {"chain_ts_type": "cn", "chain_ts_adapt_type": "none", "chain_snes_rtol": "1e-12"}):
         for k, v in opts.items():
             clean_options.setValue(k, v)
-        ch = Chain(params)
+        ch = Chain(params, COMM)
         X = ch.create_state()
         ch.set_from_array(X, s)
         integ = ChainIntegrator(ch)

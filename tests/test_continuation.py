@@ -9,7 +9,7 @@ from hertzpetsc.continuation import BranchContinuation, ContinuationError, Conti
 from hertzpetsc.errors import ParameterError
 
 
-def branch(comm=None, **kw):
+def branch(comm=PETSc.COMM_WORLD, **kw):
     cont = BranchContinuation(ContinuationParameters(**kw), comm)
     try:
         return list(cont.points())
@@ -76,7 +76,8 @@ def test_step_reduction_recovers_a_too_large_step():
 
 
 def test_failure_names_last_converged_q():
-    cont = BranchContinuation(ContinuationParameters(M=4, cells_per_pi=100, max_corrector=1e-9, max_halvings=2))
+    cont = BranchContinuation(ContinuationParameters(M=4, cells_per_pi=100, max_corrector=1e-9, max_halvings=2),
+                              PETSc.COMM_WORLD)
     got = []
     with pytest.raises(ContinuationError, match=r"last converged q = 3\.14159"):
         for p in cont.points():
@@ -87,7 +88,7 @@ def test_failure_names_last_converged_q():
 
 def test_resume_continues_identically():
     full = branch(M=10, cells_per_pi=100, q_stop=0.5 * math.pi)
-    cont = BranchContinuation(ContinuationParameters(M=10, cells_per_pi=100, q_stop=0.5 * math.pi))
+    cont = BranchContinuation(ContinuationParameters(M=10, cells_per_pi=100, q_stop=0.5 * math.pi), PETSc.COMM_WORLD)
     cont.resume_from([p.q for p in full[:3]], [p.u_half for p in full[:3]])
     rest = list(cont.points())
     cont.destroy()

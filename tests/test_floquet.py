@@ -5,13 +5,12 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.chain import ChainParameters
+from conftest import chain, small_branch
 from hertzpetsc.errors import ConvergenceError, ParameterError
 from hertzpetsc.floquet import (dense_monodromy, dense_multipliers, dominant_multipliers, spectral_radius,
                                 trivial_multipliers)
 from hertzpetsc.shooting import MEASURE_TOLERANCES, refine
-from hertzpetsc.waves import wave_on_chain
-from test_chain import branch_dict
+from hertzpetsc.waves import orbit_on_chain
 
 N = 20
 
@@ -19,15 +18,13 @@ N = 20
 @pytest.fixture(scope="module")
 def refined_wave():
     """The refined wave q = 2 pi 2 / 20 = pi/5 on 20 beads (E <= 1e-10)."""
-    q = math.pi / 5
-    w = wave_on_chain(branch_dict(1.5, K=200, q_stop=q), q, N)
-    res = refine(ChainParameters(1.5, N), w.as_array(), w.T, comm=PETSc.COMM_SELF)
-    return res.x, w.T, res.E
+    res = refine(orbit_on_chain(small_branch().point(math.pi / 5), chain(N)), PETSc.COMM_SELF)
+    return res.orbit, res.E
 
 
 def test_trivial_multipliers_and_symplectic_structure(refined_wave):
-    x, T, E = refined_wave
-    lam = dense_multipliers(dense_monodromy(ChainParameters(1.5, N), x, T, PETSc.COMM_SELF, MEASURE_TOLERANCES))
+    orbit, E = refined_wave
+    lam = dense_multipliers(dense_monodromy(orbit, PETSc.COMM_SELF, MEASURE_TOLERANCES))
     triv = lam[trivial_multipliers(lam)]
     # four multipliers at 1 (two Jordan blocks): an O(eps) orbit error splits them by O(sqrt(eps)), eps ~ 1e-10
     assert np.max(np.abs(triv - 1)) < 1e-3
@@ -41,10 +38,9 @@ def test_trivial_multipliers_and_symplectic_structure(refined_wave):
 def test_dense_and_matrix_free_agree(refined_wave):
     """SLEPc Krylov-Schur on the shell operator finds the dominant multipliers of the dense matrix (under
     mpiexec -n 2 the shell runs distributed while the dense reference is serial: also the rank check)."""
-    x, T, _ = refined_wave
-    params = ChainParameters(1.5, N)
-    lam = dense_multipliers(dense_monodromy(params, x, T, PETSc.COMM_SELF, MEASURE_TOLERANCES))
-    res = dominant_multipliers(params, x, T, nev=6, comm=PETSc.COMM_WORLD, tolerances=MEASURE_TOLERANCES)
+    orbit, _ = refined_wave
+    lam = dense_multipliers(dense_monodromy(orbit, PETSc.COMM_SELF, MEASURE_TOLERANCES))
+    res = dominant_multipliers(orbit, nev=6, comm=PETSc.COMM_WORLD, tolerances=MEASURE_TOLERANCES)
     assert res.products > 0 and len(res.values) == 6
     # the two flows take different adaptive steps (1 vs 40 tangent vectors): eigenvalues agree to the flow
     # budget amplified by the conditioning of the dominant multipliers; Krylov-Schur tolerance is 1e-10
@@ -54,14 +50,14 @@ def test_dense_and_matrix_free_agree(refined_wave):
 
 
 def test_nev_larger_than_dimension_is_refused(refined_wave):
-    x, T, _ = refined_wave
+    orbit, _ = refined_wave
     with pytest.raises(ParameterError, match=r"nev.*\[1, 2N\] = \[1, 40\]"):
-        dominant_multipliers(ChainParameters(1.5, N), x, T, nev=41)
+        dominant_multipliers(orbit, nev=41, comm=PETSc.COMM_WORLD)
 
 
 def test_unconverged_eigensolve_is_an_error(refined_wave, clean_options):
-    x, T, _ = refined_wave
+    orbit, _ = refined_wave
     clean_options.setValue("floquet_eps_max_it", 1)     # with a subspace smaller than the dimension 40
     clean_options.setValue("floquet_eps_ncv", 13)
     with pytest.raises(ConvergenceError, match="multipliers converged"):
-        dominant_multipliers(ChainParameters(1.5, N), x, T, nev=6)
+        dominant_multipliers(orbit, nev=6, comm=PETSc.COMM_WORLD)

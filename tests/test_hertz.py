@@ -5,18 +5,18 @@ import numpy as np
 import pytest
 
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.hertz import HertzPotential
+from hertzpetsc.hertz import HertzLaw
 
 
 @pytest.mark.parametrize("alpha", [1.0, 0.5, -2, float("nan"), float("inf"), "abc"])
 def test_alpha_at_most_one_is_rejected(alpha):
     with pytest.raises(ParameterError, match=r"alpha.*> 1"):
-        HertzPotential(alpha)
+        HertzLaw(alpha)
 
 
 @pytest.mark.parametrize("alpha", [1.5, 2.0, 2.5, 1.2])
 def test_derivatives_are_consistent(alpha):
-    V = HertzPotential(alpha)
+    V = HertzLaw(alpha)
     x = np.linspace(-2, 2, 41)
     x = x[np.abs(x) > 0.05]
     eps = 1e-6
@@ -48,14 +48,14 @@ def measured_period(pot, p, steps=200000):
 
 @pytest.mark.parametrize("alpha,p", [(1.5, 0.3), (1.5, 2.0), (2.0, 1.0), (3.0, 0.7)])
 def test_period_law_matches_integration(alpha, p):
-    pot = HertzPotential(alpha)
+    pot = HertzLaw(alpha)
     # the linear interpolation of u' at the maximum has error O(dt^2 u'''') ~ 1e-9 with these steps
     assert abs(measured_period(pot, p, steps=40000) - pot.period(p)) < 1e-6
 
 
 @pytest.mark.parametrize("alpha", [1.1, 1.5, 2.0, 2.5, 4.0])
 def test_p0_gives_period_two_pi(alpha):
-    pot = HertzPotential(alpha)
+    pot = HertzLaw(alpha)
     assert abs(pot.period(pot.p0) - 2 * math.pi) < 1e-12
     # p0 of eq. ci for alpha = 2: (3)^(-2) [sqrt(pi) Gamma(5/6)/Gamma(1/3)]^(-3), evaluated independently
     if alpha == 2.0:

@@ -6,27 +6,28 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.advdelay import (AdvanceDelayProblem, SecondDifferencePC, TravellingWaveSolver,
-                                 solve_travelling_wave)
+from hertzpetsc.advdelay import AdvanceDelayProblem
 from hertzpetsc.binary import binary_oscillation
 from hertzpetsc.continuation import BranchContinuation, ContinuationParameters
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.grid import OddPeriodicGrid
-from hertzpetsc.hertz import HertzPotential
+from hertzpetsc.grid import ProfileGrid
+from hertzpetsc.model import LatticeModel
 from hertzpetsc.resources import check_memory, estimate_memory
+from hertzpetsc.twsolver import SecondDifferencePC, TravellingWaveSolver, solve_travelling_wave
 
-POT = HertzPotential(1.5)
+POT = LatticeModel.hertz(1.5)
+COMM = PETSc.COMM_WORLD
 
 
-def solve(K, q, solver, comm=None):
+def solve(K, q, solver, comm=COMM):
     """Solve at q by a short continuation from u0 (steps of at most pi/10); profile and Krylov counts."""
-    g = OddPeriodicGrid(K, comm)
-    u = g.vec_from_half_profile(binary_oscillation(POT, g.xi_half()))
+    g = ProfileGrid(K, comm)
+    u = g.vec_from_half_profile(binary_oscillation(POT.law, g.xi_half()))
     tws = TravellingWaveSolver(g, solver=solver)
     qs = list(np.arange(math.pi, q, -math.pi / 10)) + [q]
     guess_q, its = math.pi, []
     for qq in qs:
-        u.scale((guess_q / qq) ** POT.rescaling_exponent)
+        u.scale((guess_q / qq) ** POT.law.rescaling_exponent)
         guess_q = qq
         prob = AdvanceDelayProblem(POT, g, qq)
         res = tws.solve(prob, u)
@@ -40,7 +41,7 @@ def solve(K, q, solver, comm=None):
 
 def test_preconditioner_inverts_the_second_difference_exactly():
     """SecondDifferencePC applied to D2 x gives x back, whatever the partition (run under mpiexec -n 2 too)."""
-    g = OddPeriodicGrid(97)
+    g = ProfileGrid(97, COMM)
     prob = AdvanceDelayProblem(POT, g, 1.0)
     pc = SecondDifferencePC(g, prob.stencils)
     x = g.vec_from_half_profile(np.concatenate([[0], np.random.default_rng(3).standard_normal(96), [0]]))
@@ -63,8 +64,8 @@ def test_newton_krylov_agrees_with_direct(q):
 
 
 def test_matrix_free_product_equals_assembled_jacobian():
-    g = OddPeriodicGrid(120)
-    u = g.vec_from_half_profile(binary_oscillation(POT, g.xi_half()) * 1.3)
+    g = ProfileGrid(120, COMM)
+    u = g.vec_from_half_profile(binary_oscillation(POT.law, g.xi_half()) * 1.3)
     v = g.vec_from_half_profile(np.sin(g.xi_half()) + 0.2 * np.sin(7 * g.xi_half()))
     prob = AdvanceDelayProblem(POT, g, 2.0)
     A, S = prob.create_jacobian(u, "aij"), prob.create_jacobian(u, "shell")
@@ -100,7 +101,7 @@ def test_branch_with_newton_krylov_reproduces_the_direct_branch():
     kw = dict(M=10, cells_per_pi=200, q_stop=math.pi / 5)
     out = {}
     for solver in ("direct", "nk"):
-        cont = BranchContinuation(ContinuationParameters(**kw), solver=solver)
+        cont = BranchContinuation(ContinuationParameters(**kw), COMM, solver=solver)
         out[solver] = list(cont.points())
         cont.destroy()
     for a, b in zip(out["direct"], out["nk"]):
@@ -109,7 +110,7 @@ def test_branch_with_newton_krylov_reproduces_the_direct_branch():
 
 
 def test_solver_is_selected_from_the_options_database(clean_options):
-    g = OddPeriodicGrid(100)
+    g = ProfileGrid(100, COMM)
     default = TravellingWaveSolver(g)
     assert default.solver == "direct"          # the default is unchanged
     default.destroy()
@@ -121,8 +122,8 @@ def test_solver_is_selected_from_the_options_database(clean_options):
     # an assembled Jacobian and an algebraic preconditioner, all from the options database
     clean_options.setValue("tw_jacobian", "aij")
     clean_options.setValue("tw_pc_type", "bjacobi")
-    g2 = OddPeriodicGrid(100)
-    u = g2.vec_from_half_profile(binary_oscillation(POT, g2.xi_half()))
+    g2 = ProfileGrid(100, COMM)
+    u = g2.vec_from_half_profile(binary_oscillation(POT.law, g2.xi_half()))
     prob = AdvanceDelayProblem(POT, g2, math.pi)
     res = solve_travelling_wave(prob, u)
     assert res.reason > 0 and res.linear_iterations > res.iterations
@@ -133,7 +134,7 @@ def test_solver_is_selected_from_the_options_database(clean_options):
 def test_bad_solver_options_are_rejected(clean_options, name, value):
     clean_options.setValue(name, value)
     with pytest.raises(ParameterError, match=f"-{name}.*must be"):
-        TravellingWaveSolver(OddPeriodicGrid(50))
+        TravellingWaveSolver(ProfileGrid(50, COMM))
 
 
 def test_too_fine_grid_is_refused_before_allocation():
@@ -148,7 +149,7 @@ def test_too_fine_grid_is_refused_before_allocation():
     check_memory(100_000, PETSc.COMM_SELF, "nk", available=2.0 ** 30)
     # the continuation refuses up front (no grid, no Vec of 1e9 entries is ever created)
     with pytest.raises(ParameterError, match="cells_per_pi.*GiB"):
-        BranchContinuation(ContinuationParameters(cells_per_pi=1_000_000_000), solver="nk")
+        BranchContinuation(ContinuationParameters(cells_per_pi=1_000_000_000), COMM, solver="nk")
 
 
 def test_memory_estimate_splits_over_ranks():

@@ -5,11 +5,10 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.chain import ChainParameters
-from hertzpetsc.errors import ParameterError
+from conftest import chain, small_branch
+from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.shooting import refine, residual_E
-from hertzpetsc.waves import wave_on_chain
-from test_chain import branch_dict
+from hertzpetsc.waves import orbit_on_chain
 
 N = 20   # q = 2 pi m / 20 = m pi / 10: on the M = 10 branch
 
@@ -20,32 +19,30 @@ def test_residual_decreases_like_h_squared(m):
     q = m * math.pi / 10
     Es = []
     for K in (100, 200, 400):
-        w = wave_on_chain(branch_dict(1.5, K=K, q_stop=q), q, N)
-        Es.append(residual_E(ChainParameters(1.5, N), w.as_array(), w.T))
+        w = orbit_on_chain(small_branch(K=K, q_stop=q).point(q), chain(N))
+        Es.append(residual_E(w, PETSc.COMM_WORLD))
     orders = np.log2(np.array(Es[:-1]) / Es[1:])
     assert np.all(np.abs(orders - 2) < 0.35), orders
 
 
 def test_refinement_reaches_target_and_is_rank_independent():
-    b = branch_dict(1.5, K=200, q_stop=0.4 * math.pi)
-    w = wave_on_chain(b, 0.4 * math.pi, N)
-    params = ChainParameters(1.5, N)
-    serial = refine(params, w.as_array(), w.T, comm=PETSc.COMM_SELF, tol=1e-10)
+    w = orbit_on_chain(small_branch().point(0.4 * math.pi), chain(N))
+    serial = refine(w, PETSc.COMM_SELF, tol=1e-10)
     assert serial.E <= 1e-10 < serial.E_initial
     # with the two symmetry directions removed the Gauss-Newton system is well posed
     assert serial.sigma_min > 1e-10
-    parallel = refine(params, w.as_array(), w.T, comm=PETSc.COMM_WORLD, tol=1e-10)
+    parallel = refine(w, PETSc.COMM_WORLD, tol=1e-10)
     assert np.max(np.abs(serial.x - parallel.x)) <= 1e-9 * np.max(np.abs(serial.x))
     # the refined state is close to the discrete wave: it corrects an O(h^2) error
-    assert np.max(np.abs(serial.x - w.as_array())) < 1e-2 * np.max(np.abs(w.as_array()))
+    assert np.max(np.abs(serial.x - w.x)) < 1e-2 * np.max(np.abs(w.x))
+    assert serial.orbit.source == "refined" and w.source == "branch"
 
 
-def test_refinement_needs_a_periodic_chain():
+def test_travelling_waves_need_a_periodic_chain():
     with pytest.raises(ParameterError, match="periodic"):
-        refine(ChainParameters(1.5, N, "free"), np.zeros((N, 2)), 1.0)
+        orbit_on_chain(small_branch().point(0.4 * math.pi), chain(N, boundary="free"))
 
 
 def test_branch_without_requested_q_is_a_clear_error():
-    from hertzpetsc.errors import BranchFileError
-    with pytest.raises(BranchFileError, match="no point at q"):
-        wave_on_chain(branch_dict(1.5, K=100, q_stop=0.6 * math.pi), 0.2 * math.pi, N)
+    with pytest.raises(RecordFileError, match="no point at q"):
+        small_branch(K=100, q_stop=0.6 * math.pi).point(0.2 * math.pi)

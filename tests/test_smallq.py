@@ -5,9 +5,16 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.continuation import BranchContinuation, ContinuationParameters
+from hertzpetsc.continuation import BranchContinuation, ContinuationParameters, regrid_half_profile
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.smallq import SmallQParameters, continue_refining, regrid_half_profile, richardson
+from hertzpetsc.richardson import richardson
+from hertzpetsc.studies.branch import SmallQParameters, SmallQStudy
+
+COMM = PETSc.COMM_WORLD
+
+
+def shared_tmp(tmp_path):
+    return COMM.tompi4py().bcast(str(tmp_path), root=0)
 
 
 def test_targets_and_grids():
@@ -26,6 +33,10 @@ def test_bad_parameters():
         SmallQParameters(q_stop=0.1, q_first=0.05)
     with pytest.raises(ParameterError, match="cells_per_q"):
         SmallQParameters(cells_per_q=2)
+    with pytest.raises(ParameterError, match="levels"):
+        SmallQParameters(levels=2)
+    with pytest.raises(ParameterError, match="grids"):
+        richardson([1.0, 2.0])
 
 
 def test_regrid_is_exact_to_interpolation_order():
@@ -47,18 +58,37 @@ def test_richardson_recovers_limit_and_order():
     assert abs(order - 2) < 0.01 and abs(limit - c) < 1e-6          # the h^4 term left: 0.1 * 0.05^4 ~ 6e-7
 
 
-def test_refined_continuation_matches_a_direct_one_on_the_finer_grid():
+def test_refined_continuation_matches_a_direct_one_on_the_finer_grid(tmp_path):
     """The profile at q = pi/20 does not depend on how it was reached: continued on K = 80 and regridded to
     K = 160 when q fell below pi/10, or continued on K = 160 from pi (same discrete problem, unique solution:
     they agree to the Newton tolerance, bound 1e-8 relative)."""
     p = SmallQParameters(q_first=math.pi / 10, q_stop=math.pi / 20, per_halving=2, cells_per_q=8)
-    got = {}
-    for q, K, d in continue_refining(p, 0, PETSc.COMM_WORLD, on_point=lambda q, K, u, d: got.update({q: (K, u)})):
-        pass
-    K, u = got[min(got)]
-    assert K == 160
-    cont = BranchContinuation(ContinuationParameters(M=20, cells_per_pi=160, q_stop=math.pi / 20), PETSc.COMM_WORLD)
+    study = SmallQStudy(p, f"{shared_tmp(tmp_path)}/progress.npz", COMM)
+    rows = [row for row in study.run() if row[0] == 0]
+    level, q, K, d = rows[-1]
+    u = study.store.state["L0_seed1_u"]
+    assert K == 160 and len(u) == 161 and q == pytest.approx(math.pi / 20)
+    cont = BranchContinuation(ContinuationParameters(M=20, cells_per_pi=160, q_stop=math.pi / 20), COMM)
     direct = [pt for pt in cont.points()][-1]
     cont.destroy()
-    assert abs(direct.q - min(got)) < 1e-14
+    assert abs(direct.q - q) < 1e-14
     assert np.max(np.abs(direct.u_half - u)) < 1e-8 * np.max(np.abs(u))
+
+
+def test_a_killed_small_q_run_resumes_to_the_same_table(tmp_path):
+    """Run two of the three levels, 'kill' (stop iterating), resume from the progress file: the table equals that
+    of an uninterrupted run (the resumed levels restart from the last two profiles, which are saved exactly)."""
+    d = shared_tmp(tmp_path)
+    p = SmallQParameters(q_first=math.pi / 10, q_stop=math.pi / 20, per_halving=2, cells_per_q=8)
+    full = SmallQStudy(p, f"{d}/full.npz", COMM)
+    list(full.run())
+    part = SmallQStudy(p, f"{d}/part.npz", COMM)
+    for level, *_ in part.run():
+        if level == 1:
+            break                                   # killed during level 1
+    resumed = SmallQStudy(p, f"{d}/part.npz", COMM, "resume")
+    list(resumed.run())
+    assert resumed.table(1.3568) == full.table(1.3568)
+    with pytest.raises(Exception, match="another computation"):
+        SmallQStudy(SmallQParameters(q_first=math.pi / 10, q_stop=math.pi / 20, per_halving=2, cells_per_q=10),
+                    f"{d}/part.npz", COMM, "resume").open()

@@ -6,13 +6,13 @@ import pytest
 from petsc4py import PETSc
 
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.hertz import HertzPotential
+from hertzpetsc.hertz import HertzLaw
 from hertzpetsc.solitary import SolitaryParameters, solve_solitary_wave
 
 
 def full_line_residual(wave):
     """eq. adr evaluated by plain numpy on the reflected profile over [-L, L] (zero beyond), no folding."""
-    n, V = wave.params.cells_per_unit, HertzPotential(wave.params.alpha)
+    n, V = wave.params.cells_per_unit, HertzLaw(wave.params.alpha)
     r = np.concatenate([wave.r[:0:-1], wave.r])                 # s = -L .. L
     pad = np.concatenate([np.zeros(n + 1), r, np.zeros(n + 1)])
     f = V.dV(pad)
@@ -23,7 +23,7 @@ def full_line_residual(wave):
 
 @pytest.mark.parametrize("alpha", [1.5, 2.0, 2.5])
 def test_solution_solves_the_scheme_on_the_whole_line(alpha):
-    w = solve_solitary_wave(SolitaryParameters(alpha, 20, 8.0))
+    w = solve_solitary_wave(SolitaryParameters(alpha, 20, 8.0), PETSc.COMM_WORLD)
     # residual of O(1) terms computed with n^2 = 400 weights: round-off ~ 1e-12
     assert full_line_residual(w) < 1e-9
     # negative (up to round-off where r has decayed to ~1e-18), extremal at s = 0
@@ -33,7 +33,7 @@ def test_solution_solves_the_scheme_on_the_whole_line(alpha):
 
 
 def test_k_alpha_converges_at_second_order_to_the_paper_value():
-    ks = [solve_solitary_wave(SolitaryParameters(1.5, n, 8.0)).k_alpha for n in (20, 40, 80)]
+    ks = [solve_solitary_wave(SolitaryParameters(1.5, n, 8.0), PETSc.COMM_WORLD).k_alpha for n in (20, 40, 80)]
     order = math.log2((ks[0] - ks[1]) / (ks[1] - ks[2]))
     assert abs(order - 2) < 0.1
     extrapolated = ks[2] + (ks[2] - ks[1]) / 3
@@ -43,7 +43,7 @@ def test_k_alpha_converges_at_second_order_to_the_paper_value():
 
 def test_short_domain_is_refused():
     with pytest.raises(ParameterError, match="half_length.*too short"):
-        solve_solitary_wave(SolitaryParameters(1.5, 20, 3.0))
+        solve_solitary_wave(SolitaryParameters(1.5, 20, 3.0), PETSc.COMM_WORLD)
 
 
 @pytest.mark.parametrize("kw,name", [(dict(cells_per_unit=15), "cells_per_unit"), (dict(alpha=1.0), "alpha"),

@@ -1,0 +1,203 @@
+"""A branch of travelling waves u(.; q) and its file (paper section 3.1), readable with numpy alone.
+
+:class:`BranchPoint` is one converged solution of eqs. ad-pbc with its diagnostics and solver statistics;
+:class:`Branch` the points of one continuation on one grid. What takes a wave (the chain's initial states,
+compactons, the long-wave comparison, the figures) takes a :class:`BranchPoint` or a :class:`Branch`.
+
+The branch file is a numpy ``.npz`` archive (``numpy.load(path)``), rewritten atomically after every converged
+point by the record store (:class:`hertzpetsc.records.NpzRecords`), so a killed run leaves the last complete
+file. Schema (P = number of points, K = cells_per_pi):
+
+=================  ===========  ==================================================================
+name               shape        meaning
+=================  ===========  ==================================================================
+format             ()           the string ``hertzpetsc-branch-1``
+alpha              ()           Hertz exponent (eq. vhertz)
+cells_per_pi       ()           K; grid step h = pi / K
+h                  ()           grid step
+M                  ()           target wavenumbers are q = m pi / M (and q_stop)
+q                  (P,)         wavenumber, decreasing from pi
+xi                 (K+1,)       grid points j h on the half period [0, pi]
+u                  (P, K+1)     profile u(xi; q) on [0, pi]; u is odd and 2 pi-periodic (u(2 pi - xi) = -u(xi))
+norm_inf           (P,)         ||u||_inf (parabolic refinement of the grid maximum)
+slope              (P,)         p(q) = u'(0), the free-flight slope
+ell                (P,)         free-flight half-length ell(q)
+N                  (P,)         N(q) = 2 (pi - ell) / q (eq. defnq)
+F                  (P,)         F(q) = 2 ell / q
+T                  (P,)         inverse velocity script-T(q) = q ||u||_inf^((alpha-1)/2) (eq. invv)
+omega_A0           (P,)         omega(q, A0), A0 = ||u0||_inf (eq. dispers)
+rescaled_norm      (P,)         ||u||_inf q^(2/(alpha-1)) (-> k_alpha, eq. normscaling)
+snes_iterations    (P,)         Newton iterations at this q (last sub-step)
+ksp_iterations     (P,)         linear iterations at this q (last sub-step)
+residual_norm      (P,)         final ||R(u)||_2 of the discrete eq. ad
+snes_reason        (P,)         PETSc converged reason
+substeps           (P,)         continuation sub-steps used to reach q from the previous point (1 = no reduction)
+wall_time          (P,)         seconds spent on this point
+meta               ()           JSON string: software versions, ranks, options, creation time
+=================  ===========  ==================================================================
+
+A resumed file must have the same alpha, cells_per_pi and M (its identity).
+"""
+import json
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .diagnostics import WaveDiagnostics, crossing
+from .errors import RecordFileError
+from .model import LatticeModel
+from .records import NpzRecords, check_kind, load_npz, on_rank0
+from .stencil import full_period
+
+BRANCH_FORMAT = "hertzpetsc-branch-1"
+SCALARS = ("alpha", "cells_per_pi", "h", "M")
+STAT_FIELDS = ("snes_iterations", "ksp_iterations", "residual_norm", "snes_reason", "substeps", "wall_time")
+POINT_FIELDS = ("q",) + WaveDiagnostics.names() + STAT_FIELDS
+INT_FIELDS = ("snes_iterations", "ksp_iterations", "snes_reason", "substeps")
+
+
+@dataclass(frozen=True)
+class SolveStats:
+    """What SNES did in one solve (at one q: the last continuation sub-step)."""
+
+    reason: int
+    iterations: int
+    linear_iterations: int
+    residual_norm: float
+    wall_time: float
+
+
+@dataclass
+class BranchPoint:
+    """One converged point: its profile on [0, pi] (on every rank), diagnostics and solver statistics."""
+
+    q: float
+    u_half: np.ndarray
+    h: float
+    model: LatticeModel
+    diagnostics: WaveDiagnostics
+    solve: SolveStats
+    substeps: int = 1
+    wall_time: float = 0.0
+
+    @property
+    def u_full(self):
+        """The profile on the whole period [0, 2 pi) (2K values, by oddness)."""
+        return full_period(self.u_half)
+
+    def record(self):
+        """The row of the branch file (:data:`POINT_FIELDS` and the profile ``u``)."""
+        s = self.solve
+        return dict(q=self.q, u=self.u_half, **self.diagnostics.as_dict(), snes_iterations=s.iterations,
+                    ksp_iterations=s.linear_iterations, residual_norm=s.residual_norm, snes_reason=s.reason,
+                    substeps=self.substeps, wall_time=self.wall_time)
+
+    @classmethod
+    def from_record(cls, row, h, model):
+        diag = WaveDiagnostics(**{k: float(row[k]) for k in WaveDiagnostics.names()})
+        stats = SolveStats(reason=int(row["snes_reason"]), iterations=int(row["snes_iterations"]),
+                           linear_iterations=int(row["ksp_iterations"]), residual_norm=float(row["residual_norm"]),
+                           wall_time=float(row["wall_time"]))
+        return cls(q=float(row["q"]), u_half=np.asarray(row["u"], dtype=float), h=h, model=model,
+                   diagnostics=diag, solve=stats, substeps=int(row["substeps"]), wall_time=float(row["wall_time"]))
+
+
+@dataclass
+class Branch:
+    """The points of one continuation on the grid h = pi / cells_per_pi (targets q = m pi / M)."""
+
+    model: LatticeModel
+    cells_per_pi: int
+    M: int
+    points: list = field(default_factory=list)
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def alpha(self):
+        return self.model.alpha
+
+    @property
+    def h(self):
+        return math.pi / self.cells_per_pi
+
+    @property
+    def xi(self):
+        return np.arange(self.cells_per_pi + 1) * self.h
+
+    @property
+    def q(self):
+        return np.array([p.q for p in self.points])
+
+    @property
+    def u(self):
+        return np.array([p.u_half for p in self.points]).reshape(len(self.points), self.cells_per_pi + 1)
+
+    def column(self, name):
+        """A diagnostic or a solver statistic along the branch, as an array."""
+        if name in WaveDiagnostics.names():
+            return np.array([getattr(p.diagnostics, name) for p in self.points])
+        return np.array([p.record()[name] for p in self.points])
+
+    def __len__(self):
+        return len(self.points)
+
+    def point(self, q, tol=1e-12):
+        """The point at wavenumber q, or :class:`RecordFileError` naming the range the branch has."""
+        qs = self.q
+        i = int(np.argmin(np.abs(qs - q))) if len(qs) else -1
+        if i < 0 or abs(qs[i] - q) > tol * max(1.0, abs(q)):
+            have = f"it has q in [{qs.min():.6g}, {qs.max():.6g}]" if len(qs) else "it is empty"
+            raise RecordFileError(f"the branch has no point at q = {q:.12g} ({have})")
+        return self.points[i]
+
+    def has(self, q, tol=1e-12):
+        return bool(len(self.points)) and float(np.min(np.abs(self.q - q))) <= tol * max(1.0, abs(q))
+
+    def q_k(self):
+        """q_k where F(q_k) = 1 (paper: q_k ~ 1.8)."""
+        return crossing(self.q, self.column("F"), 1.0)
+
+    def constants(self):
+        """The per-file entries of the branch file (its identity among them)."""
+        return dict(alpha=self.alpha, cells_per_pi=self.cells_per_pi, h=self.h, M=self.M, xi=self.xi,
+                    meta=json.dumps(self.meta))
+
+    @classmethod
+    def load(cls, path, comm=None):
+        """Read a branch file; :class:`RecordFileError` if it is missing, corrupt or of another kind. With a
+        communicator, rank 0 reads it and every rank gets the branch (or the error)."""
+        if comm is not None:
+            return on_rank0(comm, cls.load, path, what=f"cannot read branch file {path!r}")
+        data = load_npz(path, "branch file")
+        check_kind(data, path, BRANCH_FORMAT, "branch file")
+        required = set(SCALARS) | set(POINT_FIELDS) | {"u", "xi", "meta"}
+        missing = required - set(data)
+        if missing:
+            raise RecordFileError(f"branch file {path!r} is corrupt: missing {sorted(missing)}")
+        P = len(data["q"])
+        if data["u"].shape != (P, len(data["xi"])) or any(len(data[k]) != P for k in POINT_FIELDS):
+            raise RecordFileError(f"branch file {path!r} is corrupt: inconsistent array shapes")
+        try:
+            meta = json.loads(str(data["meta"]))
+        except ValueError:
+            raise RecordFileError(f"branch file {path!r} is corrupt: unreadable meta") from None
+        branch = cls(LatticeModel.hertz(float(data["alpha"])), int(data["cells_per_pi"]), int(data["M"]), [], meta)
+        rows = [{k: data[k][i] for k in POINT_FIELDS + ("u",)} for i in range(P)]
+        branch.points = [BranchPoint.from_record(r, branch.h, branch.model) for r in rows]
+        return branch
+
+
+def branch_store(path, branch, comm, mode):
+    """The record store of a branch file for ``branch`` (its model, grid and M; its meta is written): resuming
+    needs the same alpha, cells_per_pi and M. Collective."""
+    store = NpzRecords(path, BRANCH_FORMAT, branch.constants(),
+                       dict(alpha=branch.alpha, cells_per_pi=branch.cells_per_pi, M=branch.M),
+                       POINT_FIELDS + ("u",), comm, mode, dtypes={k: np.int64 for k in INT_FIELDS},
+                       shapes={"u": (branch.cells_per_pi + 1,)}, what="branch file")
+    return store
+
+
+def points_from_store(store, branch):
+    """The points already in a (resumed) branch store, as BranchPoints of ``branch``'s grid."""
+    return [BranchPoint.from_record(r, branch.h, branch.model) for r in store.records]

@@ -1,0 +1,401 @@
+"""The command line of the drivers: the PETSc options database, application options declared with their
+defaults and valid ranges, ``-help``, unknown options, and one-line errors on every rank.
+
+Scripts call ``petsc4py.init(sys.argv)`` first, so PETSc options are the command line. A driver declares each of
+its application options through :class:`AppOptions` (which reads and validates it), then calls
+:meth:`AppOptions.done` (``-help`` prints the declarations, the solver prefixes and PETSc's options for them,
+and exits 0 before anything is read or computed), builds its study (which configures every solver from the
+options database), and calls :meth:`AppOptions.check_unused`: an option that nothing read is then an error that
+names it and the closest known option. :func:`guarded_main` turns every error into one ``error: ...`` line on
+stderr and the exit status of :mod:`hertzpetsc.errors`, on every rank.
+"""
+import ctypes
+import difflib
+import math
+import os
+import platform
+import re
+import sys
+import tempfile
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from . import __version__
+from .errors import HertzPetscError, OptionError, ParameterError
+
+EXIT_PARAMETER, EXIT_CONVERGENCE, EXIT_FILE, EXIT_PETSC = 2, 3, 4, 5
+# seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
+ABORT_GRACE = 3.0
+
+# PETSc objects a solver role is made of, for -help and for the names of known options.
+ROLE_OBJECTS = {"snes": "SNES (with its KSP, PC and line search)", "ts": "TS (time stepper and its adaptor)",
+                "eps": "SLEPc EPS (eigensolver with its ST, KSP, PC)", "pep": "SLEPc PEP (polynomial eigensolver)"}
+
+
+def _lib():
+    """The PETSc shared library, as loaded by petsc4py (for the calls petsc4py does not wrap)."""
+    import petsc4py.PETSc as module
+    return ctypes.CDLL(module.__file__)
+
+
+def unused_options():
+    """[(name, value)] of the options nobody has queried so far (PetscOptionsLeftGet)."""
+    lib = _lib()
+    n = ctypes.c_int()
+    names, values = ctypes.POINTER(ctypes.c_char_p)(), ctypes.POINTER(ctypes.c_char_p)()
+    if lib.PetscOptionsLeftGet(None, ctypes.byref(n), ctypes.byref(names), ctypes.byref(values)):
+        return []
+    out = [(names[i].decode(), values[i].decode() if values[i] is not None else None) for i in range(n.value)]
+    lib.PetscOptionsLeftRestore(None, ctypes.byref(n), ctypes.byref(names), ctypes.byref(values))
+    return out
+
+
+def petsc_message(err):
+    """PETSc's own text for a PETSc.Error: the specific message of the failed call and the generic one."""
+    text, specific = ctypes.c_char_p(), ctypes.c_char_p()
+    try:
+        _lib().PetscErrorMessage(ctypes.c_int(err.ierr), ctypes.byref(text), ctypes.byref(specific))
+    except (AttributeError, OSError):
+        return f"PETSc error {getattr(err, 'ierr', '?')}"
+    generic = (text.value or b"").decode().split(":")[0].strip()
+    detail = (specific.value or b"").decode().strip()
+    culprit = [f"-{k} {v}" for k, v in PETSc.Options().getAll().items()
+               if v and len(str(v)) > 1 and re.search(r"\b" + re.escape(str(v)) + r"\b", detail)]
+    where = f" (from the option {culprit[0]})" if culprit else ""
+    return (f"{detail}{where} (PETSc error {err.ierr}: {generic})" if detail
+            else f"PETSc error {err.ierr}: {generic}")
+
+
+def _make_object(kind, prefix):
+    if kind == "snes":
+        obj = PETSc.SNES().create(comm=PETSc.COMM_SELF)
+    elif kind == "ts":
+        obj = PETSc.TS().create(comm=PETSc.COMM_SELF)
+    else:
+        from slepc4py import SLEPc
+        obj = (SLEPc.EPS() if kind == "eps" else SLEPc.PEP()).create(comm=PETSc.COMM_SELF)
+    obj.setOptionsPrefix(prefix)
+    return obj
+
+
+def print_solver_help(roles):
+    """PETSc's own -help text for the objects of each role (only meaningful while -help is in the database)."""
+    for prefix, kinds in roles.items():
+        for kind in kinds:
+            obj = _make_object(kind, prefix)
+            try:
+                obj.setFromOptions()
+            except PETSc.Error:
+                pass
+            obj.destroy()
+
+
+def known_solver_options(roles):
+    """The option names PETSc reads for the objects of each role, from its own -help output (captured)."""
+    opts = PETSc.Options()
+    had_help = opts.hasName("help")
+    libc = ctypes.CDLL(None)
+    names = set()
+    with tempfile.TemporaryFile() as sink:
+        libc.fflush(None)
+        sys.stdout.flush()
+        saved = os.dup(1)
+        os.dup2(sink.fileno(), 1)
+        try:
+            if not had_help:
+                opts.setValue("help", None)
+            print_solver_help(roles)
+        finally:
+            libc.fflush(None)
+            os.dup2(saved, 1)
+            os.close(saved)
+            if not had_help:
+                opts.delValue("help")
+        sink.seek(0)
+        text = sink.read().decode(errors="replace")
+    for prefix in roles:
+        names.update(re.findall(r"-(" + re.escape(prefix) + r"[A-Za-z0-9_]+)", text))
+    return names
+
+
+class AppOptions:
+    """Typed, declared application options (no prefix) in the PETSc options database.
+
+    ``doc``: the driver's description for -help; ``roles``: the solver prefixes the driver configures, as
+    {prefix: (description, ("snes", ...))}. Each reader declares the option (for -help and for the unknown-option
+    check) and returns its validated value; under -help it returns the default without validating.
+    """
+
+    def __init__(self, doc="", roles=None):
+        self.db = PETSc.Options()
+        self.doc = (doc or "").strip()
+        self.roles = dict(roles or {})
+        self.declared = []          # (name, default text, valid text, help)
+        self.aliases = {}           # old spelling -> name
+        self.help = self.db.hasName("help")
+
+    # --- declaration helpers ---------------------------------------------------------------------------------
+    def _declare(self, name, default, valid, help):
+        self.declared.append((name, default, valid, help))
+
+    def _raw(self, name, old=()):
+        """The value given for ``name`` (or one of its old spellings ``old``), None if absent."""
+        self.aliases.update({o: name for o in old})
+        for key in (name, *old):
+            if self.db.hasName(key):
+                return self.db.getString(key, "")
+        return None
+
+    @staticmethod
+    def _number(text, expr):
+        """float of ``text``; with ``expr`` arithmetic with ``pi`` is allowed (``pi/50``, ``2*pi*1e-3``)."""
+        if expr:
+            if not re.fullmatch(r"[0-9eE.+\-*/() pi]*", text):
+                raise ValueError(text)
+            return float(eval(text, {"__builtins__": {}}, {"pi": math.pi}))
+        return float(text)
+
+    def real(self, name, default, help="", valid=None, expr=False, old=()):
+        """A real option; ``valid`` = (predicate, text); with ``expr``, values like ``pi/50`` are accepted."""
+        self._declare(name, default, valid[1] if valid else ("real" + (", pi allowed" if expr else "")), help)
+        raw = self._raw(name, old)
+        if raw is None or self.help:
+            return default
+        try:
+            value = self._number(raw, expr)
+        except Exception:
+            raise ParameterError(f"-{name}", raw, "must be a real number" + (" (pi allowed)" if expr else "")) from None
+        if not math.isfinite(value):
+            raise ParameterError(f"-{name}", raw, "must be a finite number")
+        if valid is not None and not valid[0](value):
+            raise ParameterError(f"-{name}", raw, valid[1])
+        return value
+
+    def integer(self, name, default, help="", minimum=None, maximum=None, old=()):
+        rng = (f">= {minimum}" if minimum is not None else "") + \
+              (" and " if minimum is not None and maximum is not None else "") + \
+              (f"<= {maximum}" if maximum is not None else "")
+        self._declare(name, default, f"integer {rng}".strip(), help)
+        raw = self._raw(name, old)
+        if raw is None or self.help:
+            return default
+        try:
+            value = int(raw)
+        except ValueError:
+            raise ParameterError(f"-{name}", raw, f"must be an integer {rng}".strip()) from None
+        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+            raise ParameterError(f"-{name}", raw, f"must be an integer {rng}")
+        return value
+
+    def string(self, name, default, help="", choices=None, old=()):
+        self._declare(name, default, "one of " + ", ".join(choices) if choices else "text", help)
+        raw = self._raw(name, old)
+        if raw is None or self.help:
+            return default
+        if choices is not None and raw not in choices:
+            raise ParameterError(f"-{name}", raw, "must be one of " + ", ".join(choices))
+        return raw
+
+    def path(self, name, default, help="", old=()):
+        """A file or directory name (non-empty)."""
+        self._declare(name, default, "a path", help)
+        raw = self._raw(name, old)
+        if raw is None or self.help:
+            return default
+        if not raw.strip():
+            raise ParameterError(f"-{name}", raw, "must be a non-empty path")
+        return raw
+
+    def flag(self, name, help="", old=()):
+        self._declare(name, "off", "flag", help)
+        raw = self._raw(name, old)
+        if raw is None or self.help:
+            return False
+        if raw.lower() in ("", "1", "true", "yes", "on"):
+            return True
+        if raw.lower() in ("0", "false", "no", "off"):
+            return False
+        raise ParameterError(f"-{name}", raw, "is a flag: give it alone, or with true/false")
+
+    def numbers(self, name, default, help="", expr=True, kind=float, valid=None, distinct=False, minimum_count=1,
+                old=()):
+        """A comma-separated list (``default`` is the list's text). Empty lists, members out of ``valid`` =
+        (predicate, text), and (with ``distinct``) repeated members are refused."""
+        what = "integers" if kind is int else "numbers" + (" (pi allowed)" if expr else "")
+        rule = (f"a comma-separated list of at least {minimum_count} {what}" if minimum_count else
+                f"an optional comma-separated list of {what}") + \
+               (f", each {valid[1]}" if valid else "") + (", all different" if distinct else "")
+        self._declare(name, default, rule, help)
+        raw = self._raw(name, old)
+        text = default if raw is None or self.help else raw
+        if self.help:
+            return []
+        if raw is not None and not raw.strip():
+            raise ParameterError(f"-{name}", raw, f"is empty: give {rule}, or leave the option out")
+        try:
+            items = [v.strip() for v in text.split(",")] if text.strip() else []
+            values = [self._number(v, expr) for v in items]
+            if kind is int and any(v != int(v) for v in values):
+                raise ValueError
+            values = [kind(v) for v in values]
+        except Exception:
+            raise ParameterError(f"-{name}", text, f"must be {rule}") from None
+        if len(values) < minimum_count:
+            raise ParameterError(f"-{name}", text, f"must be {rule}")
+        if valid is not None:
+            bad = [v for v in values if not valid[0](v)]
+            if bad:
+                raise ParameterError(f"-{name}", text, f"member {bad[0]!r} is not {valid[1]}")
+        if distinct:
+            seen = []
+            for v in values:
+                if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in seen):
+                    raise ParameterError(f"-{name}", text, f"lists {v!r} twice; the members must be different")
+                seen.append(v)
+        return values
+
+    def words(self, name, default, help="", choices=None, old=()):
+        """A comma-separated list of names (``default`` is the list's text), each one of ``choices``."""
+        rule = "a comma-separated list" + (" of " + ", ".join(choices) if choices else " of names")
+        self._declare(name, default, rule, help)
+        raw = self._raw(name, old)
+        text = default if raw is None or self.help else raw
+        values = [v.strip() for v in text.split(",")] if text.strip() else []
+        if not values or "" in values or (choices is not None and any(v not in choices for v in values)):
+            raise ParameterError(f"-{name}", text, f"must be {rule}")
+        return values
+
+    def table_and_figures(self, table, figures):
+        """The -output table (default ``table``) and the -figures directory (its figures named by ``figures``;
+        none if empty), as most drivers have them."""
+        return (self.path("output", table, "table"),
+                self.path("figures", "", f"directory for {figures} (none if empty)"))
+
+    def record_table_figures(self, record, what, table, figures):
+        """-output (a record file, default ``record``), -resume/-force, -table and -figures, for the drivers whose
+        -output is their record store: (record path, mode, table path, figures directory)."""
+        output = self.path("output", record, f"{what} (record store)")
+        mode = self.mode()
+        return (output, mode, self.path("table", table, "table"),
+                self.path("figures", "", f"directory for {figures} (none if empty)"))
+
+    def mode(self):
+        """The record mode from -resume / -force: 'resume', 'force' or 'new' (both at once is an error)."""
+        resume = self.flag("resume", "continue the record file (or run directory) of an interrupted run")
+        force = self.flag("force", "overwrite an existing record file (or run directory)")
+        if resume and force:
+            raise ParameterError("-resume", "with -force", "give one of -resume (continue) and -force (overwrite)")
+        return "resume" if resume else "force" if force else "new"
+
+    # --- after the declarations ---------------------------------------------------------------------------------
+    def help_text(self):
+        lines = [self.doc, "", "Application options (default; valid values):"]
+        for name, default, valid, text in self.declared:
+            lines.append(f"  -{name} {default if default not in (None, '') else '(none)'}"
+                         f"    [{valid}]" + (f"  {text}" if text else ""))
+        if self.aliases:
+            lines.append("Old spellings still accepted: " + ", ".join(f"-{o} (for -{n})" for o, n in
+                                                                         sorted(self.aliases.items())))
+        if self.roles:
+            lines += ["", "Solver prefixes (every PETSc option of these objects, e.g. -tw_snes_monitor):"]
+            for prefix, (description, kinds) in self.roles.items():
+                lines.append(f"  -{prefix}*   {description}: " + "; ".join(ROLE_OBJECTS[k] for k in kinds))
+        return "\n".join(lines)
+
+    def done(self):
+        """End of the declarations: under -help, print them and PETSc's options of the roles, and exit 0."""
+        if not self.help:
+            return
+        if PETSc.COMM_WORLD.getRank() == 0:
+            print(self.help_text(), flush=True)
+        if self.roles:
+            print0("\nPETSc's options of these solvers (their defaults before the code's own):")
+            print_solver_help({p: kinds for p, (_, kinds) in self.roles.items()})
+        sys.stdout.flush()
+        raise SystemExit(0)
+
+    def known(self):
+        return {name for name, *_ in self.declared} | set(self.aliases)
+
+    def check_unused(self, passed_on=()):
+        """Refuse options that nothing has read (after every solver of the driver was configured); options under
+        the prefixes ``passed_on`` are handed to other processes (the benchmark workers) and not checked here."""
+        left = [(n, v) for n, v in unused_options() if n not in self.known() and not n.startswith(tuple(passed_on))]
+        if not left:
+            return
+        name, value = left[0]
+        candidates = self.known() | known_solver_options({p: kinds for p, (_, kinds) in self.roles.items()})
+        close = difflib.get_close_matches(name, sorted(candidates), n=1, cutoff=0.6)
+        hint = f"; did you mean -{close[0]}?" if close else "; see -help for the options of this driver"
+        more = f" (and {len(left) - 1} more: " + ", ".join("-" + n for n, _ in left[1:4]) + ")" if len(left) > 1 else ""
+        raise OptionError(f"unknown option -{name}" + (f" {value}" if value else "") + more + hint)
+
+
+def print0(*args, file=sys.stdout):
+    """Print on rank 0 of COMM_WORLD only."""
+    if PETSc.COMM_WORLD.getRank() == 0:
+        print(*args, file=file, flush=True)
+
+
+def run_metadata(**extra):
+    """Software versions and run context recorded in output files."""
+    import petsc4py
+    meta = dict(hertzpetsc=__version__, petsc=".".join(map(str, PETSc.Sys.getVersion())),
+                petsc4py=petsc4py.__version__, numpy=np.__version__, python=platform.python_version(),
+                ranks=PETSc.COMM_WORLD.getSize(), argv=sys.argv, created=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
+    try:
+        import slepc4py
+        meta["slepc4py"] = slepc4py.__version__
+    except ImportError:  # pragma: no cover - slepc4py is part of the stack, but not needed here
+        pass
+    meta.update(extra)
+    return meta
+
+
+def _exit(code, message, collective):
+    """Print the error line and end every rank with ``code``.
+
+    One rank: print and exit. Several: when the error is the same on every rank, rank 0 prints and aborts the job;
+    the other ranks wait a moment for that, and only if it does not come (the error was theirs alone) print their
+    own line and abort. Aborting, rather than exiting, means that no rank ever waits in MPI_Finalize or in a
+    collective for a rank that has stopped: an MPI run never hangs on an error.
+    """
+    comm = PETSc.COMM_WORLD
+    size, rank = comm.getSize(), comm.getRank()
+    message = " / ".join(line.strip() for line in str(message).splitlines() if line.strip())   # one line
+    if size == 1:
+        print(f"error: {message}", file=sys.stderr, flush=True)
+        sys.exit(code)
+    if rank != 0 or not collective:
+        if collective:
+            time.sleep(ABORT_GRACE)
+        message += f" (rank {rank})"
+    print(f"error: {message}", file=sys.stderr, flush=True)
+    comm.tompi4py().Abort(code)
+
+
+def guarded_main(main):
+    """Run ``main()``; turn every error into one ``error:`` line on stderr and the documented exit status.
+
+    Package errors are raised on every rank at once (see :mod:`hertzpetsc.errors`): rank 0 prints and every rank
+    exits. PETSc errors are collective as well (configuration and solver calls are) and are reported with
+    PETSc's own message. Anything else is a failure of one rank: that rank prints it and aborts the others, so an
+    MPI run never hangs.
+    """
+    try:
+        main()
+    except SystemExit:
+        raise
+    except KeyboardInterrupt:
+        _exit(130, "interrupted", False)
+    except Exception as err:
+        if os.environ.get("HZ_TRACEBACK"):       # for developers: the full traceback instead of one line
+            raise
+        if isinstance(err, HertzPetscError):
+            _exit(err.exit_status, str(err), True)
+        elif isinstance(err, PETSc.Error):
+            _exit(EXIT_PETSC, petsc_message(err), True)
+        else:                                     # a bug or a rank-local failure: never a hang
+            _exit(1, f"internal error: {type(err).__name__}: {err}", False)

@@ -1,0 +1,409 @@
+"""The record store: what a study computes, written as it goes, by rank 0, atomically, and resumable.
+
+Every study that writes as it goes (the branch, the refinement and Floquet scans, the small-q levels, the Bloch
+tables, the long runs' snapshots, the benchmarks) keeps its results in one :class:`RecordStore`:
+
+* an **identity**: which computation the file holds (its kind and the parameters that define it). Resuming a
+  file whose identity differs is refused, naming the first parameter that differs;
+* **records**, appended one at a time. :meth:`RecordStore.append` is collective: rank 0 writes, and every rank
+  learns whether that worked, so a failed write ends every rank with the same error;
+* a **mode**: ``new`` refuses to overwrite an existing file (the user asks for ``resume`` or ``force``),
+  ``resume`` returns the finished records, ``force`` starts afresh.
+
+Two layouts: :class:`NpzRecords` (one numpy archive rewritten through a temporary file and a rename after each
+record: the branch file of the README and the other per-point files) and :class:`AppendRecords` (a JSON header
+and a file of fixed-length float64 records appended and flushed one by one: long runs, whose snapshots would make
+a rewrite quadratic). A killed run leaves the last complete file (npz) or a partial trailing record that the next
+resume drops (append); stale temporary files of a killed write are removed when the store is opened.
+
+Tables, figures and summaries are written by :func:`write_text` / :func:`save_figure` / :func:`write_json`
+(temporary file and rename, rank 0, the verdict shared). Reading needs numpy only; a communicator, when given, is a
+petsc4py or mpi4py communicator.
+"""
+import glob
+import json
+import os
+import zipfile
+
+import numpy as np
+
+from .errors import HertzPetscError, RecordFileError
+
+MODES = ("new", "resume", "force")
+
+
+# --- collective helpers -------------------------------------------------------------------------------------------
+def mpi_comm(comm):
+    """An mpi4py communicator for ``comm`` (petsc4py or mpi4py), or None for a serial run."""
+    if comm is None:
+        return None
+    if hasattr(comm, "tompi4py"):
+        comm = comm.tompi4py()
+    return comm if comm.Get_size() > 1 else None
+
+
+def is_rank0(comm):
+    mpi = mpi_comm(comm)
+    return mpi is None or mpi.Get_rank() == 0
+
+
+def _rebuild(kind, message):
+    err = kind.__new__(kind)
+    err.args = (message,)
+    return err
+
+
+def on_rank0(comm, fn, *args, what="file operation"):
+    """Run ``fn(*args)`` on rank 0 only; return its result on every rank, or raise its error on every rank.
+
+    OS errors become :class:`RecordFileError` naming ``what``; package errors keep their class and message.
+    """
+    mpi = mpi_comm(comm)
+    result = error = None
+    if mpi is None or mpi.Get_rank() == 0:
+        try:
+            result = fn(*args)
+        except HertzPetscError as err:
+            error = (type(err), str(err))
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+            error = (RecordFileError, f"{what}: {err}")
+    if mpi is not None:
+        result, error = mpi.bcast((result, error), root=0)
+    if error is not None:
+        raise _rebuild(*error) from None
+    return result
+
+
+def _replace_atomically(path, write):
+    """Call ``write(file)`` on ``path.tmp`` (reused by the next write if this one is killed), fsync, rename."""
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        write(f)
+        f.flush()
+        os.fsync(f.fileno())
+    os.replace(tmp, path)
+
+
+def make_directory(path, what):
+    """Create the directory of ``path`` (and its parents); RecordFileError naming ``what`` if that fails."""
+    directory = os.path.dirname(os.path.abspath(path))
+    try:
+        os.makedirs(directory, exist_ok=True)
+    except OSError as err:
+        blocker = directory
+        while blocker and not os.path.exists(blocker):
+            blocker = os.path.dirname(blocker)
+        why = f"{blocker!r} is not a directory" if os.path.exists(blocker) and not os.path.isdir(blocker) \
+            else (err.strerror or str(err))
+        raise RecordFileError(f"cannot write {what} {path!r}: {why}") from None
+    return directory
+
+
+def prepare_output(path, comm=None, what="output"):
+    """Check, before any computation, that ``path`` can be written: its directory is created if missing and a
+    probe file is written and removed there. Collective; :class:`RecordFileError` on every rank otherwise."""
+    def probe():
+        directory = make_directory(path, what)
+        try:
+            if os.path.isdir(path):
+                raise RecordFileError(f"cannot write {what} {path!r}: it is a directory")
+            test = os.path.join(directory, f".hz-write-test-{os.getpid()}")
+            with open(test, "wb"):
+                pass
+            os.remove(test)
+        except OSError as err:
+            raise RecordFileError(f"cannot write {what} {path!r}: {err.strerror or err}") from None
+    on_rank0(comm, probe, what=what)
+
+
+def prepare_outputs(comm, *tables, figures=""):
+    """:func:`prepare_output` for each table and, if ``figures`` is not empty, for the figures' directory."""
+    for path in tables:
+        prepare_output(path, comm, "table")
+    if figures:
+        prepare_output(os.path.join(figures, "figure.png"), comm, "figure in directory")
+
+
+def write_text(path, text, comm=None, what="table"):
+    """Write ``text`` to ``path`` atomically on rank 0 (collective; the error, if any, on every rank)."""
+    def write():
+        make_directory(path, what)
+        _replace_atomically(path, lambda f: f.write(text.encode()))
+    on_rank0(comm, write, what=f"cannot write {what} {path!r}")
+    return path
+
+
+def write_json(path, obj, comm=None, what="summary"):
+    return write_text(path, json.dumps(obj, indent=1, default=float) + "\n", comm, what)
+
+
+def save_figure(fig, path):
+    """Save a matplotlib figure atomically (the format from the file name). Call on one rank."""
+    make_directory(path, "figure")
+    ext = os.path.splitext(path)[1].lstrip(".") or "png"
+    try:
+        _replace_atomically(path, lambda f: fig.savefig(f, format=ext, dpi=120))
+    except OSError as err:
+        raise RecordFileError(f"cannot write figure {path!r}: {err.strerror or err}") from None
+    return path
+
+
+def remove_stale_temporaries(path):
+    """Delete ``path.tmp`` and ``path.tmp-<pid>`` files left by killed writes (this and older versions)."""
+    for tmp in glob.glob(glob.escape(path) + ".tmp*"):
+        try:
+            os.remove(tmp)
+        except OSError:
+            pass
+
+
+def load_npz(path, what, error=RecordFileError):
+    """All arrays of an npz archive as a dict; ``error`` (naming ``what``) if it is missing or unreadable."""
+    if not os.path.exists(path):
+        raise error(f"{what} {path!r} does not exist")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            return {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
+        raise error(f"{what} {path!r} is corrupt or not an npz archive ({err})") from None
+
+
+def check_kind(data, path, kind, what):
+    """The ``format`` entry of a loaded archive must be ``kind`` (a file of another kind names both)."""
+    stored = str(data.get("format", "")) if "format" in data else ""
+    if stored != kind:
+        found = f"a {stored!r} file" if stored else "not a hertzpetsc record file"
+        raise RecordFileError(f"{path!r} is {found}, but a {what} ({kind!r}) is expected here")
+
+
+def _same(a, b):
+    if isinstance(a, (float, np.floating)) or isinstance(b, (float, np.floating)):
+        try:
+            a, b = float(a), float(b)
+        except (TypeError, ValueError):
+            return False
+        return a == b or abs(a - b) <= 1e-12 * max(abs(a), abs(b))
+    if isinstance(a, (list, tuple)) or isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return a == b
+
+
+def check_identity(stored, wanted, path):
+    """Every identity key in both must agree; keys the stored file lacks (older files) are not compared."""
+    for key, value in wanted.items():
+        if key in stored and not _same(stored[key], value):
+            raise RecordFileError(f"{path!r} holds another computation: {key} = {stored[key]!r} there, {value!r} "
+                                  "requested (rerun with the same parameters, or without -resume and with -force "
+                                  "to start afresh)")
+
+
+class RecordStore:
+    """Common part of the layouts: the mode, the identity, the collective open and append."""
+
+    what = "record file"
+
+    def __init__(self, path, kind, identity, comm=None, mode="new"):
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}")
+        self.path, self.kind, self.identity, self.comm, self.mode = path, kind, dict(identity), comm, mode
+        self.rank0 = is_rank0(comm)
+        self.records, extra = on_rank0(comm, self._open, what=f"cannot open {self.what} {path!r}")
+        self._received(extra)
+
+    def _received(self, extra):
+        """What the layout loaded besides the records (on every rank)."""
+
+    def _extra(self):
+        return None
+
+    def _open(self):
+        exists = self._exists()
+        if self.mode == "resume":
+            if not exists:
+                raise RecordFileError(f"{self.what} {self.path!r} does not exist: nothing to resume (omit -resume "
+                                      "to start it)")
+            records = self._load()
+        elif exists and self.mode == "new":
+            raise RecordFileError(f"{self.what} {self.path!r} exists: continue it with -resume or overwrite it "
+                                  "with -force")
+        else:
+            records = []
+        self._prepare()
+        self.records = records
+        self._start(records)
+        return records, self._extra()
+
+    def append(self, record):
+        """Add one record and write it (collective: rank 0 writes, every rank raises if that failed)."""
+        self.records.append(record)
+        on_rank0(self.comm, self._write_last, what=f"cannot write {self.what} {self.path!r}")
+
+    # layout hooks
+    def _exists(self):
+        return os.path.exists(self.path)
+
+    def _prepare(self):
+        make_directory(self.path, self.what)
+        remove_stale_temporaries(self.path)
+
+    def _start(self, records):
+        """Write the file as it stands at the start (empty for a new store, so that it exists from now on)."""
+
+    def _load(self):
+        raise NotImplementedError
+
+    def _write_last(self):
+        raise NotImplementedError
+
+
+class NpzRecords(RecordStore):
+    """Records as the rows of one npz archive, rewritten atomically after each append.
+
+    ``constants``: arrays written once per file (the identity's values among them, plus e.g. a grid or JSON
+    metadata); ``fields``: the per-record entries, stacked along a first axis of length P; ``dtypes`` maps a
+    field to its dtype (default float64) and ``shapes`` gives the per-record shape of array fields, so that an
+    archive with P = 0 records still has the right shapes.
+    """
+
+    def __init__(self, path, kind, constants, identity, fields, comm=None, mode="new", dtypes=None, shapes=None,
+                 what="record file"):
+        self.constants, self.fields = dict(constants), tuple(fields)
+        self.dtypes, self.shapes = dict(dtypes or {}), dict(shapes or {})
+        self.what = what
+        self.state = {}            # arrays that are replaced, not stacked (e.g. the profiles a resume starts from)
+        super().__init__(path, kind, identity, comm, mode)
+
+    def _extra(self):
+        return self.state
+
+    def _received(self, extra):
+        self.state = dict(extra or {})
+
+    def append(self, record, state=None):
+        """Add one record (and replace the given ``state`` arrays), then write (collective)."""
+        if state:
+            self.state.update(state)
+        super().append(record)
+
+    def _load(self):
+        data = load_npz(self.path, self.what)
+        check_kind(data, self.path, self.kind, self.what)
+        check_identity({k: data[k].item() if data[k].ndim == 0 else data[k].tolist() for k in self.identity
+                        if k in data}, self.identity, self.path)
+        missing = [f for f in self.fields if f not in data]
+        if missing:
+            raise RecordFileError(f"{self.what} {self.path!r} is corrupt: missing {missing}")
+        P = len(data[self.fields[0]])
+        if any(len(data[f]) != P for f in self.fields):
+            raise RecordFileError(f"{self.what} {self.path!r} is corrupt: inconsistent array shapes")
+        self.state = {k[len("state_"):]: data[k] for k in data if k.startswith("state_")}
+        return [{f: data[f][i] for f in self.fields} for i in range(P)]
+
+    def _start(self, records):
+        if self.rank0:
+            self._write_last()
+
+    def arrays(self):
+        """The archive's content as it is written: constants, ``format``, the stacked fields and the state."""
+        return npz_arrays(self.kind, self.constants, self.fields, self.records, self.state, self.dtypes, self.shapes)
+
+    def _write_last(self):
+        write_npz(self.path, self.arrays())
+
+
+def npz_arrays(kind, constants, fields, records, state=None, dtypes=None, shapes=None):
+    """The arrays of a record archive: ``format``, the constants, each field stacked over the records (with its
+    dtype; P = 0 keeps the per-record ``shapes``), and the state arrays under ``state_<name>``."""
+    dtypes, shapes = dtypes or {}, shapes or {}
+    clash = set(constants) & set(fields)
+    if clash or "format" in set(constants) | set(fields):
+        raise ValueError(f"a record archive's constants and fields must have different names: {sorted(clash)}")
+    out = {"format": np.array(kind)}
+    for k, v in constants.items():
+        out[k] = np.asarray(v)
+    for f in fields:
+        dtype = dtypes.get(f, float)
+        values = [np.asarray(r[f], dtype=dtype) for r in records]
+        out[f] = np.stack(values) if values else np.zeros((0,) + tuple(shapes.get(f, ())), dtype=dtype)
+    for k, v in (state or {}).items():
+        out["state_" + k] = np.asarray(v)
+    return out
+
+
+def write_npz(path, arrays):
+    """Write an npz archive atomically (temporary file, fsync, rename)."""
+    _replace_atomically(path, lambda f: np.savez(f, **arrays))
+
+
+class AppendRecords(RecordStore):
+    """Fixed-length float64 records appended to ``directory/<data>``, with a JSON header ``directory/<header>``.
+
+    The header holds the identity (and whatever else describes the records). Each append is flushed and fsynced,
+    so a killed run loses at most the record in flight; a partial trailing record is dropped on resume.
+    """
+
+    def __init__(self, directory, kind, header, identity, record_length, comm=None, mode="new",
+                 header_name="run.json", data_name="records.f64", what="run directory"):
+        self.directory = directory
+        self.header = dict(header, format=kind)
+        self.record_length = int(record_length)
+        self.header_path = os.path.join(directory, header_name)
+        self.data_path = os.path.join(directory, data_name)
+        self.what = what
+        super().__init__(directory, kind, identity, comm, mode)
+
+    def _exists(self):
+        return os.path.exists(self.header_path)
+
+    def _prepare(self):
+        make_directory(self.header_path, self.what)
+        remove_stale_temporaries(self.header_path)
+
+    @staticmethod
+    def read_header(directory, header_name="run.json", what="run directory"):
+        path = os.path.join(directory, header_name)
+        if not os.path.exists(path):
+            raise RecordFileError(f"no run in {directory!r} ({header_name} missing)")
+        try:
+            with open(path) as f:
+                return json.load(f)
+        except ValueError:
+            raise RecordFileError(f"{path!r} is corrupt") from None
+
+    def _load(self):
+        header = self.read_header(self.directory, os.path.basename(self.header_path), self.what)
+        if "format" in header and header["format"] != self.kind:
+            raise RecordFileError(f"{self.directory!r} holds a {header['format']!r} run, not a {self.kind!r} one")
+        check_identity(header, self.identity, self.directory)
+        self.stored_header = header
+        size = os.path.getsize(self.data_path) if os.path.exists(self.data_path) else 0
+        whole = size // (8 * self.record_length) * 8 * self.record_length
+        if whole != size:                       # a record in flight when the run was killed
+            with open(self.data_path, "r+b") as f:
+                f.truncate(whole)
+        raw = np.fromfile(self.data_path, dtype=np.float64) if whole else np.zeros(0)
+        return list(raw.reshape(-1, self.record_length))
+
+    def _start(self, records):
+        if not self.rank0:
+            return
+        if self.mode != "resume":
+            _replace_atomically(self.header_path, lambda f: f.write(json.dumps(self.header, indent=1).encode()))
+            open(self.data_path, "wb").close()
+
+    def append(self, record):
+        record = np.asarray(record, dtype=np.float64).ravel()
+        if record.size != self.record_length:
+            raise ValueError(f"a record has {self.record_length} numbers, not {record.size}")
+        super().append(record)
+
+    def _write_last(self):
+        with open(self.data_path, "ab") as f:
+            f.write(self.records[-1].tobytes())
+            f.flush()
+            os.fsync(f.fileno())
+
+    def array(self):
+        """The records as an (n, record_length) array."""
+        return np.array(self.records).reshape(-1, self.record_length)
+

@@ -1,0 +1,279 @@
+"""Branch studies: the continuation of section 3.1 written to a branch file, its convergence in h, and the
+branch to small q with grids refined as q decreases (section 3.2)."""
+import json
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..branch import Branch, branch_store, points_from_store
+from ..continuation import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
+                            paper_targets)
+from ..errors import ParameterError, RecordFileError
+from ..model import LatticeModel
+from ..records import NpzRecords, load_npz, npz_arrays, on_rank0, write_npz
+from ..richardson import richardson
+from ..twsolver import TW_PREFIX, configure_options
+
+
+class BranchStudy:
+    """The branch q = pi -> q_stop through q = m pi / M (eqs. ad-pbc), each point appended to a branch file.
+
+    Building it configures the SNES (prefix ``tw_``); :meth:`open` opens the record store (``mode``: new,
+    resume or force; collective), and :meth:`run` (which opens it if need be) yields the new points as they are
+    saved. ``branch`` holds every point, the resumed ones included.
+    """
+
+    def __init__(self, params, output, comm, mode="new", meta=None, prefix=TW_PREFIX, solver=None):
+        self.params, self.output, self.comm, self.mode = params, output, comm, mode
+        self.branch = Branch(params.model, params.cells_per_pi, params.M, [], dict(meta or {}))
+        self.continuation = BranchContinuation(params, comm, prefix, solver)
+        self.store, self.resumed = None, 0
+
+    def open(self):
+        """Open the branch file (collective); the resumed points seed the continuation."""
+        if self.store is None:
+            self.store = branch_store(self.output, self.branch, self.comm, self.mode)
+            self.branch.points = points_from_store(self.store, self.branch)
+            self.resumed = len(self.branch.points)       # points found in the file
+            if self.branch.points:
+                pts = self.branch.points
+                self.continuation.resume_from([p.q for p in pts], [p.u_half for p in pts])
+        return self
+
+    def run(self):
+        self.open()
+        try:
+            for point in self.continuation.points():
+                self.store.append(point.record())
+                self.branch.points.append(point)
+                yield point
+        finally:
+            self.continuation.destroy()
+
+
+QUANTITIES = ("norm_inf", "slope", "N", "T")
+Q_REPORT = (("pi", math.pi), ("3pi/10", 3 * math.pi / 10), ("7pi/25", 7 * math.pi / 25),
+            ("9pi/50", 9 * math.pi / 50), ("pi/50", math.pi / 50))
+
+
+class ConvergenceStudy:
+    """The branch on the grids h = pi / K, K in ``cells`` (at least 3, all different), and at the reported q the
+    observed order on the three finest grids and the Richardson value (h^2) from the two finest."""
+
+    def __init__(self, model, M, cells, comm, prefix=TW_PREFIX):
+        cells = sorted(int(K) for K in cells)
+        if len(cells) < 3 or len(set(cells)) != len(cells):
+            raise ParameterError("-cells", cells, "needs at least three different grids for an observed order")
+        self.model, self.M, self.cells, self.comm, self.prefix = model, M, cells, comm, prefix
+        self.values = {}
+        configure_options(comm, prefix)
+
+    def run(self):
+        """Compute the branch on every grid; yields K after each."""
+        for K in self.cells:
+            cont = BranchContinuation(ContinuationParameters(model=self.model, M=self.M, cells_per_pi=K),
+                                      self.comm, self.prefix)
+            try:
+                for pt in cont.points():
+                    self.values[(K, round(pt.q, 12))] = pt.diagnostics
+            finally:
+                cont.destroy()
+            yield K
+
+    def table(self):
+        cells = self.cells
+        lines = [f"alpha = {self.model.alpha}, M = {self.M}, grids h = pi/K for K in {list(cells)}; order from the "
+                 "three finest grids; extrapolated = Richardson from the two finest (assumes h^2)\n",
+                 "| q | quantity | " + " | ".join(f"K = {K}" for K in cells) + " | observed order | extrapolated |",
+                 "|---|---|" + "---|" * len(cells) + "---|---|"]
+        for label, q in Q_REPORT:
+            if any((K, round(q, 12)) not in self.values for K in cells):
+                continue                     # not a target of this branch (q = m pi / M)
+            for name in QUANTITIES:
+                xs = [self.values[(K, round(q, 12))][name] for K in cells]
+                order, extrap = richardson(xs, order=2)
+                lines.append(f"| {label} | {name} | " + " | ".join(f"{x:.8g}" for x in xs)
+                             + f" | {order:.2f} | {extrap:.8g} |")
+        return "\n".join(lines) + "\n"
+
+
+# --- small q ------------------------------------------------------------------------------------------------------
+SMALLQ_FORMAT = "hertzpetsc-smallq-1"
+SMALLQ_FIELDS = ("norm_inf", "slope", "N", "F", "rescaled_norm")
+
+
+@dataclass(frozen=True)
+class SmallQParameters:
+    """q from pi down to q_stop through the targets q_first 2^(-i / per_halving); on ``levels`` resolutions, level
+    l keeping at least cells_per_q 2^l cells per unit of q below q_first (:class:`RefiningGrid`)."""
+
+    alpha: float = 1.5
+    q_stop: float = math.pi / 400
+    q_first: float = math.pi / 50
+    per_halving: int = 4
+    cells_per_q: int = 20
+    levels: int = 3
+
+    def __post_init__(self):
+        if not (0 < self.q_stop <= self.q_first <= math.pi):
+            raise ParameterError("q_stop", self.q_stop, f"must satisfy 0 < q_stop <= q_first = {self.q_first:.6g} <= pi")
+        if not (isinstance(self.per_halving, (int, np.integer)) and self.per_halving >= 1):
+            raise ParameterError("per_halving", self.per_halving, "must be an integer >= 1")
+        if not (isinstance(self.levels, (int, np.integer)) and self.levels >= 3):
+            raise ParameterError("levels", self.levels, "must be an integer >= 3 (an order needs three grids)")
+        RefiningGrid(self.q_first, self.cells_per_q)          # validates cells_per_q
+
+    @property
+    def model(self):
+        return LatticeModel.hertz(self.alpha)
+
+    def targets(self):
+        """q_first 2^(-i/per_halving), i = 0, 1, ..., with q_stop appended if it falls between."""
+        qs, i = [], 0
+        while True:
+            q = self.q_first * 2.0 ** (-i / self.per_halving)
+            if q < self.q_stop * (1 - 1e-12):
+                break
+            qs.append(q)
+            i += 1
+        if abs(qs[-1] - self.q_stop) > 1e-12 * self.q_stop:
+            qs.append(self.q_stop)
+        return qs
+
+    def grid(self, level):
+        return RefiningGrid(self.q_first, self.cells_per_q, level)
+
+    def cells_per_pi(self, q, level):
+        return self.grid(level).cells_per_pi(q)
+
+    def identity(self):
+        return dict(alpha=self.alpha, q_stop=self.q_stop, q_first=self.q_first, per_halving=self.per_halving,
+                    cells_per_q=self.cells_per_q, levels=self.levels)
+
+
+def _legacy_smallq_progress(path, params):
+    """Rewrite a progress file of the first format (per-level columns, ``params`` JSON) as a record file."""
+    data = load_npz(path, "progress file")
+    if "format" in data or "params" not in data:
+        return
+    stored = json.loads(str(data["params"]))
+    if stored != params.identity():
+        raise RecordFileError(f"{path!r} holds another computation: it was made with {stored} (rerun with those "
+                              "options, or with -force to start afresh)")
+    records, state = [], {}
+    for lev in range(params.levels):
+        key = f"L{lev}_"
+        if key + "q" not in data:
+            continue
+        for i, (q, K) in enumerate(zip(data[key + "q"], data[key + "K"])):
+            records.append(dict(level=lev, q=float(q), K=int(K), **{f: float(data[key + f][i]) for f in SMALLQ_FIELDS}))
+        for j in range(2):
+            if key + f"seed{j}_q" in data:
+                for part in ("q", "K", "u"):
+                    state[f"{key}seed{j}_{part}"] = data[key + f"seed{j}_{part}"]
+    write_npz(path, npz_arrays(SMALLQ_FORMAT, params.identity(), ("level", "q", "K") + SMALLQ_FIELDS, records, state,
+                               {"level": np.int64, "K": np.int64}))
+
+
+class SmallQStudy:
+    """The branch below q_first on ``levels`` resolutions (section 3.2): at every target q the observed order and
+    the Richardson values of ||u||_inf, p(q), N(q) and ||u||_inf q^(2/(alpha-1)) (-> k_alpha).
+
+    The progress file (``progress``) is a record store: one record per (level, q), and the last two profiles of
+    each level as its state, from which a killed run resumes (``mode='resume'``; files of the first format are
+    converted).
+    """
+
+    def __init__(self, params, progress, comm, mode="new", prefix=TW_PREFIX):
+        self.params, self.comm, self.prefix, self.progress, self.mode = params, comm, prefix, progress, mode
+        self.store = None
+        self.continuation = ContinuationParameters(model=params.model, M=1, cells_per_pi=params.grid(0).cells_per_pi(
+            params.q_first))
+        configure_options(comm, prefix)
+
+    def open(self):
+        """Open the progress file (collective; one of the first format is converted when resumed)."""
+        if self.store is None:
+            if self.mode == "resume":
+                on_rank0(self.comm, _legacy_smallq_progress, self.progress, self.params,
+                         what=f"cannot read progress file {self.progress!r}")
+            self.store = NpzRecords(self.progress, SMALLQ_FORMAT, self.params.identity(), self.params.identity(),
+                                    ("level", "q", "K") + SMALLQ_FIELDS, self.comm, self.mode,
+                                    dtypes={"level": np.int64, "K": np.int64}, what="progress file")
+        return self
+
+    def rows(self, level):
+        return [r for r in self.store.records if int(r["level"]) == level]
+
+    def _seeds(self, level):
+        st = self.store.state
+        out = []
+        for j in range(2):
+            key = f"L{level}_seed{j}_"
+            if key + "q" in st:
+                out.append((float(st[key + "q"]), np.asarray(st[key + "u"], dtype=float)))
+        return out
+
+    def run(self):
+        """Yield (level, q, K, diagnostics) for every new target point, each saved before the next is tried."""
+        self.open()
+        p = self.params
+        M0 = max(1, round(math.pi / p.q_first))
+        path = paper_targets(M0, p.q_first) + p.targets()[1:]
+        for level in range(p.levels):
+            done = self.rows(level)
+            if done and float(done[-1]["q"]) <= p.q_stop * (1 + 1e-12):
+                continue
+            seeds = self._seeds(level)
+            for point in continue_branch(self.continuation, path, p.grid(level), self.comm, seeds, self.prefix):
+                if point.q > p.q_first * (1 + 1e-12):
+                    continue                   # on the way from pi to q_first
+                K = int(round(math.pi / point.h))
+                seeds = (seeds + [(point.q, point.u_half)])[-2:]
+                state = {}
+                for j, (q, u) in enumerate(seeds):
+                    state.update({f"L{level}_seed{j}_q": q, f"L{level}_seed{j}_K": int(round(len(u) - 1)),
+                                  f"L{level}_seed{j}_u": u})
+                d = point.diagnostics
+                self.store.append(dict(level=level, q=point.q, K=K, **{f: d[f] for f in SMALLQ_FIELDS}), state)
+                yield level, point.q, K, d
+
+    def extrapolations(self):
+        """{field: [(order, extrapolated) per target]} and the table of values [field][level, target]."""
+        p = self.params
+        targets = p.targets()
+        lookup = [{round(float(r["q"]), 12): r for r in self.rows(lev)} for lev in range(p.levels)]
+        missing = [q for q in targets if any(round(q, 12) not in lookup[lev] for lev in range(p.levels))]
+        if missing:
+            raise RecordFileError(f"the progress file lacks q = {missing[0]:.6g} on some level (run to the end first)")
+        table = {f: np.array([[float(lookup[lev][round(q, 12)][f]) for q in targets] for lev in range(p.levels)])
+                 for f in SMALLQ_FIELDS}
+        ext = {f: [richardson(table[f][-3:, i]) for i in range(len(targets))] for f in SMALLQ_FIELDS}
+        K_fine = {round(q, 12): int(lookup[-1][round(q, 12)]["K"]) for q in targets}
+        return table, ext, K_fine
+
+    def table(self, k_alpha):
+        p = self.params
+        targets = p.targets()
+        table, ext, K_fine = self.extrapolations()
+        levels = p.levels
+        lines = [f"alpha = {p.alpha}; level l keeps q/h >= {p.cells_per_q} 2^l (grid doubled each time q "
+                 f"halves below pi/50); k_alpha = {k_alpha:.7f} (solitary wave, n = 80, 160, 320, extrapolated). "
+                 "Orders and extrapolations from the three finest levels.\n",
+                 "| q | pi/q | K (finest) | " + " | ".join(f"product, level {lev}" for lev in range(levels))
+                 + " | order | product extrapolated | minus k_alpha | \\|\\|u\\|\\|_inf extrapolated | p(q) "
+                 "extrapolated | N(q) extrapolated | N order |", "|---" * (levels + 9) + "|"]
+        for i, q in enumerate(targets):
+            o, r = ext["rescaled_norm"][i]
+            lines.append(f"| {q:.6f} | {math.pi / q:.2f} | {K_fine[round(q, 12)]} | "
+                         + " | ".join(f"{table['rescaled_norm'][lev, i]:.7f}" for lev in range(levels))
+                         + f" | {o:.2f} | {r:.7f} | {r - k_alpha:+.2e} | {ext['norm_inf'][i][1]:.6e} | "
+                         f"{ext['slope'][i][1]:.6e} | {ext['N'][i][1]:.5f} | {ext['N'][i][0]:.2f} |")
+        return "\n".join(lines) + "\n"
+
+    def summary(self, k_alpha):
+        """The extrapolated products and N(q) against q (the JSON beside the table)."""
+        _, ext, _ = self.extrapolations()
+        return dict(k_alpha=k_alpha, q=self.params.targets(), product=[e[1] for e in ext["rescaled_norm"]],
+                    N=[e[1] for e in ext["N"]], params=asdict(self.params))

@@ -1,0 +1,322 @@
+"""Floquet studies of section 3.5: the scan of rho(F_q) along the branch on N beads (q_c, q_m), and the long-chain
+spectra by Bloch sectors.
+
+Both write their records as they go. The Floquet file (``hertzpetsc-floquet-1``, npz): constants N, alpha,
+tol_rho, method, refined_file (path or ''), note; per q: q, rho (trivial multipliers excluded), outside (|mu| > 1 +
+tol_rho), trivial_spread, growth (ln rho / script-T), multipliers (2N, nan-padded for the SLEPc route),
+refined (1 if the refined wave was used), seconds. The Bloch file (``hertzpetsc-bloch-1``): per (N, q): N, q,
+rho, rho_cell (sector theta = 0), outside, dominant (nev complex multipliers), dominant_theta (theta / 2 pi),
+residual, seconds, slepc_products, slepc_seconds.
+
+A stability verdict is only given for the waves it is computed on: with a refinement file, every scanned q must
+be in it (a list naming an unrefined q is an error; without a list the scan is restricted to the refined q,
+and the table says so); the unrefined branch waves are only used when asked for explicitly.
+"""
+import math
+import time
+from fractions import Fraction
+
+import numpy as np
+
+from ..bloch import (bloch_multipliers, bloch_residuals, real_pairs, sector_solver,
+                     seeded_dominant_multipliers)
+from ..errors import ParameterError, RecordFileError
+from ..floquet import (FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers,
+                       spectral_radius)
+from ..model import ChainSpec
+from ..records import NpzRecords, check_kind, load_npz
+from ..waves import orbit_on_chain
+from .refinement import scan_wavenumbers
+
+FLOQUET_FORMAT = "hertzpetsc-floquet-1"
+FLOQUET_FIELDS = ("q", "rho", "outside", "trivial_spread", "growth", "refined", "seconds")
+BLOCH_FORMAT = "hertzpetsc-bloch-1"
+BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "slepc_products", "slepc_seconds")
+
+
+def q_label(q):
+    """q as a fraction of pi (7pi/25), from the nearest denominator <= 100."""
+    f = Fraction(q / math.pi).limit_denominator(100)
+    return f"{f.numerator if f.numerator != 1 else ''}pi/{f.denominator}" if f.denominator != 1 else f"{f.numerator}pi"
+
+
+def critical_wavenumbers(q, rho, tol_rho):
+    """(q_c, next stable q above it or None, q_m): q_c the largest q with rho - 1 > tol_rho (nan if none is
+    unstable), q_m the q of the largest rho."""
+    q, rho = np.asarray(q, dtype=float), np.asarray(rho, dtype=float)
+    unstable = rho - 1 > tol_rho
+    if not unstable.any():
+        return math.nan, None, float(q[int(np.argmax(rho))])
+    qc = float(q[unstable].max())
+    above = ~unstable & (q > qc)
+    return qc, float(q[above].min()) if above.any() else None, float(q[int(np.argmax(rho))])
+
+
+def _select_wavenumbers(branch, N, qs, refined):
+    """The scanned q and, for the table, a note on how they were restricted."""
+    fitting = scan_wavenumbers(branch, N, qs)
+    if refined is None:
+        return fitting, "unrefined branch waves (interpolated onto the chain)"
+    if refined.N != N:
+        raise RecordFileError(f"refinement file {refined.path!r} is for N = {refined.N} beads, not {N}")
+    missing = [q for q in fitting if not refined.has(q)]
+    if qs:
+        if missing:
+            raise RecordFileError(f"refinement file {refined.path!r} has no refined state at q = {missing[0]:.12g}: "
+                                  "refine it first (refine_branch.py -q ...), or scan the unrefined branch wave "
+                                  "explicitly with -refined none")
+        return fitting, "refined waves"
+    kept = [q for q in fitting if refined.has(q)]
+    if not kept:
+        raise RecordFileError(f"refinement file {refined.path!r} holds none of the branch's wavenumbers on N = {N}")
+    if missing:
+        return kept, (f"refined waves; restricted to the {len(kept)} refined q in [{min(kept):.4f}, {max(kept):.4f}] "
+                      f"({len(missing)} branch q on N = {N} have no refined state)")
+    return kept, "refined waves"
+
+
+class FloquetScan:
+    """rho(F_q) along the branch on N beads around the refined waves (section 3.5, figs. floquet, eigen).
+
+    ``method``: 'dense' (all 2N multipliers, LAPACK on the assembled F_q, as the paper) or 'slepc' (the ``nev``
+    dominant ones, Krylov-Schur on the matrix-free operator, warm-started from the previous q). Prefix
+    ``floquet_`` (its flow ``-floquet_ts_*`` and eigensolver ``-floquet_eps_*``).
+    """
+
+    def __init__(self, branch, N, comm, output, mode="new", refined=None, qs=None, method="dense", nev=10,
+                 tol_rho=TOL_RHO, tolerances=FLOQUET_TOLERANCES):
+        if method not in ("dense", "slepc"):
+            raise ParameterError("-method", method, "must be dense or slepc")
+        self.branch, self.N, self.comm, self.method, self.nev = branch, N, comm, method, nev
+        self.tol_rho, self.tolerances, self.refined = tol_rho, tolerances, refined
+        self.spec = ChainSpec(branch.model, N)
+        self.qs, self.restriction = _select_wavenumbers(branch, N, qs, refined)
+        path = refined.path if refined is not None else ""
+        self._open = lambda: NpzRecords(output, FLOQUET_FORMAT,
+                                dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path,
+                                     note=self.restriction),
+                                dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path),
+                                FLOQUET_FIELDS + ("multipliers",), comm, mode,
+                                dtypes={"outside": np.int64, "refined": np.int64, "multipliers": complex},
+                                shapes={"multipliers": (2 * N,)}, what="Floquet file")
+        self.store = None
+        self.spectra = {}
+        self.solver = (DenseFloquet(self.spec, comm, tolerances) if method == "dense" else
+                       DominantFloquet(self.spec, comm, nev, tolerances))
+
+    def open(self):
+        """Open the Floquet file (collective)."""
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def orbit(self, q):
+        point = self.branch.point(q)
+        if self.refined is not None:
+            return self.refined.orbit(point, self.spec)
+        return orbit_on_chain(point, self.spec)
+
+    def run(self):
+        """Compute the spectrum at every q not yet in the file; yields the record after saving it."""
+        self.open()
+        done = {round(float(r["q"]), 12) for r in self.store.records}
+        warm = None
+        try:
+            for q in self.qs:
+                if round(q, 12) in done:
+                    continue
+                orbit = self.orbit(q)
+                t0 = time.perf_counter()
+                if self.method == "dense":
+                    spec = self.solver.spectrum(orbit, self.tol_rho)
+                else:
+                    res = self.solver.solve(orbit, initial_space=warm, keep_vectors=True)
+                    for v in warm or ():
+                        v.destroy()
+                    warm = res.vectors
+                    spec = Spectrum(res.values, False, self.tol_rho)
+                self.spectra[round(q, 12)] = spec
+                lam = spec.multipliers
+                row = dict(q=q, rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
+                           growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"),
+                           seconds=time.perf_counter() - t0,
+                           multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
+                self.store.append(row)
+                yield row
+        finally:
+            for v in warm or ():
+                v.destroy()
+
+    def destroy(self):
+        self.solver.destroy()
+
+    def consistency(self, q):
+        """rho(Phi_q) of the full-period monodromy against rho(F_q)^(N/m) at q (dense route): text for the table."""
+        row = next(r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q)
+        orbit = self.orbit(q)
+        tau = orbit.N / orbit.m * orbit.T
+        Phi = self.solver.monodromy(orbit, shift=False, T=tau)
+        rho_phi = spectral_radius(dense_multipliers(Phi))
+        rho = float(row["rho"])
+        return (f"consistency at q = {q:.4f} (m = {orbit.m}): rho(Phi_q) = {rho_phi:.6f} over tau = {tau:.4f}, "
+                f"rho(F_q)^(N/m) = {rho ** (orbit.N / orbit.m):.6f}, relative difference "
+                f"{abs(rho_phi - rho ** (orbit.N / orbit.m)) / rho_phi:.1e}")
+
+    def table(self, check_q=None):
+        rows = sorted(self.store.records, key=lambda r: -float(r["q"]))
+        q = np.array([float(r["q"]) for r in rows])
+        rho = np.array([float(r["rho"]) for r in rows])
+        growth = np.array([float(r["growth"]) for r in rows])
+        flow = f"rtol {self.tolerances.rtol:g}"
+        lines = [f"N = {self.N}, {self.method} route, tight flow ({flow}); rho excludes the 4 trivial multipliers; "
+                 f"unstable: rho - 1 > {self.tol_rho:g}. Waves: {self.restriction}.\n",
+                 "| q | rho(F_q) | multipliers outside | trivial spread | ln(rho)/script-T | state |",
+                 "|---|---|---|---|---|---|"]
+        for r in rows:
+            lines.append(f"| {float(r['q']):.4f} | {float(r['rho']):.8f} | {int(r['outside'])} | "
+                         f"{float(r['trivial_spread']):.1e} | {float(r['growth']):.4f} | "
+                         f"{'refined' if int(r['refined']) else 'branch'} |")
+        if not len(rows):
+            return "\n".join(lines) + "\n"
+        qc, qc_hi, qm = critical_wavenumbers(q, rho, self.tol_rho)
+        span = f" (within the scanned q in [{q.min():.4f}, {q.max():.4f}])"
+        if qc == qc and qc_hi is not None:
+            lines.append(f"\nq_c in ({qc:.4f}, {qc_hi:.4f}]: largest unstable q = {qc:.4f}, next stable q = "
+                         f"{qc_hi:.4f} (rho - 1 jumps from 0 at the threshold, so the bracket is the resolution of "
+                         "the q grid)" + span)
+        elif qc == qc:
+            lines.append(f"\nevery scanned q up to the largest, {q.max():.4f}, is unstable: q_c >= {qc:.4f}" + span)
+        else:
+            lines.append("\nno scanned q is unstable" + span)
+        im = int(np.argmax(rho))
+        lines.append(f"q_m (max rho) = {qm:.4f}, rho = {rho[im]:.6f}; max growth per unit time at q = "
+                     f"{q[int(np.argmax(growth))]:.4f}")
+        if check_q is not None and self.method == "dense" and np.min(np.abs(q - check_q)) < 1e-9:
+            lines.append(self.consistency(float(q[int(np.argmin(np.abs(q - check_q)))])))
+        return "\n".join(lines) + "\n"
+
+    def eigen_panels(self, labels):
+        """[(label, multipliers)] of the records at the (label, q) pairs that were scanned (fig. eigen)."""
+        out = []
+        for label, q in labels:
+            for r in self.store.records:
+                if abs(float(r["q"]) - q) < 1e-9:
+                    out.append((label, np.asarray(r["multipliers"])))
+        return out
+
+
+def floquet_reference(path):
+    """{round(q, 12): rho} from a Floquet file (either format), or {} if there is none."""
+    try:
+        data = load_npz(path, "Floquet file")
+    except RecordFileError:
+        return {}
+    if "format" in data:
+        check_kind(data, path, FLOQUET_FORMAT, "Floquet file")
+    return {round(float(a), 12): float(b) for a, b in zip(data["q"], data["rho"])}
+
+
+class BlochScan:
+    """All 2N multipliers of F_q on N = L M beads from Bloch sectors of the refined M-bead wave, the residuals of
+    the dominant modes on the full chain (matrix-free) and, for N in ``slepc_sizes``, seeded SLEPc (sec. 3.5)."""
+
+    def __init__(self, branch, refined, sizes, qs, comm, output, mode="new", nev=10, tol_rho=TOL_RHO,
+                 slepc_sizes=(), split="sectors", tolerances=FLOQUET_TOLERANCES, reference=None):
+        self.branch, self.refined, self.comm = branch, refined, comm
+        self.M = refined.N
+        self.cell = ChainSpec(branch.model, self.M)
+        for N in sizes:
+            if N % self.M:
+                raise ParameterError("-sizes", N, f"every chain length must be a multiple of the refined wave's "
+                                     f"{self.M} beads (it is tiled)")
+        if split not in ("sectors", "beads"):
+            raise ParameterError("-split", split, "must be sectors or beads")
+        self.sectors = sector_solver(self.cell, comm, split, tolerances)
+        self.sizes, self.nev, self.tol_rho, self.split = list(sizes), nev, tol_rho, split
+        self.slepc_sizes, self.tolerances, self.reference = set(slepc_sizes), tolerances, reference or {}
+        self.orbits = [refined.orbit(branch.point(q), self.cell) for q in qs]
+        self._open = lambda: NpzRecords(output, BLOCH_FORMAT,
+                                dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, split=split,
+                                     rtol=tolerances.rtol, refined_file=refined.path),
+                                dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, rtol=tolerances.rtol),
+                                BLOCH_FIELDS + ("dominant", "dominant_theta"), comm, mode,
+                                dtypes={"N": np.int64, "outside": np.int64, "slepc_products": np.int64,
+                                        "dominant": complex}, shapes={"dominant": (nev,), "dominant_theta": (nev,)},
+                                what="Bloch file")
+        self.store = None
+        self.extra = {}
+
+    def open(self):
+        """Open the Bloch file (collective)."""
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def run(self):
+        self.open()
+        done = {(int(r["N"]), round(float(r["q"]), 12)) for r in self.store.records}
+        for N in self.sizes:
+            L = N // self.M
+            for cell in self.orbits:
+                if (N, round(cell.q, 12)) in done:
+                    continue
+                t0 = time.perf_counter()
+                b = bloch_multipliers(cell, N, self.comm, self.tolerances, split=self.split, n_modes=self.nev,
+                                      sectors=self.sectors)
+                t_bloch = time.perf_counter() - t0
+                full = cell.tiled(L)
+                t0 = time.perf_counter()
+                res, res_products = bloch_residuals(full, real_pairs(b.modes, L), self.comm, self.tolerances)
+                t_res = time.perf_counter() - t0
+                slepc = None
+                if N in self.slepc_sizes:
+                    s = seeded_dominant_multipliers(full, b, self.nev, self.comm, self.tolerances)
+                    slepc = dict(products=s.products, seconds=s.wall_time, rho=float(abs(s.values[0])),
+                                 dist=max(float(np.min(np.abs(b.values[:self.nev + 2] - v))) for v in s.values))
+                row = dict(N=N, q=cell.q, rho=spectral_radius(b.values), rho_cell=spectral_radius(b.sector_values(0)),
+                           outside=int(np.sum(np.abs(b.values) > 1 + self.tol_rho)), residual=float(np.max(res)),
+                           seconds=t_bloch, slepc_products=slepc["products"] if slepc else -1,
+                           slepc_seconds=slepc["seconds"] if slepc else math.nan,
+                           dominant=np.array([mu for mu, _, _ in b.modes]),
+                           dominant_theta=np.array([j / L for _, j, _ in b.modes]))
+                self.extra[(N, round(cell.q, 12))] = dict(m=full.m, L=L, runs=b.runs, columns=b.columns,
+                                                           res_products=res_products, t_res=t_res, slepc=slepc)
+                self.store.append(row)
+                yield row, self.extra[(N, round(cell.q, 12))]
+
+    def destroy(self):
+        self.sectors.destroy()
+
+    def table(self, ranks):
+        M = self.M
+        lines = [f"Floquet multipliers modulo shifts on N = L x {M} beads (the refined {M}-bead wave tiled), by Bloch "
+                 f"sectors theta_j = 2 pi j / L of the {M}-bead cell (hertzpetsc.bloch), {ranks} rank(s), sectors "
+                 f"split over ranks ({self.split}); flow rtol {self.tolerances.rtol:g}, atol {self.tolerances.atol:g}."
+                 f" rho excludes the 4 trivial multipliers; outside: |lambda| > 1 + {self.tol_rho:g} among all 2N. "
+                 f"rho(cell) is sector theta = 0, i.e. the N = {M} chain; rho(N={M} table) is the Floquet scan's "
+                 "(rtol 1e-14). Residual: max relative ||F Y - lambda Y|| of the tiled Bloch modes of the dominant "
+                 "multipliers on the full chain (matrix-free, 2 shell products per complex pair). SLEPc: "
+                 "Krylov-Schur on the full-chain shell started from those modes (products, time, max distance of "
+                 "its multipliers to the Bloch ones).\n",
+                 "| N | q | m | rho(F_q) | rho(cell) | rho(N=100 table) | outside | Bloch runs x columns | Bloch time (s) "
+                 "| residual (products, s) | SLEPc seeded (products, s, max diff) |",
+                 "|---|---|---|---|---|---|---|---|---|---|---|"]
+        dominant = []
+        for r in self.store.records:
+            N, q = int(r["N"]), float(r["q"])
+            L = N // M
+            e = self.extra.get((N, round(q, 12)), {})
+            ref = self.reference.get(round(q, 12))
+            sl = e.get("slepc")
+            runs, cols = e.get("runs", L // 2 + 1), e.get("columns", 2 * M * (L // 2 + 1))
+            res_detail = (f"({e['res_products']}, {e['t_res']:.1f})" if "res_products" in e else "")
+            lines.append(f"| {N} | {q_label(q)} | {int(round(N * q / (2 * math.pi)))} | {float(r['rho']):.8f} | "
+                         f"{float(r['rho_cell']):.8f} | {f'{ref:.8f}' if ref is not None else 'n/a'} | "
+                         f"{int(r['outside'])} | {runs} x {cols // runs} | {float(r['seconds']):.1f} | "
+                         f"{float(r['residual']):.1e} {res_detail} | "
+                         + (f"{sl['products']}, {sl['seconds']:.1f}, {sl['dist']:.1e}" if sl else "not run") + " |")
+            dom = ", ".join(f"{abs(v):.6f} @ {np.angle(v) / math.pi:+.4f} [{t:.3f}]"
+                            for v, t in zip(r["dominant"], r["dominant_theta"]))
+            dominant.append(f"- N = {N}, q = {q_label(q)}: {dom}")
+        lines.append(f"\nThe {self.nev} dominant multipliers (|lambda|, arg lambda / pi, theta / 2 pi):\n")
+        return "\n".join(lines + dominant) + "\n"

@@ -1,0 +1,141 @@
+"""Long runs of a travelling wave on a periodic chain (section 3.4, figs. stabletw, unstabletw, shockbis): snapshots
+written as they are taken (:mod:`hertzpetsc.simulation`), exact resume, and the summary of what happened.
+
+D(t) = ||S^k X(k script-T) - X(0)||_inf / ||X(0)||_inf is the distance to the exact travelling wave at the
+multiples of script-T; the wave counts as destroyed when D > 0.1 (paper: stable at q = 3pi/10 over t ~ 4000,
+destroyed near t ~ 360 at q = 7pi/25).
+"""
+import math
+import os
+import time
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+from ..chain import CHAIN_PREFIX, Chain, ChainIntegrator
+from ..records import write_json
+from ..simulation import (check_times, decode, first_crossing, snapshot_record, snapshot_store, state_digest,
+                          wave_deviation)
+
+DESTRUCTION_LEVEL = 0.1
+
+
+@dataclass(frozen=True)
+class LongRunSummary:
+    """What a long run shows (``summary.json`` in its directory)."""
+
+    q: float
+    N: int
+    T: float
+    initial_state: str
+    t_final: float
+    snapshots: int
+    steps_this_session: int
+    wall_time_this_session: float
+    energy_drift: float
+    max_deviation: float
+    destruction_level: float
+    destruction_time: float
+    time_D_above_1em6: float
+    time_D_above_1em3: float
+    ts: str
+    rtol: float
+    atol: float
+
+    def as_dict(self):
+        return asdict(self)
+
+
+class LongRun:
+    """The orbit integrated to ``t_final`` with ``snapshots_per_T`` snapshots per script-T into the run directory
+    ``output`` (TS prefix ``chain_``; default RK 8(7), rtol 1e-12, atol 1e-14 as the paper). ``mode='resume'``
+    continues a killed run from its last snapshot, with the integrator's step, to the same trajectory."""
+
+    def __init__(self, orbit, t_final, snapshots_per_T, output, comm, mode="new", prefix=CHAIN_PREFIX):
+        self.orbit, self.output, self.comm = orbit, output, comm
+        self.dt_snap = orbit.T / snapshots_per_T
+        check_times(t_final, self.dt_snap)
+        self.t_final, self.snapshots_per_T = t_final, snapshots_per_T
+        self.chain = Chain(orbit.spec, comm)
+        self.integrator = ChainIntegrator(self.chain, prefix=prefix)
+        ts = self.integrator.ts
+        rtol, atol = ts.getTolerances()
+        self.header = dict(alpha=orbit.spec.alpha, N=orbit.N, boundary="periodic", q=orbit.q, T=orbit.T,
+                           initial_state=orbit.source, initial_state_sha256=state_digest(orbit.x),
+                           snapshot_dt=self.dt_snap, rtol=rtol, atol=atol, ts=f"{ts.getType()} {ts.getRKType()}",
+                           masses=list(orbit.spec.model.masses))
+        self.mode, self.store = mode, None
+        self.steps, self.wall = 0, 0.0
+
+    def open(self):
+        """Open the run directory (collective): a new one, or the snapshots of the run to resume."""
+        if self.store is None:
+            self.store = snapshot_store(self.output, self.header, self.comm, self.mode)
+        return self
+
+    @property
+    def resumed_at(self):
+        """The time of the last snapshot found when the run was opened (nan for a new run)."""
+        return float(self.store.records[-1][0]) if self.store.records else math.nan
+
+    def run(self, progress=None, every=50):
+        """Integrate from the last snapshot to t_final; ``progress(t, energy_drift, steps)`` is called every
+        ``every`` script-T."""
+        self.open()
+        chain, integ = self.chain, self.integrator
+        X = chain.create_state()
+        try:
+            if self.store.records:
+                t, E, dt, x = self._decode(self.store.records[-1])
+                E0 = float(self.store.records[0][1])
+            else:
+                x, t = self.orbit.x, 0.0
+                chain.set_from_array(X, x)
+                E0 = chain.energy(X)
+                dt = integ.ts.getTimeStep()
+                self.store.append(snapshot_record(0.0, E0, dt, x))
+            chain.set_from_array(X, x)
+            k = int(round(t / self.dt_snap))
+            t0 = time.perf_counter()
+            per_progress = self.snapshots_per_T * every
+            while (k + 1) * self.dt_snap <= self.t_final * (1 + 1e-12):
+                self.steps += integ.integrate(X, k * self.dt_snap, (k + 1) * self.dt_snap, dt=dt)
+                dt = integ.ts.getTimeStep()
+                k += 1
+                E = chain.energy(X)
+                self.store.append(snapshot_record(k * self.dt_snap, E, dt, chain.gather(X)))
+                if progress is not None and k % per_progress == 0:
+                    progress(k * self.dt_snap, (E - E0) / E0, self.steps)
+            self.wall += time.perf_counter() - t0
+        finally:
+            X.destroy()
+
+    def _decode(self, record):
+        times, energies, steps, states = decode(np.asarray(record)[None, :], self.orbit.N)
+        return float(times[0]), float(energies[0]), float(steps[0]), states[0]
+
+    def snapshots(self):
+        """(times, energies, steps, states) of every record."""
+        return decode(np.array(self.store.records), self.orbit.N)
+
+    def summary(self):
+        times, energies, _, states = self.snapshots()
+        tD, D = wave_deviation(times, states, states[0], self.orbit.T)
+        h = self.header
+        return LongRunSummary(q=self.orbit.q, N=self.orbit.N, T=self.orbit.T, initial_state=h["initial_state"],
+                              t_final=float(times[-1]), snapshots=len(times), steps_this_session=self.steps,
+                              wall_time_this_session=self.wall,
+                              energy_drift=float(np.max(np.abs(energies - energies[0])) / energies[0]),
+                              max_deviation=float(D.max()), destruction_level=DESTRUCTION_LEVEL,
+                              destruction_time=first_crossing(tD, D, DESTRUCTION_LEVEL),
+                              time_D_above_1em6=first_crossing(tD, D, 1e-6),
+                              time_D_above_1em3=first_crossing(tD, D, 1e-3), ts=h["ts"], rtol=h["rtol"], atol=h["atol"])
+
+    def write_summary(self):
+        summary = self.summary()
+        write_json(os.path.join(self.output, "summary.json"), summary.as_dict(), self.comm)
+        return summary
+
+    def destroy(self):
+        self.integrator.destroy()
+        self.chain.destroy()

@@ -1,0 +1,30 @@
+"""The long-wave limit (section 3.2): the branch at its smallest q against the inner solution (the solitary wave,
+eq. inner) and the composite approximation (eq. solapprox)."""
+from petsc4py import PETSc
+
+from ..longwave import compare_with_branch
+from ..solitary import SolitaryParameters, solve_solitary_wave
+
+Q_REPORT = 10     # the branch points with the 10 smallest q
+
+
+class LongWaveStudy:
+    """Errors of eq. solapprox and of the inner solution, relative to k_alpha, at the ``count`` smallest q."""
+
+    def __init__(self, branch, cells_per_unit=160, window=0.1, count=Q_REPORT):
+        self.branch, self.n, self.window = branch, cells_per_unit, window
+        self.wave = solve_solitary_wave(SolitaryParameters(branch.alpha, cells_per_unit, 8.0), PETSc.COMM_SELF)
+        order = sorted(branch.points, key=lambda p: p.q)[:count]
+        self.rows = [compare_with_branch(self.wave, p, window) for p in order]
+        self.smallest = order[0]
+
+    def table(self):
+        b, w = self.branch, self.wave
+        lines = [f"alpha = {b.alpha}, branch h = pi/{b.cells_per_pi}; k_alpha = {w.k_alpha:.7f} (solitary wave, "
+                 f"delta = 1/{self.n}). Errors relative to k_alpha; window |xi - pi| <= {self.window}.\n",
+                 "| q | composite, max over the period | composite, max in the window | inner solution, max in the "
+                 "window | \\|u\\|_inf q^(2/(alpha-1)) | minus k_alpha |", "|---|---|---|---|---|---|"]
+        for r in self.rows:
+            lines.append(f"| {r.q:.4f} | {r.max_error:.4f} | {r.window_error:.4f} | {r.inner_window_error:.4f} "
+                         f"| {r.rescaled_norm:.5f} | {r.rescaled_norm - w.k_alpha:+.5f} |")
+        return "\n".join(lines) + "\n"

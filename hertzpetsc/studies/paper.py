@@ -1,0 +1,145 @@
+"""The whole paper in one run: every study of sections 3.1-3.5 and the appendix, in order, each through its driver,
+regenerating every table and figure the README quotes for them (the benchmarks are apart: they need an idle
+machine).
+
+Each step runs its driver in a process of its own (under ``mpiexec -n ranks`` where the driver is parallel), with
+its output in ``<log dir>/<step>.log``. The pipeline's own record store holds, per step, when it was started and
+when it finished: a resumed pipeline skips the finished steps, continues an interrupted step from its own record
+file (``-resume``) where the driver has one, and starts the others afresh (``-force`` overwrites the record files
+of earlier complete runs, e.g. the committed results).
+"""
+import os
+import subprocess
+import sys
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import HertzPetscError, ParameterError
+from ..records import NpzRecords, make_directory
+
+PAPER_FORMAT = "hertzpetsc-paper-1"
+
+
+class StepFailure(HertzPetscError):
+    """A step of the pipeline failed: the driver's own last line, and its exit status."""
+
+    def __init__(self, message, exit_status):
+        self.exit_status = exit_status
+        super().__init__(message)
+
+
+@dataclass(frozen=True)
+class Step:
+    """One driver run: ``script`` with ``args``; ``record`` is the record file (or run directory) it resumes."""
+
+    name: str
+    section: str
+    script: str
+    args: tuple
+    parallel: bool = True
+    record: str = ""
+
+
+def paper_steps(figures="figures", runs="runs"):
+    """The studies of the paper, in the order in which their inputs become available."""
+    long_runs = (("q3pi10", "3*pi/10", 4000, ()), ("q7pi25", "7*pi/25", 600, ()),
+                 ("q7pi25_tight", "7*pi/25", 600, ("-chain_ts_rtol", "1e-14", "-chain_ts_atol", "1e-16")),
+                 ("q9pi50", "9*pi/50", 600, ()), ("qpi50", "pi/50", 1200, ()))
+    windows = {"q3pi10": "3760:3980", "q7pi25": "200:420", "q7pi25_tight": "250:470", "q9pi50": "0:600",
+               "qpi50": "750:1150"}
+    steps = [
+        Step("branch", "3.1", "continuation.py", ("-output", "results/branch_alpha1.5.npz", "-figures", figures),
+             record="results/branch_alpha1.5.npz"),
+        Step("paper_table", "3.1", "paper_table.py", ("-branch", "results/branch_alpha1.5.npz", "-output",
+                                                      "results/paper_table.md"), parallel=False),
+        Step("convergence_h", "3.1", "convergence_h.py", ("-output", "results/convergence_h.md")),
+        Step("solitary_wave", "appendix", "solitary_wave.py", ("-output", "results/solitary.md", "-figures", figures)),
+        Step("long_wave", "3.2", "long_wave.py", ("-output", "results/long_wave.md", "-figures", figures),
+             parallel=False),
+        Step("small_q", "3.2", "small_q.py", ("-progress", f"{runs}/small_q.npz", "-output", "results/small_q.md",
+                                              "-figures", figures), record=f"{runs}/small_q.npz"),
+        Step("small_q_pi1600", "3.2", "small_q.py", ("-q_stop", "pi/1600", "-progress", f"{runs}/small_q1600.npz",
+                                                     "-output", "results/small_q_pi1600.md"),
+             record=f"{runs}/small_q1600.npz"),
+        Step("branch_K4000", "3.3", "continuation.py", ("-cells_per_pi", "4000", "-output",
+                                                        f"{runs}/branch_K4000.npz"), record=f"{runs}/branch_K4000.npz"),
+        Step("compactons", "3.3", "compactons.py", ("-branches", f"results/branch_alpha1.5.npz,{runs}/branch_K4000.npz",
+                                                    "-q", "7*pi/25,pi/10,pi/50", "-output", "results/compactons.md",
+                                                    "-figures", figures)),
+        Step("refine_branch", "3.4", "refine_branch.py", ("-figures", figures), record="results/refined_N100.npz"),
+        Step("floquet_scan", "3.5", "floquet_scan.py", ("-figures", figures), record="results/floquet_N100.npz"),
+        Step("floquet_long", "3.5", "floquet_long.py", ("-sizes", "1000,10000"), record="results/floquet_long.npz"),
+    ]
+    for name, q, t_final, extra in long_runs:
+        steps.append(Step(f"long_run_{name}", "3.4", "long_run.py",
+                          ("-q", q, "-t_final", str(t_final), "-refined", "results/refined_N100.npz", "-output",
+                           f"{runs}/{name}", *extra), record=f"{runs}/{name}"))
+    steps.append(Step("dynamics_figures", "3.4", "dynamics_figures.py",
+                      ("-runs", ",".join(f"{runs}/{name}:{windows[name]}" for name, *_ in long_runs), "-figures",
+                       figures, "-table", "results/long_runs.md"), parallel=False))
+    return steps
+
+
+class PaperPipeline:
+    """Run :func:`paper_steps` (or ``only`` of them) from the repository ``root`` with ``ranks`` ranks, keeping
+    the progress in ``progress`` (mode new, resume or force) and each step's output in ``logs``."""
+
+    def __init__(self, root, progress, logs, mode="new", ranks=2, steps=None, only=None, python=sys.executable):
+        steps = list(steps or paper_steps())
+        names = [s.name for s in steps]
+        if only:
+            unknown = [n for n in only if n not in names]
+            if unknown:
+                raise ParameterError("-steps", ",".join(only), f"{unknown[0]!r} is not a step; the steps are "
+                                     + ", ".join(names))
+            steps = [s for s in steps if s.name in only]
+        self.root, self.logs, self.ranks, self.python, self.steps = root, logs, ranks, python, steps
+        self.progress, self.mode, self.store = progress, mode, None
+
+    def open(self):
+        """Open the progress file."""
+        if self.store is None:
+            names = ",".join(s.name for s in self.steps)
+            self.store = NpzRecords(self.progress, PAPER_FORMAT, dict(steps=names), dict(steps=names),
+                                    ("name", "event", "seconds"), None, self.mode,
+                                    dtypes={"name": np.str_, "event": np.str_}, what="pipeline progress file")
+            make_directory(os.path.join(self.logs, "log"), "log")
+        return self
+
+    def _events(self, name):
+        return [str(r["event"]) for r in self.store.records if str(r["name"]) == name]
+
+    def command(self, step):
+        """The command line of a step: continued (-resume) if it was interrupted and has a record, else afresh."""
+        args = list(step.args)
+        if step.record:
+            interrupted = "started" in self._events(step.name)
+            args.append("-resume" if interrupted and os.path.exists(os.path.join(self.root, step.record))
+                        else "-force")
+        cmd = [self.python, os.path.join(self.root, "scripts", step.script), *args]
+        return (["mpiexec", "-n", str(self.ranks), *cmd] if step.parallel and self.ranks > 1 else cmd), args
+
+    def run(self):
+        """Yield (index, step, seconds or None if it was already done, the arguments used) step by step."""
+        self.open()
+        for i, step in enumerate(self.steps, 1):
+            if "done" in self._events(step.name):
+                yield i, step, None, ()
+                continue
+            cmd, args = self.command(step)
+            self.store.append(dict(name=step.name, event="started", seconds=0.0))
+            log = os.path.join(self.logs, f"{step.name}.log")
+            t0 = time.perf_counter()
+            with open(log, "w") as out:
+                rc = subprocess.run(cmd, cwd=self.root, stdout=out, stderr=subprocess.STDOUT,
+                                    env=dict(os.environ)).returncode
+            seconds = time.perf_counter() - t0
+            if rc != 0:
+                with open(log) as f:
+                    tail = [line.strip() for line in f.read().splitlines() if line.strip()][-1:]
+                raise StepFailure(f"step {i} ({step.name}, scripts/{step.script}) failed with exit status {rc}: "
+                                  + (tail[0] if tail else "no output") + f" (log: {log})", rc)
+            self.store.append(dict(name=step.name, event="done", seconds=seconds))
+            yield i, step, seconds, args

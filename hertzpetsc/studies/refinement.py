@@ -1,0 +1,159 @@
+"""The refinement scan of section 3.4: E(q) of the branch waves on a periodic chain before and after Gauss-Newton
+refinement, and the refinement file that the Floquet, Bloch and long-run studies read the refined waves from.
+
+The refinement file is a numpy ``.npz`` archive (record store, rewritten atomically after each q):
+
+=====================  =========  ======================================================================
+name                   shape      meaning
+=====================  =========  ======================================================================
+format                 ()         ``hertzpetsc-refined-1``
+alpha, N               ()         Hertz exponent, beads of the periodic chain
+branch                 ()         path of the branch file the waves came from
+tol                    ()         target E of the refinement
+q                      (P,)       wavenumbers 2 pi m / N
+x                      (P, N, 2)  refined (x_n, xdot_n)
+E_before, E_after      (P,)       E(q) of the interpolated branch wave / of the refined state, tight flow
+E_before_paper_flow    (P,)       the same with the paper's flow (rtol 1e-12, atol 1e-14)
+E_after_paper_flow     (P,)
+r                      (P,)       relative size of the last Gauss-Newton step (the paper's r(q))
+iterations, jacobians  (P,)       Gauss-Newton iterations, Jacobian evaluations
+wall_time              (P,)       seconds
+sigma_min              (P,)       smallest singular value of the phase-conditioned Jacobian
+=====================  =========  ======================================================================
+"""
+import math
+
+import numpy as np
+
+from ..chain import CHAIN_PREFIX
+from ..errors import ParameterError, RecordFileError
+from ..model import ChainSpec
+from ..records import NpzRecords, check_kind, load_npz, on_rank0
+from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
+from ..waves import chain_wavenumbers, check_chain_wavenumber, orbit_on_chain
+
+REFINED_FORMAT = "hertzpetsc-refined-1"
+REFINED_FIELDS = ("q", "E_before_paper_flow", "E_before", "E_after", "E_after_paper_flow", "r", "iterations",
+                  "jacobians", "wall_time", "sigma_min")
+
+
+class RefinedStates:
+    """The refined waves of a refinement file (N beads), looked up by q."""
+
+    def __init__(self, path, data):
+        self.path, self.data = path, data
+        self.N, self.alpha = int(data["N"]), float(data["alpha"])
+        self.q = np.asarray(data["q"], dtype=float)
+
+    @classmethod
+    def load(cls, path, comm=None):
+        """Read a refinement file (with a communicator: on rank 0, the result or the error on every rank)."""
+        if comm is not None:
+            return on_rank0(comm, cls.load, path, what=f"cannot read refinement file {path!r}")
+        data = load_npz(path, "refinement file")
+        check_kind(data, path, REFINED_FORMAT, "refinement file")
+        missing = set(REFINED_FIELDS) - set(data)
+        if missing or "x" not in data:
+            raise RecordFileError(f"refinement file {path!r} is corrupt: missing {sorted(missing | {'x'} - set(data))}")
+        return cls(path, data)
+
+    def column(self, name):
+        return np.asarray(self.data[name])
+
+    def has(self, q):
+        return bool(len(self.q)) and float(np.min(np.abs(self.q - q))) <= 1e-12 * max(1.0, q)
+
+    def state(self, q):
+        """The refined (N, 2) state at q, or None."""
+        i = np.nonzero(np.abs(self.q - q) <= 1e-12 * max(1.0, q))[0]
+        return self.data["x"][i[0]] if len(i) else None
+
+    def orbit(self, point, spec=None):
+        """The refined orbit of branch point ``point`` on the file's chain (RecordFileError if it lacks q)."""
+        spec = spec or ChainSpec(point.model, self.N)
+        if spec.N != self.N:
+            raise RecordFileError(f"refinement file {self.path!r} is for N = {self.N} beads, not {spec.N}")
+        if abs(point.model.alpha - self.alpha) > 1e-12:
+            raise RecordFileError(f"refinement file {self.path!r} is for alpha = {self.alpha}, not {point.model.alpha}")
+        x = self.state(point.q)
+        if x is None:
+            raise RecordFileError(f"refinement file {self.path!r} has no refined state at q = {point.q:.12g}")
+        return orbit_on_chain(point, spec).with_state(x, "refined")
+
+
+def scan_wavenumbers(branch, N, qs=None):
+    """The q of the scan: those of ``qs`` (each must be a branch point fitting N beads), or every branch q that
+    fits the chain. ParameterError naming the option otherwise."""
+    if qs:
+        for q in qs:
+            branch.point(q)
+            check_chain_wavenumber(q, N)
+        return [branch.point(q).q for q in qs]
+    fitting = chain_wavenumbers(branch.q, N)
+    if not fitting:
+        raise ParameterError("-N", N, "no branch wavenumber q has N q / (2 pi) integer")
+    return fitting
+
+
+class RefinementScan:
+    """E(q) before and after Gauss-Newton refinement for the branch waves at ``qs`` on N beads (section 3.4).
+
+    The refinement's flows and Gauss-Newton use the prefix ``shoot_`` (tight flow, rtol 1e-14); E with the paper's
+    flow uses ``chain_``. Each refined state is appended to the refinement file ``output`` before the next q.
+    """
+
+    def __init__(self, branch, branch_path, N, comm, output, mode="new", qs=None, tol=1e-10):
+        self.branch, self.N, self.comm = branch, N, comm
+        self.spec = ChainSpec(branch.model, N)
+        self.qs = scan_wavenumbers(branch, N, qs)
+        self.refiner = Refiner(self.spec, comm, tol, prefix=SHOOT_PREFIX)
+        self.paper_flow = ShiftMap(self.spec, comm, PAPER_TOLERANCES, CHAIN_PREFIX)
+        self._open = lambda: NpzRecords(output, REFINED_FORMAT, dict(alpha=branch.alpha, N=N, branch=branch_path,
+                                                                     tol=tol), dict(alpha=branch.alpha, N=N, tol=tol),
+                                        REFINED_FIELDS + ("x",), comm, mode, shapes={"x": (N, 2)},
+                                        what="refinement file")
+        self.store = None
+
+    def open(self):
+        """Open the refinement file (collective)."""
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def done(self):
+        return {round(float(r["q"]), 12) for r in self.store.records}
+
+    def run(self):
+        """Refine every q not yet in the file; yields the record (a dict of the fields) after saving it."""
+        self.open()
+        try:
+            for q in self.qs:
+                if round(q, 12) in self.done():
+                    continue
+                orbit = orbit_on_chain(self.branch.point(q), self.spec)
+                E_paper = self.paper_flow.residual(orbit)
+                res = self.refiner.refine(orbit)
+                E_after_paper = self.paper_flow.residual(res.orbit)
+                row = dict(q=q, x=res.x, E_before_paper_flow=E_paper, E_before=res.E_initial, E_after=res.E,
+                           E_after_paper_flow=E_after_paper, r=res.r, iterations=res.iterations,
+                           jacobians=res.jacobians, wall_time=res.wall_time, sigma_min=res.sigma_min)
+                self.store.append(row)
+                yield row
+        finally:
+            self.refiner.destroy()
+            self.paper_flow.destroy()
+
+    def table(self):
+        rows = sorted(self.store.records, key=lambda r: -float(r["q"]))
+        N = self.N
+        lines = [f"N = {N} beads. E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf. 'paper flow': adaptive RK "
+                 "8(7) with rtol 1e-12, atol 1e-14 (the paper's tolerances); 'tight flow': rtol 1e-14, atol 1e-16 "
+                 "(used for the refinement and its E). r = relative change of the last Gauss-Newton step.\n",
+                 "| q | m | E before (paper flow) | E before (tight flow) | E after (tight flow) | E after (paper flow) "
+                 "| r(q) | GN its | Jacobians |", "|---|---|---|---|---|---|---|---|---|"]
+        for r in rows:
+            q = float(r["q"])
+            lines.append(f"| {q:.4f} | {int(round(q * N / (2 * math.pi)))} | {r['E_before_paper_flow']:.2e} | "
+                         f"{r['E_before']:.2e} | {r['E_after']:.2e} | {r['E_after_paper_flow']:.2e} | "
+                         f"{r['r']:.1e} | {int(r['iterations'])} | {int(r['jacobians'])} |")
+        return "\n".join(lines) + "\n"

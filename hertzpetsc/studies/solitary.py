@@ -1,0 +1,57 @@
+"""The solitary wave of unit velocity and k_alpha (appendix): convergence in the grid step and the domain."""
+from petsc4py import PETSc
+
+from ..errors import ParameterError
+from ..richardson import richardson
+from ..solitary import SolitaryParameters, configure_options, solve_solitary_wave
+
+
+def k_alpha_extrapolated(alpha, cells=(80, 160, 320), half_length=8.0):
+    """k_alpha extrapolated in the grid step (Richardson with the observed order) from three solves on one rank."""
+    ks = [solve_solitary_wave(SolitaryParameters(alpha, n, half_length), PETSc.COMM_SELF).k_alpha for n in cells]
+    return richardson(ks)[1]
+
+
+class SolitaryStudy:
+    """For each alpha: k_alpha (eq. kal2) on grids 1/n, n in ``cells`` (at least 3, all different), at L = 8, the
+    observed order and the Richardson value (delta^2); and k_alpha for L in ``lengths`` at the finest n."""
+
+    def __init__(self, alphas, cells, lengths, comm):
+        cells = sorted(int(n) for n in cells)
+        if len(cells) < 3 or len(set(cells)) != len(cells):
+            raise ParameterError("-cells", cells, "needs at least three different grids for an observed order")
+        for n in cells:
+            SolitaryParameters(1.5, n)                 # validates n before any solve
+        self.alphas, self.cells, self.lengths, self.comm = list(alphas), cells, sorted(lengths), comm
+        self.results = {}
+        self.finest = {}
+        configure_options(comm)
+
+    def run(self):
+        """Solve for every alpha; yields alpha after each."""
+        for alpha in self.alphas:
+            waves = [solve_solitary_wave(SolitaryParameters(alpha, n, 8.0), self.comm) for n in self.cells]
+            # the domain study accepts any tail (tail_tolerance 1) and reports it
+            lengths = [solve_solitary_wave(SolitaryParameters(alpha, self.cells[-1], L, tail_tolerance=1.0),
+                                           self.comm) for L in self.lengths]
+            self.results[alpha] = ([w.k_alpha for w in waves], lengths)
+            self.finest[alpha] = waves[-1]
+            yield alpha
+
+    def section(self, alpha):
+        ks, wl = self.results[alpha]
+        order, extrap = richardson(ks, order=2)
+        cells, lengths = self.cells, self.lengths
+        return [f"\n### alpha = {alpha}\n", "| n (delta = 1/n) | " + " | ".join(str(n) for n in cells)
+                + " | observed order | extrapolated |", "|---|" + "---|" * (len(cells) + 2),
+                "| k_alpha (L = 8) | " + " | ".join(f"{k:.8f}" for k in ks) + f" | {order:.2f} | {extrap:.7f} |",
+                "", "| L | " + " | ".join(f"{L:g}" for L in lengths) + " |", "|---|" + "---|" * len(lengths),
+                f"| k_alpha (n = {cells[-1]}) | " + " | ".join(f"{w.k_alpha:.10f}" for w in wl) + " |",
+                "| max \\|r\\| at \\|s\\| >= L-1, relative | " + " | ".join(f"{w.tail:.1e}" for w in wl) + " |"]
+
+    def table(self):
+        lines = ["k_alpha = -sum_k r(k + 1/2) (eq. kal2) of the unit-velocity solitary wave of eq. adr, grid step "
+                 "delta = 1/n on [-L, L]; order from the three finest grids; extrapolated = Richardson (delta^2).\n"]
+        for alpha in self.alphas:
+            lines += self.section(alpha)
+        return "\n".join(lines) + "\n"

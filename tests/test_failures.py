@@ -1,0 +1,268 @@
+"""The failure matrix: every driver against every class of bad input (a mistyped option, -help, an output that
+cannot be written, a missing input, an input of another kind, a bad list, an existing record file without
+-resume or -force, a bad solver option), then the same classes as real processes serially and under
+``mpiexec -n 2`` with a timeout, and kill-and-resume.
+
+The matrix runs each driver's ``main`` in this process (through its ``guarded_main``: one ``error:`` line and the
+exit status), which is what makes it cheap; the process tests show the same lines and statuses from real
+processes, on every rank, with no hang and with the files left intact.
+"""
+import math
+import os
+import runpy
+import signal
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from conftest import RESULTS, SCRIPTS, one_error_line, run_script, script_env
+from hertzpetsc.branch import Branch
+from hertzpetsc.options import guarded_main
+from hertzpetsc.simulation import read_snapshots
+
+pytestmark = pytest.mark.serial           # the matrix exits through guarded_main; the MPI cases launch mpiexec
+
+BRANCH = f"{RESULTS}/branch_alpha1.5.npz"
+REFINED = f"{RESULTS}/refined_N100.npz"
+FLOQUET = f"{RESULTS}/floquet_N100.npz"
+
+# driver: (arguments of a run that would start, its input option, its record output option, a bad list,
+#          a bad solver option); {t} is a fresh directory, {f} a plain file in it
+DRIVERS = {
+    "continuation.py": (("-M", 5, "-cells_per_pi", 50, "-q_stop", "0.6*pi", "-output", "{t}/b.npz"), None, "output",
+                        None, ("-tw_pc_type", "bogus")),
+    "paper_table.py": (("-branch", BRANCH, "-output", "{t}/t.md"), "branch", None, None, None),
+    "convergence_h.py": (("-M", 5, "-cells", "20,40,80", "-output", "{t}/c.md"), None, None,
+                         ("-cells", "20,40,40"), ("-tw_pc_type", "bogus")),
+    "refine_branch.py": (("-branch", BRANCH, "-N", 20, "-q", "2*pi/5", "-output", "{t}/r.npz", "-table", "{t}/r.md"),
+                         "branch", "output", ("-q", "2*pi/5,0"), ("-shoot_ts_type", "bogus")),
+    "floquet_scan.py": (("-branch", BRANCH, "-refined", REFINED, "-q", "3*pi/10", "-output", "{t}/f.npz", "-table",
+                         "{t}/f.md"), "refined", "output", ("-q", "3*pi/10,3*pi/10"), ("-floquet_ts_type", "bogus")),
+    "floquet_long.py": (("-branch", BRANCH, "-refined", REFINED, "-sizes", 200, "-q", "7*pi/25", "-output",
+                         "{t}/l.md", "-npz", "{t}/l.npz"), "refined", "npz", ("-sizes", 150),
+                        ("-floquet_ts_type", "bogus")),
+    "long_run.py": (("-branch", BRANCH, "-q", "3*pi/10", "-t_final", 1, "-output", "{t}/run"), "branch", "output",
+                    None, ("-chain_ts_type", "bogus")),
+    "dynamics_figures.py": (("-runs", "{t}/run", "-figures", "{t}/fig", "-table", "{t}/d.md"), "runs", None,
+                            ("-runs", ""), None),
+    "small_q.py": (("-q_stop", "pi/60", "-per_halving", 1, "-cells_per_q", 4, "-progress", "{t}/p.npz", "-output",
+                    "{t}/s.md"), None, "progress", None, ("-tw_pc_type", "bogus")),
+    "solitary_wave.py": (("-alphas", "1.5", "-cells", "10,20,40", "-lengths", 5, "-output", "{t}/s.md"), None, None,
+                         ("-alphas", "1.5,1.5"), ("-sol_pc_type", "bogus")),
+    "long_wave.py": (("-branch", BRANCH, "-cells_per_unit", 20, "-output", "{t}/w.md"), "branch", None, None,
+                     ("-sol_pc_type", "bogus")),
+    "compactons.py": (("-branches", BRANCH, "-q", "7*pi/25", "-travel", 5, "-output", "{t}/c.md"), "branches", None,
+                      ("-q", ""), ("-chain_ts_type", "bogus")),
+    "paper.py": (("-steps", "paper_table", "-progress", "{t}/p.npz", "-logs", "{t}/logs"), None, "progress",
+                 ("-steps", "paper_table,bogus"), None),
+    "bench_branch.py": (("-cells", 100, "-output", "{t}/b.md"), None, "records", ("-cells", "100,100"), None),
+    "bench_chain.py": (("-sizes", 20, "-branch", BRANCH, "-output", "{t}/b.md"), "branch", "records", ("-sizes", 30),
+                       None),
+    "bench_newton.py": (("-cells", 100, "-output", "{t}/b.md"), None, "records", ("-cells", ""), None),
+    "bench_floquet.py": (("-sizes", 100, "-branch", BRANCH, "-refined", REFINED, "-output", "{t}/b.md"), "refined",
+                         "records", ("-sizes", 150), None),
+    "bench_report.py": (("-workloads", "branch", "-output", "{t}/b.md"), None, "records", ("-workloads", "gpu"),
+                        None),
+}
+
+
+def test_every_driver_is_in_the_matrix():
+    drivers = {f for f in os.listdir(SCRIPTS) if f.endswith(".py") and f != "benchlib.py"}
+    assert drivers == set(DRIVERS)
+
+
+def drive(script, args, capfd, monkeypatch, cwd):
+    """Run the driver's main in this process under its guarded_main: (exit status, stdout, stderr lines)."""
+    monkeypatch.chdir(cwd)
+    monkeypatch.syspath_prepend(SCRIPTS)                      # the benchmarks import their harness
+    main = runpy.run_path(os.path.join(SCRIPTS, script), run_name="hz_matrix")["main"]
+    opts = PETSc.Options()
+    before = set(opts.getAll())
+    names = []
+    it = iter(map(str, args))
+    for a in it:
+        name = a[1:]
+        value = None
+        nxt = next(it, None)
+        if nxt is not None and not (nxt.startswith("-") and not nxt[1:2].isdigit()):
+            value = nxt
+        elif nxt is not None:
+            it = iter([nxt, *it])
+        opts.setValue(name, value)
+        names.append(name)
+    capfd.readouterr()
+    try:
+        guarded_main(main)
+        code = 0
+    except SystemExit as done:
+        code = done.code
+    finally:
+        for key in set(opts.getAll()) - before:
+            opts.delValue(key)
+    out = capfd.readouterr()
+    return code, out.out, [line for line in out.err.splitlines() if line.strip()]
+
+
+def fill(args, t):
+    return [str(a).replace("{t}", str(t)) for a in args]
+
+
+def swap(args, option, value):
+    """``args`` with -option set to value (appended if absent)."""
+    args = list(args)
+    if f"-{option}" not in args:
+        return args + [f"-{option}", value]
+    args[args.index(f"-{option}") + 1] = value
+    return args
+
+
+def cases():
+    for script, (base, inp, record, bad_list, bad_solver) in DRIVERS.items():
+        yield script, "typo"
+        yield script, "help"
+        yield script, "unwritable"
+        if inp:
+            yield script, "missing input"
+            yield script, "wrong kind"
+        if record:
+            yield script, "existing record"
+        if bad_list:
+            yield script, "bad list"
+        if bad_solver:
+            yield script, "bad solver option"
+
+
+@pytest.mark.parametrize("script,failure", list(cases()))
+def test_failure_matrix(script, failure, tmp_path, capfd, monkeypatch):
+    base, inp, record, bad_list, bad_solver = DRIVERS[script]
+    args = fill(base, tmp_path)
+    (tmp_path / "afile").write_text("not a directory")
+    if failure == "typo":
+        code, _, err = drive(script, args + ["-alpah", "2"], capfd, monkeypatch, tmp_path)
+        assert code == 2 and len(err) == 1 and err[0].startswith("error: unknown option -alpah"), err
+    elif failure == "help":
+        work = tmp_path / "help"
+        work.mkdir()
+        code, out, err = drive(script, ["-help"], capfd, monkeypatch, work)
+        assert code == 0 and not err and "Application options" in out
+        assert list(work.iterdir()) == []                       # nothing computed, nothing written
+    elif failure == "unwritable":
+        option = record or ("output" if "-output" in args else "table")
+        code, _, err = drive(script, swap(args, option, str(tmp_path / "afile" / "x")), capfd, monkeypatch, tmp_path)
+        assert code == 4 and len(err) == 1 and "is not a directory" in err[0], err
+    elif failure == "missing input":
+        code, _, err = drive(script, swap(args, inp, str(tmp_path / "missing.npz")), capfd, monkeypatch, tmp_path)
+        assert code == 4 and len(err) == 1 and ("does not exist" in err[0] or "missing" in err[0]), err
+    elif failure == "wrong kind":
+        other = FLOQUET if inp != "runs" else str(tmp_path)
+        code, _, err = drive(script, swap(args, inp, other), capfd, monkeypatch, tmp_path)
+        assert code == 4 and len(err) == 1, err
+        assert "but a" in err[0] or "no run in" in err[0] or "not a hertzpetsc" in err[0], err
+    elif failure == "existing record":
+        target = args[args.index(f"-{record}") + 1] if f"-{record}" in args else str(tmp_path / "rec.npz")
+        if f"-{record}" not in args:
+            args += [f"-{record}", target]
+        os.makedirs(target, exist_ok=True) if record == "output" and script == "long_run.py" else None
+        (tmp_path / "run" / "run.json").write_text("{}") if script == "long_run.py" else open(target, "w").close()
+        code, _, err = drive(script, args, capfd, monkeypatch, tmp_path)
+        assert code == 4 and len(err) == 1 and "-resume" in err[0] and "-force" in err[0], err
+    elif failure == "bad list":
+        option, value = bad_list[0].lstrip("-"), bad_list[1]
+        code, _, err = drive(script, swap(args, option, value), capfd, monkeypatch, tmp_path)
+        assert code == 2 and len(err) == 1 and (f"-{option}" in err[0] or "q_k" in err[0]), err
+    elif failure == "bad solver option":
+        code, _, err = drive(script, args + list(bad_solver), capfd, monkeypatch, tmp_path)
+        assert code == 5 and len(err) == 1 and "bogus" in err[0] and f"from the option -{bad_solver[0][1:]}" in err[0]
+
+
+# --- the same from real processes, serially and on 2 ranks -------------------------------------------------------
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_processes_fail_in_one_line_on_every_rank(tmp_path, ranks):
+    (tmp_path / "afile").write_text("x")
+    checks = [
+        (("continuation.py", "-alpah", "2"), 2, "unknown option -alpah 2; did you mean -alpha?"),
+        (("continuation.py", "-output", tmp_path / "afile" / "b.npz"), 4, "is not a directory"),
+        (("continuation.py", "-q_stop", "pi/2", "-output", tmp_path / "b.npz", "-tw_pc_type", "bogus"), 5,
+         "Unable to find requested PC type bogus (from the option -tw_pc_type bogus)"),
+        (("floquet_scan.py", "-q", "3*pi/10", "-refined", tmp_path / "missing.npz", "-output", tmp_path / "f.npz",
+          "-table", tmp_path / "f.md"), 4, "does not exist"),
+        (("refine_branch.py", "-q", "2*pi/5", "-N", 20, "-output", tmp_path / "r.npz", "-table",
+          tmp_path / "afile" / "t.md"), 4, "is not a directory"),
+    ]
+    for (script, *args), status, needle in checks:
+        t0 = time.perf_counter()
+        r = run_script(script, *args, ranks=ranks, timeout=120, cwd=tmp_path)
+        assert r.returncode == status and needle in one_error_line(r), (script, r.returncode, r.stderr)
+        assert time.perf_counter() - t0 < 60                 # ends within seconds, never a hang
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile"]      # nothing written by a failed run
+
+
+def test_help_computes_nothing_on_two_ranks(tmp_path):
+    r = run_script("continuation.py", "-help", ranks=2, cwd=tmp_path)
+    assert r.returncode == 0 and "-cells_per_pi 1000" in r.stdout and "-tw_*" in r.stdout
+    assert "-tw_snes_type <" in r.stdout and "-sol_snes_type <" in r.stdout      # PETSc's own options of the roles
+    assert list(tmp_path.iterdir()) == []
+
+
+def killed_after(cmd, cwd, ready, timeout=120):
+    """Start cmd in its own session, wait until ready() holds, then kill the whole process group (SIGKILL)."""
+    proc = subprocess.Popen(["timeout", str(timeout), *cmd], cwd=cwd, env=script_env(), start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    t0 = time.time()
+    while not ready():
+        assert proc.poll() is None and time.time() - t0 < timeout, "the run ended before it could be killed"
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    marker = str(cmd[-1])                      # the run's own output path: every rank of it, wherever it is
+    subprocess.run(["pkill", "-9", "-f", marker])
+    while subprocess.run(["pgrep", "-f", marker], capture_output=True).returncode == 0:
+        time.sleep(0.05)
+
+
+def mpi(script, *args):
+    return ["mpiexec", "-n", "2", sys.executable, os.path.join(SCRIPTS, script), *map(str, args)]
+
+
+def test_a_killed_long_run_resumes_to_the_same_trajectory(tmp_path):
+    """kill -9 of a 2-rank long run in the middle, -resume: the snapshots equal those of an uninterrupted run bit
+    for bit (each record carries the integrator's step); the partial trailing record is dropped."""
+    args = ("-branch", BRANCH, "-q", "3*pi/10", "-N", 100, "-t_final", 40, "-refined", REFINED)
+    r = run_script("long_run.py", *args, "-output", tmp_path / "full", ranks=2)
+    assert r.returncode == 0, r.stderr
+    data = tmp_path / "cut" / "snapshots.f64"
+    killed_after(mpi("long_run.py", *args, "-output", tmp_path / "cut"), tmp_path,
+                 lambda: data.exists() and data.stat().st_size > 40 * 203 * 8)
+    cut = read_snapshots(str(tmp_path / "cut")).times[-1]
+    assert 0 < cut < 40
+    r = run_script("long_run.py", *args, "-output", tmp_path / "cut", "-resume", ranks=2)
+    assert r.returncode == 0 and "resuming" in r.stdout, r.stderr
+    full, resumed = read_snapshots(str(tmp_path / "full")), read_snapshots(str(tmp_path / "cut"))
+    assert np.array_equal(full.times, resumed.times) and np.array_equal(full.states, resumed.states)
+    assert not [p for p in (tmp_path / "cut").iterdir() if ".tmp" in p.name]
+
+
+def test_a_killed_branch_resumes_to_the_same_branch(tmp_path):
+    """kill -9 of a 2-rank continuation after some points, -resume: the branch file was complete at every point
+    and the resumed branch equals the uninterrupted one to the solver tolerance (1e-10 relative)."""
+    args = ("-cells_per_pi", 4000, "-q_stop", "pi/5")
+    r = run_script("continuation.py", *args, "-output", tmp_path / "full.npz", ranks=2)
+    assert r.returncode == 0, r.stderr
+
+    def some_points():
+        try:
+            return len(Branch.load(str(tmp_path / "cut.npz"))) >= 10
+        except Exception:
+            return False
+    killed_after(mpi("continuation.py", *args, "-output", tmp_path / "cut.npz"), tmp_path, some_points)
+    n = len(Branch.load(str(tmp_path / "cut.npz")))
+    r = run_script("continuation.py", *args, "-output", tmp_path / "cut.npz", "-resume", ranks=2)
+    assert r.returncode == 0 and f"resuming {tmp_path / 'cut.npz'}: {n} points" in r.stdout, r.stderr
+    full, resumed = Branch.load(str(tmp_path / "full.npz")), Branch.load(str(tmp_path / "cut.npz"))
+    assert np.array_equal(full.q, resumed.q)
+    assert np.max(np.abs(full.u - resumed.u)) <= 1e-10 * np.max(np.abs(full.u))
+    assert math.isclose(resumed.q[-1], math.pi / 5)

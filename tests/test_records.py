@@ -1,0 +1,180 @@
+"""The record store and the branch file: schema, atomic rewrite, modes, identities, resume, readable with numpy
+alone, clear errors (serial and under mpiexec -n 2: rank 0 writes, every rank sees the same records)."""
+import math
+import os
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from hertzpetsc.branch import POINT_FIELDS, Branch, BranchPoint, SolveStats, branch_store
+from hertzpetsc.diagnostics import WaveDiagnostics
+from hertzpetsc.errors import ParameterError, RecordFileError
+from hertzpetsc.model import LatticeModel
+from hertzpetsc.records import AppendRecords, NpzRecords, prepare_output, write_text
+
+COMM = PETSc.COMM_WORLD
+
+
+def shared_tmp(tmp_path):
+    """One directory for every rank (rank 0's pytest tmp_path)."""
+    return COMM.tompi4py().bcast(str(tmp_path), root=0)
+
+
+def small_branch(npts=3, K=8):
+    model = LatticeModel.hertz(1.5)
+    b = Branch(model, K, 10, [], dict(note="test"))
+    for i in range(npts):
+        d = WaveDiagnostics(*[float(i)] * len(WaveDiagnostics.names()))
+        b.points.append(BranchPoint(q=math.pi * (10 - i) / 10, u_half=np.sin(np.arange(K + 1) * math.pi / K) * (i + 1),
+                                    h=b.h, model=model, diagnostics=d, solve=SolveStats(2, 3, 4, 1e-9, 0.1), substeps=1,
+                                    wall_time=0.5))
+    return b
+
+
+def write(path, branch, mode="new"):
+    store = branch_store(path, Branch(branch.model, branch.cells_per_pi, branch.M, [], branch.meta), COMM, mode)
+    for p in branch.points:
+        store.append(p.record())
+    return store
+
+
+def test_roundtrip_and_plain_numpy_access(tmp_path):
+    path = os.path.join(shared_tmp(tmp_path), "b.npz")
+    write(path, small_branch())
+    b = Branch.load(path)
+    assert b.u.shape == (3, 9) and b.alpha == 1.5 and b.meta["note"] == "test"
+    assert b.point(0.9 * math.pi).q == pytest.approx(0.9 * math.pi) and b.point(0.9 * math.pi).solve.linear_iterations == 4
+    with np.load(path) as z:                       # no hertzpetsc needed to read it: the README's schema
+        assert set(POINT_FIELDS) <= set(z.files) and str(z["format"]) == "hertzpetsc-branch-1"
+        assert z["snes_iterations"].dtype == np.int64 and z["u"].shape == (3, 9)
+    COMM.tompi4py().Barrier()
+    assert not [f for f in os.listdir(os.path.dirname(path)) if ".tmp" in f]     # no temporary file left
+
+
+def test_a_file_written_before_the_record_store_still_loads():
+    b = Branch.load(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "results",
+                                 "branch_alpha1.5.npz"))
+    assert len(b) == 50 and abs(b.point(math.pi / 50).diagnostics.N - 4.8442) < 1e-4
+
+
+def test_modes_new_resume_force(tmp_path):
+    path = os.path.join(shared_tmp(tmp_path), "b.npz")
+    write(path, small_branch(2))
+    with pytest.raises(RecordFileError, match="exists: continue it with -resume or overwrite it with -force"):
+        write(path, small_branch(1))
+    empty = Branch(LatticeModel.hertz(1.5), 8, 10, [])
+    resumed = branch_store(path, empty, COMM, "resume")
+    assert len(resumed.records) == 2                             # every rank gets the finished records
+    resumed.append(small_branch(3).points[2].record())
+    assert len(Branch.load(path)) == 3
+    write(path, small_branch(1), "force")
+    assert len(Branch.load(path)) == 1
+    with pytest.raises(RecordFileError, match="does not exist: nothing to resume"):
+        branch_store(path + ".missing", empty, COMM, "resume")
+
+
+def test_resume_with_another_identity_names_the_parameter(tmp_path):
+    path = os.path.join(shared_tmp(tmp_path), "b.npz")
+    write(path, small_branch(1))
+    other = Branch(LatticeModel.hertz(2.0), 8, 10, [])
+    with pytest.raises(RecordFileError, match=r"another computation: alpha = 1.5 there, 2.0 requested"):
+        branch_store(path, other, COMM, "resume")
+
+
+def test_stale_temporaries_are_removed(tmp_path):
+    d = shared_tmp(tmp_path)
+    path = os.path.join(d, "b.npz")
+    if COMM.getRank() == 0:
+        for tmp in (path + ".tmp", path + ".tmp-12345"):
+            open(tmp, "wb").write(b"half a write")
+    COMM.tompi4py().Barrier()
+    write(path, small_branch(1))
+    assert sorted(os.listdir(d)) == ["b.npz"]
+
+
+def test_missing_point_and_missing_file(tmp_path):
+    path = os.path.join(shared_tmp(tmp_path), "b.npz")
+    write(path, small_branch())
+    with pytest.raises(RecordFileError, match="no point at q = 0.5"):
+        Branch.load(path).point(0.5)
+    with pytest.raises(RecordFileError, match="does not exist"):
+        Branch.load(path + ".nothing")
+
+
+@pytest.mark.parametrize("content", [b"", b"not a zip at all", b"PK\x03\x04garbage"])
+def test_corrupt_file(tmp_path, content):
+    path = tmp_path / "b.npz"
+    path.write_bytes(content)
+    with pytest.raises(RecordFileError, match="corrupt"):
+        Branch.load(str(path))
+
+
+def test_truncated_file(tmp_path):
+    path = os.path.join(shared_tmp(tmp_path), "b.npz")
+    write(path, small_branch())
+    COMM.tompi4py().Barrier()
+    if COMM.getRank() == 0:
+        data = open(path, "rb").read()
+        open(path, "wb").write(data[: len(data) // 2])
+    COMM.tompi4py().Barrier()
+    with pytest.raises(RecordFileError, match="corrupt"):
+        Branch.load(path)
+
+
+def test_a_file_of_another_kind_is_named(tmp_path):
+    path = os.path.join(shared_tmp(tmp_path), "f.npz")
+    NpzRecords(path, "hertzpetsc-floquet-1", {}, {}, ("q",), COMM)
+    with pytest.raises(RecordFileError, match="is a 'hertzpetsc-floquet-1' file, but a branch file"):
+        Branch.load(path)
+    if COMM.getRank() == 0:
+        np.savez(os.path.join(os.path.dirname(path), "x.npz"), x=np.zeros(3))
+    COMM.tompi4py().Barrier()
+    with pytest.raises(RecordFileError, match="not a hertzpetsc record file"):
+        Branch.load(os.path.join(os.path.dirname(path), "x.npz"))
+
+
+def test_state_arrays_are_replaced_and_resumed(tmp_path):
+    path = os.path.join(shared_tmp(tmp_path), "s.npz")
+    store = NpzRecords(path, "test-1", dict(a=1), dict(a=1), ("q",), COMM)
+    store.append(dict(q=1.0), state=dict(u=np.arange(3.0)))
+    store.append(dict(q=0.5), state=dict(u=np.arange(5.0)))
+    again = NpzRecords(path, "test-1", dict(a=1), dict(a=1), ("q",), COMM, "resume")
+    assert [float(r["q"]) for r in again.records] == [1.0, 0.5] and np.array_equal(again.state["u"], np.arange(5.0))
+
+
+def test_append_records_survive_a_record_in_flight(tmp_path):
+    d = os.path.join(shared_tmp(tmp_path), "run")
+    store = AppendRecords(d, "test-log-1", dict(N=2), dict(N=2), 3, COMM)
+    for i in range(4):
+        store.append([i, 2.0 * i, 3.0 * i])
+    COMM.tompi4py().Barrier()
+    if COMM.getRank() == 0:
+        with open(os.path.join(d, "records.f64"), "ab") as f:
+            f.write(b"\0" * 12)                               # killed in the middle of a record
+    COMM.tompi4py().Barrier()
+    again = AppendRecords(d, "test-log-1", dict(N=2), dict(N=2), 3, COMM, "resume")
+    assert again.array().shape == (4, 3) and again.array()[3, 2] == 9.0
+    with pytest.raises(RecordFileError, match="N = 2 there, 3 requested"):
+        AppendRecords(d, "test-log-1", dict(N=3), dict(N=3), 3, COMM, "resume")
+
+
+def test_unwritable_outputs_fail_on_every_rank_before_anything_is_computed(tmp_path):
+    d = shared_tmp(tmp_path)
+    blocker = os.path.join(d, "afile")
+    if COMM.getRank() == 0:
+        open(blocker, "w").write("x")
+    COMM.tompi4py().Barrier()
+    with pytest.raises(RecordFileError, match="cannot write table"):
+        prepare_output(os.path.join(blocker, "t.md"), COMM, "table")
+    with pytest.raises(RecordFileError, match="cannot"):
+        write_text(os.path.join(blocker, "t.md"), "x", COMM)
+    with pytest.raises(RecordFileError):
+        write(os.path.join(blocker, "b.npz"), small_branch(1))
+
+
+def test_bad_mode_and_model_are_refused():
+    with pytest.raises(ValueError):
+        NpzRecords("x.npz", "k", {}, {}, ("q",), None, "sometimes")
+    with pytest.raises(ParameterError, match="masses"):
+        LatticeModel.hertz(1.5, masses=(1.0, -2.0))

@@ -1,0 +1,224 @@
+"""The studies in-process on tiny parameters (serial and under mpiexec -n 2): records written as they go, exact
+resume, identities, tables, and the restrictions of the stability verdicts."""
+import json
+import math
+import os
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from conftest import chain, small_branch
+from hertzpetsc.branch import Branch
+from hertzpetsc.continuation import ContinuationError, ContinuationParameters
+from hertzpetsc.errors import ParameterError, RecordFileError
+from hertzpetsc.model import LatticeModel
+from hertzpetsc.simulation import read_snapshots
+from hertzpetsc.studies.branch import BranchStudy, ConvergenceStudy
+from hertzpetsc.studies.compactons import CompactonStudy
+from hertzpetsc.studies.floquet import BlochScan, FloquetScan, critical_wavenumbers
+from hertzpetsc.studies.longrun import LongRun
+from hertzpetsc.studies.refinement import RefinedStates, RefinementScan
+from hertzpetsc.studies.solitary import SolitaryStudy
+from hertzpetsc.waves import orbit_on_chain
+
+COMM = PETSc.COMM_WORLD
+
+
+def shared(tmp_path):
+    """One directory for every rank (rank 0's pytest tmp_path)."""
+    return COMM.tompi4py().bcast(str(tmp_path), root=0)
+
+
+def run_branch(path, mode="new", **kw):
+    params = ContinuationParameters(**{**dict(M=10, cells_per_pi=200), **kw})
+    study = BranchStudy(params, path, COMM, mode)
+    new = list(study.run())
+    return study, new
+
+
+def test_branch_study_writes_as_it_goes_and_resumes_identically(tmp_path):
+    d = shared(tmp_path)
+    run_branch(f"{d}/b.npz", q_stop=0.6 * math.pi)
+    study, new = run_branch(f"{d}/b.npz", "resume")
+    assert study.resumed == 5 and len(new) == 5 and len(Branch.load(f"{d}/b.npz")) == 10
+    _, fresh = run_branch(f"{d}/c.npz")
+    resumed = Branch.load(f"{d}/b.npz")
+    assert np.max(np.abs(resumed.u - np.array([p.u_half for p in fresh]))) <= 1e-10 * np.max(np.abs(resumed.u))
+    with pytest.raises(RecordFileError, match="exists"):
+        run_branch(f"{d}/c.npz")
+    with pytest.raises(RecordFileError, match="alpha = 1.5 there, 2.0 requested"):
+        run_branch(f"{d}/c.npz", "resume", alpha=2.0)
+
+
+def test_quasi_newton_gives_the_same_branch(tmp_path, clean_options):
+    """-tw_snes_type qn reaches the solver (the paper's quasi-Newton, L-BFGS defaults) and the same branch."""
+    d = shared(tmp_path)
+    _, newton = run_branch(f"{d}/n.npz", q_stop=math.pi / 2)
+    clean_options.setValue("tw_snes_type", "qn")
+    study = BranchStudy(ContinuationParameters(M=10, cells_per_pi=200, q_stop=math.pi / 2), f"{d}/q.npz", COMM)
+    snes = study.continuation.solver.snes
+    assert snes.getType() == "qn"
+    assert "tw_snes_linesearch_type" not in PETSc.Options().getAll()   # the L-BFGS defaults were for the call only
+    qn = list(study.run())
+    for a, b in zip(newton, qn):
+        assert np.max(np.abs(a.u_half - b.u_half)) <= 1e-8 * np.max(np.abs(a.u_half))
+
+
+def test_divergence_is_reported_not_accepted(tmp_path, clean_options):
+    """SNES stopping on a small step far from a solution must not pass as converged."""
+    for k, v in dict(tw_snes_type="qn", tw_snes_qn_type="broyden", tw_snes_linesearch_type="basic",
+                     tw_snes_divergence_tolerance="-1", tw_snes_max_it="200").items():
+        clean_options.setValue(k, v)
+    with pytest.raises(ContinuationError, match="continuation stopped"):
+        run_branch(f"{shared(tmp_path)}/b.npz", M=5, cells_per_pi=100, q_stop=0.6 * math.pi)
+
+
+def test_convergence_study_reports_second_order():
+    study = ConvergenceStudy(LatticeModel.hertz(1.5), 10, [100, 200, 400], COMM)
+    assert list(study.run()) == [100, 200, 400]
+    rows = [line for line in study.table().splitlines() if line.startswith("| 3pi/10 | ")]
+    assert len(rows) == 4 and all(abs(float(r.split("|")[-3]) - 2) < 0.3 for r in rows)   # observed order
+    with pytest.raises(ParameterError, match="three different grids"):
+        ConvergenceStudy(LatticeModel.hertz(1.5), 10, [100, 200, 200], COMM)
+
+
+@pytest.fixture(scope="module")
+def refined(tmp_path_factory):
+    """q = 0.4 pi and 0.6 pi refined on 20 beads (branch h = pi/200), in a refinement file."""
+    d = shared(tmp_path_factory.mktemp("refined"))
+    branch = small_branch(q_stop=0.3 * math.pi)
+    scan = RefinementScan(branch, "coarse", 20, COMM, f"{d}/r.npz", qs=[0.4 * math.pi])
+    first = list(scan.run())
+    again = RefinementScan(branch, "coarse", 20, COMM, f"{d}/r.npz", "resume", qs=[0.4 * math.pi, 0.6 * math.pi])
+    rows = list(again.run())
+    return d, branch, first, rows, again
+
+
+def test_refinement_scan_reaches_the_target_and_resumes(refined):
+    d, branch, first, rows, scan = refined
+    assert len(first) == 1 and [r["q"] for r in rows] == [pytest.approx(0.6 * math.pi)]     # 0.4 pi not redone
+    states = RefinedStates.load(f"{d}/r.npz")
+    assert sorted(np.round(states.q / math.pi, 6)) == [0.4, 0.6]
+    assert np.all(states.column("E_after") <= 1e-10) and np.all(states.column("E_before") > 1e-7)
+    assert "| 1.2566 | 4 |" in scan.table()
+    orbit = states.orbit(branch.point(0.4 * math.pi))
+    assert orbit.source == "refined" and orbit.x.shape == (20, 2)
+    with pytest.raises(RecordFileError, match="no refined state at q"):
+        states.orbit(branch.point(0.3 * math.pi))
+
+
+def test_floquet_verdicts_only_from_the_waves_they_claim(refined, tmp_path):
+    d, branch, *_ = refined
+    out = shared(tmp_path)
+    states = RefinedStates.load(f"{d}/r.npz")
+    with pytest.raises(RecordFileError, match="no refined state at q = 0.942"):        # a listed q not refined
+        FloquetScan(branch, 20, COMM, f"{out}/f1.npz", refined=states, qs=[0.3 * math.pi])
+    scan = FloquetScan(branch, 20, COMM, f"{out}/f2.npz", refined=states)             # restricted, and says so
+    rows = list(scan.run())
+    scan.destroy()
+    assert len(rows) == 2 and all(r["refined"] == 1 for r in rows)
+    table = scan.table()
+    assert "restricted to the 2 refined q" in table and "within the scanned q in [1.2566, 1.8850]" in table
+    assert all(r["rho"] - 1 < 1e-4 for r in rows)
+    unrefined = FloquetScan(branch, 20, COMM, f"{out}/f3.npz", refined=None, qs=[0.4 * math.pi])
+    row = next(unrefined.run())
+    unrefined.destroy()
+    assert row["refined"] == 0 and "unrefined branch waves" in unrefined.table()
+
+
+def test_floquet_scan_resumes_and_its_file_is_the_documented_one(refined, tmp_path):
+    d, branch, *_ = refined
+    out = shared(tmp_path)
+    states = RefinedStates.load(f"{d}/r.npz")
+    first = FloquetScan(branch, 20, COMM, f"{out}/f.npz", refined=states, qs=[0.4 * math.pi])
+    a = list(first.run())
+    first.destroy()
+    second = FloquetScan(branch, 20, COMM, f"{out}/f.npz", "resume", refined=states, qs=[0.4 * math.pi, 0.6 * math.pi])
+    b = list(second.run())
+    second.destroy()
+    assert len(a) == 1 and len(b) == 1
+    with np.load(f"{out}/f.npz") as z:
+        assert str(z["format"]) == "hertzpetsc-floquet-1" and z["multipliers"].shape == (2, 40)
+
+
+def test_critical_wavenumbers():
+    q = np.array([1.0, 0.9, 0.8, 0.7])
+    assert critical_wavenumbers(q, [1.0, 1.0, 1.1, 1.2], 1e-4) == (0.8, 0.9, 0.7)
+    qc, above, qm = critical_wavenumbers(q, [1.0] * 4, 1e-4)
+    assert math.isnan(qc) and above is None
+    assert critical_wavenumbers(q, [1.1, 1.2, 1.0, 1.0], 1e-4) == (1.0, None, 0.9)   # no stable q above
+
+
+def test_bloch_scan_records_and_table(refined, tmp_path):
+    d, branch, *_ = refined
+    scan = BlochScan(branch, RefinedStates.load(f"{d}/r.npz"), [40], [0.4 * math.pi], COMM, f"{shared(tmp_path)}/b.npz",
+                     nev=4)
+    rows = list(scan.run())
+    scan.destroy()
+    (row, extra), = rows
+    assert row["N"] == 40 and extra["runs"] == 2 and row["residual"] < 1e-8 and len(row["dominant"]) == 4
+    assert "| 40 | 2pi/5 | 8 |" in scan.table(COMM.getSize())
+
+
+def test_long_run_resumes_bit_for_bit(tmp_path):
+    """A run interrupted after some snapshots and resumed (the integrator's step is stored with each snapshot)
+    repeats the uninterrupted trajectory exactly, record for record."""
+    d = shared(tmp_path)
+    orbit = orbit_on_chain(small_branch().point(0.4 * math.pi), chain(20))
+    full = LongRun(orbit, 10.0, 2, f"{d}/a", COMM)
+    full.run()
+    summary = full.write_summary()
+    full.destroy()
+    part = LongRun(orbit, 5.0, 2, f"{d}/b", COMM)
+    part.run()
+    part.destroy()
+    rest = LongRun(orbit, 10.0, 2, f"{d}/b", COMM, "resume")
+    rest.run()
+    rest.destroy()
+    a, b = read_snapshots(f"{d}/a"), read_snapshots(f"{d}/b")
+    assert np.array_equal(a.times, b.times) and np.array_equal(a.states, b.states)
+    assert np.array_equal(a.steps, b.steps)
+    assert summary.energy_drift < 1e-9 and summary.max_deviation < 1e-3 and math.isnan(summary.destruction_time)
+    other = orbit_on_chain(small_branch().point(0.6 * math.pi), chain(20))
+    with pytest.raises(RecordFileError, match="another computation"):
+        LongRun(other, 10.0, 2, f"{d}/a", COMM, "resume").open()
+    with pytest.raises(RecordFileError, match="exists"):
+        LongRun(orbit, 10.0, 2, f"{d}/a", COMM).open()
+    with pytest.raises(ParameterError, match="t_final"):
+        LongRun(orbit, -1.0, 2, f"{d}/c", COMM)
+
+
+def test_long_run_directories_of_the_first_format_are_read_but_not_resumed(tmp_path):
+    d = shared(tmp_path)
+    if COMM.getRank() == 0:
+        os.makedirs(f"{d}/old")
+        header = dict(alpha=1.5, N=3, boundary="periodic", q=2.0, T=1.0, initial_state="refined",
+                      initial_state_sha256="x", snapshot_dt=0.5, rtol=1e-12, atol=1e-14, ts="rk 8vr")
+        json.dump(header, open(f"{d}/old/run.json", "w"))
+        np.arange(2 * (2 + 6), dtype=np.float64).tofile(f"{d}/old/snapshots.f64")
+    COMM.tompi4py().Barrier()
+    snaps = read_snapshots(f"{d}/old")
+    assert snaps.states.shape == (2, 3, 2) and np.isnan(snaps.steps).all() and snaps.times[1] == 8.0
+    orbit = orbit_on_chain(small_branch().point(0.4 * math.pi), chain(20))
+    with pytest.raises(RecordFileError, match="older hertzpetsc"):
+        LongRun(orbit, 10.0, 2, f"{d}/old", COMM, "resume").open()
+
+
+def test_solitary_study_table():
+    study = SolitaryStudy([1.5], [10, 20, 40], [5, 6], COMM)
+    assert list(study.run()) == [1.5]
+    assert "| k_alpha (L = 8) | 1.350" in study.table() and study.finest[1.5].params.cells_per_unit == 40
+    with pytest.raises(ParameterError, match="three different grids"):
+        SolitaryStudy([1.5], [10, 20], [5], COMM)
+
+
+def test_compacton_study_keeps_beads_ahead_at_rest():
+    branch = small_branch(K=200)
+    study = CompactonStudy([branch], [0.3 * math.pi], COMM, margin=4, travel=10, dt_snapshot=0.1)
+    cases = list(study.run())
+    assert len(cases) == 2 and [c.train.count for c in cases] == [1, 2]
+    assert all(c.checks.max_velocity_ahead == 0.0 for c in cases)
+    assert study.table().count("| pi/200 |") == 2
+    with pytest.raises(ParameterError, match="q_k"):
+        CompactonStudy([branch], [0.7 * math.pi], COMM)

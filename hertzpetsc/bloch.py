@@ -1,20 +1,19 @@
-"""Floquet multipliers modulo shifts on long chains by Bloch (Floquet-in-space) decomposition (section 3.5).
+"""Floquet multipliers modulo shifts from Bloch sectors of the wave's cell, over the wave's shortest time symmetry
+(section 3.5; :mod:`hertzpetsc.symmetry`).
 
-A travelling wave (eq. twper) with q = 2 pi m / M repeats every M beads, x_{n+M}(t) = x_n(t). On N = L M beads
-(periodic, eq. pbcl) the variational equations of eq. nc then have M-periodic coefficients V''(x_{n+1} - x_n),
-so F_q = S R(script-T(q); 0) commutes with the shift by M beads. Splitting the perturbations into Bloch waves
-y_{n+M} = e^{i theta} y_n, theta_j = 2 pi j / L (j = 0, ..., L-1), makes F_q block diagonal:
+A travelling wave with q = 2 pi m / N on N beads (periodic, eq. pbcl) repeats every M = N / gcd(m, N) beads, so its
+variational equations have M-periodic coefficients and F_q = S R(script-T; 0) commutes with the shift by M beads.
+Splitting the perturbations into Bloch waves y_{n+M} = e^{i theta} y_n, theta_l = 2 pi l / g (g = N / M cells)
+makes F_q block diagonal; and on the cell, whose m' = m / g wavelengths are coprime with M, the k-bead shift over
+the time script-T / m' is a symmetry too. So
 
-    spec(F_q on N beads) = union over j of spec(F_theta_j),
+    spec(F_q on N beads) = union over l of { e^{-i j theta_l} mu^{m'} : mu in spec(G_theta_l) },
 
-where F_theta = S_theta R_theta(script-T; 0) is the 2M x 2M (complex) map of an M-bead chain whose tangent
-vectors obey the twisted boundary y_M = e^{i theta} y_0, y_{-1} = e^{-i theta} y_{M-1} (the one-bead shift S
-carries the same twist). theta = 0 is the M-bead periodic problem itself. The coefficients are real, so
-F_{-theta} = conj(F_theta): only j = 0, ..., floor(L/2) are integrated, the other sectors are their conjugates.
-
-PETSc is a real build here, so a complex tangent u + i w is carried as two real tangents (u, w) of the chain
-DMDA (:class:`TwistedChain`, the chain's right-hand side with the twist applied to the ghost beads at the
-periodic wrap); one TS run per sector integrates the orbit and the 2M columns R_theta e_k.
+G_theta = S_theta^k R_theta(script-T / m'; 0) the map of the M-bead cell with twisted boundary y_M = e^{i theta} y_0
+(the k-bead shift carries the same twist), k m' = 1 + j M. The coefficients are real, so G_{-theta} = conj(G_theta):
+only l = 0, ..., floor(g/2) are integrated; theta = 0 and pi are real sectors (real tangents), the others carry a
+complex tangent u + i w as two real tangents (PETSc is a real build here). One TS run per sector integrates the
+orbit and the 2M columns.
 
 Why not Krylov on the whole chain: for N = 1000 about 600 unstable multipliers crowd annuli of nearly equal
 moduli (the 10 largest differ by 1e-5 relative) and Krylov-Schur on the shell operator does not separate them.
@@ -33,7 +32,9 @@ from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
 from .errors import ParameterError
-from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, dominant_multipliers
+from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, TOL_RHO, Spectrum, dominant_multipliers
+from .model import ChainSpec
+from .symmetry import WaveSymmetry
 from .tangent import MonodromyModShift
 
 
@@ -50,19 +51,26 @@ def sector_angles(L):
     return [2 * math.pi * j / L for j in range(L // 2 + 1)]
 
 
-class TwistedChain(Chain):
-    """eq. nc on M beads with 2k real tangents = k complex tangents u + i w under y_{n+M} = e^{i theta} y_n.
+def real_sector(theta):
+    """theta = 0 or pi: the twist is real (+-1) and real tangents suffice."""
+    return abs(math.sin(theta)) < 1e-14
 
-    Tangent 2p is the real part u of complex mode p, tangent 2p + 1 its imaginary part w. The orbit itself is
-    M-periodic. ``theta`` is an attribute: one chain (and its TS) serves every sector.
+
+class TwistedChain(Chain):
+    """eq. nc on M beads with tangents under the twisted boundary y_{n+M} = e^{i theta} y_n.
+
+    ``complex_modes``: tangent 2p is the real part u of complex mode p, tangent 2p + 1 its imaginary part w (any
+    theta); otherwise the tangents are real and theta must be 0 or pi (twist +-1). The orbit itself is M-periodic.
+    ``theta`` is an attribute: one chain (and its TS) serves every sector of its kind.
     """
 
-    def __init__(self, spec, n_modes, comm, theta=0.0):
+    def __init__(self, spec, n_tangent, comm, complex_modes=True, theta=0.0):
         if spec.boundary != "periodic":
             raise ParameterError("boundary", spec.boundary, "Bloch sectors need a periodic cell")
         spec.model.require_uniform_masses("the Bloch decomposition")
-        super().__init__(spec, comm, n_tangent=2 * int(n_modes))
-        self.n_modes = int(n_modes)
+        super().__init__(spec, comm, n_tangent=int(n_tangent))
+        self.complex_modes = complex_modes
+        self.n_modes = int(n_tangent) // 2 if complex_modes else int(n_tangent)
         self.theta = float(theta)
 
     def _ghosted(self, X):
@@ -71,58 +79,84 @@ class TwistedChain(Chain):
         a = self.local.getArray().reshape(self.nloc + 2, self.dof)
         if self.theta != 0.0:
             c, s = math.cos(self.theta), math.sin(self.theta)
-            t = a[:, 2:].reshape(self.nloc + 2, self.n_modes, 2, 2)     # bead, mode, (u, w), (y, ydot)
             for row, sign, wraps in ((0, -1.0, self.xs == 0), (-1, 1.0, self.xe == self.spec.N)):
-                if wraps:
-                    u, w = t[row, :, 0, :].copy(), t[row, :, 1, :].copy()
-                    t[row, :, 0, :] = c * u - sign * s * w
-                    t[row, :, 1, :] = sign * s * u + c * w
+                if not wraps:
+                    continue
+                if not self.complex_modes:
+                    a[row, 2:] *= c                                          # e^{+-i pi} = -1
+                    continue
+                t = a[:, 2:].reshape(self.nloc + 2, self.n_modes, 2, 2)     # bead, mode, (u, w), (y, ydot)
+                u, w = t[row, :, 0, :].copy(), t[row, :, 1, :].copy()
+                t[row, :, 0, :] = c * u - sign * s * w
+                t[row, :, 1, :] = sign * s * u + c * w
         return a
 
 
 class BlochSectors:
-    """Dense F_theta = S_theta R_theta(T; 0) of an M-bead cell, one TS run (2M complex columns) per sector."""
+    """Dense twisted-cell maps G_theta = S_theta^k R_theta(T; 0), one TS run (2M columns) per sector, for cells of
+    any size: a chain and a TS per (cell size, real or complex), built on first use (options prefix ``floquet_``)."""
 
-    def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
-        self.spec = spec
-        self.chain = TwistedChain(spec, 2 * spec.N, comm)
-        self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
-        self.Z = self.chain.create_state()
+    def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+        self.model, self.comm, self.tolerances, self.prefix = model, comm, tolerances, prefix
+        self._solvers = {}
         self.runs = 0
 
+    def _solver(self, M, complex_modes):
+        key = (M, complex_modes)
+        if key not in self._solvers:
+            chain = TwistedChain(ChainSpec(self.model, M), (4 if complex_modes else 2) * M, self.comm, complex_modes)
+            integrator = ChainIntegrator(chain, self.tolerances, self.prefix)
+            self._solvers[key] = (chain, integrator, chain.create_state())
+        return self._solvers[key]
+
     @PETSc.Log.EventDecorator("hz_bloch_sector")
-    def monodromy(self, x0, T, theta):
-        """F_theta (2M x 2M complex, index 2n + c) around the orbit from the M-bead state ``x0`` (M, 2)."""
-        M = self.spec.N
-        ch = self.chain
+    def monodromy(self, x0, T, theta, shift=1):
+        """G_theta (2M x 2M, index 2n + c; complex unless theta is 0 or pi) around the orbit from the M-bead state
+        ``x0`` (M, 2), over T, with the k = ``shift`` bead twisted shift."""
+        x0 = np.asarray(x0, dtype=float)
+        M = len(x0)
+        complex_modes = not real_sector(theta)
+        ch, integrator, Z = self._solver(M, complex_modes)
         ch.theta = float(theta)
         z = np.zeros((M, ch.dof))
-        z[:, :2] = np.asarray(x0, dtype=float).reshape(M, 2)
-        cols = z[:, 2:].reshape(M, 2 * M, 2, 2)                 # bead, column k, (u, w), (y, ydot)
+        z[:, :2] = x0
         k = np.arange(2 * M)
-        cols[k // 2, k, 0, k % 2] = 1.0                          # u = e_k, w = 0
-        ch.set_from_array(self.Z, z)
-        self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)   # whatever ran before
-        out = ch.gather(self.Z)[:, 2:].reshape(M, 2 * M, 2, 2)
-        R = (out[:, :, 0, :] + 1j * out[:, :, 1, :]).transpose(0, 2, 1).reshape(2 * M, 2 * M)
-        F = np.roll(R, -2, axis=0)                               # (S y)_n = y_{n+1}
-        F[-2:] *= np.exp(1j * theta)                             # y_M = e^{i theta} y_0
+        if complex_modes:
+            cols = z[:, 2:].reshape(M, 2 * M, 2, 2)              # bead, column, (u, w), (y, ydot)
+            cols[k // 2, k, 0, k % 2] = 1.0                       # u = e_k, w = 0
+        else:
+            cols = z[:, 2:].reshape(M, 2 * M, 2)                  # bead, column, (y, ydot)
+            cols[k // 2, k, k % 2] = 1.0
+        ch.set_from_array(Z, z)
+        integrator.integrate(Z, 0.0, T, dt=integrator.initial_step)   # the same first step whatever ran before
+        out = ch.gather(Z)[:, 2:]
+        if complex_modes:
+            out = out.reshape(M, 2 * M, 2, 2)
+            R = (out[:, :, 0, :] + 1j * out[:, :, 1, :]).transpose(0, 2, 1).reshape(2 * M, 2 * M)
+        else:
+            R = out.reshape(M, 2 * M, 2).transpose(0, 2, 1).reshape(2 * M, 2 * M)
+        G = np.roll(R, -2 * shift, axis=0)                        # (S^k y)_n = y_{n+k}
+        if theta != 0.0:
+            G[2 * (M - shift):] = G[2 * (M - shift):] * (math.cos(theta) if not complex_modes else np.exp(1j * theta))
         self.runs += 1
-        return F
+        return G
 
     def destroy(self):
-        self.Z.destroy()
-        self.integrator.destroy()
-        self.chain.destroy()
+        for chain, integrator, Z in self._solvers.values():
+            Z.destroy()
+            integrator.destroy()
+            chain.destroy()
+        self._solvers = {}
 
 
 @dataclass
 class BlochResult:
     """All 2N multipliers of F_q on N = L M beads, sorted by decreasing modulus, with their sectors.
 
-    ``sector[i]`` is j in 0..L-1 (theta_j = 2 pi j / L); ``modes`` holds, for the ``n_modes`` largest multipliers,
-    (lambda, j, v) with v the 2M complex cell eigenvector (unit 2-norm); ``runs`` the TS runs (sectors
-    integrated), ``columns`` the complex tangent columns integrated (2M per sector).
+    M is the wave's cell (beads), L = N / M the number of cells; ``sector[i]`` is l in 0..L-1 (theta_l = 2 pi l / L);
+    ``modes`` holds, for the ``n_modes`` largest multipliers, (lambda, l, v) with v the 2M complex cell eigenvector
+    (unit 2-norm); ``runs`` the TS runs (sectors integrated), ``columns`` the tangent columns integrated (2M per
+    sector), ``time`` the integration time of each run (script-T / m').
     """
 
     N: int
@@ -134,52 +168,53 @@ class BlochResult:
     runs: int
     columns: int
     wall_time: float
+    time: float = 0.0
 
     def sector_values(self, j):
         return self.values[self.sector == j]
 
 
-def sector_solver(spec, comm, split="sectors", tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+def sector_solver(model, comm, split="sectors", tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
     """The :class:`BlochSectors` that :func:`bloch_multipliers` uses for ``split`` (each sector on one rank, or
     distributed over ``comm``), to be built once and reused for several wavenumbers."""
     if split not in ("sectors", "beads"):
         raise ParameterError("split", split, "must be 'sectors' or 'beads'")
-    return BlochSectors(spec, PETSc.COMM_SELF if split == "sectors" else comm, tolerances, prefix)
+    return BlochSectors(model, PETSc.COMM_SELF if split == "sectors" else comm, tolerances, prefix)
 
 
-def bloch_multipliers(cell, N, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, split="sectors",
+def bloch_multipliers(orbit, N, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, split="sectors",
                       n_modes=0, sectors=None):
-    """All multipliers of F_q on N beads from the orbit ``cell`` on the M-bead cell (M = ``cell.N``).
+    """All 2N multipliers of F_q on N beads (a multiple of ``orbit.N``) for the wave ``orbit`` repeated, from the
+    sectors of its cell over its shortest time symmetry (module docstring).
 
-    ``split="sectors"``: the sectors are dealt round-robin to the ranks of ``comm``, each integrated on one
-    rank (no communication inside a run, the same arithmetic on any number of ranks); ``"beads"``: every sector
-    on all ranks of ``comm`` (the cell's DMDA distributed). ``n_modes``: keep the eigenvectors of that many
-    dominant multipliers (for :func:`tile_mode`). ``sectors``: a :func:`sector_solver` for this split to reuse
-    (one is built and freed otherwise). The result is the same on every rank.
+    ``split="sectors"``: the sectors are dealt round-robin to the ranks of ``comm``, each integrated on one rank (no
+    communication inside a run, the same arithmetic on any number of ranks); ``"beads"``: every sector on all ranks
+    of ``comm`` (the cell's DMDA distributed). ``n_modes``: keep the eigenvectors of that many dominant multipliers
+    (for :func:`tile_mode`). ``sectors``: a :func:`sector_solver` for this split to reuse (one is built and freed
+    otherwise). The result is the same on every rank.
     """
-    params, x0, T = cell.spec, cell.x, cell.T
-    M = params.N
-    L = check_cell(N, M)
+    L0 = check_cell(N, orbit.N)
     if split not in ("sectors", "beads"):
         raise ParameterError("split", split, "must be 'sectors' or 'beads'")
     if not (isinstance(n_modes, (int, np.integer)) and 0 <= n_modes <= 2 * N):
         raise ParameterError("n_modes", n_modes, f"must be an integer in [0, 2N] = [0, {2 * N}]")
-    x0 = np.asarray(x0, dtype=float)
-    if x0.shape != (M, 2):
-        raise ParameterError("x0", x0.shape, f"the cell state must have shape (M, 2) = ({M}, 2)")
     t0 = time.perf_counter()
-    thetas = sector_angles(L)
+    sym = WaveSymmetry(N, orbit.m * L0)
+    M, L, mc, k, jj = sym.M, sym.g, sym.m_cell, sym.k, sym.j
+    x0, delta = orbit.x[:M], sym.delta(orbit.T)
+    thetas = sym.sectors()
     size, rank = comm.getSize(), comm.getRank()
-    mine = [j for j in range(len(thetas)) if split == "beads" or j % size == rank]
+    mine = [l for l in range(len(thetas)) if split == "beads" or l % size == rank]
     own = sectors is None
     if own:
-        sectors = sector_solver(params, comm, split, tolerances, prefix)
+        sectors = sector_solver(orbit.spec.model, comm, split, tolerances, prefix)
     local = []
     try:
-        for j in mine:
-            lam, V = np.linalg.eig(sectors.monodromy(x0, T, thetas[j]))
+        for l in mine:
+            mu, V = np.linalg.eig(sectors.monodromy(x0, delta, thetas[l], k))
+            lam = np.exp(-1j * jj * thetas[l]) * mu.astype(complex) ** mc
             top = np.argsort(-np.abs(lam), kind="stable")[:n_modes]
-            local.append((j, lam, [(lam[i], V[:, i] / np.linalg.norm(V[:, i])) for i in top]))
+            local.append((l, lam, [(lam[i], V[:, i] / np.linalg.norm(V[:, i])) for i in top]))
     finally:
         if own:
             sectors.destroy()
@@ -187,19 +222,36 @@ def bloch_multipliers(cell, N, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQU
         local = [item for part in comm.tompi4py().allgather(local) for item in part]
     local.sort(key=lambda item: item[0])
     values, sector, modes = [], [], []
-    for j, lam, top in local:
+    for l, lam, top in local:
         values.append(lam)
-        sector.append(np.full(len(lam), j))
-        modes += [(v, j, vec) for v, vec in top]
-        if 0 < 2 * j < L:                                       # theta_{L-j} = -theta_j: the conjugate block
+        sector.append(np.full(len(lam), l))
+        modes += [(v, l, vec) for v, vec in top]
+        if 0 < 2 * l < L:                                       # theta_{L-l} = -theta_l: the conjugate block
             values.append(np.conj(lam))
-            sector.append(np.full(len(lam), L - j))
-            modes += [(np.conj(v), L - j, np.conj(vec)) for v, vec in top]
+            sector.append(np.full(len(lam), L - l))
+            modes += [(np.conj(v), L - l, np.conj(vec)) for v, vec in top]
     values, sector = np.concatenate(values), np.concatenate(sector)
     order = np.argsort(-np.abs(values), kind="stable")
     modes.sort(key=lambda mode: -abs(mode[0]))
     return BlochResult(N=N, M=M, L=L, values=values[order], sector=sector[order], modes=modes[:n_modes],
-                       runs=len(thetas), columns=2 * M * len(thetas), wall_time=time.perf_counter() - t0)
+                       runs=len(thetas), columns=2 * M * len(thetas), wall_time=time.perf_counter() - t0, time=delta)
+
+
+class SymmetricFloquet:
+    """All 2N multipliers of F_q around waves on N beads, from their cells' sectors over their shortest time
+    symmetry (:func:`bloch_multipliers` with N = the orbit's own length): the fast route of the scans, on one rank
+    (``comm``, COMM_SELF in the scans); the sector flows are built once per cell size (prefix ``floquet_``)."""
+
+    def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+        self.comm = comm
+        self.sectors = BlochSectors(model, comm, tolerances, prefix)
+        self.sectors._solver(3, False)                     # reads and checks the -floquet_ts_* options now
+
+    def spectrum(self, orbit, tol_rho=TOL_RHO):
+        return Spectrum(bloch_multipliers(orbit, orbit.N, self.comm, sectors=self.sectors).values, True, tol_rho)
+
+    def destroy(self):
+        self.sectors.destroy()
 
 
 def tile_mode(vec, j, L):

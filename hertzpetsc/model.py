@@ -100,8 +100,8 @@ class ChainSpec:
     def __post_init__(self):
         if not isinstance(self.model, LatticeModel):
             raise ParameterError("model", self.model, "must be a LatticeModel")
-        if not (isinstance(self.N, (int, np.integer)) and not isinstance(self.N, bool) and self.N >= 3):
-            raise ParameterError("N", self.N, "the number of beads must be an integer >= 3")
+        if not (isinstance(self.N, (int, np.integer)) and not isinstance(self.N, bool) and self.N >= 2):
+            raise ParameterError("N", self.N, "the number of beads must be an integer >= 2")
         object.__setattr__(self, "N", int(self.N))
         if self.boundary not in BOUNDARIES:
             raise ParameterError("boundary", self.boundary, f"must be one of {', '.join(BOUNDARIES)}")

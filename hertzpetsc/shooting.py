@@ -2,19 +2,26 @@
 
     E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf,     script-T(q) = q ||u||_inf^((alpha-1)/2)  (eq. invv)
 
-The refinement minimises ||G(X0)||_2^2, G(X0) = S X(script-T; X0) - X0, by Gauss-Newton with the Jacobian
-S R(script-T; 0) - I from :class:`~hertzpetsc.tangent.TangentFlow`. That Jacobian is singular at a travelling
-wave: translation x_n -> x_n + c and time translation (direction f(X0)) are exact symmetries, and slow modes
-(Floquet multipliers near 1) make it nearly singular in a few more directions, with singular values as small as
-the residual itself. Steps are therefore restricted to the orthogonal complement of the two symmetry directions
-(phase conditions, basis Q) and computed from the SVD of J Q truncated at a relative level; since a residual
-evaluation costs one flow and a Jacobian 2N tangent flows, each iteration tries the truncation levels
-:data:`TRUNCATIONS` and keeps the step that reduces E most. The dense algebra is done on rank 0 and broadcast,
-so every rank applies the same step. As in the paper, the Jacobian is kept across iterations and re-evaluated
-only when the steps it gives stop reducing the residual.
+The refinement solves G(X0) = S^k X(delta; X0) - X0 = 0 by Gauss-Newton with the Jacobian S^k R(delta; 0) - I
+from :class:`~hertzpetsc.tangent.TangentFlow`. By default (``symmetric``) it does so on the wave's cell of
+M = N / gcd(m, N) beads with the wave's shortest time symmetry, k beads in delta = script-T / m' (see
+:mod:`hertzpetsc.symmetry`): the refined cell, repeated, is a travelling wave on the N beads with exactly the
+wave's periodicity, at about (M / N)^2 / m' of the cost; E(q) is then measured on the N beads over script-T. With
+``symmetric=False`` it solves the paper's S X(script-T) = X(0) on the N beads.
+
+The Jacobian is singular at a travelling wave: translation x_n -> x_n + c and time translation (direction f(X0))
+are exact symmetries, and slow modes (multipliers near 1) make it nearly singular in a few more directions, with
+singular values as small as the residual itself. Steps are therefore restricted to the orthogonal complement of
+the two symmetry directions (phase conditions, basis Q) and computed from the SVD of J Q truncated at a relative
+level: the levels :data:`TRUNCATIONS` are tried in turn and the first step that reduces E tenfold is taken (else
+the best). The dense algebra is done on rank 0 and broadcast, so every rank applies the same step. As in the
+paper, the Jacobian is kept across iterations and re-evaluated only when the steps it gives stop reducing the
+residual; it is computed with a looser flow (prefix ``shoot_jac_``, rtol 1e-10) than the residual (``shoot_``,
+rtol 1e-14): an error of 1e-10 in J changes a step of size r by 1e-10 r.
 
 Options: the refinement's flows and Gauss-Newton live under the prefix ``shoot_`` (``-shoot_ts_rtol``, ...,
-``-shoot_gn_max_it``); E(q) measured with the paper's flow uses the simulations' prefix ``chain_``.
+``-shoot_gn_max_it``), its Jacobian's flow under ``shoot_jac_``; E(q) measured with the paper's flow uses the
+simulations' prefix ``chain_``.
 """
 import time
 from dataclasses import dataclass, field
@@ -24,6 +31,7 @@ from petsc4py import PETSc
 
 from .chain import CHAIN_PREFIX, Chain, ChainIntegrator, IntegrationTolerances
 from .errors import ConvergenceError, ParameterError
+from .symmetry import WaveSymmetry
 from .tangent import TangentFlow
 
 SHOOT_PREFIX = "shoot_"
@@ -33,10 +41,12 @@ SHOOT_PREFIX = "shoot_"
 MEASURE_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
 # The paper's flow (Scilab's rtol 1e-12, atol 1e-14), for E(q) as the paper measured it.
 PAPER_TOLERANCES = IntegrationTolerances(rtol=1e-12, atol=1e-14)
+# The flow of the refinement's Jacobian (prefix shoot_jac_).
+JACOBIAN_TOLERANCES = IntegrationTolerances(rtol=1e-10, atol=1e-12)
 
 
 class ShiftMap:
-    """X0 -> S X(script-T; X0) on a periodic chain, with its own TS (options prefix ``prefix``)."""
+    """X0 -> S^k X(T; X0) on a periodic chain, with its own TS (options prefix ``prefix``)."""
 
     def __init__(self, spec, comm, tolerances, prefix):
         if spec.boundary != "periodic":
@@ -44,22 +54,20 @@ class ShiftMap:
         self.chain = Chain(spec, comm)
         self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
         self.X = self.chain.create_state()
-        self.SX = self.chain.create_state()
 
-    def __call__(self, x0, T):
-        """S X(T) as an (N, 2) array on every rank, from the (N, 2) initial state ``x0``."""
+    def __call__(self, x0, T, shift=1):
+        """S^shift X(T) as an (N, 2) array on every rank, from the (N, 2) initial state ``x0`` (S moves bead n+c
+        to bead n, c the mass pattern's length)."""
         self.chain.set_from_array(self.X, x0)
         self.integrator.integrate(self.X, 0.0, T, dt=self.integrator.initial_step)
-        self.chain.shift(self.X, self.SX)
-        return self.chain.gather(self.SX)
+        return np.roll(self.chain.gather(self.X), -shift * self.chain.model.cell, axis=0)
 
     def residual(self, orbit):
         """E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf of an orbit."""
         return relative_residual(orbit.x, self(orbit.x, orbit.T))
 
     def destroy(self):
-        for v in (self.X, self.SX):
-            v.destroy()
+        self.X.destroy()
         self.integrator.destroy()
         self.chain.destroy()
 
@@ -132,22 +140,31 @@ def phase_conditioned_steps(J, g, Q, comm):
 
 
 class Refiner:
-    """Gauss-Newton refinement of travelling-wave orbits on one chain (flows built once, prefix ``shoot_``).
+    """Gauss-Newton refinement of travelling-wave orbits (flows built once per chain length, prefix ``shoot_``).
 
-    ``tol``: the target E; the iteration limit is ``-<prefix>gn_max_it`` (default ``max_iterations``).
+    ``tol``: the target E(q) (on the N beads over script-T); the iteration limit is ``-<prefix>gn_max_it``
+    (default ``max_iterations``). ``symmetric``: refine on the wave's cell with its shortest time symmetry.
     """
 
     def __init__(self, spec, comm, tol=1e-10, max_iterations=20, tolerances=MEASURE_TOLERANCES,
-                 prefix=SHOOT_PREFIX):
+                 prefix=SHOOT_PREFIX, symmetric=True, jacobian_tolerances=JACOBIAN_TOLERANCES):
         if not tol > 0:
             raise ParameterError("tol", tol, "the target residual must be positive")
-        self.spec, self.tol = spec, tol
+        self.spec, self.tol, self.comm, self.symmetric = spec, tol, comm, symmetric
+        self.tolerances, self.jacobian_tolerances, self.prefix = tolerances, jacobian_tolerances, prefix
         self.max_iterations = PETSc.Options().getInt(prefix + "gn_max_it", max_iterations)
         if self.max_iterations < 1:
             raise ParameterError(f"-{prefix}gn_max_it", self.max_iterations, "must be an integer >= 1")
-        self.smap = ShiftMap(spec, comm, tolerances, prefix)
-        self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
-        self.comm = comm
+        self._flows = {}
+        self.smap = self._maps(spec.N)[0]          # configures both flows (options read now)
+
+    def _maps(self, N):
+        """(state flow, tangent flow with 2N columns) on N beads of the lattice, built once."""
+        if N not in self._flows:
+            cell = self.spec.with_length(N)
+            self._flows[N] = (ShiftMap(cell, self.comm, self.tolerances, self.prefix),
+                              TangentFlow(cell, 2 * N, self.comm, self.jacobian_tolerances, self.prefix + "jac_"))
+        return self._flows[N]
 
     def residual(self, orbit):
         """E(q) of ``orbit`` with the refinement's own flow."""
@@ -158,54 +175,80 @@ class Refiner:
         """The refined :class:`Refinement` of ``orbit``; :class:`ConvergenceError` if E cannot be brought below
         ``tol`` within the iteration limit."""
         t0 = time.perf_counter()
-        N, T, smap, flow = self.spec.N, orbit.T, self.smap, self.flow
-        x = np.asarray(orbit.x, dtype=float).reshape(N, 2).copy()
-        sx = smap(x, T)
+        E0 = self.residual(orbit)
+        if self.symmetric:
+            sym = WaveSymmetry(orbit.N, orbit.m)
+            M, shift, T = sym.M, sym.k, sym.delta(orbit.T)
+        else:
+            M, shift, T = orbit.N, 1, orbit.T
+        smap, flow = self._maps(M)
+        x = np.asarray(orbit.x[:M], dtype=float).copy()
+        # the short map's residual accumulates over the m' maps that make script-T: aim below tol / m'
+        target = self.tol / (orbit.m * M // orbit.N) if self.symmetric else self.tol
+        total_it, jacobians, history, r, sigma_min = 0, 0, [E0], float("nan"), None
+        while True:
+            x, it, jac, r_it, sig = self._gauss_newton(smap, flow, x, T, shift, target,
+                                                       self.max_iterations - total_it)
+            total_it, jacobians = total_it + it, jacobians + jac
+            r = r_it if r_it == r_it else r
+            sigma_min = sig if sig is not None else sigma_min
+            refined = orbit.with_state(np.tile(x, (orbit.N // M, 1)), "refined")
+            E = self.residual(refined)
+            history.append(E)
+            if E <= self.tol or total_it >= self.max_iterations or target < 1e-16:
+                break
+            target *= 0.1                 # the cell's map converged but E over script-T did not: tighten
+        if E > self.tol:
+            raise ConvergenceError("Gauss-Newton refinement (prefix -%s)" % self.prefix, f"E = {E:.3g} > {self.tol:g}",
+                                   q=orbit.q, iterations=total_it)
+        return Refinement(orbit=refined, E_initial=E0, E=E, r=r, iterations=total_it, jacobians=jacobians,
+                          history=history, sigma_min=sigma_min, wall_time=time.perf_counter() - t0)
+
+    def _gauss_newton(self, smap, flow, x, T, shift, tol, max_iterations):
+        """Gauss-Newton on x -> S^shift X(T; x) - x until its relative residual is below ``tol``:
+        (x, iterations, Jacobians, r of the last step, smallest singular value)."""
+        n = len(x)
+        sx = smap(x, T, shift)
         g = (sx - x).ravel()
-        E0 = E = relative_residual(x, sx)
-        history, jacobians, J, fresh, r = [E], 0, None, False, float("nan")
-        sigma_min = None
-        it = 0
-        while E > self.tol and it < self.max_iterations:
+        E = relative_residual(x, sx)
+        jacobians, J, fresh, r, sigma_min, it = 0, None, False, float("nan"), None, 0
+        while E > tol and it < max_iterations:
             if J is None:
-                M, _ = flow.monodromy_mod_shift(x, T)
-                J = M - np.eye(2 * N)
+                M, _ = flow.monodromy_mod_shift(x, T, shift)
+                J = M - np.eye(2 * n)
                 Q = symmetry_complement(smap.chain, x)
                 jacobians += 1
                 fresh = True
-                steps, sigma_min = phase_conditioned_steps(J, g, Q, self.comm)
-            else:
-                steps, _ = phase_conditioned_steps(J, g, Q, self.comm)
+            steps, sig = phase_conditioned_steps(J, g, Q, self.comm)
+            sigma_min = sig if fresh else sigma_min
             best = None
-            for d in steps:
-                x_new = x + d.reshape(N, 2)
-                sx = smap(x_new, T)
-                g_new, E_new = (sx - x_new).ravel(), relative_residual(x_new, sx)
-                if best is None or E_new < best[2]:
-                    best = (x_new, g_new, E_new)
+            for d in steps:               # the first step that reduces E tenfold, else the best one
+                x_new = x + d.reshape(n, 2)
+                sx = smap(x_new, T, shift)
+                cand = (x_new, (sx - x_new).ravel(), relative_residual(x_new, sx))
+                if best is None or cand[2] < best[2]:
+                    best = cand
+                if best[2] <= 0.1 * E:
+                    break
             x_new, g_new, E_new = best
             if E_new < E:
                 r = float(np.max(np.abs(x_new - x)) / np.max(np.abs(x_new)))
-                x, g, E = x_new, g_new, E_new
-                history.append(E)
+                previous, (x, g, E) = E, (x_new, g_new, E_new)
                 it += 1
-                if E > 0.1 * history[-2] and not fresh:
+                if E > 0.1 * previous and not fresh:
                     J = None          # slow progress with a stale Jacobian: re-evaluate it
                 fresh = False
             elif not fresh:
                 J = None              # the stale Jacobian gives no decrease: re-evaluate and retry
             else:
                 break                 # no decrease even with a fresh Jacobian
-        if E > self.tol:
-            raise ConvergenceError("Gauss-Newton refinement (prefix -%s)" % self.smap.integrator.ts.getOptionsPrefix(),
-                                   f"E = {E:.3g} > {self.tol:g}", q=orbit.q, iterations=it)
-        return Refinement(orbit=orbit.with_state(x, "refined"), E_initial=E0, E=E, r=r, iterations=it,
-                          jacobians=jacobians, history=history, sigma_min=sigma_min,
-                          wall_time=time.perf_counter() - t0)
+        return x, it, jacobians, r, sigma_min
 
     def destroy(self):
-        self.smap.destroy()
-        self.flow.destroy()
+        for smap, flow in self._flows.values():
+            smap.destroy()
+            flow.destroy()
+        self._flows = {}
 
 
 def refine(orbit, comm, tol=1e-10, **kwargs):

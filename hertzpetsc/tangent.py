@@ -49,10 +49,11 @@ class TangentFlow:
         xT, RY = self.run(x0, T, np.eye(2 * N).reshape(N, 2, 2 * N))
         return RY.reshape(2 * N, 2 * N), xT
 
-    def monodromy_mod_shift(self, x0, T):
-        """Dense S R(T; 0) and S X(T), on every rank (S moves bead n+c to bead n, c the mass pattern's length)."""
+    def monodromy_mod_shift(self, x0, T, shift=1):
+        """Dense S^shift R(T; 0) and S^shift X(T), on every rank (S moves bead n+c to bead n, c the mass pattern's
+        length)."""
         R, xT = self.resolvent(x0, T)
-        c = self.spec.model.cell
+        c = self.spec.model.cell * shift
         return np.roll(R, -2 * c, axis=0), np.roll(xT, -c, axis=0)
 
     def destroy(self):

@@ -2,7 +2,7 @@
 """Floquet multipliers modulo shifts along the branch (paper section 3.5, figs. floquet and eigen).
 
     mpiexec -n 2 python scripts/floquet_scan.py [-refined results/refined_N100.npz] [-branch ...] [-N 100]
-        [-q 3*pi/10,7*pi/25] [-method dense|slepc] [-nev 10] [-tol_rho 1e-4] [-check_q 9*pi/50]
+        [-q 3*pi/10,7*pi/25] [-method symmetric|dense|slepc] [-nev 10] [-tol_rho 1e-4] [-check_q 9*pi/50]
         [-output results/floquet_N100.npz] [-table results/floquet_table_N100.md] [-figures figures]
         [-resume | -force]
 
@@ -14,7 +14,9 @@ and q_m (max rho). Verdicts only from the waves they claim: a -q not in the refi
 unrefined branch waves. tol_rho: an O(eps) error in the orbit splits double multipliers (the trivial Jordan
 blocks, Krein collisions) by O(sqrt(eps)); with eps ~ 1e-10 (refined E plus the flow's error) that is ~1e-5, and
 tol_rho = 1e-4 keeps a factor 10. -check_q: rho(Phi_q) of the full-period monodromy against rho(F_q)^(N/m).
-Dense route: LAPACK dgeev on the assembled F_q; slepc: Krylov-Schur on the shell operator (the nev dominant).
+Routes: symmetric (default; all 2N multipliers from the wave's cell of N/gcd(m,N) beads over its shortest time
+symmetry, by Bloch sectors, each q on one rank and the q dealt to the ranks: hertzpetsc.symmetry), dense (LAPACK
+dgeev on the assembled F_q, the paper's route) and slepc (Krylov-Schur on the shell operator, the nev dominant).
 Solver prefix: -floquet_ (the flow of the variational equations -floquet_ts_*, the eigensolver -floquet_eps_*).
 """
 import math
@@ -31,7 +33,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.floquet import FloquetScan  # noqa: E402
+from hertzpetsc.studies.floquet import METHODS, FloquetScan  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
 EIGEN_Q = (("3pi/10", 3 * math.pi / 10), ("7pi/25", 7 * math.pi / 25), ("9pi/50", 9 * math.pi / 50),
@@ -47,8 +49,8 @@ def main():
                              "unrefined branch waves")
     qs = opts.numbers("q", "", "wavenumbers (default: every refined q)", valid=(lambda q: q > 0, "> 0"),
                       distinct=True, minimum_count=0)
-    method = opts.string("method", "dense" if N <= 400 else "slepc", "dense (all 2N) or slepc (the nev dominant)",
-                         choices=("dense", "slepc"))
+    method = opts.string("method", "symmetric", "symmetric or dense (all 2N), slepc (the nev dominant)",
+                         choices=METHODS)
     nev = opts.integer("nev", 10, "multipliers of the slepc route", minimum=1, maximum=2 * N)
     tol_rho = opts.real("tol_rho", 1e-4, "unstable when rho - 1 > tol_rho", valid=(lambda x: x > 0, "> 0"))
     check_q = opts.real("check_q", 9 * math.pi / 50, "q of the rho(Phi_q) = rho(F_q)^(N/m) check", expr=True)

@@ -2,13 +2,16 @@
 """E(q) along the branch before and after Gauss-Newton refinement on a periodic chain (paper section 3.4).
 
     mpiexec -n 2 python scripts/refine_branch.py -branch results/branch_alpha1.5.npz [-N 100] [-tol 1e-10]
-        [-q 3*pi/10,7*pi/25] [-output results/refined_N100.npz] [-table results/refinement_table_N100.md]
+        [-q 3*pi/10,7*pi/25] [-method symmetric|full] [-output results/refined_N100.npz] [-table results/refinement_table_N100.md]
         [-figures figures] [-resume | -force]
 
 For every branch point whose q = 2 pi m / N fits the chain (or the listed -q): E(q) of the interpolated branch
 wave with the paper's flow (rtol 1e-12, atol 1e-14) and with the tight flow (rtol 1e-14, atol 1e-16) used for
-refinement; Gauss-Newton refinement to E <= tol; E(q) of the refined state with both flows; r(q). The refined
-states are written after each q (-resume skips the q already in -output). Figure: errors.png (fig. errors).
+refinement; Gauss-Newton refinement to E <= tol; E(q) of the refined state with both flows; r(q). -method
+symmetric (default) refines on the wave's cell of N/gcd(m,N) beads over its shortest time symmetry (the state is
+then exactly invariant under it), each q on one rank and the q dealt to the ranks; full is the paper's
+Gauss-Newton on the whole chain over script-T. The refined states are written after each q (-resume skips the q
+already in -output). Figure: errors.png (fig. errors).
 Solver prefixes: -shoot_ (the refinement: its flows -shoot_ts_* and -shoot_gn_max_it), -chain_ (the paper's flow
 for E: -chain_ts_*).
 """
@@ -35,12 +38,15 @@ def main():
     tol = opts.real("tol", 1e-10, "target E(q) of the refinement", valid=(lambda x: x > 0, "> 0"))
     qs = opts.numbers("q", "", "wavenumbers to refine (default: every branch q with N q / (2 pi) integer)",
                       valid=(lambda q: q > 0, "> 0"), distinct=True, minimum_count=0)
+    method = opts.string("method", "symmetric", "symmetric (the wave's cell over its time symmetry) or full "
+                         "(all N beads over script-T)", choices=("symmetric", "full"))
     output, mode, table_path, figures = opts.record_table_figures(
         f"results/refined_N{N}.npz", "refinement file", f"results/refinement_table_N{N}.md", "errors.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)
-    scan = RefinementScan(Branch.load(branch_path, comm), branch_path, N, comm, output, mode, qs, tol)
+    scan = RefinementScan(Branch.load(branch_path, comm), branch_path, N, comm, output, mode, qs, tol,
+                           symmetric=method == "symmetric")
     opts.check_unused()
     scan.open()
     print0(f"# N = {N}, alpha = {scan.branch.alpha}, {len(scan.qs)} wavenumbers, target E <= {tol:g}")

@@ -38,7 +38,9 @@ def test_union_of_sectors_is_the_dense_spectrum(cell_wave, L):
     b = bloch_multipliers(cell, N, PETSc.COMM_SELF, MEASURE_TOLERANCES)
     lam = dense_multipliers(dense_monodromy(cell.tiled(L), PETSc.COMM_SELF, MEASURE_TOLERANCES))
     assert len(b.values) == len(lam) == 2 * N
-    assert b.runs == L // 2 + 1 and np.bincount(b.sector, minlength=L).tolist() == [2 * M] * L
+    # the wave repeats every 10 beads (m = 2 wavelengths on the 20-bead cell): 2L sectors of the 10-bead cell
+    assert b.M == 10 and b.L == 2 * L and b.runs == b.L // 2 + 1
+    assert np.bincount(b.sector, minlength=b.L).tolist() == [2 * b.M] * b.L
     # Without the 4 trivial multipliers (split by O(sqrt(eps)) differently in the two runs): the two flows take
     # different adaptive steps at rtol 1e-14; measured <= 5e-8 (double multipliers on the unit circle split as
     # the square root of the flow difference); 1e-6 leaves a factor 20.
@@ -52,7 +54,7 @@ def test_theta_zero_is_the_cell_itself(cell_wave):
     """Sector 0 (untwisted, 2M complex columns) against the dense F_q of the M-bead periodic chain."""
     cell = cell_wave
     x, T = cell.x, cell.T
-    sec = BlochSectors(CELL, PETSc.COMM_SELF, MEASURE_TOLERANCES)
+    sec = BlochSectors(CELL.model, PETSc.COMM_SELF, MEASURE_TOLERANCES)
     try:
         F0 = sec.monodromy(x, T, 0.0)
     finally:
@@ -62,7 +64,7 @@ def test_theta_zero_is_the_cell_itself(cell_wave):
     # same equations, different number of tangents in the TS error norm: entries agree to ~rtol * ||F||
     assert np.max(np.abs(F0.real - F)) < 1e-9 * np.max(np.abs(F))
     b = bloch_multipliers(cell, M, PETSc.COMM_SELF, MEASURE_TOLERANCES)
-    assert b.L == 1 and abs(abs(b.values[0]) - abs(dense_multipliers(F)[0])) < 1e-9
+    assert (b.M, b.L) == (10, 2) and abs(abs(b.values[0]) - abs(dense_multipliers(F)[0])) < 1e-9
 
 
 def test_tiled_modes_are_eigenvectors_of_the_full_chain(cell_wave):
@@ -71,12 +73,13 @@ def test_tiled_modes_are_eigenvectors_of_the_full_chain(cell_wave):
     cell = cell_wave
     L = 5
     b = bloch_multipliers(cell, L * M, PETSc.COMM_WORLD, MEASURE_TOLERANCES, n_modes=6)
-    pairs = real_pairs(b.modes, L)
+    pairs = real_pairs(b.modes, b.L)
     assert 3 <= len(pairs) <= 6
+    c = b.M                                            # the wave's cell: 10 beads
     for lam, Y in pairs:
         assert Y.shape == (L * M, 2)
-        # Bloch form y_{n+M} = e^{i theta_j} y_n for one of the sectors theta_j = 2 pi j / L
-        assert any(np.allclose(Y[M:2 * M], np.exp(2j * math.pi * j / L) * Y[:M]) for j in range(L))
+        # Bloch form y_{n+c} = e^{i theta_j} y_n for one of the sectors theta_j = 2 pi j / (N / c)
+        assert any(np.allclose(Y[c:2 * c], np.exp(2j * math.pi * j / b.L) * Y[:c]) for j in range(b.L))
     res, products = bloch_residuals(cell.tiled(L), pairs, PETSc.COMM_WORLD, MEASURE_TOLERANCES)
     assert products <= 2 * len(pairs) and np.max(res) < 1e-9
 

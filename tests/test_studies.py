@@ -9,10 +9,12 @@ import pytest
 from petsc4py import PETSc
 
 from conftest import chain, small_branch
+from hertzpetsc.bloch import SymmetricFloquet
 from hertzpetsc.branch import Branch
 from hertzpetsc.continuation import ContinuationError, ContinuationParameters
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.model import LatticeModel
+from hertzpetsc.shooting import refine
 from hertzpetsc.simulation import read_snapshots
 from hertzpetsc.studies.branch import BranchStudy, ConvergenceStudy
 from hertzpetsc.studies.compactons import CompactonStudy
@@ -104,6 +106,9 @@ def test_refinement_scan_reaches_the_target_and_resumes(refined):
     assert "| 1.2566 | 4 |" in scan.table()
     orbit = states.orbit(branch.point(0.4 * math.pi))
     assert orbit.source == "refined" and orbit.x.shape == (20, 2)
+    # each q is refined on one rank (the q dealt to the ranks): bit-for-bit the serial refinement on any rank count
+    serial = refine(orbit_on_chain(branch.point(0.6 * math.pi), chain(20)), PETSc.COMM_SELF, tol=1e-10)
+    assert np.array_equal(states.state(0.6 * math.pi), serial.x)
     with pytest.raises(RecordFileError, match="no refined state at q"):
         states.orbit(branch.point(0.3 * math.pi))
 
@@ -125,6 +130,13 @@ def test_floquet_verdicts_only_from_the_waves_they_claim(refined, tmp_path):
     row = next(unrefined.run())
     unrefined.destroy()
     assert row["refined"] == 0 and "unrefined branch waves" in unrefined.table()
+    # symmetric route, each q on one rank: the multipliers are bit-for-bit the serial ones on any rank count
+    fast = SymmetricFloquet(branch.model, PETSc.COMM_SELF)
+    try:
+        for r in rows:
+            assert np.array_equal(r["multipliers"], fast.spectrum(scan.orbit(r["q"])).multipliers)
+    finally:
+        fast.destroy()
 
 
 def test_floquet_scan_resumes_and_its_file_is_the_documented_one(refined, tmp_path):
@@ -157,7 +169,7 @@ def test_bloch_scan_records_and_table(refined, tmp_path):
     rows = list(scan.run())
     scan.destroy()
     (row, extra), = rows
-    assert row["N"] == 40 and extra["runs"] == 2 and row["residual"] < 1e-8 and len(row["dominant"]) == 4
+    assert row["N"] == 40 and extra["runs"] == 5 and row["residual"] < 1e-8 and len(row["dominant"]) == 4
     assert "| 40 | 2pi/5 | 8 |" in scan.table(COMM.getSize())
 
 

@@ -17,20 +17,24 @@ import time
 from fractions import Fraction
 
 import numpy as np
+from petsc4py import PETSc
 
-from ..bloch import (bloch_multipliers, bloch_residuals, real_pairs, sector_solver,
+from ..bloch import (SymmetricFloquet, bloch_multipliers, bloch_residuals, real_pairs, sector_solver,
                      seeded_dominant_multipliers)
 from ..errors import ParameterError, RecordFileError
 from ..floquet import (FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers,
                        spectral_radius)
 from ..model import ChainSpec
 from ..records import NpzRecords, check_kind, load_npz
+from ..symmetry import WaveSymmetry
 from ..waves import orbit_on_chain
+from .dealing import dealt
 from .refinement import scan_wavenumbers
 
 FLOQUET_FORMAT = "hertzpetsc-floquet-1"
 FLOQUET_FIELDS = ("q", "rho", "outside", "trivial_spread", "growth", "refined", "seconds")
 BLOCH_FORMAT = "hertzpetsc-bloch-1"
+METHODS = ("symmetric", "dense", "slepc")
 BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "slepc_products", "slepc_seconds")
 
 
@@ -78,15 +82,17 @@ def _select_wavenumbers(branch, N, qs, refined):
 class FloquetScan:
     """rho(F_q) along the branch on N beads around the refined waves (section 3.5, figs. floquet, eigen).
 
-    ``method``: 'dense' (all 2N multipliers, LAPACK on the assembled F_q, as the paper) or 'slepc' (the ``nev``
-    dominant ones, Krylov-Schur on the matrix-free operator, warm-started from the previous q). Prefix
-    ``floquet_`` (its flow ``-floquet_ts_*`` and eigensolver ``-floquet_eps_*``).
+    ``method``: 'symmetric' (all 2N multipliers from the wave's cell over its shortest time symmetry,
+    :mod:`hertzpetsc.symmetry`; each q on one rank, the q dealt to the ranks), 'dense' (all 2N, LAPACK on the
+    assembled F_q, as the paper: the reference route) or 'slepc' (the ``nev`` dominant ones, Krylov-Schur on the
+    matrix-free operator, warm-started from the previous q). Prefix ``floquet_`` (its flow ``-floquet_ts_*`` and
+    eigensolver ``-floquet_eps_*``).
     """
 
-    def __init__(self, branch, N, comm, output, mode="new", refined=None, qs=None, method="dense", nev=10,
+    def __init__(self, branch, N, comm, output, mode="new", refined=None, qs=None, method="symmetric", nev=10,
                  tol_rho=TOL_RHO, tolerances=FLOQUET_TOLERANCES):
-        if method not in ("dense", "slepc"):
-            raise ParameterError("-method", method, "must be dense or slepc")
+        if method not in METHODS:
+            raise ParameterError("-method", method, "must be one of " + ", ".join(METHODS))
         self.branch, self.N, self.comm, self.method, self.nev = branch, N, comm, method, nev
         self.tol_rho, self.tolerances, self.refined = tol_rho, tolerances, refined
         self.spec = ChainSpec(branch.model, N)
@@ -101,7 +107,8 @@ class FloquetScan:
                                 shapes={"multipliers": (2 * N,)}, what="Floquet file")
         self.store = None
         self.spectra = {}
-        self.solver = (DenseFloquet(self.spec, comm, tolerances) if method == "dense" else
+        self.solver = (SymmetricFloquet(branch.model, PETSc.COMM_SELF, tolerances) if method == "symmetric" else
+                       DenseFloquet(self.spec, comm, tolerances) if method == "dense" else
                        DominantFloquet(self.spec, comm, nev, tolerances))
 
     def open(self):
@@ -116,15 +123,32 @@ class FloquetScan:
             return self.refined.orbit(point, self.spec)
         return orbit_on_chain(point, self.spec)
 
+    def _row(self, q, spec, orbit, seconds):
+        lam = spec.multipliers
+        return dict(q=q, rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
+                    growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
+                    multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
+
+    def _symmetric(self, q):
+        orbit = self.orbit(q)
+        t0 = time.perf_counter()
+        spec = self.solver.spectrum(orbit, self.tol_rho)
+        return self._row(q, spec, orbit, time.perf_counter() - t0)
+
     def run(self):
         """Compute the spectrum at every q not yet in the file; yields the record after saving it."""
         self.open()
         done = {round(float(r["q"]), 12) for r in self.store.records}
+        todo = [q for q in self.qs if round(q, 12) not in done]
+        if self.method == "symmetric":
+            costs = [WaveSymmetry(self.N, self.orbit(q).m).cost() for q in todo]
+            for q, row in dealt(todo, costs, self.comm, self._symmetric):
+                self.store.append(row)
+                yield row
+            return
         warm = None
         try:
-            for q in self.qs:
-                if round(q, 12) in done:
-                    continue
+            for q in todo:
                 orbit = self.orbit(q)
                 t0 = time.perf_counter()
                 if self.method == "dense":
@@ -135,12 +159,7 @@ class FloquetScan:
                         v.destroy()
                     warm = res.vectors
                     spec = Spectrum(res.values, False, self.tol_rho)
-                self.spectra[round(q, 12)] = spec
-                lam = spec.multipliers
-                row = dict(q=q, rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
-                           growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"),
-                           seconds=time.perf_counter() - t0,
-                           multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
+                row = self._row(q, spec, orbit, time.perf_counter() - t0)
                 self.store.append(row)
                 yield row
         finally:
@@ -155,7 +174,11 @@ class FloquetScan:
         row = next(r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q)
         orbit = self.orbit(q)
         tau = orbit.N / orbit.m * orbit.T
-        Phi = self.solver.monodromy(orbit, shift=False, T=tau)
+        dense = DenseFloquet(self.spec, self.comm, self.tolerances)
+        try:
+            Phi = dense.monodromy(orbit, shift=False, T=tau)
+        finally:
+            dense.destroy()
         rho_phi = spectral_radius(dense_multipliers(Phi))
         rho = float(row["rho"])
         return (f"consistency at q = {q:.4f} (m = {orbit.m}): rho(Phi_q) = {rho_phi:.6f} over tau = {tau:.4f}, "
@@ -191,7 +214,7 @@ class FloquetScan:
         im = int(np.argmax(rho))
         lines.append(f"q_m (max rho) = {qm:.4f}, rho = {rho[im]:.6f}; max growth per unit time at q = "
                      f"{q[int(np.argmax(growth))]:.4f}")
-        if check_q is not None and self.method == "dense" and np.min(np.abs(q - check_q)) < 1e-9:
+        if check_q is not None and self.method != "slepc" and np.min(np.abs(q - check_q)) < 1e-9:
             lines.append(self.consistency(float(q[int(np.argmin(np.abs(q - check_q)))])))
         return "\n".join(lines) + "\n"
 
@@ -231,7 +254,7 @@ class BlochScan:
                                      f"{self.M} beads (it is tiled)")
         if split not in ("sectors", "beads"):
             raise ParameterError("-split", split, "must be sectors or beads")
-        self.sectors = sector_solver(self.cell, comm, split, tolerances)
+        self.sectors = sector_solver(branch.model, comm, split, tolerances)
         self.sizes, self.nev, self.tol_rho, self.split = list(sizes), nev, tol_rho, split
         self.slepc_sizes, self.tolerances, self.reference = set(slepc_sizes), tolerances, reference or {}
         self.orbits = [refined.orbit(branch.point(q), self.cell) for q in qs]
@@ -266,19 +289,23 @@ class BlochScan:
                 t_bloch = time.perf_counter() - t0
                 full = cell.tiled(L)
                 t0 = time.perf_counter()
-                res, res_products = bloch_residuals(full, real_pairs(b.modes, L), self.comm, self.tolerances)
+                res, res_products = bloch_residuals(full, real_pairs(b.modes, b.L), self.comm, self.tolerances)
                 t_res = time.perf_counter() - t0
                 slepc = None
                 if N in self.slepc_sizes:
                     s = seeded_dominant_multipliers(full, b, self.nev, self.comm, self.tolerances)
                     slepc = dict(products=s.products, seconds=s.wall_time, rho=float(abs(s.values[0])),
                                  dist=max(float(np.min(np.abs(b.values[:self.nev + 2] - v))) for v in s.values))
-                row = dict(N=N, q=cell.q, rho=spectral_radius(b.values), rho_cell=spectral_radius(b.sector_values(0)),
+                # sector l of the wave's cell (b.M beads) is theta = 2 pi l / b.L per cell, i.e. theta_l per = l / L per
+                # refined cell of M beads: the refined cell's own spectrum is that of the sectors periodic over it
+                per = self.M // b.M
+                cell_sectors = np.isin(b.sector, [l for l in range(b.L) if (l * per) % b.L == 0])
+                row = dict(N=N, q=cell.q, rho=spectral_radius(b.values), rho_cell=spectral_radius(b.values[cell_sectors]),
                            outside=int(np.sum(np.abs(b.values) > 1 + self.tol_rho)), residual=float(np.max(res)),
                            seconds=t_bloch, slepc_products=slepc["products"] if slepc else -1,
                            slepc_seconds=slepc["seconds"] if slepc else math.nan,
                            dominant=np.array([mu for mu, _, _ in b.modes]),
-                           dominant_theta=np.array([j / L for _, j, _ in b.modes]))
+                           dominant_theta=np.array([(j * per / b.L) % 1.0 for _, j, _ in b.modes]))
                 self.extra[(N, round(cell.q, 12))] = dict(m=full.m, L=L, runs=b.runs, columns=b.columns,
                                                            res_products=res_products, t_res=t_res, slepc=slepc)
                 self.store.append(row)

@@ -24,13 +24,16 @@ sigma_min              (P,)       smallest singular value of the phase-condition
 import math
 
 import numpy as np
+from petsc4py import PETSc
 
 from ..chain import CHAIN_PREFIX
 from ..errors import ParameterError, RecordFileError
 from ..model import ChainSpec
 from ..records import NpzRecords, check_kind, load_npz, on_rank0
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
+from ..symmetry import WaveSymmetry
 from ..waves import chain_wavenumbers, check_chain_wavenumber, orbit_on_chain
+from .dealing import dealt
 
 REFINED_FORMAT = "hertzpetsc-refined-1"
 REFINED_FIELDS = ("q", "E_before_paper_flow", "E_before", "E_after", "E_after_paper_flow", "r", "iterations",
@@ -98,16 +101,19 @@ def scan_wavenumbers(branch, N, qs=None):
 class RefinementScan:
     """E(q) before and after Gauss-Newton refinement for the branch waves at ``qs`` on N beads (section 3.4).
 
-    The refinement's flows and Gauss-Newton use the prefix ``shoot_`` (tight flow, rtol 1e-14); E with the paper's
-    flow uses ``chain_``. Each refined state is appended to the refinement file ``output`` before the next q.
+    ``symmetric``: refine on each wave's cell with its shortest time symmetry (:mod:`hertzpetsc.shooting`); else
+    the paper's map over script-T on the N beads. Each q is refined on one rank, the q dealt to the ranks (the
+    results do not depend on their number). The refinement's flows and Gauss-Newton use the prefix ``shoot_`` (tight
+    flow, rtol 1e-14); E with the paper's flow uses ``chain_``. Each refined state is appended to the refinement
+    file ``output`` as soon as its round is done.
     """
 
-    def __init__(self, branch, branch_path, N, comm, output, mode="new", qs=None, tol=1e-10):
+    def __init__(self, branch, branch_path, N, comm, output, mode="new", qs=None, tol=1e-10, symmetric=True):
         self.branch, self.N, self.comm = branch, N, comm
         self.spec = ChainSpec(branch.model, N)
         self.qs = scan_wavenumbers(branch, N, qs)
-        self.refiner = Refiner(self.spec, comm, tol, prefix=SHOOT_PREFIX)
-        self.paper_flow = ShiftMap(self.spec, comm, PAPER_TOLERANCES, CHAIN_PREFIX)
+        self.refiner = Refiner(self.spec, PETSc.COMM_SELF, tol, prefix=SHOOT_PREFIX, symmetric=symmetric)
+        self.paper_flow = ShiftMap(self.spec, PETSc.COMM_SELF, PAPER_TOLERANCES, CHAIN_PREFIX)
         self._open = lambda: NpzRecords(output, REFINED_FORMAT, dict(alpha=branch.alpha, N=N, branch=branch_path,
                                                                      tol=tol), dict(alpha=branch.alpha, N=N, tol=tol),
                                         REFINED_FIELDS + ("x",), comm, mode, shapes={"x": (N, 2)},
@@ -120,23 +126,25 @@ class RefinementScan:
             self.store = self._open()
         return self
 
+    def _refine(self, q):
+        orbit = orbit_on_chain(self.branch.point(q), self.spec)
+        E_paper = self.paper_flow.residual(orbit)
+        res = self.refiner.refine(orbit)
+        E_after_paper = self.paper_flow.residual(res.orbit)
+        return dict(q=q, x=res.x, E_before_paper_flow=E_paper, E_before=res.E_initial, E_after=res.E,
+                    E_after_paper_flow=E_after_paper, r=res.r, iterations=res.iterations, jacobians=res.jacobians,
+                    wall_time=res.wall_time, sigma_min=res.sigma_min)
+
     def done(self):
         return {round(float(r["q"]), 12) for r in self.store.records}
 
     def run(self):
         """Refine every q not yet in the file; yields the record (a dict of the fields) after saving it."""
         self.open()
+        todo = [q for q in self.qs if round(q, 12) not in self.done()]
+        costs = [WaveSymmetry(self.N, check_chain_wavenumber(q, self.N)).cost() for q in todo]
         try:
-            for q in self.qs:
-                if round(q, 12) in self.done():
-                    continue
-                orbit = orbit_on_chain(self.branch.point(q), self.spec)
-                E_paper = self.paper_flow.residual(orbit)
-                res = self.refiner.refine(orbit)
-                E_after_paper = self.paper_flow.residual(res.orbit)
-                row = dict(q=q, x=res.x, E_before_paper_flow=E_paper, E_before=res.E_initial, E_after=res.E,
-                           E_after_paper_flow=E_after_paper, r=res.r, iterations=res.iterations,
-                           jacobians=res.jacobians, wall_time=res.wall_time, sigma_min=res.sigma_min)
+            for q, row in dealt(todo, costs, self.comm, self._refine):
                 self.store.append(row)
                 yield row
         finally:
@@ -148,7 +156,9 @@ class RefinementScan:
         N = self.N
         lines = [f"N = {N} beads. E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf. 'paper flow': adaptive RK "
                  "8(7) with rtol 1e-12, atol 1e-14 (the paper's tolerances); 'tight flow': rtol 1e-14, atol 1e-16 "
-                 "(used for the refinement and its E). r = relative change of the last Gauss-Newton step.\n",
+                 "(used for the refinement and its E). r = relative change of the last Gauss-Newton step. Refinement: "
+                 + ("on the wave's cell over its shortest time symmetry (hertzpetsc.symmetry).\n" if self.refiner.symmetric
+                    else "on the N beads over script-T (the paper's map).\n"),
                  "| q | m | E before (paper flow) | E before (tight flow) | E after (tight flow) | E after (paper flow) "
                  "| r(q) | GN its | Jacobians |", "|---|---|---|---|---|---|---|---|---|"]
         for r in rows:

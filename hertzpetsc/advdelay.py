@@ -123,13 +123,14 @@ class AdvanceDelayProblem:
 
     def formFunction(self, snes, X, F):
         dplus, dminus, d2u = self.shift_differences(X)
-        force = self.model.force
-        F.getArray()[:] = d2u - _on_contact(force, dplus) + _on_contact(force, dminus)
+        force, delta0 = self.model.force, self.model.delta0
+        F.getArray()[:] = d2u - _on_contact(force, dplus, delta0) + _on_contact(force, dminus, delta0)
 
     def _coefficients(self, X):
         dplus, dminus, _ = self.shift_differences(X)
-        self.a = _on_contact(self.model.stiffness, dplus)
-        self.b = _on_contact(self.model.stiffness, dminus)
+        delta0 = self.model.delta0
+        self.a = _on_contact(self.model.stiffness, dplus, delta0)
+        self.b = _on_contact(self.model.stiffness, dminus, delta0)
 
     def _jacobian_blocks(self):
         a, b = self.a[:, None], self.b[:, None]
@@ -181,8 +182,11 @@ def _d2_csr(grid, stencils):
     return csr
 
 
-def _on_contact(f, x):
-    """f(x) where x < 0 (in contact), 0 elsewhere: V' and V'' vanish for x >= 0, and few entries are in contact."""
+def _on_contact(f, x, delta0=0.0):
+    """f(x) where x < 0 (in contact), 0 elsewhere: V' and V'' vanish for x >= 0, and few entries are in contact.
+    With precompression delta0 > 0 the law itself handles contact (V' = delta0^alpha beyond it): f(x) everywhere."""
+    if delta0 > 0.0:
+        return f(x)
     out = np.zeros_like(x)
     m = x < 0.0
     out[m] = f(x[m])

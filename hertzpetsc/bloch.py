@@ -101,6 +101,10 @@ class BlochSectors:
         self._solvers = {}
         self.runs = 0
 
+    def configure(self):
+        """Build a small solver now, so that the ``floquet_ts_*`` options are read and checked before any run."""
+        self._solver(2 * self.comm.getSize() + 1, False)
+
     def _solver(self, M, complex_modes):
         key = (M, complex_modes)
         if key not in self._solvers:
@@ -179,7 +183,9 @@ def sector_solver(model, comm, split="sectors", tolerances=FLOQUET_TOLERANCES, p
     distributed over ``comm``), to be built once and reused for several wavenumbers."""
     if split not in ("sectors", "beads"):
         raise ParameterError("split", split, "must be 'sectors' or 'beads'")
-    return BlochSectors(model, PETSc.COMM_SELF if split == "sectors" else comm, tolerances, prefix)
+    sectors = BlochSectors(model, PETSc.COMM_SELF if split == "sectors" else comm, tolerances, prefix)
+    sectors.configure()
+    return sectors
 
 
 def bloch_multipliers(orbit, N, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, split="sectors",
@@ -245,7 +251,7 @@ class SymmetricFloquet:
     def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
         self.comm = comm
         self.sectors = BlochSectors(model, comm, tolerances, prefix)
-        self.sectors._solver(3, False)                     # reads and checks the -floquet_ts_* options now
+        self.sectors.configure()
 
     def spectrum(self, orbit, tol_rho=TOL_RHO):
         return Spectrum(bloch_multipliers(orbit, orbit.N, self.comm, sectors=self.sectors).values, True, tol_rho)

@@ -22,6 +22,17 @@ def check_alpha(alpha):
     return a
 
 
+def check_delta0(delta0):
+    """Return the precompression ``delta0`` as a float, or raise :class:`ParameterError` unless delta0 >= 0."""
+    try:
+        d = float(delta0)
+    except (TypeError, ValueError):
+        raise ParameterError("delta0", delta0, "must be a real number >= 0") from None
+    if not (d >= 0.0 and math.isfinite(d)):
+        raise ParameterError("delta0", delta0, "the precompression (static overlap) must be a finite number >= 0")
+    return d
+
+
 def abs_power(a, e):
     """a^e for a >= 0. Exponents that are whole or half-whole numbers up to 4 (alpha = 3/2, 2, 5/2, ...) use
     products and one sqrt, several times faster than the general power, which dominates the chain's right-hand
@@ -38,23 +49,57 @@ def abs_power(a, e):
 
 @dataclass(frozen=True)
 class HertzLaw:
-    """V(x) = |x|^(1+alpha) H(-x) / (1+alpha) (eq. vhertz) and the symmetrised W (eq. int), for alpha > 1."""
+    """V(x) = |x|^(1+alpha) H(-x) / (1+alpha) (eq. vhertz) and the symmetrised W (eq. int), for alpha > 1.
+
+    With a precompression (static overlap) ``delta0`` > 0 the bond length x is measured from the compressed
+    equilibrium: V'(x) = delta0^alpha - (delta0 - x)_+^alpha = delta0^alpha + V'_0(x - delta0), so V'(0) = 0,
+    V''(0) = alpha delta0^(alpha-1), and contact is lost (a gap opens) for x >= delta0. delta0 = 0 is the paper's
+    law and evaluates exactly as before. The closed forms below (W, c_alpha, period, p0) are those of delta0 = 0.
+    """
 
     alpha: float = 1.5
+    delta0: float = 0.0
 
     def __post_init__(self):
         object.__setattr__(self, "alpha", check_alpha(self.alpha))
+        object.__setattr__(self, "delta0", check_delta0(self.delta0))
+
+    @property
+    def precompressed(self):
+        return self.delta0 > 0.0
+
+    @property
+    def linear_stiffness(self):
+        """K = V''(0) = alpha delta0^(alpha-1) (0 for the uncompressed chain)."""
+        return self.alpha * self.delta0 ** (self.alpha - 1.0)
 
     # --- V and its derivatives (eq. vhertz); H(-x) makes them vanish for x >= 0 (no contact) ---
     def V(self, x):
+        """V(x), normalised by V(0) = 0 (with precompression: delta0^alpha x + ((delta0-x)_+^(1+alpha) -
+        delta0^(1+alpha)) / (1+alpha), whose linear part sums to zero over a periodic chain)."""
+        if self.delta0 > 0.0:
+            d, a = self.delta0, self.alpha
+            return d ** a * x + (abs_power(np.maximum(d - x, 0.0), 1.0 + a) - d ** (1.0 + a)) / (1.0 + a)
         return abs_power(-np.minimum(x, 0.0), 1.0 + self.alpha) / (1.0 + self.alpha)
 
     def dV(self, x):
-        """V'(x) = -|x|^alpha H(-x): the contact force, non-positive."""
+        """V'(x) = -|x|^alpha H(-x): the contact force, non-positive; with precompression
+        delta0^alpha - (delta0 - x)_+^alpha, evaluated as -delta0^alpha expm1(alpha log1p(-x/delta0)) in contact
+        (no cancellation when |x| << delta0)."""
+        if self.delta0 > 0.0:
+            d, a = self.delta0, self.alpha
+            x = np.asarray(x, dtype=float)
+            ratio = np.minimum(x / d, 1.0)
+            with np.errstate(divide="ignore"):          # log1p(-1) = -inf: out of contact, V' = delta0^alpha
+                return -d ** a * np.expm1(a * np.log1p(-ratio))
         return -abs_power(-np.minimum(x, 0.0), self.alpha)
 
     def d2V(self, x):
-        """V''(x) = alpha |x|^(alpha-1) H(-x), continuous for alpha > 1."""
+        """V''(x) = alpha |x|^(alpha-1) H(-x), continuous for alpha > 1 (alpha (delta0 - x)_+^(alpha-1) with
+        precompression)."""
+        if self.delta0 > 0.0:
+            return self.alpha * abs_power(np.maximum(self.delta0 - np.asarray(x, dtype=float), 0.0),
+                                          self.alpha - 1.0)
         return self.alpha * abs_power(-np.minimum(x, 0.0), self.alpha - 1.0)
 
     # --- symmetrised potential W(x) = V(-2|x|)/2 = 2^alpha |x|^(1+alpha)/(1+alpha) (theorem 1) ---

@@ -43,13 +43,27 @@ class LatticeModel:
         object.__setattr__(self, "masses", _check_masses(self.masses))
 
     @classmethod
-    def hertz(cls, alpha=1.5, masses=(1.0,)):
-        """The Hertzian chain with exponent alpha (eq. vhertz) and the given mass pattern."""
-        return cls(HertzLaw(alpha), masses)
+    def hertz(cls, alpha=1.5, masses=(1.0,), delta0=0.0):
+        """The Hertzian chain with exponent alpha (eq. vhertz), the given mass pattern and precompression
+        delta0 >= 0 (static overlap of neighbours; 0 is the paper's uncompressed chain)."""
+        return cls(HertzLaw(alpha, delta0), masses)
 
     @property
     def alpha(self):
         return self.law.alpha
+
+    @property
+    def delta0(self):
+        """The precompression (static overlap between neighbours), 0 for the paper's chain."""
+        return self.law.delta0
+
+    def with_masses(self, masses):
+        """The same law with another mass pattern."""
+        return LatticeModel(self.law, masses)
+
+    def with_delta0(self, delta0):
+        """The same masses with the law's precompression replaced by delta0."""
+        return LatticeModel(HertzLaw(self.alpha, delta0), self.masses)
 
     @property
     def cell(self):
@@ -85,8 +99,12 @@ class LatticeModel:
                                  "(all masses 1)")
 
     def describe(self):
-        """The model as plain data (for record identities and file metadata)."""
-        return dict(alpha=self.alpha, masses=list(self.masses))
+        """The model as plain data (for record identities and file metadata); delta0 only when nonzero, so that
+        the identities of the uncompressed chain's records are unchanged."""
+        out = dict(alpha=self.alpha, masses=list(self.masses))
+        if self.delta0 > 0.0:
+            out["delta0"] = self.delta0
+        return out
 
 
 @dataclass(frozen=True)
@@ -109,9 +127,10 @@ class ChainSpec:
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {self.model.cell}")
 
     @classmethod
-    def hertz(cls, alpha=1.5, N=100, boundary="periodic", masses=(1.0,)):
-        """N beads of the Hertzian chain with exponent alpha (the paper's, with unit masses, by default)."""
-        return cls(LatticeModel.hertz(alpha, masses), N, boundary)
+    def hertz(cls, alpha=1.5, N=100, boundary="periodic", masses=(1.0,), delta0=0.0):
+        """N beads of the Hertzian chain with exponent alpha (the paper's, with unit masses and no
+        precompression, by default)."""
+        return cls(LatticeModel.hertz(alpha, masses, delta0), N, boundary)
 
     @property
     def alpha(self):

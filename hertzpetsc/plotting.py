@@ -319,3 +319,171 @@ def plot_small_q(q, levels, extrapolated, k_alpha, directory):
     ax.set_ylabel(r"$\|u\|_\infty\, q^{2/(\alpha-1)}$")
     ax.legend(fontsize=8)
     return _save(fig, directory, "smallq.png")
+
+
+# --- isolated compactons: window spectra and perturbed dynamics (hertzpetsc.studies.compacton_stability) ---------
+def plot_compacton_max_multiplier(rows, directory):
+    """Largest nontrivial |mu| of the compacton window map against q (log q), one curve per alpha; the solitary
+    wave (q = 0) as a dashed level."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for k, a in enumerate(sorted({float(r["alpha"]) for r in rows})):
+        rs = [r for r in rows if float(r["alpha"]) == a]
+        q = np.array([float(r["q"]) for r in rs])
+        mu = np.array([float(r["max_nontrivial"]) for r in rs])
+        pos = q > 0
+        order = np.argsort(q[pos])
+        line, = ax.semilogx(q[pos][order], mu[pos][order], ".-", ms=5, lw=0.8, label=rf"$\alpha = {a:g}$")
+        if (~pos).any():
+            ax.axhline(mu[~pos][0], color=line.get_color(), lw=0.6, ls="--")
+    ax.axhline(1.0, color="k", lw=0.6)
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"max nontrivial $|\mu|$ (window map)")
+    ax.set_title("isolated compactons; dashed: solitary wave ($q \\to 0$)", fontsize=9)
+    ax.set_ylim(0, 1.05)
+    ax.legend(fontsize=8)
+    return _save(fig, directory, "compacton_stability_mu.png")
+
+
+def plot_compacton_spectra(rows, eta, directory):
+    """All window multipliers of the given records in the complex plane, with the unit circle and the circle
+    exp(-eta) below which the transport part lies in the weighted space."""
+    plt = _pyplot()
+    fig, axes = plt.subplots(1, len(rows), figsize=(4 * len(rows), 4))
+    th = np.linspace(0, 2 * math.pi, 400)
+    for ax, r in zip(np.atleast_1d(axes), rows):
+        lam = np.asarray(r["multipliers"])
+        ax.plot(np.cos(th), np.sin(th), "b-", lw=0.6)
+        ax.plot(math.exp(-eta) * np.cos(th), math.exp(-eta) * np.sin(th), "g:", lw=0.6)
+        ax.plot(lam.real, lam.imag, "k+", ms=6)
+        ax.set_aspect("equal")
+        ax.set_title(rf"$\alpha = {float(r['alpha']):g}$, $q = {float(r['q']):.4f}$", fontsize=10)
+    return _save(fig, directory, "compacton_stability_spectra.png")
+
+
+def plot_compacton_dynamics(records, directory):
+    """Left: |rest| (deviation from the Jordan block at 1) against the beads travelled, with |mu_3|^k; right: the
+    first record's deviation per window bead (space-time, log10)."""
+    plt = _pyplot()
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4))
+    for r in records:
+        rest = np.asarray(r["rest"])
+        k = np.arange(len(rest))
+        line, = ax.semilogy(k, np.maximum(rest, 1e-18), lw=0.7, label=f"q = {float(r['q']):.4f}, {r['kind']}")
+        if str(r["kind"]) == "mode":
+            pred = rest[0] * np.abs(complex(r["mu3"])) ** k
+            keep = pred > 1e-16
+            ax.semilogy(k[keep], pred[keep], ls="--", lw=0.7, color=line.get_color())
+    ax.set_xscale("symlog", linthresh=50)
+    ax.set_xlabel("beads travelled $k$ (= time)")
+    ax.set_ylabel(r"$|\delta_k - a v_1 - b v_2|$ (relative)")
+    ax.set_title(r"dashed: $|\mu_3|^k$", fontsize=9)
+    ax.legend(fontsize=7)
+    r = records[0]
+    dev = np.log10(np.maximum(np.asarray(r["deviation"]), 1e-18))
+    im = bx.pcolormesh(np.arange(dev.shape[0]), np.arange(dev.shape[1]), dev.T, cmap="viridis",
+                       vmin=max(dev.min(), -14), shading="nearest")
+    fig.colorbar(im, ax=bx, label=r"$\log_{10}$ |deviation| (window bead)")
+    bx.set_xscale("symlog", linthresh=50)
+    bx.set_xlabel("time = beads travelled")
+    bx.set_ylabel("window bead (moving frame)")
+    bx.set_title(f"q = {float(r['q']):.4f}, {r['kind']}: perturbed compacton, moving frame", fontsize=9)
+    return _save(fig, directory, "compacton_dynamics.png")
+
+
+# --- beyond the paper: slow instabilities above q_c on the infinite chain --------------------------------------------
+def plot_slow_instabilities(records, target, alpha, directory, name="slow_instabilities.png"):
+    """gamma(q) on a log scale from the slow-instability records: the co-moving route on each grid and the
+    deflated monodromy route (|gamma|: both are rounding-level where stable), the undeflated symmetry cluster
+    (ln(1 + raw |mu| - 1) / script-T, what an undeflated spectrum shows) and the target resolution."""
+    plt = _pyplot()
+    rows = sorted(records, key=lambda r: float(r["q"]))
+    q = np.array([float(r["q"]) for r in rows])
+    T = np.array([float(r["T"]) for r in rows])
+    g = np.array([np.abs(np.asarray(r["gamma_cm"], dtype=float)) for r in rows])
+    floor = 1e-17
+    fig, ax = plt.subplots(figsize=(7, 4.2))
+    for k in range(g.shape[1]):
+        ax.semilogy(q, np.maximum(g[:, k], floor), "o-" if k == g.shape[1] - 1 else ".",
+                    ms=3 + k, lw=0.6, color=str(0.6 - 0.3 * k / max(1, g.shape[1] - 1)),
+                    label=f"co-moving QEP, grid {k}" + (" (finest)" if k == g.shape[1] - 1 else ""))
+    mono = np.array([abs(float(r["gamma_mono"])) for r in rows])
+    raw = np.array([math.log1p(max(float(r["raw_cluster_mono"]), 0.0)) for r in rows]) / T
+    ok = np.isfinite(mono)
+    if ok.any():
+        ax.semilogy(q[ok], np.maximum(mono[ok], floor), "s", ms=4, color="tab:blue", mfc="none",
+                    label="monodromy, symmetry multipliers deflated")
+        ax.semilogy(q[ok], np.maximum(raw[ok], floor), "x", ms=4, color="tab:red",
+                    label="monodromy, symmetry cluster undeflated")
+    ax.axhline(target, color="k", ls="--", lw=0.8, label=f"target resolution {target:g}")
+    unstable = np.array([int(r["verdict"]) for r in rows]) == 1
+    if unstable.any():
+        ax.semilogy(q[unstable], g[unstable, -1], "r*", ms=9, label="slowly unstable")
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$|\gamma(q)| = \max \ln|\mu| / \mathcal{T}$")
+    ax.set_title(rf"$\alpha = {alpha:g}$: growth rates on the infinite chain", fontsize=9)
+    ax.legend(fontsize=7, loc="best")
+    return _save(fig, directory, name)
+
+
+# --- issue 16: precompressed and dimer chains ----------------------------------------------------------------------
+def plot_precompressed_omega(curves, alpha, delta0, directory):
+    """omega(q, A) of the precompressed chain against the acoustic omega_lin(q) (left) and, rescaled as
+    omega A^(-(alpha-1)/2), against its uncompressed limit (right); open circles: the gap opening A_gap(q).
+    ``curves``: {q: (A, omega, omega_lin, Omega0, (A_gap, omega_gap))}."""
+    plt = _pyplot()
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    e = (alpha - 1) / 2
+    for i, (q, (A, omega, omega_lin, Omega0, (A_gap, omega_gap))) in enumerate(sorted(curves.items())):
+        color = f"C{i}"
+        label = f"q = {q / math.pi:.3g}$\\pi$"
+        ax1.semilogx(A, omega / omega_lin, "-", color=color, lw=1, label=label)
+        ax2.semilogx(A, omega * A ** (-e), "-", color=color, lw=1, label=label)
+        if np.isfinite(Omega0):
+            ax2.axhline(Omega0, color=color, ls="--", lw=0.7)
+        if np.isfinite(A_gap):
+            ax1.semilogx([A_gap], [omega_gap / omega_lin], "o", mfc="none", color=color)
+            ax2.semilogx([A_gap], [omega_gap * A_gap ** (-e)], "o", mfc="none", color=color)
+    ax1.set_xlabel(r"$A = \|u\|_\infty$" + f" ($\\delta_0$ = {delta0:g})")
+    ax1.set_ylabel(r"$\omega / \omega_{lin}(q)$")
+    ax2.set_xlabel(r"$A$")
+    ax2.set_ylabel(r"$\omega A^{-(\alpha-1)/2}$ (dashed: uncompressed limit)")
+    ax2.set_yscale("log")
+    ax1.legend(fontsize=8)
+    return _save(fig, directory, "precompressed_omega.png")
+
+
+def plot_dimer_epsilon(curves, directory):
+    """Dimer waves continued in the mass ratio epsilon: omega (solid) and the linear acoustic frequency (dashed),
+    and ||v||_inf of the light bead, against epsilon. ``curves``: {q: (epsilon, omega, omega_acoustic, norm_v)}."""
+    plt = _pyplot()
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    for i, (q, (eps, omega, omega_ac, norm_v)) in enumerate(sorted(curves.items())):
+        color = f"C{i}"
+        ax1.plot(eps, omega, ".-", color=color, ms=2, lw=0.8, label=f"q = {q / math.pi:.3g}$\\pi$")
+        ax1.plot(eps, omega_ac, "--", color=color, lw=0.7)
+        ax2.plot(eps, norm_v, ".-", color=color, ms=2, lw=0.8)
+    ax1.set_xlabel(r"$\epsilon$ ($m_2 / m_1$)")
+    ax1.set_ylabel(r"$\omega$ (dashed: linear acoustic branch)")
+    ax2.set_xlabel(r"$\epsilon$")
+    ax2.set_ylabel(r"$\|v\|_\infty$ (light bead)")
+    ax1.legend(fontsize=8)
+    return _save(fig, directory, "dimer_epsilon.png")
+
+
+def plot_precompression_map(q, A, rho, tol_rho, directory):
+    """Floquet stability of the precompressed waves in the (q, A) plane: filled markers coloured by
+    log10(rho - 1) where rho - 1 > tol_rho, open circles where stable."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6, 4.5))
+    q, A, rho = map(np.asarray, (q, A, rho))
+    bad = rho - 1 > tol_rho
+    ax.scatter(q[~bad], A[~bad], s=25, facecolors="none", edgecolors="k", lw=0.7, label="stable")
+    if bad.any():
+        sc = ax.scatter(q[bad], A[bad], s=30, c=np.log10(rho[bad] - 1), cmap="viridis", label="unstable")
+        fig.colorbar(sc, ax=ax, label=r"$\log_{10}(\rho - 1)$")
+    ax.set_yscale("log")
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$A = \|u\|_\infty$")
+    ax.legend(fontsize=8, loc="upper right")
+    return _save(fig, directory, "precompression_map.png")

@@ -12,7 +12,8 @@ symmetric (default) refines on the wave's cell of N/gcd(m,N) beads over its shor
 then exactly invariant under it), each q on one rank and the q dealt to the ranks; full is the paper's
 Gauss-Newton on the whole chain over script-T. The refined states are written after each q (-resume skips the q
 already in -output). Figure: errors.png (fig. errors).
-Solver prefixes: -shoot_ (the refinement: its flows -shoot_ts_* and -shoot_gn_max_it), -chain_ (the paper's flow
+Solver prefixes: -shoot_ (the refinement: its flows -shoot_ts_* and -shoot_gn_max_it), -shoot_jac_ (the flow of
+its Jacobian: -shoot_jac_ts_*), -chain_ (the paper's flow
 for E: -chain_ts_*).
 """
 import sys
@@ -28,6 +29,7 @@ from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates, RefinementScan  # noqa: E402
 
 ROLES = {"shoot_": ("refinement: its flows and Gauss-Newton (-shoot_gn_max_it 20)", ("ts",)),
+         "shoot_jac_": ("the flow of the refinement's Jacobian (rtol 1e-10)", ("ts",)),
          "chain_": ("the paper's flow (rtol 1e-12) for E before and after", ("ts",))}
 
 

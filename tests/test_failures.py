@@ -67,6 +67,26 @@ DRIVERS = {
                          "records", ("-sizes", 150), None),
     "bench_report.py": (("-workloads", "branch", "-output", "{t}/b.md"), None, "records", ("-workloads", "gpu"),
                         None),
+    "bench_stability.py": (("-N", 20, "-routes", "symmetric", "-branch", BRANCH, "-output", "{t}/b.md"), "branch",
+                           "records", ("-routes", "symmetric,gpu"), None),
+    "precompressed_branch.py": (("-q", "3*pi/10", "-cells_per_pi", 50, "-a_min", 0.1, "-a_max", 10, "-ds", 1, "-output",
+                                 "{t}/p.npz", "-table", "{t}/p.md"), None, "output", ("-q", "3*pi/10,3*pi/10"),
+                                ("-precomp_pc_type", "bogus")),
+    "dimer_branch.py": (("-cells_per_pi", 40, "-a", 0.1, "-max_steps", 2, "-output", "{t}/d.npz", "-table", "{t}/d.md"),
+                        None, "output", ("-q", "3*pi/10,3*pi/10"), ("-dimer_pc_type", "bogus")),
+    "precompression_map.py": (("-N", 20, "-m", 3, "-a", 0.5, "-cells_per_pi", 100, "-output", "{t}/m.npz", "-table",
+                               "{t}/m.md"), None, "output", ("-m", "3,3"), ("-floquet_ts_type", "bogus")),
+    "slow_instabilities.py": (("-branch", BRANCH, "-N", 30, "-q", "2*pi/5", "-grids", "100,200,400", "-n_theta", 3,
+                               "-n_twist", 1, "-reference", "none", "-convergence_q", "2*pi/5", "-output", "{t}/s.npz",
+                               "-table", "{t}/s.md"), "branch", "output", ("-grids", "100,200"),
+                              ("-cm_pep_type", "bogus")),
+    "compacton_stability.py": (("-branches", BRANCH, "-q", "pi/5", "-no_solitary", "-no_ring", "-M", 12, "-rear", 3,
+                                "-output", "{t}/c.npz", "-table", "{t}/c.md"), "branches", "output",
+                               ("-q", "pi/5,pi/5"), ("-cwin_ts_type", "bogus")),
+    "compacton_dynamics.py": (("-stability", f"{RESULTS}/compacton_stability.npz", "-q", "7*pi/25", "-N", 40,
+                               "-n0", 5, "-travel", 10, "-kinds", "mode", "-no_pairs", "-output", "{t}/d.npz",
+                               "-table", "{t}/d.md"), "stability", "output", ("-q", "7*pi/25,7*pi/25"),
+                              ("-cdyn_ts_type", "bogus")),
 }
 
 
@@ -83,15 +103,15 @@ def drive(script, args, capfd, monkeypatch, cwd):
     opts = PETSc.Options()
     before = set(opts.getAll())
     names = []
-    it = iter(map(str, args))
-    for a in it:
-        name = a[1:]
-        value = None
-        nxt = next(it, None)
+    args = [str(a) for a in args]
+    i = 0
+    while i < len(args):                                      # -name [value]; a flag takes no value
+        name, value = args[i][1:], None
+        nxt = args[i + 1] if i + 1 < len(args) else None
         if nxt is not None and not (nxt.startswith("-") and not nxt[1:2].isdigit()):
             value = nxt
-        elif nxt is not None:
-            it = iter([nxt, *it])
+            i += 1
+        i += 1
         opts.setValue(name, value)
         names.append(name)
     capfd.readouterr()

@@ -79,6 +79,64 @@ def paper_steps(figures="figures", runs="runs"):
     steps.append(Step("dynamics_figures", "3.4", "dynamics_figures.py",
                       ("-runs", ",".join(f"{runs}/{name}:{windows[name]}" for name, *_ in long_runs), "-figures",
                        figures, "-table", "results/long_runs.md"), parallel=False))
+    steps += beyond_the_paper_steps(figures, runs)
+    return steps
+
+
+ALPHA2_SLOW_M = (50, 49, 48, 47, 46, 44, 42, 40, 38, 36, 34, 32, 30, 28, 26, 24, 22, 20, 18, 16, 15, 14, 13, 12, 10)
+
+
+def beyond_the_paper_steps(figures="figures", runs="runs"):
+    """The studies of the paper's open questions and of the chains beyond it (issues 14-16)."""
+    steps = [
+        Step("slow_instabilities", "3.5", "slow_instabilities.py",
+             ("-refined", "results/refined_N100.npz", "-figures", figures), record="results/slow_instabilities.npz"),
+        Step("branch_M200", "3.5", "continuation.py", ("-M", "200", "-q_stop", "27*pi/100", "-output",
+                                                        f"{runs}/branch_alpha1.5_M200.npz"),
+             record=f"{runs}/branch_alpha1.5_M200.npz"),
+        Step("slow_near_qc", "3.5", "slow_instabilities.py",
+             ("-branch", f"{runs}/branch_alpha1.5_M200.npz", "-q", ",".join(f"{m}*pi/200" for m in range(54, 63)),
+              "-n_twist", "0", "-reference", "none", "-output", "results/slow_instabilities_near_qc.npz", "-table",
+              "results/slow_instabilities_near_qc.md", "-figures", figures, "-figure_name",
+              "slow_instabilities_near_qc.png"), record="results/slow_instabilities_near_qc.npz"),
+        Step("branch_alpha2", "3.3", "continuation.py", ("-alpha", "2", "-output", f"{runs}/branch_alpha2.npz"),
+             record=f"{runs}/branch_alpha2.npz"),
+        Step("slow_alpha2", "3.5", "slow_instabilities.py",
+             ("-branch", f"{runs}/branch_alpha2.npz", "-q", ",".join(f"{m}*pi/50" for m in ALPHA2_SLOW_M),
+              "-n_twist", "0", "-reference", "none",
+              "-output", "results/slow_instabilities_alpha2.npz", "-table", "results/slow_instabilities_alpha2.md",
+              "-figures", figures, "-figure_name", "slow_instabilities_alpha2.png"),
+             record="results/slow_instabilities_alpha2.npz"),
+        Step("slow_alpha2_mono", "3.5", "slow_instabilities.py",
+             ("-branch", f"{runs}/branch_alpha2.npz", "-q", "2*pi/5,3*pi/5,pi", "-reference",
+              "none", "-convergence_q", "2*pi/5", "-output", "results/slow_instabilities_alpha2_mono.npz", "-table",
+              "results/slow_instabilities_alpha2_mono.md"), record="results/slow_instabilities_alpha2_mono.npz"),
+        Step("branch_alpha2.5", "3.3", "continuation.py", ("-alpha", "2.5", "-q_stop", "27*pi/50", "-output",
+                                                            f"{runs}/branch_alpha2.5.npz"),
+             record=f"{runs}/branch_alpha2.5.npz"),
+        Step("compacton_stability", "3.3", "compacton_stability.py",
+             ("-branches", f"results/branch_alpha1.5.npz,{runs}/branch_alpha2.npz,{runs}/branch_alpha2.5.npz",
+              "-no_solitary", "-figures", figures), record="results/compacton_stability.npz"),
+        Step("compacton_dynamics", "3.3", "compacton_dynamics.py",
+             ("-q", "7*pi/25,pi/50", "-pairs_branch", f"{runs}/branch_K4000.npz", "-figures", figures),
+             parallel=False, record="results/compacton_dynamics.npz"),
+        Step("precompressed", "issue 16", "precompressed_branch.py", ("-figures", figures),
+             record="results/precompressed.npz"),
+        Step("dimer_a0.1", "issue 16", "dimer_branch.py", ("-a", "0.1", "-cells_per_pi", "400", "-output",
+                                                           "results/dimer_a0.1.npz", "-table", "results/dimer_a0.1.md",
+                                                           "-figures", figures), record="results/dimer_a0.1.npz"),
+        Step("dimer_a0.5", "issue 16", "dimer_branch.py", ("-a", "0.5", "-cells_per_pi", "400", "-output",
+                                                           "results/dimer_a0.5.npz", "-table", "results/dimer_a0.5.md"),
+             record="results/dimer_a0.5.npz"),
+        Step("precompression_map", "issue 16", "precompression_map.py", ("-figures", figures),
+             record="results/precompression_map.npz"),
+    ]
+    for eps in ("0.7", "0.4"):
+        steps.append(Step(f"precompression_map_dimer{eps}", "issue 16", "precompression_map.py",
+                          ("-epsilon", eps, "-m", "10,14,15,20", "-a", "0.1,0.3,1,3,10,100", "-output",
+                           f"results/precompression_map_dimer{eps}.npz", "-table",
+                           f"results/precompression_map_dimer{eps}.md"),
+                          record=f"results/precompression_map_dimer{eps}.npz"))
     return steps
 
 

@@ -1,0 +1,445 @@
+"""Studies of precompressed and dimer chains (issue 16): amplitude families at fixed q from the linear wave to
+the uncompressed limit, the gap opening, dimer families in the mass ratio, and Floquet stability in (q, A).
+
+Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.records.NpzRecords`):
+
+* ``hertzpetsc-precompressed-1`` (:class:`AmplitudeFamilies`): constants alpha, delta0, cells_per_pi, a_min,
+  a_max, ds; per record: q, kind (0 = a point of the s = log a grid, 1 = the gap opening 2 u(q/2) = delta0,
+  2 = the uncompressed limit delta0 / A = 0, where a and A are inf), a (first sine coefficient of u), A
+  (||u||_inf), omega, omega_lin (closed form), Omega = omega A^(-(alpha-1)/2), lam, gap (2 u(q/2) - delta0),
+  iterations.
+* ``hertzpetsc-dimer-1`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end;
+  per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u, norm_v
+  (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
+  iterations.
+* ``hertzpetsc-precompression-map-1`` (:class:`StabilityMap`): constants alpha, delta0, masses, N, cells_per_pi,
+  rtol, tol_rho; per record: q, a (inf: uncompressed), A, omega, rho (trivial multipliers excluded), outside,
+  trivial_spread, seconds.
+"""
+import math
+import time
+
+import numpy as np
+
+from ..chain import IntegrationTolerances
+from ..diagnostics import sup_norm
+from ..errors import ConvergenceError, ParameterError
+from ..floquet import TOL_RHO, DenseFloquet
+from ..grid import ProfileGrid, check_cells_per_pi
+from ..model import ChainSpec, LatticeModel
+from ..precompression import (AmplitudeContinuation, MassContinuation, check_amplitude, dimer_frequencies,
+                              linear_frequency, uncompressed_limit, weakly_nonlinear_coefficient)
+from ..records import NpzRecords
+from ..stencil import full_period, lagrange_periodic
+from ..waves import Orbit, check_chain_wavenumber
+from .floquet import q_label
+
+PRECOMPRESSED_FORMAT = "hertzpetsc-precompressed-1"
+PRECOMPRESSED_FIELDS = ("q", "kind", "a", "A", "omega", "omega_lin", "Omega", "lam", "gap", "iterations")
+DIMER_FORMAT = "hertzpetsc-dimer-1"
+DIMER_FIELDS = ("q", "epsilon", "omega", "omega_acoustic", "arclength", "tangent_epsilon", "norm_u", "norm_v",
+                "v1", "v2", "iterations")
+MAP_FORMAT = "hertzpetsc-precompression-map-1"
+MAP_FIELDS = ("q", "a", "A", "omega", "rho", "outside", "trivial_spread", "seconds")
+KIND_GRID, KIND_GAP, KIND_LIMIT = 0, 1, 2
+
+
+def amplitude_grid(a_min, a_max, ds):
+    """a_k = a_min exp(k ds) up to a_max (included): the s = log a grid of the amplitude families."""
+    a_min, a_max = check_amplitude(a_min, "a_min"), check_amplitude(a_max, "a_max")
+    if not a_max > a_min:
+        raise ParameterError("a_max", a_max, f"must exceed a_min = {a_min:g}")
+    if not (ds > 0 and math.isfinite(ds)):
+        raise ParameterError("ds", ds, "the step in log a must be a finite number > 0")
+    n = int(math.floor(math.log(a_max / a_min) / ds + 1e-9))
+    grid = [a_min * math.exp(k * ds) for k in range(n + 1)]
+    if grid[-1] < a_max * (1 - 1e-12):
+        grid.append(a_max)
+    return grid
+
+
+def _check_delta0_positive(model):
+    if not model.delta0 > 0:
+        raise ParameterError("delta0", model.delta0, "the families of this study need a precompression > 0")
+
+
+class AmplitudeFamilies:
+    """omega(q, A) of the precompressed monatomic chain: at each q, the continuation in s = log a from a_min to
+    a_max (:class:`~hertzpetsc.precompression.AmplitudeContinuation`, prefix ``precomp_``), the gap opening
+    located on the way, and the uncompressed limit on the same grid. Records per point (module docstring)."""
+
+    def __init__(self, model, qs, cells_per_pi, comm, output, mode="new", a_min=1e-3, a_max=1e3, ds=0.1):
+        _check_delta0_positive(model)
+        self.model, self.qs, self.comm = model, [float(q) for q in qs], comm
+        self.K = check_cells_per_pi(cells_per_pi)
+        self.amplitudes = amplitude_grid(a_min, a_max, ds)
+        constants = dict(alpha=model.alpha, delta0=model.delta0, cells_per_pi=self.K, a_min=a_min, a_max=a_max,
+                         ds=ds)
+        self._open = lambda: NpzRecords(output, PRECOMPRESSED_FORMAT, constants, constants, PRECOMPRESSED_FIELDS,
+                                        comm, mode, dtypes={"kind": np.int64, "iterations": np.int64},
+                                        what="precompressed-wave file")
+        self.store = None
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def _row(self, point, kind):
+        return dict(q=point.q, kind=kind, a=point.a, A=point.A, omega=point.omega,
+                    omega_lin=float(linear_frequency(point.q, self.model.alpha, self.model.delta0)),
+                    Omega=point.Omega, lam=point.lam, gap=point.gap, iterations=point.iterations)
+
+    def _done(self, q):
+        return {(int(r["kind"]), round(float(r["a"]), 10)) for r in self.store.records
+                if abs(float(r["q"]) - q) <= 1e-12 * q}
+
+    def run(self):
+        """Compute every q not complete in the file; yields each new record after saving it."""
+        self.open()
+        grid = ProfileGrid(self.K, self.comm)
+        for q in self.qs:
+            done = self._done(q)
+            if any(k == KIND_LIMIT for k, _ in done):
+                continue
+            cont = AmplitudeContinuation(self.model, q, grid)
+            try:
+                previous = None
+                gap_found = any(k == KIND_GAP for k, _ in done)
+                for a in self.amplitudes:
+                    point = cont.step_to(a)
+                    if previous is not None and previous.gap < 0 <= point.gap and not gap_found:
+                        gap = cont.locate_gap(previous, point)
+                        gap_found = True
+                        row = self._row(gap, KIND_GAP)
+                        self.store.append(row)
+                        yield row
+                    if (KIND_GRID, round(a, 10)) not in done:
+                        row = self._row(point, KIND_GRID)
+                        self.store.append(row)
+                        yield row
+                    previous = point
+                limit = uncompressed_limit(self.model, q, grid, point)
+            finally:
+                cont.destroy()
+            row = dict(q=q, kind=KIND_LIMIT, a=math.inf, A=math.inf, omega=math.inf,
+                       omega_lin=float(linear_frequency(q, self.model.alpha, self.model.delta0)),
+                       Omega=limit["Omega0"], lam=limit["lam"], gap=math.inf, iterations=limit["iterations"])
+            self.store.append(row)
+            yield row
+
+    def rows(self, q):
+        """(grid points sorted by a, gap record or None, limit record or None) at q."""
+        recs = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+        grid = sorted((r for r in recs if int(r["kind"]) == KIND_GRID), key=lambda r: float(r["a"]))
+        gap = next((r for r in recs if int(r["kind"]) == KIND_GAP), None)
+        limit = next((r for r in recs if int(r["kind"]) == KIND_LIMIT), None)
+        return grid, gap, limit
+
+    def summary(self, q):
+        """Per q: the small-amplitude coefficient (fit of omega/omega_lin - 1 on the smallest amplitudes, on this
+        grid against the closed form's omega_lin: includes the O(h^2) offset of the scheme), A_gap, Omega at the
+        largest A, Omega0 and c1 = (Omega - Omega0) A / delta0 at the largest two A."""
+        alpha, d0 = self.model.alpha, self.model.delta0
+        grid, gap, limit = self.rows(q)
+        out = dict(q=q, C_theory=round(float(weakly_nonlinear_coefficient(q, alpha, d0)), 15) + 0.0)
+        small = [r for r in grid if float(r["a"]) <= 0.05 * d0]
+        if len(small) >= 3:
+            a = np.array([float(r["a"]) for r in small])
+            y = np.array([float(r["omega"]) / float(r["omega_lin"]) - 1 for r in small])
+            coef = np.linalg.lstsq(np.stack([np.ones_like(a), a ** 2, a ** 4], 1), y, rcond=None)[0]
+            out.update(offset_h=float(coef[0]), C_fit=float(coef[1]))
+        if gap is not None:
+            out.update(A_gap=float(gap["A"]), omega_gap=float(gap["omega"]), a_gap=float(gap["a"]))
+        if grid:
+            out.update(A_max=float(grid[-1]["A"]), Omega_max=float(grid[-1]["Omega"]))
+        if limit is not None:
+            out["Omega0"] = float(limit["Omega"])
+            if len(grid) >= 2:
+                c1 = [(float(r["Omega"]) - out["Omega0"]) * float(r["A"]) / d0 for r in grid[-2:]]
+                out.update(c1=c1[-1], c1_previous=c1[0])
+                (A1, O1), (A2, O2) = [(float(r["A"]), float(r["Omega"]) - out["Omega0"]) for r in grid[-2:]]
+                if O1 > 0 and O2 > 0:
+                    out["rate"] = math.log(O1 / O2) / math.log(A2 / A1)
+        far = [r for r in grid if float(r["A"]) >= 20 * d0]
+        if len(far) >= 4:
+            # extrapolation without the eta = 0 solve: Omega = Omega0 + c1 x + c2 x^2, x = delta0 / A
+            x = np.array([d0 / float(r["A"]) for r in far])
+            y = np.array([float(r["Omega"]) for r in far])
+            out["Omega0_fit"] = float(np.linalg.lstsq(np.stack([np.ones_like(x), x, x ** 2], 1), y, rcond=None)[0][0])
+        return out
+
+    def table(self):
+        alpha, d0 = self.model.alpha, self.model.delta0
+        lines = [f"schema: {PRECOMPRESSED_FORMAT}; precompressed monatomic chain, alpha = {alpha:g}, delta0 = {d0:g}, "
+                 f"h = pi/{self.K}; amplitude continuation in s = log a (a: first sine coefficient of u), "
+                 f"a from {self.amplitudes[0]:g} to {self.amplitudes[-1]:g}.\n",
+                 "Columns: C(q) closed form (alpha-1)(alpha-1-sin^2(q/2))/(4 delta0^2) and the fit "
+                 "omega/omega_lin - 1 = c0 + C a^2 + D a^4 over a <= 0.05 delta0 on this grid (c0: the scheme's O(h^2)"
+                 " offset of the linear frequency); A_gap where 2 u(q/2) = delta0 and omega there; Omega = "
+                 "omega A^(-(alpha-1)/2) at the largest A; Omega0 its uncompressed limit (delta0/A = 0, same grid); "
+                 "c1 = (Omega - Omega0) A / delta0 at the two largest A; rate: the exponent p of Omega - Omega0 ~ "
+                 "(delta0/A)^p between them; Omega0 fit: Omega0 + c1 x + c2 x^2 (x = delta0/A) fitted over "
+                 "A >= 20 delta0, without the limit solve.\n",
+                 "| q | omega_lin | C(q) theory | C fit (c0) | A_gap | omega(A_gap) | A_max | Omega(A_max) | Omega0 | "
+                 "Omega0 fit | c1 (previous A) | rate |",
+                 "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for q in self.qs:
+            s = self.summary(q)
+            fmt = lambda k, f="{:.6f}": f.format(s[k]) if k in s else "n/a"   # noqa: E731
+            lines.append(f"| {q_label(q)} | {float(linear_frequency(q, alpha, d0)):.6f} | {s['C_theory']:.6f} | "
+                         + (f"{s['C_fit']:.6f} ({s['offset_h']:.1e})" if "C_fit" in s else "n/a")
+                         + f" | {fmt('A_gap')} | {fmt('omega_gap')} | {fmt('A_max', '{:.4g}')} | {fmt('Omega_max')} | "
+                         f"{fmt('Omega0', '{:.8f}')} | {fmt('Omega0_fit', '{:.8f}')} | "
+                         + (f"{s['c1']:.5f} ({s['c1_previous']:.5f})" if "c1" in s else "n/a")
+                         + f" | {fmt('rate', '{:.4f}')} |")
+        return "\n".join(lines) + "\n"
+
+    def curves(self):
+        """{q: (A, omega, omega_lin, Omega0, (A_gap, omega_gap) or nans)} for the figure."""
+        out = {}
+        for q in self.qs:
+            grid, gap, limit = self.rows(q)
+            if not grid:
+                continue
+            out[q] = (np.array([float(r["A"]) for r in grid]), np.array([float(r["omega"]) for r in grid]),
+                      float(grid[0]["omega_lin"]), float(limit["Omega"]) if limit is not None else math.nan,
+                      (float(gap["A"]), float(gap["omega"])) if gap is not None else (math.nan, math.nan))
+        return out
+
+
+def sine_coefficient(u_half, k):
+    """(1/pi) int_0^{2 pi} u sin(k xi) of an odd profile given on [0, pi] (trapezoid rule, spectrally accurate)."""
+    K = len(u_half) - 1
+    return float(2.0 / K * np.dot(np.sin(k * np.arange(K + 1) * math.pi / K), u_half))
+
+
+class DimerFamilies:
+    """Dimer waves (masses 1, epsilon) at fixed q and amplitude a, continued in epsilon from 1 by pseudo-arclength
+    (:class:`~hertzpetsc.precompression.MassContinuation`, prefix ``dimer_``) until epsilon passes epsilon_end or
+    ``max_steps``. A q whose continuation stops (no convergence after step halving) keeps its saved points and
+    the table says where it stopped."""
+
+    def __init__(self, model, qs, a, cells_per_pi, comm, output, mode="new", epsilon_end=0.3, max_steps=200,
+                 ds=0.02, ds_max=0.1):
+        _check_delta0_positive(model)
+        if model.cell != 1:
+            raise ParameterError("masses", list(model.masses), "give the monatomic model; the dimer is built from it")
+        if not (0 < epsilon_end < 1):
+            raise ParameterError("epsilon_end", epsilon_end, "must lie in (0, 1) (continuation from epsilon = 1 down)")
+        self.model = LatticeModel(model.law, (1.0, 1.0))
+        self.qs, self.a, self.comm = [float(q) for q in qs], check_amplitude(a), comm
+        self.K = check_cells_per_pi(cells_per_pi)
+        self.epsilon_end, self.max_steps, self.ds, self.ds_max = epsilon_end, max_steps, ds, ds_max
+        constants = dict(alpha=model.alpha, delta0=model.delta0, cells_per_pi=self.K, a=self.a,
+                         epsilon_end=epsilon_end)
+        self._open = lambda: NpzRecords(output, DIMER_FORMAT, constants, constants, DIMER_FIELDS, comm, mode,
+                                        dtypes={"iterations": np.int64}, what="dimer file")
+        self.store = None
+        self.stopped = {}
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def _row(self, q, p):
+        w = p.wave
+        return dict(q=q, epsilon=p.epsilon, omega=w.omega,
+                    omega_acoustic=dimer_frequencies(q, p.epsilon, self.model.alpha, self.model.delta0)[0],
+                    arclength=p.arclength, tangent_epsilon=p.tangent_epsilon, norm_u=self.a * sup_norm(w.profiles[0]),
+                    norm_v=self.a * sup_norm(w.profiles[1]), v1=self.a * sine_coefficient(w.profiles[1], 1),
+                    v2=self.a * sine_coefficient(w.profiles[1], 2), iterations=w.iterations)
+
+    def run(self):
+        self.open()
+        grid = ProfileGrid(self.K, self.comm)
+        for q in self.qs:
+            if any(abs(float(r["q"]) - q) <= 1e-12 * q for r in self.store.records):
+                continue           # a q is computed in one go (the arclength path is not resumable mid-way)
+            mc = MassContinuation(self.model, q, grid, self.a, ds=self.ds, ds_max=self.ds_max)
+            try:
+                for p in mc.start():
+                    row = self._row(q, p)
+                    self.store.append(row)
+                    yield row
+                try:
+                    for p in mc.run(self.epsilon_end, self.max_steps):
+                        row = self._row(q, p)
+                        self.store.append(row)
+                        yield row
+                except ConvergenceError as err:
+                    self.stopped[q] = str(err)
+            finally:
+                mc.destroy()
+
+    def table(self):
+        lines = [f"schema: {DIMER_FORMAT}; precompressed dimer (masses 1, epsilon), alpha = {self.model.alpha:g}, "
+                 f"delta0 = {self.model.delta0:g}, h = pi/{self.K}, fixed amplitude a = {self.a:g} (first sine "
+                 "coefficient of the heavy bead's profile u); pseudo-arclength in epsilon from 1. v1, v2: first and "
+                 "second sine coefficients of the light bead's profile v at the end.\n",
+                 "| q | points | epsilon reached (min) | omega at epsilon = 1 | omega at the end | ||v||/||u|| at the end "
+                 "| v1, v2 at the end | folds (sign changes of d epsilon/ds) | omega_acoustic(linear) at the end |",
+                 "|---|---|---|---|---|---|---|---|---|"]
+        for q in self.qs:
+            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+            if not rows:
+                continue
+            t = np.array([float(r["tangent_epsilon"]) for r in rows])
+            t = t[np.isfinite(t)]
+            folds = int(np.sum(np.sign(t[1:]) != np.sign(t[:-1]))) if len(t) > 1 else 0
+            last = rows[-1]
+            lines.append(f"| {q_label(q)} | {len(rows)} | {float(last['epsilon']):.5f} "
+                         f"({min(float(r['epsilon']) for r in rows):.5f}) | {float(rows[0]['omega']):.6f} | "
+                         f"{float(last['omega']):.6f} | {float(last['norm_v']) / float(last['norm_u']):.4f} | "
+                         f"{float(last['v1']):.4f}, {float(last['v2']):.4f} | {folds} | "
+                         f"{float(last['omega_acoustic']):.6f} |")
+        for q, why in self.stopped.items():
+            lines.append(f"\nq = {q_label(q)}: stopped: {why}")
+        return "\n".join(lines) + "\n"
+
+    def curves(self):
+        out = {}
+        for q in self.qs:
+            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+            if rows:
+                out[q] = tuple(np.array([float(r[k]) for r in rows]) for k in ("epsilon", "omega", "omega_acoustic",
+                                                                                 "norm_v"))
+        return out
+
+
+# --- Floquet stability in (q, A) ------------------------------------------------------------------------------
+def richardson_wave(model, q, a_values, K, comm):
+    """The waves at the amplitudes ``a_values`` (increasing) on the grids K and 2K combined by Richardson (second
+    order): [(a, half profiles on the K grid, lam)], then (inf, profiles, lam) of the uncompressed limit; initial
+    data whose orbit error is O(h^4)."""
+    sols = []
+    for k in (K, 2 * K):
+        grid = ProfileGrid(k, comm)
+        cont = AmplitudeContinuation(model, q, grid)
+        try:
+            pts = list(cont.points(a_values))
+            limit = uncompressed_limit(model, q, grid, pts[-1])
+        finally:
+            cont.destroy()
+        sols.append([(p.a, p.profiles, p.lam) for p in pts] + [(math.inf, limit["profiles"], limit["lam"])])
+    return [(a1, [(4 * v2[::2] - v1) / 3 for v1, v2 in zip(w1, w2)], (4 * l2 - l1) / 3)
+            for (a1, w1, l1), (_, w2, l2) in zip(*sols)]
+
+
+def wave_orbit(model, q, a, profiles, lam, N):
+    """The travelling wave x_n = a w_c(q n - omega t) (c = n mod p, p the mass pattern's length; omega =
+    a^((alpha-1)/2) sqrt(lam)) on N beads of ``model`` as an :class:`~hertzpetsc.waves.Orbit` whose script-T
+    = p q / omega is the time after which the shift by one cell (p beads) maps the state back."""
+    spec = ChainSpec(model, N)
+    m = check_chain_wavenumber(q, N)
+    p = model.cell
+    if len(profiles) != p:
+        raise ParameterError("profiles", len(profiles), f"must be one per bead of the cell ({p})")
+    omega = a ** ((model.alpha - 1) / 2) * math.sqrt(lam)
+    n = np.arange(N)
+    xi = np.mod(q * n, 2 * math.pi)
+    x, v = np.empty(N), np.empty(N)
+    for c, w_half in enumerate(profiles):
+        h = math.pi / (len(w_half) - 1)
+        full = full_period(np.asarray(w_half, dtype=float))
+        beads = n % p == c
+        x[beads] = a * lagrange_periodic(full, h, xi[beads])
+        v[beads] = -a * omega * lagrange_periodic(full, h, xi[beads], derivative=True)
+    return Orbit(spec=spec, q=q, m=m, T=p * q / omega, x=np.stack([x, v], axis=1), omega=omega,
+                 source="precompressed")
+
+
+class StabilityMap:
+    """rho(F_q) of the precompressed waves on N beads over a (q, a) grid, plus the uncompressed limit per q
+    (a = inf, the eta = 0 wave on the same grids). A dimer ``model`` gives its acoustic waves (natural
+    continuation in a at its mass ratio) and F = S R(2q/omega) with the shift by one cell. Initial data: Richardson (K, 2K) profiles; dense monodromy
+    modulo shift (:class:`~hertzpetsc.floquet.DenseFloquet`, prefix ``floquet_``). The multipliers depend on
+    (q, delta0 / A) only (exact scaling)."""
+
+    def __init__(self, model, qs, a_values, N, cells_per_pi, comm, output, mode="new",
+                 tolerances=IntegrationTolerances(rtol=1e-11, atol=1e-13), tol_rho=TOL_RHO):
+        _check_delta0_positive(model)
+        self.model, self.comm, self.N = model, comm, N
+        self.qs = [float(q) for q in qs]
+        for q in self.qs:
+            check_chain_wavenumber(q, N)
+        self.a_values = sorted(check_amplitude(a, "a") for a in a_values)
+        self.K = check_cells_per_pi(cells_per_pi)
+        self.tolerances, self.tol_rho = tolerances, tol_rho
+        constants = dict(alpha=model.alpha, delta0=model.delta0, masses=list(model.masses), N=N,
+                         cells_per_pi=self.K, rtol=tolerances.rtol, tol_rho=tol_rho)
+        self._open = lambda: NpzRecords(output, MAP_FORMAT, constants, constants, MAP_FIELDS, comm, mode,
+                                        dtypes={"outside": np.int64}, what="stability-map file")
+        self.store = None
+        self.floquet = DenseFloquet(ChainSpec(model, N), comm, tolerances)
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def _spectrum_row(self, q, a, w, lam):
+        model = self.model if math.isfinite(a) else self.model.with_delta0(0.0)
+        a_orbit = a if math.isfinite(a) else 1.0
+        orbit = wave_orbit(model, q, a_orbit, w, lam, self.N)
+        t0 = time.perf_counter()
+        if math.isfinite(a):
+            spec = self.floquet.spectrum(orbit, self.tol_rho)
+        else:
+            dense = DenseFloquet(ChainSpec(model, self.N), self.comm, self.tolerances)
+            try:
+                spec = dense.spectrum(orbit, self.tol_rho)
+            finally:
+                dense.destroy()
+        return dict(q=q, a=a, A=a * sup_norm(w[0]) if math.isfinite(a) else math.inf, omega=orbit.omega,
+                    rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
+                    seconds=time.perf_counter() - t0)
+
+    def run(self):
+        self.open()
+        for q in self.qs:
+            done = {round(float(r["a"]), 10) for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q}
+            if all(round(a, 10) in done for a in self.a_values + [math.inf]):
+                continue
+            for a, w, lam in richardson_wave(self.model, q, self.a_values, self.K, self.comm):
+                if round(a, 10) in done:
+                    continue
+                row = self._spectrum_row(q, a, w, lam)
+                self.store.append(row)
+                yield row
+
+    def destroy(self):
+        self.floquet.destroy()
+
+    def table(self):
+        lines = [f"schema: {MAP_FORMAT}; rho(F_q) (trivial multipliers excluded) of the precompressed waves on N = "
+                 f"{self.N} beads, alpha = {self.model.alpha:g}, delta0 = {self.model.delta0:g}, masses "
+                 f"{', '.join(f'{m:g}' for m in self.model.masses)} (repeated); initial data from "
+                 f"the Richardson combination of h = pi/{self.K} and pi/{2 * self.K}; flow rtol "
+                 f"{self.tolerances.rtol:g}; unstable (U) when rho - 1 > {self.tol_rho:g}. Rows: q; columns: a "
+                 "(first sine coefficient; A = ||u||_inf is in the record file), last column the uncompressed limit "
+                 "A = inf. Each cell: rho - 1 (max trivial spread in the last line).\n"]
+        header = "| q | " + " | ".join(f"a = {a:g}" for a in self.a_values) + " | A = inf |"
+        lines += [header, "|" + "---|" * (len(self.a_values) + 2)]
+        spread = 0.0
+        for q in self.qs:
+            cells = []
+            for a in self.a_values + [math.inf]:
+                r = next((r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q
+                          and math.isclose(float(r["a"]), a, rel_tol=1e-10)), None)
+                if r is None:
+                    cells.append("")
+                    continue
+                spread = max(spread, float(r["trivial_spread"]))
+                rho = float(r["rho"])
+                cells.append(f"{rho - 1:.1e}" + (" U" if rho - 1 > self.tol_rho else ""))
+            lines.append(f"| {q_label(q)} ({q:.4f}) | " + " | ".join(cells) + " |")
+        lines.append(f"\nmax trivial spread {spread:.1e}")
+        return "\n".join(lines) + "\n"
+
+    def grid_values(self):
+        """(q, A, rho) arrays of the finite-amplitude records, for the figure."""
+        recs = [r for r in self.store.records if math.isfinite(float(r["a"]))]
+        return (np.array([float(r["q"]) for r in recs]), np.array([float(r["A"]) for r in recs]),
+                np.array([float(r["rho"]) for r in recs]))

@@ -1,0 +1,388 @@
+"""Slow instabilities above q_c on the infinite chain (the paper's closing question, section 3.5 and Discussion): the
+largest growth rate gamma(q) = max ln|mu| / script-T over all Bloch parameters, by two independent routes.
+
+* co-moving route (:mod:`hertzpetsc.comoving`, no time integration): the QEP of the linearisation in the wave's
+  frame on h = pi/K, theta in [0, pi] on a grid, the compacton band (mu = 1, split at O(h) by the scheme) identified
+  by its known location and excluded; the worst mode tracked on 2K and 4K (Richardson, order 2);
+* monodromy route (:mod:`hertzpetsc.slow`): the wave refined on its cell over its short time symmetry with tight
+  flows, the cell's map at twists Theta in [0, pi], the symmetry multipliers (every zone's translation, and at
+  Theta = 0 the uniform translation, each with its Jordan partner) deflated exactly.
+
+A wave is *slowly unstable* when the co-moving route's gamma exceeds the target resolution on every grid and
+converges (the last two grids agree to 10%): gamma is then the Richardson value. Otherwise it is *stable within
+resolution*, the resolution being the largest gamma either route measured (the co-moving values are rounding of
+eigenvalues that the scheme keeps on the axis exactly, lambda -> -conj(lambda); the monodromy values are the
+flow's and the orbit's error after deflation). The long-wave end: the largest Re lambda / theta of the eigenvalues
+near 0 at a small theta, against the 2x2 Whitham prediction from omega(q, A) (:func:`whitham_slope`).
+
+The record file (npz, record store ``hertzpetsc-slow-1``): constants alpha, N, branch, grids (K), n_theta,
+n_twist, refine_tol, rtol, target, theta_longwave; per q:
+
+=====================  ======================================================================================
+q, m                   wavenumber; wavelengths on N beads (-1: not a chain wavenumber, co-moving route only)
+T                      script-T (eq. invv)
+theta_cm               theta in [0, pi] of the co-moving route's worst non-band mode (K = grids[0])
+gamma_cm               (len(grids),) its gamma = q Re lambda / script-T on each grid
+gamma_cm_extrapolated  Richardson value (order 2) from the last three grids
+order_cm               observed order
+band_cm                |mu| - 1 of the scheme's split compacton band on grids[0] (the O(h) artefact, excluded)
+separation_cm          smallest distance from lambda_b to a non-band eigenvalue over theta
+twist_mono             the cell twist Theta of the monodromy route's worst deflated multiplier (nan: not run)
+gamma_mono             ln(max |mu| outside the symmetry cluster) / script-T
+raw_cluster_mono       max |mu| - 1 of the symmetry cluster without deflation (the perturbed Jordan blocks)
+cluster_mono           max |mu - 1| of the deflated cluster (exactly 0 for an exact orbit)
+eigvec_mono            max relative residual ||(P - I) z|| of the known eigenvectors
+invariance_mono        relative residual of the deflated subspace's invariance
+E_orbit                E(q) of the orbit after refinement (N beads over script-T); E_short: on the cell's short map
+slope_cm               largest Re lambda / theta near lambda = 0 at theta_longwave (K = grids[1])
+slope_whitham          |Im c| of the 2x2 Whitham characteristic speeds (nan: elliptic test not computable)
+resolution, verdict    the bound (per unit time) and 1 = slowly unstable, 0 = stable within resolution
+seconds                wall time of the point
+=====================  ======================================================================================
+"""
+import math
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..comoving import ComovingPEP, profile_on_grid, ComovingWave, sector_window, theta_scan, tracked_exponent
+from ..errors import ConvergenceError, ParameterError
+from ..chain import IntegrationTolerances
+from ..model import ChainSpec
+from ..records import NpzRecords
+from ..richardson import richardson
+from ..shooting import SHOOT_PREFIX, Refiner, relative_residual
+from ..slow import DeflatedSectors
+from ..symmetry import WaveSymmetry
+from ..waves import fits_chain, orbit_on_chain
+from .dealing import dealt
+from .floquet import q_label
+
+SLOW_FORMAT = "hertzpetsc-slow-1"
+TARGET = 1e-9                       # the resolution asked for, per unit time
+SLOW_FIELDS = ("q", "m", "T", "theta_cm", "gamma_cm", "gamma_cm_extrapolated", "order_cm", "band_cm",
+               "separation_cm", "twist_mono", "gamma_mono", "raw_cluster_mono", "cluster_mono", "eigvec_mono",
+               "invariance_mono", "E_orbit", "E_short", "slope_cm", "slope_whitham", "resolution", "verdict",
+               "seconds")
+# the flow of the refinement and of the sector maps: as tight as rk 8vr allows in double precision
+SLOW_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
+
+
+def mean_kinetic(u_half, h):
+    """I = <u'^2>/2 over the period of an odd profile on [0, pi] (centred differences)."""
+    u = np.concatenate([u_half[:-1], -u_half[:0:-1]])
+    du = (np.roll(u, -1) - np.roll(u, 1)) / (2 * h)
+    return 0.5 * float(np.mean(du ** 2))
+
+
+def whitham_slope(point, comm, rel_step=0.01):
+    """|Im c| of the 2x2 Whitham system built from omega(q, A) alone (no mean flow): for x = a u(q n - omega t)
+    the averaged Lagrangian is L = (alpha - 1)/(alpha + 1) omega^beta I(q), beta = 2 (alpha + 1)/(alpha - 1),
+    I = <u'^2>/2 of the omega = 1 profile (eq. ad), and k_t + omega_n = 0, (L_omega)_t - (L_k)_n = 0 give
+    beta (beta - 1) I c^2 + 2 beta I' c + I'' = 0 at omega = 1. Complex c (an elliptic system) predicts
+    modulational instability with Re lambda = |Im c| theta as theta -> 0; 0 when c is real.
+    I' and I'' by 5-point differences of profiles solved (SNES ``tw_``) at q (1 + k rel_step), k = -2..2, on the
+    branch grid: the discriminant is a difference of nearly equal terms (I ~ q^-8 near q = 0 makes it
+    (6400 - 6480) I^2 / q^2 at alpha = 3/2), so the 3-point differences of the branch's own q spacing are too coarse."""
+    K = len(point.u_half) - 1
+    dq = rel_step * point.q
+    I = [mean_kinetic(point.u_half if k == 0 else profile_on_grid(point, K, comm, q=point.q + k * dq), point.h)
+         for k in (-2, -1, 0, 1, 2)]
+    d1 = (I[0] - 8 * I[1] + 8 * I[3] - I[4]) / (12 * dq)
+    d2 = (-I[0] + 16 * I[1] - 30 * I[2] + 16 * I[3] - I[4]) / (12 * dq ** 2)
+    alpha = point.model.alpha
+    beta = 2 * (alpha + 1) / (alpha - 1)
+    disc = beta ** 2 * d1 ** 2 - beta * (beta - 1) * I[2] * d2
+    return math.sqrt(-disc) / (beta * (beta - 1) * I[2]) if disc < 0 else 0.0
+
+
+class SlowInstabilityScan:
+    """gamma(q) above q_c by the co-moving and the monodromy routes (module docstring), written as it goes.
+
+    ``qs``: branch wavenumbers; those fitting N beads (q = 2 pi m / N) get the monodromy route too (refined from the
+    states of ``refined`` when given, else from the branch wave). ``grids``: K of the co-moving grids (at least 3,
+    doubling); ``n_theta``: Bloch parameters of the co-moving scan in [0, pi]; ``n_twist``: cell twists of the
+    monodromy route in [0, pi] (0 disables it). Prefixes: ``cm_`` (the PEP), ``tw_`` (profiles on the finer grids),
+    ``shoot_`` / ``shoot_jac_`` (the refinement), ``floquet_`` (the sector maps). Each q is computed on one rank,
+    the q dealt to the ranks.
+    """
+
+    def __init__(self, branch, branch_path, N, comm, output, mode="new", qs=None, refined=None,
+                 grids=(1000, 2000, 4000), n_theta=41, n_twist=3, refine_tol=1e-12, tolerances=SLOW_TOLERANCES,
+                 target=TARGET, theta_longwave=0.05):
+        if len(grids) < 3 or any(b != 2 * a for a, b in zip(grids, grids[1:])):
+            raise ParameterError("-grids", ",".join(map(str, grids)), "must be at least 3 grids K, each twice the "
+                                 "previous (Richardson of order 2)")
+        if n_theta < 2:
+            raise ParameterError("-n_theta", n_theta, "must be an integer >= 2 (theta = 0 and pi at least)")
+        if n_twist < 0:
+            raise ParameterError("-n_twist", n_twist, "must be an integer >= 0 (0: no monodromy route)")
+        if not 0 < theta_longwave < 0.5:
+            raise ParameterError("-theta_longwave", theta_longwave, "must lie in (0, 0.5)")
+        self.branch, self.N, self.comm, self.refined = branch, N, comm, refined
+        self.grids, self.n_theta, self.n_twist = list(grids), n_theta, n_twist
+        self.refine_tol, self.tolerances, self.target = refine_tol, tolerances, target
+        self.theta_longwave = theta_longwave
+        self.qs = [branch.point(q).q for q in (qs if qs else branch.q)]
+        self.spec = ChainSpec(branch.model, N)
+        self.pep = ComovingPEP(PETSc.COMM_SELF)
+        self.sectors = DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances) if n_twist else None
+        self.refiner = (Refiner(self.spec, PETSc.COMM_SELF, refine_tol, tolerances=tolerances, prefix=SHOOT_PREFIX,
+                                symmetric=True) if n_twist else None)
+        self._open = lambda: NpzRecords(
+            output, SLOW_FORMAT,
+            dict(alpha=branch.alpha, N=N, branch=branch_path, grids=np.array(grids), n_theta=n_theta,
+                 n_twist=n_twist, refine_tol=refine_tol, rtol=tolerances.rtol, target=target,
+                 theta_longwave=theta_longwave),
+            dict(alpha=branch.alpha, N=N, grids=list(grids), n_theta=n_theta, n_twist=n_twist,
+                 refine_tol=refine_tol, rtol=tolerances.rtol),
+            SLOW_FIELDS, comm, mode, dtypes={"m": np.int64, "verdict": np.int64},
+            shapes={"gamma_cm": (len(grids),)}, what="slow-instability file")
+        self.store = None
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    # --- the two routes ---------------------------------------------------------------------------------------
+    def comoving(self, point):
+        """The co-moving route at one branch point: dict of the cm fields."""
+        thetas = np.linspace(0.0, math.pi, self.n_theta)
+        wave = ComovingWave.from_point(point, self.grids[0], PETSc.COMM_SELF)
+        scan = theta_scan(wave, thetas, self.pep)
+        gammas, lam, mus = [scan.gamma], scan.lam, [abs(wave.multiplier(scan.lam, scan.theta))]
+        fine = []
+        for K in self.grids[1:]:
+            w = ComovingWave.from_point(point, K, PETSc.COMM_SELF)
+            lam = tracked_exponent(w, scan.theta, lam, self.pep)
+            gammas.append(float(w.growth(lam)))
+            fine.append(w)
+        order, extrapolated = richardson(gammas, 2.0, 2)
+        w1 = fine[0]
+        lw = sector_window(w1, self.theta_longwave, self.pep, box=(-0.05, 0.05))
+        near = (np.abs(lw.lam) <= 1.5 * self.theta_longwave / point.q) & ~lw.band
+        slope = float(np.max(lw.lam.real[near]) / self.theta_longwave) if near.any() else math.nan
+        return dict(T=wave.T, theta_cm=scan.theta, gamma_cm=np.array(gammas), gamma_cm_extrapolated=extrapolated,
+                    order_cm=richardson(gammas, 2.0)[0], band_cm=scan.band_mu, separation_cm=scan.min_separation,
+                    slope_cm=slope)
+
+    def refine(self, point):
+        """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T, E of the short
+        map). Starts from the refinement file's state when it has this q."""
+        orbit = orbit_on_chain(point, self.spec)
+        if self.refined is not None and self.refined.has(point.q):
+            orbit = self.refined.orbit(point, self.spec)
+        try:
+            refined, E = self._refined(orbit, self.refine_tol)
+        except ConvergenceError:
+            # E stalls above refine_tol (the flow's floor at this q, e.g. long cells): within 10 refine_tol, else
+            # the starting state as it is; the record's E_orbit and E_short say what the deflation worked with
+            try:
+                refined, E = self._refined(orbit, 10 * self.refine_tol)
+            except ConvergenceError:
+                refined, E = orbit, self.refiner.residual(orbit)
+        sym = WaveSymmetry(self.N, orbit.m)
+        smap = self.refiner._maps(sym.M)[0]
+        x0 = refined.x[:sym.M]
+        return refined, E, relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
+
+    def _refined(self, orbit, tol):
+        self.refiner.tol = tol
+        try:
+            res = self.refiner.refine(orbit)
+        finally:
+            self.refiner.tol = self.refine_tol
+        return res.orbit, res.E
+
+    def monodromy(self, point):
+        """The monodromy route at a chain wavenumber: dict of the mono fields."""
+        orbit, E, E_short = self.refine(point)
+        best, raw, clus, eig, inv = None, 0.0, 0.0, 0.0, 0.0
+        for th in np.linspace(0.0, math.pi, self.n_twist):
+            s = self.sectors.sector(orbit, float(th))
+            g = math.log(s.rho) / orbit.T
+            if best is None or g > best[0]:
+                best = (g, float(th))
+            raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
+            clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
+            eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
+        return dict(twist_mono=best[1], gamma_mono=best[0], raw_cluster_mono=raw, cluster_mono=clus,
+                    eigvec_mono=eig, invariance_mono=inv, E_orbit=E, E_short=E_short)
+
+    def verdict(self, row):
+        """(resolution, verdict): slowly unstable when the co-moving gamma exceeds the target on every grid and the
+        last two agree to 10% (gamma = the Richardson value); else stable within the largest gamma measured."""
+        g = np.asarray(row["gamma_cm"], dtype=float)
+        if np.all(g > self.target) and abs(g[-1] - g[-2]) <= 0.1 * g[-1]:
+            return abs(g[-1] - g[-2]) / 3, 1
+        measured = [float(np.max(np.abs(g)))]
+        if row["gamma_mono"] == row["gamma_mono"]:
+            measured.append(abs(float(row["gamma_mono"])))
+        return max(measured), 0
+
+    def point(self, q):
+        t0 = time.perf_counter()
+        point = self.branch.point(q)
+        row = dict(q=q, m=-1, **self.comoving(point))
+        nan_mono = dict(twist_mono=math.nan, gamma_mono=math.nan, raw_cluster_mono=math.nan, cluster_mono=math.nan,
+                        eigvec_mono=math.nan, invariance_mono=math.nan, E_orbit=math.nan, E_short=math.nan)
+        if self.n_twist and fits_chain(q, self.N):
+            row["m"] = int(round(q * self.N / (2 * math.pi)))
+            row.update(self.monodromy(point))
+        else:
+            row.update(nan_mono)
+        row["slope_whitham"] = whitham_slope(point, PETSc.COMM_SELF) if q < math.pi * (1 - 1e-9) else math.nan
+        row["resolution"], row["verdict"] = self.verdict(row)
+        row["seconds"] = time.perf_counter() - t0
+        return row
+
+    def run(self):
+        """Compute every q not yet in the file; yields each record after saving it."""
+        self.open()
+        done = {round(float(r["q"]), 12) for r in self.store.records}
+        todo = [q for q in self.qs if round(q, 12) not in done]
+        costs = [1.0 + (WaveSymmetry(self.N, int(round(q * self.N / (2 * math.pi)))).cost() * 50
+                        if self.n_twist and fits_chain(q, self.N) else 0.0) for q in todo]
+        for q, row in dealt(todo, costs, self.comm, self.point):
+            self.store.append(row)
+            yield row
+
+    def destroy(self):
+        if self.sectors is not None:
+            self.sectors.destroy()
+        if self.refiner is not None:
+            self.refiner.destroy()
+
+    # --- the table --------------------------------------------------------------------------------------------
+    def table(self):
+        rows = sorted(self.store.records, key=lambda r: float(r["q"]))
+        K = self.grids
+        lines = [f"alpha = {self.branch.alpha}; gamma = max ln|mu| / script-T over the infinite chain (per unit time "
+                 f"of the normalised wave); target resolution {self.target:g}. Co-moving route: z-form QEP, "
+                 f"cell-averaged V'', {self.n_theta} theta in [0, pi] on K = {K[0]}, the worst mode tracked on K = "
+                 f"{', '.join(map(str, K[1:]))} (h = pi/K); band: |mu| - 1 of the scheme's O(h) split of the exact "
+                 f"compacton band (excluded). Monodromy route (m on N = {self.N}): symmetric refinement to E <= "
+                 f"{self.refine_tol:g} (flow rtol {self.tolerances.rtol:g}), {self.n_twist} cell twists in [0, pi], "
+                 "symmetry multipliers deflated (zone translations + Jordan partners; translation + boost at "
+                 "Theta = 0); raw cluster: |mu| - 1 of that group undeflated.\n",
+                 "| q | m | theta (cm) | gamma cm, K = " + " / ".join(map(str, K)) + " | gamma mono | raw cluster "
+                 "|mu|-1 | deflated cluster |mu-1| | eigvec res. | E (script-T / short map) | band (cm) | slope cm / "
+                 "Whitham | resolution | verdict |",
+                 "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in rows:
+            m = int(r["m"])
+            g = " / ".join(f"{v:.1e}" for v in np.asarray(r["gamma_cm"]))
+            mono = (f"{r['gamma_mono']:.1e} | {r['raw_cluster_mono']:.1e} | {r['cluster_mono']:.1e} | "
+                    f"{r['eigvec_mono']:.1e} | {r['E_orbit']:.1e} / {r['E_short']:.1e}") if m > 0 else \
+                "n/a | n/a | n/a | n/a | n/a"
+            verdict = (f"slowly unstable, gamma = {r['gamma_cm_extrapolated']:.2g}" if int(r["verdict"]) else
+                       "stable within resolution")
+            lines.append(f"| {q_label(float(r['q']))} ({float(r['q']):.4f}) | {m if m > 0 else '-'} | "
+                         f"{float(r['theta_cm']):.3f} | {g} | {mono} | {float(r['band_cm']):.1e} | "
+                         f"{float(r['slope_cm']):.1e} / {float(r['slope_whitham']):.2f} | "
+                         f"{float(r['resolution']):.1e} | {verdict} |")
+        return "\n".join(lines) + "\n"
+
+
+def validation_grids(q, cells_per_q=40, base=1000):
+    """Three doubling grids starting at the smallest base * 2^k with at least ``cells_per_q`` cells per q (fewer cells
+    per q leave a Richardson remainder of the order of the validation's tolerance; see the results file)."""
+    K = base
+    while q * K / math.pi < cells_per_q:
+        K *= 2
+    return [K, 2 * K, 4 * K]
+
+
+def comoving_validation(branch, qs, N, reference, comm=PETSc.COMM_SELF):
+    """The co-moving route where the answer is known: for q = 2 pi m / N with a reference rho(F_q) (the Floquet
+    scan's, ``reference`` = {round(q, 12): rho}), the largest |mu| over theta_j = 2 pi j / N (j = 0 .. N/2) on the
+    first grid of :func:`validation_grids`, tracked on the two finer ones, Richardson (order 2). Rows of dicts."""
+    pep = ComovingPEP(comm)
+    rows = []
+    for q in qs:
+        point = branch.point(q)
+        grids = validation_grids(point.q)
+        wave = ComovingWave.from_point(point, grids[0], comm)
+        best = None
+        for j in range(N // 2 + 1):
+            theta = 2 * math.pi * j / N
+            lam, _ = sector_window(wave, theta, pep).dominant()
+            if lam == lam and (best is None or abs(wave.multiplier(lam, theta)) > best[0]):
+                best = (abs(wave.multiplier(lam, theta)), theta, lam)
+        if best is None:
+            raise ParameterError("-validate", q, "has no mode outside the compacton band: validate at unstable q")
+        mus, lam, theta = [best[0]], best[2], best[1]
+        for K in grids[1:]:
+            w = ComovingWave.from_point(point, K, comm)
+            lam = tracked_exponent(w, theta, lam, pep)
+            mus.append(abs(w.multiplier(lam, theta)))
+        order, mu = richardson(mus, 2.0, 2)
+        ref = reference.get(round(point.q, 12), math.nan)
+        rows.append(dict(q=point.q, theta=theta, grids=grids, mus=mus, order=richardson(mus, 2.0)[0], mu=mu,
+                         reference=ref, difference=mu - ref))
+    return rows
+
+
+def validation_table(rows, N):
+    lines = [f"Validation of the co-moving route against rho(F_q) of the Floquet scan on N = {N} beads (refined "
+             f"waves, symmetric route): largest |mu| over theta_j = 2 pi j / {N}, three grids with >= 40 cells per q, "
+             "Richardson of order 2.\n",
+             "| q | theta / pi | grids K | \\|mu\\| on the grids | observed order | extrapolated | rho(F_q) "
+             "reference | difference |", "|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {q_label(r['q'])} | {r['theta'] / math.pi:.3f} | {', '.join(map(str, r['grids']))} | "
+                     f"{', '.join(f'{m:.10f}' for m in r['mus'])} | {r['order']:.2f} | {r['mu']:.10f} | "
+                     f"{r['reference']:.10f} | {r['difference']:+.1e} |")
+    return "\n".join(lines) + "\n"
+
+
+def orbit_convergence(branch, qs, N, refined, settings, comm=PETSc.COMM_SELF, n_twist=3):
+    """How the monodromy route's numbers move with the orbit's residual and the flow's tolerance: for each q (a
+    chain wavenumber) and each (label, refine_tol or None, rtol) of ``settings`` (None: the state as given, the
+    refinement file's or the branch wave, no refinement), E over script-T and over the short map, the undeflated
+    cluster's max |mu| - 1, the deflated gamma and the known eigenvectors' residual (max over ``n_twist`` twists).
+    A true instability stays when E and rtol shrink; an artefact shrinks with them."""
+    spec = ChainSpec(branch.model, N)
+    rows = []
+    for q in qs:
+        point = branch.point(q)
+        start = refined.orbit(point, spec) if refined is not None and refined.has(point.q) else \
+            orbit_on_chain(point, spec)
+        for label, tol, rtol in settings:
+            tolerances = IntegrationTolerances(rtol=rtol, atol=rtol / 100)
+            refiner = Refiner(spec, comm, tol if tol else 1.0, tolerances=tolerances, prefix=SHOOT_PREFIX,
+                              symmetric=True)
+            sectors = DeflatedSectors(branch.model, comm, tolerances)
+            try:
+                orbit = refiner.refine(start).orbit if tol else start
+                sym = WaveSymmetry(N, orbit.m)
+                smap = refiner._maps(sym.M)[0]
+                x0 = orbit.x[:sym.M]
+                E, E_short = refiner.residual(orbit), relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
+                raw, gamma, eig = 0.0, -math.inf, 0.0
+                for th in np.linspace(0.0, math.pi, n_twist):
+                    s = sectors.sector(orbit, float(th))
+                    raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
+                    gamma = max(gamma, math.log(s.rho) / orbit.T)
+                    eig = max(eig, s.eigenvector_residual)
+            finally:
+                refiner.destroy()
+                sectors.destroy()
+            rows.append(dict(q=point.q, m=orbit.m, label=label, rtol=rtol, E=E, E_short=E_short, raw=raw,
+                             gamma=gamma, eig=eig))
+    return rows
+
+
+def convergence_table(rows):
+    lines = ["Monodromy route against the orbit's residual and the flow's tolerance (max over the cell twists): E over "
+             "script-T on the N beads and over the cell's short map (same flow), the undeflated symmetry cluster, "
+             "the deflated growth rate, the residual of the known eigenvectors.\n",
+             "| q | m | orbit | flow rtol | E (script-T) | E (short map) | raw cluster \\|mu\\| - 1 | "
+             "sqrt(E short) | gamma deflated | eigenvector residual |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {q_label(r['q'])} | {r['m']} | {r['label']} | {r['rtol']:g} | {r['E']:.1e} | "
+                     f"{r['E_short']:.1e} | {r['raw']:.1e} | {math.sqrt(r['E_short']):.1e} | {r['gamma']:.1e} | "
+                     f"{r['eig']:.1e} |")
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,72 @@
+#!/usr/bin/env python3
+"""Travelling waves of the precompressed dimer chain (masses 1, epsilon), continued in epsilon from 1.
+
+    mpiexec -n 2 python scripts/dimer_branch.py [-alpha 1.5] [-delta0 1] [-q 3*pi/10] [-a 0.5]
+        [-cells_per_pi 200] [-epsilon_end 0.3] [-max_steps 200] [-ds 0.02] [-ds_max 0.1]
+        [-output results/dimer.npz] [-table results/dimer.md] [-figures figures] [-resume | -force]
+
+Per-bead wavenumber q, one odd profile per bead of the cell (u: mass 1, v: mass epsilon), fixed amplitude a (first
+sine coefficient of u). From the monatomic wave at epsilon = 1 (two natural steps), pseudo-arclength in
+(u, v, lam, epsilon) through folds in epsilon, until epsilon passes epsilon_end or max_steps. Table: epsilon
+reached, omega at both ends, ||v|| / ||u||, folds. Figure: dimer_epsilon.png. Solver prefixes: -dimer_ (the
+arclength Newton), -dimer_natural_ (the first natural steps).
+"""
+import math
+import sys
+
+import petsc4py
+
+petsc4py.init(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
+from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.precompression import configure_options  # noqa: E402
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.precompression import DimerFamilies  # noqa: E402
+
+ROLES = {"dimer_": ("the pseudo-arclength Newton in epsilon", ("snes",)),
+         "dimer_natural_": ("the natural continuation to the starting waves", ("snes",))}
+
+
+def main():
+    opts = AppOptions(__doc__, ROLES)
+    alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
+    delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
+    qs = opts.numbers("q", "3*pi/10", "per-bead wavenumbers in (0, pi/2)",
+                      valid=(lambda q: 0 < q < math.pi / 2, "in (0, pi/2)"), distinct=True)
+    a = opts.real("a", 0.5, "amplitude (first sine coefficient of u)", valid=(lambda x: x > 0, "> 0"))
+    K = opts.integer("cells_per_pi", 200, "grid h = pi / cells_per_pi", minimum=4)
+    eps_end = opts.real("epsilon_end", 0.3, "stop once epsilon passes it", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    max_steps = opts.integer("max_steps", 200, "arclength steps per q", minimum=1)
+    ds = opts.real("ds", 0.02, "first arclength step", valid=(lambda x: x > 0, "> 0"))
+    ds_max = opts.real("ds_max", 0.1, "largest arclength step", valid=(lambda x: x > 0, "> 0"))
+    output, mode, table_path, figures = opts.record_table_figures(
+        "results/dimer.npz", "dimer file", "results/dimer.md", "dimer_epsilon.png")
+    opts.done()
+    for q in qs:
+        check_wavenumber(q, math.pi / K)
+    comm = PETSc.COMM_WORLD
+    prepare_outputs(comm, table_path, figures=figures)
+    study = DimerFamilies(LatticeModel.hertz(alpha, delta0=delta0), qs, a, K, comm, output, mode, eps_end,
+                          max_steps, ds, ds_max)
+    configure_options(comm, "dimer_")
+    configure_options(comm, "dimer_natural_")
+    opts.check_unused()
+    study.open()
+    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, a = {a:g}, h = pi/{K}")
+    print0(f"# {'q':>8} {'epsilon':>9} {'omega':>10} {'||v||/||u||':>11} {'d eps/ds':>10}")
+    for r in study.run():
+        print0(f"  {r['q']:8.5f} {r['epsilon']:9.5f} {r['omega']:10.6f} {r['norm_v'] / r['norm_u']:11.4f} "
+               f"{r['tangent_epsilon']:10.2e}")
+    text = study.table()
+    write_text(table_path, text, comm)
+    if figures and comm.getRank() == 0:
+        from hertzpetsc import plotting
+        print("wrote " + plotting.plot_dimer_epsilon(study.curves(), figures), flush=True)
+    print0(text)
+
+
+if __name__ == "__main__":
+    guarded_main(main)

@@ -1,0 +1,70 @@
+#!/usr/bin/env python3
+"""Travelling waves of the precompressed Hertz chain: omega(q, A) from the linear wave to the uncompressed limit.
+
+    mpiexec -n 2 python scripts/precompressed_branch.py [-alpha 1.5] [-delta0 1] [-q 3*pi/10,7*pi/25,pi/2,4*pi/5]
+        [-cells_per_pi 1000] [-a_min 1e-3] [-a_max 1e3] [-ds 0.1] [-output results/precompressed.npz]
+        [-table results/precompressed.md] [-figures figures] [-resume | -force]
+
+At each q: continuation in s = log a (a: first sine coefficient of u; rescaled unknowns w = u / a and
+lam = omega^2 / a^(alpha-1)) from a_min to a_max by steps ds, the gap opening 2 u(q/2) = delta0 located on the
+way (regula falsi in s), then the uncompressed limit delta0 / A = 0 on the same grid. Table: C(q) (closed form and
+fit), A_gap, Omega = omega A^(-(alpha-1)/2) at the largest A, its limit Omega0 and the rate coefficient c1.
+Figure: precompressed_omega.png. Solver prefix: -precomp_ (the bordered Newton: -precomp_snes_*, -precomp_ksp_*,
+-precomp_pc_*).
+"""
+import math
+import sys
+
+import petsc4py
+
+petsc4py.init(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
+from hertzpetsc.hertz import check_delta0  # noqa: E402
+from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.precompression import configure_options  # noqa: E402
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.precompression import AmplitudeFamilies  # noqa: E402
+
+ROLES = {"precomp_": ("the bordered Newton solve of each precompressed wave", ("snes",))}
+
+
+def main():
+    opts = AppOptions(__doc__, ROLES)
+    alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
+    delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
+    qs = opts.numbers("q", "3*pi/10,7*pi/25,pi/2,4*pi/5", "wavenumbers in (0, pi]",
+                      valid=(lambda q: 0 < q <= math.pi * (1 + 1e-14), "in (0, pi]"), distinct=True)
+    K = opts.integer("cells_per_pi", 1000, "grid h = pi / cells_per_pi", minimum=4)
+    a_min = opts.real("a_min", 1e-3, "first amplitude (first sine coefficient of u)", valid=(lambda x: x > 0, "> 0"))
+    a_max = opts.real("a_max", 1e3, "last amplitude", valid=(lambda x: x > 0, "> 0"))
+    ds = opts.real("ds", 0.1, "step in s = log a", valid=(lambda x: x > 0, "> 0"))
+    output, mode, table_path, figures = opts.record_table_figures(
+        "results/precompressed.npz", "precompressed-wave file", "results/precompressed.md", "precompressed_omega.png")
+    opts.done()
+    for q in qs:
+        check_wavenumber(q, math.pi / K)
+    comm = PETSc.COMM_WORLD
+    model = LatticeModel.hertz(alpha, delta0=check_delta0(delta0))
+    prepare_outputs(comm, table_path, figures=figures)
+    study = AmplitudeFamilies(model, qs, K, comm, output, mode, a_min, a_max, ds)
+    configure_options(comm)
+    opts.check_unused()
+    study.open()
+    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, h = pi/{K}, a in [{a_min:g}, {a_max:g}], ds = {ds:g}")
+    print0(f"# {'q':>8} {'kind':>4} {'a':>10} {'A':>10} {'omega':>12} {'Omega':>10} {'its':>3}")
+    for r in study.run():
+        print0(f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.4g} {r['A']:10.4g} {r['omega']:12.8f} "
+               f"{r['Omega']:10.6f} {r['iterations']:3d}")
+    text = study.table()
+    write_text(table_path, text, comm)
+    if figures and comm.getRank() == 0:
+        from hertzpetsc import plotting
+        print("wrote " + plotting.plot_precompressed_omega(study.curves(), alpha, delta0, figures), flush=True)
+    print0(text)
+
+
+if __name__ == "__main__":
+    guarded_main(main)

@@ -1,0 +1,219 @@
+"""Precompressed monatomic chains (issue 16): the law, the bordered amplitude continuation, its two limits, the gap
+opening, Floquet on the chain, the drivers and their bad input."""
+import math
+import os
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from conftest import one_error_line, run_script, small_branch
+from hertzpetsc.advdelay import AdvanceDelayProblem
+from hertzpetsc.chain import IntegrationTolerances
+from hertzpetsc.errors import ParameterError
+from hertzpetsc.floquet import DenseFloquet
+from hertzpetsc.grid import ProfileGrid
+from hertzpetsc.hertz import HertzLaw
+from hertzpetsc.model import ChainSpec, LatticeModel
+from hertzpetsc.precompression import (AmplitudeContinuation, check_amplitude, linear_frequency, uncompressed_limit,
+                                       weakly_nonlinear_coefficient)
+from hertzpetsc.stencil import full_period, shifted
+from hertzpetsc.studies.precompression import amplitude_grid, wave_orbit
+
+COMM = PETSc.COMM_WORLD
+Q = 0.3 * math.pi
+
+
+def test_law_is_the_shifted_hertz_law():
+    """V'_delta(r) = delta^alpha + V'_0(r - delta); V'(0) = 0, V''(0) = alpha delta^(alpha-1); V' = dV/dr, V'' = dV'/dr."""
+    r = np.linspace(-3, 3, 601)
+    for alpha, d in ((1.5, 1.0), (2.5, 0.7)):
+        law, law0 = HertzLaw(alpha, d), HertzLaw(alpha)
+        assert np.allclose(law.dV(r), d ** alpha + law0.dV(r - d), rtol=1e-13, atol=1e-13)
+        assert law.dV(0.0) == 0.0 and law.V(0.0) == 0.0
+        assert law.d2V(0.0) == pytest.approx(alpha * d ** (alpha - 1), rel=1e-15)
+        e = 1e-6   # central differences: O(e^2) = 1e-12 relative, V'' is smooth away from r = d
+        rr = r[np.abs(r - d) > 1e-3]
+        assert np.allclose((law.V(rr + e) - law.V(rr - e)) / (2 * e), law.dV(rr), rtol=1e-7, atol=1e-8)
+        assert np.allclose((law.dV(rr + e) - law.dV(rr - e)) / (2 * e), law.d2V(rr), rtol=1e-7, atol=1e-8)
+    # no cancellation for |r| << delta: V'(r) = K r (1 + O(r / delta)) to the last digits
+    small = np.array([1e-12, -1e-12])
+    assert np.allclose(HertzLaw(1.5, 1e3).dV(small) / small, 1.5 * 1e3 ** 0.5, rtol=1e-9)
+
+
+def test_delta0_zero_is_the_paper_chain_bit_for_bit():
+    """delta0 = 0 and unit masses evaluate exactly the paper's expressions (same code path), and the record
+    identity is unchanged."""
+    m0, m = LatticeModel.hertz(1.5), LatticeModel.hertz(1.5, (1.0,), 0.0)
+    assert m0 == m and m.describe() == dict(alpha=1.5, masses=[1.0])
+    assert "delta0" in LatticeModel.hertz(1.5, delta0=0.5).describe()
+    r = np.random.default_rng(3).standard_normal(50)
+    assert np.array_equal(m.force(r), -np.sqrt(-np.minimum(r, 0)) * (-np.minimum(r, 0)))
+    grid = ProfileGrid(40, PETSc.COMM_SELF)
+    X = grid.create_vec()
+    X.setArray(r[:grid.size])
+    F0, F1 = X.duplicate(), X.duplicate()
+    AdvanceDelayProblem(m0, grid, 0.77).formFunction(None, X, F0)
+    AdvanceDelayProblem(m, grid, 0.77).formFunction(None, X, F1)
+    assert np.array_equal(F0.getArray(), F1.getArray())
+
+
+def test_precompressed_advance_delay_problem_matches_its_definition():
+    """AdvanceDelayProblem with delta0 > 0 (V' nonzero beyond contact) against eq. ad evaluated with numpy."""
+    grid = ProfileGrid(64, PETSc.COMM_SELF)
+    model = LatticeModel.hertz(1.5, delta0=0.3)
+    q = 16 * grid.h                                       # integer shift: the numpy shift is exact
+    u_half = np.sin(grid.xi_half()) * 0.8
+    X = grid.vec_from_half_profile(u_half)
+    F = X.duplicate()
+    AdvanceDelayProblem(model, grid, q).formFunction(None, X, F)
+    u = full_period(u_half)
+    d2 = (np.roll(u, -1) - 2 * u + np.roll(u, 1)) / grid.h ** 2
+    ref = d2 - model.force(shifted(u, 16) - u) + model.force(u - shifted(u, -16))
+    assert np.allclose(F.getArray(), ref[1:grid.K], rtol=1e-12, atol=1e-12)
+
+
+def _coefficient(q, alpha, delta0, K, amplitudes):
+    """C_h from omega/omega_lin,h - 1 = C a^2 + D a^4 + E a^6 at the given a (discrete linear frequency)."""
+    model = LatticeModel.hertz(alpha, delta0=delta0)
+    cont = AmplitudeContinuation(model, q, ProfileGrid(K, COMM))
+    try:
+        pts = list(cont.points(amplitudes))
+        _, lam = cont.system.linear_guess()
+        omega_lin_h = math.sqrt(lam) * (delta0 / cont.system.eta) ** ((alpha - 1) / 2)
+    finally:
+        cont.destroy()
+    y = np.array([p.omega / omega_lin_h - 1 for p in pts])
+    return np.linalg.lstsq(np.stack([amplitudes ** 2, amplitudes ** 4, amplitudes ** 6], 1), y, rcond=None)[0][0]
+
+
+@pytest.mark.parametrize("q, alpha, delta0", [(0.3 * math.pi, 1.5, 1.0), (0.8 * math.pi, 1.5, 1.0),
+                                              (0.3 * math.pi, 2.5, 2.0)])
+def test_small_amplitude_coefficient(q, alpha, delta0):
+    """omega / omega_lin - 1 = C(q) a^2 + O(a^4), C = (alpha-1)(alpha-1-sin^2(q/2)) / (4 delta0^2): C_h on h = pi/200
+    and pi/400 against the scheme's own linear frequency, then Richardson (second order). Measured: relative
+    error 2e-8 .. 6e-8 after Richardson (the O(h^4) remainder and the fit's truncation at a^6), 3e-4 before;
+    the ratio (C_2K - C) / (C_K - C) is 0.25 to 3 digits (second order)."""
+    a = delta0 * np.array([0.01, 0.02, 0.03, 0.04])
+    C_K, C_2K = (_coefficient(q, alpha, delta0, K, a) for K in (200, 400))
+    C = weakly_nonlinear_coefficient(q, alpha, delta0)
+    assert abs((4 * C_2K - C_K) / 3 / C - 1) < 1e-6
+    assert abs((C_2K - C) / (C_K - C) - 0.25) < 0.02
+
+
+def test_large_amplitude_limit_is_the_uncompressed_wave():
+    """omega A^(-(alpha-1)/2) -> Omega0 = ||u(.;q)||^((1-alpha)/2) (eq. dispers) at rate delta0/A: the eta = 0 solve
+    reproduces the paper's branch on the same grid (same discrete equations, other normalisation: solver
+    tolerance), and (Omega - Omega0) A / delta0 settles to a constant c1 (measured: changes by 2e-4 relative from
+    A = 1e3 to 1e4, by 2e-3 from 1e2 to 1e3, consistent with an O(delta0/A) next term)."""
+    K = 200
+    model = LatticeModel.hertz(1.5, delta0=1.0)
+    grid = ProfileGrid(K, COMM)
+    cont = AmplitudeContinuation(model, Q, grid)
+    try:
+        pts = list(cont.points(amplitude_grid(1e-3, 1e4, math.log(10) / 4)))
+        limit = uncompressed_limit(model, Q, grid, pts[-1])
+    finally:
+        cont.destroy()
+    branch = small_branch(K=K)
+    norm = branch.point(Q).diagnostics.norm_inf
+    assert limit["Omega0"] == pytest.approx(norm ** -0.25, rel=1e-11)
+    by_A = {round(math.log10(p.a)): p for p in pts if abs(math.log10(p.a) - round(math.log10(p.a))) < 1e-9}
+    c1 = {k: (by_A[k].Omega - limit["Omega0"]) * by_A[k].A for k in (2, 3, 4)}
+    assert c1[4] > 0
+    assert abs(c1[3] / c1[4] - 1) < 2e-3 and abs(c1[2] / c1[3] - 1) < 2e-2
+    assert np.all(np.diff([p.A for p in pts]) > 0)          # no fold in s = log a
+    assert [p.omega for p in pts][0] == pytest.approx(float(linear_frequency(Q)), rel=1e-4)  # h^2/24 ~ 1e-5
+
+
+def test_gap_opening():
+    """The gap indicator 2 u(q/2) - delta0 vanishes at the located point, where the largest extension u(xi+q) - u(xi)
+    on the grid equals delta0 (O(h^2): the grid misses the maximiser by up to h/2 on a smooth maximum); A_gap
+    Richardson (pi/200, pi/400) against the independent scipy prototype's 1.9170281 (Richardson of pi/500 and
+    pi/1000; measured difference here 3e-7, O(h^4))."""
+    A_gap = []
+    for K in (200, 400):
+        grid = ProfileGrid(K, COMM)
+        cont = AmplitudeContinuation(LatticeModel.hertz(1.5, delta0=1.0), Q, grid)
+        try:
+            pts = list(cont.points(amplitude_grid(0.5, 3.0, 0.3)))
+            i = next(k for k in range(1, len(pts)) if pts[k - 1].gap < 0 <= pts[k].gap)
+            gap = cont.locate_gap(pts[i - 1], pts[i])
+        finally:
+            cont.destroy()
+        assert abs(gap.gap) < 1e-9
+        u = full_period(gap.a * gap.profiles[0])
+        sigma = int(round(Q / grid.h))
+        assert np.max(shifted(u, sigma) - u) == pytest.approx(1.0, abs=grid.h ** 2)
+        A_gap.append(gap.A)
+    assert (4 * A_gap[1] - A_gap[0]) / 3 == pytest.approx(1.9170281, abs=2e-6)
+    assert 1 / (2 * math.sin(Q / 2)) < A_gap[1]          # the linear estimate is below (softening in extension)
+
+
+def test_floquet_depends_on_delta0_over_A_only():
+    """Exact scaling x -> 2x, delta0 -> 2 delta0, t -> 2^(-(alpha-1)/2) t: the waves (delta0 = 1, a) and (delta0 = 2, 2a)
+    on the chain have the same Floquet multipliers modulo shift (to the flow's tolerance); at a small amplitude the
+    wave is linearly stable (|mu| = 1 up to the trivial splitting)."""
+    N, q = 10, 2 * math.pi / 10
+    tol = IntegrationTolerances(rtol=1e-11, atol=1e-13)
+    spectra = []
+    for d0, a in ((1.0, 1.5), (2.0, 3.0), (1.0, 0.01)):
+        model = LatticeModel.hertz(1.5, delta0=d0)
+        cont = AmplitudeContinuation(model, q, ProfileGrid(200, COMM))
+        try:
+            p = list(cont.points([x * d0 for x in (0.01, 0.1, 0.5, 1.0, 1.5)] if a > 0.01 else [a]))[-1]
+        finally:
+            cont.destroy()
+        orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N)
+        dense = DenseFloquet(ChainSpec(model, N), COMM, tol)
+        try:
+            spectra.append(np.sort_complex(dense.spectrum(orbit).multipliers))
+        finally:
+            dense.destroy()
+    assert np.allclose(spectra[0], spectra[1], atol=1e-7)
+    assert np.max(np.abs(spectra[2])) < 1 + 1e-5
+
+
+def test_bad_input():
+    with pytest.raises(ParameterError, match="delta0"):
+        LatticeModel.hertz(1.5, delta0=-0.1)
+    with pytest.raises(ParameterError, match="masses"):
+        LatticeModel.hertz(1.5, masses=(1.0, 0.0))
+    with pytest.raises(ParameterError, match="multiple of the mass pattern"):
+        ChainSpec(LatticeModel.hertz(1.5, masses=(1.0, 0.5), delta0=1.0), 5)
+    with pytest.raises(ParameterError, match="amplitude"):
+        check_amplitude(-1.0)
+    with pytest.raises(ParameterError, match="delta0"):
+        AmplitudeContinuation(LatticeModel.hertz(1.5), Q, ProfileGrid(20, COMM))
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("args, name", [(("-delta0", "-1"), "-delta0"), (("-a_min", "-0.5"), "-a_min"),
+                                        (("-precomp_snes_rtoll", "1"), "-precomp_snes_rtoll")])
+def test_driver_bad_input_one_line(tmp_path, args, name):
+    res = run_script("precompressed_branch.py", *args, "-output", tmp_path / "x.npz", "-table", tmp_path / "x.md")
+    assert name in one_error_line(res)
+
+
+@pytest.mark.serial
+def test_driver_records_resume_and_ranks(tmp_path):
+    """The driver writes its records and table, refuses to overwrite, resumes without recomputing, and gives the same
+    numbers on 2 ranks (LU with MUMPS instead of PETSc's LU: round-off, bound 1e-10 relative)."""
+    common = ["-q", "3*pi/10", "-cells_per_pi", "100", "-a_min", "0.01", "-a_max", "100", "-ds", "0.5", "-figures",
+              str(tmp_path)]
+    out = lambda k: ["-output", tmp_path / f"p{k}.npz", "-table", tmp_path / f"p{k}.md"]   # noqa: E731
+    r1 = run_script("precompressed_branch.py", *common, *out(1), timeout=120)
+    assert r1.returncode == 0, r1.stderr
+    d1 = np.load(tmp_path / "p1.npz")
+    assert str(d1["format"]) == "hertzpetsc-precompressed-1" and set(d1["kind"]) == {0, 1, 2}
+    assert "schema: hertzpetsc-precompressed-1" in open(tmp_path / "p1.md").read()
+    assert os.path.exists(tmp_path / "precompressed_omega.png")
+    assert "-resume" in one_error_line(run_script("precompressed_branch.py", *common, *out(1)))
+    r = run_script("precompressed_branch.py", *common, *out(1), "-resume")
+    assert r.returncode == 0 and len(np.load(tmp_path / "p1.npz")["q"]) == len(d1["q"])
+    r2 = run_script("precompressed_branch.py", *common, *out(2), ranks=2, timeout=120)
+    assert r2.returncode == 0, r2.stderr
+    d2 = np.load(tmp_path / "p2.npz")
+    for k in ("A", "omega", "Omega"):
+        fin = np.isfinite(d1[k])
+        assert np.allclose(d1[k][fin], d2[k][fin], rtol=1e-10, atol=0)

@@ -40,6 +40,7 @@ from petsc4py import PETSc
 from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .errors import ConvergenceError, ParameterError
 from .model import ChainSpec
+from .tangent import split_tangents, stack_tangents
 
 WINDOW_PREFIX = "cwin_"
 STABILITY_PREFIX = "cstab_"
@@ -109,9 +110,7 @@ class WindowFlow:
         k = 0 if tangents is None else tangents.shape[2]
         chain, integ, Z = self._get(k)
         chain.gap = float(gap)
-        z = Y if k == 0 else np.concatenate([Y, np.asarray(tangents, float).transpose(0, 2, 1).reshape(M, 2 * k)],
-                                            axis=1)
-        chain.set_from_array(Z, z)
+        chain.set_from_array(Z, Y if k == 0 else stack_tangents(Y, tangents))
         if monitor is not None:
             integ.ts.setMonitor(lambda ts, i, t, X: monitor(chain, X))
         try:
@@ -121,9 +120,7 @@ class WindowFlow:
                 integ.ts.cancelMonitor()
         self.integrations += 1
         out = chain.gather(Z)
-        if k == 0:
-            return out, None
-        return out[:, :2].copy(), out[:, 2:].reshape(M, k, 2).transpose(0, 2, 1).copy()
+        return (out, None) if k == 0 else split_tangents(out, k)
 
     def destroy(self):
         for chain, integ, Z in self._flows.values():

@@ -166,6 +166,10 @@ class Refiner:
                               TangentFlow(cell, 2 * N, self.comm, self.jacobian_tolerances, self.prefix + "jac_"))
         return self._flows[N]
 
+    def shift_map(self, N):
+        """The refinement's own state flow (:class:`ShiftMap`) on N beads of the lattice."""
+        return self._maps(N)[0]
+
     def residual(self, orbit):
         """E(q) of ``orbit`` with the refinement's own flow."""
         return self.smap.residual(orbit)

@@ -134,7 +134,7 @@ class DeflatedSectors:
     def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
         self.model = model
         self.sectors = BlochSectors(model, comm, tolerances, prefix)
-        self.sectors._solver(3, False)          # reads and checks the -floquet_ts_* options now
+        self.sectors.configure()
 
     @PETSc.Log.EventDecorator("hz_deflated_sector")
     def sector(self, orbit, theta):

@@ -13,6 +13,20 @@ from petsc4py import PETSc
 from .chain import Chain, ChainIntegrator
 
 
+def stack_tangents(x, Y):
+    """The chain's augmented state (n, 2 + 2k) from the state ``x`` (n, 2) and k tangent columns ``Y`` (n, 2, k)."""
+    x = np.asarray(x, float)
+    n, k = len(x), np.shape(Y)[2]
+    return np.concatenate([x.reshape(n, 2), np.asarray(Y, float).reshape(n, 2, k).transpose(0, 2, 1).reshape(n, 2 * k)],
+                          axis=1)
+
+
+def split_tangents(z, k):
+    """(state (n, 2), tangent columns (n, 2, k)) from an augmented state ``z`` (n, 2 + 2k)."""
+    n = len(z)
+    return z[:, :2].copy(), z[:, 2:].reshape(n, k, 2).transpose(0, 2, 1).copy()
+
+
 class TangentFlow:
     """Flow and tangent-linear flow of a chain over [0, T], with k tangent vectors at a time; its TS has the
     options prefix of the role it serves (``shoot_`` for the refinement, ``floquet_`` for the spectra)."""
@@ -31,12 +45,10 @@ class TangentFlow:
         Returns (X(T) as (N, 2), R(T; 0) Y0 as (N, 2, k)) on every rank.
         """
         N, k = self.spec.N, self.k
-        z = np.concatenate([np.asarray(x0, float).reshape(N, 2), np.asarray(Y0, float).reshape(N, 2, k)
-                            .transpose(0, 2, 1).reshape(N, 2 * k)], axis=1)
-        self.aug.set_from_array(self.Z, z)
+        self.aug.set_from_array(self.Z, stack_tangents(np.asarray(x0, float).reshape(N, 2),
+                                                       np.asarray(Y0, float).reshape(N, 2, k)))
         self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)
-        out = self.aug.gather(self.Z)
-        return out[:, :2].copy(), out[:, 2:].reshape(N, k, 2).transpose(0, 2, 1).copy()
+        return split_tangents(self.aug.gather(self.Z), k)
 
     def resolvent(self, x0, T):
         """Dense R(T; 0) (2N x 2N, index 2n + c for bead n, component c) and X(T), on every rank.

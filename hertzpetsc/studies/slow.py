@@ -184,7 +184,7 @@ class SlowInstabilityScan:
             except ConvergenceError:
                 refined, E = orbit, self.refiner.residual(orbit)
         sym = WaveSymmetry(self.N, orbit.m)
-        smap = self.refiner._maps(sym.M)[0]
+        smap = self.refiner.shift_map(sym.M)
         x0 = refined.x[:sym.M]
         return refined, E, relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
 
@@ -358,7 +358,7 @@ def orbit_convergence(branch, qs, N, refined, settings, comm=PETSc.COMM_SELF, n_
             try:
                 orbit = refiner.refine(start).orbit if tol else start
                 sym = WaveSymmetry(N, orbit.m)
-                smap = refiner._maps(sym.M)[0]
+                smap = refiner.shift_map(sym.M)
                 x0 = orbit.x[:sym.M]
                 E, E_short = refiner.residual(orbit), relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
                 raw, gamma, eig = 0.0, -math.inf, 0.0

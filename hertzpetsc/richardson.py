@@ -1,5 +1,6 @@
 """Observed order and Richardson extrapolation from values on grids h, h/r, h/r^2 (one implementation for the
-h-convergence of the branch, the solitary wave and the small-q levels)."""
+h-convergence of the branch, the solitary wave, the small-q levels, the slow-instability validation and the
+precompressed waves of the stability map)."""
 import math
 
 from .errors import ParameterError
@@ -10,6 +11,11 @@ def observed_order(values, ratio=2.0):
     f0, f1, f2 = values[-3:]
     d1, d2 = f0 - f1, f1 - f2
     return math.log(abs(d1) / abs(d2)) / math.log(ratio) if d1 != 0 and d2 != 0 else math.nan
+
+
+def extrapolate(coarse, fine, ratio=2.0, order=2.0):
+    """The value without its h^order error term, from values (numbers or arrays) on the grids h and h/ratio."""
+    return fine - (coarse - fine) / (ratio ** order - 1)
 
 
 def richardson(values, ratio=2.0, order=None):
@@ -28,4 +34,4 @@ def richardson(values, ratio=2.0, order=None):
     seen = observed_order(values, ratio)
     if order is None:
         order = seen if d1 * d2 > 0 and 1.0 < seen < 4.0 else 2.0
-    return seen, f2 - d2 / (ratio ** order - 1)
+    return seen, extrapolate(f1, f2, ratio, order)

@@ -30,6 +30,7 @@ from ..model import ChainSpec, LatticeModel
 from ..precompression import (AmplitudeContinuation, MassContinuation, check_amplitude, dimer_frequencies,
                               linear_frequency, uncompressed_limit, weakly_nonlinear_coefficient)
 from ..records import NpzRecords
+from ..richardson import extrapolate
 from ..stencil import full_period, lagrange_periodic
 from ..waves import Orbit, check_chain_wavenumber
 from .floquet import q_label
@@ -323,7 +324,7 @@ def richardson_wave(model, q, a_values, K, comm):
         finally:
             cont.destroy()
         sols.append([(p.a, p.profiles, p.lam) for p in pts] + [(math.inf, limit["profiles"], limit["lam"])])
-    return [(a1, [(4 * v2[::2] - v1) / 3 for v1, v2 in zip(w1, w2)], (4 * l2 - l1) / 3)
+    return [(a1, [extrapolate(v1, v2[::2]) for v1, v2 in zip(w1, w2)], extrapolate(l1, l2))
             for (a1, w1, l1), (_, w2, l2) in zip(*sols)]
 
 

@@ -73,7 +73,7 @@ class TwistedChain(Chain):
         self.n_modes = int(n_tangent) // 2 if complex_modes else int(n_tangent)
         self.theta = float(theta)
 
-    def _ghosted(self, X):
+    def _ghosted(self, X, t=None):
         """Ghosted local values with the twist e^{-i theta} (left of bead 0) / e^{i theta} (right of bead M-1)."""
         self.da.globalToLocal(X, self.local)
         a = self.local.getArray().reshape(self.nloc + 2, self.dof)

@@ -70,16 +70,30 @@ class SolveStats:
 
 @dataclass
 class BranchPoint:
-    """One converged point: its profile on [0, pi] (on every rank), diagnostics and solver statistics."""
+    """One converged travelling wave: its profiles on [0, pi] (on every rank), frequency, diagnostics and solver
+    statistics.
+
+    x_n(t) = u_c(q n - omega t), c = n mod p (p the model's mass pattern), solves the chain: ``profiles`` holds the
+    p odd profiles u_c on [0, pi] (``u_half`` is u_0, the paper's u for p = 1) and ``omega`` the frequency (eq. ad
+    fixes omega = 1; the amplitude families store the wave at its physical amplitude and frequency). The paper's
+    branch points carry :class:`~hertzpetsc.diagnostics.WaveDiagnostics`; other waves may leave them None."""
 
     q: float
     u_half: np.ndarray
     h: float
     model: LatticeModel
-    diagnostics: WaveDiagnostics
-    solve: SolveStats
+    diagnostics: WaveDiagnostics = None
+    solve: SolveStats = None
     substeps: int = 1
     wall_time: float = 0.0
+    profiles: tuple = None
+    omega: float = 1.0
+
+    def __post_init__(self):
+        if self.profiles is None:
+            self.profiles = (np.asarray(self.u_half, dtype=float),)
+        if len(self.profiles) != self.model.cell:
+            raise ValueError(f"{len(self.profiles)} profiles for a mass pattern of {self.model.cell} beads")
 
     @property
     def u_full(self):

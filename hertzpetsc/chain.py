@@ -1,15 +1,18 @@
-"""The chain (eq. nc) on PETSc: state, right-hand side, exact Jacobian, energy, variational equations.
+"""The chain (eq. nc) on PETSc: state, right-hand side, exact Jacobian, energy balance, variational equations.
 
-    m_n x_n'' = V'(x_{n+1} - x_n) - V'(x_n - x_{n-1}),
+    m_n x_n'' = f_n - f_{n-1} - gamma x_n',    f_n = V'(x_{n+1} - x_n) + eta (x_{n+1}' - x_n'),
 
-for the N beads of a :class:`~hertzpetsc.model.ChainSpec` (the law V' and the masses m_n are its lattice model's)
-with periodic boundary conditions x_{n+N} = x_n (eq. pbcl), free ends (no force beyond the first and last bead)
-or fixed ends (walls at rest at x_0 = x_{N+1} = 0). The state X = (x_n, xdot_n)_n is a PETSc Vec on a 1-D DMDA
-(bead-major, 2 dof per bead, stencil width 1: nearest neighbours are a genuine stencil here).
+for the N beads of a :class:`~hertzpetsc.model.ChainSpec` (the law V', the masses m_n and the damping gamma, eta
+are its lattice model's; gamma = eta = 0 is the paper's eq. nc) with periodic boundary conditions x_{n+N} = x_n
+(eq. pbcl), or two ends: free (no bond beyond), a wall at rest (x = 0) or an actuator whose prescribed motion
+x(t), x'(t) enters the bond to the first (last) bead -- the right-hand side, and through that bond's stiffness
+the Jacobian, but it is not an unknown. The state X = (x_n, xdot_n)_n is a PETSc Vec on a 1-D DMDA (bead-major,
+2 dof per bead, stencil width 1: nearest neighbours are a genuine stencil here).
 
 With ``n_tangent = k`` the DMDA carries k tangent vectors Y_i = (y_n, ydot_n) next to X, and the right-hand
 side is that of the variational equations Y' = Df(X) Y as well: one TS then integrates the flow and its
-tangent-linear map together (the resolvent R(t; 0) of the paper's sections 3.4-3.5).
+tangent-linear map together (the resolvent R(t; 0) of the paper's sections 3.4-3.5). The energy balance of
+:meth:`Chain.power`: dE/dt = (input power of the actuators) - (dissipation).
 """
 import math
 from dataclasses import dataclass
@@ -18,7 +21,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .errors import ConvergenceError, ParameterError
-from .model import ChainSpec
+from .model import Actuator, ChainSpec
 
 # The options prefix of the TS of simulations (long runs, compactons on the chain); the refinement's and the
 # Floquet analysis' flows have their own (shoot_, floquet_).
@@ -62,6 +65,10 @@ class Chain:
         self.local = self.da.createLocalVec()
         self.first = self.xs == 0 and not periodic
         self.last = self.xe == spec.N and not periodic
+        self.damping = self.model.damping if self.model.damped else None
+        # the ends this rank touches: ('free' | 'wall' | Actuator) or None inside the chain / periodic
+        self.left_end = spec.left if self.first else None
+        self.right_end = spec.right if self.last else None
         # 1/m_n of the owned beads, or None for unit masses (the paper's chain: no extra arithmetic)
         self.inverse_mass = None if self.model.uniform_masses else \
             1.0 / self.model.mass(np.arange(self.xs, self.xe))
@@ -71,31 +78,36 @@ class Chain:
     def create_state(self):
         return self.da.createGlobalVec()
 
-    def _ghosted(self, X):
-        """Local values with one ghost bead on each side, shape (nloc + 2, dof); walls for fixed ends."""
+    def _ghosted(self, X, t=None):
+        """Local values with one ghost bead on each side, shape (nloc + 2, dof): the neighbours' values, or at an
+        end the wall at rest (all zero) or the actuator's position and velocity at time t (zero tangents)."""
         self.da.globalToLocal(X, self.local)
         a = self.local.getArray(readonly=True).reshape(self.nloc + 2, self.dof)
-        if self.spec.boundary == "fixed" and (self.first or self.last):
-            a = a.copy()
-            if self.first:
-                a[0] = 0.0
-            if self.last:
-                a[-1] = 0.0
+        if self.left_end in (None, "free") and self.right_end in (None, "free"):
+            return a
+        a = a.copy()
+        for row, end in ((0, self.left_end), (-1, self.right_end)):
+            if end == "wall":
+                a[row] = 0.0
+            elif isinstance(end, Actuator):
+                tt = 0.0 if t is None else t
+                a[row] = 0.0
+                a[row, 0] = end.signal.position(tt)
+                a[row, 1] = end.signal.velocity(tt)
         return a
 
     def _bond_mask(self):
         """1 for bonds that carry a force, 0 for the missing bonds beyond free ends (bond i joins ghosted i, i+1)."""
         m = np.ones(self.nloc + 1)
-        if self.spec.boundary == "free":
-            if self.first:
-                m[0] = 0.0
-            if self.last:
-                m[-1] = 0.0
+        if self.left_end == "free":
+            m[0] = 0.0
+        if self.right_end == "free":
+            m[-1] = 0.0
         return m
 
     # --- eq. nc and its variational equations -------------------------------------------------------------
     def rhs(self, ts, t, X, F):
-        a = self._ghosted(X)
+        a = self._ghosted(X, t)
         model = self.model
         x = a[:, 0]
         r = x[1:] - x[:-1]                          # bond lengths x_{n+1} - x_n
@@ -104,6 +116,8 @@ class Chain:
         out = F.getArray().reshape(self.nloc, self.dof)
         out[:, 0] = a[1:-1, 1]
         out[:, 1] = bond[1:] - bond[:-1]
+        if self.damping is not None:
+            out[:, 1::2] += self._damping_forces(a[:, 1::2], mask)
         if self.n_tangent:
             stiff = (model.stiffness(r) * mask)[:, None]
             y = a[:, 2::2]                           # (nloc + 2, k) tangent displacements
@@ -113,13 +127,25 @@ class Chain:
         if self.inverse_mass is not None:
             out[:, 1::2] *= self.inverse_mass[:, None]
 
+    def _damping_forces(self, v, mask):
+        """-gamma v_n + eta (dv_n - dv_{n-1}), dv the bonds' velocity differences (v: (nloc + 2, columns) ghosted
+        velocities of the state and of the tangents, which obey the same linear terms)."""
+        gamma, eta = self.damping.gamma, self.damping.eta
+        out = -gamma * v[1:-1]
+        if eta > 0.0:
+            dv = (v[1:] - v[:-1]) * mask[:, None]
+            out = out + eta * (dv[1:] - dv[:-1])
+        return out
+
     def rhs_jacobian(self, ts, t, X, J, P):
-        """Exact Jacobian Df(X) of eq. nc (for implicit integrators); only for the chain without tangents.
+        """Exact Jacobian Df(X) of the chain (for implicit integrators); only for the chain without tangents.
         Assembled entry by entry: adequate for the chain lengths where implicit integration is used."""
-        a = self._ghosted(X)
+        a = self._ghosted(X, t)
         r = a[1:, 0] - a[:-1, 0]
-        s = self.model.stiffness(r) * self._bond_mask()    # bond stiffness V''(x_{n+1} - x_n)
+        mask = self._bond_mask()
+        s = self.model.stiffness(r) * mask                # bond stiffness V''(x_{n+1} - x_n)
         inv = self.inverse_mass if self.inverse_mass is not None else np.ones(self.nloc)
+        gamma, eta = (self.damping.gamma, self.damping.eta) if self.damping is not None else (0.0, 0.0)
         N = self.spec.N
         n = np.arange(self.xs, self.xe)
         rows_x = 2 * n
@@ -129,11 +155,18 @@ class Chain:
         for i in range(self.nloc):
             P.setValue(rows_x[i], rows_v[i], 1.0, addv=True)
             sl, sr = s[i] * inv[i], s[i + 1] * inv[i]
+            el, er = eta * mask[i] * inv[i], eta * mask[i + 1] * inv[i]
             P.setValue(rows_v[i], 2 * n[i], -(sl + sr), addv=True)
+            if gamma or eta:
+                P.setValue(rows_v[i], 2 * n[i] + 1, -(gamma * inv[i] + el + er), addv=True)
             if not (self.first and i == 0):
                 P.setValue(rows_v[i], 2 * left[i], sl, addv=True)
+                if el:
+                    P.setValue(rows_v[i], 2 * left[i] + 1, el, addv=True)
             if not (self.last and i == self.nloc - 1):
                 P.setValue(rows_v[i], 2 * right[i], sr, addv=True)
+                if er:
+                    P.setValue(rows_v[i], 2 * right[i] + 1, er, addv=True)
         P.assemble()
         if J.handle != P.handle:
             J.assemble()
@@ -144,17 +177,41 @@ class Chain:
         return J
 
     # --- diagnostics --------------------------------------------------------------------------------------
-    def energy(self, X):
-        """Total energy (eq. ham): sum of m v^2/2 and of V over the bonds (with the walls for fixed ends)."""
-        a = self._ghosted(X)
+    def energy(self, X, t=None):
+        """Total energy (eq. ham): sum of m v^2/2 and of V over the bonds, the bonds to walls and actuators
+        included (their positions at time t)."""
+        a = self._ghosted(X, t)
         r = a[1:, 0] - a[:-1, 0]
         Vb = self.model.potential(r) * self._bond_mask()
-        # each rank counts the bonds to the right of its beads, plus the left wall bond for fixed ends
+        # each rank counts the bonds to the right of its beads, plus the bond at the left end
         kinetic = a[1:-1, 1] ** 2 if self.inverse_mass is None else a[1:-1, 1] ** 2 / self.inverse_mass
         local = 0.5 * np.sum(kinetic) + np.sum(Vb[1:])
-        if self.spec.boundary == "fixed" and self.first:
+        if self.first:
             local += Vb[0]
         return self.comm.tompi4py().allreduce(float(local))
+
+    def power(self, X, t=None):
+        """(input power of the actuators, dissipation rate) at the state X and time t, so that
+        dE/dt = input - dissipation: input = -f_0 x_0' + f_N x_{N+1}' (f the bond forces V' + eta dv of the bonds
+        to the actuators; f < 0 in compression), dissipation = gamma sum v^2 + eta sum over bonds dv^2."""
+        a = self._ghosted(X, t)
+        r = a[1:, 0] - a[:-1, 0]
+        mask = self._bond_mask()
+        v = a[:, 1]
+        dv = (v[1:] - v[:-1]) * mask
+        eta = self.damping.eta if self.damping is not None else 0.0
+        gamma = self.damping.gamma if self.damping is not None else 0.0
+        f = self.model.force(r) * mask + eta * dv
+        dissipation = gamma * np.sum(v[1:-1] ** 2) + eta * np.sum(dv[1:] ** 2)
+        if self.first:
+            dissipation += eta * dv[0] ** 2
+        power_in = 0.0
+        if isinstance(self.left_end, Actuator):
+            power_in -= f[0] * v[0]
+        if isinstance(self.right_end, Actuator):
+            power_in += f[-1] * v[-1]
+        mpi = self.comm.tompi4py()
+        return mpi.allreduce(float(power_in)), mpi.allreduce(float(dissipation))
 
     # --- the spatial shift S X = (X_2, ..., X_N, X_1) of section 3.5 -------------------------------------------
     def shift(self, X, out):

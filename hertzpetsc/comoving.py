@@ -178,7 +178,7 @@ def profile_on_grid(point, K, comm, prefix="tw_", q=None):
     """The discrete eq. ad on h = pi/K at the branch point's q (or at a nearby ``q``), by the travelling-wave SNES
     from the branch profile interpolated (degree 5) onto the grid; K + 1 values on [0, pi]."""
     from .advdelay import AdvanceDelayProblem
-    from .continuation import regrid_half_profile
+    from .qbranch import regrid_half_profile
     from .grid import ProfileGrid
     from .twsolver import TravellingWaveSolver
     grid = ProfileGrid(K, comm)

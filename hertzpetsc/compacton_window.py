@@ -66,8 +66,8 @@ class WindowChain(Chain):
         self.gap = float(gap)
         self._offset = np.arange(self.nloc + 2, dtype=float)
 
-    def _ghosted(self, X):
-        a = super()._ghosted(X)
+    def _ghosted(self, X, t=None):
+        a = super()._ghosted(X, t)
         if self.gap == 0.0:
             return a
         a = a.copy()

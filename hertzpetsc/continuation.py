@@ -1,17 +1,25 @@
-"""Continuation of odd travelling waves in q, from the binary oscillation at q = pi down through a list of target
-wavenumbers (paper section 3.1), on a fixed grid or on grids refined as q decreases.
+"""The one continuation layer: natural and pseudo-arclength continuation of any problem with a parameter, with fold
+and event detection (the paper's continuation in q, section 3.1, is one use; :mod:`hertzpetsc.qbranch`).
 
-Predictor: secant extrapolation of the rescaled profile q^(2/(alpha-1)) u, which stays O(1) along the whole
-branch while u grows like q^(-2/(alpha-1)) (eq. normscaling). Step control: if SNES fails, or the corrector moves
-the rescaled profile by more than ``max_corrector`` (relative, sup norm), the step is halved (intermediate q need
-not be on the grid: shifts are interpolated) and retried, up to ``max_halvings`` consecutive times; after a
-success the step doubles again (up to the next target). Each target point is yielded as soon as it has converged,
-so the caller can save it.
+A problem (:class:`ContinuationProblem`) works on an *extended* vector Z = (X, p): its unknowns X and, as the last
+entry (on the last rank), the continuation parameter p (q, an amplitude, a mass ratio, delta0, alpha, a driving
+frequency ...). Its one corrector :meth:`ContinuationProblem.solve` solves
 
-The grid is a policy: :class:`FixedGrid` (the paper's h = pi/1000), or :class:`RefiningGrid`, which keeps at
-least ``cells_per_q`` cells per unit of q below ``q_first`` by doubling the grid each time q halves; when the
-grid changes, the last two profiles are interpolated (degree-5 Lagrange, below the scheme's O(h^2)) onto the new
-grid and the secant predictor goes on there (section 3.2, small q).
+    F(X; p) = 0,     r . Z = c
+
+for a given row r and value c. The natural algorithm passes the parameter row r = e_p, c = p* (the parameter is
+fixed: problems take their fixed-parameter path); pseudo-arclength passes r = W t, c = W t . Z_pred (t the unit
+secant tangent in the problem's inner product W, Z_pred = Z_1 + ds t). So both algorithms drive every problem, and
+a problem implements one bordered solve.
+
+:class:`Natural` (secant predictor in p, step halving on failure, doubling after success) and
+:class:`PseudoArclength` (secant tangent, step ds adapted to the Newton iterations, halved on failure) are the two
+algorithms; :class:`Continuation` is the loop: it keeps the last two points (Vecs), yields a
+:class:`ContinuationPoint` per accepted step, detects folds (a sign change of dp/ds) and the sign changes of the
+problem's test functions, and locates both on the curve by re-solving with the chord between the bracketing points
+as the local coordinate (successive parabolic interpolation for a fold, the Illinois rule for a root). The step
+control is bounded: at most ``max_halvings`` reductions per step and ``max_step_changes`` in all, so it cannot cycle
+without progress. Resume: :meth:`Continuation.seed` with the last two stored points.
 """
 import math
 from dataclasses import dataclass, field
@@ -19,289 +27,498 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
-from .advdelay import AdvanceDelayProblem, check_wavenumber
-from .binary import binary_oscillation
-from .branch import BranchPoint
-from .diagnostics import point_diagnostics
 from .errors import ConvergenceError, ParameterError
-from .grid import ProfileGrid, check_cells_per_pi
-from .hertz import check_alpha
-from .model import LatticeModel
-from .resources import check_memory
-from .stencil import full_period, lagrange_periodic
-from .twsolver import TW_PREFIX, TravellingWaveSolver, tw_solver
-
-
-@dataclass(frozen=True)
-class ContinuationParameters:
-    """Parameters of a branch computation; the defaults are the paper's (alpha = 3/2, h = pi 1e-3, M = 50).
-
-    The lattice is ``model`` (a :class:`~hertzpetsc.model.LatticeModel`), or the paper's chain with exponent
-    ``alpha``; the targets are q = m pi / M from pi down to ``q_stop`` (default pi / M), and q_stop itself.
-    """
-
-    alpha: float = None
-    M: int = 50
-    cells_per_pi: int = 1000
-    q_stop: float = None
-    max_halvings: int = 8
-    max_corrector: float = 0.25
-    model: LatticeModel = field(default=None, compare=False)
-
-    def __post_init__(self):
-        model = self.model
-        if model is None:
-            model = LatticeModel.hertz(check_alpha(1.5 if self.alpha is None else self.alpha))
-        elif self.alpha is not None and check_alpha(self.alpha) != model.alpha:
-            raise ParameterError("alpha", self.alpha, f"differs from the model's exponent {model.alpha}")
-        object.__setattr__(self, "model", model)
-        object.__setattr__(self, "alpha", model.alpha)
-        if not (isinstance(self.M, (int, np.integer)) and self.M >= 1):
-            raise ParameterError("M", self.M, "must be an integer >= 1 (wavenumbers q = m pi / M)")
-        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        if self.q_stop is None:
-            object.__setattr__(self, "q_stop", math.pi / self.M)
-        object.__setattr__(self, "q_stop", check_wavenumber(self.q_stop, name="q_stop"))
-        if self.q_stop < self.h:
-            raise ParameterError("q_stop", self.q_stop, f"must be at least the grid step h = pi/{self.cells_per_pi}"
-                                 f" = {self.h:.6g}; increase cells_per_pi")
-        if not (isinstance(self.max_halvings, (int, np.integer)) and self.max_halvings >= 0):
-            raise ParameterError("max_halvings", self.max_halvings, "must be an integer >= 0")
-        if not self.max_corrector > 0:
-            raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
-
-    @property
-    def h(self):
-        return math.pi / self.cells_per_pi
-
-    def targets(self):
-        """The wavenumbers to report: m pi / M from pi down to q_stop, then q_stop itself if it is off that grid."""
-        return paper_targets(self.M, self.q_stop)
-
-
-def paper_targets(M, q_stop):
-    """m pi / M from pi down to q_stop, then q_stop itself if it is off that list."""
-    qs = [m * math.pi / M for m in range(M, 0, -1) if m * math.pi / M >= q_stop * (1 - 1e-12)]
-    if abs(qs[-1] - q_stop) > 1e-12 * q_stop:
-        qs.append(q_stop)
-    return qs
-
-
-# --- grid policies ------------------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class FixedGrid:
-    """One grid h = pi / cells_per_pi for the whole branch."""
-
-    cells: int = 1000
-
-    def cells_per_pi(self, q):
-        return self.cells
-
-
-@dataclass(frozen=True)
-class RefiningGrid:
-    """At least ``cells_per_q`` 2^level cells per unit of q below q_first: K = K0 2^(k + level), K0 =
-    cells_per_q pi / q_first, k the number of halvings of q_first that q is below (section 3.2)."""
-
-    q_first: float = math.pi / 50
-    cells_per_q: int = 20
-    level: int = 0
-
-    def __post_init__(self):
-        if not (isinstance(self.cells_per_q, (int, np.integer)) and self.cells_per_q >= 4):
-            raise ParameterError("cells_per_q", self.cells_per_q, "must be an integer >= 4")
-        if not (isinstance(self.level, (int, np.integer)) and self.level >= 0):
-            raise ParameterError("level", self.level, "must be an integer >= 0")
-
-    def cells_per_pi(self, q):
-        K0 = int(round(self.cells_per_q * math.pi / self.q_first))
-        k = max(0, math.ceil(math.log2(self.q_first / q) - 1e-9))
-        return K0 * 2 ** (k + self.level)
-
-
-def regrid_half_profile(u_half, K_new):
-    """An odd profile on [0, pi] (K+1 values) interpolated onto the grid of K_new cells per pi."""
-    K = len(u_half) - 1
-    if K == K_new:
-        return np.asarray(u_half, dtype=float).copy()
-    xi = np.arange(K_new + 1) * math.pi / K_new
-    out = lagrange_periodic(full_period(u_half), math.pi / K, xi)
-    out[0] = out[-1] = 0.0
-    return out
 
 
 class ContinuationError(ConvergenceError):
-    """The branch could not be continued past ``last_q`` (all points up to it were yielded)."""
+    """The continuation could not take a step from ``last`` (every point up to it was yielded)."""
 
-    def __init__(self, last_q, failed_q, reason):
-        self.last_q, self.failed_q = last_q, failed_q
-        last = (f"last converged q = {last_q:.12g}, everything up to it is saved" if last_q == last_q
-                else "no point converged")
-        RuntimeError.__init__(self, f"continuation stopped: no convergence at q = {failed_q:.12g} even after step "
-                                    f"reduction ({reason}); {last}")
-        self.what, self.reason, self.where = "continuation", reason, dict(q=failed_q)
+    def __init__(self, parameter, last, failed, reason):
+        self.last, self.failed = last, failed
+        RuntimeError.__init__(self, f"continuation in {parameter} stopped: no convergence at {parameter} = "
+                                    f"{failed:.12g} even after step reduction ({reason}); last converged "
+                                    f"{parameter} = {last:.12g}, everything up to it was yielded")
+        self.what, self.reason, self.where = "continuation", reason, {parameter: failed}
 
 
-class BranchContinuation:
-    """Continuation of eqs. ad-pbc in q on one grid. Iterate :meth:`points` to get the branch point by point.
+class ContinuationProblem:
+    """The hooks a problem gives the continuation layer (defaults where one makes sense, else NotImplementedError).
 
-    One SNES (and KSP/PC) serves the whole branch; its options (prefix ``tw_``) are read once, here.
-    """
+    ``parameter`` names the continuation parameter; it is the last entry of every extended vector."""
 
-    def __init__(self, params, comm, prefix=TW_PREFIX, solver=None, cells_per_pi=None):
-        self.params = params
-        self.model = params.model
-        self.prefix = prefix
-        K = params.cells_per_pi if cells_per_pi is None else cells_per_pi
-        solver = tw_solver(prefix, solver)
-        check_memory(K, comm, solver)
-        self.grid = ProfileGrid(K, comm)
-        self.solver = TravellingWaveSolver(self.grid, prefix, solver)
-        self.exponent = self.model.law.rescaling_exponent
-        self.history = []   # the last two converged (q, rescaled profile Vec), intermediate q included
+    parameter = "p"
 
-    def _remember(self, q, u):
-        r = u.copy()
-        r.scale(q ** self.exponent)
-        self.history.append((q, r))
+    def create_vec(self):
+        """A new extended Vec Z = (X, p) (parameter last, on the last rank)."""
+        raise NotImplementedError
+
+    def solve(self, Z, row=None, value=None):
+        """Correct Z in place so that F(X; p) = 0 and row . Z = value; row None: the parameter is fixed at its
+        entry of Z (natural continuation). Returns the number of Newton iterations (>= 1); raises
+        :class:`~hertzpetsc.errors.ConvergenceError` when it fails."""
+        raise NotImplementedError
+
+    def weights(self):
+        """Diagonal weights W of the arclength inner product (a Vec like Z), or None for the Euclidean one."""
+        return None
+
+    def predictor_scale(self, p):
+        """A factor s(p) such that s(p) X varies slowly with p (the secant predictor extrapolates s X): 1."""
+        return 1.0
+
+    def test_functions(self, Z):
+        """{name: value} of functions whose sign changes mark events on the curve (none by default)."""
+        return {}
+
+    def report(self, Z):
+        """What a point reports (plain data on every rank); the layer adds the parameter and arclength."""
+        return {}
+
+
+@dataclass
+class ContinuationPoint:
+    """An accepted point: the parameter, the arclength s from the start, dp/ds of the unit tangent (nan for the
+    first point), the Newton iterations, the event that located it (None, 'fold' or a test function's name),
+    the problem's report and its test functions."""
+
+    parameter: float
+    s: float
+    dp_ds: float
+    iterations: int
+    event: str = None
+    report: dict = field(default_factory=dict)
+    tests: dict = field(default_factory=dict)
+
+
+def _parameter(Z):
+    """The last entry of Z on every rank."""
+    n = Z.getSize()
+    lo, hi = Z.getOwnershipRange()
+    local = float(Z.getArray(readonly=True)[-1]) if lo <= n - 1 < hi else 0.0
+    comm = Z.getComm().tompi4py()
+    return comm.allreduce(local) if comm.Get_size() > 1 else local
+
+
+def set_parameter(Z, value):
+    """Set the last entry of Z (collective)."""
+    n = Z.getSize()
+    lo, hi = Z.getOwnershipRange()
+    if lo <= n - 1 < hi:
+        Z.getArray()[-1] = value
+
+
+def unit_row(Z):
+    """e_p: 1 on the parameter entry, 0 elsewhere."""
+    e = Z.duplicate()
+    e.set(0.0)
+    set_parameter(e, 1.0)
+    return e
+
+
+@dataclass(frozen=True)
+class Natural:
+    """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`predictor_scale`), step
+    halved on failure (or when the corrector moves X by more than ``max_corrector``, relative, sup norm) and doubled
+    after a success, up to the next target."""
+
+    max_halvings: int = 8
+    max_corrector: float = 0.25
+    max_step_changes: int = 64
+
+    def __post_init__(self):
+        _check_count("max_halvings", self.max_halvings, 0)
+        _check_count("max_step_changes", self.max_step_changes, 1)
+        if not self.max_corrector > 0:
+            raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
+
+
+@dataclass(frozen=True)
+class PseudoArclength:
+    """Pseudo-arclength continuation: unknowns (X, p), secant tangent t in the problem's inner product, the row
+    t . (Z - Z_pred) = 0; the step ds grows by ``growth`` after steps of at most ``easy`` Newton iterations, up to
+    ``ds_max``, and is halved on failure (at most ``max_halvings`` times per step, never below ``ds_min``). A
+    corrector that needs more than ``max_iterations`` or lands farther than ``max_corrector`` ds from the
+    prediction is a failure (it may have jumped to another part of the curve)."""
+
+    ds: float = 0.02
+    ds_min: float = 1e-8
+    ds_max: float = 0.1
+    growth: float = 1.5
+    easy: int = 3
+    max_halvings: int = 8
+    max_step_changes: int = 64
+    max_iterations: int = 12
+    max_corrector: float = 0.5
+
+    def __post_init__(self):
+        for name in ("ds", "ds_min", "ds_max"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and v > 0 and math.isfinite(v)):
+                raise ParameterError(name, v, "the arclength step must be a finite number > 0")
+        if not self.ds_min <= self.ds <= self.ds_max:
+            raise ParameterError("ds", self.ds, f"must lie in [ds_min, ds_max] = [{self.ds_min:g}, {self.ds_max:g}]")
+        if not self.growth >= 1:
+            raise ParameterError("growth", self.growth, "must be >= 1")
+        _check_count("max_halvings", self.max_halvings, 0)
+        _check_count("max_step_changes", self.max_step_changes, 1)
+        _check_count("max_iterations", self.max_iterations, 1)
+        if not self.max_corrector > 0:
+            raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
+
+
+def _check_count(name, value, minimum):
+    if not (isinstance(value, (int, np.integer)) and value >= minimum):
+        raise ParameterError(name, value, f"must be an integer >= {minimum}")
+
+
+class Continuation:
+    """The continuation loop over a :class:`ContinuationProblem` with a :class:`Natural` or
+    :class:`PseudoArclength` algorithm (module docstring). Collective over the problem's communicator."""
+
+    def __init__(self, problem, algorithm, detect_folds=True, locate_tol=1e-9, locate_max=40):
+        if not isinstance(algorithm, (Natural, PseudoArclength)):
+            raise ParameterError("algorithm", algorithm, "must be Natural(...) or PseudoArclength(...)")
+        self.problem, self.algorithm = problem, algorithm
+        # the natural steps (also the first steps of a pseudo-arclength run)
+        self.natural = algorithm if isinstance(algorithm, Natural) else Natural()
+        self.detect_folds, self.locate_tol, self.locate_max = detect_folds, locate_tol, locate_max
+        self.history = []          # [(Z, s, tests)] of the last two accepted points
+        self.s = 0.0
+        self.ds = getattr(algorithm, "ds", None)
+        self.changes = 0
+        self.W = problem.weights()
+
+    # --- vector helpers ------------------------------------------------------------------------------------
+    def _dot(self, a, b):
+        if self.W is None:
+            return a.dot(b)
+        w = a.copy()
+        w.pointwiseMult(w, self.W)
+        out = w.dot(b)
+        w.destroy()
+        return out
+
+    def _norm(self, a):
+        return math.sqrt(max(self._dot(a, a), 0.0))
+
+    def _accept(self, Z, its, event=None, dp_ds=math.nan):
+        tests = self.problem.test_functions(Z)
+        self.history.append((Z, self.s, tests))
         while len(self.history) > 2:
-            self.history.pop(0)[1].destroy()
+            self.history.pop(0)[0].destroy()
+        return ContinuationPoint(parameter=_parameter(Z), s=self.s, dp_ds=dp_ds, iterations=its, event=event,
+                                 report=self.problem.report(Z), tests=tests)
 
-    def predict(self, q_new):
-        """Secant predictor on the rescaled profile (or the rescaled last point when only one is known)."""
-        (q1, r1) = self.history[-1]
-        r = r1.copy()
+    def _solve(self, Z, row=None, value=None):
+        its = self.problem.solve(Z, row, value)
+        if its < 1:
+            raise ConvergenceError("continuation corrector", "a step was accepted without a Newton iteration",
+                                   **{self.problem.parameter: _parameter(Z)})
+        return its
+
+    # --- start, resume --------------------------------------------------------------------------------------
+    def start(self, Z0):
+        """Correct the first point at its parameter (natural); Z0 is copied. Returns its ContinuationPoint."""
+        Z = Z0.copy()
+        its = self._solve(Z)
+        return self._accept(Z, its)
+
+    def seed(self, states, arclengths=None):
+        """Resume from stored points: ``states`` are the last (up to two) extended Vecs, oldest first, already
+        solutions (copied, not corrected)."""
+        for k, Z in enumerate(states[-2:]):
+            self.history.append((Z.copy(), arclengths[k] if arclengths else 0.0, self.problem.test_functions(Z)))
+        self.s = self.history[-1][1]
+
+    @property
+    def parameter(self):
+        return _parameter(self.history[-1][0]) if self.history else math.nan
+
+    # --- natural steps ----------------------------------------------------------------------------------------
+    def _natural_predict(self, p_new):
+        prob = self.problem
+        Z1 = self.history[-1][0]
+        p1 = _parameter(Z1)
+        Z = Z1.copy()
         if len(self.history) == 2:
-            q0, r0 = self.history[0]
-            r.axpy((q_new - q1) / (q1 - q0), r1)
-            r.axpy(-(q_new - q1) / (q1 - q0), r0)
-        r.scale(q_new ** (-self.exponent))
-        return r
+            Z0 = self.history[0][0]
+            p0 = _parameter(Z0)
+            s0, s1, sn = prob.predictor_scale(p0), prob.predictor_scale(p1), prob.predictor_scale(p_new)
+            f = (p_new - p1) / (p1 - p0)
+            Z.scale(s1 * (1 + f) / sn)
+            Z.axpy(-s0 * f / sn, Z0)
+        else:
+            Z.scale(prob.predictor_scale(p1) / prob.predictor_scale(p_new))
+        set_parameter(Z, p_new)
+        return Z
 
-    def resume_from(self, qs, profiles):
-        """Seed the predictor with already computed points (the last two), given on any grid."""
-        for q, prof in zip(list(qs)[-2:], list(profiles)[-2:]):
-            u = self.grid.vec_from_half_profile(regrid_half_profile(prof, self.grid.K))
-            self._remember(float(q), u)
-            u.destroy()
-
-    def _solve_at(self, q, guess):
-        problem = AdvanceDelayProblem(self.model, self.grid, q)
-        try:
-            result = self.solver.solve(problem, guess)
-        finally:
-            problem.destroy()
-        return result
-
-    def _corrector_size(self, q, u, pred):
-        diff = u.copy()
-        diff.axpy(-1.0, pred)
-        size = diff.norm(PETSc.NormType.NORM_INFINITY) / max(u.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
-        diff.destroy()
-        return size
-
-    def _point(self, q, u, result, substeps, wall):
-        u_half = self.grid.half_profile(u)
-        diag = point_diagnostics(u_half, q, self.grid.h, self.model.alpha)
-        return BranchPoint(q=q, u_half=u_half, h=self.grid.h, model=self.model, diagnostics=diag, solve=result,
-                           substeps=substeps, wall_time=wall)
-
-    def start(self):
-        """Solve at q = pi from the sampled binary oscillation u0 (lemma binary)."""
-        u = self.grid.vec_from_half_profile(binary_oscillation(self.model.law, self.grid.xi_half()))
-        q = math.pi
-        try:
-            result = self._solve_at(q, u)
-        except ConvergenceError as err:
-            raise ContinuationError(float("nan"), q, err.reason) from None
-        self._remember(q, u)
-        point = self._point(q, u, result, 1, result.wall_time)
-        u.destroy()
-        return point
-
-    def step_to(self, q_target):
-        """Continue from the last converged point to ``q_target``, halving the step on failure."""
-        q_last = self.history[-1][0]
-        dq = q_target - q_last
-        substeps, wall, halvings = 0, 0.0, 0
+    def step_to(self, p_target):
+        """Natural continuation from the last point to ``p_target`` (intermediate steps are not reported)."""
+        alg = self.natural
+        p_last = self.parameter
+        dp = p_target - p_last
+        total_its, halvings = 0, 0
         while True:
-            q = q_last + dq if abs(q_last + dq - q_target) > 1e-14 * q_target else q_target
-            u = self.predict(q)
-            pred = u.copy()
+            p = p_target if abs(p_last + dp - p_target) <= 1e-14 * max(1.0, abs(p_target)) else p_last + dp
+            Z = self._natural_predict(p)
+            pred = Z.copy()
             failure = None
             try:
-                result = self._solve_at(q, u)
-                wall += result.wall_time
-                size = self._corrector_size(q, u, pred)
-                if size > self.params.max_corrector:
-                    failure = f"corrector moved the profile by {size:.3g} > max_corrector"
+                its = self._solve(Z)
+                total_its += its
+                size = self._corrector_size(Z, pred)
+                if size > alg.max_corrector:
+                    failure = f"corrector moved the solution by {size:.3g} > max_corrector"
             except ConvergenceError as err:
-                failure = f"SNES reason {err.reason}"
+                failure = f"reason {err.reason}"
             pred.destroy()
             if failure is not None:
-                u.destroy()
+                Z.destroy()
                 halvings += 1
-                if halvings > self.params.max_halvings:
-                    raise ContinuationError(q_last, q, failure)
-                dq *= 0.5
+                self.changes += 1
+                if halvings > alg.max_halvings or self.changes > alg.max_step_changes:
+                    raise ContinuationError(self.problem.parameter, p_last, p, failure)
+                dp *= 0.5
                 continue
-            substeps += 1
-            halvings = 0          # max_halvings bounds consecutive reductions, not their total
-            self._remember(q, u)
-            if q == q_target:
-                point = self._point(q, u, result, substeps, wall)
-                u.destroy()
+            halvings = 0
+            ds = abs(p - p_last)
+            self.s += ds
+            point = self._accept(Z, total_its)
+            if p == p_target:
+                self.changes = 0
                 return point
-            u.destroy()
-            q_last = q
-            dq = q_target - q_last if abs(2 * dq) >= abs(q_target - q_last) else 2 * dq
+            p_last = p
+            dp = p_target - p_last if abs(2 * dp) >= abs(p_target - p_last) else 2 * dp
 
-    def points(self, targets=None):
-        """Yield the branch points at the targets not yet computed (all of them, from u0 at q = pi, unless
-        :meth:`resume_from` seeded the continuation)."""
-        targets = self.params.targets() if targets is None else targets
-        if not self.history:
-            yield self.start()
-        q_done = self.history[-1][0]
-        for q in targets:
-            if q < q_done * (1 - 1e-12):
-                yield self.step_to(q)
+    def _corrector_size(self, Z, pred):
+        d = Z.copy()
+        d.axpy(-1.0, pred)
+        set_parameter(d, 0.0)
+        size = d.norm(PETSc.NormType.NORM_INFINITY) / max(Z.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
+        d.destroy()
+        return size
+
+    # --- pseudo-arclength steps -----------------------------------------------------------------------------
+    def _tangent(self):
+        """Unit secant tangent through the last two points (in the W inner product)."""
+        Z0, Z1 = self.history[0][0], self.history[-1][0]
+        t = Z1.copy()
+        t.axpy(-1.0, Z0)
+        n = self._norm(t)
+        if not n > 0:
+            t.destroy()
+            raise ParameterError("points", "identical", "the last two points coincide: no tangent")
+        t.scale(1.0 / n)
+        return t
+
+    def _arclength_solve(self, t, Z1, ds):
+        """The point at W-projected distance ds from Z1 along t (None if the corrector fails, needs too many
+        iterations or lands too far from the prediction)."""
+        Zp = Z1.copy()
+        Zp.axpy(ds, t)
+        pred = Zp.copy()
+        row = t.copy()
+        if self.W is not None:
+            row.pointwiseMult(row, self.W)
+        value = row.dot(Zp)
+        alg = self.algorithm
+        try:
+            its = self._solve(Zp, row, value)
+        except ConvergenceError:
+            its = None
+        row.destroy()
+        if its is not None:
+            pred.axpy(-1.0, Zp)
+            if its > alg.max_iterations or self._norm(pred) > alg.max_corrector * abs(ds):
+                its = None
+        pred.destroy()
+        if its is None:
+            Zp.destroy()
+            return None, 0
+        return Zp, its
+
+    def step(self):
+        """One pseudo-arclength step (needs two points: :meth:`start` then :meth:`step_to` or :meth:`seed`);
+        returns the new ContinuationPoint, or first the fold or event points located in the step (the regular
+        point then follows at the next calls)."""
+        alg = self.algorithm
+        if not isinstance(alg, PseudoArclength):
+            raise ParameterError("algorithm", alg, "step() is pseudo-arclength; natural continuation uses step_to()")
+        if len(self.history) < 2:
+            raise ParameterError("points", len(self.history), "pseudo-arclength needs two points to start")
+        if self._pending:
+            return self._pending.pop(0)
+        t = self._tangent()
+        (Zm, sm, _), (Z1, s1, tests1) = self.history
+        ds, halvings = self.ds, 0
+        while True:
+            Z, its = self._arclength_solve(t, Z1, ds)
+            if Z is not None:
+                break
+            halvings += 1
+            self.changes += 1
+            if halvings > alg.max_halvings or ds * 0.5 < alg.ds_min or self.changes > alg.max_step_changes:
+                p1 = _parameter(Z1)
+                dp = _parameter(t)
+                t.destroy()
+                raise ContinuationError(self.problem.parameter, p1, p1 + ds * dp, "arclength corrector")
+            ds *= 0.5
+        t.destroy()
+        self.changes = 0
+        Zm, Z1 = Zm.copy(), Z1.copy()
+        pm, p1 = _parameter(Zm), _parameter(Z1)
+        self.s = s1 + ds
+        point = self._accept(Z, its)
+        t_new = self._tangent()
+        point.dp_ds = _parameter(t_new)
+        t_new.destroy()
+        located = []
+        if self.detect_folds and (p1 - pm) * (point.parameter - p1) < 0:
+            located.append(self._locate_fold(Zm, Z1, Z, sm))
+        for name, value in point.tests.items():
+            if name in tests1 and tests1[name] * value < 0:
+                located.append(self._locate_root(Z1, Z, s1, name, tests1[name], value))
+        Zm.destroy()
+        Z1.destroy()
+        located = sorted((p for p in located if p is not None), key=lambda p: p.s)
+        if its <= alg.easy and halvings == 0:
+            self.ds = min(alg.ds_max, alg.growth * ds)
+        elif halvings:
+            self.ds = ds
+        if located:
+            self._pending = located[1:] + [point]
+            return located[0]
+        return point
+
+    _pending = ()
+
+    def _chord(self, Za, Zb):
+        """Unit W-direction from Za to Zb and their W-distance."""
+        c = Zb.copy()
+        c.axpy(-1.0, Za)
+        n = self._norm(c)
+        c.scale(1.0 / n)
+        return c, n
+
+    def _on_chord(self, origin, c, evals, value_of):
+        """A function sigma -> value at the curve point whose W-projection on the chord c from ``origin`` is sigma
+        (re-solved with the arclength row); the solved points are kept in ``evals``."""
+        def at(sigma):
+            Z, its = self._arclength_solve(c, origin, sigma)
+            if Z is None:
+                raise ConvergenceError("event location", "arclength corrector", sigma=sigma)
+            v = value_of(Z)
+            if sigma in evals:
+                evals[sigma][0].destroy()
+            evals[sigma] = (Z, its, v)
+            return v
+        return at
+
+    def _located(self, evals, sigma, s_origin, name):
+        Z, its, _ = evals.pop(sigma)
+        for Zo, _, _ in evals.values():
+            Zo.destroy()
+        evals.clear()
+        point = ContinuationPoint(parameter=_parameter(Z), s=s_origin + sigma, dp_ds=0.0 if name == "fold" else
+                                  math.nan, iterations=its, event=name, report=self.problem.report(Z),
+                                  tests=self.problem.test_functions(Z))
+        Z.destroy()
+        return point
+
+    def _locate_fold(self, Zm, Z1, Z2, s_origin):
+        """The extremum of p between Zm and Z2 (p(Z1) beyond both): successive parabolic interpolation in the
+        projection sigma on the chord Zm -> Z2, started from the three known points."""
+        c, length = self._chord(Zm, Z2)
+        d = Z1.copy()
+        d.axpy(-1.0, Zm)
+        sigma1 = self._dot(c, d)
+        d.destroy()
+        evals = {}
+        at = self._on_chord(Zm, c, evals, _parameter)
+        xs, ps = [0.0, sigma1, length], [_parameter(Zm), _parameter(Z1), _parameter(Z2)]
+        try:
+            x = None
+            for _ in range(self.locate_max):
+                (a, b, e), (fa, fb, fe) = xs, ps
+                den = (b - a) * (fb - fe) - (b - e) * (fb - fa)
+                if den == 0.0:
+                    break
+                x_new = b - 0.5 * ((b - a) ** 2 * (fb - fe) - (b - e) ** 2 * (fb - fa)) / den
+                x_new = min(max(x_new, a), e)
+                done = x is not None and abs(x_new - x) <= self.locate_tol * length
+                x = x_new
+                fx = at(x)
+                if done:
+                    break
+                # keep the point with the extreme p and its two neighbours
+                cand = sorted(zip(xs + [x], ps + [fx]))
+                sign = 1.0 if fb >= max(fa, fe) else -1.0
+                k = max(range(len(cand)), key=lambda i: sign * cand[i][1])
+                k = min(max(k, 1), len(cand) - 2)
+                xs, ps = [u[0] for u in cand[k - 1:k + 2]], [u[1] for u in cand[k - 1:k + 2]]
+            if x is None:
+                raise ConvergenceError("fold location", "degenerate parabola", sigma=sigma1)
+            return self._located(evals, x, s_origin, "fold")
+        except ConvergenceError:
+            for Z, _, _ in evals.values():
+                Z.destroy()
+            return None
+        finally:
+            c.destroy()
+
+    def _locate_root(self, Z1, Z2, s_origin, name, g1, g2):
+        """The zero of the test function ``name`` between Z1 and Z2 (values g1, g2 of opposite signs): Illinois
+        rule in the projection on the chord Z1 -> Z2."""
+        c, length = self._chord(Z1, Z2)
+        evals = {}
+        at = self._on_chord(Z1, c, evals, lambda Z: self.problem.test_functions(Z)[name])
+        a, fa, b, fb = 0.0, g1, length, g2
+        side, x = 0, None
+        try:
+            for _ in range(self.locate_max):
+                x = (a * fb - b * fa) / (fb - fa)
+                fx = at(x)
+                if fx == 0.0 or abs(b - a) <= self.locate_tol * length:
+                    break
+                if fx * fb < 0:
+                    a, fa = b, fb
+                    side = 0
+                else:
+                    if side == -1:
+                        fa *= 0.5
+                    side = -1
+                b, fb = x, fx
+            return self._located(evals, x, s_origin, name)
+        except ConvergenceError:
+            for Z, _, _ in evals.values():
+                Z.destroy()
+            return None
+        finally:
+            c.destroy()
+
+    def run(self, until=None, max_steps=1000):
+        """Pseudo-arclength steps until the parameter passes ``until`` (or max_steps); yields each point."""
+        for _ in range(max_steps):
+            point = self.step()
+            yield point
+            if until is not None and point.event is None and len(self.history) == 2:
+                p_prev = _parameter(self.history[0][0])
+                if (point.parameter - until) * (p_prev - until) <= 0:
+                    return
 
     def destroy(self):
-        for _, r in self.history:
-            r.destroy()
+        for Z, _, _ in self.history:
+            Z.destroy()
         self.history = []
-        if self.solver is not None:
-            self.solver.destroy()
-            self.solver = None
 
 
-def continue_branch(params, targets, grids, comm, seeds=(), prefix=TW_PREFIX, solver=None):
-    """Yield the branch points at ``targets`` (decreasing, from pi), each on the grid ``grids.cells_per_pi(q)``.
+_MOVED = ("BranchContinuation", "ContinuationParameters", "FixedGrid", "RefiningGrid", "continue_branch",
+          "paper_targets", "regrid_half_profile")
 
-    ``seeds``: the last converged points of an interrupted run, as (q, u_half) on any grid (the last two seed the
-    predictor; the continuation goes on after the last). When the grid changes, the last two profiles are
-    interpolated onto the new grid. The first point, q = pi, starts from the binary oscillation.
-    """
-    history = [(float(q), np.asarray(u, dtype=float)) for q, u in seeds][-2:]
-    cont, K_cur = None, None
-    try:
-        for q in targets:
-            if history and q >= history[-1][0] * (1 - 1e-12):
-                continue
-            K = grids.cells_per_pi(q)
-            if K != K_cur:
-                if cont is not None:
-                    cont.destroy()
-                cont = BranchContinuation(params, comm, prefix, solver, cells_per_pi=K)
-                cont.resume_from([h[0] for h in history], [h[1] for h in history])
-                K_cur = K
-            point = cont.step_to(q) if cont.history else cont.start()
-            if not history and abs(q - math.pi) > 1e-12 * math.pi:
-                history.append((point.q, point.u_half))        # from u0 at pi, on to the first target
-                point = cont.step_to(q)
-            history = (history + [(point.q, point.u_half)])[-2:]
-            yield point
-    finally:
-        if cont is not None:
-            cont.destroy()
+
+def __getattr__(name):
+    """The q-branch's names, importable from here as before they moved to :mod:`hertzpetsc.qbranch`."""
+    if name in _MOVED:
+        from . import qbranch
+        return getattr(qbranch, name)
+    raise AttributeError(name)

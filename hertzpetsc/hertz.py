@@ -1,7 +1,7 @@
 """The Hertz contact law between neighbouring beads and the closed forms of the binary oscillation (section 2.1).
 
-Pure numpy, no PETSc. ``x`` may be a scalar or an array everywhere. The law is one part of the chain's physics;
-:class:`hertzpetsc.model.LatticeModel` puts it together with the masses.
+Pure numpy, no PETSc. ``x`` may be a scalar or an array everywhere. :class:`HertzLaw` implements the law protocol
+of :mod:`hertzpetsc.law`; :class:`hertzpetsc.model.LatticeModel` puts it together with the masses and damping.
 """
 import math
 from dataclasses import dataclass
@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ParameterError
+from .law import InteractionLaw, check_scale
 
 
 def check_alpha(alpha):
@@ -48,7 +49,7 @@ def abs_power(a, e):
 
 
 @dataclass(frozen=True)
-class HertzLaw:
+class HertzLaw(InteractionLaw):
     """V(x) = |x|^(1+alpha) H(-x) / (1+alpha) (eq. vhertz) and the symmetrised W (eq. int), for alpha > 1.
 
     With a precompression (static overlap) ``delta0`` > 0 the bond length x is measured from the compressed
@@ -67,6 +68,26 @@ class HertzLaw:
     @property
     def precompressed(self):
         return self.delta0 > 0.0
+
+    @property
+    def degree(self):
+        """V'_delta0(a r) = a^alpha V'_(delta0/a)(r): homogeneous of degree alpha up to the precompression."""
+        return self.alpha
+
+    def rescaled(self, a):
+        """r -> a^(-alpha) V'(a r), in closed form: the same exponent with the precompression delta0 / a."""
+        return HertzLaw(self.alpha, self.delta0 / check_scale(a))
+
+    def contact(self, r):
+        """Bonds in contact (r < 0) for the uncompressed law, whose V' and V'' vanish elsewhere; every bond with
+        precompression (V' = delta0^alpha once contact is lost)."""
+        if self.delta0 > 0.0:
+            return np.ones(np.shape(r), dtype=bool)
+        return np.asarray(r) < 0.0
+
+    def describe(self):
+        """alpha, and delta0 when nonzero (so that the uncompressed chain's record identities are unchanged)."""
+        return dict(alpha=self.alpha, **({"delta0": self.delta0} if self.delta0 > 0.0 else {}))
 
     @property
     def linear_stiffness(self):

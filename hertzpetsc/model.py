@@ -1,13 +1,18 @@
-"""The lattice model: the chain's physics in one frozen, validated object (eq. nc).
+"""The lattice model: the chain's physics in one frozen, validated object (eq. nc and its extensions).
 
-    m_n x_n'' = V'(x_{n+1} - x_n) - V'(x_n - x_{n-1})
+    m_n x_n'' = f_n - f_{n-1} - gamma x_n',     f_n = V'(x_{n+1} - x_n) + eta (x_{n+1}' - x_n'),
 
-:class:`LatticeModel` holds the interaction law between neighbours (:class:`~hertzpetsc.hertz.HertzLaw`, eq.
-vhertz, with its exponent alpha) and the masses m_n, which repeat a pattern (the paper's chain: all masses 1).
-:class:`ChainSpec` is a finite chain of that lattice: N beads and a boundary condition (periodic, eq. pbcl; free
-ends; fixed walls). Every consumer (the advance-delay problem, the solitary wave, the chain's right-hand side,
-Jacobian and energy, the tangent flow, the waves) takes one of these and asks it for forces, stiffnesses,
-energies and masses, so a new law or a mass pattern is a change here and in nowhere else.
+:class:`LatticeModel` holds the interaction law between neighbours (any :class:`~hertzpetsc.law.InteractionLaw`;
+the paper's is :class:`~hertzpetsc.hertz.HertzLaw`, eq. vhertz), the masses m_n, which repeat a pattern (the
+paper's chain: all masses 1), and the linear damping (:class:`Damping`: on-site gamma, between neighbours eta; none
+in the paper). :class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq.
+pbcl), free, a wall at rest, or an actuator whose motion is a given periodic function of time (:class:`Actuator`
+with a :class:`Harmonic`, :class:`SampledSignal` or :class:`FunctionSignal`).
+
+Every consumer (the advance-delay problem, the solitary wave, the chain's right-hand side, Jacobian, tangent flow
+and energy balance, the waves) takes one of these and asks it for forces, stiffnesses, energies, damping and
+masses. Adding a law or a term is a change in this module (and the law's own) and nowhere else; the model also
+knows the closed forms of its linear waves (:meth:`LatticeModel.linear_frequencies`).
 """
 import math
 from dataclasses import dataclass, field
@@ -16,8 +21,10 @@ import numpy as np
 
 from .errors import ParameterError
 from .hertz import HertzLaw
+from .law import check_law
 
 BOUNDARIES = ("periodic", "free", "fixed")
+END_KINDS = ("free", "wall")
 
 
 def _check_masses(masses):
@@ -30,40 +37,96 @@ def _check_masses(masses):
     return m
 
 
+def _nonnegative(name, value, what):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(name, value, f"{what} must be a real number >= 0") from None
+    if not (v >= 0.0 and math.isfinite(v)):
+        raise ParameterError(name, value, f"{what} must be a finite number >= 0")
+    return v
+
+
+def _positive(name, value, what):
+    v = _nonnegative(name, value, what)
+    if not v > 0.0:
+        raise ParameterError(name, value, f"{what} must be a finite number > 0")
+    return v
+
+
+@dataclass(frozen=True)
+class Damping:
+    """Linear damping of the chain: on-site ``gamma`` (force -gamma x_n') and between neighbours ``eta`` (a
+    dashpot in every bond: force eta (x_{n+1}' - 2 x_n' + x_{n-1}') on bead n). Both 0: the paper's Hamiltonian
+    chain."""
+
+    gamma: float = 0.0
+    eta: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "gamma", _nonnegative("gamma", self.gamma, "the on-site damping"))
+        object.__setattr__(self, "eta", _nonnegative("eta", self.eta, "the damping between neighbours"))
+
+    @property
+    def active(self):
+        return self.gamma > 0.0 or self.eta > 0.0
+
+
 @dataclass(frozen=True)
 class LatticeModel:
-    """Interaction law and mass pattern of the infinite chain; the default is the paper's (alpha = 3/2, m_n = 1)."""
+    """Interaction law, mass pattern and damping of the infinite chain; the default is the paper's (Hertz law
+    with alpha = 3/2, m_n = 1, no damping)."""
 
     law: HertzLaw = field(default_factory=HertzLaw)
     masses: tuple = (1.0,)
+    damping: Damping = field(default_factory=Damping)
 
     def __post_init__(self):
-        if not isinstance(self.law, HertzLaw):
-            raise ParameterError("law", self.law, "must be a HertzLaw")
+        check_law(self.law)
         object.__setattr__(self, "masses", _check_masses(self.masses))
+        if not isinstance(self.damping, Damping):
+            raise ParameterError("damping", self.damping, "must be a Damping(gamma, eta)")
 
     @classmethod
-    def hertz(cls, alpha=1.5, masses=(1.0,), delta0=0.0):
-        """The Hertzian chain with exponent alpha (eq. vhertz), the given mass pattern and precompression
-        delta0 >= 0 (static overlap of neighbours; 0 is the paper's uncompressed chain)."""
-        return cls(HertzLaw(alpha, delta0), masses)
+    def hertz(cls, alpha=1.5, masses=(1.0,), delta0=0.0, gamma=0.0, eta=0.0):
+        """The Hertzian chain with exponent alpha (eq. vhertz), the given mass pattern, precompression delta0 >= 0
+        (static overlap of neighbours; 0 is the paper's uncompressed chain) and damping gamma, eta >= 0."""
+        return cls(HertzLaw(alpha, delta0), masses, Damping(gamma, eta))
 
+    # --- the parameters the studies continue in (one place each) ----------------------------------------------
     @property
     def alpha(self):
-        return self.law.alpha
+        """The law's exponent (Hertz: alpha; any law: its homogeneity degree)."""
+        return getattr(self.law, "alpha", self.law.scale_degree)
 
     @property
     def delta0(self):
         """The precompression (static overlap between neighbours), 0 for the paper's chain."""
-        return self.law.delta0
+        return getattr(self.law, "delta0", 0.0)
+
+    def with_law(self, law):
+        """The same masses and damping with another law."""
+        return LatticeModel(law, self.masses, self.damping)
 
     def with_masses(self, masses):
         """The same law with another mass pattern."""
-        return LatticeModel(self.law, masses)
+        return LatticeModel(self.law, masses, self.damping)
 
     def with_delta0(self, delta0):
-        """The same masses with the law's precompression replaced by delta0."""
-        return LatticeModel(HertzLaw(self.alpha, delta0), self.masses)
+        """The same lattice with the Hertz law's precompression replaced by delta0."""
+        return self.with_law(HertzLaw(self.alpha, delta0))
+
+    def with_alpha(self, alpha):
+        """The same lattice with the Hertz law's exponent replaced by alpha."""
+        return self.with_law(HertzLaw(alpha, self.delta0))
+
+    def with_damping(self, gamma=0.0, eta=0.0):
+        return LatticeModel(self.law, self.masses, Damping(gamma, eta))
+
+    def rescaled(self, a):
+        """The model whose law is r -> a^(-d) V'(a r) (:meth:`~hertzpetsc.law.InteractionLaw.rescaled`): the
+        lattice seen by the rescaled profiles w = u / a of the wave problems."""
+        return self.with_law(self.law.rescaled(a))
 
     @property
     def cell(self):
@@ -74,6 +137,10 @@ class LatticeModel:
     def uniform_masses(self):
         """True when every bead has mass 1 (the paper's chain)."""
         return all(m == 1.0 for m in self.masses)
+
+    @property
+    def damped(self):
+        return self.damping.active
 
     # --- the forces, as every solver evaluates them ------------------------------------------------------------
     def force(self, r):
@@ -88,6 +155,10 @@ class LatticeModel:
         """V(r), the bond's energy (eq. ham)."""
         return self.law.V(r)
 
+    def contact(self, r):
+        """Bonds whose force or stiffness may be nonzero (the law's :meth:`contact`)."""
+        return self.law.contact(r)
+
     def mass(self, n):
         """m_n for bead indices n (any integers: the pattern repeats)."""
         return np.asarray(self.masses)[np.mod(np.asarray(n), self.cell)]
@@ -98,45 +169,236 @@ class LatticeModel:
             raise ParameterError("masses", list(self.masses), f"{what} is written for the monatomic chain "
                                  "(all masses 1)")
 
+    def require_conservative(self, what):
+        """ParameterError if the model is damped (for computations of the Hamiltonian chain: travelling waves)."""
+        if self.damped:
+            raise ParameterError("damping", (self.damping.gamma, self.damping.eta),
+                                 f"{what} needs the undamped chain (gamma = eta = 0)")
+
+    # --- closed forms of the linear lattice ----------------------------------------------------------------
+    def linear_frequencies(self, q):
+        """The p frequencies omega_1 <= ... <= omega_p of the linearised lattice (stiffness K = V''(0), no damping)
+        at the per-bead wavenumber q: the eigenvalues of M^-1 B, B_cc = 2K, B_{c,c+-1} = -K e^{+-iq} (indices of
+        the mass pattern, cyclic). p = 1: omega = 2 sqrt(K) sin(q/2) (the acoustic dispersion relation); p = 2:
+        omega^2 = K [(1 + eps) -+ sqrt((1 + eps)^2 - 4 eps sin^2 q)] / eps for masses (1, eps)."""
+        K = self.law.linear_stiffness
+        p = self.cell
+        B = np.zeros((p, p), dtype=complex)
+        for c in range(p):
+            B[c, c] += 2 * K
+            B[c, (c + 1) % p] -= K * np.exp(1j * q)
+            B[c, (c - 1) % p] -= K * np.exp(-1j * q)
+        w2 = np.sort(np.linalg.eigvals(B / np.asarray(self.masses)[:, None]).real)
+        return np.sqrt(np.maximum(w2, 0.0))
+
     def describe(self):
-        """The model as plain data (for record identities and file metadata); delta0 only when nonzero, so that
-        the identities of the uncompressed chain's records are unchanged."""
-        out = dict(alpha=self.alpha, masses=list(self.masses))
-        if self.delta0 > 0.0:
-            out["delta0"] = self.delta0
+        """The model as plain data (for record identities and file metadata); delta0 and damping only when
+        nonzero, so that the identities of the uncompressed chain's records are unchanged."""
+        out = dict(self.law.describe())
+        out["masses"] = list(self.masses)
+        if self.damping.gamma > 0.0:
+            out["gamma"] = self.damping.gamma
+        if self.damping.eta > 0.0:
+            out["eta"] = self.damping.eta
         return out
+
+
+# --- the ends of a finite chain ------------------------------------------------------------------------------------
+class Signal:
+    """A periodic motion x(t) of period ``period`` with its velocity; subclasses implement :meth:`position`
+    and :meth:`velocity` (vectorised in t)."""
+
+    period = None
+
+    def position(self, t):
+        raise NotImplementedError
+
+    def velocity(self, t):
+        raise NotImplementedError
+
+    def describe(self):
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class Harmonic(Signal):
+    """x(t) = offset + amplitude cos(omega t + phase)."""
+
+    amplitude: float
+    omega: float
+    phase: float = 0.0
+    offset: float = 0.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "amplitude", _nonnegative("amplitude", self.amplitude, "the actuator amplitude"))
+        object.__setattr__(self, "omega", _positive("omega", self.omega, "the driving frequency"))
+        for name in ("phase", "offset"):
+            v = float(getattr(self, name))
+            if not math.isfinite(v):
+                raise ParameterError(name, v, "must be a finite number")
+            object.__setattr__(self, name, v)
+
+    @property
+    def period(self):
+        return 2 * math.pi / self.omega
+
+    def position(self, t):
+        return self.offset + self.amplitude * np.cos(self.omega * np.asarray(t, float) + self.phase)
+
+    def velocity(self, t):
+        return -self.amplitude * self.omega * np.sin(self.omega * np.asarray(t, float) + self.phase)
+
+    def describe(self):
+        return dict(signal="harmonic", amplitude=self.amplitude, omega=self.omega, phase=self.phase,
+                    offset=self.offset)
+
+
+@dataclass(frozen=True)
+class SampledSignal(Signal):
+    """A periodic signal given by n equally spaced samples x(k period / n), k = 0..n-1, evaluated by its
+    trigonometric interpolant (exact for band-limited signals; its derivative is the velocity)."""
+
+    samples: tuple
+    period: float
+
+    def __post_init__(self):
+        try:
+            s = np.asarray(self.samples, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise ParameterError("samples", self.samples, "must be a list of real numbers") from None
+        if len(s) < 2 or not np.all(np.isfinite(s)):
+            raise ParameterError("samples", len(s), "at least 2 finite samples of one period")
+        object.__setattr__(self, "samples", tuple(float(v) for v in s))
+        object.__setattr__(self, "period", _positive("period", self.period, "the signal's period"))
+
+    def _coefficients(self):
+        c = np.fft.rfft(np.asarray(self.samples)) / len(self.samples)
+        n = len(self.samples)
+        k = np.arange(len(c))
+        weight = np.where((k == 0) | ((n % 2 == 0) & (k == n // 2)), 1.0, 2.0)
+        return c * weight, k
+
+    def position(self, t):
+        c, k = self._coefficients()
+        ph = np.exp(2j * math.pi * np.multiply.outer(np.asarray(t, float) / self.period, k))
+        return (ph @ c).real
+
+    def velocity(self, t):
+        c, k = self._coefficients()
+        ph = np.exp(2j * math.pi * np.multiply.outer(np.asarray(t, float) / self.period, k))
+        return (ph @ (c * 2j * math.pi * k / self.period)).real
+
+    def describe(self):
+        return dict(signal="samples", period=self.period, samples=list(self.samples))
+
+
+class FunctionSignal(Signal):
+    """x(t) = f(t) with velocity df(t), both periodic of ``period``; checked periodic at 64 points on creation."""
+
+    def __init__(self, f, df, period, name="function"):
+        self.f, self.df, self.name = f, df, name
+        self.period = _positive("period", period, "the signal's period")
+        t = np.linspace(0.0, self.period, 64, endpoint=False)
+        for what, g in (("position", f), ("velocity", df)):
+            a, b = np.asarray(g(t), float), np.asarray(g(t + self.period), float)
+            scale = max(1.0, float(np.max(np.abs(a))))
+            if a.shape != t.shape or not np.all(np.isfinite(a)) or np.max(np.abs(a - b)) > 1e-9 * scale:
+                raise ParameterError("signal", name, f"its {what} is not periodic with the stated period "
+                                     f"{self.period:g} (or not a finite vectorised function of t)")
+
+    def position(self, t):
+        return np.asarray(self.f(np.asarray(t, float)), float)
+
+    def velocity(self, t):
+        return np.asarray(self.df(np.asarray(t, float)), float)
+
+    def describe(self):
+        return dict(signal=self.name, period=self.period)
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """An end bead whose motion is the given :class:`Signal` (it is not an unknown of the chain)."""
+
+    signal: Signal
+
+    def __post_init__(self):
+        if not isinstance(self.signal, Signal):
+            raise ParameterError("signal", self.signal, "must be a Signal (Harmonic, SampledSignal, FunctionSignal)")
+
+    def describe(self):
+        return dict(actuator=self.signal.describe())
+
+
+def _check_end(name, end):
+    if isinstance(end, Actuator) or end in END_KINDS:
+        return end
+    raise ParameterError(name, end, "an end is 'free', 'wall' or an Actuator(signal)")
 
 
 @dataclass(frozen=True)
 class ChainSpec:
-    """A finite chain of ``model``: N beads with a boundary condition (periodic: eq. pbcl)."""
+    """A finite chain of ``model``: N beads and its ends. ``boundary`` 'periodic' (eq. pbcl), 'free' or 'fixed'
+    (walls at rest, x_0 = x_{N+1} = 0) sets both ends; ``left`` / ``right`` override one end of a non-periodic
+    chain with 'free', 'wall' or an :class:`Actuator` (e.g. the driven chain: left = Actuator(Harmonic(a, w)),
+    right = 'wall')."""
 
     model: LatticeModel
     N: int
     boundary: str = "periodic"
+    left: object = None
+    right: object = None
 
     def __post_init__(self):
         if not isinstance(self.model, LatticeModel):
             raise ParameterError("model", self.model, "must be a LatticeModel")
-        if not (isinstance(self.N, (int, np.integer)) and not isinstance(self.N, bool) and self.N >= 2):
-            raise ParameterError("N", self.N, "the number of beads must be an integer >= 2")
+        if not (isinstance(self.N, (int, np.integer)) and not isinstance(self.N, bool) and self.N >= 1):
+            raise ParameterError("N", self.N, "the number of beads must be an integer >= 1")
         object.__setattr__(self, "N", int(self.N))
         if self.boundary not in BOUNDARIES:
             raise ParameterError("boundary", self.boundary, f"must be one of {', '.join(BOUNDARIES)}")
+        if self.boundary == "periodic":
+            if self.left is not None or self.right is not None:
+                raise ParameterError("boundary", "periodic", "a periodic chain has no ends (left/right)")
+            if self.N < 2:
+                raise ParameterError("N", self.N, "a periodic chain needs at least 2 beads")
+        default = "free" if self.boundary == "free" else "wall"
+        for side in ("left", "right"):
+            end = getattr(self, side)
+            if self.boundary != "periodic":
+                object.__setattr__(self, side, _check_end(side, default if end is None else end))
         if self.N % self.model.cell:
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {self.model.cell}")
 
     @classmethod
-    def hertz(cls, alpha=1.5, N=100, boundary="periodic", masses=(1.0,), delta0=0.0):
+    def hertz(cls, alpha=1.5, N=100, boundary="periodic", masses=(1.0,), delta0=0.0, **ends):
         """N beads of the Hertzian chain with exponent alpha (the paper's, with unit masses and no
         precompression, by default)."""
-        return cls(LatticeModel.hertz(alpha, masses, delta0), N, boundary)
+        return cls(LatticeModel.hertz(alpha, masses, delta0), N, boundary, **ends)
 
     @property
     def alpha(self):
         return self.model.alpha
 
-    def with_length(self, N):
-        """The same lattice and boundary on N beads."""
-        return ChainSpec(self.model, N, self.boundary)
+    @property
+    def periodic(self):
+        return self.boundary == "periodic"
 
+    @property
+    def driven(self):
+        """True when an end is an actuator (the chain's equations depend on time)."""
+        return isinstance(self.left, Actuator) or isinstance(self.right, Actuator)
+
+    def with_length(self, N):
+        """The same lattice and ends on N beads."""
+        return ChainSpec(self.model, N, self.boundary, self.left, self.right)
+
+    def describe(self):
+        out = dict(self.model.describe(), N=self.N, boundary=self.boundary)
+        for side in ("left", "right"):
+            end = getattr(self, side)
+            if isinstance(end, Actuator):
+                out[side] = end.describe()
+            elif end is not None and end != ("free" if self.boundary == "free" else "wall"):
+                out[side] = end
+        return out

@@ -17,7 +17,7 @@ import petsc4py
 petsc4py.init(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
-from hertzpetsc.continuation import ContinuationParameters  # noqa: E402
+from hertzpetsc.qbranch import ContinuationParameters  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0, run_metadata  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.branch import BranchStudy  # noqa: E402

@@ -5,7 +5,7 @@
         [-progress runs/small_q.npz] [-resume | -force] [-output results/small_q.md] [-figures figures]
 
 Level l keeps q / h >= cells_per_q 2^l, doubling the grid each time q halves below pi/50 (the RefiningGrid policy
-of hertzpetsc.continuation); the levels are the three resolutions of the extrapolation. After every converged
+of hertzpetsc.qbranch); the levels are the three resolutions of the extrapolation. After every converged
 point the progress file (a record store: the diagnostics per level and q, and the last two profiles of each
 level) is rewritten atomically; -resume continues a killed run from it. The table gives, at every target q,
 ||u||_inf q^(2/(alpha-1)) on each level, its observed order and extrapolated value against k_alpha of the

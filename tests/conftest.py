@@ -11,7 +11,7 @@ import pytest
 from petsc4py import PETSc
 
 from hertzpetsc.branch import Branch
-from hertzpetsc.continuation import BranchContinuation, ContinuationParameters
+from hertzpetsc.qbranch import BranchContinuation, ContinuationParameters
 from hertzpetsc.model import ChainSpec, LatticeModel
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.continuation import BranchContinuation, ContinuationError, ContinuationParameters
+from hertzpetsc.qbranch import BranchContinuation, ContinuationError, ContinuationParameters
 from hertzpetsc.errors import ParameterError
 
 

@@ -8,7 +8,7 @@ from petsc4py import PETSc
 
 from hertzpetsc.advdelay import AdvanceDelayProblem
 from hertzpetsc.binary import binary_oscillation
-from hertzpetsc.continuation import BranchContinuation, ContinuationParameters
+from hertzpetsc.qbranch import BranchContinuation, ContinuationParameters
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.grid import ProfileGrid
 from hertzpetsc.model import LatticeModel

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.continuation import BranchContinuation, ContinuationParameters, regrid_half_profile
+from hertzpetsc.qbranch import BranchContinuation, ContinuationParameters, regrid_half_profile
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.richardson import richardson
 from hertzpetsc.studies.branch import SmallQParameters, SmallQStudy

@@ -11,7 +11,7 @@ from petsc4py import PETSc
 from conftest import chain, small_branch
 from hertzpetsc.bloch import SymmetricFloquet
 from hertzpetsc.branch import Branch
-from hertzpetsc.continuation import ContinuationError, ContinuationParameters
+from hertzpetsc.qbranch import ContinuationError, ContinuationParameters
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.model import LatticeModel
 from hertzpetsc.shooting import refine

@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..branch import Branch, branch_store, points_from_store
-from ..continuation import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
+from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
                             paper_targets)
 from ..errors import ParameterError, RecordFileError
 from ..model import LatticeModel

@@ -1,0 +1,307 @@
+"""Continuation of odd travelling waves in q, from the binary oscillation at q = pi down through a list of target
+wavenumbers (paper section 3.1), on a fixed grid or on grids refined as q decreases.
+
+Predictor: secant extrapolation of the rescaled profile q^(2/(alpha-1)) u, which stays O(1) along the whole
+branch while u grows like q^(-2/(alpha-1)) (eq. normscaling). Step control: if SNES fails, or the corrector moves
+the rescaled profile by more than ``max_corrector`` (relative, sup norm), the step is halved (intermediate q need
+not be on the grid: shifts are interpolated) and retried, up to ``max_halvings`` consecutive times; after a
+success the step doubles again (up to the next target). Each target point is yielded as soon as it has converged,
+so the caller can save it.
+
+The grid is a policy: :class:`FixedGrid` (the paper's h = pi/1000), or :class:`RefiningGrid`, which keeps at
+least ``cells_per_q`` cells per unit of q below ``q_first`` by doubling the grid each time q halves; when the
+grid changes, the last two profiles are interpolated (degree-5 Lagrange, below the scheme's O(h^2)) onto the new
+grid and the secant predictor goes on there (section 3.2, small q).
+"""
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from petsc4py import PETSc
+
+from .advdelay import AdvanceDelayProblem, check_wavenumber
+from .binary import binary_oscillation
+from .branch import BranchPoint
+from .diagnostics import point_diagnostics
+from .errors import ConvergenceError, ParameterError
+from .grid import ProfileGrid, check_cells_per_pi
+from .hertz import check_alpha
+from .model import LatticeModel
+from .resources import check_memory
+from .stencil import full_period, lagrange_periodic
+from .twsolver import TW_PREFIX, TravellingWaveSolver, tw_solver
+
+
+@dataclass(frozen=True)
+class ContinuationParameters:
+    """Parameters of a branch computation; the defaults are the paper's (alpha = 3/2, h = pi 1e-3, M = 50).
+
+    The lattice is ``model`` (a :class:`~hertzpetsc.model.LatticeModel`), or the paper's chain with exponent
+    ``alpha``; the targets are q = m pi / M from pi down to ``q_stop`` (default pi / M), and q_stop itself.
+    """
+
+    alpha: float = None
+    M: int = 50
+    cells_per_pi: int = 1000
+    q_stop: float = None
+    max_halvings: int = 8
+    max_corrector: float = 0.25
+    model: LatticeModel = field(default=None, compare=False)
+
+    def __post_init__(self):
+        model = self.model
+        if model is None:
+            model = LatticeModel.hertz(check_alpha(1.5 if self.alpha is None else self.alpha))
+        elif self.alpha is not None and check_alpha(self.alpha) != model.alpha:
+            raise ParameterError("alpha", self.alpha, f"differs from the model's exponent {model.alpha}")
+        object.__setattr__(self, "model", model)
+        object.__setattr__(self, "alpha", model.alpha)
+        if not (isinstance(self.M, (int, np.integer)) and self.M >= 1):
+            raise ParameterError("M", self.M, "must be an integer >= 1 (wavenumbers q = m pi / M)")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        if self.q_stop is None:
+            object.__setattr__(self, "q_stop", math.pi / self.M)
+        object.__setattr__(self, "q_stop", check_wavenumber(self.q_stop, name="q_stop"))
+        if self.q_stop < self.h:
+            raise ParameterError("q_stop", self.q_stop, f"must be at least the grid step h = pi/{self.cells_per_pi}"
+                                 f" = {self.h:.6g}; increase cells_per_pi")
+        if not (isinstance(self.max_halvings, (int, np.integer)) and self.max_halvings >= 0):
+            raise ParameterError("max_halvings", self.max_halvings, "must be an integer >= 0")
+        if not self.max_corrector > 0:
+            raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
+
+    @property
+    def h(self):
+        return math.pi / self.cells_per_pi
+
+    def targets(self):
+        """The wavenumbers to report: m pi / M from pi down to q_stop, then q_stop itself if it is off that grid."""
+        return paper_targets(self.M, self.q_stop)
+
+
+def paper_targets(M, q_stop):
+    """m pi / M from pi down to q_stop, then q_stop itself if it is off that list."""
+    qs = [m * math.pi / M for m in range(M, 0, -1) if m * math.pi / M >= q_stop * (1 - 1e-12)]
+    if abs(qs[-1] - q_stop) > 1e-12 * q_stop:
+        qs.append(q_stop)
+    return qs
+
+
+# --- grid policies ------------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FixedGrid:
+    """One grid h = pi / cells_per_pi for the whole branch."""
+
+    cells: int = 1000
+
+    def cells_per_pi(self, q):
+        return self.cells
+
+
+@dataclass(frozen=True)
+class RefiningGrid:
+    """At least ``cells_per_q`` 2^level cells per unit of q below q_first: K = K0 2^(k + level), K0 =
+    cells_per_q pi / q_first, k the number of halvings of q_first that q is below (section 3.2)."""
+
+    q_first: float = math.pi / 50
+    cells_per_q: int = 20
+    level: int = 0
+
+    def __post_init__(self):
+        if not (isinstance(self.cells_per_q, (int, np.integer)) and self.cells_per_q >= 4):
+            raise ParameterError("cells_per_q", self.cells_per_q, "must be an integer >= 4")
+        if not (isinstance(self.level, (int, np.integer)) and self.level >= 0):
+            raise ParameterError("level", self.level, "must be an integer >= 0")
+
+    def cells_per_pi(self, q):
+        K0 = int(round(self.cells_per_q * math.pi / self.q_first))
+        k = max(0, math.ceil(math.log2(self.q_first / q) - 1e-9))
+        return K0 * 2 ** (k + self.level)
+
+
+def regrid_half_profile(u_half, K_new):
+    """An odd profile on [0, pi] (K+1 values) interpolated onto the grid of K_new cells per pi."""
+    K = len(u_half) - 1
+    if K == K_new:
+        return np.asarray(u_half, dtype=float).copy()
+    xi = np.arange(K_new + 1) * math.pi / K_new
+    out = lagrange_periodic(full_period(u_half), math.pi / K, xi)
+    out[0] = out[-1] = 0.0
+    return out
+
+
+class ContinuationError(ConvergenceError):
+    """The branch could not be continued past ``last_q`` (all points up to it were yielded)."""
+
+    def __init__(self, last_q, failed_q, reason):
+        self.last_q, self.failed_q = last_q, failed_q
+        last = (f"last converged q = {last_q:.12g}, everything up to it is saved" if last_q == last_q
+                else "no point converged")
+        RuntimeError.__init__(self, f"continuation stopped: no convergence at q = {failed_q:.12g} even after step "
+                                    f"reduction ({reason}); {last}")
+        self.what, self.reason, self.where = "continuation", reason, dict(q=failed_q)
+
+
+class BranchContinuation:
+    """Continuation of eqs. ad-pbc in q on one grid. Iterate :meth:`points` to get the branch point by point.
+
+    One SNES (and KSP/PC) serves the whole branch; its options (prefix ``tw_``) are read once, here.
+    """
+
+    def __init__(self, params, comm, prefix=TW_PREFIX, solver=None, cells_per_pi=None):
+        self.params = params
+        self.model = params.model
+        self.prefix = prefix
+        K = params.cells_per_pi if cells_per_pi is None else cells_per_pi
+        solver = tw_solver(prefix, solver)
+        check_memory(K, comm, solver)
+        self.grid = ProfileGrid(K, comm)
+        self.solver = TravellingWaveSolver(self.grid, prefix, solver)
+        self.exponent = self.model.law.rescaling_exponent
+        self.history = []   # the last two converged (q, rescaled profile Vec), intermediate q included
+
+    def _remember(self, q, u):
+        r = u.copy()
+        r.scale(q ** self.exponent)
+        self.history.append((q, r))
+        while len(self.history) > 2:
+            self.history.pop(0)[1].destroy()
+
+    def predict(self, q_new):
+        """Secant predictor on the rescaled profile (or the rescaled last point when only one is known)."""
+        (q1, r1) = self.history[-1]
+        r = r1.copy()
+        if len(self.history) == 2:
+            q0, r0 = self.history[0]
+            r.axpy((q_new - q1) / (q1 - q0), r1)
+            r.axpy(-(q_new - q1) / (q1 - q0), r0)
+        r.scale(q_new ** (-self.exponent))
+        return r
+
+    def resume_from(self, qs, profiles):
+        """Seed the predictor with already computed points (the last two), given on any grid."""
+        for q, prof in zip(list(qs)[-2:], list(profiles)[-2:]):
+            u = self.grid.vec_from_half_profile(regrid_half_profile(prof, self.grid.K))
+            self._remember(float(q), u)
+            u.destroy()
+
+    def _solve_at(self, q, guess):
+        problem = AdvanceDelayProblem(self.model, self.grid, q)
+        try:
+            result = self.solver.solve(problem, guess)
+        finally:
+            problem.destroy()
+        return result
+
+    def _corrector_size(self, q, u, pred):
+        diff = u.copy()
+        diff.axpy(-1.0, pred)
+        size = diff.norm(PETSc.NormType.NORM_INFINITY) / max(u.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
+        diff.destroy()
+        return size
+
+    def _point(self, q, u, result, substeps, wall):
+        u_half = self.grid.half_profile(u)
+        diag = point_diagnostics(u_half, q, self.grid.h, self.model.alpha)
+        return BranchPoint(q=q, u_half=u_half, h=self.grid.h, model=self.model, diagnostics=diag, solve=result,
+                           substeps=substeps, wall_time=wall)
+
+    def start(self):
+        """Solve at q = pi from the sampled binary oscillation u0 (lemma binary)."""
+        u = self.grid.vec_from_half_profile(binary_oscillation(self.model.law, self.grid.xi_half()))
+        q = math.pi
+        try:
+            result = self._solve_at(q, u)
+        except ConvergenceError as err:
+            raise ContinuationError(float("nan"), q, err.reason) from None
+        self._remember(q, u)
+        point = self._point(q, u, result, 1, result.wall_time)
+        u.destroy()
+        return point
+
+    def step_to(self, q_target):
+        """Continue from the last converged point to ``q_target``, halving the step on failure."""
+        q_last = self.history[-1][0]
+        dq = q_target - q_last
+        substeps, wall, halvings = 0, 0.0, 0
+        while True:
+            q = q_last + dq if abs(q_last + dq - q_target) > 1e-14 * q_target else q_target
+            u = self.predict(q)
+            pred = u.copy()
+            failure = None
+            try:
+                result = self._solve_at(q, u)
+                wall += result.wall_time
+                size = self._corrector_size(q, u, pred)
+                if size > self.params.max_corrector:
+                    failure = f"corrector moved the profile by {size:.3g} > max_corrector"
+            except ConvergenceError as err:
+                failure = f"SNES reason {err.reason}"
+            pred.destroy()
+            if failure is not None:
+                u.destroy()
+                halvings += 1
+                if halvings > self.params.max_halvings:
+                    raise ContinuationError(q_last, q, failure)
+                dq *= 0.5
+                continue
+            substeps += 1
+            halvings = 0          # max_halvings bounds consecutive reductions, not their total
+            self._remember(q, u)
+            if q == q_target:
+                point = self._point(q, u, result, substeps, wall)
+                u.destroy()
+                return point
+            u.destroy()
+            q_last = q
+            dq = q_target - q_last if abs(2 * dq) >= abs(q_target - q_last) else 2 * dq
+
+    def points(self, targets=None):
+        """Yield the branch points at the targets not yet computed (all of them, from u0 at q = pi, unless
+        :meth:`resume_from` seeded the continuation)."""
+        targets = self.params.targets() if targets is None else targets
+        if not self.history:
+            yield self.start()
+        q_done = self.history[-1][0]
+        for q in targets:
+            if q < q_done * (1 - 1e-12):
+                yield self.step_to(q)
+
+    def destroy(self):
+        for _, r in self.history:
+            r.destroy()
+        self.history = []
+        if self.solver is not None:
+            self.solver.destroy()
+            self.solver = None
+
+
+def continue_branch(params, targets, grids, comm, seeds=(), prefix=TW_PREFIX, solver=None):
+    """Yield the branch points at ``targets`` (decreasing, from pi), each on the grid ``grids.cells_per_pi(q)``.
+
+    ``seeds``: the last converged points of an interrupted run, as (q, u_half) on any grid (the last two seed the
+    predictor; the continuation goes on after the last). When the grid changes, the last two profiles are
+    interpolated onto the new grid. The first point, q = pi, starts from the binary oscillation.
+    """
+    history = [(float(q), np.asarray(u, dtype=float)) for q, u in seeds][-2:]
+    cont, K_cur = None, None
+    try:
+        for q in targets:
+            if history and q >= history[-1][0] * (1 - 1e-12):
+                continue
+            K = grids.cells_per_pi(q)
+            if K != K_cur:
+                if cont is not None:
+                    cont.destroy()
+                cont = BranchContinuation(params, comm, prefix, solver, cells_per_pi=K)
+                cont.resume_from([h[0] for h in history], [h[1] for h in history])
+                K_cur = K
+            point = cont.step_to(q) if cont.history else cont.start()
+            if not history and abs(q - math.pi) > 1e-12 * math.pi:
+                history.append((point.q, point.u_half))        # from u0 at pi, on to the first target
+                point = cont.step_to(q)
+            history = (history + [(point.q, point.u_half)])[-2:]
+            yield point
+    finally:
+        if cont is not None:
+            cont.destroy()

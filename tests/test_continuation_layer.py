@@ -1,0 +1,140 @@
+"""The one continuation layer (hertzpetsc.continuation) on a problem whose fold is known in closed form: the
+discrete Bratu problem u'' + lambda e^u = 0 on (0, 1), u(0) = u(1) = 0. Its continuum fold is lambda_c = 8 y^2 /
+cosh^2 y with y tanh y = 1; the second-order scheme's fold differs by O(h^2)."""
+import math
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from hertzpetsc.continuation import Continuation, ContinuationError, ContinuationProblem, Natural, PseudoArclength
+from hertzpetsc.errors import ConvergenceError, ParameterError
+
+
+class Bratu(ContinuationProblem):
+    """Z = (u_1 .. u_n, lambda) on one rank; dense bordered Newton (the test's own corrector)."""
+
+    parameter = "lambda"
+
+    def __init__(self, n):
+        self.n, self.h = n, 1.0 / (n + 1)
+        self.D = (np.diag(-2.0 * np.ones(n)) + np.diag(np.ones(n - 1), 1) + np.diag(np.ones(n - 1), -1)) / self.h ** 2
+        self.solves = 0
+
+    def create_vec(self):
+        return PETSc.Vec().createSeq(self.n + 1, comm=PETSc.COMM_SELF)
+
+    def weights(self):
+        W = self.create_vec()
+        W.set(self.h)
+        W.getArray()[-1] = 1.0
+        return W
+
+    def solve(self, Z, row=None, value=None):
+        self.solves += 1
+        z = Z.getArray()
+        r = None if row is None else row.getArray(readonly=True).copy()
+        for it in range(1, 30):
+            u, lam = z[:-1], z[-1]
+            if not np.all(np.abs(u) < 50):
+                break                                   # diverging (beyond the fold)
+            A = np.zeros((self.n + 1, self.n + 1))
+            A[:-1, :-1] = self.D + np.diag(lam * np.exp(u))
+            A[:-1, -1] = np.exp(u)
+            if r is None:
+                A[-1, -1], g = 1.0, 0.0
+            else:
+                A[-1], g = r, r @ z - value
+            d = np.linalg.solve(A, -np.concatenate([self.D @ u + lam * np.exp(u), [g]]))
+            z += d
+            if np.max(np.abs(d)) < 1e-13 * max(1.0, np.max(np.abs(z))):
+                return it
+        raise ConvergenceError("Bratu Newton", "no convergence", **{"lambda": float(z[-1])})
+
+    def test_functions(self, Z):
+        return {"u_max - 2": float(np.max(Z.getArray(readonly=True)[:-1]) - 2.0)}
+
+    def report(self, Z):
+        return {"u_max": float(np.max(Z.getArray(readonly=True)[:-1]))}
+
+
+def lambda_c():
+    y = 1.2
+    for _ in range(50):
+        y -= (y * math.tanh(y) - 1) / (math.tanh(y) + y / math.cosh(y) ** 2)
+    return 8 * y * y / math.cosh(y) ** 2
+
+
+def run_to_fold(n, algorithm=None):
+    prob = Bratu(n)
+    cont = Continuation(prob, algorithm or PseudoArclength(ds=0.05, ds_max=0.3))
+    Z = prob.create_vec()
+    Z.set(0.0)
+    Z.getArray()[-1] = 0.5
+    try:
+        cont.start(Z)
+        cont.step_to(0.6)
+        points = []
+        for p in cont.run(max_steps=80):
+            points.append(p)
+            if p.event is None and p.parameter < 2.0 and p.dp_ds < 0:
+                break
+    finally:
+        Z.destroy()
+        cont.destroy()
+    return points
+
+
+def test_fold_of_the_bratu_problem_is_located_to_the_discretisation_error():
+    lc = lambda_c()
+    folds = []
+    for n in (99, 199):
+        points = run_to_fold(n)
+        found = [p for p in points if p.event == "fold"]
+        assert len(found) == 1, [p.event for p in points]
+        folds.append(found[0].parameter)
+        # the fold is the largest lambda on the computed curve
+        assert found[0].parameter >= max(p.parameter for p in points) - 1e-12
+    e1, e2 = (lc - folds[0]) / lc, (lc - folds[1]) / lc
+    assert 0 < e2 < e1 < 1e-4                          # the scheme's fold lies below the continuum one, O(h^2)
+    assert abs(math.log2(e1 / e2) - 2.0) < 0.02         # observed order 2 (h halved)
+    assert abs((4 * folds[1] - folds[0]) / 3 - lc) < 1e-7 * lc   # Richardson removes the h^2 term
+
+
+def test_an_event_is_located_where_its_test_function_vanishes():
+    points = run_to_fold(99)
+    events = [p for p in points if p.event == "u_max - 2"]
+    assert len(events) == 1
+    assert abs(events[0].report["u_max"] - 2.0) < 1e-8
+    # u_max = 2 on the upper branch, after the fold
+    fold = next(p for p in points if p.event == "fold")
+    assert events[0].s > fold.s
+
+
+def test_natural_continuation_stops_at_the_fold_with_a_bounded_number_of_solves():
+    prob = Bratu(49)
+    cont = Continuation(prob, Natural(max_halvings=6))
+    Z = prob.create_vec()
+    Z.set(0.0)
+    Z.getArray()[-1] = 1.0
+    try:
+        cont.start(Z)
+        with pytest.raises(ContinuationError) as err:
+            cont.step_to(4.0)                     # beyond the fold: no solution
+        assert "lambda" in str(err.value)
+        assert 3.4 < cont.parameter < lambda_c()
+        assert prob.solves < 200
+    finally:
+        Z.destroy()
+        cont.destroy()
+
+
+def test_algorithm_parameters_are_validated():
+    with pytest.raises(ParameterError):
+        PseudoArclength(ds=0.0)
+    with pytest.raises(ParameterError):
+        PseudoArclength(ds=1.0, ds_max=0.5)
+    with pytest.raises(ParameterError):
+        Natural(max_halvings=-1)
+    with pytest.raises(ParameterError):
+        Continuation(Bratu(5), algorithm="arclength")

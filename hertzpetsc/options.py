@@ -9,6 +9,7 @@ options database), and calls :meth:`AppOptions.check_unused`: an option that not
 names it and the closest known option. :func:`guarded_main` turns every error into one ``error: ...`` line on
 stderr and the exit status of :mod:`hertzpetsc.errors`, on every rank.
 """
+import contextlib
 import ctypes
 import difflib
 import math
@@ -331,6 +332,25 @@ class AppOptions:
         hint = f"; did you mean -{close[0]}?" if close else "; see -help for the options of this driver"
         more = f" (and {len(left) - 1} more: " + ", ".join("-" + n for n, _ in left[1:4]) + ")" if len(left) > 1 else ""
         raise OptionError(f"unknown option -{name}" + (f" {value}" if value else "") + more + hint)
+
+
+@contextlib.contextmanager
+def inserted_options(prefix, defaults):
+    """Insert ``defaults`` ({name: value}, names without ``prefix``) into the options database for the duration of
+    the block, only where the user set none, and delete afterwards only the keys inserted here (petsctools'
+    inserted_options): the one way a solver role gets code defaults that PETSc's own set-up would not accept
+    otherwise (e.g. before setFromOptions)."""
+    opts = PETSc.Options()
+    inserted = []
+    for key, value in defaults.items():
+        if not opts.hasName(prefix + key):
+            opts.setValue(prefix + key, value)
+            inserted.append(prefix + key)
+    try:
+        yield inserted
+    finally:
+        for key in inserted:
+            opts.delValue(key)
 
 
 def print0(*args, file=sys.stdout):

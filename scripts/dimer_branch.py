@@ -21,7 +21,7 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
-from hertzpetsc.precompression import configure_options  # noqa: E402
+from hertzpetsc.twsolver import configure_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.precompression import DimerFamilies  # noqa: E402

@@ -191,7 +191,10 @@ def test_long_run_resumes_bit_for_bit(tmp_path):
     a, b = read_snapshots(f"{d}/a"), read_snapshots(f"{d}/b")
     assert np.array_equal(a.times, b.times) and np.array_equal(a.states, b.states)
     assert np.array_equal(a.steps, b.steps)
-    assert summary.energy_drift < 1e-9 and summary.max_deviation < 1e-3 and math.isnan(summary.destruction_time)
+    # energy: 1e-11 between contact events; a step that straddles a contact opening or closing (V'' is only
+    # C^(1/2) there) loses RK 8(7)'s order and leaves a jump of 1e-10 .. 3e-9 depending on where the adaptive steps
+    # fall (measured on 1 and 2 ranks): the bound is 1e-8
+    assert summary.energy_drift < 1e-8 and summary.max_deviation < 1e-3 and math.isnan(summary.destruction_time)
     other = orbit_on_chain(small_branch().point(0.6 * math.pi), chain(20))
     with pytest.raises(RecordFileError, match="another computation"):
         LongRun(other, 10.0, 2, f"{d}/a", COMM, "resume").open()

@@ -8,10 +8,13 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
   2 = the uncompressed limit delta0 / A = 0, where a and A are inf), a (first sine coefficient of u), A
   (||u||_inf), omega, omega_lin (closed form), Omega = omega A^(-(alpha-1)/2), lam, gap (2 u(q/2) - delta0),
   iterations.
-* ``hertzpetsc-dimer-1`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end;
-  per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u, norm_v
-  (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
-  iterations.
+* ``hertzpetsc-dimer-2`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end, ds,
+  ds_max; per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u,
+  norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
+  iterations, event (0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the
+  path); state (for -resume of the q in progress): ``state_q``, ``state_Z`` (2, n) the last two extended
+  vectors (profiles, lam, epsilon), ``state_s``, ``state_ds``, ``state_normalised``. A ``hertzpetsc-dimer-1``
+  file (no event, no state) is read for its tables; it cannot be resumed.
 * ``hertzpetsc-precompression-map-1`` (:class:`StabilityMap`): constants alpha, delta0, masses, N, cells_per_pi,
   rtol, tol_rho; per record: q, a (inf: uncompressed), A, omega, rho (trivial multipliers excluded), outside,
   trivial_spread, seconds.
@@ -27,8 +30,7 @@ from ..errors import ConvergenceError, ParameterError
 from ..floquet import TOL_RHO, DenseFloquet
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
-from ..precompression import (AmplitudeContinuation, MassContinuation, check_amplitude, dimer_frequencies,
-                              linear_frequency, uncompressed_limit, weakly_nonlinear_coefficient)
+from ..families import AmplitudeFamily, MassFamily, check_amplitude, uncompressed_limit
 from ..records import NpzRecords
 from ..richardson import extrapolate
 from ..stencil import full_period, lagrange_periodic
@@ -37,9 +39,10 @@ from .floquet import q_label
 
 PRECOMPRESSED_FORMAT = "hertzpetsc-precompressed-1"
 PRECOMPRESSED_FIELDS = ("q", "kind", "a", "A", "omega", "omega_lin", "Omega", "lam", "gap", "iterations")
-DIMER_FORMAT = "hertzpetsc-dimer-1"
+DIMER_FORMAT = "hertzpetsc-dimer-2"
 DIMER_FIELDS = ("q", "epsilon", "omega", "omega_acoustic", "arclength", "tangent_epsilon", "norm_u", "norm_v",
-                "v1", "v2", "iterations")
+                "v1", "v2", "iterations", "event")
+EVENT_CODES = {None: 0, "fold": 1, "gap": 2}
 MAP_FORMAT = "hertzpetsc-precompression-map-1"
 MAP_FIELDS = ("q", "a", "A", "omega", "rho", "outside", "trivial_spread", "seconds")
 KIND_GRID, KIND_GAP, KIND_LIMIT = 0, 1, 2
@@ -66,7 +69,7 @@ def _check_delta0_positive(model):
 
 class AmplitudeFamilies:
     """omega(q, A) of the precompressed monatomic chain: at each q, the continuation in s = log a from a_min to
-    a_max (:class:`~hertzpetsc.precompression.AmplitudeContinuation`, prefix ``precomp_``), the gap opening
+    a_max (:class:`~hertzpetsc.families.AmplitudeFamily`, prefix ``precomp_``), the gap opening
     located on the way, and the uncompressed limit on the same grid. Records per point (module docstring)."""
 
     def __init__(self, model, qs, cells_per_pi, comm, output, mode="new", a_min=1e-3, a_max=1e3, ds=0.1):
@@ -88,7 +91,7 @@ class AmplitudeFamilies:
 
     def _row(self, point, kind):
         return dict(q=point.q, kind=kind, a=point.a, A=point.A, omega=point.omega,
-                    omega_lin=float(linear_frequency(point.q, self.model.alpha, self.model.delta0)),
+                    omega_lin=float(self.model.linear_frequencies(point.q)[0]),
                     Omega=point.Omega, lam=point.lam, gap=point.gap, iterations=point.iterations)
 
     def _done(self, q):
@@ -103,28 +106,26 @@ class AmplitudeFamilies:
             done = self._done(q)
             if any(k == KIND_LIMIT for k, _ in done):
                 continue
-            cont = AmplitudeContinuation(self.model, q, grid)
+            fam = AmplitudeFamily(self.model, q, grid)
             try:
-                previous = None
                 gap_found = any(k == KIND_GAP for k, _ in done)
                 for a in self.amplitudes:
-                    point = cont.step_to(a)
-                    if previous is not None and previous.gap < 0 <= point.gap and not gap_found:
-                        gap = cont.locate_gap(previous, point)
-                        gap_found = True
-                        row = self._row(gap, KIND_GAP)
-                        self.store.append(row)
-                        yield row
+                    point = fam.step_to(a)
+                    for gap in fam.events():
+                        if not gap_found:
+                            gap_found = True
+                            row = self._row(gap, KIND_GAP)
+                            self.store.append(row)
+                            yield row
                     if (KIND_GRID, round(a, 10)) not in done:
                         row = self._row(point, KIND_GRID)
                         self.store.append(row)
                         yield row
-                    previous = point
                 limit = uncompressed_limit(self.model, q, grid, point)
             finally:
-                cont.destroy()
+                fam.destroy()
             row = dict(q=q, kind=KIND_LIMIT, a=math.inf, A=math.inf, omega=math.inf,
-                       omega_lin=float(linear_frequency(q, self.model.alpha, self.model.delta0)),
+                       omega_lin=float(self.model.linear_frequencies(q)[0]),
                        Omega=limit["Omega0"], lam=limit["lam"], gap=math.inf, iterations=limit["iterations"])
             self.store.append(row)
             yield row
@@ -143,7 +144,7 @@ class AmplitudeFamilies:
         largest A, Omega0 and c1 = (Omega - Omega0) A / delta0 at the largest two A."""
         alpha, d0 = self.model.alpha, self.model.delta0
         grid, gap, limit = self.rows(q)
-        out = dict(q=q, C_theory=round(float(weakly_nonlinear_coefficient(q, alpha, d0)), 15) + 0.0)
+        out = dict(q=q, C_theory=round(float(self.model.law.stokes_coefficient(q)), 15) + 0.0)
         small = [r for r in grid if float(r["a"]) <= 0.05 * d0]
         if len(small) >= 3:
             a = np.array([float(r["a"]) for r in small])
@@ -188,7 +189,7 @@ class AmplitudeFamilies:
         for q in self.qs:
             s = self.summary(q)
             fmt = lambda k, f="{:.6f}": f.format(s[k]) if k in s else "n/a"   # noqa: E731
-            lines.append(f"| {q_label(q)} | {float(linear_frequency(q, alpha, d0)):.6f} | {s['C_theory']:.6f} | "
+            lines.append(f"| {q_label(q)} | {float(self.model.linear_frequencies(q)[0]):.6f} | {s['C_theory']:.6f} | "
                          + (f"{s['C_fit']:.6f} ({s['offset_h']:.1e})" if "C_fit" in s else "n/a")
                          + f" | {fmt('A_gap')} | {fmt('omega_gap')} | {fmt('A_max', '{:.4g}')} | {fmt('Omega_max')} | "
                          f"{fmt('Omega0', '{:.8f}')} | {fmt('Omega0_fit', '{:.8f}')} | "
@@ -217,7 +218,7 @@ def sine_coefficient(u_half, k):
 
 class DimerFamilies:
     """Dimer waves (masses 1, epsilon) at fixed q and amplitude a, continued in epsilon from 1 by pseudo-arclength
-    (:class:`~hertzpetsc.precompression.MassContinuation`, prefix ``dimer_``) until epsilon passes epsilon_end or
+    (:class:`~hertzpetsc.families.MassFamily`, prefix ``dimer_``) until epsilon passes epsilon_end or
     ``max_steps``. A q whose continuation stops (no convergence after step halving) keeps its saved points and
     the table says where it stopped."""
 
@@ -233,9 +234,9 @@ class DimerFamilies:
         self.K = check_cells_per_pi(cells_per_pi)
         self.epsilon_end, self.max_steps, self.ds, self.ds_max = epsilon_end, max_steps, ds, ds_max
         constants = dict(alpha=model.alpha, delta0=model.delta0, cells_per_pi=self.K, a=self.a,
-                         epsilon_end=epsilon_end)
+                         epsilon_end=epsilon_end, ds=ds, ds_max=ds_max)
         self._open = lambda: NpzRecords(output, DIMER_FORMAT, constants, constants, DIMER_FIELDS, comm, mode,
-                                        dtypes={"iterations": np.int64}, what="dimer file")
+                                        dtypes={"iterations": np.int64, "event": np.int64}, what="dimer file")
         self.store = None
         self.stopped = {}
 
@@ -247,27 +248,58 @@ class DimerFamilies:
     def _row(self, q, p):
         w = p.wave
         return dict(q=q, epsilon=p.epsilon, omega=w.omega,
-                    omega_acoustic=dimer_frequencies(q, p.epsilon, self.model.alpha, self.model.delta0)[0],
+                    omega_acoustic=float(self.model.with_masses((1.0, p.epsilon)).linear_frequencies(q)[0]),
                     arclength=p.arclength, tangent_epsilon=p.tangent_epsilon, norm_u=self.a * sup_norm(w.profiles[0]),
                     norm_v=self.a * sup_norm(w.profiles[1]), v1=self.a * sine_coefficient(w.profiles[1], 1),
-                    v2=self.a * sine_coefficient(w.profiles[1], 2), iterations=w.iterations)
+                    v2=self.a * sine_coefficient(w.profiles[1], 2), iterations=w.iterations,
+                    event=EVENT_CODES[getattr(p, "event", None)])
+
+    def _progress(self, q):
+        """(regular points saved for q, finished?) from the records."""
+        rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q and int(r["event"]) == 0]
+        if not rows:
+            return 0, False
+        last = float(rows[-1]["epsilon"])
+        passed = (last - self.epsilon_end) * (1.0 - self.epsilon_end) < 0 or last <= 0
+        return len(rows), passed or len(rows) - 2 >= self.max_steps or q in self.stopped
 
     def run(self):
+        """Continue every q not finished in the file: a q in progress resumes from the saved state (the last two
+        points and the step), a larger -max_steps extends a finished path; yields each new record after saving
+        it (with the state for a resume)."""
         self.open()
         grid = ProfileGrid(self.K, self.comm)
         for q in self.qs:
-            if any(abs(float(r["q"]) - q) <= 1e-12 * q for r in self.store.records):
-                continue           # a q is computed in one go (the arclength path is not resumable mid-way)
-            mc = MassContinuation(self.model, q, grid, self.a, ds=self.ds, ds_max=self.ds_max)
+            saved, finished = self._progress(q)
+            if finished:
+                continue
+            mc = MassFamily(self.model, q, grid, self.a, ds=self.ds, ds_max=self.ds_max)
             try:
-                for p in mc.start():
-                    row = self._row(q, p)
-                    self.store.append(row)
-                    yield row
-                try:
-                    for p in mc.run(self.epsilon_end, self.max_steps):
+                state = self.store.state
+                if saved and "q" in state and abs(float(state["q"]) - q) <= 1e-12 * q:
+                    mc.restore(state)
+                else:
+                    if saved:
+                        raise ParameterError("-resume", self.store.path, f"q = {q:.6g} has points but no saved state "
+                                             "to continue from: rerun it with -force")
+                    for p in mc.start():
                         row = self._row(q, p)
-                        self.store.append(row)
+                        self.store.append(row, state=dict(q=q, **mc.snapshot()) if len(mc.continuation.history)
+                                          == 2 else None)
+                        yield row
+                    saved = 2
+                try:
+                    for p in mc.run(self.epsilon_end, self.max_steps - (saved - 2)):
+                        row = self._row(q, p)
+                        if p.event is not None:
+                            # an event row keeps the state of the previous point: a resume recomputes this step
+                            # and finds the event again (not saved twice)
+                            if any(abs(float(r["q"]) - q) <= 1e-12 * q and int(r["event"]) == row["event"]
+                                   and abs(float(r["epsilon"]) - p.epsilon) <= 1e-9 for r in self.store.records):
+                                continue
+                            self.store.append(row)
+                        else:
+                            self.store.append(row, state=dict(q=q, **mc.snapshot()))
                         yield row
                 except ConvergenceError as err:
                     self.stopped[q] = str(err)
@@ -280,12 +312,17 @@ class DimerFamilies:
                  "coefficient of the heavy bead's profile u); pseudo-arclength in epsilon from 1. v1, v2: first and "
                  "second sine coefficients of the light bead's profile v at the end.\n",
                  "| q | points | epsilon reached (min) | omega at epsilon = 1 | omega at the end | ||v||/||u|| at the end "
-                 "| v1, v2 at the end | folds (sign changes of d epsilon/ds) | omega_acoustic(linear) at the end |",
-                 "|---|---|---|---|---|---|---|---|---|"]
+                 "| v1, v2 at the end | folds (sign changes of d epsilon/ds) | omega_acoustic(linear) at the end "
+                 "| located: folds, gap opening (epsilon) |",
+                 "|---|---|---|---|---|---|---|---|---|---|"]
+        names = {v: k for k, v in EVENT_CODES.items()}
         for q in self.qs:
-            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+            mine = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+            rows = [r for r in mine if int(r.get("event", 0)) == 0]
             if not rows:
                 continue
+            events = ", ".join(f"{names[int(r['event'])]} {float(r['epsilon']):.6f}" for r in mine
+                               if int(r.get("event", 0)) != 0) or "none"
             t = np.array([float(r["tangent_epsilon"]) for r in rows])
             t = t[np.isfinite(t)]
             folds = int(np.sum(np.sign(t[1:]) != np.sign(t[:-1]))) if len(t) > 1 else 0
@@ -294,7 +331,7 @@ class DimerFamilies:
                          f"({min(float(r['epsilon']) for r in rows):.5f}) | {float(rows[0]['omega']):.6f} | "
                          f"{float(last['omega']):.6f} | {float(last['norm_v']) / float(last['norm_u']):.4f} | "
                          f"{float(last['v1']):.4f}, {float(last['v2']):.4f} | {folds} | "
-                         f"{float(last['omega_acoustic']):.6f} |")
+                         f"{float(last['omega_acoustic']):.6f} | {events} |")
         for q, why in self.stopped.items():
             lines.append(f"\nq = {q_label(q)}: stopped: {why}")
         return "\n".join(lines) + "\n"
@@ -302,7 +339,8 @@ class DimerFamilies:
     def curves(self):
         out = {}
         for q in self.qs:
-            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q
+                    and int(r.get("event", 0)) == 0]
             if rows:
                 out[q] = tuple(np.array([float(r[k]) for r in rows]) for k in ("epsilon", "omega", "omega_acoustic",
                                                                                  "norm_v"))
@@ -317,7 +355,7 @@ def richardson_wave(model, q, a_values, K, comm):
     sols = []
     for k in (K, 2 * K):
         grid = ProfileGrid(k, comm)
-        cont = AmplitudeContinuation(model, q, grid)
+        cont = AmplitudeFamily(model, q, grid)
         try:
             pts = list(cont.points(a_values))
             limit = uncompressed_limit(model, q, grid, pts[-1])

@@ -703,11 +703,13 @@ class AdvanceDelayProblem(ContinuationProblem):
 
     def solver(self, extended, prefix=None, solver=None):
         """The SNES of this problem's X (or Z) layout under ``prefix`` (built once)."""
-        from .twsolver import TW_PREFIX, TravellingWaveSolver
+        from .resources import check_memory
+        from .twsolver import TW_PREFIX, TravellingWaveSolver, tw_solver
         key = extended
         if key not in self.solvers:
-            self.solvers[key] = TravellingWaveSolver(self.grid, prefix or getattr(self, "prefix", TW_PREFIX),
-                                                     solver, layout=self, extended=extended)
+            prefix = prefix or getattr(self, "prefix", TW_PREFIX)
+            check_memory(self.grid.K, self.comm, tw_solver(prefix, solver), profiles=self.p)
+            self.solvers[key] = TravellingWaveSolver(self.grid, prefix, solver, layout=self, extended=extended)
         return self.solvers[key]
 
     def solve_state(self, X, tolerances=None):

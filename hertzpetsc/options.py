@@ -129,7 +129,10 @@ class AppOptions:
     check) and returns its validated value; under -help it returns the default without validating.
     """
 
+    current = None      # the driver's AppOptions (guarded_main names its options in errors)
+
     def __init__(self, doc="", roles=None):
+        AppOptions.current = self
         self.db = PETSc.Options()
         self.doc = (doc or "").strip()
         self.roles = dict(roles or {})
@@ -414,6 +417,8 @@ def guarded_main(main):
         if os.environ.get("HZ_TRACEBACK"):       # for developers: the full traceback instead of one line
             raise
         if isinstance(err, HertzPetscError):
+            if isinstance(err, ParameterError) and AppOptions.current is not None:
+                err = err.as_option(AppOptions.current.known())
             _exit(err.exit_status, str(err), True)
         elif isinstance(err, PETSc.Error):
             _exit(EXIT_PETSC, petsc_message(err), True)

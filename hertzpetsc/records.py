@@ -330,6 +330,28 @@ def npz_arrays(kind, constants, fields, records, state=None, dtypes=None, shapes
     return out
 
 
+class MemoryRecords(NpzRecords):
+    """The record store of a study run without an output file (a notebook, a test): the same records, state and
+    :meth:`arrays` as :class:`NpzRecords`, kept in memory; nothing is read or written."""
+
+    what = "in-memory records"
+
+    def __init__(self, kind, constants, fields, comm=None, dtypes=None, shapes=None):
+        super().__init__(None, kind, constants, constants, fields, comm, "new", dtypes, shapes, self.what)
+
+    def _exists(self):
+        return False
+
+    def _prepare(self):
+        pass
+
+    def _start(self, records):
+        pass
+
+    def _write_last(self):
+        pass
+
+
 def write_npz(path, arrays):
     """Write an npz archive atomically (temporary file, fsync, rename)."""
     _replace_atomically(path, lambda f: np.savez(f, **arrays))

@@ -44,12 +44,15 @@ def emit(comm=None, **fields):
         print(json.dumps(dict(rss_mb=rss, **fields), default=float), flush=True)
 
 
-def launch(script, name, request, ranks=None, timeout=3600, petsc_args=()):
+def launch(script, name, request, ranks=None, timeout=3600, petsc_args=(), package=None):
     """Run one worker (under ``mpiexec -n ranks`` if ranks), return its JSON result, or None if it ran out of
     time. MPI runs get one OpenBLAS/OpenMP thread per rank (idle library threads otherwise spin on the cores the
-    ranks need); serial runs (the SciPy routes) keep the library defaults."""
+    ranks need); serial runs (the SciPy routes) keep the library defaults. ``package``: a checkout whose
+    ``hertzpetsc`` the worker imports instead of this one (another release, measured side by side)."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_ess_singleton_isolated="1", OMPI_MCA_orte_execute_quiet="1")
+    if package:
+        env["PYTHONPATH"] = os.path.abspath(package) + os.pathsep + env.get("PYTHONPATH", "")
     cmd = [sys.executable, script, WORKER, name, json.dumps(request), *map(str, petsc_args)]
     if ranks:
         cmd = ["mpiexec", "-n", str(ranks), *cmd]
@@ -67,11 +70,11 @@ def launch(script, name, request, ranks=None, timeout=3600, petsc_args=()):
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def best_of(repeats, script, name, request, ranks=None, timeout=3600, petsc_args=()):
+def best_of(repeats, script, name, request, ranks=None, timeout=3600, petsc_args=(), package=None):
     """The run with the smallest ``wall`` among ``repeats`` runs (None if one timed out)."""
     runs = []
     for _ in range(repeats):
-        res = launch(script, name, request, ranks, timeout, petsc_args)
+        res = launch(script, name, request, ranks, timeout, petsc_args, package)
         if res is None:
             return None
         runs.append(res)

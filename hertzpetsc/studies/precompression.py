@@ -21,6 +21,7 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
 """
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -29,9 +30,12 @@ from ..diagnostics import sup_norm
 from ..errors import ConvergenceError, ParameterError
 from ..floquet import TOL_RHO, DenseFloquet
 from ..grid import ProfileGrid, check_cells_per_pi
+from ..advdelay import check_wavenumber
 from ..model import ChainSpec, LatticeModel
 from ..families import AmplitudeFamily, MassFamily, check_amplitude, uncompressed_limit
-from ..records import NpzRecords
+from ..resources import check_memory
+from ..twsolver import tw_solver
+from .base import Study
 from ..richardson import extrapolate
 from ..stencil import full_period, lagrange_periodic
 from ..waves import Orbit, check_chain_wavenumber
@@ -56,10 +60,16 @@ def amplitude_grid(a_min, a_max, ds):
     if not (ds > 0 and math.isfinite(ds)):
         raise ParameterError("ds", ds, "the step in log a must be a finite number > 0")
     n = int(math.floor(math.log(a_max / a_min) / ds + 1e-9))
+    if n > MAX_AMPLITUDES:
+        raise ParameterError("ds", ds, f"gives {n + 1} amplitudes from a_min to a_max: at most {MAX_AMPLITUDES} "
+                             f"(ds >= {math.log(a_max / a_min) / MAX_AMPLITUDES:.3g})")
     grid = [a_min * math.exp(k * ds) for k in range(n + 1)]
     if grid[-1] < a_max * (1 - 1e-12):
         grid.append(a_max)
     return grid
+
+
+MAX_AMPLITUDES = 10000
 
 
 def _check_delta0_positive(model):
@@ -67,27 +77,56 @@ def _check_delta0_positive(model):
         raise ParameterError("delta0", model.delta0, "the families of this study need a precompression > 0")
 
 
-class AmplitudeFamilies:
+def _check_qs(q, h=None, name="q"):
+    qs = tuple(check_wavenumber(x, h, name) for x in q)
+    if not qs:
+        raise ParameterError(name, q, "give at least one wavenumber")
+    return qs
+
+
+@dataclass(frozen=True)
+class AmplitudeParameters:
+    """The amplitude families: the precompressed monatomic ``model``, wavenumbers ``q``, grid h = pi /
+    cells_per_pi, amplitudes a_min exp(k ds) up to a_max (at most :data:`MAX_AMPLITUDES`)."""
+
+    model: LatticeModel
+    q: tuple
+    cells_per_pi: int = 1000
+    a_min: float = 1e-3
+    a_max: float = 1e3
+    ds: float = 0.1
+
+    def __post_init__(self):
+        _check_delta0_positive(self.model)
+        if self.model.cell != 1:
+            raise ParameterError("masses", list(self.model.masses), "the amplitude families are the monatomic "
+                                 "chain's (dimers: DimerFamilies)")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
+        amplitude_grid(self.a_min, self.a_max, self.ds)
+
+
+class AmplitudeFamilies(Study):
     """omega(q, A) of the precompressed monatomic chain: at each q, the continuation in s = log a from a_min to
     a_max (:class:`~hertzpetsc.families.AmplitudeFamily`, prefix ``precomp_``), the gap opening
     located on the way, and the uncompressed limit on the same grid. Records per point (module docstring)."""
 
-    def __init__(self, model, qs, cells_per_pi, comm, output, mode="new", a_min=1e-3, a_max=1e3, ds=0.1):
-        _check_delta0_positive(model)
-        self.model, self.qs, self.comm = model, [float(q) for q in qs], comm
-        self.K = check_cells_per_pi(cells_per_pi)
-        self.amplitudes = amplitude_grid(a_min, a_max, ds)
-        constants = dict(alpha=model.alpha, delta0=model.delta0, cells_per_pi=self.K, a_min=a_min, a_max=a_max,
-                         ds=ds)
-        self._open = lambda: NpzRecords(output, PRECOMPRESSED_FORMAT, constants, constants, PRECOMPRESSED_FIELDS,
-                                        comm, mode, dtypes={"kind": np.int64, "iterations": np.int64},
-                                        what="precompressed-wave file")
-        self.store = None
+    Parameters = AmplitudeParameters
+    FORMAT, FIELDS = PRECOMPRESSED_FORMAT, PRECOMPRESSED_FIELDS
+    DTYPES = {"kind": np.int64, "iterations": np.int64}
+    ROLES = {"precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
+    WHAT = "precompressed-wave file"
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        self.model, self.qs, self.K = params.model, list(params.q), params.cells_per_pi
+        self.amplitudes = amplitude_grid(params.a_min, params.a_max, params.ds)
+        check_memory(self.K, self.comm, tw_solver("precomp_"))
+
+    def constants(self):
+        p = self.params
+        return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a_min=p.a_min,
+                    a_max=p.a_max, ds=p.ds)
 
     def _row(self, point, kind):
         return dict(q=point.q, kind=kind, a=point.a, A=point.A, omega=point.omega,
@@ -216,34 +255,72 @@ def sine_coefficient(u_half, k):
     return float(2.0 / K * np.dot(np.sin(k * np.arange(K + 1) * math.pi / K), u_half))
 
 
-class DimerFamilies:
+MAX_STEPS = 100000
+
+
+@dataclass(frozen=True)
+class DimerParameters:
+    """The dimer families: the precompressed monatomic ``model`` (the dimer has masses 1, epsilon), per-bead
+    wavenumbers ``q``, amplitude a (first sine coefficient of the heavy bead's profile), grid h = pi /
+    cells_per_pi, pseudo-arclength from epsilon = 1 until epsilon_end or max_steps (at most :data:`MAX_STEPS`)
+    steps of ds (first) .. ds_max."""
+
+    model: LatticeModel
+    q: tuple
+    a: float = 0.5
+    cells_per_pi: int = 200
+    epsilon_end: float = 0.3
+    max_steps: int = 200
+    ds: float = 0.02
+    ds_max: float = 0.1
+
+    def __post_init__(self):
+        _check_delta0_positive(self.model)
+        if self.model.cell != 1:
+            raise ParameterError("masses", list(self.model.masses), "give the monatomic model; the dimer is built "
+                                 "from it")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
+        object.__setattr__(self, "a", check_amplitude(self.a, "a"))
+        if not (0 < self.epsilon_end < 1):
+            raise ParameterError("epsilon_end", self.epsilon_end, "must lie in (0, 1) (continuation from epsilon = 1 "
+                                 "down)")
+        if not (isinstance(self.max_steps, (int, np.integer)) and 1 <= self.max_steps <= MAX_STEPS):
+            raise ParameterError("max_steps", self.max_steps, f"must be an integer in [1, {MAX_STEPS}]")
+        for name in ("ds", "ds_max"):
+            v = getattr(self, name)
+            if not (0 < v <= 1):
+                raise ParameterError(name, v, "the arclength step must lie in (0, 1]")
+        if self.ds > self.ds_max:
+            raise ParameterError("ds", self.ds, f"must not exceed ds_max = {self.ds_max:g}")
+
+
+class DimerFamilies(Study):
     """Dimer waves (masses 1, epsilon) at fixed q and amplitude a, continued in epsilon from 1 by pseudo-arclength
     (:class:`~hertzpetsc.families.MassFamily`, prefix ``dimer_``) until epsilon passes epsilon_end or
     ``max_steps``. A q whose continuation stops (no convergence after step halving) keeps its saved points and
     the table says where it stopped."""
 
-    def __init__(self, model, qs, a, cells_per_pi, comm, output, mode="new", epsilon_end=0.3, max_steps=200,
-                 ds=0.02, ds_max=0.1):
-        _check_delta0_positive(model)
-        if model.cell != 1:
-            raise ParameterError("masses", list(model.masses), "give the monatomic model; the dimer is built from it")
-        if not (0 < epsilon_end < 1):
-            raise ParameterError("epsilon_end", epsilon_end, "must lie in (0, 1) (continuation from epsilon = 1 down)")
-        self.model = LatticeModel(model.law, (1.0, 1.0))
-        self.qs, self.a, self.comm = [float(q) for q in qs], check_amplitude(a), comm
-        self.K = check_cells_per_pi(cells_per_pi)
-        self.epsilon_end, self.max_steps, self.ds, self.ds_max = epsilon_end, max_steps, ds, ds_max
-        constants = dict(alpha=model.alpha, delta0=model.delta0, cells_per_pi=self.K, a=self.a,
-                         epsilon_end=epsilon_end, ds=ds, ds_max=ds_max)
-        self._open = lambda: NpzRecords(output, DIMER_FORMAT, constants, constants, DIMER_FIELDS, comm, mode,
-                                        dtypes={"iterations": np.int64, "event": np.int64}, what="dimer file")
-        self.store = None
+    Parameters = DimerParameters
+    FORMAT, FIELDS = DIMER_FORMAT, DIMER_FIELDS
+    DTYPES = {"iterations": np.int64, "event": np.int64}
+    ROLES = {"dimer_": ("the pseudo-arclength Newton in epsilon (-dimer_solver direct|nk)", ("snes",)),
+             "dimer_natural_": ("the natural continuation to the starting waves (-dimer_natural_solver direct|nk)",
+                                ("snes",))}
+    WHAT = "dimer file"
+
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        p = params
+        self.model = LatticeModel(p.model.law, (1.0, 1.0))
+        self.qs, self.a, self.K = list(p.q), p.a, p.cells_per_pi
+        self.epsilon_end, self.max_steps, self.ds, self.ds_max = p.epsilon_end, p.max_steps, p.ds, p.ds_max
+        check_memory(self.K, self.comm, tw_solver("dimer_"), profiles=2)
         self.stopped = {}
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def constants(self):
+        return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a=self.a,
+                    epsilon_end=self.epsilon_end, ds=self.ds, ds_max=self.ds_max)
 
     def _row(self, q, p):
         w = p.wave
@@ -389,34 +466,66 @@ def wave_orbit(model, q, a, profiles, lam, N):
                  source="precompressed")
 
 
-class StabilityMap:
+MAX_MAP_BEADS = 2000
+
+
+@dataclass(frozen=True)
+class MapParameters:
+    """The stability map: the precompressed ``model`` (any mass pattern), wavenumbers ``q`` (whole numbers of
+    wavelengths on N beads), amplitudes ``a`` (first sine coefficient), N beads (at most :data:`MAX_MAP_BEADS`:
+    the dense monodromy has (2N)^2 entries), the coarser grid of the Richardson pair (K, 2K), the flow's
+    tolerances and the verdict's threshold tol_rho."""
+
+    model: LatticeModel
+    q: tuple
+    a: tuple
+    N: int = 100
+    cells_per_pi: int = 1000
+    tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
+    tol_rho: float = TOL_RHO
+
+    def __post_init__(self):
+        _check_delta0_positive(self.model)
+        if not (isinstance(self.N, (int, np.integer)) and self.model.cell <= self.N <= MAX_MAP_BEADS):
+            raise ParameterError("N", self.N, f"must be an integer in [{self.model.cell}, {MAX_MAP_BEADS}]")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        qs = _check_qs(self.q, math.pi / self.cells_per_pi)
+        for q in qs:
+            check_chain_wavenumber(q, self.N)
+        object.__setattr__(self, "q", qs)
+        amps = tuple(sorted(check_amplitude(a, "a") for a in self.a))
+        if not amps:
+            raise ParameterError("a", self.a, "give at least one amplitude")
+        object.__setattr__(self, "a", amps)
+        if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
+            raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
+
+
+class StabilityMap(Study):
     """rho(F_q) of the precompressed waves on N beads over a (q, a) grid, plus the uncompressed limit per q
     (a = inf, the eta = 0 wave on the same grids). A dimer ``model`` gives its acoustic waves (natural
-    continuation in a at its mass ratio) and F = S R(2q/omega) with the shift by one cell. Initial data: Richardson (K, 2K) profiles; dense monodromy
-    modulo shift (:class:`~hertzpetsc.floquet.DenseFloquet`, prefix ``floquet_``). The multipliers depend on
-    (q, delta0 / A) only (exact scaling)."""
+    continuation in a at its mass ratio) and F = S R(2q/omega) with the shift by one cell. Initial data:
+    Richardson (K, 2K) profiles; dense monodromy modulo shift (:class:`~hertzpetsc.floquet.DenseFloquet`, prefix
+    ``floquet_``). The multipliers depend on (q, delta0 / A) only (exact scaling)."""
 
-    def __init__(self, model, qs, a_values, N, cells_per_pi, comm, output, mode="new",
-                 tolerances=IntegrationTolerances(rtol=1e-11, atol=1e-13), tol_rho=TOL_RHO):
-        _check_delta0_positive(model)
-        self.model, self.comm, self.N = model, comm, N
-        self.qs = [float(q) for q in qs]
-        for q in self.qs:
-            check_chain_wavenumber(q, N)
-        self.a_values = sorted(check_amplitude(a, "a") for a in a_values)
-        self.K = check_cells_per_pi(cells_per_pi)
-        self.tolerances, self.tol_rho = tolerances, tol_rho
-        constants = dict(alpha=model.alpha, delta0=model.delta0, masses=list(model.masses), N=N,
-                         cells_per_pi=self.K, rtol=tolerances.rtol, tol_rho=tol_rho)
-        self._open = lambda: NpzRecords(output, MAP_FORMAT, constants, constants, MAP_FIELDS, comm, mode,
-                                        dtypes={"outside": np.int64}, what="stability-map file")
-        self.store = None
-        self.floquet = DenseFloquet(ChainSpec(model, N), comm, tolerances)
+    Parameters = MapParameters
+    FORMAT, FIELDS = MAP_FORMAT, MAP_FIELDS
+    DTYPES = {"outside": np.int64}
+    ROLES = {"floquet_": ("the flow of the variational equations", ("ts",)),
+             "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
+    WHAT = "stability-map file"
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        p = params
+        self.model, self.N, self.qs, self.a_values = p.model, p.N, list(p.q), list(p.a)
+        self.K, self.tolerances, self.tol_rho = p.cells_per_pi, p.tolerances, p.tol_rho
+        check_memory(2 * self.K, self.comm, tw_solver("precomp_"), profiles=self.model.cell)
+        self.floquet = DenseFloquet(ChainSpec(self.model, self.N), self.comm, self.tolerances)
+
+    def constants(self):
+        return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses), N=self.N,
+                    cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho)
 
     def _spectrum_row(self, q, a, w, lam):
         model = self.model if math.isfinite(a) else self.model.with_delta0(0.0)

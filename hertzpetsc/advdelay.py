@@ -756,11 +756,13 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.set_parameter(self.parameter, self._scalars(Z)[-1])
         return self.stats.iterations
 
-    def predictor_scale(self, p):
-        """q^(2/(d-1)) for the paper's continuation in q (the rescaled profile stays O(1), eq. normscaling)."""
+    def predictor_ratio(self, p_from, p_to):
+        """(q_from / q_to)^(2/(d-1)) for the paper's continuation in q: the rescaled profile q^(2/(d-1)) u stays
+        O(1) (eq. normscaling); a ratio, so that exponents 2/(d-1) in the hundreds (alpha near 1) neither
+        overflow nor underflow."""
         if self.parameter == "q" and not self.bordered and self.model.delta0 == 0.0:
             d = self.model.law.scale_degree
-            return p ** (2.0 / (d - 1.0)) if d > 1 else 1.0
+            return (p_from / p_to) ** (2.0 / (d - 1.0)) if d > 1 else 1.0
         return 1.0
 
     def weights(self):

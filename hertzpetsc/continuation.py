@@ -63,8 +63,9 @@ class ContinuationProblem:
         """Diagonal weights W of the arclength inner product (a Vec like Z), or None for the Euclidean one."""
         return None
 
-    def predictor_scale(self, p):
-        """A factor s(p) such that s(p) X varies slowly with p (the secant predictor extrapolates s X): 1."""
+    def predictor_ratio(self, p_from, p_to):
+        """s(p_from) / s(p_to) for a factor s(p) such that s(p) X varies slowly with p (the secant predictor
+        extrapolates s X): 1 (no rescaling)."""
         return 1.0
 
     def test_functions(self, Z):
@@ -119,7 +120,7 @@ def unit_row(Z):
 
 @dataclass(frozen=True)
 class Natural:
-    """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`predictor_scale`), step
+    """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`~ContinuationProblem.predictor_ratio`), step
     halved on failure (or when the corrector moves X by more than ``max_corrector``, relative, sup norm) and doubled
     after a success, up to the next target."""
 
@@ -247,12 +248,11 @@ class Continuation:
         if len(self.history) == 2:
             Z0 = self.history[0][0]
             p0 = _parameter(Z0)
-            s0, s1, sn = prob.predictor_scale(p0), prob.predictor_scale(p1), prob.predictor_scale(p_new)
             f = (p_new - p1) / (p1 - p0)
-            Z.scale(s1 * (1 + f) / sn)
-            Z.axpy(-s0 * f / sn, Z0)
+            Z.scale((1 + f) * prob.predictor_ratio(p1, p_new))
+            Z.axpy(-f * prob.predictor_ratio(p0, p_new), Z0)
         else:
-            Z.scale(prob.predictor_scale(p1) / prob.predictor_scale(p_new))
+            Z.scale(prob.predictor_ratio(p1, p_new))
         set_parameter(Z, p_new)
         return Z
 

@@ -16,6 +16,7 @@ import math
 import os
 import platform
 import re
+import signal
 import sys
 import tempfile
 import time
@@ -309,8 +310,11 @@ class AppOptions:
         return "\n".join(lines)
 
     def done(self):
-        """End of the declarations: under -help, print them and PETSc's options of the roles, and exit 0."""
+        """End of the declarations: under -help, print them and PETSc's options of the roles, and exit 0.
+        Otherwise check that every rank was given the same options (ranks that disagree would compute different
+        things and deadlock in the first collective call that depends on them)."""
         if not self.help:
+            check_ranks_agree(PETSc.COMM_WORLD)
             return
         if PETSc.COMM_WORLD.getRank() == 0:
             print(self.help_text(), flush=True)
@@ -356,6 +360,24 @@ def inserted_options(prefix, defaults):
             opts.delValue(key)
 
 
+def check_ranks_agree(comm):
+    """ParameterError on every rank, naming the first option whose value differs between ranks (collective)."""
+    if comm.getSize() == 1:
+        return
+    mine = sorted((k, "" if v is None else str(v)) for k, v in PETSc.Options().getAll().items())
+    everyone = comm.tompi4py().allgather(mine)
+    if all(other == everyone[0] for other in everyone):
+        return
+    names = sorted({k for other in everyone for k, _ in other})
+    for name in names:
+        values = [dict(other).get(name) for other in everyone]
+        if any(v != values[0] for v in values):
+            shown = ", ".join(f"rank {r}: {'(absent)' if v is None else v or '(no value)'}" for r, v in
+                              enumerate(values))
+            raise ParameterError(f"-{name}", values[0], f"the ranks were given different values ({shown}): give "
+                                 "every rank the same options")
+
+
 def print0(*args, file=sys.stdout):
     """Print on rank 0 of COMM_WORLD only."""
     if PETSc.COMM_WORLD.getRank() == 0:
@@ -385,6 +407,8 @@ def _exit(code, message, collective):
     own line and abort. Aborting, rather than exiting, means that no rank ever waits in MPI_Finalize or in a
     collective for a rank that has stopped: an MPI run never hangs on an error.
     """
+    for sig in (signal.SIGTERM, signal.SIGHUP):         # the abort of the job ends this rank quietly
+        signal.signal(sig, signal.SIG_DFL)
     comm = PETSc.COMM_WORLD
     size, rank = comm.getSize(), comm.getRank()
     message = " / ".join(line.strip() for line in str(message).splitlines() if line.strip())   # one line
@@ -399,20 +423,38 @@ def _exit(code, message, collective):
     comm.tompi4py().Abort(code)
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP (what ``timeout``, ``kill`` and batch schedulers send), raised like KeyboardInterrupt so
+    that ``finally`` blocks end child processes and leave record files consistent."""
+
+    def __init__(self, signum):
+        self.signum = signum
+        super().__init__(signal.Signals(signum).name)
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
 def guarded_main(main):
     """Run ``main()``; turn every error into one ``error:`` line on stderr and the documented exit status.
 
     Package errors are raised on every rank at once (see :mod:`hertzpetsc.errors`): rank 0 prints and every rank
-    exits. PETSc errors are collective as well (configuration and solver calls are) and are reported with
+    exits. SIGINT, SIGTERM and SIGHUP end the run with status 130, 143 and 129 after the ``finally`` blocks ran
+    (child processes ended, record files left as after their last complete record). PETSc errors are collective as well (configuration and solver calls are) and are reported with
     PETSc's own message. Anything else is a failure of one rank: that rank prints it and aborts the others, so an
     MPI run never hangs.
     """
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_terminated)
     try:
         main()
     except SystemExit:
         raise
     except KeyboardInterrupt:
         _exit(130, "interrupted", False)
+    except Terminated as err:
+        _exit(128 + err.signum, f"terminated by {signal.Signals(err.signum).name}", False)
     except Exception as err:
         if os.environ.get("HZ_TRACEBACK"):       # for developers: the full traceback instead of one line
             raise

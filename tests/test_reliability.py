@@ -1,0 +1,86 @@
+"""Reliability promises of the drivers that start processes or run long (issue 21's classes): signals end every
+child and leave resumable files, one writer per pipeline, ranks that disagree on an option, bounded step control."""
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from petsc4py import PETSc
+
+from conftest import ROOT, SCRIPTS, one_error_line, script_env
+from hertzpetsc.errors import ConvergenceError
+from hertzpetsc.qbranch import BranchContinuation, ContinuationParameters
+
+
+def _children_of(pattern):
+    r = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True)
+    return [int(p) for p in r.stdout.split()]
+
+
+@pytest.mark.serial
+def test_sigterm_ends_the_pipeline_step_and_its_ranks_then_resume_finishes(tmp_path):
+    """SIGTERM (what timeout, kill and batch schedulers send) to the paper pipeline: status 143, one error line,
+    the running step's mpiexec and ranks ended; -resume then runs the step to its end."""
+    args = [sys.executable, os.path.join(SCRIPTS, "paper.py"), "-steps", "convergence_h", "-progress",
+            str(tmp_path / "p.npz"), "-logs", str(tmp_path / "logs")]
+    proc = subprocess.Popen(args, env=script_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=ROOT)
+    marker = "scripts/convergence_h.py"
+    deadline = time.time() + 60
+    while time.time() < deadline and not _children_of(marker):
+        time.sleep(0.2)
+    assert _children_of(marker), "the step did not start"
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143
+    assert err.strip().splitlines() == ["error: terminated by SIGTERM"]
+    time.sleep(1.0)
+    assert not _children_of(marker)
+    r = subprocess.run(args + ["-resume"], env=script_env(), capture_output=True, text=True, cwd=ROOT, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "convergence_h" in r.stdout
+
+
+@pytest.mark.serial
+def test_a_second_pipeline_on_the_same_progress_file_is_refused(tmp_path):
+    args = [sys.executable, os.path.join(SCRIPTS, "paper.py"), "-steps", "convergence_h", "-progress",
+            str(tmp_path / "p.npz"), "-logs", str(tmp_path / "logs")]
+    first = subprocess.Popen(args, env=script_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
+    try:
+        deadline = time.time() + 60
+        while time.time() < deadline and not os.path.exists(tmp_path / "p.npz"):
+            time.sleep(0.2)
+        second = subprocess.run(args + ["-resume"], env=script_env(), capture_output=True, text=True, cwd=ROOT,
+                                timeout=120)
+        assert "being written by process" in one_error_line(second)
+    finally:
+        first.send_signal(signal.SIGTERM)
+        first.wait(timeout=60)
+
+
+@pytest.mark.serial
+def test_ranks_given_different_options_fail_in_one_line_without_hanging(tmp_path):
+    common = ["-output", str(tmp_path / "x.npz"), "-table", str(tmp_path / "x.md")]
+    script = os.path.join(SCRIPTS, "precompressed_branch.py")
+    cmd = ["timeout", "60", "mpiexec", "-n", "1", sys.executable, script, "-q", "0.5", *common, ":", "-n", "1",
+           sys.executable, script, "-q", "0.6", *common]
+    r = subprocess.run(cmd, env=script_env(), capture_output=True, text=True)
+    assert r.returncode == 2, r.stderr
+    assert "the ranks were given different values" in one_error_line(r)
+
+
+def test_continuation_near_alpha_1_stops_in_bounded_work():
+    """alpha = 1.01 (rescaling exponent 200): the step control gives up with one error instead of halving and
+    doubling forever; the bounded number of step changes caps the work."""
+    cont = BranchContinuation(ContinuationParameters(alpha=1.01, M=10, cells_per_pi=200), PETSc.COMM_SELF)
+    t0 = time.perf_counter()
+    try:
+        with pytest.raises(ConvergenceError, match="continuation stopped"):
+            for _ in cont.points():
+                pass
+    finally:
+        cont.destroy()
+    assert time.perf_counter() - t0 < 30

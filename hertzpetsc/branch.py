@@ -178,11 +178,12 @@ class Branch:
                     meta=json.dumps(self.meta))
 
     @classmethod
-    def load(cls, path, comm=None):
-        """Read a branch file; :class:`RecordFileError` if it is missing, corrupt or of another kind. With a
+    def load(cls, path, comm=None, min_points=1):
+        """Read a branch file; :class:`RecordFileError` if it is missing, corrupt, of another kind, or holds fewer
+        than ``min_points`` points (an interrupted continuation's file may hold none: resume it first). With a
         communicator, rank 0 reads it and every rank gets the branch (or the error)."""
         if comm is not None:
-            return on_rank0(comm, cls.load, path, what=f"cannot read branch file {path!r}")
+            return on_rank0(comm, cls.load, path, None, min_points, what=f"cannot read branch file {path!r}")
         data = load_npz(path, "branch file")
         check_kind(data, path, BRANCH_FORMAT, "branch file")
         required = set(SCALARS) | set(POINT_FIELDS) | {"u", "xi", "meta"}
@@ -190,6 +191,9 @@ class Branch:
         if missing:
             raise RecordFileError(f"branch file {path!r} is corrupt: missing {sorted(missing)}")
         P = len(data["q"])
+        if P < min_points:
+            raise RecordFileError(f"branch file {path!r} holds {P} point(s), {min_points} needed (an interrupted "
+                                  "continuation: continue it with scripts/continuation.py -resume)")
         if data["u"].shape != (P, len(data["xi"])) or any(len(data[k]) != P for k in POINT_FIELDS):
             raise RecordFileError(f"branch file {path!r} is corrupt: inconsistent array shapes")
         try:

@@ -84,3 +84,16 @@ def test_continuation_near_alpha_1_stops_in_bounded_work():
     finally:
         cont.destroy()
     assert time.perf_counter() - t0 < 30
+
+
+@pytest.mark.serial
+def test_an_empty_branch_file_is_named_not_an_internal_error(tmp_path):
+    """A continuation killed before its first point leaves a branch file with no point: the drivers that read it
+    say so in one line (status 4, a file error) instead of failing with an internal error."""
+    from conftest import run_script
+    from hertzpetsc.studies.branch import BranchStudy
+    BranchStudy(ContinuationParameters(M=10, cells_per_pi=100), str(tmp_path / "b.npz"), PETSc.COMM_SELF).open()
+    for script, extra in (("refine_branch.py", ["-output", tmp_path / "r.npz", "-table", tmp_path / "r.md"]),
+                          ("paper_table.py", ["-output", tmp_path / "t.md"])):
+        r = run_script(script, "-branch", tmp_path / "b.npz", *extra, timeout=60)
+        assert r.returncode == 4 and "holds 0 point(s)" in one_error_line(r), (script, r.stderr)

@@ -116,14 +116,14 @@ class Chain:
         out = F.getArray().reshape(self.nloc, self.dof)
         out[:, 0] = a[1:-1, 1]
         out[:, 1] = bond[1:] - bond[:-1]
-        if self.damping is not None:
-            out[:, 1::2] += self._damping_forces(a[:, 1::2], mask)
         if self.n_tangent:
             stiff = (model.stiffness(r) * mask)[:, None]
             y = a[:, 2::2]                           # (nloc + 2, k) tangent displacements
             dy = y[1:] - y[:-1]
             out[:, 2::2] = a[1:-1, 3::2]
             out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1]
+        if self.damping is not None:                 # the state's and the tangents' velocities alike
+            out[:, 1::2] += self._damping_forces(a[:, 1::2], mask)
         if self.inverse_mass is not None:
             out[:, 1::2] *= self.inverse_mass[:, None]
 

@@ -157,6 +157,20 @@ def remove_stale_temporaries(path):
             pass
 
 
+def file_digest(path, comm=None, what="input file"):
+    """sha256 of a file's content (rank 0 reads it; every rank gets the digest): an input's identity in the
+    records made from it, so that a resume from another input is refused, naming it."""
+    import hashlib
+
+    def digest():
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        return h.hexdigest()
+    return on_rank0(comm, digest, what=f"cannot read {what} {path!r}")
+
+
 def load_npz(path, what, error=RecordFileError):
     """All arrays of an npz archive as a dict; ``error`` (naming ``what``) if it is missing or unreadable."""
     if not os.path.exists(path):

@@ -21,7 +21,7 @@ from dataclasses import fields, is_dataclass
 from petsc4py import PETSc
 
 from ..errors import ParameterError
-from ..records import MemoryRecords, NpzRecords
+from ..records import MemoryRecords, NpzRecords, file_digest
 
 
 class Study:
@@ -48,10 +48,18 @@ class Study:
         """Arrays written once per file; by default the parameters (plain data)."""
         return plain(self.params)
 
+    def inputs(self):
+        """{name: path} of the files the records are computed from (none by default): their content hashes
+        (``<name>_sha256``) are part of the identity."""
+        return {}
+
     def identity(self):
-        """What a resumed file must agree with (a difference is named): by default the constants and the options
-        given under the study's solver roles that change numbers."""
-        return dict(self.constants(), solver_options=solver_options(self.ROLES))
+        """What a resumed file must agree with (a difference is named): by default the constants, the options
+        given under the study's solver roles that change numbers, and the content hashes of the input files."""
+        out = dict(self.constants(), solver_options=solver_options(self.ROLES))
+        for name, path in self.inputs().items():
+            out[f"{name}_sha256"] = file_digest(path, self.comm)
+        return out
 
     def open(self):
         """Open the record store (collective): the file of ``output`` in ``mode``, or memory."""

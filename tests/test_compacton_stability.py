@@ -13,8 +13,8 @@ from petsc4py import PETSc
 from conftest import RESULTS, one_error_line, run_script
 from hertzpetsc.branch import Branch
 from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
-from hertzpetsc.compacton_window import (CompactonRefiner, CompactonWindow, WindowStability, bead_indices, embed,
-                                         guess_from_branch, jordan_check, sorted_eig, split_jordan_pair)
+from hertzpetsc.compacton_spectrum import WindowStability, jordan_check, sorted_eig, split_jordan_pair
+from hertzpetsc.compacton_window import CompactonRefiner, CompactonWindow, bead_indices, embed, guess_from_branch
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.model import ChainSpec
 

@@ -127,7 +127,8 @@ class SlowInstabilityScan:
         self.qs = [branch.point(q).q for q in (qs if qs else branch.q)]
         self.spec = ChainSpec(branch.model, N)
         self.pep = ComovingPEP(PETSc.COMM_SELF)
-        self.sectors = DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances) if n_twist else None
+        self.sectors = (DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances,
+                                        twists=np.linspace(0.0, math.pi, n_twist)) if n_twist else None)
         self.refiner = (Refiner(self.spec, PETSc.COMM_SELF, refine_tol, tolerances=tolerances, prefix=SHOOT_PREFIX,
                                 symmetric=True) if n_twist else None)
         self._open = lambda: NpzRecords(
@@ -183,7 +184,7 @@ class SlowInstabilityScan:
                 refined, E = self._refined(orbit, 10 * self.refine_tol)
             except ConvergenceError:
                 refined, E = orbit, self.refiner.residual(orbit)
-        sym = WaveSymmetry(self.N, orbit.m)
+        sym = orbit.symmetry
         smap = self.refiner.shift_map(sym.M)
         x0 = refined.x[:sym.M]
         return refined, E, relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
@@ -200,11 +201,10 @@ class SlowInstabilityScan:
         """The monodromy route at a chain wavenumber: dict of the mono fields."""
         orbit, E, E_short = self.refine(point)
         best, raw, clus, eig, inv = None, 0.0, 0.0, 0.0, 0.0
-        for th in np.linspace(0.0, math.pi, self.n_twist):
-            s = self.sectors.sector(orbit, float(th))
+        for s in self.sectors.spectrum(orbit).work["sectors"]:
             g = math.log(s.rho) / orbit.T
             if best is None or g > best[0]:
-                best = (g, float(th))
+                best = (g, s.theta)
             raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
             clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
             eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
@@ -354,16 +354,15 @@ def orbit_convergence(branch, qs, N, refined, settings, comm=PETSc.COMM_SELF, n_
             tolerances = IntegrationTolerances(rtol=rtol, atol=rtol / 100)
             refiner = Refiner(spec, comm, tol if tol else 1.0, tolerances=tolerances, prefix=SHOOT_PREFIX,
                               symmetric=True)
-            sectors = DeflatedSectors(branch.model, comm, tolerances)
+            sectors = DeflatedSectors(branch.model, comm, tolerances, twists=np.linspace(0.0, math.pi, n_twist))
             try:
                 orbit = refiner.refine(start).orbit if tol else start
-                sym = WaveSymmetry(N, orbit.m)
+                sym = orbit.symmetry
                 smap = refiner.shift_map(sym.M)
                 x0 = orbit.x[:sym.M]
                 E, E_short = refiner.residual(orbit), relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
                 raw, gamma, eig = 0.0, -math.inf, 0.0
-                for th in np.linspace(0.0, math.pi, n_twist):
-                    s = sectors.sector(orbit, float(th))
+                for s in sectors.spectrum(orbit).work["sectors"]:
                     raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
                     gamma = max(gamma, math.log(s.rho) / orbit.T)
                     eig = max(eig, s.eigenvector_residual)

@@ -104,8 +104,9 @@ def orbit_on_chain(point, spec, phase=0.0, time=0.0, scale=None):
     n = np.arange(spec.N)
     xi = np.mod(q * n - omega * time + phase, 2 * math.pi)
     x = np.empty((spec.N, 2))
-    for c, u_half in enumerate(point.profiles):
-        full, beads = full_period(np.asarray(u_half, dtype=float)), n % p == c
+    for c, u in enumerate(point.profiles):       # odd half profiles on [0, pi], or whole periods of 2 pi / h values
+        u, beads = np.asarray(u, dtype=float), n % p == c
+        full = u if len(u) == round(2 * math.pi / point.h) else full_period(u)
         x[beads, 0] = scale * lagrange_periodic(full, point.h, xi[beads])
         x[beads, 1] = -scale * omega * lagrange_periodic(full, point.h, xi[beads], derivative=True)
     return Orbit(spec=spec, q=q, m=m, T=p * q / omega, x=x, omega=omega, source="branch")

@@ -89,7 +89,8 @@ class Spectrum:
     def largest(self, nev):
         """The ``nev`` multipliers of largest modulus (an incomplete spectrum unless nev covers all)."""
         keep = slice(0, nev)
-        return replace(self, multipliers=self.multipliers[keep], complete=self.complete and nev >= len(self.multipliers),
+        return replace(self, multipliers=self.multipliers[keep],
+                       complete=self.complete and nev >= len(self.multipliers),
                        known=None if self.known is None else self.known[keep],
                        sector=None if self.sector is None else self.sector[keep])
 

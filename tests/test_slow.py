@@ -9,8 +9,9 @@ from petsc4py import PETSc
 
 from conftest import RESULTS, chain, one_error_line, run_script, small_branch
 from hertzpetsc.bloch import SymmetricFloquet
-from hertzpetsc.comoving import (ComovingPEP, ComovingWave, dense_pencil_eigenvalues, sector_window,
-                                 tracked_exponent)
+from hertzpetsc.comoving import ComovingWave, dense_pencil_eigenvalues
+from hertzpetsc.comoving_pep import ComovingPEP
+from hertzpetsc.comoving_window import sector_window, tracked_exponent
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.records import load_npz
 from hertzpetsc.richardson import richardson

@@ -2,8 +2,8 @@
 travelling window of :mod:`hertzpetsc.compacton_window`.
 
 :class:`CompactonStabilityScan` follows the exact compacton of each alpha from the largest branch q with
-F(q) >= 1 down through the requested q (natural continuation in q, :mod:`hertzpetsc.continuation`) to the solitary wave (Delta = 0, eq. adr),
-and records per (alpha, q): the refined state, its residual under the refinement's flow and under an
+F(q) >= 1 down through the requested q (natural continuation in q, :mod:`hertzpetsc.continuation`) to the
+solitary wave (Delta = 0, eq. adr), and records per (alpha, q): the refined state, its residual under the refinement's flow and under an
 independent flow (another Runge-Kutta pair and tolerance), all 2M window multipliers (LAPACK), the Jordan pair
 at 1 (mean, split, J v1 = v1, solvability of (J - 1) v2 = v1), the dominant nontrivial multipliers, the unstable
 ones, the change of the dominant multipliers when M is doubled, and SLEPc's dominant multipliers on the weighted

@@ -1,9 +1,9 @@
 """Slow instabilities above q_c on the infinite chain (the paper's closing question, section 3.5 and Discussion): the
 largest growth rate gamma(q) = max ln|mu| / script-T over all Bloch parameters, by two independent routes.
 
-* co-moving route (:mod:`hertzpetsc.comoving`, no time integration): the QEP of the linearisation in the wave's
-  frame on h = pi/K, theta in [0, pi] on a grid, the compacton band (mu = 1, split at O(h) by the scheme) identified
-  by its known location and excluded; the worst mode tracked on 2K and 4K (Richardson, order 2);
+* co-moving route (:mod:`hertzpetsc.comoving`, :mod:`~hertzpetsc.comoving_window`, no time integration): the QEP of
+  the linearisation in the wave's frame on h = pi/K, theta in [0, pi] on a grid, the compacton band (mu = 1, split
+  at O(h) by the scheme) identified by its known location and excluded; the worst mode tracked on 2K and 4K (Richardson, order 2);
 * monodromy route (:mod:`hertzpetsc.slow`): the wave refined on its cell over its short time symmetry with tight
   flows, the cell's map at twists Theta in [0, pi], the symmetry multipliers (every zone's translation, and at
   Theta = 0 the uniform translation, each with its Jordan partner) deflated exactly.
@@ -46,7 +46,9 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from ..comoving import ComovingPEP, profile_on_grid, ComovingWave, sector_window, theta_scan, tracked_exponent
+from ..comoving import ComovingWave, profile_on_grid
+from ..comoving_pep import ComovingPEP
+from ..comoving_window import sector_window, theta_scan, tracked_exponent
 from ..errors import ConvergenceError, ParameterError
 from ..chain import IntegrationTolerances
 from ..model import ChainSpec

@@ -3,7 +3,8 @@ largest growth rate gamma(q) = max ln|mu| / script-T over all Bloch parameters, 
 
 * co-moving route (:mod:`hertzpetsc.comoving`, :mod:`~hertzpetsc.comoving_window`, no time integration): the QEP of
   the linearisation in the wave's frame on h = pi/K, theta in [0, pi] on a grid, the compacton band (mu = 1, split
-  at O(h) by the scheme) identified by its known location and excluded; the worst mode tracked on 2K and 4K (Richardson, order 2);
+  at O(h) by the scheme) identified by its known location and excluded; the worst mode tracked on 2K and 4K
+  (Richardson, order 2);
 * monodromy route (:mod:`hertzpetsc.slow`): the wave refined on its cell over its short time symmetry with tight
   flows, the cell's map at twists Theta in [0, pi], the symmetry multipliers (every zone's translation, and at
   Theta = 0 the uniform translation, each with its Jordan partner) deflated exactly.

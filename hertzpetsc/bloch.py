@@ -31,7 +31,7 @@ from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
 from .errors import ParameterError
-from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, FloquetSolver, Spectrum, dominant_multipliers
+from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, DominantFloquet, FloquetSolver, Spectrum
 from .model import ChainSpec
 from .tangent import MonodromyModShift
 
@@ -278,10 +278,13 @@ def seeded_dominant_multipliers(orbit, bloch, nev=10, comm=None, tolerances=FLOQ
         raise ParameterError("nev", nev, f"the Bloch result keeps {len(bloch.modes)} modes; ask for at most that "
                                          "many (SymmetricFloquet(n_modes=...))")
     seed = seed_vectors(orbit.spec, real_pairs(bloch.modes[:nev], bloch.L), comm)
+    solver = DominantFloquet(orbit.spec, comm, nev, tolerances, prefix, min(2 * orbit.N, 2 * nev + 10)
+                             if ncv is None else ncv, tol)
     try:
-        return dominant_multipliers(orbit, nev, comm, tolerances, prefix, initial_space=seed,
-                                    ncv=ncv if ncv is not None else min(2 * orbit.N, 2 * nev + 10), tol=tol)
+        solver.start_from(seed)
+        return solver.spectrum(orbit)
     finally:
+        solver.destroy()
         for v in seed:
             v.destroy()
 

@@ -180,16 +180,3 @@ def profile_on_grid(point, K, comm, prefix="tw_", q=None):
 def real_theta(theta):
     """theta = 0 or pi (mod 2 pi): the pencil is real."""
     return abs(math.sin(theta)) < 1e-14
-
-
-def dense_pencil_eigenvalues(mats):
-    """All eigenvalues of A0 + z A1 + z^2 A2 (A2 invertible) by the companion linearisation and LAPACK: the
-    independent check of the SLEPc route on small grids."""
-    A0, A1, A2 = [np.asarray(A.todense()) if sp.issparse(A) else np.asarray(A) for A in mats]
-    n = A0.shape[0]
-    inv = np.linalg.inv(A2)
-    C = np.zeros((2 * n, 2 * n), dtype=np.result_type(A0, A1, complex))
-    C[:n, n:] = np.eye(n)
-    C[n:, :n] = -inv @ A0
-    C[n:, n:] = -inv @ A1
-    return np.linalg.eigvals(C)

@@ -21,6 +21,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .errors import ConvergenceError, ParameterError
+from .floquet import Spectrum, largest_magnitude
 
 STABILITY_PREFIX = "cstab_"
 DEFAULT_ETA = 2.5
@@ -103,23 +104,12 @@ class WeightedWindowOperator:
             self._gather = None
 
 
-@dataclass
-class DominantMultipliers:
-    values: np.ndarray
-    errors: np.ndarray
-    products: int
-    iterations: int
-    seconds: float
-    eta: float
-
-
 class WindowStability:
     """Dominant multipliers of the window map by SLEPc Krylov-Schur (largest magnitude) on the weighted shell,
     EPS prefix ``cstab_`` (``-cstab_eps_*``); ``nev`` multipliers are asked for (they must lie above exp(-eta) to
     be meaningful: below, the transport part's pseudospectrum)."""
 
     def __init__(self, window, nev=3, eta=DEFAULT_ETA, tol=1e-12, prefix=STABILITY_PREFIX):
-        from slepc4py import SLEPc
         if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= window.dim):
             raise ParameterError("-nev", nev, f"the window map has dimension 2M = {window.dim}: 1 <= nev <= "
                                               f"{window.dim}")
@@ -127,18 +117,12 @@ class WindowStability:
             raise ParameterError("-eta", eta, f"the weight exp(eta M) must stay finite: 0 <= eta <= "
                                               f"{700.0 / window.M:.3g} for M = {window.M}")
         self.window, self.nev, self.eta = window, int(nev), float(eta)
-        eps = SLEPc.EPS().create(comm=window.comm)
-        eps.setOptionsPrefix(prefix)
-        eps.setProblemType(SLEPc.EPS.ProblemType.NHEP)
-        eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
-        eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
-        eps.setDimensions(nev=self.nev, ncv=min(window.dim, max(2 * self.nev + 1, self.nev + 15)))
-        eps.setTolerances(tol=tol, max_it=500)
-        eps.setFromOptions()
-        self.eps = eps
+        self.eps = largest_magnitude(window.comm, prefix, self.nev, min(window.dim, max(2 * self.nev + 1,
+                                                                                        self.nev + 15)), tol)
 
     def solve(self, Y, gap, j_ref):
-        """The converged multipliers (at least nev, by decreasing modulus) and their residual errors."""
+        """The converged multipliers (at least nev) as a :class:`~hertzpetsc.floquet.Spectrum` whose work holds
+        their residual errors (in its order), the products, iterations and eta."""
         w = self.window
         ctx = WeightedWindowOperator(w, Y, gap, exponential_weight(w.M, self.eta, j_ref))
         A = PETSc.Mat().createPython([w.dim, w.dim], ctx, comm=w.comm)
@@ -157,8 +141,9 @@ class WindowStability:
             A.destroy()
             ctx.destroy()
         order = np.argsort(-np.abs(vals), kind="stable")
-        return DominantMultipliers(vals[order], errs[order], ctx.products, self.eps.getIterationNumber(),
-                                   time.perf_counter() - t0, self.eta)
+        return Spectrum(vals[order], False, work=dict(errors=errs[order], products=ctx.products, eta=self.eta,
+                                                      iterations=self.eps.getIterationNumber(),
+                                                      wall_time=time.perf_counter() - t0))
 
     def destroy(self):
         self.eps.destroy()

@@ -198,12 +198,6 @@ class CompactonWindow:
         self.flow.destroy()
 
 
-def bead_indices(beads):
-    """Bead-major state indices (2 j, 2 j + 1) of the given beads."""
-    beads = np.asarray(beads)
-    return np.stack([2 * beads, 2 * beads + 1], axis=1).ravel()
-
-
 # --- initial guesses and window sizes -------------------------------------------------------------------------------
 def window_length(width, rear=DEFAULT_REAR, front=4):
     """Beads of a window for a compacton N(q) = ``width`` beads wide: ``rear`` at rest behind, the compression
@@ -337,28 +331,23 @@ class CompactonRefiner(ContinuationProblem):
 
     # --- the continuation problem in q --------------------------------------------------------------------------
     def create_vec(self):
-        return PETSc.Vec().createMPI(self.window.dim + 2, comm=self.window.comm)
+        """Z on every rank (the window's unknowns are: the engine applies the same steps everywhere)."""
+        return PETSc.Vec().createSeq(self.window.dim + 2, comm=PETSc.COMM_SELF)
 
     def pack(self, compacton):
         """The extended vector Z = (Y, Delta, q) of an :class:`ExactCompacton` (a new Vec)."""
         Z = self.create_vec()
-        lo, hi = Z.getOwnershipRange()
-        Z.getArray()[:] = np.concatenate([compacton.Y.ravel(), [compacton.gap, compacton.q]])[lo:hi]
+        Z.setArray(np.concatenate([compacton.Y.ravel(), [compacton.gap, compacton.q]]))
         return Z
 
     def solve(self, Z, row=None, value=None):
         """Refine at the q of Z (Delta = 0 at q = 0) and write the compacton into Z; natural continuation only."""
         if row is not None:
             raise ParameterError("row", "pseudo-arclength", "the compacton window is continued in q naturally")
-        scatter, full = PETSc.Scatter.toAll(Z)
-        scatter.scatter(Z, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-        z = full.getArray(readonly=True).copy()
-        scatter.destroy()
-        full.destroy()
+        z = Z.getArray()
         q = float(z[-1])
         self.last = self.refine(z[:-2].reshape(-1, 2), 0.0 if q == 0 else z[-2], q)
-        lo, hi = Z.getOwnershipRange()
-        Z.getArray()[:] = np.concatenate([self.last.Y.ravel(), [self.last.gap, q]])[lo:hi]
+        z[:] = np.concatenate([self.last.Y.ravel(), [self.last.gap, q]])
         return self.last.iterations
 
     def report(self, Z):

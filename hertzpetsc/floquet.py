@@ -86,14 +86,6 @@ class Spectrum:
             if getattr(self, name) is not None:
                 setattr(self, name, np.asarray(getattr(self, name))[order])
 
-    def largest(self, nev):
-        """The ``nev`` multipliers of largest modulus (an incomplete spectrum unless nev covers all)."""
-        keep = slice(0, nev)
-        return replace(self, multipliers=self.multipliers[keep],
-                       complete=self.complete and nev >= len(self.multipliers),
-                       known=None if self.known is None else self.known[keep],
-                       sector=None if self.sector is None else self.sector[keep])
-
     @property
     def trivial(self):
         if self.known is not None:
@@ -123,7 +115,7 @@ class Spectrum:
 
     def growth(self, T):
         """ln(rho) / script-T, the growth per unit time of the most unstable mode."""
-        return growth_rate(self.rho, T)
+        return math.log(self.rho) / T
 
 
 class FloquetSolver:
@@ -138,15 +130,24 @@ class FloquetSolver:
         t0 = time.perf_counter()
         spec = self._spectrum(orbit, TOL_RHO if tol_rho is None else tol_rho, nev)
         spec.work.setdefault("wall_time", time.perf_counter() - t0)
-        return spec if nev is None or nev >= len(spec.multipliers) else spec.largest(nev)
+        if nev is None or nev >= len(spec.multipliers):
+            return spec
+        return replace(spec, multipliers=spec.multipliers[:nev], complete=False, known=None if spec.known is None
+                       else spec.known[:nev], sector=None if spec.sector is None else spec.sector[:nev])
 
     def destroy(self):
         pass
 
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.destroy()
+
 
 class DenseFloquet(FloquetSolver):
     """The dense monodromy of orbits on one chain: one TS with 2N tangent vectors, configured once (prefix
-    ``floquet_``), serving every orbit of a scan."""
+    ``floquet_``), serving every orbit of a scan; ``with DenseFloquet(...) as d:`` frees it."""
 
     def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
         self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
@@ -163,15 +164,6 @@ class DenseFloquet(FloquetSolver):
         self.flow.destroy()
 
 
-def dense_monodromy(orbit, comm, tolerances=FLOQUET_TOLERANCES, shift=True, prefix=FLOQUET_PREFIX, T=None):
-    """One-off :meth:`DenseFloquet.monodromy`."""
-    dense = DenseFloquet(orbit.spec, comm, tolerances, prefix)
-    try:
-        return dense.monodromy(orbit, shift, T)
-    finally:
-        dense.destroy()
-
-
 class DominantFloquet(FloquetSolver):
     """The ``nev`` multipliers of largest magnitude of F = S R(T; 0) by SLEPc Krylov-Schur on the matrix-free
     operator (:class:`~hertzpetsc.tangent.MonodromyModShift`), for orbits of one chain; the operator and the EPS
@@ -185,23 +177,15 @@ class DominantFloquet(FloquetSolver):
 
     def __init__(self, spec, comm, nev=10, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, ncv=None,
                  tol=1e-10, warm=False):
-        from slepc4py import SLEPc
         dim = 2 * spec.N
         if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
         self.prefix, self.dim, self.warm, self.start, self.previous = prefix, dim, warm, [], []
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix)
         self.A = self.op.create_mat()
-        eps = self.eps = SLEPc.EPS().create(comm=self.op.flow.base.comm)
-        eps.setOperators(self.A)
-        eps.setOptionsPrefix(prefix)
-        eps.setProblemType(SLEPc.EPS.ProblemType.NHEP)
-        eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
-        eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
-        eps.setDimensions(nev=nev, ncv=min(dim, max(2 * nev + 20, 60) if ncv is None else ncv))
-        eps.setTolerances(tol=tol, max_it=500)
-        eps.setFromOptions()
-        self.nev = eps.getDimensions()[0]
+        self.eps = largest_magnitude(self.op.flow.base.comm, prefix, nev,
+                                     min(dim, max(2 * nev + 20, 60) if ncv is None else ncv), tol)
+        self.nev = self.eps.getDimensions()[0]
         if self.nev > dim:
             self.destroy()
             raise ParameterError("-%seps_nev" % prefix, self.nev, f"must not exceed the dimension 2N = {dim}")
@@ -247,18 +231,16 @@ class DominantFloquet(FloquetSolver):
         self.op.destroy()
 
 
-def dominant_multipliers(orbit, nev=10, comm=None, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX,
-                         initial_space=None, ncv=None, tol=1e-10):
-    """One-off :meth:`DominantFloquet.spectrum` (ParameterError if nev exceeds the dimension 2N), started from the
-    PETSc Vecs ``initial_space`` if given."""
-    solver = DominantFloquet(orbit.spec, comm, nev, tolerances, prefix, ncv, tol)
-    try:
-        solver.start_from(initial_space or [])
-        return solver.spectrum(orbit)
-    finally:
-        solver.destroy()
-
-
-def growth_rate(rho, T):
-    """Growth per unit time ln(rho(F_q)) / script-T of the most unstable mode."""
-    return math.log(rho) / T
+def largest_magnitude(comm, prefix, nev, ncv, tol):
+    """A Krylov-Schur EPS for the multipliers of largest magnitude (the package's one set-up of the dominant routes:
+    Floquet, compacton window), configured from the options database under ``prefix`` once."""
+    from slepc4py import SLEPc
+    eps = SLEPc.EPS().create(comm=comm)
+    eps.setOptionsPrefix(prefix)
+    eps.setProblemType(SLEPc.EPS.ProblemType.NHEP)
+    eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
+    eps.setDimensions(nev=nev, ncv=ncv)
+    eps.setTolerances(tol=tol, max_it=500)
+    eps.setFromOptions()
+    return eps

@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import CHAIN_PREFIX, Chain, ChainIntegrator, IntegrationTolerances
+from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .errors import ConvergenceError, ParameterError
 from .gauss_newton import GaussNewton
 from .tangent import TangentFlow
@@ -74,15 +74,6 @@ class ShiftMap:
 def relative_residual(x0, sxT):
     """E = ||S X(T) - X(0)||_inf / ||X(0)||_inf over positions and velocities."""
     return float(np.max(np.abs(sxT - x0)) / np.max(np.abs(x0)))
-
-
-def residual_E(orbit, comm, tolerances=PAPER_TOLERANCES, prefix=CHAIN_PREFIX):
-    """E(q) of an :class:`~hertzpetsc.waves.Orbit` (one flow over script-T)."""
-    smap = ShiftMap(orbit.spec, comm, tolerances, prefix)
-    try:
-        return smap.residual(orbit)
-    finally:
-        smap.destroy()
 
 
 @dataclass
@@ -138,7 +129,7 @@ class ShiftMapFixedPoint:
 
 class Refiner:
     """Gauss-Newton refinement of travelling-wave orbits, any mass pattern (flows built once per chain length,
-    prefix ``shoot_``; the engine :class:`~hertzpetsc.gauss_newton.GaussNewton`).
+    prefix ``shoot_``; the engine :class:`~hertzpetsc.gauss_newton.GaussNewton`); ``with Refiner(...) as r:``.
 
     ``tol``: the target E(q) (on the N beads over script-T); the iteration limit is ``-<prefix>gn_max_it``
     (default ``max_iterations``). ``symmetric``: refine on the wave's cell with its shortest time symmetry.
@@ -210,11 +201,8 @@ class Refiner:
             flow.destroy()
         self._flows = {}
 
+    def __enter__(self):
+        return self
 
-def refine(orbit, comm, tol=1e-10, **kwargs):
-    """One-off :meth:`Refiner.refine` of ``orbit``."""
-    refiner = Refiner(orbit.spec, comm, tol, **kwargs)
-    try:
-        return refiner.refine(orbit)
-    finally:
-        refiner.destroy()
+    def __exit__(self, *exc):
+        self.destroy()

@@ -8,10 +8,10 @@ from petsc4py import PETSc
 
 from hertzpetsc.bloch import (BlochSectors, SymmetricFloquet, bloch_residuals, real_pairs, seeded_dominant_multipliers,
                               tile_mode)
-from conftest import chain, small_branch
+from conftest import chain, dense_monodromy, refine, small_branch
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.floquet import dense_monodromy, dense_multipliers, trivial_multipliers
-from hertzpetsc.shooting import MEASURE_TOLERANCES, refine
+from hertzpetsc.floquet import dense_multipliers, trivial_multipliers
+from hertzpetsc.shooting import MEASURE_TOLERANCES
 from hertzpetsc.waves import orbit_on_chain
 
 M = 20          # the cell: q = pi/5 = 2 pi 2 / 20 (unstable, rho(F_q) = 1.2356 as at N = 100)

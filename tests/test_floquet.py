@@ -5,14 +5,19 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import chain, small_branch
+from conftest import chain, dense_monodromy, refine, small_branch
 from hertzpetsc.errors import ConvergenceError, ParameterError
-from hertzpetsc.floquet import (dense_monodromy, dense_multipliers, dominant_multipliers, spectral_radius,
+from hertzpetsc.floquet import (FLOQUET_TOLERANCES, DominantFloquet, dense_multipliers, spectral_radius,
                                 trivial_multipliers)
-from hertzpetsc.shooting import MEASURE_TOLERANCES, refine
+from hertzpetsc.shooting import MEASURE_TOLERANCES
 from hertzpetsc.waves import orbit_on_chain
 
 N = 20
+
+
+def dominant_multipliers(orbit, nev, comm, tolerances=FLOQUET_TOLERANCES):
+    with DominantFloquet(orbit.spec, comm, nev, tolerances) as solver:
+        return solver.spectrum(orbit)
 
 
 @pytest.fixture(scope="module")

@@ -5,11 +5,12 @@ import math
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from petsc4py import PETSc
 
 from conftest import RESULTS, chain, one_error_line, run_script, small_branch
 from hertzpetsc.bloch import SymmetricFloquet
-from hertzpetsc.comoving import ComovingWave, dense_pencil_eigenvalues
+from hertzpetsc.comoving import ComovingWave
 from hertzpetsc.comoving_pep import ComovingPEP
 from hertzpetsc.comoving_window import sector_window, tracked_exponent
 from hertzpetsc.errors import ParameterError
@@ -19,6 +20,19 @@ from hertzpetsc.shooting import Refiner
 from hertzpetsc.slow import DeflatedSectors
 from hertzpetsc.studies.slow import SLOW_TOLERANCES
 from hertzpetsc.waves import orbit_on_chain
+
+
+def dense_pencil_eigenvalues(mats):
+    """All eigenvalues of A0 + z A1 + z^2 A2 (A2 invertible) by the companion linearisation and LAPACK: the
+    independent check of the SLEPc route on small grids."""
+    A0, A1, A2 = [np.asarray(A.todense()) if sp.issparse(A) else np.asarray(A) for A in mats]
+    n = A0.shape[0]
+    inv = np.linalg.inv(A2)
+    C = np.zeros((2 * n, 2 * n), dtype=np.result_type(A0, A1, complex))
+    C[:n, n:] = np.eye(n)
+    C[n:, :n] = -inv @ A0
+    C[n:, n:] = -inv @ A1
+    return np.linalg.eigvals(C)
 
 
 @pytest.fixture(scope="module")

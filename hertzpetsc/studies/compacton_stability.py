@@ -173,14 +173,14 @@ class CompactonStabilityScan:
             sl = stab.solve(Y, gap, 0.5 * (core[0] + core[-1]))
         finally:
             stab.destroy()
-        s_mean, _, s_rest = split_jordan_pair(sl.values[:max(nev, 2)])
+        s_mean, _, s_rest = split_jordan_pair(sl.multipliers[:max(nev, 2)])
         slepc_change = max([abs(s_mean - mean)] + [float(np.min(np.abs(lam - v))) for v in s_rest])
         unstable = int(np.sum(np.abs(rest) > 1 + self.tol_unstable))
         return dict(alpha=alpha, q=q, gap=gap, D=exact.D, residual=exact.residual,
                     residual_check=chk.residual(Y, gap), iterations=exact.iterations, jordan_mean=mean.real,
                     jordan_split=split, jordan_translation=jc.translation, jordan_generalized=jc.generalized,
                     max_nontrivial=float(abs(rest[0])), unstable=unstable, doubling_change=doubling,
-                    slepc_change=slepc_change, slepc_products=sl.products, slepc_nev=nev, core_first=int(core[0]),
+                    slepc_change=slepc_change, slepc_products=sl.work["products"], slepc_nev=nev, core_first=int(core[0]),
                     core_last=int(core[-1]), seconds=time.perf_counter() - t0, multipliers=lam,
                     dominant=np.pad(dominant, (0, NDOM - len(dominant))), state=Y)
 

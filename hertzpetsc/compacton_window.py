@@ -28,12 +28,12 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import Chain, ChainIntegrator, IntegrationTolerances
+from .chain import Chain, IntegrationTolerances
 from .continuation import ContinuationProblem
 from .errors import ConvergenceError, ParameterError
 from .gauss_newton import GaussNewton
 from .model import ChainSpec
-from .tangent import split_tangents, stack_tangents
+from .tangent import TangentFlow
 
 WINDOW_PREFIX = "cwin_"
 # the flows whose fixed points and spectra are measured (as the package's MEASURE_TOLERANCES)
@@ -73,60 +73,32 @@ def shift_window(Z):
     return out
 
 
-class WindowFlow:
-    """Phi_1 of the M-bead window chain with k tangent columns in one TS (prefix ``cwin_``), for k = 0, 1, 2M + 1
-    (built on first use). Arrays in and out are given on every rank."""
+class CompactonWindow:
+    """The window map G of an M-bead window (module docstring) and its derivatives: Phi_1 of the window chain with
+    k = 0, 1 or 2M + 1 tangent columns in one TS (:class:`~hertzpetsc.tangent.TangentFlow`, prefix ``cwin_``, built on
+    first use). Arrays in and out are given on every rank."""
 
     def __init__(self, model, M, comm, tolerances=WINDOW_TOLERANCES, prefix=WINDOW_PREFIX, rk_type="8vr"):
         if not (isinstance(M, (int, np.integer)) and M >= 4):
             raise ParameterError("M", M, "the window needs at least 4 beads")
-        self.spec = ChainSpec(model, int(M), "free")
-        self.model, self.M, self.comm = model, int(M), comm
+        self.model, self.M, self.comm, self.spec = model, int(M), comm, ChainSpec(model, int(M), "free")
         self.tolerances, self.prefix, self.rk_type = tolerances, prefix, rk_type
         self._flows = {}
-        self.integrations = 0
-        self._get(0)                   # reads and checks the -cwin_ts_* options now
+        self._flow(0)                  # reads and checks the -cwin_ts_* options now
 
-    def _get(self, k):
+    def _flow(self, k):
         if k not in self._flows:
-            chain = WindowChain(self.spec, self.comm, 0.0, n_tangent=k)
-            integ = ChainIntegrator(chain, self.tolerances, self.prefix, self.rk_type)
-            self._flows[k] = (chain, integ, chain.create_state())
+            self._flows[k] = TangentFlow(self.spec, k, self.comm, self.tolerances, self.prefix, WindowChain,
+                                         self.rk_type)
         return self._flows[k]
 
     def run(self, Y, gap, tangents=None, T=1.0, monitor=None):
         """(Y(T) (M, 2), R(T) tangents (M, 2, k) or None) from Y (M, 2) and tangents (M, 2, k)."""
-        M = self.M
-        Y = np.asarray(Y, float).reshape(M, 2)
         k = 0 if tangents is None else tangents.shape[2]
-        chain, integ, Z = self._get(k)
-        chain.gap = float(gap)
-        chain.set_from_array(Z, Y if k == 0 else stack_tangents(Y, tangents))
-        if monitor is not None:
-            integ.ts.setMonitor(lambda ts, i, t, X: monitor(chain, X))
-        try:
-            integ.integrate(Z, 0.0, T, dt=integ.initial_step)
-        finally:
-            if monitor is not None:
-                integ.ts.cancelMonitor()
-        self.integrations += 1
-        out = chain.gather(Z)
-        return (out, None) if k == 0 else split_tangents(out, k)
-
-    def destroy(self):
-        for chain, integ, Z in self._flows.values():
-            Z.destroy()
-            integ.destroy()
-            chain.destroy()
-        self._flows = {}
-
-
-class CompactonWindow:
-    """The window map G of an M-bead window (module docstring) and its derivatives."""
-
-    def __init__(self, model, M, comm, tolerances=WINDOW_TOLERANCES, prefix=WINDOW_PREFIX, rk_type="8vr"):
-        self.model, self.M, self.comm = model, int(M), comm
-        self.flow = WindowFlow(model, M, comm, tolerances, prefix, rk_type)
+        flow = self._flow(k)
+        flow.aug.gap = float(gap)
+        YT, W = flow.run(Y, T, np.zeros((self.M, 2, 0)) if k == 0 else tangents, monitor)
+        return YT, (W if k else None)
 
     @property
     def dim(self):
@@ -134,7 +106,7 @@ class CompactonWindow:
 
     def map(self, Y, gap):
         """G(Y), (M, 2)."""
-        YT, _ = self.flow.run(Y, gap)
+        YT, _ = self.run(Y, gap)
         return shift_window(YT)
 
     def residual(self, Y, gap):
@@ -150,14 +122,14 @@ class CompactonWindow:
         T0 = np.zeros((M, 2, n + 1))
         T0.reshape(n, n + 1)[:, :n] = np.eye(n)
         T0[:, 0, n] = np.arange(M)
-        YT, W = self.flow.run(Y, gap, T0)
+        YT, W = self.run(Y, gap, T0)
         W[:, 0, n] -= np.arange(M)
         G, GW = shift_window(YT), shift_window(W).reshape(n, n + 1)
         return G, GW[:, :n].copy(), GW[:, n].copy()
 
     def apply(self, Y, gap, x):
         """J x by one tangent integration (the matrix-free product); x and the result are (2M,)."""
-        _, W = self.flow.run(Y, gap, np.asarray(x, float).reshape(self.M, 2, 1))
+        _, W = self.run(Y, gap, np.asarray(x, float).reshape(self.M, 2, 1))
         return shift_window(W[:, :, 0]).ravel()
 
     def vector_field(self, Y, gap):
@@ -183,7 +155,7 @@ class CompactonWindow:
         Y = np.asarray(Y, float).reshape(self.M, 2)
         watch_start = gap + np.diff(Y[:, 0])
         np.minimum(r_min, watch_start, out=r_min)
-        self.flow.run(Y, gap, monitor=watch)
+        self.run(Y, gap, monitor=watch)
         deepest = max(0.0, -float(r_min.min()))
         return np.nonzero(r_min < -relative * deepest)[0]
 
@@ -195,7 +167,9 @@ class CompactonWindow:
         return np.arange(max(b.min() - 1, 0), min(b.max() + 1, self.M - 1) + 1)
 
     def destroy(self):
-        self.flow.destroy()
+        for flow in self._flows.values():
+            flow.destroy()
+        self._flows = {}
 
 
 # --- initial guesses and window sizes -------------------------------------------------------------------------------

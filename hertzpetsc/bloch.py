@@ -249,27 +249,14 @@ def bloch_residuals(orbit, pairs, comm, tolerances=FLOQUET_TOLERANCES, prefix=FL
         op.destroy()
 
 
-def seed_vectors(spec, pairs, comm):
-    """One PETSc start vector in the N-bead chain layout: the sum of Re Y + Im Y over the pairs, each normalised."""
-    ch = Chain(spec, comm)
-    v = ch.create_state()
-    s = np.zeros((spec.N, 2))
-    for _, Y in pairs:
-        w = Y.real + Y.imag
-        s += w / np.linalg.norm(w)
-    ch.set_from_array(v, s)
-    ch.destroy()
-    return [v]
-
-
 def seeded_dominant_multipliers(orbit, bloch, nev=10, comm=None, tolerances=FLOQUET_TOLERANCES,
                                 prefix=FLOQUET_PREFIX, ncv=None, tol=1e-8):
     """SLEPc Krylov-Schur (prefix ``floquet_``) on the full-chain shell, started from the Bloch modes.
 
     ``bloch``: a :class:`SymmetricFloquet` spectrum of ``orbit`` with at least ``nev`` modes. Krylov-Schur iterates
-    on one start vector, so the tiled modes are summed into one (:func:`seed_vectors`), which lies in the dominant
-    invariant subspace up to the flow's error; default subspace ``ncv`` = 2 nev + 10 (-floquet_eps_ncv overrides).
-    Converges in a few restarts for N up to a few hundred beads; not at N = 1000 (see the module docstring).
+    on one start vector, so the tiled modes are summed into one (each Re Y + Im Y normalised), which lies in the
+    dominant invariant subspace up to the flow's error; default subspace ``ncv`` = 2 nev + 10 (-floquet_eps_ncv
+    overrides). Converges in a few restarts for N up to a few hundred beads; not at N = 1000 (module docstring).
     ``tol`` must exceed the accuracy of the modes, i.e. of the flow: with the paper's rtol 1e-12 their residuals are
     ~1e-9, so the default is 1e-8 (-floquet_eps_tol overrides). The seed does not stop Krylov-Schur from finding a
     larger multiplier the Bloch sectors missed: any component along it is amplified by every product.
@@ -277,14 +264,15 @@ def seeded_dominant_multipliers(orbit, bloch, nev=10, comm=None, tolerances=FLOQ
     if len(bloch.modes) < nev:
         raise ParameterError("nev", nev, f"the Bloch result keeps {len(bloch.modes)} modes; ask for at most that "
                                          "many (SymmetricFloquet(n_modes=...))")
-    seed = seed_vectors(orbit.spec, real_pairs(bloch.modes[:nev], bloch.L), comm)
     solver = DominantFloquet(orbit.spec, comm, nev, tolerances, prefix, min(2 * orbit.N, 2 * nev + 10)
                              if ncv is None else ncv, tol)
+    seed = solver.A.createVecRight()
     try:
-        solver.start_from(seed)
+        s = sum((Y.real + Y.imag) / np.linalg.norm(Y.real + Y.imag) for _, Y in real_pairs(bloch.modes[:nev], bloch.L))
+        solver.op.flow.base.set_from_array(seed, s)
+        solver.start_from([seed])
         return solver.spectrum(orbit)
     finally:
+        seed.destroy()
         solver.destroy()
-        for v in seed:
-            v.destroy()
 

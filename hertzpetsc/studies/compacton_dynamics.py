@@ -1,9 +1,6 @@
-"""Perturbed exact compactons on a long free chain (paper section 3.3 and the Discussion: does the window spectrum
-of :mod:`hertzpetsc.studies.compacton_stability` predict the dynamics?).
-
-:class:`CompactonDynamics` puts an exact compacton on a long free chain (TS prefix ``cdyn_``, max-norm error
-control by default), perturbs it by ``amplitude`` times its least-stable mode or by noise, and splits the
-moving window's deviation delta_k = W_k - Y* with the Jordan vectors: delta = a v1 + b v2 + rest. File
+"""Does the window spectrum (:mod:`hertzpetsc.studies.compacton_stability`) predict the dynamics (section 3.3,
+Discussion)? :class:`CompactonDynamics` puts an exact compacton on a long free chain, perturbs it and splits the
+moving window's deviation with the Jordan vectors. File
 ``hertzpetsc-compacton-dynamics-1``: constants alpha, N, n0, travel, amplitude, rtol, M; per record: q, kind,
 mu3, rate (fitted decay of |rest| per bead), rate_first, rate_last, rest_floor, rest_max_late, a_end,
 a_predicted, b_start, b_end, dist_end, behind_v, seconds, steps, and the series rest, a, b, dist (travel + 1)

@@ -1,10 +1,6 @@
-"""The two-compacton test of section 3.3 (eq. extens2) on a free chain in gap-lattice coordinates.
-
-:class:`CompactonPairs` is the two-compacton test of section 3.3 (eq. extens2) with each compacton either the
-unrefined branch profile or refined at the same gap, to locate the source of the 2-compacton error. File
-``hertzpetsc-compacton-pairs-1``: constants alpha, q, h, spacing, travel, M, N, gap; per record: case, rear,
-front, error_x, error_v, debris_v, seconds.
-"""
+"""The two-compacton test of section 3.3 (eq. extens2), each compacton unrefined or refined at the same gap, to
+locate the source of the 2-compacton error. File ``hertzpetsc-compacton-pairs-1``: constants alpha, q, h, spacing,
+travel, M, N, gap; per record: case, rear, front, error_x, error_v, debris_v, seconds."""
 import math
 import time
 

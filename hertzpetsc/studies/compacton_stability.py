@@ -1,12 +1,12 @@
 """Spectral stability of isolated compactons (paper, section 3.3 and the Discussion's open question), on the
 travelling window of :mod:`hertzpetsc.compacton_window`.
 
-:class:`CompactonStabilityScan` follows the exact compacton of each alpha from the largest branch q with
-F(q) >= 1 down through the requested q (natural continuation in q, :mod:`hertzpetsc.continuation`) to the
-solitary wave (Delta = 0, eq. adr), and records per (alpha, q): the refined state, its residual under the refinement's flow and under an
-independent flow (another Runge-Kutta pair and tolerance), all 2M window multipliers (LAPACK), the Jordan pair
-at 1 (mean, split, J v1 = v1, solvability of (J - 1) v2 = v1), the dominant nontrivial multipliers, the unstable
-ones, the change of the dominant multipliers when M is doubled, and SLEPc's dominant multipliers on the weighted
+:class:`CompactonStabilityScan` follows the exact compacton of each alpha from the largest branch q with F(q) >= 1
+down through the requested q (natural continuation in q, :mod:`hertzpetsc.continuation`) to the solitary wave (Delta
+= 0, eq. adr), and records per (alpha, q): the refined state, its residual under the refinement's flow and under an
+independent flow (another Runge-Kutta pair and tolerance), all 2M window multipliers (LAPACK), the Jordan pair at 1
+(mean, split, J v1 = v1, solvability of (J - 1) v2 = v1), the dominant nontrivial multipliers, the unstable ones,
+the change of the dominant multipliers when M is doubled, and SLEPc's dominant multipliers on the weighted
 shell against the dense ones. File ``hertzpetsc-compacton-stability-1`` (npz): constants M, rear, eta, nev,
 tol_unstable, rtol; per record: alpha, q, gap, D, residual, residual_check, iterations, jordan_mean, jordan_split,
 jordan_translation, jordan_generalized, max_nontrivial, unstable, doubling_change, slepc_change,
@@ -180,7 +180,8 @@ class CompactonStabilityScan:
                     residual_check=chk.residual(Y, gap), iterations=exact.iterations, jordan_mean=mean.real,
                     jordan_split=split, jordan_translation=jc.translation, jordan_generalized=jc.generalized,
                     max_nontrivial=float(abs(rest[0])), unstable=unstable, doubling_change=doubling,
-                    slepc_change=slepc_change, slepc_products=sl.work["products"], slepc_nev=nev, core_first=int(core[0]),
+                    slepc_change=slepc_change, slepc_products=sl.work["products"], slepc_nev=nev,
+                    core_first=int(core[0]),
                     core_last=int(core[-1]), seconds=time.perf_counter() - t0, multipliers=lam,
                     dominant=np.pad(dominant, (0, NDOM - len(dominant))), state=Y)
 

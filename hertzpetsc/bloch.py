@@ -10,19 +10,14 @@ wavelengths are coprime with its M / p pattern cells, the k-cell shift over the 
     spec(F_q on N beads) = union over l of { e^{-i j theta_l} mu^{m'} : mu in spec(G_theta_l) },
 
 G_theta = S_theta^k R_theta(script-T / m'; 0) the map of the M-bead cell (its masses the pattern's) with twisted
-boundary y_M = e^{i theta} y_0 (the k-cell shift carries the same twist), k m' = 1 + j M / p. The coefficients are
-real, so G_{-theta} = conj(G_theta): only l = 0, ..., floor(g/2) are integrated; theta = 0 and pi are real sectors
-(real tangents), the others carry a complex tangent u + i w as two real tangents (PETSc is a real build here). One TS
-run per sector integrates the orbit and the 2M columns. A longer chain of L copies is the orbit tiled
-(:meth:`hertzpetsc.waves.Orbit.tiled`): its g is L times larger, its cell the same.
+boundary y_M = e^{i theta} y_0, k m' = 1 + j M / p. G_{-theta} = conj(G_theta): only l = 0, ..., floor(g/2) are
+integrated (one TS run of the orbit and 2M columns each); theta = 0 and pi take real tangents, the others a complex
+tangent u + i w as two real ones (PETSc is a real build here). A chain of L copies is the orbit tiled.
 
-Why not Krylov on the whole chain: for N = 1000 about 600 unstable multipliers crowd annuli of nearly equal
-moduli (the 10 largest differ by 1e-5 relative) and Krylov-Schur on the shell operator does not separate them.
-The sectors give every multiplier; the dominant ones are then checked on the full chain, matrix-free, by the
-residuals ||F Y - lambda Y|| of the tiled Bloch modes (:func:`bloch_residuals`, two shell products per pair).
-SLEPc started from those modes (:func:`seeded_dominant_multipliers`, prefix ``floquet_``) confirms them on
-chains of a few hundred beads, but not at N = 1000: the start vector does not help Krylov-Schur rank Ritz values
-that close.
+Why not Krylov on the whole chain: for N = 1000 about 600 unstable multipliers crowd annuli of nearly equal moduli
+and Krylov-Schur on the shell does not separate them, even started from the Bloch modes
+(:func:`seeded_dominant_multipliers`: it confirms them up to a few hundred beads). The dominant sector multipliers
+are checked on the full chain by the residuals ||F Y - lambda Y|| of the tiled modes (:func:`bloch_residuals`).
 """
 import math
 
@@ -33,21 +28,14 @@ from .chain import Chain, ChainIntegrator
 from .errors import ParameterError
 from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, DominantFloquet, FloquetSolver, Spectrum
 from .model import ChainSpec
+from .symmetry import real_sector
 from .tangent import MonodromyModShift
 
 
-def real_sector(theta):
-    """theta = 0 or pi: the twist is real (+-1) and real tangents suffice."""
-    return abs(math.sin(theta)) < 1e-14
-
-
 class TwistedChain(Chain):
-    """eq. nc on M beads with tangents under the twisted boundary y_{n+M} = e^{i theta} y_n.
-
-    ``complex_modes``: tangent 2p is the real part u of complex mode p, tangent 2p + 1 its imaginary part w (any
-    theta); otherwise the tangents are real and theta must be 0 or pi (twist +-1). The orbit itself is M-periodic.
-    ``theta`` is an attribute: one chain (and its TS) serves every sector of its kind.
-    """
+    """eq. nc on M beads (the orbit M-periodic) with tangents under the twisted boundary y_{n+M} = e^{i theta} y_n;
+    ``complex_modes``: tangents 2p, 2p + 1 are Re and Im of complex mode p (any theta), else real (theta 0 or pi).
+    ``theta`` is an attribute: one chain (and its TS) serves every sector of its kind."""
 
     def __init__(self, spec, n_tangent, comm, complex_modes=True, theta=0.0):
         if spec.boundary != "periodic":
@@ -142,12 +130,10 @@ class BlochSectors:
 
 class SymmetricFloquet(FloquetSolver):
     """All 2N multipliers of F_q around waves on N beads, any mass pattern, from the sectors of their cells over
-    their shortest time symmetry (module docstring): the fast route of the scans and the route of long chains (the
-    orbit tiled). ``split="sectors"``: the sectors are dealt round-robin to the ranks of ``comm``, each integrated on
-    one rank (the same arithmetic on any number of ranks); ``"beads"``: every sector on all ranks of ``comm`` (the
-    cell's DMDA distributed). ``n_modes``: keep the cell eigenvectors of that many dominant multipliers
-    (``Spectrum.modes``, for :func:`tile_mode`). The sector flows are built once per cell size (prefix
-    ``floquet_``); the spectrum is the same on every rank."""
+    their shortest time symmetry (module docstring). ``split="sectors"``: the sectors dealt round-robin to the ranks
+    of ``comm``, each on one rank (the same arithmetic on any number of ranks); ``"beads"``: each sector on all ranks.
+    ``n_modes``: keep the cell eigenvectors of that many dominant multipliers (``Spectrum.modes``). Sector flows are
+    built once per cell size (prefix ``floquet_``); the spectrum is the same on every rank."""
 
     def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, split="sectors",
                  n_modes=0):
@@ -211,8 +197,8 @@ def real_pairs(modes, L):
     """
     out, seen = [], []
     for lam, j, vec in modes:
-        real_sector = j == 0 or 2 * j == L
-        if 2 * j > L or (real_sector and lam.imag < 0):
+        real = j == 0 or 2 * j == L
+        if 2 * j > L or (real and lam.imag < 0):
             lam, j, vec = np.conj(lam), (L - j) % L, np.conj(vec)
         if any(j == k and abs(lam - mu) <= 1e-12 * abs(lam) for k, mu in seen):
             continue
@@ -251,16 +237,11 @@ def bloch_residuals(orbit, pairs, comm, tolerances=FLOQUET_TOLERANCES, prefix=FL
 
 def seeded_dominant_multipliers(orbit, bloch, nev=10, comm=None, tolerances=FLOQUET_TOLERANCES,
                                 prefix=FLOQUET_PREFIX, ncv=None, tol=1e-8):
-    """SLEPc Krylov-Schur (prefix ``floquet_``) on the full-chain shell, started from the Bloch modes.
-
-    ``bloch``: a :class:`SymmetricFloquet` spectrum of ``orbit`` with at least ``nev`` modes. Krylov-Schur iterates
-    on one start vector, so the tiled modes are summed into one (each Re Y + Im Y normalised), which lies in the
-    dominant invariant subspace up to the flow's error; default subspace ``ncv`` = 2 nev + 10 (-floquet_eps_ncv
-    overrides). Converges in a few restarts for N up to a few hundred beads; not at N = 1000 (module docstring).
-    ``tol`` must exceed the accuracy of the modes, i.e. of the flow: with the paper's rtol 1e-12 their residuals are
-    ~1e-9, so the default is 1e-8 (-floquet_eps_tol overrides). The seed does not stop Krylov-Schur from finding a
-    larger multiplier the Bloch sectors missed: any component along it is amplified by every product.
-    """
+    """SLEPc Krylov-Schur (prefix ``floquet_``) on the full-chain shell, started from the sum of the tiled Bloch modes
+    of ``bloch`` (a :class:`SymmetricFloquet` spectrum of ``orbit`` with >= ``nev`` modes; each Re Y + Im Y
+    normalised), which lies in the dominant invariant subspace up to the flow's error; ``ncv`` 2 nev + 10 by default.
+    ``tol`` must exceed the modes' accuracy (the flow's: ~1e-9 at the paper's rtol), so 1e-8. A larger multiplier
+    the sectors missed is still found: any component along it grows with every product."""
     if len(bloch.modes) < nev:
         raise ParameterError("nev", nev, f"the Bloch result keeps {len(bloch.modes)} modes; ask for at most that "
                                          "many (SymmetricFloquet(n_modes=...))")

@@ -38,6 +38,7 @@ from petsc4py import PETSc
 from .diagnostics import sup_norm
 from .errors import ParameterError
 from .stencil import INTEGER_SHIFT_TOLERANCE, full_period, shift_stencil, shifted
+from .symmetry import real_sector
 
 
 # --- coefficients ------------------------------------------------------------------------------------------------
@@ -135,7 +136,7 @@ class ComovingWave:
         theta is 0 or pi."""
         n = 2 * self.K
         e = np.exp(1j * theta)
-        if real_theta(theta):
+        if real_sector(theta):
             e = float(np.sign(e.real))
         Kt = (sp.diags(self.a + self.b) - e * (sp.diags(self.a) @ shift_csr(n, self.sigma))
               - np.conj(e) * (sp.diags(self.b) @ shift_csr(n, -self.sigma)))
@@ -175,8 +176,3 @@ def profile_on_grid(point, K, comm, prefix="tw_", q=None):
         tws.destroy()
         problem.destroy()
         u.destroy()
-
-
-def real_theta(theta):
-    """theta = 0 or pi (mod 2 pi): the pencil is real."""
-    return abs(math.sin(theta)) < 1e-14

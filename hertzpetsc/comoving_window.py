@@ -18,13 +18,21 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from .comoving import real_theta
 from .comoving_pep import realified
 from .errors import ParameterError
+from .symmetry import real_sector
 
 WINDOW_IM = 0.5            # |Im lambda| <= 1/2 covers every chain mode (module docstring)
 TARGET_OFFSET = 0.0123     # added to every target, so that none falls on an exact eigenvalue (lambda = 0, theta = 0)
 DEFAULT_BOX = (-0.3, 0.9)  # Re lambda searched: contains the exponents of the most unstable branch waves
+
+
+def real_pencil(wave, theta):
+    """The theta pencil of ``wave`` as real CSR matrices (realified unless theta is 0 or pi), its size n (the complex
+    problem's) and whether it is real."""
+    real, mats = real_sector(theta), wave.pencil(theta)
+    return ([sp.csr_matrix(A.real) if np.iscomplexobj(A.data) else A for A in mats] if real else
+            [realified(A) for A in mats]), mats[0].shape[0], real
 
 
 def sector_side(vectors, n):
@@ -72,7 +80,7 @@ def band_members(lam, side, theta, q, spread_limit):
     mask = np.zeros(len(lam), dtype=bool)
     spread, separation = 0.0, math.inf
     groups = [(0.0, np.ones(len(lam), dtype=bool), 4)] if abs(math.sin(theta / 2)) < 1e-14 else \
-        [(s, side == s, 2) for s in ((1.0,) if real_theta(theta) else (1.0, -1.0))]
+        [(s, side == s, 2) for s in ((1.0,) if real_sector(theta) else (1.0, -1.0))]
     for s, on_side, count in groups:
         lam_b = -1j * s * theta / q
         if abs(lam_b.imag) > WINDOW_IM:
@@ -97,13 +105,7 @@ def sector_window(wave, theta, solver, box=DEFAULT_BOX, max_nev=192):
         raise ParameterError("box", box, "must be an interval (low, high) of Re lambda")
     centre = 0.5 * (box[0] + box[1]) + TARGET_OFFSET
     need = 1.05 * math.hypot(0.5 * (box[1] - box[0]) + TARGET_OFFSET, WINDOW_IM)
-    real = real_theta(theta)
-    mats = wave.pencil(theta)
-    n = mats[0].shape[0]
-    if real:
-        mats = [sp.csr_matrix(A.real) if np.iscomplexobj(A.data) else A for A in mats]
-    else:
-        mats = [realified(A) for A in mats]
+    mats, n, real = real_pencil(wave, theta)
     nev, seconds = solver.nev * (1 if real else 2), 0.0
     while True:
         res = solver.solve(mats, math.exp(centre * wave.h), nev, want_vectors=not real)
@@ -164,11 +166,7 @@ def tracked_exponent(wave, theta, guess, solver, nev=12):
     nev nearest cover |Im lambda| <= 1.5, about two eigenvalues per unit of Im lambda): Richardson sequences."""
     if not np.isfinite(guess):
         raise ParameterError("guess", guess, "the eigenvalue to track must be a finite complex number")
-    real = real_theta(theta)
-    mats = wave.pencil(theta)
-    n = mats[0].shape[0]
-    mats = [sp.csr_matrix(A.real) if np.iscomplexobj(A.data) else A for A in mats] if real else \
-        [realified(A) for A in mats]
+    mats, n, real = real_pencil(wave, theta)
     res = solver.solve(mats, math.exp((guess.real + TARGET_OFFSET) * wave.h), nev if real else 2 * nev,
                        want_vectors=not real)
     lam = np.log(res.z.astype(complex)) / wave.h

@@ -1,6 +1,5 @@
-"""The point spectrum of the compacton window map G (:mod:`hertzpetsc.compacton_window`): the Jordan block at 1 and
-the dominant multipliers by SLEPc on a weighted shell (paper section 3.3 and the Discussion's question on the spectral
-stability of isolated compactons).
+"""The point spectrum of the compacton window map G (:mod:`hertzpetsc.compacton_window`; section 3.3 and the
+Discussion): the Jordan block at 1 and the dominant multipliers by SLEPc on a weighted shell.
 
 V''(r) vanishes exactly for r >= 0, so a bead whose bonds stay open during the period is in exact free flight;
 ordering the window as (front buffer, core, rear buffer), D_Y G is exactly block lower-triangular with nilpotent
@@ -10,8 +9,7 @@ essential spectrum is the disk |mu| <= exp(-eta) and the rest is spec(core). Kry
 EPS prefix ``cstab_``) is run on the weighted operator W D_Y G W^-1, W = diag(exp(eta (j - j_ref))), whose transport
 part has norm exp(-eta): without the weight the nilpotent blocks' pseudospectrum fills a disk of radius
 ~ tol^(1/L) and SLEPc accepts spurious multipliers. The multiplier 1 is a Jordan block (translation v1 = the vector
-field; speed direction v2, (J - 1) v2 = v1): only the pair's mean is accurate, its split is ~ sqrt(integration
-error).
+field, (J - 1) v2 = v1): only the pair's mean is accurate, its split is ~ sqrt(integration error).
 """
 import math
 import time

@@ -12,11 +12,9 @@ A window of M beads (j = 0 the rearmost, free ends) and the one-bead shift defin
 
 and an exact compacton of gap Delta is a fixed point of G, provided the window holds every bond that closes
 during a period plus a resting bead on each side (the free ends then never carry a force). The fixed points form
-a curve (the sub-bead phase), so :class:`CompactonRefiner` adds a phase condition; q is imposed through the
-paper's D / Delta = 2 pi / q, i.e. q y_0 = 2 pi Delta, with Delta an unknown (Delta = 0: the solitary wave,
-eq. adr, with the q condition dropped). The refiner is the package's Gauss-Newton engine
-(:mod:`hertzpetsc.gauss_newton`) on these rows, and the compactons' continuation problem in q for the one
-continuation layer (:mod:`hertzpetsc.continuation`). Their spectrum: :mod:`hertzpetsc.compacton_spectrum`.
+a curve (the sub-bead phase): :class:`CompactonRefiner` adds a phase condition and imposes q by the paper's
+D / Delta = 2 pi / q, i.e. q y_0 = 2 pi Delta (Delta = 0: the solitary wave, eq. adr). Their spectrum:
+:mod:`hertzpetsc.compacton_spectrum`.
 
 Flows use the TS prefix ``cwin_`` (``-cwin_ts_*``). States are (M, 2) arrays (y_j, ydot_j), flattened
 bead-major (index 2 j + component) for matrices.
@@ -241,8 +239,8 @@ class ExactCompacton:
 
 
 class WindowFixedPoint:
-    """The rows [G(Y) - Y; psi . (Y - Y_ref); q y_0 - 2 pi Delta] (the last one unless the gap is fixed) in the
-    unknowns z = (Y, Delta) or Y, for the Gauss-Newton engine; measure max|rows| / max|Y|."""
+    """The rows [G(Y) - Y; psi . (Y - Y_ref); q y_0 - 2 pi Delta] (the last one unless the gap is fixed: q = 0 or
+    ``fix_gap``) in z = (Y, Delta) or Y, psi the vector field at the start; measure max|R| / max|Y|."""
 
     def __init__(self, window, Y, gap, q, fix_gap):
         self.window, self.q, self.gap, self.fix_gap, self.n = window, float(q), float(gap), fix_gap, window.dim
@@ -272,15 +270,11 @@ class WindowFixedPoint:
 
 
 class CompactonRefiner(ContinuationProblem):
-    """Exact compactons of a window: Gauss-Newton (:class:`~hertzpetsc.gauss_newton.GaussNewton`, plain least squares
-    on rank 0, a fresh Jacobian at every iterate) on R(Y, Delta) = [G(Y) - Y; psi . (Y - Y_ref); q y_0 - 2 pi Delta]
-    (2M + 2 equations, 2M + 1 unknowns; consistent because of the Jordan block at 1), psi the vector field at the
-    start (the translation direction). ``q = 0`` or ``fix_gap``: Delta fixed. ``tol``: the target max|R| / max|Y|;
-    ``residual_tol``: the largest max|G(Y) - Y| accepted.
-
-    The continuation problem in q (:class:`~hertzpetsc.continuation.ContinuationProblem`, natural continuation): the
-    extended vector is Z = (Y, Delta, q) (:meth:`pack`), :meth:`solve` refines at the q of Z from its (Y, Delta),
-    and each point's report holds its :class:`ExactCompacton`."""
+    """Exact compactons of a window: Gauss-Newton (:class:`~hertzpetsc.gauss_newton.GaussNewton`, plain least squares,
+    a fresh Jacobian at every iterate) on the rows of :class:`WindowFixedPoint` (consistent because of the Jordan block
+    at 1); ``tol``: the target max|R| / max|Y|, ``residual_tol``: the largest max|G(Y) - Y| accepted. Also the
+    continuation problem in q (natural): Z = (Y, Delta, q) (:meth:`pack`), :meth:`solve` refines at the q of Z from its
+    (Y, Delta), each point reports its :class:`ExactCompacton`."""
 
     parameter = "q"
 

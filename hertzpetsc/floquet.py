@@ -4,16 +4,13 @@ F_q = S R(script-T(q); 0) around X^(q)(t); on N beads with q = 2 pi m / N, F_q^N
 rho(Phi_q) = rho(F_q)^(N/m) and the wave is unstable iff rho(F_q) > 1. F_q is symplectic (eigenvalues in
 quadruplets lambda, 1/lambda, conj), so rho(F_q) >= 1.
 
-Every route is a :class:`FloquetSolver` with one call signature (BifurcationKit's Floquet.jl shape, the route
-chosen by the object): ``solver.spectrum(orbit, tol_rho=None, nev=None)`` returns a :class:`Spectrum`, whose
-multipliers are sorted by decreasing modulus in one place (:meth:`Spectrum.__post_init__`; nev: the nev largest).
-The routes: :class:`DenseFloquet` (all 2N, LAPACK's dgeev on the assembled F_q, as the paper; N up to a few hundred),
-:class:`DominantFloquet` (SLEPc Krylov-Schur, largest magnitude, on the matrix-free shell), and beyond this module
-:class:`hertzpetsc.bloch.SymmetricFloquet` (all 2N from the Bloch sectors of the wave's cell over its shortest time
-symmetry, any chain length N = L M) and :class:`hertzpetsc.slow.DeflatedSectors` (twisted cells with the symmetry
-multipliers deflated). Translation and time shift give multipliers at 1 with Jordan partners (Galilean boost,
-amplitude): four trivial multipliers, which an orbit that is off by epsilon splits by about sqrt(epsilon);
-:func:`trivial_multipliers` identifies them in a complete spectrum (a deflated route knows its own).
+Every route is a :class:`FloquetSolver` with one call signature, chosen by object (the shape of BifurcationKit's
+Floquet.jl): ``solver.spectrum(orbit, tol_rho=None, nev=None)`` returns a :class:`Spectrum`, sorted by decreasing
+modulus in one place. Routes: :class:`DenseFloquet` (all 2N by LAPACK, as the paper), :class:`DominantFloquet`
+(SLEPc Krylov-Schur, largest magnitude, matrix-free), :class:`hertzpetsc.bloch.SymmetricFloquet` (all 2N from the
+Bloch sectors of the wave's cell, any N = L M) and :class:`hertzpetsc.slow.DeflatedSectors` (symmetry multipliers
+deflated). Translation and time shift give four trivial multipliers at 1 (Jordan blocks), which an orbit off by
+epsilon splits by about sqrt(epsilon): :func:`trivial_multipliers` identifies them (a deflated route knows its own).
 
 Options: the prefix ``floquet_`` holds the flow of the variational equations (``-floquet_ts_rtol`` ...) and the
 eigensolver (``-floquet_eps_nev`` ...).
@@ -58,15 +55,10 @@ def spectral_radius(lam, exclude_trivial=True):
 
 @dataclass
 class Spectrum:
-    """Multipliers of F_q, sorted by decreasing modulus on construction, with the trivial ones identified, and the
-    verdict.
-
-    ``complete``: all 2N multipliers or only the dominant ones; ``known``: a mask of multipliers known to be
-    symmetry multipliers (deflated routes), else the trivial ones are the four nearest 1 of a complete spectrum
-    (none in an incomplete one); they are left out of rho. ``sector``: the Bloch sector l of each multiplier (Bloch
-    routes; theta_l = 2 pi l / ``L``, ``M`` the cell's beads), ``modes``: (mu, l, cell eigenvector) of the dominant
-    ones when asked; ``work``: what the route did (runs, columns, products, iterations, wall_time ...).
-    """
+    """Multipliers of F_q, sorted by decreasing modulus on construction, the trivial ones identified (``known``: a
+    mask of deflated symmetry multipliers; else the four nearest 1 of a ``complete`` spectrum) and left out of rho,
+    and the verdict. Bloch routes: ``sector`` l of each multiplier (theta_l = 2 pi l / L, M the cell's beads),
+    ``modes`` (mu, l, cell eigenvector) of the dominant ones. ``work``: runs, columns, products, wall_time ..."""
 
     multipliers: np.ndarray
     complete: bool
@@ -108,10 +100,6 @@ class Spectrum:
     def outside(self):
         """Multipliers with |mu| > 1 + tol_rho."""
         return int(np.sum(np.abs(self.multipliers) > 1 + self.tol_rho))
-
-    @property
-    def unstable(self):
-        return self.rho - 1 > self.tol_rho
 
     def growth(self, T):
         """ln(rho) / script-T, the growth per unit time of the most unstable mode."""
@@ -170,9 +158,8 @@ class DominantFloquet(FloquetSolver):
     (prefix ``floquet_``: -floquet_eps_nev, -floquet_eps_ncv, -floquet_eps_tol, -floquet_eps_type ...) are
     configured once.
 
-    ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N; clustered multipliers on the unit
-    circle need a generous subspace: the default ncv converged nothing); ``tol``: relative tolerance; ``warm``: start
-    each solve from the previous one's eigenvectors (a scan in q); :meth:`start_from` gives the next solve's start.
+    ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N: clustered multipliers on the unit circle
+    need it); ``tol``: relative tolerance; ``warm``: start from the previous solve's eigenvectors (a scan in q).
     """
 
     def __init__(self, spec, comm, nev=10, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, ncv=None,

@@ -2,13 +2,11 @@
 chain (section 3.4, :class:`hertzpetsc.shooting.Refiner`) and exact compactons on the travelling window (section
 3.3, :class:`hertzpetsc.compacton_window.CompactonRefiner`).
 
-A problem gives its residual rows R(z) -- the map's defect and any condition rows (a phase, the gap) -- with a scalar
-measure E(z), and their Jacobian A = dR/dz with an orthonormal basis Q of the admissible steps (phase conditions
-imposed by projection, e.g. off the translation and time-shift directions; None: every direction). A step d = Q c
-minimises ||A Q c + R|| through the SVD of A Q truncated at the relative levels ``truncations`` (0: plain least
-squares); the first level whose step reduces E tenfold is taken, else the best one. The dense algebra is done on rank
-0 and broadcast, so every rank applies the same step. A step that does not reduce E is refused: a stale Jacobian
-(``reuse_jacobian``: kept across iterations, as in the paper, and re-evaluated when a step falls short of a tenfold
+A problem gives its rows R(z) (the map's defect, condition rows: a phase, the gap) with a measure E(z), and their
+Jacobian A with an orthonormal basis Q of the admissible steps (phase conditions by projection; None: all). A step
+d = Q c minimises ||A Q c + R|| by the SVD of A Q truncated at the relative levels ``truncations`` (0: plain least
+squares), on rank 0 and broadcast: the first level that reduces E tenfold, else the best. A step that does not reduce
+E is refused: a stale Jacobian (``reuse_jacobian``, as in the paper; re-evaluated when a step falls short of a tenfold
 reduction) is then re-evaluated, a fresh one ends the iteration (the flow's floor).
 """
 import math
@@ -22,9 +20,8 @@ TRUNCATIONS = (0.0, 1e-9, 1e-7, 1e-5, 1e-3)
 
 @dataclass
 class GaussNewtonResult:
-    """The last iterate z, its rows R and measure E, the accepted steps, the Jacobians evaluated, the relative size
-    of the last step max|dz| / max|z| (the paper's r), the smallest singular value of A Q at the last fresh
-    Jacobian, and E after each accepted step (the start first)."""
+    """The last iterate z, its rows and E, accepted steps, Jacobians, the last step's max|dz| / max|z| (the paper's
+    r), the smallest singular value of A Q at the last fresh Jacobian, and E after each step (the start first)."""
 
     z: np.ndarray
     rows: np.ndarray

@@ -2,21 +2,16 @@
 
     E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf,     script-T(q) = q ||u||_inf^((alpha-1)/2)  (eq. invv)
 
-The refinement solves G(X0) = S^k X(delta; X0) - X0 = 0 by Gauss-Newton with the Jacobian S^k R(delta; 0) - I
-from :class:`~hertzpetsc.tangent.TangentFlow`. By default (``symmetric``) it does so on the wave's cell of
-M = N / gcd(m, N) beads with the wave's shortest time symmetry, k beads in delta = script-T / m' (see
-:mod:`hertzpetsc.symmetry`): the refined cell, repeated, is a travelling wave on the N beads with exactly the
-wave's periodicity, at about (M / N)^2 / m' of the cost; E(q) is then measured on the N beads over script-T. With
-``symmetric=False`` it solves the paper's S X(script-T) = X(0) on the N beads.
+The refinement solves S^k X(delta; X0) = X0 by the package's Gauss-Newton engine (:mod:`hertzpetsc.gauss_newton`)
+with the Jacobian S^k R(delta; 0) - I (:class:`~hertzpetsc.tangent.TangentFlow`). By default (``symmetric``) on the
+wave's cell over its shortest time symmetry (:mod:`hertzpetsc.symmetry`, any mass pattern): the refined cell,
+repeated, is a travelling wave with exactly the wave's periodicity, at about (M / N)^2 / m' of the cost; else the
+paper's S X(script-T) = X(0) on the N beads. E(q) is measured on the N beads over script-T.
 
-The Jacobian is singular at a travelling wave: translation x_n -> x_n + c and time translation (direction f(X0))
-are exact symmetries, and slow modes (multipliers near 1) make it nearly singular in a few more directions, with
-singular values as small as the residual itself. Steps are therefore restricted to the orthogonal complement of
-the two symmetry directions (phase conditions, basis Q) and computed by the package's Gauss-Newton engine
-(:mod:`hertzpetsc.gauss_newton`: SVD of J Q truncated at the levels it tries in turn, on rank 0 and broadcast; the
-Jacobian kept across iterations as in the paper). The Jacobian is computed with a looser flow (prefix
-``shoot_jac_``, rtol 1e-10) than the residual (``shoot_``, rtol 1e-14): an error of 1e-10 in J changes a step of
-size r by 1e-10 r.
+The Jacobian is singular at a travelling wave (translation, time shift f(X0)) and nearly singular along slow modes:
+steps lie in the orthogonal complement of the two symmetry directions (phase conditions) and come from the engine's
+truncated SVD. The Jacobian's flow is looser (prefix ``shoot_jac_``, rtol 1e-10) than the residual's (``shoot_``,
+rtol 1e-14): an error of 1e-10 in J changes a step of size r by 1e-10 r.
 
 Options: the refinement's flows and Gauss-Newton live under the prefix ``shoot_`` (``-shoot_ts_rtol``, ...,
 ``-shoot_gn_max_it``), its Jacobian's flow under ``shoot_jac_``; E(q) measured with the paper's flow uses the

@@ -1,10 +1,9 @@
 """The monodromy route to slow instabilities on the infinite chain: Bloch sectors of the wave's cell with the
 symmetry multipliers deflated exactly (section 3.5 beyond the paper; eqs. nc, twper, invv).
 
-A refined wave on N beads (q = 2 pi m / N) has a cell of M = N / gcd(m, N) beads with m' wavelengths; for any twist
-Theta (y_{n+M} = e^{i Theta} y_n, i.e. any Bloch parameter of the infinite chain) the map of the cell over the
-short time symmetry G_Theta = S^k R(script-T / m') (:class:`hertzpetsc.bloch.BlochSectors`) gives the sector's block
-of F_q, P_Theta = e^{-i j Theta} G_Theta^{m'} (:mod:`hertzpetsc.symmetry`).
+For any twist Theta of the refined wave's cell (y_{n+M} = e^{i Theta} y_n: any Bloch parameter of the infinite chain)
+the cell's short map G_Theta (:class:`hertzpetsc.bloch.BlochSectors`) gives F_q's block P_Theta = e^{-i j Theta}
+G_Theta^{m'} (:mod:`hertzpetsc.symmetry`).
 
 Known multipliers at mu = 1, with their eigenvectors from the orbit itself (no profile, no fit):
 
@@ -15,11 +14,9 @@ Known multipliers at mu = 1, with their eigenvectors from the orbit itself (no p
   (least squares over the zones, :func:`zone_modes`);
 * at Theta = 0 also the uniform translation (1, 0) and its Jordan partner, the Galilean boost (0, 1) / script-T.
 
-Each zone mode has a Jordan partner (P - I) w = z, which is not known in closed form; it is computed as the
-minimum-norm least-squares solution. The deflation then splits P_Theta in the orthonormal basis [U, U_perp] of
-span{z, w} and its complement: the multipliers that are not symmetry multipliers are those of
-U_perp^H P U_perp, and the block U^H P U holds the symmetry cluster (exactly 1 for an exact orbit: its distance
-from 1 and the invariance residual ||P U - U U^H P U|| measure how exact the orbit and the flow are).
+Each zone mode's Jordan partner (P - I) w = z is the minimum-norm least-squares solution. In the orthonormal basis
+[U, U_perp] of span{z, w} and its complement, U_perp^H P U_perp holds the other multipliers and U^H P U the symmetry
+cluster (exactly 1 for an exact orbit: its distance from 1 and ||P U - U U^H P U|| measure the orbit and the flow).
 """
 import math
 import time

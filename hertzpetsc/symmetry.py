@@ -6,19 +6,15 @@ F_q = S R(script-T; 0) (S: the shift by one cell, script-T = p q / omega) leaves
 
 * **space**: with g = gcd(m, N / p) the wave repeats every M = N / g beads (M / p cells), so F_q commutes with the
   shift by M beads and splits into g Bloch sectors theta_l = 2 pi l / g of the M-bead cell (:mod:`hertzpetsc.bloch`);
-* **time**: on the cell the wave has m' = m / g wavelengths, coprime with its M / p cells. With k the inverse of m'
-  modulo M / p (k m' = 1 + j M / p), the wave is invariant under the shift by k cells combined with the time
-  delta = script-T / m': x_{n+kp}(t + delta) = x_n(t), because p q k - omega delta = p q (k - 1 / m') = 2 pi j. So
-  G_theta = S_theta^k R_theta(delta; 0) (the k-cell shift on the twisted cell, y_{n+M} = e^{i theta} y_n) has
-  G_theta^{m'} = S_theta^{1 + j M / p} R_theta(script-T; 0) = e^{i j theta} F_theta, and
+* **time**: on the cell the wave has m' = m / g wavelengths, coprime with its M / p cells. With k m' = 1 + j M / p,
+  x_{n+kp}(t + delta) = x_n(t) for delta = script-T / m' (p q k - omega delta = 2 pi j). So G_theta =
+  S_theta^k R_theta(delta; 0) on the twisted cell (y_{n+M} = e^{i theta} y_n) has G_theta^{m'} = e^{i j theta} F_theta:
 
-      spec(F_q on N beads) = union over l of { e^{-i j theta_l} mu^{m'} : mu in spec(G_theta_l) }.
+      spec(F_q on N beads) = union over l of { e^{-i j theta_l} mu^{m'} : mu in spec(G_theta_l) },
 
-A multiplier of F_q therefore costs an integration over script-T / m' of 2M tangent columns on M beads instead of
-script-T with 2N columns on N beads: about m times less work. The refinement uses the same map: a travelling wave is
-a fixed point of X0 -> S^k X(delta; X0) on the cell, which also enforces the wave's exact periodicity in time (a fixed
-point of the paper's map over script-T may drift along the near-degenerate directions that move the m compression
-zones apart).
+at about 1 / m of the work of F_q on the N beads. A travelling wave is a fixed point of X0 -> S^k X(delta; X0) on the
+cell, which also enforces its exact periodicity in time (a fixed point of the paper's map over script-T may drift
+along the near-degenerate directions that move the m compression zones apart).
 """
 import math
 from dataclasses import dataclass
@@ -81,3 +77,8 @@ class WaveSymmetry:
         real = sum(1 for th in self.sectors() if th in (0.0, math.pi))
         complex_ = len(self.sectors()) - real
         return (real + 2 * complex_) * (self.M / self.N) ** 2 / self.m_cell
+
+
+def real_sector(theta):
+    """theta = 0 or pi (mod 2 pi): the twist e^{i theta} = +-1 is real (real tangents, real pencils suffice)."""
+    return abs(math.sin(theta)) < 1e-14

@@ -6,9 +6,8 @@ positions q n are generally not grid points of the profiles: u_c and u_c' there 
 interpolant (:func:`hertzpetsc.stencil.lagrange_periodic`), whose error is below the profiles' own O(h^2)
 discretisation error.
 
-An :class:`Orbit` is what the chain-side analyses take: the chain, the initial state, the wavenumber and the time
-script-T after which S X(script-T) = X(0) (eq. invv), and where the state came from (the interpolated branch
-profile, or a Gauss-Newton refinement of it).
+An :class:`Orbit` is what the chain-side analyses take: the chain, the initial state, the wavenumber, script-T with
+S X(script-T) = X(0) (eq. invv), and the state's source (the branch profile, or its refinement).
 """
 import math
 from dataclasses import dataclass, replace
@@ -33,11 +32,6 @@ class Orbit:
     x: np.ndarray         # (N, 2) initial state
     omega: float          # frequency (the paper's chain: a^((alpha-1)/2))
     source: str = "branch"
-
-    @property
-    def period(self):
-        """Time period tau(q) = 2 pi / omega = (N / (p m)) script-T of every bead (section 3.5)."""
-        return 2 * math.pi / self.omega
 
     @property
     def N(self):

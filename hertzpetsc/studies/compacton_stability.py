@@ -126,14 +126,8 @@ class CompactonStabilityScan:
 
     def _previous(self, alpha, i):
         """The ExactCompactons of the (up to two) preceding q of this alpha, from the records."""
-        seq = self.sequences[alpha]
         byq = {_key(r["alpha"], r["q"]): r for r in self.store.records}
-        out = []
-        for q in seq[max(0, i - 2):i]:
-            r = byq[_key(alpha, q)]
-            out.append(ExactCompacton(float(r["q"]), float(r["gap"]), np.array(r["state"]), float(r["residual"]),
-                                      int(r["iterations"])))
-        return out
+        return [exact_compacton(byq[_key(alpha, q)]) for q in self.sequences[alpha][max(0, i - 2):i]]
 
     def compute(self, item):
         """The record of (alpha, index in its sequence)."""
@@ -280,9 +274,8 @@ def q_text(q):
 
 
 def continue_compacton(refiner, previous, q):
-    """The exact compacton at q by natural continuation (:mod:`hertzpetsc.continuation`: secant predictor through
-    the last two ExactCompactons ``previous``, or one; the step halved if the refinement fails). The window's
-    fixed points are pinned by the phase condition, not near another branch: the corrector may move far."""
+    """The exact compacton at q by natural continuation (:mod:`hertzpetsc.continuation`) from the last two
+    ExactCompactons ``previous`` (or one); pinned by the phase condition, so the corrector may move far."""
     cont = Continuation(refiner, Natural(max_corrector=math.inf))
     seeds = [refiner.pack(e) for e in previous[-2:]]
     try:

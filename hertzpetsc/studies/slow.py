@@ -100,6 +100,24 @@ def whitham_slope(point, comm, rel_step=0.01):
     return math.sqrt(-disc) / (beta * (beta - 1) * I[2]) if disc < 0 else 0.0
 
 
+def monodromy_fields(sectors, refiner, orbit, E):
+    """The mono fields of a record: the deflated sectors (:class:`~hertzpetsc.slow.DeflatedSectors`) of ``orbit``,
+    its E over script-T and the E of its cell's short map (the ``refiner``'s flow)."""
+    best, raw, clus, eig, inv = None, 0.0, 0.0, 0.0, 0.0
+    for s in sectors.spectrum(orbit).work["sectors"]:
+        g = math.log(s.rho) / orbit.T
+        if best is None or g > best[0]:
+            best = (g, s.theta)
+        raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
+        clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
+        eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
+    sym = orbit.symmetry
+    x0 = orbit.x[:sym.M]
+    return dict(twist_mono=best[1], gamma_mono=best[0], raw_cluster_mono=raw, cluster_mono=clus, eigvec_mono=eig,
+                invariance_mono=inv, E_orbit=E, E_short=relative_residual(x0, refiner.shift_map(sym.M)(
+                    x0, sym.delta(orbit.T), sym.k)))
+
+
 class SlowInstabilityScan:
     """gamma(q) above q_c by the co-moving and the monodromy routes (module docstring), written as it goes.
 
@@ -173,8 +191,8 @@ class SlowInstabilityScan:
                     slope_cm=slope)
 
     def refine(self, point):
-        """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T, E of the short
-        map). Starts from the refinement file's state when it has this q."""
+        """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T). Starts from the
+        refinement file's state when it has this q."""
         orbit = orbit_on_chain(point, self.spec)
         if self.refined is not None and self.refined.has(point.q):
             orbit = self.refined.orbit(point, self.spec)
@@ -187,10 +205,7 @@ class SlowInstabilityScan:
                 refined, E = self._refined(orbit, 10 * self.refine_tol)
             except ConvergenceError:
                 refined, E = orbit, self.refiner.residual(orbit)
-        sym = orbit.symmetry
-        smap = self.refiner.shift_map(sym.M)
-        x0 = refined.x[:sym.M]
-        return refined, E, relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
+        return refined, E
 
     def _refined(self, orbit, tol):
         self.refiner.tol = tol
@@ -202,17 +217,7 @@ class SlowInstabilityScan:
 
     def monodromy(self, point):
         """The monodromy route at a chain wavenumber: dict of the mono fields."""
-        orbit, E, E_short = self.refine(point)
-        best, raw, clus, eig, inv = None, 0.0, 0.0, 0.0, 0.0
-        for s in self.sectors.spectrum(orbit).work["sectors"]:
-            g = math.log(s.rho) / orbit.T
-            if best is None or g > best[0]:
-                best = (g, s.theta)
-            raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
-            clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
-            eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
-        return dict(twist_mono=best[1], gamma_mono=best[0], raw_cluster_mono=raw, cluster_mono=clus,
-                    eigvec_mono=eig, invariance_mono=inv, E_orbit=E, E_short=E_short)
+        return monodromy_fields(self.sectors, self.refiner, *self.refine(point))
 
     def verdict(self, row):
         """(resolution, verdict): slowly unstable when the co-moving gamma exceeds the target on every grid and the
@@ -360,20 +365,12 @@ def orbit_convergence(branch, qs, N, refined, settings, comm=PETSc.COMM_SELF, n_
             sectors = DeflatedSectors(branch.model, comm, tolerances, twists=np.linspace(0.0, math.pi, n_twist))
             try:
                 orbit = refiner.refine(start).orbit if tol else start
-                sym = orbit.symmetry
-                smap = refiner.shift_map(sym.M)
-                x0 = orbit.x[:sym.M]
-                E, E_short = refiner.residual(orbit), relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
-                raw, gamma, eig = 0.0, -math.inf, 0.0
-                for s in sectors.spectrum(orbit).work["sectors"]:
-                    raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
-                    gamma = max(gamma, math.log(s.rho) / orbit.T)
-                    eig = max(eig, s.eigenvector_residual)
+                f = monodromy_fields(sectors, refiner, orbit, refiner.residual(orbit))
             finally:
                 refiner.destroy()
                 sectors.destroy()
-            rows.append(dict(q=point.q, m=orbit.m, label=label, rtol=rtol, E=E, E_short=E_short, raw=raw,
-                             gamma=gamma, eig=eig))
+            rows.append(dict(q=point.q, m=orbit.m, label=label, rtol=rtol, E=f["E_orbit"], E_short=f["E_short"],
+                             raw=f["raw_cluster_mono"], gamma=f["gamma_mono"], eig=f["eigvec_mono"]))
     return rows
 
 

@@ -454,6 +454,11 @@ def guarded_main(main):
     except KeyboardInterrupt:
         _exit(130, "interrupted", False)
     except Terminated as err:
+        if PETSc.COMM_WORLD.getSize() > 1:
+            # under mpiexec the signal is either the user's, forwarded to every rank, or mpiexec ending the ranks
+            # of a job that another rank aborted after printing its error: end quietly (the finally blocks ran)
+            sys.stdout.flush()
+            os._exit(128 + err.signum)
         _exit(128 + err.signum, f"terminated by {signal.Signals(err.signum).name}", False)
     except Exception as err:
         if os.environ.get("HZ_TRACEBACK"):       # for developers: the full traceback instead of one line

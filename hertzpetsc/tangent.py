@@ -28,26 +28,34 @@ def split_tangents(z, k):
 
 
 class TangentFlow:
-    """Flow and tangent-linear flow of a chain over [0, T], with k tangent vectors at a time; its TS has the
-    options prefix of the role it serves (``shoot_`` for the refinement, ``floquet_`` for the spectra)."""
+    """Flow and tangent-linear flow of a chain over [0, T], with k >= 0 tangent vectors at a time; its TS has the
+    options prefix of the role it serves (``shoot_`` for the refinement, ``floquet_`` for the spectra, ``cwin_`` for
+    the compacton window, whose ``chain`` class is its gap-lattice chain) and the Runge-Kutta pair ``rk_type``."""
 
-    def __init__(self, spec, n_tangent, comm, tolerances, prefix):
+    def __init__(self, spec, n_tangent, comm, tolerances, prefix, chain=Chain, rk_type="8vr"):
         self.spec = spec
         self.k = int(n_tangent)
-        self.aug = Chain(spec, comm, n_tangent=self.k)
+        self.aug = chain(spec, comm, n_tangent=self.k)
         self.base = Chain(spec, comm)                  # same N and comm: same ownership ranges
-        self.integrator = ChainIntegrator(self.aug, tolerances, prefix)
+        self.integrator = ChainIntegrator(self.aug, tolerances, prefix, rk_type)
         self.Z = self.aug.create_state()
 
-    def run(self, x0, T, Y0):
-        """Integrate from the state ``x0`` (N, 2) and tangent columns ``Y0`` (N, 2, k), both given on every rank.
+    def run(self, x0, T, Y0, monitor=None):
+        """Integrate from the state ``x0`` (N, 2) and tangent columns ``Y0`` (N, 2, k), both given on every rank;
+        ``monitor(chain, X)`` is called at every step.
 
         Returns (X(T) as (N, 2), R(T; 0) Y0 as (N, 2, k)) on every rank.
         """
-        N, k = self.spec.N, self.k
+        N, k, ts = self.spec.N, self.k, self.integrator.ts
         self.aug.set_from_array(self.Z, stack_tangents(np.asarray(x0, float).reshape(N, 2),
                                                        np.asarray(Y0, float).reshape(N, 2, k)))
-        self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)
+        if monitor is not None:
+            ts.setMonitor(lambda ts, i, t, X: monitor(self.aug, X))
+        try:
+            self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)
+        finally:
+            if monitor is not None:
+                ts.cancelMonitor()
         return split_tangents(self.aug.gather(self.Z), k)
 
     def resolvent(self, x0, T):

@@ -57,13 +57,14 @@ def petsc_worker(branch_path, N, refine_only, petsc_args):
     from petsc4py import PETSc
 
     from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
-    from hertzpetsc.shooting import refine
+    from hertzpetsc.shooting import Refiner
     w = initial(branch_path, N)
     comm = MPI.COMM_WORLD
     if refine_only:
         comm.Barrier()
         t0 = time.perf_counter()
-        res = refine(w, PETSc.COMM_WORLD)
+        with Refiner(w.spec, PETSc.COMM_WORLD) as refiner:
+            res = refiner.refine(w)
         emit(comm, wall=time.perf_counter() - t0, steps=res.iterations, rhs=res.jacobians, E=res.E)
         return
     chain = Chain(w.spec, PETSc.COMM_WORLD)

@@ -81,9 +81,10 @@ def petsc_worker(name, branch_path, refined_path, N, petsc_args):
     from mpi4py import MPI
     from petsc4py import PETSc
 
-    from hertzpetsc.bloch import bloch_multipliers, bloch_residuals, real_pairs, seeded_dominant_multipliers
+    from hertzpetsc.bloch import bloch_residuals, real_pairs, seeded_dominant_multipliers
     from hertzpetsc.chain import IntegrationTolerances
-    from hertzpetsc.floquet import dense_monodromy, dense_multipliers, dominant_multipliers, spectral_radius
+    from hertzpetsc.bloch import SymmetricFloquet
+    from hertzpetsc.floquet import DenseFloquet, DominantFloquet
     cell = cell_orbit(branch_path, refined_path)
     L = N // 100
     full = cell.tiled(L)
@@ -93,20 +94,22 @@ def petsc_worker(name, branch_path, refined_path, N, petsc_args):
     comm.Barrier()
     t0 = time.perf_counter()
     if name in ("bloch", "bloch_slepc"):
-        b = bloch_multipliers(cell, N, PETSc.COMM_WORLD, tol, n_modes=10)
+        with SymmetricFloquet(cell.spec.model, PETSc.COMM_WORLD, tol, n_modes=10) as fast:
+            b = fast.spectrum(full)
         if name == "bloch_slepc":
             res = seeded_dominant_multipliers(full, b, 10, PETSc.COMM_WORLD, tol)
-            out = dict(rho=float(abs(res.values[0])), products=res.products, residual=None)
+            out = dict(rho=float(abs(res.multipliers[0])), products=res.work["products"], residual=None)
         else:
-            r, products = bloch_residuals(full, real_pairs(b.modes, L), PETSc.COMM_WORLD, tol)
-            out = dict(rho=float(abs(b.values[0])), products=products, residual=float(np.max(r)))
-        out.update(runs=b.runs, columns=b.columns)
+            r, products = bloch_residuals(full, real_pairs(b.modes, b.L), PETSc.COMM_WORLD, tol)
+            out = dict(rho=float(abs(b.multipliers[0])), products=products, residual=float(np.max(r)))
+        out.update(runs=b.work["runs"], columns=b.work["columns"])
     elif name == "petsc_dense":
-        out = dict(rho=spectral_radius(dense_multipliers(dense_monodromy(full, PETSc.COMM_WORLD, tol))),
-                   products=2 * N)
+        with DenseFloquet(full.spec, PETSc.COMM_WORLD, tol) as dense:
+            out = dict(rho=dense.spectrum(full).rho, products=2 * N)
     else:
-        res = dominant_multipliers(full, 10, PETSc.COMM_WORLD, tol)
-        out = dict(rho=float(abs(res.values[0])), products=res.products)
+        with DominantFloquet(full.spec, PETSc.COMM_WORLD, 10, tol) as dominant:
+            res = dominant.spectrum(full)
+        out = dict(rho=float(abs(res.multipliers[0])), products=res.work["products"])
     emit(comm, wall=time.perf_counter() - t0, **out)
 
 

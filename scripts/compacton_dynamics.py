@@ -33,8 +33,9 @@ from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import load_npz, prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
-from hertzpetsc.studies.compacton_stability import (STABILITY_FORMAT, CompactonDynamics,  # noqa: E402
-                                                    CompactonPairs)
+from hertzpetsc.studies.compacton_dynamics import CompactonDynamics  # noqa: E402
+from hertzpetsc.studies.compacton_pairs import CompactonPairs  # noqa: E402
+from hertzpetsc.studies.compacton_stability import STABILITY_FORMAT  # noqa: E402
 
 ROLES = {"cdyn_": ("the long free chain's TS", ("ts",)), "cwin_": ("the window flows", ("ts",))}
 

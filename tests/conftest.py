@@ -71,6 +71,20 @@ def small_branch(alpha=1.5, K=200, M=10, q_stop=math.pi / 5):
     return _branch(alpha, K, M, q_stop, PETSc.COMM_WORLD.getSize())
 
 
+def refine(orbit, comm, tol=1e-10, **kwargs):
+    """One-off Gauss-Newton refinement of ``orbit`` (hertzpetsc.shooting.Refiner)."""
+    from hertzpetsc.shooting import Refiner
+    with Refiner(orbit.spec, comm, tol, **kwargs) as refiner:
+        return refiner.refine(orbit)
+
+
+def dense_monodromy(orbit, comm, tolerances, shift=True, T=None):
+    """One-off dense S R(T; 0) (hertzpetsc.floquet.DenseFloquet)."""
+    from hertzpetsc.floquet import DenseFloquet
+    with DenseFloquet(orbit.spec, comm, tolerances) as dense:
+        return dense.monodromy(orbit, shift, T)
+
+
 def chain(N, alpha=1.5, boundary="periodic"):
     return ChainSpec(LatticeModel.hertz(alpha), N, boundary)
 

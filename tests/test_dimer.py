@@ -95,7 +95,7 @@ def test_dimer_chain_and_floquet_shift_by_one_cell():
         p = list(cont.points([1e-3, 0.05]))[-1]
     finally:
         cont.destroy()
-    orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N)
+    orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N, cont.grid.h)
     dense = DenseFloquet(ChainSpec(model, N), COMM, IntegrationTolerances(rtol=1e-11, atol=1e-13))
     try:
         spec = dense.spectrum(orbit)

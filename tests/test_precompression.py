@@ -165,7 +165,7 @@ def test_floquet_depends_on_delta0_over_A_only():
             p = list(cont.points([x * d0 for x in (0.01, 0.1, 0.5, 1.0, 1.5)] if a > 0.01 else [a]))[-1]
         finally:
             cont.destroy()
-        orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N)
+        orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N, cont.grid.h)
         dense = DenseFloquet(ChainSpec(model, N), COMM, tol)
         try:
             spectra.append(np.sort_complex(dense.spectrum(orbit).multipliers))

@@ -8,13 +8,12 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import chain, small_branch
+from conftest import chain, refine, small_branch
 from hertzpetsc.bloch import SymmetricFloquet
 from hertzpetsc.branch import Branch
 from hertzpetsc.qbranch import ContinuationError, ContinuationParameters
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.model import LatticeModel
-from hertzpetsc.shooting import refine
 from hertzpetsc.simulation import read_snapshots
 from hertzpetsc.studies.branch import BranchStudy, ConvergenceStudy
 from hertzpetsc.studies.compactons import CompactonStudy

@@ -19,14 +19,11 @@ from fractions import Fraction
 import numpy as np
 from petsc4py import PETSc
 
-from ..bloch import (SymmetricFloquet, bloch_multipliers, bloch_residuals, real_pairs, sector_solver,
-                     seeded_dominant_multipliers)
+from ..bloch import SymmetricFloquet, bloch_residuals, real_pairs, seeded_dominant_multipliers
 from ..errors import ParameterError, RecordFileError
-from ..floquet import (FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers,
-                       spectral_radius)
+from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
 from ..records import NpzRecords, check_kind, load_npz
-from ..symmetry import WaveSymmetry
 from ..waves import orbit_on_chain
 from .dealing import dealt
 from .refinement import scan_wavenumbers
@@ -109,7 +106,7 @@ class FloquetScan:
         self.spectra = {}
         self.solver = (SymmetricFloquet(branch.model, PETSc.COMM_SELF, tolerances) if method == "symmetric" else
                        DenseFloquet(self.spec, comm, tolerances) if method == "dense" else
-                       DominantFloquet(self.spec, comm, nev, tolerances))
+                       DominantFloquet(self.spec, comm, nev, tolerances, warm=True))
 
     def open(self):
         """Open the Floquet file (collective)."""
@@ -129,42 +126,24 @@ class FloquetScan:
                     growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
                     multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
 
-    def _symmetric(self, q):
+    def _spectrum(self, q):
         orbit = self.orbit(q)
         t0 = time.perf_counter()
         spec = self.solver.spectrum(orbit, self.tol_rho)
         return self._row(q, spec, orbit, time.perf_counter() - t0)
 
     def run(self):
-        """Compute the spectrum at every q not yet in the file; yields the record after saving it."""
+        """Compute the spectrum at every q not yet in the file; yields the record after saving it. The symmetric
+        route deals the q to the ranks (each on one rank); the others distribute each q over the ranks, in order
+        (the SLEPc route starts from the previous q's eigenvectors)."""
         self.open()
         done = {round(float(r["q"]), 12) for r in self.store.records}
         todo = [q for q in self.qs if round(q, 12) not in done]
-        if self.method == "symmetric":
-            costs = [WaveSymmetry(self.N, self.orbit(q).m).cost() for q in todo]
-            for q, row in dealt(todo, costs, self.comm, self._symmetric):
-                self.store.append(row)
-                yield row
-            return
-        warm = None
-        try:
-            for q in todo:
-                orbit = self.orbit(q)
-                t0 = time.perf_counter()
-                if self.method == "dense":
-                    spec = self.solver.spectrum(orbit, self.tol_rho)
-                else:
-                    res = self.solver.solve(orbit, initial_space=warm, keep_vectors=True)
-                    for v in warm or ():
-                        v.destroy()
-                    warm = res.vectors
-                    spec = Spectrum(res.values, False, self.tol_rho)
-                row = self._row(q, spec, orbit, time.perf_counter() - t0)
-                self.store.append(row)
-                yield row
-        finally:
-            for v in warm or ():
-                v.destroy()
+        rows = (dealt(todo, [self.orbit(q).symmetry.cost() for q in todo], self.comm, self._spectrum)
+                if self.method == "symmetric" else ((q, self._spectrum(q)) for q in todo))
+        for _, row in rows:
+            self.store.append(row)
+            yield row
 
     def destroy(self):
         self.solver.destroy()
@@ -254,7 +233,7 @@ class BlochScan:
                                      f"{self.M} beads (it is tiled)")
         if split not in ("sectors", "beads"):
             raise ParameterError("-split", split, "must be sectors or beads")
-        self.sectors = sector_solver(branch.model, comm, split, tolerances)
+        self.solver = SymmetricFloquet(branch.model, comm, tolerances, split=split, n_modes=nev)
         self.sizes, self.nev, self.tol_rho, self.split = list(sizes), nev, tol_rho, split
         self.slepc_sizes, self.tolerances, self.reference = set(slepc_sizes), tolerances, reference or {}
         self.orbits = [refined.orbit(branch.point(q), self.cell) for q in qs]
@@ -284,35 +263,36 @@ class BlochScan:
                 if (N, round(cell.q, 12)) in done:
                     continue
                 t0 = time.perf_counter()
-                b = bloch_multipliers(cell, N, self.comm, self.tolerances, split=self.split, n_modes=self.nev,
-                                      sectors=self.sectors)
-                t_bloch = time.perf_counter() - t0
                 full = cell.tiled(L)
+                b = self.solver.spectrum(full, self.tol_rho)
+                t_bloch = time.perf_counter() - t0
                 t0 = time.perf_counter()
                 res, res_products = bloch_residuals(full, real_pairs(b.modes, b.L), self.comm, self.tolerances)
                 t_res = time.perf_counter() - t0
                 slepc = None
                 if N in self.slepc_sizes:
                     s = seeded_dominant_multipliers(full, b, self.nev, self.comm, self.tolerances)
-                    slepc = dict(products=s.products, seconds=s.wall_time, rho=float(abs(s.values[0])),
-                                 dist=max(float(np.min(np.abs(b.values[:self.nev + 2] - v))) for v in s.values))
+                    slepc = dict(products=s.work["products"], seconds=s.work["wall_time"],
+                                 rho=float(abs(s.multipliers[0])),
+                                 dist=max(float(np.min(np.abs(b.multipliers[:self.nev + 2] - v)))
+                                          for v in s.multipliers))
                 # sector l of the wave's cell (b.M beads) is theta = 2 pi l / b.L per cell, i.e. theta_l per = l / L per
                 # refined cell of M beads: the refined cell's own spectrum is that of the sectors periodic over it
                 per = self.M // b.M
                 cell_sectors = np.isin(b.sector, [l for l in range(b.L) if (l * per) % b.L == 0])
-                row = dict(N=N, q=cell.q, rho=spectral_radius(b.values), rho_cell=spectral_radius(b.values[cell_sectors]),
-                           outside=int(np.sum(np.abs(b.values) > 1 + self.tol_rho)), residual=float(np.max(res)),
+                row = dict(N=N, q=cell.q, rho=b.rho, rho_cell=spectral_radius(b.multipliers[cell_sectors]),
+                           outside=b.outside, residual=float(np.max(res)),
                            seconds=t_bloch, slepc_products=slepc["products"] if slepc else -1,
                            slepc_seconds=slepc["seconds"] if slepc else math.nan,
                            dominant=np.array([mu for mu, _, _ in b.modes]),
                            dominant_theta=np.array([(j * per / b.L) % 1.0 for _, j, _ in b.modes]))
-                self.extra[(N, round(cell.q, 12))] = dict(m=full.m, L=L, runs=b.runs, columns=b.columns,
+                self.extra[(N, round(cell.q, 12))] = dict(m=full.m, L=L, runs=b.work["runs"], columns=b.work["columns"],
                                                            res_products=res_products, t_res=t_res, slepc=slepc)
                 self.store.append(row)
                 yield row, self.extra[(N, round(cell.q, 12))]
 
     def destroy(self):
-        self.sectors.destroy()
+        self.solver.destroy()
 
     def table(self, ranks):
         M = self.M

@@ -38,7 +38,8 @@ from ..twsolver import tw_solver
 from .base import Study
 from ..richardson import extrapolate
 from ..stencil import full_period, lagrange_periodic
-from ..waves import Orbit, check_chain_wavenumber
+from ..branch import BranchPoint
+from ..waves import check_chain_wavenumber, orbit_on_chain
 from .floquet import q_label
 
 PRECOMPRESSED_FORMAT = "hertzpetsc-precompressed-1"
@@ -443,27 +444,14 @@ def richardson_wave(model, q, a_values, K, comm):
             for (a1, w1, l1), (_, w2, l2) in zip(*sols)]
 
 
-def wave_orbit(model, q, a, profiles, lam, N):
-    """The travelling wave x_n = a w_c(q n - omega t) (c = n mod p, p the mass pattern's length; omega =
-    a^((alpha-1)/2) sqrt(lam)) on N beads of ``model`` as an :class:`~hertzpetsc.waves.Orbit` whose script-T
-    = p q / omega is the time after which the shift by one cell (p beads) maps the state back."""
-    spec = ChainSpec(model, N)
-    m = check_chain_wavenumber(q, N)
-    p = model.cell
-    if len(profiles) != p:
-        raise ParameterError("profiles", len(profiles), f"must be one per bead of the cell ({p})")
-    omega = a ** ((model.alpha - 1) / 2) * math.sqrt(lam)
-    n = np.arange(N)
-    xi = np.mod(q * n, 2 * math.pi)
-    x, v = np.empty(N), np.empty(N)
-    for c, w_half in enumerate(profiles):
-        h = math.pi / (len(w_half) - 1)
-        full = full_period(np.asarray(w_half, dtype=float))
-        beads = n % p == c
-        x[beads] = a * lagrange_periodic(full, h, xi[beads])
-        v[beads] = -a * omega * lagrange_periodic(full, h, xi[beads], derivative=True)
-    return Orbit(spec=spec, q=q, m=m, T=p * q / omega, x=np.stack([x, v], axis=1), omega=omega,
-                 source="precompressed")
+def wave_orbit(model, q, a, profiles, lam, N, h):
+    """The wave u_c = a w_c of the rescaled profiles ``profiles`` (grid step h) with omega^2 = a^(d-1) lam on N beads
+    of ``model`` (a = inf: the uncompressed limit, on the same model without precompression)."""
+    if not math.isfinite(a):
+        model, a = model.with_delta0(0.0), 1.0
+    point = BranchPoint(q, np.asarray(profiles[0]), h, model.rescaled(a), profiles=tuple(profiles),
+                        omega=math.sqrt(lam))
+    return orbit_on_chain(point, ChainSpec(model, N), scale=a)
 
 
 MAX_MAP_BEADS = 2000
@@ -529,8 +517,7 @@ class StabilityMap(Study):
 
     def _spectrum_row(self, q, a, w, lam):
         model = self.model if math.isfinite(a) else self.model.with_delta0(0.0)
-        a_orbit = a if math.isfinite(a) else 1.0
-        orbit = wave_orbit(model, q, a_orbit, w, lam, self.N)
+        orbit = wave_orbit(self.model, q, a, w, lam, self.N, math.pi / self.K)
         t0 = time.perf_counter()
         if math.isfinite(a):
             spec = self.floquet.spectrum(orbit, self.tol_rho)

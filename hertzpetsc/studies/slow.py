@@ -1,9 +1,10 @@
 """Slow instabilities above q_c on the infinite chain (the paper's closing question, section 3.5 and Discussion): the
 largest growth rate gamma(q) = max ln|mu| / script-T over all Bloch parameters, by two independent routes.
 
-* co-moving route (:mod:`hertzpetsc.comoving`, no time integration): the QEP of the linearisation in the wave's
-  frame on h = pi/K, theta in [0, pi] on a grid, the compacton band (mu = 1, split at O(h) by the scheme) identified
-  by its known location and excluded; the worst mode tracked on 2K and 4K (Richardson, order 2);
+* co-moving route (:mod:`hertzpetsc.comoving`, :mod:`~hertzpetsc.comoving_window`, no time integration): the QEP of
+  the linearisation in the wave's frame on h = pi/K, theta in [0, pi] on a grid, the compacton band (mu = 1, split
+  at O(h) by the scheme) identified by its known location and excluded; the worst mode tracked on 2K and 4K
+  (Richardson, order 2);
 * monodromy route (:mod:`hertzpetsc.slow`): the wave refined on its cell over its short time symmetry with tight
   flows, the cell's map at twists Theta in [0, pi], the symmetry multipliers (every zone's translation, and at
   Theta = 0 the uniform translation, each with its Jordan partner) deflated exactly.
@@ -46,7 +47,9 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from ..comoving import ComovingPEP, profile_on_grid, ComovingWave, sector_window, theta_scan, tracked_exponent
+from ..comoving import ComovingWave, profile_on_grid
+from ..comoving_pep import ComovingPEP
+from ..comoving_window import sector_window, theta_scan, tracked_exponent
 from ..errors import ConvergenceError, ParameterError
 from ..chain import IntegrationTolerances
 from ..model import ChainSpec
@@ -97,6 +100,24 @@ def whitham_slope(point, comm, rel_step=0.01):
     return math.sqrt(-disc) / (beta * (beta - 1) * I[2]) if disc < 0 else 0.0
 
 
+def monodromy_fields(sectors, refiner, orbit, E):
+    """The mono fields of a record: the deflated sectors (:class:`~hertzpetsc.slow.DeflatedSectors`) of ``orbit``,
+    its E over script-T and the E of its cell's short map (the ``refiner``'s flow)."""
+    best, raw, clus, eig, inv = None, 0.0, 0.0, 0.0, 0.0
+    for s in sectors.spectrum(orbit).work["sectors"]:
+        g = math.log(s.rho) / orbit.T
+        if best is None or g > best[0]:
+            best = (g, s.theta)
+        raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
+        clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
+        eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
+    sym = orbit.symmetry
+    x0 = orbit.x[:sym.M]
+    return dict(twist_mono=best[1], gamma_mono=best[0], raw_cluster_mono=raw, cluster_mono=clus, eigvec_mono=eig,
+                invariance_mono=inv, E_orbit=E, E_short=relative_residual(x0, refiner.shift_map(sym.M)(
+                    x0, sym.delta(orbit.T), sym.k)))
+
+
 class SlowInstabilityScan:
     """gamma(q) above q_c by the co-moving and the monodromy routes (module docstring), written as it goes.
 
@@ -127,7 +148,8 @@ class SlowInstabilityScan:
         self.qs = [branch.point(q).q for q in (qs if qs else branch.q)]
         self.spec = ChainSpec(branch.model, N)
         self.pep = ComovingPEP(PETSc.COMM_SELF)
-        self.sectors = DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances) if n_twist else None
+        self.sectors = (DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances,
+                                        twists=np.linspace(0.0, math.pi, n_twist)) if n_twist else None)
         self.refiner = (Refiner(self.spec, PETSc.COMM_SELF, refine_tol, tolerances=tolerances, prefix=SHOOT_PREFIX,
                                 symmetric=True) if n_twist else None)
         self._open = lambda: NpzRecords(
@@ -169,8 +191,8 @@ class SlowInstabilityScan:
                     slope_cm=slope)
 
     def refine(self, point):
-        """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T, E of the short
-        map). Starts from the refinement file's state when it has this q."""
+        """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T). Starts from the
+        refinement file's state when it has this q."""
         orbit = orbit_on_chain(point, self.spec)
         if self.refined is not None and self.refined.has(point.q):
             orbit = self.refined.orbit(point, self.spec)
@@ -183,10 +205,7 @@ class SlowInstabilityScan:
                 refined, E = self._refined(orbit, 10 * self.refine_tol)
             except ConvergenceError:
                 refined, E = orbit, self.refiner.residual(orbit)
-        sym = WaveSymmetry(self.N, orbit.m)
-        smap = self.refiner.shift_map(sym.M)
-        x0 = refined.x[:sym.M]
-        return refined, E, relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
+        return refined, E
 
     def _refined(self, orbit, tol):
         self.refiner.tol = tol
@@ -198,18 +217,7 @@ class SlowInstabilityScan:
 
     def monodromy(self, point):
         """The monodromy route at a chain wavenumber: dict of the mono fields."""
-        orbit, E, E_short = self.refine(point)
-        best, raw, clus, eig, inv = None, 0.0, 0.0, 0.0, 0.0
-        for th in np.linspace(0.0, math.pi, self.n_twist):
-            s = self.sectors.sector(orbit, float(th))
-            g = math.log(s.rho) / orbit.T
-            if best is None or g > best[0]:
-                best = (g, float(th))
-            raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
-            clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
-            eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
-        return dict(twist_mono=best[1], gamma_mono=best[0], raw_cluster_mono=raw, cluster_mono=clus,
-                    eigvec_mono=eig, invariance_mono=inv, E_orbit=E, E_short=E_short)
+        return monodromy_fields(self.sectors, self.refiner, *self.refine(point))
 
     def verdict(self, row):
         """(resolution, verdict): slowly unstable when the co-moving gamma exceeds the target on every grid and the
@@ -354,24 +362,15 @@ def orbit_convergence(branch, qs, N, refined, settings, comm=PETSc.COMM_SELF, n_
             tolerances = IntegrationTolerances(rtol=rtol, atol=rtol / 100)
             refiner = Refiner(spec, comm, tol if tol else 1.0, tolerances=tolerances, prefix=SHOOT_PREFIX,
                               symmetric=True)
-            sectors = DeflatedSectors(branch.model, comm, tolerances)
+            sectors = DeflatedSectors(branch.model, comm, tolerances, twists=np.linspace(0.0, math.pi, n_twist))
             try:
                 orbit = refiner.refine(start).orbit if tol else start
-                sym = WaveSymmetry(N, orbit.m)
-                smap = refiner.shift_map(sym.M)
-                x0 = orbit.x[:sym.M]
-                E, E_short = refiner.residual(orbit), relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
-                raw, gamma, eig = 0.0, -math.inf, 0.0
-                for th in np.linspace(0.0, math.pi, n_twist):
-                    s = sectors.sector(orbit, float(th))
-                    raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
-                    gamma = max(gamma, math.log(s.rho) / orbit.T)
-                    eig = max(eig, s.eigenvector_residual)
+                f = monodromy_fields(sectors, refiner, orbit, refiner.residual(orbit))
             finally:
                 refiner.destroy()
                 sectors.destroy()
-            rows.append(dict(q=point.q, m=orbit.m, label=label, rtol=rtol, E=E, E_short=E_short, raw=raw,
-                             gamma=gamma, eig=eig))
+            rows.append(dict(q=point.q, m=orbit.m, label=label, rtol=rtol, E=f["E_orbit"], E_short=f["E_short"],
+                             raw=f["raw_cluster_mono"], gamma=f["gamma_mono"], eig=f["eigvec_mono"]))
     return rows
 
 

@@ -7,7 +7,11 @@ x_n(t) = u_c(q n - omega t), c = n mod p, with p odd 2 pi-periodic profiles, and
     m_c omega^2 u_c'' = V'(tau_q u_{c+1} - u_c) - V'(u_c - tau_{-q} u_{c-1}),      c = 0 .. p-1 (cyclic),
 
 discretised on the grid of :mod:`hertzpetsc.grid` (second differences D2, shift stencils tau_{+-q} of
-:class:`ShiftStencils`). Two forms of the unknowns:
+:class:`ShiftStencils`). For p <= 2 the reflection n -> -n keeps every bead's type and the profiles are odd
+(unknowns on (0, pi)); for p >= 3 it exchanges types, the profiles have no symmetry and are unknown on the whole
+period, with the chain's two invariances (a constant added to every bead, a translation of xi) removed by two
+gauge rows, mean(u_0) = 0 and b1(u_0) = (1/pi) int u_0 cos = 0, bordered by two unknowns multiplying the
+constants and the reference translation u' (zero at an exact solution). Two forms of the unknowns:
 
 * **fixed frequency** (``amplitude=None``): the profiles u_c at a given omega (eq. ad: omega = 1); no border. For
   p = 1 this is the paper's problem, on the grid's own Vec layout, with its own assembled/matrix-free Jacobian.
@@ -137,6 +141,32 @@ def _d2_csr(grid, stencils):
     return csr
 
 
+def profile_sup(values, periodic=False):
+    """max |u| of a profile's grid values, refined by the parabola through the largest and its neighbours
+    (:func:`~hertzpetsc.diagnostics.sup_norm`; ``periodic``: the values are a whole period, neighbours wrap)."""
+    if not periodic:
+        return sup_norm(values)
+    u = np.abs(np.asarray(values, dtype=float))
+    j = int(np.argmax(u))
+    return sup_norm(u[[(j - 1) % len(u), j, (j + 1) % len(u)]])
+
+
+def _sup_gradient(u, periodic):
+    """(indices j-1, j, j+1 of the maximiser of |u|, d max / d u there) of :func:`profile_sup`."""
+    v = np.abs(u)
+    j = int(np.argmax(v))
+    idx = np.array([j - 1, j, j + 1]) % len(u) if periodic else np.array([j - 1, j, j + 1])
+    a, b, c = v[idx]
+    curv = a - 2 * b + c
+    if not curv < 0:
+        return idx[1:2], np.sign(u[idx[1:2]])
+    # s = b - (a - c)^2 / (8 curv), curv = a - 2b + c: its partial derivatives in a, b, c
+    da = -(2 * (a - c) * curv - (a - c) ** 2) / (8 * curv ** 2)
+    db = 1.0 - (a - c) ** 2 / (4 * curv ** 2)
+    dc = (2 * (a - c) * curv + (a - c) ** 2) / (8 * curv ** 2)
+    return idx, np.sign(u[idx]) * np.array([da, db, dc])
+
+
 def _on_contact(model, f, x):
     """f(x) on the bonds the law says may be in contact, 0 elsewhere (V' and V'' of the uncompressed law vanish
     off contact and few bonds are in contact)."""
@@ -167,8 +197,12 @@ class AdvanceDelayProblem(ContinuationProblem):
         model.require_conservative("the travelling-wave problem (eq. ad)")
         if measure not in MEASURES:
             raise ParameterError("measure", measure, "must be 'a1' (first sine coefficient) or 'sup' (max |u|)")
-        self.model, self.grid = model, grid
         self.p = model.cell
+        self.full = self.p >= 3                       # no reflection symmetry: the whole period is unknown
+        if self.full and grid.parity != 0:
+            from .grid import ProfileGrid
+            grid = ProfileGrid(grid.K, grid.comm, parity=0)
+        self.model, self.grid = model, grid
         self.masses = np.array(model.masses, dtype=float)
         if not (isinstance(normalised, (int, np.integer)) and 0 <= normalised < self.p):
             raise ParameterError("normalised", normalised, f"must be a profile index in [0, {self.p - 1}]")
@@ -184,7 +218,10 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.mpi = self.comm.tompi4py() if self.comm.getSize() > 1 else None
         self.last = self.comm.getRank() == self.comm.getSize() - 1
         self.nloc = grid.rend - grid.rstart
-        self.nsc = 1 if self.bordered else 0                # scalars of X (lam)
+        # scalars of X: lam (fixed amplitude), then the gauge unknowns (whole-period profiles)
+        self.i_gauge = 1 if self.bordered else 0
+        self.nsc = self.i_gauge + (2 if self.full else 0)
+        self.gauge = None                 # reference translation u_c' of the gauge column (owned rows)
         self.simple = self.p == 1 and not self.bordered        # X is the grid's own Vec (the paper's problem)
         ranges = np.array(grid._template.getOwnershipRanges(), dtype=np.int64)
         self._starts, self._counts = ranges[:-1], np.diff(ranges)
@@ -319,12 +356,16 @@ class AdvanceDelayProblem(ContinuationProblem):
         a = V.getArray()
         g = self.grid
         for c in range(self.p):
-            a[c * self.nloc:(c + 1) * self.nloc] = np.asarray(profiles_half[c], float)[g.rstart + 1:g.rend + 1]
+            a[c * self.nloc:(c + 1) * self.nloc] = \
+                np.asarray(profiles_half[c], float)[g.rstart + g.offset:g.rend + g.offset]
         if self.last:
             k = self.p * self.nloc
             if self.bordered:
                 a[k] = self.lam if lam is None else lam
                 k += 1
+            if self.full:
+                a[k:k + 2] = 0.0
+                k += 2
             if extended:
                 a[k] = parameter
         return V
@@ -408,9 +449,28 @@ class AdvanceDelayProblem(ContinuationProblem):
         w = profiles_local[self.normalised]
         if self.measure == "a1":
             xi = self.grid.owned_points() * self.grid.h
-            local = float(np.dot((2.0 / self.grid.K) * np.sin(xi), w))
+            local = float(np.dot((1.0 if self.full else 2.0) / self.grid.K * np.sin(xi), w))
             return self.mpi.allreduce(local) if self.mpi is not None else local
-        return sup_norm(self._gathered_profile(w))
+        return profile_sup(self._gathered_profile(w), self.full)
+
+    def _gauge_rows(self, profiles_local):
+        """(mean(u_0), b1(u_0)) over the whole period (collective): the two gauge rows."""
+        xi = self.grid.owned_points() * self.grid.h
+        u0 = profiles_local[0]
+        local = np.array([np.sum(u0) / (2 * self.grid.K), np.dot(np.cos(xi), u0) / self.grid.K])
+        return self.mpi.allreduce(local) if self.mpi is not None else local
+
+    def set_gauge(self, V):
+        """The translation column of the gauge border: u_c' of V's profiles (centred differences), fixed for a
+        solve (a whole-period problem only)."""
+        if not self.full:
+            return
+        n, g = self.nloc, self.grid
+        out = []
+        for prof in self.half_profiles(V):
+            d = (np.roll(prof, -1) - np.roll(prof, 1)) / (2 * g.h)
+            out.append(d[g.rstart:g.rend])
+        self.gauge = np.concatenate(out) if out else np.zeros(self.p * n)
 
     def _gathered_profile(self, w_local):
         w = self._work[1]
@@ -430,6 +490,8 @@ class AdvanceDelayProblem(ContinuationProblem):
         extended = X.getSize() > self.p * self.grid.size + self.nsc
         if extended:
             self.set_parameter(self.parameter, self._scalars(X)[-1])
+        if self.full and self.gauge is None:
+            self.set_gauge(X)
         sc = self._scalars(X)
         lam = sc[0] if self.bordered else self.lam
         parts = self._profile_parts(X)
@@ -444,6 +506,13 @@ class AdvanceDelayProblem(ContinuationProblem):
             if self.last:
                 out[k] = m - 1.0
             k += 1
+        if self.full:
+            i = self.i_gauge
+            out[:self.p * n] += sc[i] + sc[i + 1] * self.gauge
+            rows = self._gauge_rows([d[3] for d in diffs])
+            if self.last:
+                out[k:k + 2] = rows
+            k += 2
         if extended:
             row, value = self.arclength
             local = float(np.dot(row[self._owned_slice(X)], X.getArray(readonly=True)))
@@ -488,6 +557,8 @@ class AdvanceDelayProblem(ContinuationProblem):
             return
         if X.getSize() > self.p * self.grid.size + self.nsc:
             self.set_parameter(self.parameter, self._scalars(X)[-1])
+        if self.full and self.gauge is None:
+            self.set_gauge(X)
         lat = self.lattice
         diffs = self._differences(self._profile_parts(X))
         self.a = [_on_contact(lat, lat.stiffness, d[1]) for d in diffs]
@@ -583,21 +654,10 @@ class AdvanceDelayProblem(ContinuationProblem):
         g = self.grid
         if self.measure == "a1":
             j = np.arange(g.size)
-            return j, (2.0 / g.K) * np.sin((j + 1) * g.h)
+            return j, (1.0 if self.full else 2.0) / g.K * np.sin((j + g.offset) * g.h)
         u = self._gathered_profile(profiles_local[self.normalised])
-        v = np.abs(u)
-        j = int(np.argmax(v))
-        sgn = np.sign(u[j]) if u[j] != 0 else 1.0
-        a, b, c = v[j - 1], v[j], v[j + 1]                  # odd profiles: 0 < j < K
-        curv = a - 2 * b + c
-        if not curv < 0:
-            return np.array([j - 1]), np.array([sgn])
-        # s = b - (a - c)^2 / (8 curv), curv = a - 2b + c: its partial derivatives in a, b, c
-        da = -(2 * (a - c) * curv - (a - c) ** 2) / (8 * curv ** 2)
-        db = 1.0 - (a - c) ** 2 / (4 * curv ** 2)
-        dc = (2 * (a - c) * curv + (a - c) ** 2) / (8 * curv ** 2)
-        idx = np.array([j - 2, j - 1, j])              # grid points j-1, j, j+1 are unknowns j-2, j-1, j
-        vals = np.sign(u[j - 1:j + 2]) * np.array([da, db, dc])
+        idx, vals = _sup_gradient(u, self.full)
+        idx = idx - g.offset                    # grid points -> unknowns (odd profiles: u_1 is unknown 0)
         keep = (idx >= 0) & (idx < g.size)
         return idx[keep], vals[keep]
 
@@ -612,6 +672,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         n = self.nloc
         cols, vals = [], []
         j_lam = self.scalar_index(0)
+        j_gauge = self.scalar_index(self.i_gauge)
         j_par = self.scalar_index(self.nsc)
         for c in range(self.p):
             a, b = self.a[c][:, None], self.b[c][:, None]
@@ -622,6 +683,9 @@ class AdvanceDelayProblem(ContinuationProblem):
             if self.bordered:
                 bc.append(np.full((n, 1), j_lam))
                 bv.append(self.dlam[c * n:(c + 1) * n, None])
+            if self.full:
+                bc += [np.full((n, 1), j_gauge), np.full((n, 1), j_gauge + 1)]
+                bv += [np.ones((n, 1)), self.gauge[c * n:(c + 1) * n, None]]
             if extended:
                 bc.append(np.full((n, 1), j_par))
                 bv.append(self.dparam[c * n:(c + 1) * n, None])
@@ -633,6 +697,11 @@ class AdvanceDelayProblem(ContinuationProblem):
             if self.bordered:             # the measure row, with an explicit (zero) diagonal entry for LU
                 idx, v = self.measure_row
                 extra.append((np.append(self.global_index(self.normalised, idx), j_lam), np.append(v, 0.0)))
+            if self.full:                 # the gauge rows: mean(u_0), b1(u_0)
+                j = np.arange(self.grid.size)
+                cols0 = self.global_index(0, j)
+                extra.append((np.append(cols0, j_gauge), np.append(np.full(len(j), 0.5 / self.grid.K), 0.0)))
+                extra.append((np.append(cols0, j_gauge + 1), np.append(np.cos(j * self.grid.h) / self.grid.K, 0.0)))
             if extended:
                 row = self.arclength[0]
                 nz = np.union1d(np.flatnonzero(row), [j_par])
@@ -672,6 +741,8 @@ class AdvanceDelayProblem(ContinuationProblem):
             raise ParameterError("branch", branch, "must be 'acoustic' or 'optical'")
         g = self.grid
         s = np.sin(g.xi_half())
+        if self.full:
+            return self._linear_guess_complex(K, branch, s)
         v = g.vec_from_half_profile(s)
         st = self.stencils.stacked(v).getArray(readonly=True)
         n = self.nloc
@@ -693,6 +764,31 @@ class AdvanceDelayProblem(ContinuationProblem):
         unit = 1.0 if self.measure == "a1" else sup_norm(s)
         vec = vec / (vec[self.normalised] * unit)
         return [vec[c] * s for c in range(self.p)], float(lams[k])
+
+    def _linear_guess_complex(self, K, branch, s):
+        """The linear wave of a whole-period problem: the profiles are Im(Y_c e^{i xi}) with Y the eigenvector of
+        the Hermitian Bloch matrix L_cc = 2K, L_{c,c+1} = -K mu, L_{c,c-1} = -K conj(mu) against diag(m) sigma_h,
+        mu the symbol of tau_q on e^{i xi} and sigma_h = 4 sin^2(h/2)/h^2 that of -D2 (the bead types' phases
+        differ when the pattern has no reflection symmetry)."""
+        from .stencil import shift_stencil
+        import scipy.linalg
+        h, p = self.grid.h, self.p
+        offsets, weights = shift_stencil(self.sigma)
+        mu = complex(np.sum(weights * np.exp(1j * offsets * h)))
+        sigma_h = 4 * math.sin(h / 2) ** 2 / h ** 2
+        L = np.zeros((p, p), dtype=complex)
+        for c in range(p):
+            L[c, c] += 2 * K
+            L[c, (c + 1) % p] -= K * mu
+            L[c, (c - 1) % p] -= K * np.conj(mu)
+        lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
+        k = 0 if branch == "acoustic" else p - 1
+        Y = vecs[:, k]
+        self.normalised = int(np.argmax(np.abs(Y)))
+        Y = Y * np.conj(Y[self.normalised]) / abs(Y[self.normalised]) ** 2
+        xi = self.grid.xi_half()
+        unit = 1.0 if self.measure == "a1" else profile_sup(s, True)
+        return [np.imag(Y[c] * np.exp(1j * xi)) / unit for c in range(p)], float(lams[k])
 
     # --- solving --------------------------------------------------------------------------------------------
     def tolerance_scale(self, V):
@@ -716,6 +812,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         """Solve for X at the current parameters (SolveStats); ConvergenceError when SNES fails. With the 'sup'
         measure, the normalised profile is the largest one (max_c ||u_c||_inf = A): solved again on the
         largest profile if the solution's largest is another."""
+        self.set_gauge(X)
         self.stats = self.solver(False).solve(self, X, tolerances)
         self._renormalise(X, lambda: self.solver(False).solve(self, X, tolerances))
         return self.stats
@@ -724,7 +821,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         if not (self.bordered and self.measure == "sup" and self.p > 1):
             return
         for _ in range(self.p):
-            largest = int(np.argmax([sup_norm(w) for w in self.half_profiles(V)]))
+            largest = int(np.argmax([profile_sup(w, self.full) for w in self.half_profiles(V)]))
             if largest == self.normalised:
                 return
             self.normalised = largest
@@ -749,6 +846,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         scatter.destroy()
         full.destroy()
         try:
+            self.set_gauge(Z)
             self.stats = self.solver(True).solve(self, Z)
             self._renormalise(Z, lambda: self.solver(True).solve(self, Z))
         finally:
@@ -822,6 +920,8 @@ class _JacobianProduct:
             r = p.masses[c] * lam * d2 + (p.a[c] + p.b[c]) * v - p.a[c] * plus - p.b[c] * minus
             if p.bordered:
                 r = r + sc[0] * p.dlam[c * n:(c + 1) * n]
+            if p.full:
+                r = r + sc[p.i_gauge] + sc[p.i_gauge + 1] * p.gauge[c * n:(c + 1) * n]
             if extended:
                 r = r + sc[-1] * p.dparam[c * n:(c + 1) * n]
             out[c * n:(c + 1) * n] = r
@@ -834,6 +934,11 @@ class _JacobianProduct:
             if p.last:
                 out[k] = total
             k += 1
+        if p.full:
+            rows = p._gauge_rows([parts[c][3] for c in range(p.p)])
+            if p.last:
+                out[k:k + 2] = rows
+            k += 2
         if extended:
             row = p.arclength[0]
             lo, hi = x.getOwnershipRange()

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
-from .advdelay import AdvanceDelayProblem, check_wavenumber
+from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
 from .branch import BranchPoint
 from .continuation import Continuation, ContinuationError, Natural, PseudoArclength
 from .diagnostics import sup_norm
@@ -82,9 +82,10 @@ class FamilyProblem(AdvanceDelayProblem):
             return 2 * a * w_half_q - self.model.delta0
         longest = -math.inf
         xi = np.arange(2 * self.grid.K) * h
+        whole = [w if self.full else full_period(w) for w in profiles]
         for c in range(self.p):
-            up = lagrange_periodic(full_period(profiles[(c + 1) % self.p]), h, xi + self.q)
-            r = up - full_period(profiles[c])
+            up = lagrange_periodic(whole[(c + 1) % self.p], h, xi + self.q)
+            r = up - whole[c]
             j = int(np.argmax(r))
             a3 = r[[(j - 1) % len(r), j, (j + 1) % len(r)]]
             curv = a3[0] - 2 * a3[1] + a3[2]
@@ -102,7 +103,7 @@ class FamilyProblem(AdvanceDelayProblem):
         prof = self.half_profiles(V)
         lam = float(self._scalars(V)[0])
         a = self.amplitude
-        norm = max(sup_norm(w) for w in prof)
+        norm = max(profile_sup(w, self.full) for w in prof)
         d = self.model.law.scale_degree
         omega = self._omega_from(lam)
         return AmplitudePoint(q=self.q, a=a, A=a * norm, omega=omega,

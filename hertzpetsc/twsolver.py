@@ -141,6 +141,40 @@ class SecondDifferencePC:
             obj.destroy()
 
 
+class PeriodicSecondDifferencePC:
+    """The inner solve of ``-tw_solver nk`` for whole-period profiles (no symmetry): (D2 - I)^{-1} with the
+    periodic second difference (singular alone: the constants), factored once by PETSc (LU on one rank, MUMPS on
+    several). The shift stands for the bounded V'' part of the Jacobian on the lowest modes; GMRES corrects the
+    rest, and the gauge border removes the constants and translations."""
+
+    def __init__(self, grid, shift=1.0):
+        d2 = StencilGather(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2)},
+                           scatter=False)
+        from .assembly import RowAssembler
+        diag = np.arange(grid.rstart, grid.rend, dtype=np.int64)[:, None]
+        asm = RowAssembler(grid, [d2.cols["d2"], diag])
+        self.A = asm.create([d2.coef["d2"], np.full((grid.rend - grid.rstart, 1), -float(shift))])
+        d2.destroy()
+        self.ksp = PETSc.KSP().create(comm=grid.comm)
+        self.ksp.setOperators(self.A)
+        self.ksp.setType(PETSc.KSP.Type.PREONLY)
+        pc = self.ksp.getPC()
+        pc.setType(PETSc.PC.Type.LU)
+        if grid.comm.getSize() > 1:
+            pc.setFactorSolverType("mumps")
+        self.ksp.setUp()
+        self.x, self.y = self.A.createVecs()
+
+    def solve_local(self, x, out):
+        self.x.getArray()[:] = x
+        self.ksp.solve(self.x, self.y)
+        out[:] = self.y.getArray(readonly=True)
+
+    def destroy(self, pc=None):
+        for obj in (self.ksp, self.A, self.x, self.y):
+            obj.destroy()
+
+
 class BlockSecondDifferencePC:
     """The preconditioner of ``-tw_solver nk`` for p profiles and border scalars (a mass pattern, the
     fixed-amplitude form, a free continuation parameter): (m_c lam D2)^{-1} on each profile's rows (``scales`` =
@@ -224,7 +258,7 @@ def _set_linear_defaults(snes, solver, grid, stencils, blocks=None):
     ksp.setType(PETSc.KSP.Type.GMRES)
     ksp.setTolerances(rtol=NK_KSP_RTOL)
     pc.setType(PETSc.PC.Type.PYTHON)
-    context = SecondDifferencePC(grid, stencils)
+    context = PeriodicSecondDifferencePC(grid) if grid.parity == 0 else SecondDifferencePC(grid, stencils)
     if blocks is not None:
         context = BlockSecondDifferencePC(context, *blocks)
     pc.setPythonContext(context)

@@ -83,6 +83,8 @@ DRIVERS = {
     "compacton_stability.py": (("-branches", BRANCH, "-q", "pi/5", "-no_solitary", "-no_ring", "-M", 12, "-rear", 3,
                                 "-output", "{t}/c.npz", "-table", "{t}/c.md"), "branches", "output",
                                ("-q", "pi/5,pi/5"), ("-cwin_ts_type", "bogus")),
+    "wave.py": (("-masses", "1,0.5,0.25", "-q", "2*pi/15", "-N", 30, "-cells_per_pi", 60, "-output", "{t}/w.npz",
+                 "-table", "{t}/w.md"), None, "output", ("-masses", "1,0"), ("-shoot_ts_type", "bogus")),
     "compacton_dynamics.py": (("-stability", f"{RESULTS}/compacton_stability.npz", "-q", "7*pi/25", "-N", 40,
                                "-n0", 5, "-travel", 10, "-kinds", "mode", "-no_pairs", "-output", "{t}/d.npz",
                                "-table", "{t}/d.md"), "stability", "output", ("-q", "7*pi/25,7*pi/25"),

@@ -214,3 +214,21 @@ def test_trimer_wave_is_a_travelling_wave_of_the_chain():
         finally:
             shift_map.destroy()
     assert E[0] < 1e-4 and 3.0 < E[0] / E[1] < 5.0
+
+
+def test_wave_study_of_a_trimer_in_memory():
+    """The trimer's wave through the whole pipeline, as a study without a file: refined on its cell (E below the
+    target), multipliers on N = 30 beads from the Bloch sectors, and on 4 N beads, where the sectors of the longer
+    chain contain those of the shorter one (its rho is at least as large)."""
+    from hertzpetsc.studies.wave import WaveParameters, WaveStudy
+    params = WaveParameters(TRIMER, (2 * math.pi / 15,), 0.5, 100, 30, (120,), 1e-10)
+    study = WaveStudy(params, COMM)
+    (row,) = list(study.run())
+    assert row["E_profile"] < 1e-3 and row["E_refined"] <= 1e-10 and row["m"] == 2
+    assert row["spread"] < 1e-4
+    assert row["rho_sizes"][0] >= row["rho"] - 1e-9
+    assert str(study.arrays()["format"]) == "hertzpetsc-wave-1"
+    with pytest.raises(ParameterError, match="sizes"):
+        WaveParameters(TRIMER, (2 * math.pi / 15,), 0.5, 100, 30, (100,))
+    with pytest.raises(ParameterError, match="delta0"):
+        WaveParameters(LatticeModel.hertz(1.5, masses=(1.0, 0.5)), (2 * math.pi / 15,), N=30)

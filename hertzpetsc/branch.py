@@ -203,6 +203,7 @@ class Branch:
         branch = cls(LatticeModel.hertz(float(data["alpha"])), int(data["cells_per_pi"]), int(data["M"]), [], meta)
         rows = [{k: data[k][i] for k in POINT_FIELDS + ("u",)} for i in range(P)]
         branch.points = [BranchPoint.from_record(r, branch.h, branch.model) for r in rows]
+        branch.path = path
         return branch
 
 

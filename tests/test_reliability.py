@@ -97,3 +97,27 @@ def test_an_empty_branch_file_is_named_not_an_internal_error(tmp_path):
                           ("paper_table.py", ["-output", tmp_path / "t.md"])):
         r = run_script(script, "-branch", tmp_path / "b.npz", *extra, timeout=60)
         assert r.returncode == 4 and "holds 0 point(s)" in one_error_line(r), (script, r.stderr)
+
+
+@pytest.mark.serial
+def test_a_resume_from_another_input_or_other_solver_options_is_refused(tmp_path):
+    """Record identities hold the input files' content and the number-changing solver options: a refinement
+    resumed with another branch file, or with another -shoot_ts_rtol, is refused, naming the difference (one line,
+    status 4), instead of mixing two computations in one file."""
+    from conftest import RESULTS, run_script
+    import shutil
+    other = tmp_path / "other.npz"
+    shutil.copy(f"{RESULTS}/branch_alpha1.5.npz", other)
+    with open(other, "ab") as f:                     # another file (same content would be the same input)
+        f.write(b"\0")
+    args = ["-N", 20, "-q", "2*pi/5", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md"]
+    r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, timeout=120)
+    assert r.returncode == 0, r.stderr
+    r = run_script("refine_branch.py", "-branch", other, *args, "-resume", timeout=120)
+    assert r.returncode == 4 and "branch_sha256" in one_error_line(r)
+    r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, "-resume",
+                   "-shoot_ts_rtol", "1e-9", timeout=120)
+    assert r.returncode == 4 and "solver_options" in one_error_line(r)
+    r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, "-resume",
+                   "-shoot_ts_monitor", timeout=120)          # a monitor changes no number: accepted
+    assert r.returncode == 0, r.stderr

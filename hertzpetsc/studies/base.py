@@ -16,6 +16,7 @@ It is built from its parameters, a communicator, and an output path: a record fi
 runs from a notebook. :meth:`Study.run` yields each record after saving it; :meth:`Study.arrays` gives the records
 as numpy arrays (the file's content) and :meth:`Study.table` the Markdown table.
 """
+import os
 from dataclasses import fields, is_dataclass
 
 from petsc4py import PETSc
@@ -143,6 +144,18 @@ def plain(params):
 
 # options that do not change numbers (what is printed or logged, not what is computed)
 _NON_NUMERIC = ("monitor", "view", "converged_reason", "log", "help", "draw")
+
+
+def provenance(comm, prefixes=(), **inputs):
+    """Identity entries of a record file made from input files and solvers: ``<name>_sha256`` for each input
+    file given (a path that names no file, e.g. the label of a branch computed in memory, is skipped) and the
+    number-changing options under the solver ``prefixes`` (collective; a resume with another input or other
+    solver settings is then refused, naming the entry)."""
+    out = {f"{name}_sha256": file_digest(path, comm) for name, path in inputs.items()
+           if path and os.path.isfile(path)}
+    if prefixes:
+        out["solver_options"] = solver_options(prefixes)
+    return out
 
 
 def solver_options(prefixes):

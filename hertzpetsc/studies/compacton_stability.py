@@ -29,6 +29,7 @@ from ..continuation import Continuation, Natural
 from ..errors import ParameterError
 from ..model import ChainSpec
 from ..records import NpzRecords
+from .base import provenance
 from .dealing import dealt
 
 STABILITY_FORMAT = "hertzpetsc-compacton-stability-1"
@@ -96,16 +97,22 @@ class CompactonStabilityScan:
             WindowStability(probe, self.nev, self.eta).destroy()
         finally:
             probe.destroy()
-        self._open = lambda: NpzRecords(output, STABILITY_FORMAT,
-                                        dict(M=self.M, rear=self.rear, eta=self.eta, nev=self.nev,
-                                             tol_unstable=tol_unstable, rtol=tolerances.rtol),
-                                        dict(M=self.M, rear=self.rear, eta=self.eta, rtol=tolerances.rtol),
-                                        FIELDS + ("multipliers", "dominant", "state"), comm, mode,
-                                        dtypes={"multipliers": complex, "dominant": complex, "iterations": np.int64,
-                                                "unstable": np.int64, "slepc_products": np.int64,
-                                                "slepc_nev": np.int64, "core_first": np.int64, "core_last": np.int64},
-                                        shapes={"multipliers": (2 * self.M,), "dominant": (NDOM,),
-                                                "state": (self.M, 2)}, what="compacton stability file")
+
+        def store():
+            extra = provenance(comm, ("cwin_", "ccheck_", "cstab_"), **{
+                f"branch_alpha{a:g}": getattr(b, "path", "") for a, b in self.branches.items()})
+            return NpzRecords(output, STABILITY_FORMAT,
+                              dict(M=self.M, rear=self.rear, eta=self.eta, nev=self.nev, tol_unstable=tol_unstable,
+                                   rtol=tolerances.rtol, **extra),
+                              dict(M=self.M, rear=self.rear, eta=self.eta, rtol=tolerances.rtol,
+                                   tol_unstable=tol_unstable, **extra),
+                              FIELDS + ("multipliers", "dominant", "state"), comm, mode,
+                              dtypes={"multipliers": complex, "dominant": complex, "iterations": np.int64,
+                                      "unstable": np.int64, "slepc_products": np.int64, "slepc_nev": np.int64,
+                                      "core_first": np.int64, "core_last": np.int64},
+                              shapes={"multipliers": (2 * self.M,), "dominant": (NDOM,), "state": (self.M, 2)},
+                              what="compacton stability file")
+        self._open = store
         self.store = None
         self._tools = {}
 

@@ -25,6 +25,7 @@ from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet
 from ..model import ChainSpec
 from ..records import NpzRecords, check_kind, load_npz
 from ..waves import orbit_on_chain
+from .base import provenance
 from .dealing import dealt
 from .refinement import scan_wavenumbers
 
@@ -95,13 +96,17 @@ class FloquetScan:
         self.spec = ChainSpec(branch.model, N)
         self.qs, self.restriction = _select_wavenumbers(branch, N, qs, refined)
         path = refined.path if refined is not None else ""
-        self._open = lambda: NpzRecords(output, FLOQUET_FORMAT,
-                                dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path,
-                                     note=self.restriction),
-                                dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path),
-                                FLOQUET_FIELDS + ("multipliers",), comm, mode,
-                                dtypes={"outside": np.int64, "refined": np.int64, "multipliers": complex},
-                                shapes={"multipliers": (2 * N,)}, what="Floquet file")
+
+        def store():
+            extra = provenance(comm, ("floquet_",), branch=getattr(branch, "path", ""), refined=path)
+            return NpzRecords(output, FLOQUET_FORMAT,
+                              dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path,
+                                   note=self.restriction, **extra),
+                              dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path, **extra),
+                              FLOQUET_FIELDS + ("multipliers",), comm, mode,
+                              dtypes={"outside": np.int64, "refined": np.int64, "multipliers": complex},
+                              shapes={"multipliers": (2 * N,)}, what="Floquet file")
+        self._open = store
         self.store = None
         self.spectra = {}
         self.solver = (SymmetricFloquet(branch.model, PETSc.COMM_SELF, tolerances) if method == "symmetric" else
@@ -237,14 +242,18 @@ class BlochScan:
         self.sizes, self.nev, self.tol_rho, self.split = list(sizes), nev, tol_rho, split
         self.slepc_sizes, self.tolerances, self.reference = set(slepc_sizes), tolerances, reference or {}
         self.orbits = [refined.orbit(branch.point(q), self.cell) for q in qs]
-        self._open = lambda: NpzRecords(output, BLOCH_FORMAT,
-                                dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, split=split,
-                                     rtol=tolerances.rtol, refined_file=refined.path),
-                                dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, rtol=tolerances.rtol),
-                                BLOCH_FIELDS + ("dominant", "dominant_theta"), comm, mode,
-                                dtypes={"N": np.int64, "outside": np.int64, "slepc_products": np.int64,
-                                        "dominant": complex}, shapes={"dominant": (nev,), "dominant_theta": (nev,)},
-                                what="Bloch file")
+        def store():
+            extra = provenance(comm, ("floquet_",), branch=getattr(branch, "path", ""), refined=refined.path)
+            return NpzRecords(output, BLOCH_FORMAT,
+                              dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, split=split,
+                                   rtol=tolerances.rtol, refined_file=refined.path, **extra),
+                              dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, rtol=tolerances.rtol,
+                                   **extra),
+                              BLOCH_FIELDS + ("dominant", "dominant_theta"), comm, mode,
+                              dtypes={"N": np.int64, "outside": np.int64, "slepc_products": np.int64,
+                                      "dominant": complex}, shapes={"dominant": (nev,), "dominant_theta": (nev,)},
+                              what="Bloch file")
+        self._open = store
         self.store = None
         self.extra = {}
 

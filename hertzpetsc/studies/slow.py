@@ -59,6 +59,7 @@ from ..shooting import SHOOT_PREFIX, Refiner, relative_residual
 from ..slow import DeflatedSectors
 from ..symmetry import WaveSymmetry
 from ..waves import fits_chain, orbit_on_chain
+from .base import provenance
 from .dealing import dealt
 from .floquet import q_label
 
@@ -152,16 +153,24 @@ class SlowInstabilityScan:
                                         twists=np.linspace(0.0, math.pi, n_twist)) if n_twist else None)
         self.refiner = (Refiner(self.spec, PETSc.COMM_SELF, refine_tol, tolerances=tolerances, prefix=SHOOT_PREFIX,
                                 symmetric=True) if n_twist else None)
+        refined_path = getattr(refined, "path", "") if refined is not None else ""
         self._open = lambda: NpzRecords(
             output, SLOW_FORMAT,
             dict(alpha=branch.alpha, N=N, branch=branch_path, grids=np.array(grids), n_theta=n_theta,
                  n_twist=n_twist, refine_tol=refine_tol, rtol=tolerances.rtol, target=target,
-                 theta_longwave=theta_longwave),
+                 theta_longwave=theta_longwave, **self._provenance(branch_path, refined_path)),
             dict(alpha=branch.alpha, N=N, grids=list(grids), n_theta=n_theta, n_twist=n_twist,
-                 refine_tol=refine_tol, rtol=tolerances.rtol),
+                 refine_tol=refine_tol, rtol=tolerances.rtol, target=target, theta_longwave=theta_longwave,
+                 **self._provenance(branch_path, refined_path)),
             SLOW_FIELDS, comm, mode, dtypes={"m": np.int64, "verdict": np.int64},
             shapes={"gamma_cm": (len(grids),)}, what="slow-instability file")
         self.store = None
+
+    def _provenance(self, branch_path, refined_path):
+        if not hasattr(self, "_prov"):
+            self._prov = provenance(self.comm, ("cm_", "floquet_", "shoot_", "tw_"), branch=branch_path,
+                                    refined=refined_path)
+        return self._prov
 
     def open(self):
         if self.store is None:

@@ -151,7 +151,7 @@ class PseudoArclength:
     max_halvings: int = 8
     max_step_changes: int = 64
     max_iterations: int = 12
-    max_corrector: float = 0.5
+    max_corrector: float = 1.0
 
     def __post_init__(self):
         for name in ("ds", "ds_min", "ds_max"):

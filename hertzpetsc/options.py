@@ -407,8 +407,6 @@ def _exit(code, message, collective):
     own line and abort. Aborting, rather than exiting, means that no rank ever waits in MPI_Finalize or in a
     collective for a rank that has stopped: an MPI run never hangs on an error.
     """
-    for sig in (signal.SIGTERM, signal.SIGHUP):         # the abort of the job ends this rank quietly
-        signal.signal(sig, signal.SIG_DFL)
     comm = PETSc.COMM_WORLD
     size, rank = comm.getSize(), comm.getRank()
     message = " / ".join(line.strip() for line in str(message).splitlines() if line.strip())   # one line
@@ -441,8 +439,8 @@ def guarded_main(main):
 
     Package errors are raised on every rank at once (see :mod:`hertzpetsc.errors`): rank 0 prints and every rank
     exits. SIGINT, SIGTERM and SIGHUP end the run with status 130, 143 and 129 after the ``finally`` blocks ran
-    (child processes ended, record files left as after their last complete record). PETSc errors are collective as well (configuration and solver calls are) and are reported with
-    PETSc's own message. Anything else is a failure of one rank: that rank prints it and aborts the others, so an
+    (child processes ended, record files left as after their last complete record). PETSc errors are collective
+    as well (configuration and solver calls are) and are reported with PETSc's own message. Anything else is a failure of one rank: that rank prints it and aborts the others, so an
     MPI run never hangs.
     """
     for sig in (signal.SIGTERM, signal.SIGHUP):
@@ -451,23 +449,33 @@ def guarded_main(main):
         main()
     except SystemExit:
         raise
-    except KeyboardInterrupt:
+    except BaseException as err:
+        # from here on a signal (mpiexec ending the ranks of a job another rank aborted) ends this rank quietly
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_DFL)
+        _report(err)
+
+
+def _report(err):
+    """The one error line and exit status of an exception that ended ``main`` (:func:`guarded_main`)."""
+    if isinstance(err, KeyboardInterrupt):
         _exit(130, "interrupted", False)
-    except Terminated as err:
+    elif isinstance(err, Terminated):
         if PETSc.COMM_WORLD.getSize() > 1:
             # under mpiexec the signal is either the user's, forwarded to every rank, or mpiexec ending the ranks
             # of a job that another rank aborted after printing its error: end quietly (the finally blocks ran)
             sys.stdout.flush()
             os._exit(128 + err.signum)
         _exit(128 + err.signum, f"terminated by {signal.Signals(err.signum).name}", False)
-    except Exception as err:
-        if os.environ.get("HZ_TRACEBACK"):       # for developers: the full traceback instead of one line
-            raise
-        if isinstance(err, HertzPetscError):
-            if isinstance(err, ParameterError) and AppOptions.current is not None:
-                err = err.as_option(AppOptions.current.known())
-            _exit(err.exit_status, str(err), True)
-        elif isinstance(err, PETSc.Error):
-            _exit(EXIT_PETSC, petsc_message(err), True)
-        else:                                     # a bug or a rank-local failure: never a hang
-            _exit(1, f"internal error: {type(err).__name__}: {err}", False)
+    elif not isinstance(err, Exception):
+        raise err
+    elif os.environ.get("HZ_TRACEBACK"):          # for developers: the full traceback instead of one line
+        raise err
+    elif isinstance(err, HertzPetscError):
+        if isinstance(err, ParameterError) and AppOptions.current is not None:
+            err = err.as_option(AppOptions.current.known())
+        _exit(err.exit_status, str(err), True)
+    elif isinstance(err, PETSc.Error):
+        _exit(EXIT_PETSC, petsc_message(err), True)
+    else:                                         # a bug or a rank-local failure: never a hang
+        _exit(1, f"internal error: {type(err).__name__}: {err}", False)

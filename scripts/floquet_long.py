@@ -30,7 +30,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_output, write_text  # noqa: E402
+from hertzpetsc.records import on_rank0, prepare_output, write_text  # noqa: E402
 from hertzpetsc.studies.floquet import BlochScan, floquet_reference, q_label  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
@@ -52,7 +52,7 @@ def main():
                                valid=(lambda n: n > 0, "> 0"), minimum_count=0)
     split = opts.string("split", "sectors", "sectors dealt to ranks, or each sector over all ranks",
                         choices=("sectors", "beads"))
-    reference = opts.path("reference", "results/floquet_N100.npz", "Floquet scan quoted for rho(N = 100)")
+    reference = opts.path("reference", "results/floquet_N100.npz", "Floquet scan quoted for rho(N = 100), or 'none'")
     output = opts.path("output", "results/floquet_long.md", "table")
     npz = opts.path("npz", "results/floquet_long.npz", "Bloch records (record store)")
     mode = opts.mode()
@@ -61,7 +61,8 @@ def main():
     prepare_output(output, comm)
     refined = RefinedStates.load(refined_path, comm)
     scan = BlochScan(Branch.load(branch_path, comm), refined, sizes, qs, comm, npz, mode, nev, tol_rho, slepc_sizes, split,
-                     IntegrationTolerances(), floquet_reference(reference))
+                     IntegrationTolerances(), on_rank0(comm, floquet_reference, reference, what="cannot read -reference")
+                     if reference != "none" else {})
     opts.check_unused()
     scan.open()
     print0(f"# cell M = {scan.M}, ranks {comm.getSize()}, split {split}, nev {nev}")

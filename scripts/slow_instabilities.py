@@ -92,6 +92,9 @@ def main():
         if not fits_chain(q, N):
             raise ParameterError("-convergence_q", q, f"must list chain wavenumbers 2 pi m / N, N = {N}")
     refined = None if refined_path == "none" else RefinedStates.load(refined_path, comm)
+    # the validation's reference is read now: a missing one is an error before any computation, not a table of nan
+    reference_rho = (on_rank0(comm, floquet_reference, reference, what="cannot read -reference")
+                     if validate and reference != "none" else None)
     scan = SlowInstabilityScan(branch, branch_path, N, comm, output, mode, qs, refined, grids, n_theta, n_twist,
                                refine_tol, IntegrationTolerances(rtol=rtol, atol=rtol / 100), target, theta_lw)
     opts.check_unused()
@@ -113,8 +116,7 @@ def main():
         text += "\n" + convergence_table(rows)
     if validate and reference != "none":
         print0("# validation of the co-moving route at q = " + ", ".join(f"{q:.5f}" for q in validate))
-        rows = on_rank0(comm, comoving_validation, branch, validate, N, floquet_reference(reference),
-                        what="co-moving validation")
+        rows = on_rank0(comm, comoving_validation, branch, validate, N, reference_rho, what="co-moving validation")
         text += "\n" + validation_table(rows, N)
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:

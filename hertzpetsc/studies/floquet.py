@@ -37,8 +37,11 @@ BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "
 
 
 def q_label(q):
-    """q as a fraction of pi (7pi/25), from the nearest denominator <= 100."""
-    f = Fraction(q / math.pi).limit_denominator(100)
+    """q as a fraction of pi (7pi/25) when it is one, with a denominator <= 1000, to 1e-12; else its decimal value
+    (q = 1 is '1', not the nearest fraction 7pi/22)."""
+    f = Fraction(q / math.pi).limit_denominator(1000)
+    if abs(float(f) * math.pi - q) > 1e-12 * max(q, 1.0):
+        return f"{q:.6g}"
     return f"{f.numerator if f.numerator != 1 else ''}pi/{f.denominator}" if f.denominator != 1 else f"{f.numerator}pi"
 
 
@@ -213,11 +216,9 @@ class FloquetScan:
 
 
 def floquet_reference(path):
-    """{round(q, 12): rho} from a Floquet file (either format), or {} if there is none."""
-    try:
-        data = load_npz(path, "Floquet file")
-    except RecordFileError:
-        return {}
+    """{round(q, 12): rho} from a Floquet file (either format); a missing or unreadable file is an error naming it
+    (a reference that is not there must not become a table of nan)."""
+    data = load_npz(path, "Floquet reference file")
     if "format" in data:
         check_kind(data, path, FLOQUET_FORMAT, "Floquet file")
     return {round(float(a), 12): float(b) for a, b in zip(data["q"], data["rho"])}

@@ -10,8 +10,11 @@ largest growth rate gamma(q) = max ln|mu| / script-T over all Bloch parameters, 
   Theta = 0 the uniform translation, each with its Jordan partner) deflated exactly.
 
 A wave is *slowly unstable* when the co-moving route's gamma exceeds the target resolution on every grid and
-converges (the last two grids agree to 10%): gamma is then the Richardson value. Otherwise it is *stable within
-resolution*, the resolution being the largest gamma either route measured (the co-moving values are rounding of
+converges (the last two grids agree to 10%): gamma is then the Richardson value. It is *stable within resolution*
+when no route measured a gamma above the target, the resolution being the largest gamma either route measured;
+and *unresolved* when some gamma exceeds the target but the grids do not agree (finer grids are needed: no bound is
+claimed). Grids coarser than :data:`CELLS_PER_Q` cells per q are refused (they cannot resolve the compression
+zone) (the co-moving values are rounding of
 eigenvalues that the scheme keeps on the axis exactly, lambda -> -conj(lambda); the monodromy values are the
 flow's and the orbit's error after deflation). The long-wave end: the largest Re lambda / theta of the eigenvalues
 near 0 at a small theta, against the 2x2 Whitham prediction from omega(q, A) (:func:`whitham_slope`).
@@ -37,7 +40,8 @@ invariance_mono        relative residual of the deflated subspace's invariance
 E_orbit                E(q) of the orbit after refinement (N beads over script-T); E_short: on the cell's short map
 slope_cm               largest Re lambda / theta near lambda = 0 at theta_longwave (K = grids[1])
 slope_whitham          |Im c| of the 2x2 Whitham characteristic speeds (nan: elliptic test not computable)
-resolution, verdict    the bound (per unit time) and 1 = slowly unstable, 0 = stable within resolution
+resolution, verdict    the bound (per unit time) and 1 = slowly unstable, 0 = stable within resolution,
+                       2 = unresolved (a gamma above the target on grids that do not agree)
 seconds                wall time of the point
 =====================  ======================================================================================
 """
@@ -119,6 +123,11 @@ def monodromy_fields(sectors, refiner, orbit, E):
                     x0, sym.delta(orbit.T), sym.k)))
 
 
+# cells per unit of q on the coarsest co-moving grid: the compression zone, about 4 q long (N(q) <= 5 beads),
+# then holds about 80 grid cells; coarser grids cannot resolve the growth they would be asked to bound
+CELLS_PER_Q = 20
+
+
 class SlowInstabilityScan:
     """gamma(q) above q_c by the co-moving and the monodromy routes (module docstring), written as it goes.
 
@@ -147,6 +156,12 @@ class SlowInstabilityScan:
         self.refine_tol, self.tolerances, self.target = refine_tol, tolerances, target
         self.theta_longwave = theta_longwave
         self.qs = [branch.point(q).q for q in (qs if qs else branch.q)]
+        coarse = [q for q in self.qs if q * grids[0] / math.pi < CELLS_PER_Q * (1 - 1e-12)]
+        if coarse:
+            q0 = coarse[0]
+            raise ParameterError("-grids", ",".join(map(str, grids)), f"the coarsest grid has {q0 * grids[0] / math.pi:.3g}"
+                                 f" cells per q at q = {q0:.6g}: at least {CELLS_PER_Q} are needed (K >= "
+                                 f"{math.ceil(CELLS_PER_Q * math.pi / q0)}) to resolve the compression zone")
         self.spec = ChainSpec(branch.model, N)
         self.pep = ComovingPEP(PETSc.COMM_SELF)
         self.sectors = (DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances,
@@ -229,15 +244,17 @@ class SlowInstabilityScan:
         return monodromy_fields(self.sectors, self.refiner, *self.refine(point))
 
     def verdict(self, row):
-        """(resolution, verdict): slowly unstable when the co-moving gamma exceeds the target on every grid and the
-        last two agree to 10% (gamma = the Richardson value); else stable within the largest gamma measured."""
+        """(resolution, verdict): slowly unstable (1) when the co-moving gamma exceeds the target on every grid
+        and the last two agree to 10% (gamma = the Richardson value); stable within the largest gamma measured (0)
+        when that is below the target; else unresolved (2): the resolution shown is not below what it would
+        bound."""
         g = np.asarray(row["gamma_cm"], dtype=float)
         if np.all(g > self.target) and abs(g[-1] - g[-2]) <= 0.1 * g[-1]:
             return abs(g[-1] - g[-2]) / 3, 1
         measured = [float(np.max(np.abs(g)))]
         if row["gamma_mono"] == row["gamma_mono"]:
             measured.append(abs(float(row["gamma_mono"])))
-        return max(measured), 0
+        return max(measured), 0 if max(measured) <= self.target else 2
 
     def point(self, q):
         t0 = time.perf_counter()
@@ -294,8 +311,8 @@ class SlowInstabilityScan:
             mono = (f"{r['gamma_mono']:.1e} | {r['raw_cluster_mono']:.1e} | {r['cluster_mono']:.1e} | "
                     f"{r['eigvec_mono']:.1e} | {r['E_orbit']:.1e} / {r['E_short']:.1e}") if m > 0 else \
                 "n/a | n/a | n/a | n/a | n/a"
-            verdict = (f"slowly unstable, gamma = {r['gamma_cm_extrapolated']:.2g}" if int(r["verdict"]) else
-                       "stable within resolution")
+            verdict = {1: f"slowly unstable, gamma = {r['gamma_cm_extrapolated']:.2g}", 0: "stable within resolution",
+                       2: "unresolved (refine the grids)"}[int(r["verdict"])]
             lines.append(f"| {q_label(float(r['q']))} ({float(r['q']):.4f}) | {m if m > 0 else '-'} | "
                          f"{float(r['theta_cm']):.3f} | {g} | {mono} | {float(r['band_cm']):.1e} | "
                          f"{float(r['slope_cm']):.1e} / {float(r['slope_whitham']):.2f} | "

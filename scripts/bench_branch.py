@@ -127,6 +127,9 @@ def main():
     previous = opts.path("previous", "", "a checkout of another release, measured side by side (none if empty)")
     output, repeats, records_path, mode = declare_common(opts, "results/bench_branch.md")
     opts.done()
+    from hertzpetsc.resources import check_memory
+    for K in cells:                          # refused before any worker is started
+        check_memory(K, PETSc.COMM_WORLD, name="cells")
     if previous and not os.path.isfile(os.path.join(previous, "hertzpetsc", "__init__.py")):
         from hertzpetsc.errors import ParameterError
         raise ParameterError("-previous", previous, "must be a checkout holding hertzpetsc/ (e.g. a git worktree)")

@@ -161,9 +161,10 @@ def main():
     import numpy as np
 
     from hertzpetsc.options import AppOptions
+    from hertzpetsc.resources import MAX_DENSE_BEADS
     opts = AppOptions(__doc__)
     branch = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
-    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3)
+    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3, maximum=MAX_DENSE_BEADS)
     tol = opts.real("tol", 1e-10, "target E(q) of every refinement", valid=(lambda x: x > 0, "> 0"))
     routes = opts.words("routes", ",".join(ROUTES), "routes to run", choices=ROUTES)
     output, repeats, records_path, mode = declare_common(opts, "results/bench_stability.md", repeats=1)

@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 WORKER = "-worker"
+MAX_CHAIN = 10 ** 7          # beads of a benchmark chain (the SciPy routes hold dense blocks of it)
 
 
 def worker_request(argv):
@@ -118,7 +119,8 @@ def declare_chains(opts, sizes, multiple, why):
     """-branch (the branch file of the waves) and -sizes (chain lengths, multiples of ``multiple``)."""
     branch = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     return branch, opts.numbers("sizes", sizes, f"chain lengths (multiples of {multiple})", expr=False, kind=int,
-                                valid=(lambda N: N >= multiple and N % multiple == 0, f"a multiple of {multiple} ({why})"),
+                                valid=(lambda N: multiple <= N <= MAX_CHAIN and N % multiple == 0,
+                                       f"a multiple of {multiple} ({why}), at most {MAX_CHAIN}"),
                                 distinct=True)
 
 

@@ -71,9 +71,9 @@ def main():
                       valid=(lambda q: q >= 0, ">= 0"), distinct=True)
     if opts.flag("no_dynamics", "only the two-compacton test"):
         qs = []
-    N = opts.integer("N", 2100, "beads of the free chain", minimum=10)
+    N = opts.integer("N", 2100, "beads of the free chain", minimum=10, maximum=10 ** 7)
     n0 = opts.integer("n0", 50, "first bead of the compacton's window", minimum=1)
-    travel = opts.integer("travel", 1000, "units of time = beads of travel", minimum=10)
+    travel = opts.integer("travel", 1000, "units of time = beads of travel", minimum=10, maximum=10 ** 7)
     amplitude = opts.real("amplitude", 1e-8, "size of the perturbation (relative)", valid=(lambda x: x > 0, "> 0"))
     kinds = opts.words("kinds", "mode,noise", "perturbations", choices=("mode", "noise"))
     output, mode, table, figures = opts.record_table_figures(

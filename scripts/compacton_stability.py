@@ -32,6 +32,7 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
+from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.compacton_stability import (DEFAULT_QS, TOL_UNSTABLE, CompactonStabilityScan,  # noqa: E402
@@ -50,7 +51,8 @@ def main():
     qs = opts.numbers("q", DEFAULT_QS, "wavenumbers below the branch's start, each in (0, q_k]",
                       valid=(lambda q: q > 0, "> 0"), distinct=True, minimum_count=0)
     solitary = not opts.flag("no_solitary", "skip the solitary wave (q = 0, Delta = 0)")
-    M = opts.integer("M", 18, "beads of the window", minimum=8)
+    M = opts.integer("M", 18, "beads of the window (its dense map and the doubled window's: (4M)^2 entries)",
+                     minimum=8, maximum=MAX_DENSE_BEADS // 4)
     rear = opts.integer("rear", 6, "beads at rest behind the compression zone in the starting window", minimum=2)
     nev = opts.integer("nev", 3, "dominant multipliers asked of SLEPc (at most 2M)", minimum=1)
     eta = opts.real("eta", 2.5, "exponential weight exp(eta j) of the SLEPc operator", valid=(lambda x: x >= 0,

@@ -43,7 +43,7 @@ def main():
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     refined_path = opts.path("refined", "results/refined_N100.npz", "refinement file of the cell")
     sizes = opts.numbers("sizes", "1000,10000", "chain lengths N (multiples of the cell)", expr=False, kind=int,
-                         valid=(lambda n: n > 0, "> 0"), distinct=True)
+                         valid=(lambda n: 0 < n <= 10 ** 7, "in [1, 1e7]"), distinct=True)
     qs = opts.numbers("q", "7*pi/25,9*pi/50,pi/50,3*pi/10", "wavenumbers (refined on the cell)",
                       valid=(lambda q: q > 0, "> 0"), distinct=True)
     nev = opts.integer("nev", 10, "dominant multipliers checked on the full chain", minimum=1)

@@ -35,6 +35,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
+from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import on_rank0, prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
@@ -52,7 +53,8 @@ ROLES = {"cm_": ("the co-moving quadratic eigenproblem", ("pep",)),
 def main():
     opts = AppOptions(__doc__, ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
-    N = opts.integer("N", 100, "beads of the periodic chain of the monodromy route", minimum=3)
+    N = opts.integer("N", 100, "beads of the periodic chain of the monodromy route", minimum=3,
+                     maximum=MAX_DENSE_BEADS)
     refined_path = opts.path("refined", "none", "refinement file to start the refinement from, or 'none' (branch wave)")
     q_min = opts.real("q_min", 0.9, "smallest branch q scanned (without -q)", expr=True,
                       valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"))

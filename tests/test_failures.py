@@ -288,3 +288,41 @@ def test_a_killed_branch_resumes_to_the_same_branch(tmp_path):
     assert np.array_equal(full.q, resumed.q)
     assert np.max(np.abs(full.u - resumed.u)) <= 1e-10 * np.max(np.abs(full.u))
     assert math.isclose(resumed.q[-1], math.pi / 5)
+
+
+# a size, count or amplitude far beyond what the machine or the method allows: refused in one line (the option
+# named, status 2) before anything is allocated or computed, never MemoryError, an overflow or hours of work
+OVERSIZED = {
+    "continuation.py": ("cells_per_pi", "1000000000000"),
+    "convergence_h.py": ("cells", "20,40,1000000000000"),
+    "refine_branch.py": ("N", "1000000000"),
+    "floquet_scan.py": ("N", "1000000000"),
+    "floquet_long.py": ("sizes", "100000000000"),
+    "long_run.py": ("t_final", "1e15"),
+    "small_q.py": ("q_stop", "1e-12"),
+    "solitary_wave.py": ("cells", "10,20,1000000000000"),
+    "long_wave.py": ("cells_per_unit", "1000000000000"),
+    "compactons.py": ("travel", "1000000000000"),
+    "precompressed_branch.py": ("cells_per_pi", "1000000000000"),
+    "dimer_branch.py": ("cells_per_pi", "1000000000000"),
+    "precompression_map.py": ("N", "1000000000"),
+    "slow_instabilities.py": ("N", "1000000000"),
+    "compacton_stability.py": ("M", "1000000000"),
+    "compacton_dynamics.py": ("N", "1000000000000"),
+    "wave.py": ("cells_per_pi", "1000000000000"),
+    "bench_branch.py": ("cells", "1000000000000"),
+    "bench_chain.py": ("sizes", "1000000000000"),
+    "bench_newton.py": ("cells", "1000000000000"),
+    "bench_floquet.py": ("sizes", "100000000000"),
+    "bench_stability.py": ("N", "1000000000"),
+}
+
+
+@pytest.mark.parametrize("script", sorted(OVERSIZED))
+def test_oversized_requests_are_refused_up_front(script, tmp_path, capfd, monkeypatch):
+    base = DRIVERS[script][0]
+    option, value = OVERSIZED[script]
+    t0 = time.perf_counter()
+    code, _, err = drive(script, swap(fill(base, tmp_path), option, value), capfd, monkeypatch, tmp_path)
+    assert code == 2 and len(err) == 1 and f"-{option}" in err[0], err
+    assert time.perf_counter() - t0 < 30

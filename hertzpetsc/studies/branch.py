@@ -12,6 +12,7 @@ from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid,
 from ..errors import ParameterError, RecordFileError
 from ..model import LatticeModel
 from ..records import MemoryRecords, NpzRecords, load_npz, npz_arrays, on_rank0, write_npz
+from ..resources import check_memory
 from ..richardson import richardson
 from ..twsolver import TW_PREFIX
 from .base import Study, configure_roles
@@ -82,6 +83,7 @@ class ConvergenceStudy(Study):
         if len(cells) < 3 or len(set(cells)) != len(cells):
             raise ParameterError("cells", cells, "needs at least three different grids for an observed order")
         super().__init__(dict(alpha=model.alpha, M=M, cells=cells), comm)
+        check_memory(cells[-1], self.comm, name="cells")
         self.model, self.M, self.cells, self.prefix = model, M, cells, prefix
         self.values = {}
         configure_roles({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
@@ -211,6 +213,7 @@ class SmallQStudy(Study):
 
     def __init__(self, params, progress=None, comm=None, mode="new", prefix=TW_PREFIX):
         super().__init__(params, comm, progress, mode)
+        check_memory(params.cells_per_pi(params.q_stop, params.levels - 1), self.comm, name="q_stop")
         self.prefix, self.progress = prefix, progress
         self.continuation = ContinuationParameters(model=params.model, M=1, cells_per_pi=params.grid(0).cells_per_pi(
             params.q_first))

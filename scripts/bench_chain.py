@@ -100,6 +100,8 @@ def main():
     refine_N = opts.integer("refine_N", 100, "chain of the refinement measurement (0: none)", minimum=0)
     output, repeats, records_path, mode = declare_common(opts, "results/bench_chain.md")
     opts.done()
+    from petsc4py import PETSc
+
     from hertzpetsc.resources import check_chain_memory
     for N in sizes:                          # refused before any worker is started (the SciPy route's arrays too)
         check_chain_memory(N, PETSc.COMM_WORLD, name="sizes")

@@ -318,10 +318,14 @@ class AppOptions:
             return
         if PETSc.COMM_WORLD.getRank() == 0:
             print(self.help_text(), flush=True)
-        if self.roles:
+        if self.roles and self.db.getString("help", "") == "solvers":
             print0("\nPETSc's options of these solvers (their defaults before the code's own):")
-            print_solver_help({p: kinds for p, (_, kinds) in self.roles.items()})
+            if PETSc.COMM_WORLD.getRank() == 0:          # the objects are made on COMM_SELF: one rank prints
+                print_solver_help({p: kinds for p, (_, kinds) in self.roles.items()})
+        elif self.roles:
+            print0("\nPETSc's own options of each solver role: -help solvers")
         sys.stdout.flush()
+        self.db.delValue("help")              # PETSc would print its viewer options again at its finalize
         raise SystemExit(0)
 
     def known(self):

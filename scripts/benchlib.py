@@ -148,7 +148,7 @@ def main_or_worker(main, worker):
     if request:
         worker(*request)
         return
-    import petsc4py
-    petsc4py.init(sys.argv)
+    from hertzpetsc.start import init_petsc
+    init_petsc(sys.argv)
     from hertzpetsc.options import guarded_main
     guarded_main(main)

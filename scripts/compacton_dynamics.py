@@ -23,9 +23,9 @@ Solver prefixes: -cdyn_ (the chain TS; its error norm defaults to -cdyn_ts_adapt
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402

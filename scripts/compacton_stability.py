@@ -22,9 +22,9 @@ chain of 2 pi / q beads, which is the paper's periodic wave: rho(F_q) with the f
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 import slepc4py  # noqa: E402
 
 slepc4py.init(sys.argv)

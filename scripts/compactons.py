@@ -17,9 +17,9 @@ Solver prefix: -chain_ (TS; default RK 8(7), rtol 1e-12, atol 1e-14).
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402

@@ -14,9 +14,9 @@ arclength Newton), -dimer_natural_ (the first natural steps).
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.advdelay import check_wavenumber  # noqa: E402

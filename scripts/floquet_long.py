@@ -19,9 +19,9 @@ Solver prefix: -floquet_ (TS of the variational equations -floquet_ts_*, the see
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 import slepc4py  # noqa: E402
 
 slepc4py.init(sys.argv)

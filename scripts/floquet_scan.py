@@ -22,9 +22,9 @@ Solver prefix: -floquet_ (the flow of the variational equations -floquet_ts_*, t
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 import slepc4py  # noqa: E402
 
 slepc4py.init(sys.argv)

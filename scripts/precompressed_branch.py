@@ -15,9 +15,9 @@ Figure: precompressed_omega.png. Solver prefix: -precomp_ (the bordered Newton: 
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.advdelay import check_wavenumber  # noqa: E402

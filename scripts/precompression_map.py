@@ -18,9 +18,9 @@ rho - 1 per (q, a) (U: unstable, rho - 1 > tol_rho). Figure: precompression_map.
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402

@@ -24,9 +24,9 @@ Solver prefixes: -cm_ (the co-moving PEP: -cm_pep_*, -cm_st_*), -tw_ (profiles o
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 import slepc4py  # noqa: E402
 
 slepc4py.init(sys.argv)

@@ -15,9 +15,9 @@ and one table row per q. Solver prefixes: -precomp_ (the precompressed wave), -t
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.model import LatticeModel  # noqa: E402

@@ -224,8 +224,15 @@ def test_processes_fail_in_one_line_on_every_rank(tmp_path, ranks):
 
 
 def test_help_computes_nothing_on_two_ranks(tmp_path):
+    """-help: the driver's options and solver roles first, on a screen or two, no PETSc banner; -help solvers adds
+    PETSc's own options of each role. Neither computes nor writes anything."""
     r = run_script("continuation.py", "-help", ranks=2, cwd=tmp_path)
     assert r.returncode == 0 and "-cells_per_pi 1000" in r.stdout and "-tw_*" in r.stdout
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("Compute the travelling-wave branch") and len(lines) <= 60
+    assert "Petsc Release Version" not in r.stdout and "-tw_snes_type <" not in r.stdout
+    r = run_script("continuation.py", "-help", "solvers", ranks=2, cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.splitlines()[0].startswith("Compute the travelling-wave branch")
     assert "-tw_snes_type <" in r.stdout and "-sol_snes_type <" in r.stdout      # PETSc's own options of the roles
     assert list(tmp_path.iterdir()) == []
 

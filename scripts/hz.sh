@@ -17,7 +17,7 @@ VENV=${HZ_VENV:-$ROOT/.venv}
 PY=$VENV/bin/python
 NRANKS=${HZ_NRANKS:-2}
 DEB_PACKAGES="python3-petsc4py python3-slepc4py python3-mpi4py python3-numpy python3-matplotlib python3-pytest \
-python3-scipy python3-venv python3-pip python3-setuptools openmpi-bin time"
+python3-scipy python3-venv python3-pip python3-setuptools python3-h5py-mpi openmpi-bin time"
 
 # Open MPI refuses to run as root unless told; two ranks on two cores need no oversubscription, more do.
 # A process started without mpiexec initialises MPI alone (no daemon: no host name lookup, which takes seconds
@@ -98,7 +98,7 @@ case "$cmd" in
     run)
         setup
         cd "$ROOT"
-        "$@" ;;
+        PATH="$VENV/bin:$PATH" "$@" ;;     # the venv's python first: `run scripts/x.py` and `run python ...` use it
     *)
         echo "usage: bash scripts/hz.sh {main|paper|test|setup|run CMD...}" >&2
         exit 2 ;;

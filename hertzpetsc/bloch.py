@@ -73,24 +73,6 @@ class TwistedChain(Chain):
         self.n_modes = int(n_tangent) // 2 if complex_modes else int(n_tangent)
         self.theta = float(theta)
 
-    def _ghosted(self, X, t=None):
-        """Ghosted local values with the twist e^{-i theta} (left of bead 0) / e^{i theta} (right of bead M-1)."""
-        self.da.globalToLocal(X, self.local)
-        a = self.local.getArray().reshape(self.nloc + 2, self.dof)
-        if self.theta != 0.0:
-            c, s = math.cos(self.theta), math.sin(self.theta)
-            for row, sign, wraps in ((0, -1.0, self.xs == 0), (-1, 1.0, self.xe == self.spec.N)):
-                if not wraps:
-                    continue
-                if not self.complex_modes:
-                    a[row, 2:] *= c                                          # e^{+-i pi} = -1
-                    continue
-                t = a[:, 2:].reshape(self.nloc + 2, self.n_modes, 2, 2)     # bead, mode, (u, w), (y, ydot)
-                u, w = t[row, :, 0, :].copy(), t[row, :, 1, :].copy()
-                t[row, :, 0, :] = c * u - sign * s * w
-                t[row, :, 1, :] = sign * s * u + c * w
-        return a
-
 
 class BlochSectors:
     """Dense twisted-cell maps G_theta = S_theta^k R_theta(T; 0), one TS run (2M columns) per sector, for cells of

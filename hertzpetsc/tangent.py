@@ -79,22 +79,35 @@ class MonodromyModShift:
     """Matrix-free F = S R(T; 0) around the orbit from ``x0``: a ``Mat.createPython`` context.
 
     Each product integrates the chain and one tangent vector over [0, T] (the orbit is recomputed, which keeps
-    memory at O(N)); ``products`` counts them.
+    memory at O(N)); :meth:`apply` takes a block of vectors through one integration. ``products`` counts the
+    vectors, ``integrations`` the TS runs.
     """
 
     def __init__(self, spec, x0, T, comm, tolerances, prefix):
+        self.spec, self.comm, self.tolerances, self.prefix = spec, comm, tolerances, prefix
         self.flow = TangentFlow(spec, 1, comm, tolerances, prefix)
-        base = self.flow.base
-        self.x0_local = np.asarray(x0, dtype=float).reshape(spec.N, 2)[base.xs:base.xe].copy()
-        self.T = float(T)
-        self.products = 0
-        self._RY = base.create_state()
+        self.products = self.integrations = 0
+        self._RY = self.flow.base.create_state()
+        self._blocks = {}
+        self.set_orbit(x0, T)
 
     def set_orbit(self, x0, T):
         """Move the operator to another orbit of the same chain (the next wavenumber of a scan)."""
         base = self.flow.base
-        self.x0_local = np.asarray(x0, dtype=float).reshape(self.flow.spec.N, 2)[base.xs:base.xe].copy()
+        self.x0 = np.asarray(x0, dtype=float).reshape(self.spec.N, 2).copy()
+        self.x0_local = self.x0[base.xs:base.xe].copy()
         self.T = float(T)
+
+    def apply(self, Y):
+        """F Y for k vectors at once, ``Y`` (N, 2, k) given on every rank: one integration of the orbit with the k
+        tangent columns (instead of k integrations of the orbit with one); (N, 2, k) on every rank."""
+        k = np.shape(Y)[2]
+        if k not in self._blocks:
+            self._blocks[k] = TangentFlow(self.spec, k, self.comm, self.tolerances, self.prefix)
+        _, RY = self._blocks[k].run(self.x0, self.T, Y)
+        self.products += k
+        self.integrations += 1
+        return np.roll(RY, -self.spec.model.cell, axis=0)
 
     def mult(self, mat, x, y):
         """y = S R(T; 0) x, all in the chain's distributed layout (no gathering)."""
@@ -106,6 +119,7 @@ class MonodromyModShift:
         self._RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
         base.shift(self._RY, y)
         self.products += 1
+        self.integrations += 1
 
     def create_mat(self):
         """The PETSc shell matrix (2N x 2N, the chain's layout)."""
@@ -122,3 +136,6 @@ class MonodromyModShift:
             self._RY.destroy()
             self.flow.destroy()
             self.flow = None
+            for flow in self._blocks.values():
+                flow.destroy()
+            self._blocks = {}

@@ -109,3 +109,24 @@ def test_damped_tangent_flow_matches_finite_differences_of_the_flow(clean_option
         flow.destroy()
     fd = (xp - xm) / (2 * eps)
     assert np.max(np.abs(fd - Rv[:, :, 0])) <= 1e-7 * np.max(np.abs(Rv))
+
+
+def test_block_product_equals_the_dense_monodromy():
+    """MonodromyModShift.apply: k vectors through one integration of the orbit, against the dense S R(T; 0) (other
+    adaptive steps: agreement to the flow's tolerance budget, as the single product in test_chain)."""
+    from hertzpetsc.tangent import MonodromyModShift
+    spec = ChainSpec(H(1.5), 10)
+    rng = np.random.default_rng(4)
+    x0 = np.stack([np.sin(2 * math.pi * 2 * np.arange(10) / 10) - 0.1, 0.2 * rng.normal(size=10)], axis=1)
+    dense = TangentFlow(spec, 20, COMM, None, "chain_")
+    F, _ = dense.monodromy_mod_shift(x0, 1.5)
+    dense.destroy()
+    op = MonodromyModShift(spec, x0, 1.5, COMM, None, "chain_")
+    Y = rng.normal(size=(10, 2, 3))
+    try:
+        FY = op.apply(Y)
+    finally:
+        op.destroy()
+    expected = (F @ Y.reshape(20, 3)).reshape(10, 2, 3)
+    assert np.max(np.abs(FY - expected)) <= 1e-9 * np.max(np.abs(expected))
+    assert op.products == 3 and op.integrations == 1

@@ -349,7 +349,8 @@ class Chain:
 class ChainIntegrator:
     """PETSc TS for a chain, under the options prefix ``chain_`` (e.g. -chain_ts_type, -chain_ts_rk_type,
     -chain_ts_rtol). Default: adaptive explicit Runge-Kutta 8(7) (Verner), rtol 1e-12, atol 1e-14 as in the
-    paper, steps matched to the final time."""
+    paper, steps matched to the final time. The right-hand side is the chain's compiled one; ``-chain_rhs_compiled
+    0`` makes the TS call :meth:`Chain.rhs_reference` (numpy, the same numbers) instead."""
 
     def __init__(self, chain, tolerances=None, prefix=CHAIN_PREFIX, rk_type="8vr"):
         self.chain = chain

@@ -84,8 +84,11 @@ class Chain:
             1.0 / self.model.mass(np.arange(self.xs, self.xe))
         self._shift = None
         self._theta, self._complex_modes, self._gap = 0.0, False, 0.0
-        # the compiled right-hand side (the Hertz law; any other law evaluates in numpy)
-        lib = kernels.library() if type(self.model.law) is HertzLaw else None
+        # the compiled right-hand side: the Hertz law and this class's ghost rows (any other law, or a subclass that
+        # redefines the ghost rows or the right-hand side, evaluates in numpy)
+        compiled = type(self.model.law) is HertzLaw and type(self)._ghosted is Chain._ghosted \
+            and type(self).rhs_reference is Chain.rhs_reference
+        lib = kernels.library() if compiled else None
         self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None
         self._sync()
 

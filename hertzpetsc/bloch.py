@@ -13,7 +13,8 @@ G_theta = S_theta^k R_theta(script-T / m'; 0) the map of the M-bead cell with tw
 (the k-bead shift carries the same twist), k m' = 1 + j M. The coefficients are real, so G_{-theta} = conj(G_theta):
 only l = 0, ..., floor(g/2) are integrated; theta = 0 and pi are real sectors (real tangents), the others carry a
 complex tangent u + i w as two real tangents (PETSc is a real build here). One TS run per sector integrates the
-orbit and the 2M columns.
+orbit and the 2M columns -- or, when there are several complex sectors and the response over T stays within a cell,
+one run of 2M real columns on three cells gives every sector (:class:`~hertzpetsc.tangent.CellPropagator`).
 
 Why not Krylov on the whole chain: for N = 1000 about 600 unstable multipliers crowd annuli of nearly equal
 moduli (the 10 largest differ by 1e-5 relative) and Krylov-Schur on the shell operator does not separate them.
@@ -36,7 +37,7 @@ from .errors import ParameterError
 from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, TOL_RHO, Spectrum, dominant_multipliers
 from .model import ChainSpec
 from .symmetry import WaveSymmetry
-from .tangent import MonodromyModShift
+from .tangent import LOCAL_RESPONSE, CellPropagator, MonodromyModShift
 
 
 def check_cell(N, M):
@@ -83,6 +84,7 @@ class BlochSectors:
         self.model, self.comm, self.tolerances, self.prefix = model, comm, tolerances, prefix
         self._solvers = {}
         self.runs = 0
+        self.propagated = 0          # orbits whose sectors came from the cell propagator
 
     def configure(self):
         """Build a small solver now, so that the ``floquet_ts_*`` options are read and checked before any run."""
@@ -122,18 +124,55 @@ class BlochSectors:
             R = (out[:, :, 0, :] + 1j * out[:, :, 1, :]).transpose(0, 2, 1).reshape(2 * M, 2 * M)
         else:
             R = out.reshape(M, 2 * M, 2).transpose(0, 2, 1).reshape(2 * M, 2 * M)
-        G = np.roll(R, -2 * shift, axis=0)                        # (S^k y)_n = y_{n+k}
-        if theta != 0.0:
-            G[2 * (M - shift):] = G[2 * (M - shift):] * (math.cos(theta) if not complex_modes else np.exp(1j * theta))
         self.runs += 1
-        return G
+        return twisted_shift(R, theta, shift)
+
+    def monodromies(self, x0, T, thetas, shift=1):
+        """G_theta for several twists around one orbit, in the order of ``thetas`` (a generator): from the cell
+        propagator (:class:`~hertzpetsc.tangent.CellPropagator`: one run of 2M real columns on three cells) when it
+        is cheaper than the twisted runs (two complex sectors or more) and the orbit's response stays within a
+        cell (checked first on the edge beads' 4 columns); else :meth:`monodromy` for each."""
+        x0 = np.asarray(x0, dtype=float)
+        M = len(x0)
+        prop = None
+        if sum(1 for theta in thetas if not real_sector(theta)) >= 2 and M >= 4:
+            prop = self._propagate(x0, T)
+        for theta in thetas:
+            yield twisted_shift(prop.twisted(theta), theta, shift) if prop else self.monodromy(x0, T, theta, shift)
+
+    @PETSc.Log.EventDecorator("hz_bloch_propagator")
+    def _propagate(self, x0, T):
+        """The cell propagator around the orbit, or None if the response reaches beyond a cell."""
+        M = len(x0)
+        if ("propagator", M) not in self._solvers:
+            self._solvers[("propagator", M)] = CellPropagator(self.model, M, self.comm, self.tolerances, self.prefix)
+        prop = self._solvers[("propagator", M)]
+        if prop.reaches(x0, T) > LOCAL_RESPONSE or not prop.run(x0, T).local:
+            return None
+        self.runs += 1
+        self.propagated += 1
+        return prop
 
     def destroy(self):
-        for chain, integrator, Z in self._solvers.values():
+        for solver in self._solvers.values():
+            if isinstance(solver, CellPropagator):
+                solver.destroy()
+                continue
+            chain, integrator, Z = solver
             Z.destroy()
             integrator.destroy()
             chain.destroy()
         self._solvers = {}
+
+
+def twisted_shift(R, theta, shift):
+    """G_theta = S_theta^k R_theta from the twisted resolvent R (2M x 2M): (S^k y)_n = y_{n+k}, the rows that wrap
+    across the seam times the twist (cos theta for the real sectors theta = 0, pi)."""
+    M = len(R) // 2
+    G = np.roll(R, -2 * shift, axis=0)
+    if theta != 0.0:
+        G[2 * (M - shift):] = G[2 * (M - shift):] * (math.cos(theta) if real_sector(theta) else np.exp(1j * theta))
+    return G
 
 
 @dataclass
@@ -143,7 +182,8 @@ class BlochResult:
     M is the wave's cell (beads), L = N / M the number of cells; ``sector[i]`` is l in 0..L-1 (theta_l = 2 pi l / L);
     ``modes`` holds, for the ``n_modes`` largest multipliers, (lambda, l, v) with v the 2M complex cell eigenvector
     (unit 2-norm); ``runs`` the TS runs (sectors integrated), ``columns`` the tangent columns integrated (2M per
-    sector), ``time`` the integration time of each run (script-T / m').
+    sector), ``time`` the integration time of each run (script-T / m'); ``propagated``: the sectors came instead
+    from one run of 2M real columns on three cells (:class:`~hertzpetsc.tangent.CellPropagator`).
     """
 
     N: int
@@ -156,6 +196,7 @@ class BlochResult:
     columns: int
     wall_time: float
     time: float = 0.0
+    propagated: bool = False
 
     def sector_values(self, j):
         return self.values[self.sector == j]
@@ -197,18 +238,21 @@ def bloch_multipliers(orbit, N, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQ
     own = sectors is None
     if own:
         sectors = sector_solver(orbit.spec.model, comm, split, tolerances, prefix)
-    local = []
+    local, propagated0 = [], sectors.propagated
     try:
-        for l in mine:
-            mu, V = np.linalg.eig(sectors.monodromy(x0, delta, thetas[l], k))
+        for l, G in zip(mine, sectors.monodromies(x0, delta, [thetas[l] for l in mine], k)):
+            mu, V = np.linalg.eig(G)
             lam = np.exp(-1j * jj * thetas[l]) * mu.astype(complex) ** mc
             top = np.argsort(-np.abs(lam), kind="stable")[:n_modes]
             local.append((l, lam, [(lam[i], V[:, i] / np.linalg.norm(V[:, i])) for i in top]))
+        propagated = sectors.propagated > propagated0
     finally:
         if own:
             sectors.destroy()
     if split == "sectors" and size > 1:
-        local = [item for part in comm.tompi4py().allgather(local) for item in part]
+        parts = comm.tompi4py().allgather((local, propagated))
+        local = [item for part, _ in parts for item in part]
+        propagated = any(used for _, used in parts)
     local.sort(key=lambda item: item[0])
     values, sector, modes = [], [], []
     for l, lam, top in local:
@@ -223,7 +267,8 @@ def bloch_multipliers(orbit, N, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQ
     order = np.argsort(-np.abs(values), kind="stable")
     modes.sort(key=lambda mode: -abs(mode[0]))
     return BlochResult(N=N, M=M, L=L, values=values[order], sector=sector[order], modes=modes[:n_modes],
-                       runs=len(thetas), columns=2 * M * len(thetas), wall_time=time.perf_counter() - t0, time=delta)
+                       runs=len(thetas), columns=2 * M * len(thetas), wall_time=time.perf_counter() - t0, time=delta,
+                       propagated=bool(propagated))
 
 
 class SymmetricFloquet:

@@ -6,11 +6,17 @@ with 2(1+k) dof per bead), so that R(T; 0) Y0 comes out with the same adaptive s
 :meth:`TangentFlow.monodromy_mod_shift` assembles S R(T; 0) densely (k = 2N columns, for N up to a few hundred);
 :class:`MonodromyModShift` is the same map as a matrix-free ``Mat.createPython`` operator (one product = one
 integration with k = 1) for SLEPc.
+
+:class:`CellPropagator`: for an orbit that repeats every M beads, the flow of the infinite chain in three cell
+blocks, from one run on three cells; every Bloch sector's map of the cell follows from them (section 3.5).
 """
+import math
+
 import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
+from .model import ChainSpec
 
 
 def stack_tangents(x, Y):
@@ -139,3 +145,73 @@ class MonodromyModShift:
             for flow in self._blocks.values():
                 flow.destroy()
             self._blocks = {}
+
+
+# The cell propagator is used when the response in the halves of the neighbouring cells away from cell 0 is below this
+# fraction of the largest response: the blocks it neglects (two cells away) are smaller still, far below the flows'
+# rtol (>= 1e-14).
+LOCAL_RESPONSE = 1e-15
+
+
+class CellPropagator:
+    """The tangent flow over [0, T] of an orbit that repeats every M beads, as three cell blocks of the infinite
+    chain: P_l (2M x 2M, index 2n + c), the response in cell l = -1, 0, 1 to data in cell 0.
+
+    On the cell with the twisted boundary y_{n+M} = e^{i theta} y_n (a Bloch sector, :mod:`hertzpetsc.bloch`) the
+    data in cell l are e^{i l theta} times those in cell 0, so the twisted resolvent is
+
+        R_theta(T; 0) = P_0 + e^{-i theta} P_1 + e^{i theta} P_{-1}       (:meth:`twisted`),
+
+    exactly when the response two cells away vanishes: in time T a perturbation has to cross a whole cell of M
+    beads, and the lattice's coupling makes that decay faster than exponentially in M (out of contact, Hertz bonds
+    carry none at all). One run of 2M real columns on 3M periodic beads (the columns: the unit vectors of cell 0)
+    gives the three blocks, instead of one run of 2M complex columns per sector; :attr:`local` says whether the
+    response stayed within reach (:meth:`reaches`: the halves of cells +-1 away from cell 0 saw less than
+    :data:`LOCAL_RESPONSE` of the largest response). The TS has the prefix of the role (``floquet_``).
+    """
+
+    def __init__(self, model, M, comm, tolerances, prefix):
+        self.M = int(M)
+        self.flow = TangentFlow(ChainSpec(model, 3 * self.M), 2 * self.M, comm, tolerances, prefix)
+        self.probe = TangentFlow(ChainSpec(model, 3 * self.M), 4, comm, tolerances, prefix)
+        self.blocks = None
+        self.local = False
+
+    def _far(self, RY):
+        """The largest response in the halves of cells 1 and -1 away from cell 0 (RY: (3M, 2, columns))."""
+        M, h = self.M, self.M // 2
+        return float(max(np.max(np.abs(RY[M + h:2 * M])), np.max(np.abs(RY[2 * M:3 * M - h]))))
+
+    def reaches(self, x0, T):
+        """The relative response in the far halves of the neighbouring cells to data on the two beads at the edges
+        of cell 0 (4 columns: the beads nearest to those halves), a cheap test before :meth:`run`."""
+        M = self.M
+        Y = np.zeros((3 * M, 2, 4))
+        for j, (bead, c) in enumerate(((0, 0), (0, 1), (M - 1, 0), (M - 1, 1))):
+            Y[bead, c, j] = 1.0
+        _, RY = self.probe.run(np.tile(np.asarray(x0, float), (3, 1)), T, Y)
+        return self._far(RY) / max(1.0, float(np.max(np.abs(RY))))
+
+    def run(self, x0, T):
+        """Compute P_{-1}, P_0, P_1 around the orbit from the M-bead state ``x0`` (M, 2) over T (given on every
+        rank); sets :attr:`local`. Returns self."""
+        M = self.M
+        Y = np.zeros((3 * M, 2, 2 * M))
+        Y[:M] = np.eye(2 * M).reshape(M, 2, 2 * M)
+        _, RY = self.flow.run(np.tile(np.asarray(x0, float), (3, 1)), T, Y)
+        R = RY.reshape(6 * M, 2 * M)
+        self.blocks = (R[4 * M:], R[:2 * M], R[2 * M:4 * M])          # P_{-1}, P_0, P_1
+        self.local = self._far(RY) <= LOCAL_RESPONSE * float(np.max(np.abs(R)))
+        return self
+
+    def twisted(self, theta):
+        """R_theta(T; 0) of the twisted cell (2M x 2M; real for theta = 0, pi)."""
+        Pm, P0, P1 = self.blocks
+        if abs(math.sin(theta)) < 1e-14:
+            c = 1.0 if math.cos(theta) > 0 else -1.0
+            return P0 + c * (P1 + Pm)
+        return P0 + np.exp(-1j * theta) * P1 + np.exp(1j * theta) * Pm
+
+    def destroy(self):
+        self.flow.destroy()
+        self.probe.destroy()

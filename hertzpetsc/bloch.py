@@ -127,15 +127,18 @@ class BlochSectors:
         self.runs += 1
         return twisted_shift(R, theta, shift)
 
-    def monodromies(self, x0, T, thetas, shift=1):
+    def monodromies(self, x0, T, thetas, shift=1, among=None):
         """G_theta for several twists around one orbit, in the order of ``thetas`` (a generator): from the cell
         propagator (:class:`~hertzpetsc.tangent.CellPropagator`: one run of 2M real columns on three cells) when it
-        is cheaper than the twisted runs (two complex sectors or more) and the orbit's response stays within a
-        cell (checked first on the edge beads' 4 columns); else :meth:`monodromy` for each."""
+        is cheaper than the twisted runs of the twists ``among`` (default ``thetas``; the whole set when the caller
+        deals them to ranks, so that every rank takes the same route: two complex sectors or more) and the orbit's
+        response stays within a cell (checked first on the edge beads' 4 columns); else :meth:`monodromy` for
+        each."""
         x0 = np.asarray(x0, dtype=float)
         M = len(x0)
         prop = None
-        if sum(1 for theta in thetas if not real_sector(theta)) >= 2 and M >= 4:
+        among = thetas if among is None else among
+        if thetas and sum(1 for theta in among if not real_sector(theta)) >= 2 and M >= 4:
             prop = self._propagate(x0, T)
         for theta in thetas:
             yield twisted_shift(prop.twisted(theta), theta, shift) if prop else self.monodromy(x0, T, theta, shift)
@@ -240,7 +243,7 @@ def bloch_multipliers(orbit, N, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQ
         sectors = sector_solver(orbit.spec.model, comm, split, tolerances, prefix)
     local, propagated0 = [], sectors.propagated
     try:
-        for l, G in zip(mine, sectors.monodromies(x0, delta, [thetas[l] for l in mine], k)):
+        for l, G in zip(mine, sectors.monodromies(x0, delta, [thetas[l] for l in mine], k, among=thetas)):
             mu, V = np.linalg.eig(G)
             lam = np.exp(-1j * jj * thetas[l]) * mu.astype(complex) ** mc
             top = np.argsort(-np.abs(lam), kind="stable")[:n_modes]

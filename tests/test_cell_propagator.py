@@ -68,7 +68,7 @@ def test_response_beyond_a_cell_falls_back_to_twisted_runs():
 class TwistedRuns(BlochSectors):
     """The sectors by one twisted run each, whatever the cell (the route before the propagator)."""
 
-    def monodromies(self, x0, T, thetas, shift=1):
+    def monodromies(self, x0, T, thetas, shift=1, among=None):
         return (self.monodromy(x0, T, theta, shift) for theta in thetas)
 
 

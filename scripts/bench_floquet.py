@@ -100,7 +100,7 @@ def petsc_worker(name, branch_path, refined_path, N, petsc_args):
         else:
             r, products = bloch_residuals(full, real_pairs(b.modes, L), PETSc.COMM_WORLD, tol)
             out = dict(rho=float(abs(b.values[0])), products=products, residual=float(np.max(r)))
-        out.update(runs=b.runs, columns=b.columns)
+        out.update(runs=b.runs, columns=b.columns, propagated=b.propagated)
     elif name == "petsc_dense":
         out = dict(rho=spectral_radius(dense_multipliers(dense_monodromy(full, PETSc.COMM_WORLD, tol))),
                    products=2 * N)
@@ -134,7 +134,9 @@ def main():
     rec = BenchRecords(records_path, "hertzpetsc-bench-floquet-1", dict(branch=branch, refined=refined), mode)
     lines = [f"10 dominant multipliers of F_q, q = 9pi/50, rtol {RTOL:g}; {machine(repeats)}. Bloch: g//2 + 1 "
              "sector runs of the wave's cell (g = gcd(m, N) = N/100 here: 200 complex tangent columns each, over "
-             "script-T/9, the wave's time symmetry), then on the full chain either the residuals of the dominant "
+             "script-T/9, the wave's time symmetry), or, where two or more sectors are complex, every sector from "
+             "one run of the cell's 200 real columns on three cells (the cell propagator, hertzpetsc.tangent), then "
+             "on the full chain either the residuals of the dominant "
              "modes (products = shell products over script-T, all in one integration, max relative residual in "
              "brackets) or seeded SLEPc "
              "(products = shell products).\n",
@@ -165,6 +167,8 @@ def main():
             prod = str(res["products"])
             if res.get("runs"):
                 prod = f"{res['runs']} x {res['columns'] // res['runs']} + {res['products']}"
+                if res.get("propagated"):
+                    prod = f"{res['runs']} sectors from 1 x 200 on 3 cells + {res['products']}"
                 if res.get("residual") is not None:
                     prod += f" (residual {res['residual']:.0e})"
             lines.append(f"| {N} | {label} | {ranks} | {res['wall']:.1f} | {prod} | {res['rho']:.6f} | "

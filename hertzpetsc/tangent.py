@@ -16,6 +16,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
+from .errors import HertzPetscError
 from .model import ChainSpec
 
 
@@ -106,13 +107,40 @@ class MonodromyModShift:
 
     def apply(self, Y):
         """F Y for k vectors at once, ``Y`` (N, 2, k) given on every rank: one integration of the orbit with the k
-        tangent columns (instead of k integrations of the orbit with one); (N, 2, k) on every rank."""
-        k = np.shape(Y)[2]
-        if k not in self._blocks:
-            self._blocks[k] = TangentFlow(self.spec, k, self.comm, self.tolerances, self.prefix)
-        _, RY = self._blocks[k].run(self.x0, self.T, Y)
+        tangent columns (instead of k integrations of the orbit with one); (N, 2, k) on every rank.
+
+        On several ranks, with at least as many vectors as ranks, the vectors are dealt to the ranks and each rank
+        integrates the whole chain with its share (no communication per stage: the ranks do not wait for each
+        other 13 times a step); an error on one rank is raised on every rank."""
+        Y = np.asarray(Y, dtype=float)
+        k, size = Y.shape[2], self.comm.getSize()
         self.products += k
         self.integrations += 1
+        if size == 1 or k < size:
+            return self._integrate(Y, self.comm)
+        rank = self.comm.getRank()
+        mine = list(range(rank, k, size))
+        try:
+            share, failure = self._integrate(Y[:, :, mine], PETSc.COMM_SELF), None
+        except HertzPetscError as err:
+            share, failure = None, (type(err), err.args)
+        parts = self.comm.tompi4py().allgather((mine, share, failure))
+        for _, _, failed in parts:
+            if failed is not None:
+                err = failed[0].__new__(failed[0])
+                err.args = failed[1]
+                raise err
+        FY = np.empty_like(Y)
+        for cols, part, _ in parts:
+            FY[:, :, cols] = part
+        return FY
+
+    def _integrate(self, Y, comm):
+        """S R(T; 0) Y by one TangentFlow on ``comm`` (built once per column count and communicator)."""
+        key = (Y.shape[2], comm.getSize())
+        if key not in self._blocks:
+            self._blocks[key] = TangentFlow(self.spec, Y.shape[2], comm, self.tolerances, self.prefix)
+        _, RY = self._blocks[key].run(self.x0, self.T, Y)
         return np.roll(RY, -self.spec.model.cell, axis=0)
 
     def mult(self, mat, x, y):

@@ -94,9 +94,10 @@ def built_digest():
         return "unknown"
 
 
-def build(compiler="cc", force=False):
+def build(compiler=None, force=False):
     """Compile ``_chain_kernel.c`` into ``_chain_kernel.so`` (atomically) unless the library was built from this
-    source; returns the library's path."""
+    source; returns the library's path. ``compiler``: default $CC, else gcc."""
+    compiler = compiler or os.environ.get("CC", "gcc")
     digest = source_digest()
     if not force and os.path.exists(LIBRARY) and built_digest() == digest:
         return LIBRARY

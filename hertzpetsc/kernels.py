@@ -122,8 +122,11 @@ def library():
     """The loaded kernel library, or None when it is not built (or built from another source)."""
     global _lib, _status
     if _status is None:
+        from petsc4py import PETSc
         built = built_digest()
-        if built is None:
+        if np.dtype(PETSc.ScalarType) != np.float64 or np.dtype(PETSc.RealType) != np.float64:
+            _status = "PETSc is not a real double-precision build (the kernel's PetscScalar is double)"
+        elif built is None:
             _status = "not built (run: python -m hertzpetsc.kernels, or bash scripts/hz.sh setup)"
         elif built != source_digest():
             _status = "built from another source (run: python -m hertzpetsc.kernels)"

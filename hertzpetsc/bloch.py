@@ -12,7 +12,9 @@ wavelengths are coprime with its M / p pattern cells, the k-cell shift over the 
 G_theta = S_theta^k R_theta(script-T / m'; 0) the map of the M-bead cell (its masses the pattern's) with twisted
 boundary y_M = e^{i theta} y_0, k m' = 1 + j M / p. G_{-theta} = conj(G_theta): only l = 0, ..., floor(g/2) are
 integrated (one TS run of the orbit and 2M columns each); theta = 0 and pi take real tangents, the others a complex
-tangent u + i w as two real ones (PETSc is a real build here). A chain of L copies is the orbit tiled.
+tangent u + i w as two real ones (PETSc is a real build here) -- or, when there are several complex sectors and the
+response over T stays within a cell, one run of 2M real columns on three cells gives every sector
+(:class:`~hertzpetsc.tangent.CellPropagator`). A chain of L copies is the orbit tiled.
 
 Why not Krylov on the whole chain: for N = 1000 about 600 unstable multipliers crowd annuli of nearly equal moduli
 and Krylov-Schur on the shell does not separate them, even started from the Bloch modes
@@ -29,7 +31,7 @@ from .errors import ParameterError
 from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, DominantFloquet, FloquetSolver, Spectrum
 from .model import ChainSpec
 from .symmetry import real_sector
-from .tangent import MonodromyModShift
+from .tangent import LOCAL_RESPONSE, CellPropagator, MonodromyModShift
 
 
 class TwistedChain(Chain):
@@ -45,24 +47,6 @@ class TwistedChain(Chain):
         self.n_modes = int(n_tangent) // 2 if complex_modes else int(n_tangent)
         self.theta = float(theta)
 
-    def _ghosted(self, X, t=None):
-        """Ghosted local values with the twist e^{-i theta} (left of bead 0) / e^{i theta} (right of bead M-1)."""
-        self.da.globalToLocal(X, self.local)
-        a = self.local.getArray().reshape(self.nloc + 2, self.dof)
-        if self.theta != 0.0:
-            c, s = math.cos(self.theta), math.sin(self.theta)
-            for row, sign, wraps in ((0, -1.0, self.xs == 0), (-1, 1.0, self.xe == self.spec.N)):
-                if not wraps:
-                    continue
-                if not self.complex_modes:
-                    a[row, 2:] *= c                                          # e^{+-i pi} = -1
-                    continue
-                t = a[:, 2:].reshape(self.nloc + 2, self.n_modes, 2, 2)     # bead, mode, (u, w), (y, ydot)
-                u, w = t[row, :, 0, :].copy(), t[row, :, 1, :].copy()
-                t[row, :, 0, :] = c * u - sign * s * w
-                t[row, :, 1, :] = sign * s * u + c * w
-        return a
-
 
 class BlochSectors:
     """Dense twisted-cell maps G_theta = S_theta^k R_theta(T; 0), one TS run (2M columns) per sector, for cells of
@@ -73,6 +57,7 @@ class BlochSectors:
         self.model, self.comm, self.tolerances, self.prefix = model, comm, tolerances, prefix
         self._solvers = {}
         self.runs = 0
+        self.propagated = 0          # orbits whose sectors came from the cell propagator
 
     def configure(self):
         """Build a small solver now, so that the ``floquet_ts_*`` options are read and checked before any run."""
@@ -113,15 +98,55 @@ class BlochSectors:
             R = (out[:, :, 0, :] + 1j * out[:, :, 1, :]).transpose(0, 2, 1).reshape(2 * M, 2 * M)
         else:
             R = out.reshape(M, 2 * M, 2).transpose(0, 2, 1).reshape(2 * M, 2 * M)
-        kb = shift * self.model.cell
-        G = np.roll(R, -2 * kb, axis=0)                           # (S^k y)_n = y_{n+kp}
-        if theta != 0.0:
-            G[2 * (M - kb):] = G[2 * (M - kb):] * (math.cos(theta) if not complex_modes else np.exp(1j * theta))
         self.runs += 1
+        return self._twisted_shift(R, theta, shift)
+
+    def _twisted_shift(self, R, theta, shift):
+        """G_theta = S_theta^k R_theta from the twisted resolvent R (2M x 2M): (S^k y)_n = y_{n+kp}, the rows that
+        wrap across the seam times the twist (cos theta for the real sectors theta = 0, pi)."""
+        M = len(R) // 2
+        kb = shift * self.model.cell
+        G = np.roll(R, -2 * kb, axis=0)
+        if theta != 0.0:
+            G[2 * (M - kb):] = G[2 * (M - kb):] * (math.cos(theta) if real_sector(theta) else np.exp(1j * theta))
         return G
 
+    def monodromies(self, x0, T, thetas, shift=1, among=None):
+        """G_theta for several twists around one orbit, in the order of ``thetas`` (a generator): from the cell
+        propagator (:class:`~hertzpetsc.tangent.CellPropagator`: one run of 2M real columns on three cells) when it
+        is cheaper than the twisted runs of the twists ``among`` (default ``thetas``; the whole set when the caller
+        deals them to ranks, so that every rank takes the same route: two complex sectors or more) and the orbit's
+        response stays within a cell (checked first on the edge beads' 4 columns); else :meth:`monodromy` for
+        each."""
+        x0 = np.asarray(x0, dtype=float)
+        M = len(x0)
+        prop = None
+        among = thetas if among is None else among
+        if thetas and sum(1 for theta in among if not real_sector(theta)) >= 2 and M >= 4:
+            prop = self._propagate(x0, T)
+        for theta in thetas:
+            yield self._twisted_shift(prop.twisted(theta), theta, shift) if prop else \
+                self.monodromy(x0, T, theta, shift)
+
+    @PETSc.Log.EventDecorator("hz_bloch_propagator")
+    def _propagate(self, x0, T):
+        """The cell propagator around the orbit, or None if the response reaches beyond a cell."""
+        M = len(x0)
+        if ("propagator", M) not in self._solvers:
+            self._solvers[("propagator", M)] = CellPropagator(self.model, M, self.comm, self.tolerances, self.prefix)
+        prop = self._solvers[("propagator", M)]
+        if prop.reaches(x0, T) > LOCAL_RESPONSE or not prop.run(x0, T).local:
+            return None
+        self.runs += 1
+        self.propagated += 1
+        return prop
+
     def destroy(self):
-        for chain, integrator, Z in self._solvers.values():
+        for solver in self._solvers.values():
+            if isinstance(solver, CellPropagator):
+                solver.destroy()
+                continue
+            chain, integrator, Z = solver
             Z.destroy()
             integrator.destroy()
             chain.destroy()
@@ -153,16 +178,18 @@ class SymmetricFloquet(FloquetSolver):
         M, L, mc, k, jj = sym.M, sym.g, sym.m_cell, sym.k, sym.j
         x0, delta, thetas = orbit.x[:M], sym.delta(orbit.T), sym.sectors()
         size, rank = self.comm.getSize(), self.comm.getRank()
-        local = []
-        for l in range(len(thetas)):
-            if self.split == "beads" or l % size == rank:
-                mu, V = np.linalg.eig(self.sectors.monodromy(x0, delta, thetas[l], k))
-                lam = np.exp(-1j * jj * thetas[l]) * mu.astype(complex) ** mc
-                top = np.argsort(-np.abs(lam), kind="stable")[:self.n_modes]
-                local.append((l, lam, [(lam[i], V[:, i] / np.linalg.norm(V[:, i])) for i in top]))
+        mine = [l for l in range(len(thetas)) if self.split == "beads" or l % size == rank]
+        local, propagated0 = [], self.sectors.propagated
+        for l, G in zip(mine, self.sectors.monodromies(x0, delta, [thetas[l] for l in mine], k, among=thetas)):
+            mu, V = np.linalg.eig(G)
+            lam = np.exp(-1j * jj * thetas[l]) * mu.astype(complex) ** mc
+            top = np.argsort(-np.abs(lam), kind="stable")[:self.n_modes]
+            local.append((l, lam, [(lam[i], V[:, i] / np.linalg.norm(V[:, i])) for i in top]))
+        propagated = self.sectors.propagated > propagated0
         if self.split == "sectors" and size > 1:
-            local = sorted((item for part in self.comm.tompi4py().allgather(local) for item in part),
-                           key=lambda item: item[0])
+            parts = self.comm.tompi4py().allgather((local, propagated))
+            local = sorted((item for part, _ in parts for item in part), key=lambda item: item[0])
+            propagated = any(used for _, used in parts)
         values, sector, modes = [], [], []
         for l, lam, top in local:
             values.append(lam)
@@ -175,7 +202,7 @@ class SymmetricFloquet(FloquetSolver):
         modes.sort(key=lambda mode: -abs(mode[0]))
         return Spectrum(np.concatenate(values), True, tol_rho, sector=np.concatenate(sector), M=M, L=L,
                         modes=modes[:self.n_modes], work=dict(runs=len(thetas), columns=2 * M * len(thetas),
-                                                              time=delta))
+                                                              time=delta, propagated=bool(propagated)))
 
     def destroy(self):
         self.sectors.destroy()
@@ -211,27 +238,25 @@ def bloch_residuals(orbit, pairs, comm, tolerances=FLOQUET_TOLERANCES, prefix=FL
     """Relative residuals ||F Y - lambda Y|| / (|lambda| ||Y||) on the full N-bead chain, matrix-free.
 
     ``orbit``: the tiled wave on N beads, ``pairs`` from :func:`real_pairs`. F is real, so
-    F Re Y = Re(lambda Y) and F Im Y = Im(lambda Y): two shell products per pair (one if Y is real).
-    Returns (residuals, products).
+    F Re Y = Re(lambda Y) and F Im Y = Im(lambda Y): two shell products per pair (one if Y is real), all in one
+    integration of the orbit (:meth:`~hertzpetsc.tangent.MonodromyModShift.apply`). Returns (residuals, products).
     """
+    parts, targets, owner = [], [], []
+    for i, (lam, Y) in enumerate(pairs):
+        for part, target in ((Y.real, (lam * Y).real), (Y.imag, (lam * Y).imag)):
+            if np.any(part):
+                parts.append(part)
+                targets.append(target)
+                owner.append(i)
     op = MonodromyModShift(orbit.spec, orbit.x, orbit.T, comm, tolerances, prefix)
-    base = op.flow.base
-    x, y = base.create_state(), base.create_state()
-    res = []
     try:
-        for lam, Y in pairs:
-            num = 0.0
-            for part, target in ((Y.real, (lam * Y).real), (Y.imag, (lam * Y).imag)):
-                if not np.any(part):
-                    continue
-                base.set_from_array(x, part)
-                op.mult(None, x, y)
-                num += float(np.sum((base.gather(y) - target) ** 2))
-            res.append(math.sqrt(num) / (abs(lam) * float(np.linalg.norm(Y))))
+        FY = op.apply(np.stack(parts, axis=2)) if parts else np.zeros((orbit.N, 2, 0))
+        num = np.zeros(len(pairs))
+        for j, i in enumerate(owner):
+            num[i] += float(np.sum((FY[:, :, j] - targets[j]) ** 2))
+        res = [math.sqrt(num[i]) / (abs(lam) * float(np.linalg.norm(Y))) for i, (lam, Y) in enumerate(pairs)]
         return np.array(res), op.products
     finally:
-        x.destroy()
-        y.destroy()
         op.destroy()
 
 

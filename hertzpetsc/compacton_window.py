@@ -53,15 +53,6 @@ class WindowChain(Chain):
             raise ParameterError("boundary", spec.boundary, "the compacton window is a free-ended chain")
         super().__init__(spec, comm, n_tangent)
         self.gap = float(gap)
-        self._offset = np.arange(self.nloc + 2, dtype=float)
-
-    def _ghosted(self, X, t=None):
-        a = super()._ghosted(X, t)
-        if self.gap == 0.0:
-            return a
-        a = a.copy()
-        a[:, 0] += self.gap * self._offset
-        return a
 
 
 def shift_window(Z):

@@ -1,0 +1,132 @@
+"""The compiled right-hand side (hertzpetsc.kernels) against the numpy reference Chain.rhs_reference: random states
+with damping, mass patterns, precompression, twists, the gap lattice, walls, free ends and actuators, on any number of
+ranks; the TS calling it gives the same flows; damped tangent flows against finite differences of the flow."""
+import math
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from hertzpetsc import kernels
+from hertzpetsc.bloch import TwistedChain
+from hertzpetsc.chain import Chain
+from hertzpetsc.compacton_window import WindowChain
+from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal
+from hertzpetsc.tangent import TangentFlow
+
+COMM = PETSc.COMM_WORLD
+EPS = np.finfo(float).eps
+H = LatticeModel.hertz
+SAMPLED = SampledSignal((0.1, 0.3, -0.2, 0.05, 0.0), 2.5)
+
+# (label, chain factory): every kind of ghost row and every term of eq. nc
+CHAINS = [
+    ("paper chain", lambda: Chain(ChainSpec(H(1.5), 12), COMM)),
+    ("tangents", lambda: Chain(ChainSpec(H(1.5), 12), COMM, 3)),
+    ("masses, damping, precompression", lambda: Chain(ChainSpec(H(1.5, (1.0, 0.6), 0.5, 0.05, 0.03), 12), COMM, 3)),
+    ("walls, actuator, alpha 5/2", lambda: Chain(ChainSpec(H(2.5, (1.0, 0.6), gamma=0.05, eta=0.03), 12, "fixed",
+                                                          left=Actuator(Harmonic(0.2, 1.3))), COMM, 2)),
+    ("free end, sampled actuator, alpha 1.7", lambda: Chain(ChainSpec(H(1.7, (1.0, 0.6), eta=0.03), 12, "free",
+                                                                      right=Actuator(SAMPLED)), COMM, 2)),
+    ("gap lattice", lambda: WindowChain(ChainSpec(H(1.5), 12, "free"), COMM, gap=0.37, n_tangent=2)),
+    ("gap lattice, precompression", lambda: WindowChain(ChainSpec(H(1.5, delta0=0.2), 12, "free"), COMM, 0.37, 2)),
+    ("real twist theta = pi", lambda: TwistedChain(ChainSpec(H(1.5), 12), 4, COMM, complex_modes=False,
+                                                   theta=math.pi)),
+    ("complex twist, damping", lambda: TwistedChain(ChainSpec(H(1.5, gamma=0.1, eta=0.2), 12), 4, COMM,
+                                                    complex_modes=True, theta=0.7)),
+]
+
+
+def test_the_kernel_is_built():
+    """hz.sh setup builds the library; without it every flow falls back to numpy (correct but several times slower)."""
+    assert kernels.status() == "compiled"
+
+
+@pytest.mark.parametrize("label,make", CHAINS, ids=[c[0] for c in CHAINS])
+def test_kernel_equals_the_numpy_reference(label, make):
+    """The same operations in the same order: equal to the bit for the paper's law, to an ulp or two where libm's
+    pow / expm1 / log1p round differently from numpy's (alpha = 1.7, precompression); bound 8 eps of the largest
+    value. Several states and times (the actuators move), and the twist changed between evaluations."""
+    ch = make()
+    assert ch.kernel is not None
+    X, F, G = ch.create_state(), ch.create_state(), ch.create_state()
+    rng = np.random.default_rng(7)
+    try:
+        for t, theta in ((0.0, None), (0.7, 2.1), (3.1, None)):
+            if theta is not None and isinstance(ch, TwistedChain) and ch.complex_modes:
+                ch.theta = theta
+            ch.set_from_array(X, rng.normal(size=(ch.spec.N, ch.dof)) * 0.3)
+            ch.rhs(None, t, X, F)
+            ch.rhs_reference(None, t, X, G)
+            f, g = ch.gather(F), ch.gather(G)
+            assert np.max(np.abs(f - g)) <= 8 * EPS * np.max(np.abs(g)), label
+    finally:
+        for v in (X, F, G):
+            v.destroy()
+        ch.destroy()
+
+
+def test_the_ts_calls_the_kernel_and_the_flow_is_unchanged(clean_options):
+    """A tangent flow with the compiled right-hand side and with -chain_rhs_compiled 0 (numpy): the same
+    operations give the same adaptive steps and the same numbers, to the bit."""
+    spec = ChainSpec(H(1.5), 16)
+    rng = np.random.default_rng(3)
+    x0 = np.stack([np.sin(2 * math.pi * 2 * np.arange(16) / 16) - 0.1, 0.2 * rng.normal(size=16)], axis=1)
+    Y0 = rng.normal(size=(16, 2, 3))
+    out = []
+    for compiled in ("1", "0"):
+        clean_options.setValue("chain_rhs_compiled", compiled)
+        flow = TangentFlow(spec, 3, COMM, None, "chain_")
+        out.append(flow.run(x0, 2.0, Y0) + (flow.integrator.steps,))
+        flow.destroy()
+    (x1, R1, n1), (x2, R2, n2) = out
+    assert n1 == n2 and np.array_equal(x1, x2) and np.array_equal(R1, R2)
+
+
+@pytest.mark.parametrize("ends", [dict(boundary="periodic"),
+                                  dict(boundary="fixed", left=Actuator(Harmonic(0.05, 1.3)))])
+def test_damped_tangent_flow_matches_finite_differences_of_the_flow(clean_options, ends):
+    """The variational equations carry the damping (-gamma y' + eta (y'_{n+1} - 2 y'_n + y'_{n-1})) and the masses.
+    Central differences with eps = 1e-4 through fixed RK4 steps (dt = 1e-3, the same steps in every run, so the
+    discrete flow is differentiated): a precompressed chain (delta0 = 0.5) with amplitudes 0.1 stays in contact, V''
+    is smooth there and the error is O(eps^2) (measured 2.7e-8 relative; bound 1e-7). Without the damping of the
+    tangents (the right-hand side before 2026-11: the tangents' damping terms were overwritten) the error is 9%."""
+    model = H(2.5, (1.0, 0.7), 0.5, gamma=0.05, eta=0.03)
+    spec = ChainSpec(model, 10, **ends)
+    for k, v in (("chain_ts_adapt_type", "none"), ("chain_ts_rk_type", "4")):
+        clean_options.setValue(k, v)
+    flow = TangentFlow(spec, 1, COMM, None, "chain_")
+    rng = np.random.default_rng(5)
+    x0 = 0.1 * rng.normal(size=(10, 2))
+    v = rng.normal(size=(10, 2))
+    try:
+        _, Rv = flow.run(x0, 1.0, v[:, :, None])
+        zero = np.zeros((10, 2, 1))
+        eps = 1e-4
+        xp, _ = flow.run(x0 + eps * v, 1.0, zero)
+        xm, _ = flow.run(x0 - eps * v, 1.0, zero)
+    finally:
+        flow.destroy()
+    fd = (xp - xm) / (2 * eps)
+    assert np.max(np.abs(fd - Rv[:, :, 0])) <= 1e-7 * np.max(np.abs(Rv))
+
+
+def test_block_product_equals_the_dense_monodromy():
+    """MonodromyModShift.apply: k vectors through one integration of the orbit, against the dense S R(T; 0) (other
+    adaptive steps: agreement to the flow's tolerance budget, as the single product in test_chain)."""
+    from hertzpetsc.tangent import MonodromyModShift
+    spec = ChainSpec(H(1.5), 10)
+    rng = np.random.default_rng(4)
+    x0 = np.stack([np.sin(2 * math.pi * 2 * np.arange(10) / 10) - 0.1, 0.2 * rng.normal(size=10)], axis=1)
+    dense = TangentFlow(spec, 20, COMM, None, "chain_")
+    F, _ = dense.monodromy_mod_shift(x0, 1.5)
+    dense.destroy()
+    op = MonodromyModShift(spec, x0, 1.5, COMM, None, "chain_")
+    Y = rng.normal(size=(10, 2, 3))
+    try:
+        FY = op.apply(Y)
+    finally:
+        op.destroy()
+    expected = (F @ Y.reshape(20, 3)).reshape(10, 2, 3)
+    assert np.max(np.abs(FY - expected)) <= 1e-9 * np.max(np.abs(expected))
+    assert op.products == 3 and op.integrations == 1

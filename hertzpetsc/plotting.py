@@ -213,18 +213,25 @@ def plot_floquet_radius(q, rho, tol_rho, directory):
     return _save(fig, directory, "floquet.png")
 
 
+def draw_multipliers(ax, lam, title=None):
+    """Multipliers ``lam`` in the complex plane with the unit circle, on the matplotlib axes ``ax`` (fig. eigen)."""
+    th = np.linspace(0, 2 * math.pi, 400)
+    lam = np.asarray(lam)
+    lam = lam[np.isfinite(lam)]
+    ax.plot(np.cos(th), np.sin(th), "b-", lw=0.6)
+    ax.plot(lam.real, lam.imag, "k+", ms=5)
+    ax.set_aspect("equal")
+    if title:
+        ax.set_title(title, fontsize=10)
+    return ax
+
+
 def plot_multipliers(panels, directory):
     """Fig. eigen: multipliers in the complex plane with the unit circle; ``panels`` = [(label, multipliers)]."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(8, 8))
-    th = np.linspace(0, 2 * math.pi, 400)
     for ax, (label, lam) in zip(axes.ravel(), panels):
-        lam = np.asarray(lam)
-        lam = lam[np.isfinite(lam)]
-        ax.plot(np.cos(th), np.sin(th), "b-", lw=0.6)
-        ax.plot(lam.real, lam.imag, "k+", ms=5)
-        ax.set_aspect("equal")
-        ax.set_title(f"q = {label}", fontsize=10)
+        draw_multipliers(ax, lam, f"q = {label}")
     return _save(fig, directory, "eigen.png")
 
 

@@ -19,11 +19,10 @@ import numpy as np
 from ..advdelay import check_wavenumber
 from ..bloch import SymmetricFloquet
 from ..errors import ParameterError
-from ..families import check_amplitude, wave_at
+from ..families import check_amplitude, wave_of_amplitude
 from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
-from ..qbranch import BranchContinuation, ContinuationParameters
 from ..resources import check_memory
 from ..shooting import Refiner
 from ..twsolver import tw_solver
@@ -109,18 +108,10 @@ class WaveStudy(Study):
                     tol_rho=p.tol_rho)
 
     def wave(self, q):
-        """The wave at q as a :class:`~hertzpetsc.branch.BranchPoint` at amplitude A (and the scale of the orbit)."""
+        """The wave at q as a :class:`~hertzpetsc.branch.BranchPoint` and the scale of its orbit
+        (:func:`~hertzpetsc.families.wave_of_amplitude`)."""
         p = self.params
-        grid = ProfileGrid(p.cells_per_pi, self.comm)
-        if p.model.delta0 > 0:
-            return wave_at(p.model, q, p.A, grid).branch_point(p.model, grid.h), 1.0
-        cont = BranchContinuation(ContinuationParameters(model=p.model, M=max(1, round(math.pi / q)),
-                                                         cells_per_pi=p.cells_per_pi, q_stop=q), self.comm)
-        try:
-            point = list(cont.points())[-1]
-        finally:
-            cont.destroy()
-        return point, p.A / point.diagnostics.norm_inf
+        return wave_of_amplitude(p.model, q, p.A, ProfileGrid(p.cells_per_pi, self.comm))
 
     def compute(self, q):
         p = self.params

@@ -30,6 +30,27 @@ from petsc4py import PETSc
 from .errors import ConvergenceError, ParameterError
 
 
+def illinois(f, a, fa, b, fb, tol, max_iter):
+    """A root of f between a and b (fa = f(a), fb = f(b) of opposite signs) by the Illinois rule (regula falsi with
+    the stale end's value halved): the last iterate, when the bracket is shorter than ``tol`` or f vanishes there,
+    or after ``max_iter`` evaluations."""
+    side, x = 0, None
+    for _ in range(max_iter):
+        x = (a * fb - b * fa) / (fb - fa)
+        fx = f(x)
+        if fx == 0.0 or abs(b - a) <= tol:
+            break
+        if fx * fb < 0:
+            a, fa = b, fb
+            side = 0
+        else:
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        b, fb = x, fx
+    return x
+
+
 class ContinuationError(ConvergenceError):
     """The continuation could not take a step from ``last`` (every point up to it was yielded)."""
 
@@ -506,22 +527,8 @@ class Continuation:
             evals[p] = (Z, its, v)
             return v
 
-        a, fa, b, fb = p1, g1, p2, g2
-        side, x = 0, None
         try:
-            for _ in range(self.locate_max):
-                x = (a * fb - b * fa) / (fb - fa)
-                fx = at(x)
-                if fx == 0.0 or abs(b - a) <= self.locate_tol * abs(p2 - p1):
-                    break
-                if fx * fb < 0:
-                    a, fa = b, fb
-                    side = 0
-                else:
-                    if side == -1:
-                        fa *= 0.5
-                    side = -1
-                b, fb = x, fx
+            x = illinois(at, p1, g1, p2, g2, self.locate_tol * abs(p2 - p1), self.locate_max)
             return self._located(evals, x, s_origin + abs(x - p1), name)
         except ConvergenceError:
             for Z, _, _ in evals.values():
@@ -539,22 +546,8 @@ class Continuation:
         c, length = self._chord(Z1, Z2)
         evals = {}
         at = self._on_chord(Z1, c, evals, lambda Z: self.problem.test_functions(Z)[name])
-        a, fa, b, fb = 0.0, g1, length, g2
-        side, x = 0, None
         try:
-            for _ in range(self.locate_max):
-                x = (a * fb - b * fa) / (fb - fa)
-                fx = at(x)
-                if fx == 0.0 or abs(b - a) <= self.locate_tol * length:
-                    break
-                if fx * fb < 0:
-                    a, fa = b, fb
-                    side = 0
-                else:
-                    if side == -1:
-                        fa *= 0.5
-                    side = -1
-                b, fb = x, fx
+            x = illinois(at, 0.0, g1, length, g2, self.locate_tol * length, self.locate_max)
             return self._located(evals, x, s_origin + x, name)
         except ConvergenceError:
             for Z, _, _ in evals.values():

@@ -9,6 +9,7 @@ processes, on every rank, with no hang and with the files left intact.
 """
 import math
 import os
+import re
 import runpy
 import signal
 import subprocess
@@ -142,6 +143,16 @@ def swap(args, option, value):
     return args
 
 
+def offers_empty_for_none(script):
+    """The driver's source (or the benchmark harness it declares its options with) has an option 'none if empty'."""
+    with open(os.path.join(SCRIPTS, script)) as f:
+        text = f.read()
+    return "none if empty" in text or "declare_common(" in text
+
+
+EMPTY_FOR_NONE = tuple(sorted(s for s in DRIVERS if offers_empty_for_none(s)))
+
+
 def cases():
     for script, (base, inp, record, bad_list, bad_solver) in DRIVERS.items():
         yield script, "typo"
@@ -156,6 +167,8 @@ def cases():
             yield script, "bad list"
         if bad_solver:
             yield script, "bad solver option"
+        if script in EMPTY_FOR_NONE:
+            yield script, "empty for none"
 
 
 @pytest.mark.parametrize("script,failure", list(cases()))
@@ -196,6 +209,15 @@ def test_failure_matrix(script, failure, tmp_path, capfd, monkeypatch):
         option, value = bad_list[0].lstrip("-"), bad_list[1]
         code, _, err = drive(script, swap(args, option, value), capfd, monkeypatch, tmp_path)
         assert code == 2 and len(err) == 1 and (f"-{option}" in err[0] or "q_k" in err[0]), err
+    elif failure == "empty for none":
+        # every option whose -help says "none if empty" takes an empty value: the run then stops at the typo given
+        # after it (checked once everything was read), not at the empty value
+        _, out, _ = drive(script, ["-help"], capfd, monkeypatch, tmp_path)
+        names = re.findall(r"^\s+-(\w+) .*none if empty", out, re.M)
+        assert names
+        for name in names:
+            code, _, err = drive(script, swap(args, name, "") + ["-alpah", "2"], capfd, monkeypatch, tmp_path)
+            assert code == 2 and len(err) == 1 and err[0].startswith("error: unknown option -alpah"), (name, err)
     elif failure == "bad solver option":
         code, _, err = drive(script, args + list(bad_solver), capfd, monkeypatch, tmp_path)
         assert code == 5 and len(err) == 1 and "bogus" in err[0] and f"from the option -{bad_solver[0][1:]}" in err[0]

@@ -121,3 +121,18 @@ def test_a_resume_from_another_input_or_other_solver_options_is_refused(tmp_path
     r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, "-resume",
                    "-shoot_ts_monitor", timeout=120)          # a monitor changes no number: accepted
     assert r.returncode == 0, r.stderr
+
+
+@pytest.mark.serial
+def test_a_documented_option_of_a_solver_the_run_does_not_create_is_accepted_and_said(tmp_path):
+    """-floquet_eps_nev is an option of floquet_scan's role floquet_ (its -help lists it), read only when the run
+    creates the EPS (-method slepc): with -method symmetric it is accepted with one note (status 0), not refused as
+    unknown; a typo beside it is still refused."""
+    from conftest import RESULTS, run_script
+    args = ["-q", "7*pi/25", "-refined", f"{RESULTS}/refined_N100.npz", "-output", tmp_path / "f.npz",
+            "-table", tmp_path / "f.md", "-method", "symmetric", "-floquet_eps_nev", "5"]
+    r = run_script("floquet_scan.py", *args, timeout=120)
+    notes = [line for line in r.stderr.splitlines() if line.strip()]
+    assert r.returncode == 0 and len(notes) == 1 and notes[0].startswith("note: -floquet_eps_nev 5 not used"), r.stderr
+    r = run_script("floquet_scan.py", *args, "-force", "-floquet_eps_nevv", "5", timeout=120)
+    assert r.returncode == 2 and "unknown option -floquet_eps_nevv" in one_error_line(r)

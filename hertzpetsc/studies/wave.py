@@ -145,8 +145,8 @@ class WaveStudy(Study):
         lines = [f"schema: {WAVE_FORMAT}; chain {p.model.describe()}, amplitude A = max |u| = {p.A:g}, h = pi/"
                  f"{p.cells_per_pi}; refined on N = {p.N} beads (target E {p.tol:g}); multipliers modulo shift from "
                  f"the Bloch sectors of the wave's cell; unstable when rho - 1 > {p.tol_rho:g}.\n",
-                 "| q | m | omega | E (profile) | E (refined) | rho - 1 | outside | trivial spread | verdict | "
-                 + " | ".join(f"rho - 1 on {L}" for L in p.sizes) + (" |" if p.sizes else "|"),
+                 "| " + " | ".join(["q", "m", "omega", "E (profile)", "E (refined)", "rho - 1", "outside",
+                                    "trivial spread", "verdict"] + [f"rho - 1 on {L}" for L in p.sizes]) + " |",
                  "|---" * (9 + len(p.sizes)) + "|"]
         for r in self.store.records:
             extra = "".join(f" {float(v) - 1:.2e} |" for v in np.atleast_1d(r["rho_sizes"]))

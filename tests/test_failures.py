@@ -186,9 +186,15 @@ def test_failure_matrix(script, failure, tmp_path, capfd, monkeypatch):
         assert code == 0 and not err and "Application options" in out
         assert list(work.iterdir()) == []                       # nothing computed, nothing written
     elif failure == "unwritable":
-        option = record or ("output" if "-output" in args else "table")
-        code, _, err = drive(script, swap(args, option, str(tmp_path / "afile" / "x")), capfd, monkeypatch, tmp_path)
-        assert code == 4 and len(err) == 1 and "is not a directory" in err[0], err
+        # every file the run writes is checked before any computation: the record, the output and the table
+        options = [record] if record else []
+        options += [o for o in ("output", "table") if f"-{o}" in args and o not in options]
+        for option in options or ["table"]:
+            t0 = time.perf_counter()
+            code, _, err = drive(script, swap(args, option, str(tmp_path / "afile" / "x")), capfd, monkeypatch,
+                                 tmp_path)
+            assert code == 4 and len(err) == 1 and "is not a directory" in err[0], (option, err)
+            assert time.perf_counter() - t0 < 30, option          # refused up front, not after the work
     elif failure == "missing input":
         code, _, err = drive(script, swap(args, inp, str(tmp_path / "missing.npz")), capfd, monkeypatch, tmp_path)
         assert code == 4 and len(err) == 1 and ("does not exist" in err[0] or "missing" in err[0]), err

@@ -373,15 +373,18 @@ def plot_solitary_stability(rows, directory):
         slope = np.array([float(r["log_slope"]) for r in rs])
         fd = np.array([float(r["log_slope_fd"]) for r in rs])
         pos = c0 > 0
-        line, = ax.semilogx(1 / c0[pos], slope[pos], "-", lw=0.9, label=rf"$\alpha = {a:g}$")
-        ax.semilogx(1 / c0[pos], fd[pos], "o", mfc="none", color=line.get_color(), ms=5)
+        line, = ax.plot(1 / c0[pos], slope[pos], "-", lw=0.9, label=rf"$\alpha = {a:g}$")
+        ax.plot(1 / c0[pos], fd[pos], "o", mfc="none", color=line.get_color(), ms=5)
         ax.axhline(2 * (a + 1) / (a - 1), color=line.get_color(), lw=0.6, ls="--")
         bx.plot(c0, [float(r["max_nontrivial"]) for r in rs], ".-", color=line.get_color(), lw=0.9,
                 label=rf"max $|\mu|$, $\alpha = {a:g}$")
-    c = np.linspace(0, max(float(r["c0"]) for r in rows), 100)
-    from .solitary_family import essential_radius
-    bx.plot(c, [essential_radius(x, 1025)[0] for x in c], "k:", lw=0.9, label=r"$r_{ess}$")
+    ess = sorted({(float(r["c0"]), float(r["essential"])) for r in rows})
+    bx.plot([e[0] for e in ess], [e[1] for e in ess], "k:", lw=0.9, label=r"$r_{ess}$")
     bx.axhline(1.0, color="k", lw=0.6)
+    ax.set_xscale("log")
+    ax.set_xticks([1.1, 1.25, 1.5, 2, 3, 5])
+    ax.set_xticklabels(["1.1", "1.25", "1.5", "2", "3", "5"])
+    ax.minorticks_off()
     ax.set_xlabel("Mach number $c / c_0$")
     ax.set_ylabel(r"$d \ln H / d \ln c$ (fixed lattice)")
     ax.set_title("energy criterion: no change of sign", fontsize=9)

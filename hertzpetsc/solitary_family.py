@@ -1,7 +1,8 @@
 """Solitary waves of the uncompressed and the precompressed chain on the travelling window
 (:mod:`hertzpetsc.compacton_window`, Delta = 0), continued in the precompression at unit speed, and the energy
-criterion for their stability (J. Cuevas-Maraver, P. G. Kevrekidis, A. Vainchtein, H. Xu, Phys. Rev. E 96, 032214
-(2017); H. Xu et al., Nonlinearity 31 (2018), after G. Friesecke and R. L. Pego, Nonlinearity 17 (2004)).
+criterion for their stability (J. Cuevas-Maraver, P. G. Kevrekidis, A. Vainchtein, H. Xu, Phys. Rev. E (2017),
+arXiv:1701.04882; H. Xu et al., Nonlinearity (2018), arXiv:1711.03330; after G. Friesecke and R. L. Pego,
+Nonlinearity 17 (2004)).
 
 **Scaling.** With V'_d(r) = d^alpha - (d - r)_+^alpha (:class:`hertzpetsc.hertz.HertzLaw`, d the precompression), a
 wave x_n(t) of unit speed in the chain of precompression d gives X_n(t) = a x_n(b t), of speed b = a^((alpha-1)/2),
@@ -19,7 +20,8 @@ i k), to mu zeta^n with mu = zeta exp(-+ i omega), omega^2 = c0^2 (2 - zeta - 1/
 exp(eta n) (heavier ahead) the essential spectrum is that curve; its radius max_k |mu| is below 1 for
 0 < eta < kappa (a supersonic wave: Pego and Weinstein's weighted space). :func:`essential_radius` is its minimum
 over eta: multipliers above it are point spectrum, and a finite window's other multipliers gather near it (the
-limit set of finite sections). c0 = 0: the transport is nilpotent (radius 0, :mod:`hertzpetsc.compacton_spectrum`).
+limit set of finite sections). c0 = 0: the transport is nilpotent (radius 0 for every eta,
+:mod:`hertzpetsc.compacton_spectrum`).
 The window map is far from normal in plain l2 (its transport part's pseudospectrum fills the unit disk): LAPACK on
 J itself puts the finite window's transport multipliers anywhere up to the unit circle, and further out the larger
 M. :func:`weighted_multipliers` takes them from W J W^-1, W = diag(exp(eta j)) at the eta of the essential radius
@@ -44,7 +46,7 @@ import math
 import numpy as np
 from petsc4py import PETSc
 
-from .compacton_spectrum import exponential_weight, sorted_eig
+from .compacton_spectrum import DEFAULT_ETA, exponential_weight, sorted_eig
 from .compacton_window import WINDOW_PREFIX, WINDOW_TOLERANCES, CompactonRefiner, CompactonWindow
 from .continuation import ContinuationProblem
 from .errors import ParameterError
@@ -138,11 +140,11 @@ def essential_radius(c0, points=4097):
 
 def weighted_multipliers(J, eta):
     """The eigenvalues of the window map J (2M x 2M, bead-major) by LAPACK on W J W^-1, W = diag(exp(eta (j -
-    M/2))), by decreasing modulus; eta = inf (the uncompressed chain): on J (nilpotent transport, isolated exactly
-    by LAPACK's balancing)."""
-    if not math.isfinite(eta):
-        return sorted_eig(J)[0]
+    M/2))), by decreasing modulus. eta = inf (the uncompressed chain, whose transport is nilpotent for every eta):
+    the compacton spectrum's eta = 2.5 (unweighted, a window of 96 beads puts spurious multipliers at 0.23, above
+    the solitary wave's mu_5); eta is capped at 600 / M so that the weights stay finite."""
     M = J.shape[0] // 2
+    eta = min(DEFAULT_ETA if math.isinf(eta) else eta, 600.0 / M)
     w = exponential_weight(M, eta, 0.5 * (M - 1))
     return sorted_eig(w[:, None] * J / w[None, :])[0]
 

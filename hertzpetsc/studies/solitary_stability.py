@@ -227,7 +227,7 @@ class SolitaryStabilityScan(Study):
                  f"<= {p.tail:g} of the deepest compression), continued in the precompression delta0 = (c0^2 / "
                  "alpha)^(1/(alpha-1)); c0 = sqrt(V''(0)) in units of the wave's speed (c0 = 0: the uncompressed "
                  "chain; c / c0 the Mach number). Multipliers: LAPACK on the 2M x 2M window map weighted by "
-                 "exp(eta j) (eta of r_ess; none at c0 = 0); the Jordan pair at 1 by its mean (split); r_ess: the "
+                 "exp(eta j) (eta of r_ess; 2.5 at c0 = 0); the Jordan pair at 1 by its mean (split); r_ess: the "
                  "weighted essential-spectrum radius (min over eta); point: "
                  f"multipliers above {POINT_MARGIN:g} r_ess moved < {CONVERGED:g} by a window of 2M beads; "
                  f"unstable: |mu| > 1 + {p.tol_unstable:g}. Energy slope d ln H / d ln c at fixed lattice: "

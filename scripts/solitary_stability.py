@@ -8,12 +8,12 @@ the energy criterion (a change of sign of dH/dc signals a change of stability; C
 
 For each alpha the unit-speed solitary wave of eq. adr is refined on the window (Delta = 0) and continued in the
 precompression through the sound speeds -c0 (units of the wave's speed: c / c0 is the Mach number; 0 is the
-uncompressed chain, always computed first). Per point: the window multipliers (LAPACK), the Jordan pair at 1, the
-weighted essential-spectrum radius and the point multipliers, the energy H and its slope d ln H / d ln c at fixed
-lattice from the Jordan vectors and from H along the family, the same wave in the lattice of precompression 1, and
-the truncation: the tails at the window's ends and the changes in a window of 2M beads. -M 0 takes the fewest beads
-whose ends see the tails of the largest c0 at -tail. Each alpha runs on one rank; the alphas of a continuation step
-are dealt to the ranks.
+uncompressed chain, always computed first). Per point: the multipliers (LAPACK on the weighted window map), the
+Jordan pair at 1, the weighted essential-spectrum radius and the point multipliers, the energy H and its slope
+d ln H / d ln c at fixed lattice from the Jordan vectors and from H along the family, the same wave in the lattice
+of precompression 1, and the truncation: the tails at the window's ends and the changes in a window of 2M beads.
+-M 0 takes the fewest beads whose ends see the tails of the largest c0 at -tail. Each alpha runs on one rank; the
+alphas of a continuation step are dealt to the ranks.
 Solver prefixes: -cwin_ (TS of the window flows), -ccheck_ (TS of the independent residual check), -sol_ (SNES of
 eq. adr).
 """

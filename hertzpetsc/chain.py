@@ -48,8 +48,6 @@ class Chain:
     def __init__(self, spec, comm, n_tangent=0):
         if not isinstance(spec, ChainSpec):
             raise ParameterError("spec", spec, "must be a ChainSpec")
-        self.spec = spec
-        self.model = spec.model
         self.comm = comm
         self.n_tangent = int(n_tangent)
         self.dof = 2 * (1 + self.n_tangent)
@@ -65,6 +63,13 @@ class Chain:
         self.local = self.da.createLocalVec()
         self.first = self.xs == 0 and not periodic
         self.last = self.xe == spec.N and not periodic
+        self._shift = None
+        self._take(spec)
+
+    def _take(self, spec):
+        """The physics of ``spec`` on this layout: model, damping, masses and the ends this rank touches."""
+        self.spec = spec
+        self.model = spec.model
         self.damping = self.model.damping if self.model.damped else None
         # the ends this rank touches: ('free' | 'wall' | Actuator) or None inside the chain / periodic
         self.left_end = spec.left if self.first else None
@@ -72,7 +77,17 @@ class Chain:
         # 1/m_n of the owned beads, or None for unit masses (the paper's chain: no extra arithmetic)
         self.inverse_mass = None if self.model.uniform_masses else \
             1.0 / self.model.mass(np.arange(self.xs, self.xe))
-        self._shift = None
+
+    def set_spec(self, spec):
+        """Take another chain of the same layout (same N and boundary; the law, masses, damping and the ends'
+        signals may differ): a continuation in a driving frequency or amplitude changes the actuator this way,
+        without a new DMDA."""
+        if not isinstance(spec, ChainSpec):
+            raise ParameterError("spec", spec, "must be a ChainSpec")
+        if spec.N != self.spec.N or spec.boundary != self.spec.boundary:
+            raise ParameterError("spec", (spec.N, spec.boundary), f"must keep N = {self.spec.N} and boundary "
+                                 f"{self.spec.boundary!r} (the layout of this chain)")
+        self._take(spec)
 
     # --- layout helpers ---------------------------------------------------------------------------------------
     def create_state(self):
@@ -116,14 +131,14 @@ class Chain:
         out = F.getArray().reshape(self.nloc, self.dof)
         out[:, 0] = a[1:-1, 1]
         out[:, 1] = bond[1:] - bond[:-1]
-        if self.damping is not None:
-            out[:, 1::2] += self._damping_forces(a[:, 1::2], mask)
         if self.n_tangent:
             stiff = (model.stiffness(r) * mask)[:, None]
             y = a[:, 2::2]                           # (nloc + 2, k) tangent displacements
             dy = y[1:] - y[:-1]
             out[:, 2::2] = a[1:-1, 3::2]
             out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1]
+        if self.damping is not None:                 # the same linear terms on the state's and tangents' velocities
+            out[:, 1::2] += self._damping_forces(a[:, 1::2], mask)
         if self.inverse_mass is not None:
             out[:, 1::2] *= self.inverse_mass[:, None]
 

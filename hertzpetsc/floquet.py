@@ -41,6 +41,10 @@ class DenseFloquet:
     def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
         self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
 
+    def set_spec(self, spec):
+        """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
+        self.flow.set_spec(spec)
+
     def monodromy(self, orbit, shift=True, T=None):
         """Assembled S R(T; 0) (``shift``) or R(T; 0), 2N x 2N, on every rank; T defaults to script-T."""
         T = orbit.T if T is None else T
@@ -93,14 +97,18 @@ class Spectrum:
     multipliers: np.ndarray
     complete: bool
     tol_rho: float = TOL_RHO
+    n_trivial: int = N_TRIVIAL       # 0 for orbits without symmetry multipliers (driven chains)
 
     @property
     def trivial(self):
-        return trivial_multipliers(self.multipliers) if self.complete else np.zeros(0, dtype=int)
+        return trivial_multipliers(self.multipliers, self.n_trivial) if self.complete else np.zeros(0, dtype=int)
 
     @property
     def rho(self):
-        return spectral_radius(self.multipliers, exclude_trivial=self.complete)
+        lam = np.asarray(self.multipliers)
+        if self.complete and self.n_trivial and len(lam) > self.n_trivial:
+            lam = np.delete(lam, self.trivial)
+        return float(np.max(np.abs(lam)))
 
     @property
     def trivial_spread(self):
@@ -145,13 +153,13 @@ class DominantFloquet:
     """
 
     def __init__(self, spec, comm, nev=10, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, ncv=None,
-                 tol=1e-10):
+                 tol=1e-10, shift=1):
         from slepc4py import SLEPc
         dim = 2 * spec.N
         if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
         self.prefix, self.dim = prefix, dim
-        self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix)
+        self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
         eps = self.eps = SLEPc.EPS().create(comm=self.op.flow.base.comm)
         eps.setOperators(self.A)
@@ -166,6 +174,10 @@ class DominantFloquet:
         if self.nev > dim:
             self.destroy()
             raise ParameterError("-%seps_nev" % prefix, self.nev, f"must not exceed the dimension 2N = {dim}")
+
+    def set_spec(self, spec):
+        """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
+        self.op.flow.set_spec(spec)
 
     def solve(self, orbit, initial_space=None, keep_vectors=False):
         """The dominant multipliers around ``orbit`` (an :class:`EigenResult`); ``initial_space``: PETSc Vecs
@@ -183,7 +195,7 @@ class DominantFloquet:
         if nconv < self.nev:
             raise ConvergenceError("Floquet eigensolver (prefix -%s)" % self.prefix,
                                    f"{nconv} of {self.nev} multipliers converged ({eps.getConvergedReason()})",
-                                   q=float(orbit.q))
+                                   **({"q": float(orbit.q)} if hasattr(orbit, "q") else {"T": float(orbit.T)}))
         vals, vecs = [], []
         for i in range(self.nev):
             vals.append(eps.getEigenvalue(i))

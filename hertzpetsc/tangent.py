@@ -39,6 +39,13 @@ class TangentFlow:
         self.integrator = ChainIntegrator(self.aug, tolerances, prefix)
         self.Z = self.aug.create_state()
 
+    def set_spec(self, spec):
+        """Move both chains to another chain of the same layout (:meth:`~hertzpetsc.chain.Chain.set_spec`: e.g. an
+        actuator's signal at another driving frequency)."""
+        self.aug.set_spec(spec)
+        self.base.set_spec(spec)
+        self.spec = spec
+
     def run(self, x0, T, Y0):
         """Integrate from the state ``x0`` (N, 2) and tangent columns ``Y0`` (N, 2, k), both given on every rank.
 
@@ -76,13 +83,15 @@ class TangentFlow:
 
 
 class MonodromyModShift:
-    """Matrix-free F = S R(T; 0) around the orbit from ``x0``: a ``Mat.createPython`` context.
+    """Matrix-free F = S^shift R(T; 0) around the orbit from ``x0``: a ``Mat.createPython`` context (``shift`` 0:
+    the plain monodromy R(T; 0), e.g. of a driven chain, which has no shift symmetry).
 
     Each product integrates the chain and one tangent vector over [0, T] (the orbit is recomputed, which keeps
     memory at O(N)); ``products`` counts them.
     """
 
-    def __init__(self, spec, x0, T, comm, tolerances, prefix):
+    def __init__(self, spec, x0, T, comm, tolerances, prefix, shift=1):
+        self.shift = int(shift)
         self.flow = TangentFlow(spec, 1, comm, tolerances, prefix)
         base = self.flow.base
         self.x0_local = np.asarray(x0, dtype=float).reshape(spec.N, 2)[base.xs:base.xe].copy()
@@ -103,8 +112,11 @@ class MonodromyModShift:
         z[:, :2] = self.x0_local
         z[:, 2:] = x.getArray(readonly=True).reshape(base.nloc, 2)
         flow.integrator.integrate(flow.Z, 0.0, self.T, dt=flow.integrator.initial_step)
-        self._RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
-        base.shift(self._RY, y)
+        if self.shift:
+            self._RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
+            base.shift(self._RY, y)
+        else:
+            y.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
         self.products += 1
 
     def create_mat(self):

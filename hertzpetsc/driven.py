@@ -454,7 +454,7 @@ class PeriodicShooting(ContinuationProblem):
         self._mono = None              # (x, p, R) of the last dense monodromy
         self._spectra = {}             # key of (x, p) -> multipliers
         self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
-        self.reuse = reuse_jacobian
+        self.reuse = self._reuse_now = reuse_jacobian
         self._solves, self._assembled, self._mono_version = 0, None, 0
         self._snes = self._make_snes(prefix)
 
@@ -679,9 +679,10 @@ class PeriodicShooting(ContinuationProblem):
             self._shell.set_point(x, p, dGdp)
             return
         fnorm = snes.getFunctionNorm()
-        contracting = snes.getIterationNumber() == 0 or fnorm <= 0.1 * self._last_fnorm
+        first = snes.getIterationNumber() == 0
+        contracting = (first and self._near(x, p)) or (not first and fnorm <= 0.1 * self._last_fnorm)
         self._last_fnorm = fnorm
-        if not (self.reuse and contracting and self._mono is not None):
+        if not (self._reuse_now and contracting and self._mono is not None):
             self.monodromy(x, p)
             self.counters["jacobians"] += 1
         key = (self._mono[3], self._solves)
@@ -703,6 +704,14 @@ class PeriodicShooting(ContinuationProblem):
             last = self._row_full if self._row is not None else np.eye(1, self.size, self.size - 1)[0]
             P.setValues([self.size - 1], np.arange(self.size, dtype=PETSc.IntType), last)
         P.assemble()
+
+    def _near(self, x, p):
+        """Whether the cached monodromy was computed within 5% (parameter and state) of (x, p)."""
+        if self._mono is None:
+            return False
+        xm, pm = self._mono[0], self._mono[1]
+        return abs(p - pm) <= 0.05 * max(abs(p), 1e-12) and \
+            np.max(np.abs(x - xm)) <= 0.05 * max(float(np.max(np.abs(x))), 1e-300)
 
     def _gather_row(self, row):
         sc, full = PETSc.Scatter.toAll(row)
@@ -728,9 +737,21 @@ class PeriodicShooting(ContinuationProblem):
                                    **{self.parameter: p0}) from None
         if "atol" not in self._user_set:
             self._snes.setTolerances(atol=self.tol * self.scale(x0))
-        self._snes.solve(None, Z)
-        reason = int(self._snes.getConvergedReason())
-        its = int(self._snes.getIterationNumber())
+        self._reuse_now = self.reuse
+        Z0 = Z.copy() if self.reuse else None
+        try:
+            self._snes.solve(None, Z)
+            reason = int(self._snes.getConvergedReason())
+            its = int(self._snes.getIterationNumber())
+            if reason <= 0 and self.reuse:          # a chord step that led nowhere: again with fresh Jacobians
+                Z0.copy(Z)
+                self._reuse_now, self._last_fnorm, self._solves = False, math.inf, self._solves + 1
+                self._snes.solve(None, Z)
+                reason = int(self._snes.getConvergedReason())
+                its += int(self._snes.getIterationNumber())
+        finally:
+            if Z0 is not None:
+                Z0.destroy()
         p = _parameter(Z)
         if reason <= 0:
             raise ConvergenceError(f"periodic-response Newton (prefix -{self._snes.getOptionsPrefix()})", reason,

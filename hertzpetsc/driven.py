@@ -1039,3 +1039,12 @@ class BranchFamily:
             else:
                 a = c1
         return float(f(0.5 * (a + b)))
+
+
+def configure_options(comm, prefix=DRIVE_PREFIX, floquet_prefix=FLOQUET_PREFIX):
+    """Read and check the options of every solver role of the driven studies (SNES and TS ``drive_``, TS and EPS
+    ``floquet_``) on a tiny driven chain, for studies that build their problems later: a bad value fails here,
+    before any computation."""
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), max(2, comm.getSize()), HarmonicWave(), 0.1, 1.0)
+    for kw in (dict(jacobian="dense", floquet="dense"), dict(jacobian="mf", floquet="slepc", nev=1)):
+        PeriodicShooting(drive, comm, prefix=prefix, floquet_prefix=floquet_prefix, **kw).destroy()

@@ -46,8 +46,8 @@ from petsc4py import PETSc
 
 from ..continuation import Continuation, ContinuationError, Natural, PseudoArclength
 from ..driven import (DRIVE_PREFIX, RESPONSE_TOLERANCES, TOL_MU, BranchFamily, HalfSinePulses, HarmonicWave,
-                      PeriodicShooting, counts, crossing, local_wave, refined_profile, switch_to_doubled, verdict,
-                      wave_ends_drive)
+                      PeriodicShooting, configure_options, counts, crossing, local_wave, refined_profile,
+                      switch_to_doubled, verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError
 from ..floquet import DenseFloquet
 from ..records import NpzRecords
@@ -516,6 +516,7 @@ class WaveEnds:
                 raise ParameterError("q", q, f"the refinement file has no refined wave at q = {q:.12g}")
         self.rtols = [float(r) for r in rtols]
         self.samples, self.nmult = int(samples), int(nmult)
+        configure_options(comm)
         constants = dict(alpha=branch.alpha, P=P, branch=branch_path, refined=refined_path, samples=self.samples,
                          rtols=self.rtols)
         self._open = lambda: NpzRecords(output, WAVE_ENDS_FORMAT, constants, dict(alpha=branch.alpha, P=P,
@@ -625,6 +626,7 @@ class Generation:
         if not 0 <= lo < hi <= 1:
             raise ParameterError("bulk", bulk, "a fraction (lo, hi) of the chain with 0 <= lo < hi <= 1")
         self.bulk = (lo, hi)
+        configure_options(PETSc.COMM_SELF)
         constants = dict(model=json.dumps(model.describe(), sort_keys=True), N=self.N, branch=branch_path,
                          bulk=list(self.bulk), run_in=self.run_in, width=width)
         self._open = lambda: NpzRecords(output, GENERATION_FORMAT, constants, dict(constants, branch=""),

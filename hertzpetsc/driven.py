@@ -35,8 +35,9 @@ exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`). The test func
                                                              neutral saddles mu_i mu_j = 1, told apart by
                                                              :func:`crossing`)
 
-each reported as sign(tau) times its smallest factor's modulus (same zeros, linear near them, no overflow). Folds are the layer's (dp/ds
-changes sign). :func:`crossing` compares the multipliers on both sides of an event (what crossed where).
+each reported as sign(tau) times its smallest factor's modulus (same zeros, linear near them, no overflow). Folds
+are the layer's (dp/ds changes sign). :func:`crossing` compares the multipliers on both sides of an event (what
+crossed where).
 """
 import math
 from dataclasses import dataclass, replace
@@ -55,6 +56,8 @@ DRIVE_PREFIX = "drive_"
 # The flows of the responses: the paper's tolerances (state, residual of the shooting).
 RESPONSE_TOLERANCES = IntegrationTolerances(rtol=1e-12, atol=1e-14)
 PARAMETERS = ("omega", "amplitude", "gamma")
+# Steps a state flow over one driving period may take before it counts as failed (-drive_ts_max_steps overrides).
+MAX_STEPS_PER_FLOW = 200000
 JACOBIANS = ("dense", "mf")
 FLOQUET_METHODS = ("dense", "slepc", "none")
 # Multipliers within this distance of the unit circle are 'neutral' (the default resolution of the verdicts; the
@@ -440,6 +443,9 @@ class PeriodicShooting(ContinuationProblem):
         self.N = spec.N
         self.chain = Chain(spec, comm)
         self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
+        if not PETSc.Options().hasName(prefix + "ts_max_steps"):
+            # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
+            self.integrator.ts.setMaxSteps(MAX_STEPS_PER_FLOW * self.periods)
         self.X, self.Y = self.chain.create_state(), self.chain.create_state()
         ftol = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if "dense" in (jacobian, floquet) else None
@@ -617,11 +623,33 @@ class PeriodicShooting(ContinuationProblem):
             ksp.getPC().setType(PETSc.PC.Type.NONE)
             ksp.setTolerances(rtol=1e-8, max_it=2000)
         snes.setJacobian(self.formJacobian, self.J, self.J)
-        snes.setTolerances(rtol=1e-30, stol=1e-30, max_it=30)
+        snes.setTolerances(rtol=1e-30, stol=1e-30, max_it=20)
+        snes.setConvergenceTest(self._converged)
         opts = PETSc.Options()
         self._user_set = {k for k in ("atol", "rtol", "stol", "max_it") if opts.hasName(prefix + "snes_" + k)}
         snes.setFromOptions()
         return snes
+
+    def _converged(self, snes, it, norms):
+        """SNES's tests on ||F|| (atol, rtol, max_it from -drive_snes_*) and one more: a corrector that has not
+        halved the residual in three iterations is not converging (it would only spend flows): DIVERGED_LOCAL_MIN."""
+        R = PETSc.SNES.ConvergedReason
+        fnorm = norms[2]
+        rtol, atol, _, max_it = snes.getTolerances()
+        if it == 0:
+            self._fhist = []
+        self._fhist.append(fnorm)
+        if not math.isfinite(fnorm):
+            return R.DIVERGED_FNORM_NAN
+        if fnorm <= atol:
+            return R.CONVERGED_FNORM_ABS
+        if fnorm <= rtol * self._fhist[0]:
+            return R.CONVERGED_FNORM_RELATIVE
+        if it >= 3 and fnorm > 0.5 * self._fhist[-4]:
+            return R.DIVERGED_LOCAL_MIN
+        if it >= max_it:
+            return R.DIVERGED_MAX_IT
+        return R.ITERATING
 
     def formFunction(self, snes, Z, F):
         z = Z.getArray(readonly=True)

@@ -7,8 +7,9 @@ switching onto the period-doubled branches (issue 22; Pozharskiy et al., Phys. R
         [-masses 1] [-signal harmonic|half_sine|samples] [-width 0.5] [-signal_samples 0,1,0,-1,0]
         [-amplitude 0.5] [-omega 1] [-right wall|free] [-parameter omega|amplitude] [-p_end 0.3]
         [-mode arclength|grid] [-points 200] [-periods 1] [-jacobian dense|mf] [-floquet dense|slepc|none] [-nev 8]
-        [-tol 1e-10] [-rtol 1e-12] [-ds 0.02] [-ds_max 0.05] [-run_in 50] [-samples_per_period 64] [-switch 0]
-        [-max_steps 400] [-output results/driven_response.npz] [-table results/driven_response.md]
+        [-tol 1e-10] [-rtol 1e-12] [-ds 0.02] [-ds_max 0.05] [-max_corrector 1.5] [-run_in 50]
+        [-samples_per_period 64] [-switch 0] [-max_steps 400] [-output results/driven_response.npz]
+        [-table results/driven_response.md]
         [-figures figures] [-name driven_response] [-resume | -force]
 
 The first response: -run_in driving periods from rest, then Newton at the start value of -parameter; then
@@ -26,10 +27,9 @@ import petsc4py
 petsc4py.init(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
-from hertzpetsc.continuation import PseudoArclength  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.driven import EVENT_NAMES, ResponseCurve, drive_options  # noqa: E402
+from hertzpetsc.studies.driven import EVENT_NAMES, ResponseCurve, corner_arclength, drive_options  # noqa: E402
 
 ROLES = {"drive_": ("Newton on P(X) - X (bordered) and the state flow", ("snes", "ts")),
          "floquet_": ("the tangent flow (Jacobian, multipliers) and SLEPc's eigensolver", ("ts", "eps"))}
@@ -50,6 +50,8 @@ def main():
     rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     ds = opts.real("ds", 0.02, "first arclength step")
     ds_max = opts.real("ds_max", 0.05, "largest arclength step")
+    max_corrector = opts.real("max_corrector", 1.5, "largest corrector distance, in steps (corners of the curve)",
+                              valid=(lambda x: x > 0, "> 0"))
     run_in = opts.integer("run_in", 50, "driving periods of transient from rest before the first Newton", minimum=0)
     samples = opts.integer("samples_per_period", 64, "samples per period for forces and energy balance (0: none)",
                            minimum=0)
@@ -65,7 +67,7 @@ def main():
     grid = None
     if mode == "grid":
         grid = [p0 + (p_end - p0) * k / (points - 1) for k in range(1, points)]
-    algorithm = PseudoArclength(ds=ds, ds_max=max(ds, ds_max), easy=5)
+    algorithm = corner_arclength(ds, ds_max, max_corrector)
     study = ResponseCurve(drive, parameter, p_end, comm, output, omode, periods, jacobian, floquet, nev, tol, rtol,
                           algorithm, grid, run_in, samples, switch, max_steps)
     opts.check_unused()

@@ -42,7 +42,7 @@ def main():
     sizes = opts.numbers("sizes", "10,20,40", "beads of the driven chains", expr=False, kind=int,
                          valid=(lambda n: n >= 1, ">= 1"), distinct=True)
     rtols = opts.numbers("rtols", "1e-12,1e-14", "flow tolerances (atol = rtol/100)", expr=False,
-                         valid=(lambda r: 0 < r < 1, "in (0, 1)"), distinct=True)
+                         valid=(lambda r: 0 < r < 1, "in (0, 1)"))
     samples = opts.integer("samples", 8192, "least number of points of the sampled wave profile", minimum=64)
     output, mode, table_path, figures = opts.record_table_figures(
         "results/driven_wave_ends.npz", "driven wave-ends file", "results/driven_wave_ends.md", "driven_wave_ends.png")

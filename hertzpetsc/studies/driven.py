@@ -5,11 +5,11 @@ exact boundary driving by a travelling wave, and the generation of travelling wa
 Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues):
 
 * ``hertzpetsc-driven-response-1`` (:class:`ResponseCurve`): constants ``drive`` (JSON of the drive at the start),
-  parameter, p_end, base_periods (k of branch 0), jacobian, floquet, tol, rtol, mode ('arclength' or 'grid'), N, nmult; per record:
-  branch (0: the continued branch; j >= 1: the branch switched onto at the j-th confirmed period doubling, period
-  2 k), periods, p (the parameter), omega, amplitude, s (arclength; the grid mode: the parameter distance),
-  dp_ds (nan on the grid), event (0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by the layer;
-  on the grid: the kind bracketed between this point and the previous), confirmed (1: the multipliers of the
+  parameter, p_end, base_periods (k of branch 0), jacobian, floquet, tol, rtol, mode ('arclength' or 'grid'), N,
+  nmult; per record: branch (0: the continued branch; j >= 1: the branch switched onto at the j-th confirmed period
+  doubling, period 2 k), periods, p (the parameter), omega, amplitude, s (arclength; the grid mode: the parameter
+  distance), dp_ds (nan on the grid), event (0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by
+  the layer; on the grid: the kind bracketed between this point and the previous), confirmed (1: the multipliers of the
   regular points on both sides differ as the event says; 0: they do not (e.g. a neutral saddle for tau_NS); -1:
   regular point), iterations, residual (||P^k(X) - X||_inf / scale, measured again), rho, outside (|mu| > 1 + 1e-6),
   tau_pd, tau_ns (the test functions), force_right, force_left (largest compressive force of the end bonds over the
@@ -88,6 +88,14 @@ def tolerances_of(rtol, scale=1.0):
 
 
 # --- frequency and amplitude responses --------------------------------------------------------------------------
+def corner_arclength(ds=0.02, ds_max=0.05, max_corrector=1.5):
+    """The pseudo-arclength algorithm for response curves of Hertz chains: their contacts open and close, so the
+    curves are only piecewise smooth (grazing points are corners, where the secant is not the tangent and Newton
+    converges linearly): a corrector may land up to ``max_corrector`` ds from the prediction and take up to 20
+    Newton iterations (the chord iterations of :class:`~hertzpetsc.driven.PeriodicShooting` are cheap), and the step
+    grows after steps of at most 5."""
+    return PseudoArclength(ds=ds, ds_max=max(ds, ds_max), easy=5, max_iterations=20, max_corrector=max_corrector,
+                           max_halvings=10)
 class ResponseCurve:
     """Responses of one :class:`~hertzpetsc.driven.Drive` continued in ``parameter`` from its value to ``p_end``.
 
@@ -107,7 +115,7 @@ class ResponseCurve:
         if not self.p_end != p0:
             raise ParameterError("p_end", p_end, f"must differ from the start {parameter} = {p0:g}")
         self.grid = None if grid is None else [float(g) for g in grid]
-        self.algorithm = algorithm or PseudoArclength(ds=0.02, ds_max=0.05, easy=5)
+        self.algorithm = algorithm or corner_arclength()
         self.run_in, self.samples, self.switch, self.max_steps = int(run_in), int(samples), int(switch), max_steps
         self.nmult = min(int(nmult), 2 * drive.N)
         self.kw = dict(parameter=parameter, periods=periods, jacobian=jacobian, floquet=floquet, nev=nev, tol=tol,
@@ -481,8 +489,8 @@ class LinearResonances:
                  "(shooting): the same from periodic responses of the Hertz chain (Newton shooting, golden section); "
                  "mu error: max distance of the response's Floquet multipliers at its peak to exp(T lambda) of the "
                  "linear damped chain.\n",
-                 "| k | omega_k | peak (linear) | peak - omega_k | peak (shooting) | shooting - linear | |X_N|/a linear "
-                 "| |X_N|/a shooting | mu error | solves |", "|---|---|---|---|---|---|---|---|---|---|"]
+                 "| k | omega_k | peak (linear) | peak - omega_k | peak (shooting) | shooting - linear | "
+                 "|X_N|/a linear | |X_N|/a shooting | mu error | solves |", "|---|---|---|---|---|---|---|---|---|---|"]
         for r in sorted(self.store.records, key=lambda r: int(r["k"])):
             lines.append(f"| {int(r['k'])} | {float(r['omega_k']):.8f} | {float(r['peak_linear']):.8f} | "
                          f"{float(r['peak_linear']) - float(r['omega_k']):.2e} | {float(r['peak_shooting']):.8f} | "

@@ -30,7 +30,8 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   periodic chain over tau), multipliers (nmult).
 * ``hertzpetsc-driven-generation-1`` (:class:`Generation`): constants model, N, branch, bulk; per record (one per
   waveform, omega, amplitude, gamma): waveform (0 harmonic, 1 half-sine train), omega, amplitude, gamma, ok (1: a
-  periodic response converged), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan), amp_first,
+  periodic response converged), runin_residual (||P(X) - X|| / scale after the run-in: a motion that has not
+  settled to a periodic one keeps it large), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan), amp_first,
   decay (-d ln A_n / dn over the bulk), q_bulk (median local wavenumber over the bulk), q_spread (its interquartile
   range), amp_bulk (median A_n), family_ratio (median A_n / A(q_n, omega): 1 for the branch's wave at that
   frequency), distance (median shape distance D_n to the branch's wave U_{q_n} over the bulk), distance_slope
@@ -66,7 +67,8 @@ WAVE_ENDS_FORMAT = "hertzpetsc-driven-wave-ends-1"
 WAVE_ENDS_FIELDS = ("q", "m", "N", "rtol", "imposed", "residual", "moved", "iterations", "rho", "outside",
                     "rho_periodic", "multipliers")
 GENERATION_FORMAT = "hertzpetsc-driven-generation-1"
-GENERATION_FIELDS = ("waveform", "omega", "amplitude", "gamma", "ok", "residual", "iterations", "rho", "verdict",
+GENERATION_FIELDS = ("waveform", "omega", "amplitude", "gamma", "ok", "runin_residual", "residual", "iterations",
+                     "rho", "verdict",
                      "amp_first", "decay", "q_bulk", "q_spread", "amp_bulk", "family_ratio", "distance",
                      "distance_slope", "strain_static", "strain_dynamic", "A_n", "q_n", "D_n")
 WAVEFORMS = ("harmonic", "half_sine")
@@ -637,7 +639,8 @@ class Generation:
         configure_options(PETSc.COMM_SELF)
         constants = dict(model=json.dumps(model.describe(), sort_keys=True), N=self.N, branch=branch_path,
                          bulk=list(self.bulk), run_in=self.run_in, width=width)
-        self._open = lambda: NpzRecords(output, GENERATION_FORMAT, constants, dict(constants, branch=""),
+        identity = {k: v for k, v in constants.items() if k != "branch"}
+        self._open = lambda: NpzRecords(output, GENERATION_FORMAT, constants, identity,
                                         GENERATION_FIELDS, comm, mode,
                                         dtypes={"waveform": np.int64, "ok": np.int64, "iterations": np.int64},
                                         shapes={"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)},
@@ -657,7 +660,7 @@ class Generation:
         from ..driven import Drive
         drive = Drive(self.model.with_damping(g, self.model.damping.eta), self.N, make_waveform(w, self.width), a, om)
         rec = dict(waveform=WAVEFORMS.index(w), omega=om, amplitude=a, gamma=g)
-        nan = dict(ok=0, residual=math.nan, iterations=0, rho=math.nan, verdict=math.nan, amp_first=math.nan,
+        nan = dict(ok=0, runin_residual=math.nan, residual=math.nan, iterations=0, rho=math.nan, verdict=math.nan, amp_first=math.nan,
                    decay=math.nan, q_bulk=math.nan, q_spread=math.nan, amp_bulk=math.nan, family_ratio=math.nan,
                    distance=math.nan, distance_slope=math.nan, strain_static=math.nan, strain_dynamic=math.nan,
                    A_n=np.full(self.N, np.nan), q_n=np.full(self.N, np.nan), D_n=np.full(self.N, np.nan))
@@ -665,11 +668,12 @@ class Generation:
         prob = PeriodicShooting(drive, PETSc.COMM_SELF, jacobian=jac, floquet="dense" if jac == "dense" else "slepc",
                                 tol=self.tol, tolerances=tolerances_of(self.rtol, a))
         try:
+            x = prob.run_in(np.zeros((self.N, 2)), self.run_in)
+            runin = prob.residual(x)
             try:
-                x = prob.run_in(np.zeros((self.N, 2)), self.run_in)
                 r = prob.solve_response(x)
             except ConvergenceError:
-                rec.update(nan)
+                rec.update(nan, runin_residual=runin)
                 return rec
             mu = prob.multipliers(x=r.x, p=om)
             rho = float(np.max(np.abs(mu)))
@@ -693,7 +697,7 @@ class Generation:
         dfin = np.isfinite(D[bulk])
         slope = np.polyfit(bulk[dfin], D[bulk][dfin], 1)[0] if np.sum(dfin) >= 2 else math.nan
         qb = q[bulk]
-        rec.update(ok=1, residual=r.residual, iterations=r.iterations, rho=rho,
+        rec.update(ok=1, runin_residual=runin, residual=r.residual, iterations=r.iterations, rho=rho,
                    verdict={"stable": 1, "neutral": 0, "unstable": -1}[verdict(rho)], amp_first=float(A[0]),
                    decay=float(decay), q_bulk=float(np.nanmedian(qb)),
                    q_spread=float(np.nanpercentile(qb, 75) - np.nanpercentile(qb, 25)),
@@ -713,6 +717,14 @@ class Generation:
             self.store.append(rec)
             yield rec
 
+    def linear_wavenumber(self, omega, strain):
+        """q of the linear wave at omega of the chain compressed by the static strain (nan above the band edge)."""
+        K = float(self.model.law.d2V(strain))           # V'' at the static strain (alpha |s|^(alpha-1), delta0 = 0)
+        if not K > 0:
+            return math.nan
+        edge = 2 * math.sqrt(K)
+        return 2 * math.asin(omega / edge) if omega < edge else math.nan
+
     def table(self):
         lines = [f"schema: {GENERATION_FORMAT}; chain {json.loads(str(self.store.constants['model']))}, N = {self.N}, "
                  f"actuator at bead 0, wall at bead N + 1; periodic response after {self.run_in} periods of run-in "
@@ -721,17 +733,21 @@ class Generation:
                  "the bead amplitude to the amplitude of the branch's wave with that q at the driving frequency "
                  "(1: on the family); D: median RMS distance of the normalised bead motion to the branch's profile "
                  "U_q (0: the wave's shape); decay: -d ln A_n/dn; strains: static (mean x_{n+1} - x_n, < 0 "
-                 "compressed) and dynamic ((max - min)/2).\n",
-                 "| signal | omega | a | gamma | periodic | rho | q | q IQR | A bulk | A/A_fam | D | dD/dn | decay | "
-                 "static strain | dynamic strain |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                 "compressed) and dynamic ((max - min)/2); q lin: the wavenumber of the linear wave at omega in the "
+                 "chain statically compressed by the bulk's static strain s: omega = 2 sqrt(K) sin(q/2), K = V''(s) = "
+                 "alpha |s|^(alpha-1) (the actuator's mean push compresses the chain against the wall).\n",
+                 "| signal | omega | a | gamma | periodic | rho | q | q lin | q IQR | A bulk | A/A_fam | D | dD/dn | decay | "
+                 "static strain | dynamic strain |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in sorted(self.store.records, key=lambda r: (int(r["waveform"]), float(r["gamma"]), float(r["amplitude"]),
                                                            float(r["omega"]))):
             if not int(r["ok"]):
                 lines.append(f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
-                             f"{float(r['gamma']):g} | no | | | | | | | | | | |")
+                             f"{float(r['gamma']):g} | no (run-in residual {float(r['runin_residual']):.1e}) "
+                             "| | | | | | | | | | | |")
                 continue
             lines.append(f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
                          f"{float(r['gamma']):g} | yes | {float(r['rho']):.4f} | {float(r['q_bulk']):.4f} | "
+                         f"{self.linear_wavenumber(float(r['omega']), float(r['strain_static'])):.4f} | "
                          f"{float(r['q_spread']):.3f} | {float(r['amp_bulk']):.3g} | {float(r['family_ratio']):.3g} | "
                          f"{float(r['distance']):.3f} | {float(r['distance_slope']):.1e} | {float(r['decay']):.3f} | "
                          f"{float(r['strain_static']):.2e} | {float(r['strain_dynamic']):.2e} |")

@@ -56,6 +56,9 @@ DRIVE_PREFIX = "drive_"
 # The flows of the responses: the paper's tolerances (state, residual of the shooting).
 RESPONSE_TOLERANCES = IntegrationTolerances(rtol=1e-12, atol=1e-14)
 PARAMETERS = ("omega", "amplitude", "gamma")
+# A chord step (the Jacobian of an earlier point) is kept while it reduces the residual at least this much: a fresh
+# Jacobian costs a flow with 2N tangent columns, a chord iteration one state flow.
+CHORD_CONTRACTION = 0.25
 # Steps a state flow over one driving period may take before it counts as failed (-drive_ts_max_steps overrides).
 MAX_STEPS_PER_FLOW = 200000
 JACOBIANS = ("dense", "mf")
@@ -462,6 +465,7 @@ class PeriodicShooting(ContinuationProblem):
         self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
         self.reuse = self._reuse_now = reuse_jacobian
         self._solves, self._assembled, self._mono_version = 0, None, 0
+        self._residuals = {}
         self._snes = self._make_snes(prefix)
 
     # --- layout ---------------------------------------------------------------------------------------------------
@@ -696,7 +700,7 @@ class PeriodicShooting(ContinuationProblem):
     def formJacobian(self, snes, Z, J, P):
         """The bordered Jacobian at Z. dG/dp is computed once per corrector solve. Dense route: the monodromy of
         the last point where one was computed (e.g. the previous response's multipliers) is reused while Newton
-        contracts the residual at least tenfold per iteration (a chord step), and recomputed otherwise."""
+        contracts the residual by CHORD_CONTRACTION per iteration (a chord step), and recomputed otherwise."""
         x, p = self.state(Z)
         if self._row is not None and self._dGdp is None:
             G = snes.getFunction()[0].getArray(readonly=True)[:self.nloc].copy()
@@ -708,7 +712,7 @@ class PeriodicShooting(ContinuationProblem):
             return
         fnorm = snes.getFunctionNorm()
         first = snes.getIterationNumber() == 0
-        contracting = (first and self._near(x, p)) or (not first and fnorm <= 0.1 * self._last_fnorm)
+        contracting = (first and self._near(x, p)) or (not first and fnorm <= CHORD_CONTRACTION * self._last_fnorm)
         self._last_fnorm = fnorm
         if not (self._reuse_now and contracting and self._mono is not None):
             self.monodromy(x, p)
@@ -785,7 +789,16 @@ class PeriodicShooting(ContinuationProblem):
             raise ConvergenceError(f"periodic-response Newton (prefix -{self._snes.getOptionsPrefix()})", reason,
                                    **{self.parameter: p})
         self._at(p)
+        # the residual of the converged point, from the last function evaluation (the flow from this very state)
+        x, _ = self.state(Z)
+        self.Y.getArray()[:] = self.F.getArray(readonly=True)[:self.nloc]
+        g = self.Y.norm(PETSc.NormType.NORM_INFINITY)
+        self._residuals = {(float(p), hash(x.tobytes())): g / self.scale(x)}
         return max(its, 1)
+
+    def known_residual(self, x, p):
+        """The relative residual of the last converged point if (x, p) is it, else None."""
+        return self._residuals.get((float(p), hash(np.asarray(x).tobytes())))
 
     def response(self, Z, check=True):
         """The :class:`Response` at Z (its residual re-measured with one state flow when ``check``)."""
@@ -936,6 +949,10 @@ def switch_to_doubled(single, double, x, p, step=None):
     row.pointwiseMult(row, W)
     try:
         double.solve(Z1, row, row.dot(Z1))
+    except ConvergenceError:
+        Z0.destroy()
+        Z1.destroy()
+        raise
     finally:
         for vec in (t, w, row, W):
             vec.destroy()

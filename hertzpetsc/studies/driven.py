@@ -9,9 +9,11 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   nmult; per record: branch (0: the continued branch; j >= 1: the branch switched onto at the j-th confirmed period
   doubling, period 2 k), periods, p (the parameter), omega, amplitude, s (arclength; the grid mode: the parameter
   distance), dp_ds (nan on the grid), event (0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by
-  the layer; on the grid: the kind bracketed between this point and the previous), confirmed (1: the multipliers of the
+  the layer; on a regular point (dp_ds finite, on the grid always): a crossing bracketed between this point and the
+  previous one, which the layer could not locate), confirmed (1: the multipliers of the
   regular points on both sides differ as the event says; 0: they do not (e.g. a neutral saddle for tau_NS); -1:
-  regular point), iterations, residual (||P^k(X) - X||_inf / scale, measured again), rho, outside (|mu| > 1 + 1e-6),
+  regular point), iterations, residual (||P^k(X) - X||_inf / scale: from Newton's last evaluation, or measured
+  again), rho, outside (|mu| > 1 + 1e-6),
   tau_pd, tau_ns (the test functions), force_right, force_left (largest compressive force of the end bonds over the
   period: the force transmitted to the wall; nan without samples), amp_first, amp_last, amp_max (bead amplitudes
   (max - min)/2), power_in, dissipation (means over the period), half_residual (even k: ||P^(k/2)(X) - X||_inf /
@@ -110,7 +112,7 @@ class ResponseCurve:
 
     def __init__(self, drive, parameter, p_end, comm, output, mode="new", periods=1, jacobian="dense",
                  floquet="dense", nev=8, tol=1e-10, rtol=1e-12, algorithm=None, grid=None, run_in=50,
-                 samples=64, switch=0, max_steps=400, nmult=12):
+                 samples=64, switch=0, max_steps=400, nmult=64):
         self.drive, self.parameter, self.comm = drive, parameter, comm
         self.p_end = float(p_end)
         p0 = drive.value(parameter)
@@ -146,7 +148,9 @@ class ResponseCurve:
         x = rep["x"]
         drive = problem.drive.with_parameter(problem.parameter, point.parameter)
         problem.set_drive(drive)
-        res = problem.residual(x)
+        res = problem.known_residual(x, point.parameter)
+        if res is None:
+            res = problem.residual(x)
         half = math.nan
         if problem.periods % 2 == 0:                # not a response of half the period: ||P^(k/2) X - X|| / scale
             k = problem.periods
@@ -223,15 +227,17 @@ class ResponseCurve:
 
     def _grid(self, cont, previous, targets):
         prob = self.problem
+        mu_prev = previous["multipliers"]
         for p in targets:
             point = cont.step_to(p)
             rec = self._record(prob, point, 0)
-            kind = crossing(previous["multipliers"], rec["multipliers"])
+            mu = point.report.get("multipliers", rec["multipliers"])
+            kind = crossing(mu_prev, mu)
             if kind in EVENTS and kind is not None:
                 rec["event"], rec["confirmed"] = EVENTS[kind], 1
             self.store.append(rec)
             yield rec
-            previous = rec
+            mu_prev = mu
 
     def _arclength(self, cont, previous, p_start, count):
         prob = self.problem
@@ -244,21 +250,35 @@ class ResponseCurve:
             yield previous
             count += 1
         pending = []
+        mu_prev = previous["multipliers"]          # the full spectra confirm the events (records keep nmult)
+        tests_prev = dict(period_doubling=float(previous["tau_pd"]), neimark_sacker=float(previous["tau_ns"]))
+        dp_prev = float(previous["dp_ds"])
         try:
             for point in cont.run(until=self.p_end, max_steps=self.max_steps - count):
                 if point.event is not None:
                     pending.append(point)
                     continue
                 rec = self._record(prob, point, 0)
+                mu = point.report.get("multipliers", rec["multipliers"])
+                what = crossing(mu_prev, mu)
                 for ev in pending:
-                    what = crossing(previous["multipliers"], rec["multipliers"])
                     er = self._record(prob, ev, 0, ev.event, int(what == ev.event))
                     self.store.append(er)
                     yield er
+                # a sign change (or a fold) the layer could not locate (its corrector failed on the chord: a corner
+                # of the curve) is recorded on this point, bracketed between it and the previous one
+                located = {ev.event for ev in pending}
+                changed = [name for name, v in (point.tests or {}).items()
+                           if name in tests_prev and v * tests_prev[name] < 0]
+                if math.isfinite(point.dp_ds) and math.isfinite(dp_prev) and point.dp_ds * dp_prev < 0:
+                    changed.append("fold")
+                missed = [name for name in changed if name not in located]
+                if missed:
+                    rec["event"], rec["confirmed"] = EVENTS[missed[0]], int(what == missed[0])
                 pending = []
                 self.store.append(rec)
                 yield rec
-                previous = rec
+                mu_prev, tests_prev, dp_prev = mu, point.tests or {}, point.dp_ds
         except ContinuationError:
             # everything up to the last point was recorded; the curve ends there (e.g. the response is lost)
             return
@@ -275,7 +295,10 @@ class ResponseCurve:
                                       **dict(self.kw, periods=2 * self.problem.periods))
             cont = Continuation(double, self.algorithm)
             try:
-                Z0, Z1 = switch_to_doubled(self.problem, double, np.asarray(ev["x"]), float(ev["p"]))
+                try:
+                    Z0, Z1 = switch_to_doubled(self.problem, double, np.asarray(ev["x"]), float(ev["p"]))
+                except ConvergenceError:
+                    continue        # no doubled response found from this doubling (table: no branch j)
                 cont.seed([Z0, Z1], [0.0, 0.0])
                 Z0.destroy()
                 Z1.destroy()
@@ -305,16 +328,22 @@ class ResponseCurve:
         d = json.loads(str(self.store.constants["drive"]))
         lines = [f"schema: {RESPONSE_FORMAT}; drive {d}; continuation in {self.parameter} towards {self.p_end:g}; "
                  f"{len(recs)} records.\n",
-                 "Events (fold, period doubling PD, Neimark-Sacker NS) located by the continuation layer; 'confirmed': "
-                 "the multipliers of the regular points on both sides differ by the crossing the event names.\n",
+                 "Events (fold, period doubling, Neimark-Sacker) located by the continuation layer, or 'bracketed' "
+                 "between the listed point and the previous one where the layer's location failed (a corner of the "
+                 "curve) or on a grid; 'confirmed': the multipliers of the regular points on both sides differ by the "
+                 "crossing the event names (1), or not (0: e.g. two crossings at once, a neutral saddle).\n",
                  "| branch | periods | event | " + self.parameter + " | confirmed | rho | residual | force_right | "
                  "amp_max |", "|---|---|---|---|---|---|---|---|---|"]
+        arclength = str(self.store.constants.get("mode", "arclength")) == "arclength"
         for r in recs:
             if int(r["event"]) == 0 and int(r["branch"]) == 0:
                 continue
             if int(r["branch"]) > 0 and int(r["event"]) == 0 and r is not self.branch_records(int(r["branch"]))[0]:
                 continue
             name = EVENT_NAMES[int(r["event"])] or "first point"
+            dp = float(r["dp_ds"])
+            if int(r["event"]) and (not arclength or (math.isfinite(dp) and dp != 0.0)):
+                name += " (bracketed)"
             lines.append(f"| {int(r['branch'])} | {int(r['periods'])} | {name} | {float(r['p']):.8f} | "
                          f"{int(r['confirmed'])} | {float(r['rho']):.6f} | {float(r['residual']):.1e} | "
                          f"{float(r['force_right']):.4g} | {float(r['amp_max']):.4g} |")

@@ -1,17 +1,32 @@
-"""The advance-delay problem for periodic travelling waves (eqs. ad, pbc) on PETSc: residual and Jacobian.
+"""The advance-delay problem of periodic travelling waves (eqs. ad, pbc) for any lattice model: residual, Jacobian,
+borders, and its continuation parameters.
 
-For odd 2 pi-periodic u on the grid of :mod:`hertzpetsc.grid`, the second-order discretisation of eq. ad is
+For a mass pattern m_0 .. m_{p-1} (the paper's chain: p = 1, m = 1) a travelling wave with per-bead wavenumber q is
+x_n(t) = u_c(q n - omega t), c = n mod p, with p odd 2 pi-periodic profiles, and eq. ad becomes
 
-    R_j(u) = (u_{j+1} - 2 u_j + u_{j-1}) / h^2 - V'((tau_q u)_j - u_j) + V'(u_j - (tau_{-q} u)_j) = 0,
+    m_c omega^2 u_c'' = V'(tau_q u_{c+1} - u_c) - V'(u_c - tau_{-q} u_{c-1}),      c = 0 .. p-1 (cyclic),
 
-j = 1 .. K-1 (the equations at xi = 0, pi and on (pi, 2 pi) follow by oddness). tau_{+-q} are the shift
-stencils of :func:`hertzpetsc.stencil.shift_stencil`; the exact Jacobian
+discretised on the grid of :mod:`hertzpetsc.grid` (second differences D2, shift stencils tau_{+-q} of
+:class:`ShiftStencils`). For p <= 2 the reflection n -> -n keeps every bead's type and the profiles are odd
+(unknowns on (0, pi)); for p >= 3 it exchanges types, the profiles have no symmetry and are unknown on the whole
+period, with the chain's two invariances (a constant added to every bead, a translation of xi) removed by two
+gauge rows, mean(u_0) = 0 and b1(u_0) = (1/pi) int u_0 cos = 0, bordered by two unknowns multiplying the
+constants and the reference translation u' (zero at an exact solution). Two forms of the unknowns:
 
-    J = D2 + diag(V''(d+) + V''(d-)) - diag(V''(d+)) tau_q - diag(V''(d-)) tau_{-q},
-    d+ = tau_q u - u,  d- = u - tau_{-q} u,
+* **fixed frequency** (``amplitude=None``): the profiles u_c at a given omega (eq. ad: omega = 1); no border. For
+  p = 1 this is the paper's problem, on the grid's own Vec layout, with its own assembled/matrix-free Jacobian.
+* **fixed amplitude** (``amplitude=a``): u_c = a w_c with the rescaled lattice of the law (u = a w turns V' into
+  r -> a^(-d) V'(a r), :meth:`hertzpetsc.model.LatticeModel.rescaled`; Hertz: delta0 / a) and the frequency
+  variable lam = omega^2 a^(1-d) as an unknown, bordered by one row: a1(w_c*) = 1 (``measure='a1'``: a is the first
+  sine coefficient of the normalised profile c*) or ||w_c*||_inf = 1 (``measure='sup'``: a is the amplitude
+  A = max |u|, the quantity the tables print). w and lam stay O(1) from the linear wave to the uncompressed one.
 
-is applied matrix-free or assembled as a parallel AIJ matrix. V' and V'' are the lattice model's
-(:class:`hertzpetsc.model.LatticeModel`). :mod:`hertzpetsc.twsolver` solves R(u) = 0 with SNES.
+The problem is a :class:`~hertzpetsc.continuation.ContinuationProblem`: ``parameter`` names the continuation
+parameter (q, omega, a, log_a, delta0, alpha, or a mass m0, m1, ... ; ``epsilon`` is m1), the last entry of the
+extended vector Z = (X, p). With the parameter fixed the SNES works on X alone (the fast path of the q-branch);
+otherwise on Z with the continuation layer's row appended (pseudo-arclength). The parameter's column dF/dp is exact
+for omega and the masses, a finite difference otherwise. Solvers: :mod:`hertzpetsc.twsolver` (SNES prefix ``tw_``,
+direct LU or Newton-Krylov for every p and every border).
 """
 import math
 import weakref
@@ -20,9 +35,13 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import RowAssembler, StencilGather, merged_csr
-from .errors import ParameterError
+from .continuation import ContinuationProblem
+from .diagnostics import sup_norm
+from .errors import ConvergenceError, ParameterError
 from .model import LatticeModel
 from .stencil import shift_stencil
+
+MEASURES = ("a1", "sup")
 
 
 def check_wavenumber(q, h=None, name="q"):
@@ -38,36 +57,30 @@ def check_wavenumber(q, h=None, name="q"):
     return min(qf, math.pi)
 
 
-class AdvanceDelayProblem:
-    """Residual and Jacobian of eqs. ad-pbc at one wavenumber q; its methods are the SNES callbacks.
+# --- the shift stencils -------------------------------------------------------------------------------------------
+class ShiftStencils:
+    """D2, tau_q and tau_{-q} on a :class:`~hertzpetsc.grid.ProfileGrid` at one wavenumber q.
 
-    The three linear maps of eq. ad, D2, tau_q and tau_{-q}, are stacked into one parallel AIJ matrix T (3 rows
-    per unknown, built once per q), so that one MatMult (one scatter, compiled code) gives D2 u, tau_q u and
-    tau_{-q} u for the residual, for the Jacobian's coefficients V''(d+-), and for the matrix-free Jacobian
-    products of the Newton-Krylov path. :meth:`create_jacobian` builds either the assembled AIJ Jacobian
-    (``kind='aij'``, for LU and algebraic preconditioners) or that matrix-free operator (``kind='shell'``).
+    The three linear maps are stacked into one AIJ matrix T (3 rows per unknown, built once per q), so that one
+    MatMult (one scatter, compiled code) gives D2 u, tau_q u and tau_{-q} u. One rank: T acts on the grid's Vec
+    layout. Several ranks: T is a rank-local SeqAIJ block acting on the values gathered by one VecScatter (the
+    stencils' ``needed`` set): one set of per-row arrays instead of MPIAIJ's diagonal and off-diagonal blocks,
+    which doubled the memory per rank. ``cols``/``coef`` (global unknown columns and weights times folding
+    signs, per stencil) serve the assembled Jacobians.
     """
 
-    def __init__(self, model, grid, q):
-        if not isinstance(model, LatticeModel):
-            raise ParameterError("model", model, "must be a LatticeModel")
-        model.require_uniform_masses("the advance-delay problem of eq. ad")
-        self.model = model
+    def __init__(self, grid, q):
         self.grid = grid
         self.q = check_wavenumber(q, grid.h)
         self.sigma = self.q / grid.h
         h2 = grid.h ** 2
-        # One rank: T is an AIJ matrix on the grid's Vec layout. Several ranks: T is a rank-local SeqAIJ block
-        # acting on the values gathered by one VecScatter (the stencils' ``needed`` set): one set of per-row
-        # arrays instead of MPIAIJ's diagonal and off-diagonal blocks, which doubled the memory per rank.
         self.parallel = grid.comm.getSize() > 1
-        self.stencils = StencilGather(grid, {
+        self.gather = StencilGather(grid, {
             "d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / h2),
             "plus": shift_stencil(self.sigma),
             "minus": shift_stencil(-self.sigma),
         }, scatter=self.parallel)
-        self._assembler = None
-        st = self.stencils
+        st = self.gather
         nloc = grid.rend - grid.rstart
         self.nloc = nloc
         if self.parallel:
@@ -88,85 +101,31 @@ class AdvanceDelayProblem:
                                                      comm=grid.comm)
         self.T.assemble()
         self.w = self.T.createVecLeft()
-        self.a = self.b = None            # V''(d+), V''(d-) at the last Jacobian evaluation
+
+    @property
+    def cols(self):
+        return self.gather.cols
+
+    @property
+    def coef(self):
+        return self.gather.coef
 
     @property
     def integer_shift(self):
-        return len(self.stencils.coef["plus"][0]) == 1 if self.grid.rend > self.grid.rstart else True
-
-    @property
-    def assembler(self):
-        """The CSR pattern of the assembled Jacobian (built on first use: the matrix-free path never needs it)."""
-        if self._assembler is None:
-            st = self.stencils
-            self_cols = np.arange(self.grid.rstart, self.grid.rend, dtype=np.int64)[:, None]
-            self._assembler = RowAssembler(self.grid, [st.cols["d2"], self_cols, st.cols["plus"], st.cols["minus"]])
-        return self._assembler
+        return len(self.coef["plus"][0]) == 1 if self.grid.rend > self.grid.rstart else True
 
     def stacked(self, X):
         """w = T X = (D2 X, tau_q X, tau_{-q} X) on the owned rows (one scatter and one MatMult)."""
         if self.parallel:
-            st = self.stencils
+            st = self.gather
             st.scatter.scatter(X, st.local, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
             self.T.mult(st.local, self.w)
         else:
             self.T.mult(X, self.w)
         return self.w
 
-    def shift_differences(self, X):
-        """d+ = tau_q u - u, d- = u - tau_{-q} u and D2 u on the owned rows (one MatMult with T)."""
-        self.stacked(X)
-        w = self.w.getArray(readonly=True)
-        u = X.getArray(readonly=True)
-        n = self.nloc
-        return w[n:2 * n] - u, u - w[2 * n:], w[:n]
-
-    def formFunction(self, snes, X, F):
-        dplus, dminus, d2u = self.shift_differences(X)
-        force, delta0 = self.model.force, self.model.delta0
-        F.getArray()[:] = d2u - _on_contact(force, dplus, delta0) + _on_contact(force, dminus, delta0)
-
-    def _coefficients(self, X):
-        dplus, dminus, _ = self.shift_differences(X)
-        delta0 = self.model.delta0
-        self.a = _on_contact(self.model.stiffness, dplus, delta0)
-        self.b = _on_contact(self.model.stiffness, dminus, delta0)
-
-    def _jacobian_blocks(self):
-        a, b = self.a[:, None], self.b[:, None]
-        c = self.stencils.coef
-        return [c["d2"], a + b, -a * c["plus"], -b * c["minus"]]
-
-    def create_jacobian(self, X, kind="aij"):
-        """J(X) as a new parallel AIJ matrix with this q's pattern (``kind='aij'``), or as a matrix-free operator
-        J v = D2 v + (a + b) v - a tau_q v - b tau_{-q} v, a = V''(d+), b = V''(d-) (``kind='shell'``)."""
-        self._coefficients(X)
-        if kind == "aij":
-            return self.assembler.create(self._jacobian_blocks())
-        if kind != "shell":
-            raise ParameterError("kind", kind, "must be 'aij' or 'shell'")
-        g = self.grid
-        nloc = g.rend - g.rstart
-        J = PETSc.Mat().createPython(((nloc, g.size), (nloc, g.size)), _JacobianProduct(self), comm=g.comm)
-        J.setUp()
-        return J
-
-    def formJacobian(self, snes, X, J, P):
-        self._coefficients(X)
-        if P.getType() != PETSc.Mat.Type.PYTHON:
-            self.assembler.update(P, self._jacobian_blocks())
-        if J.handle != P.handle:
-            J.assemble()
-
-    def residual_norm(self, X):
-        F = X.duplicate()
-        self.formFunction(None, X, F)
-        norm = F.norm(PETSc.NormType.NORM_INFINITY)
-        F.destroy()
-        return norm
-
     def destroy(self):
-        self.stencils.destroy()
+        self.gather.destroy()
         self.T.destroy()
         self.w.destroy()
 
@@ -182,27 +141,808 @@ def _d2_csr(grid, stencils):
     return csr
 
 
-def _on_contact(f, x, delta0=0.0):
-    """f(x) where x < 0 (in contact), 0 elsewhere: V' and V'' vanish for x >= 0, and few entries are in contact.
-    With precompression delta0 > 0 the law itself handles contact (V' = delta0^alpha beyond it): f(x) everywhere."""
-    if delta0 > 0.0:
+def profile_sup(values, periodic=False):
+    """max |u| of a profile's grid values, refined by the parabola through the largest and its neighbours
+    (:func:`~hertzpetsc.diagnostics.sup_norm`; ``periodic``: the values are a whole period, neighbours wrap)."""
+    if not periodic:
+        return sup_norm(values)
+    u = np.abs(np.asarray(values, dtype=float))
+    j = int(np.argmax(u))
+    return sup_norm(u[[(j - 1) % len(u), j, (j + 1) % len(u)]])
+
+
+def _sup_gradient(u, periodic):
+    """(indices j-1, j, j+1 of the maximiser of |u|, d max / d u there) of :func:`profile_sup`."""
+    v = np.abs(u)
+    j = int(np.argmax(v))
+    idx = np.array([j - 1, j, j + 1]) % len(u) if periodic else np.array([j - 1, j, j + 1])
+    a, b, c = v[idx]
+    curv = a - 2 * b + c
+    if not curv < 0:
+        return idx[1:2], np.sign(u[idx[1:2]])
+    # s = b - (a - c)^2 / (8 curv), curv = a - 2b + c: its partial derivatives in a, b, c
+    da = -(2 * (a - c) * curv - (a - c) ** 2) / (8 * curv ** 2)
+    db = 1.0 - (a - c) ** 2 / (4 * curv ** 2)
+    dc = (2 * (a - c) * curv + (a - c) ** 2) / (8 * curv ** 2)
+    return idx, np.sign(u[idx]) * np.array([da, db, dc])
+
+
+def _on_contact(model, f, x):
+    """f(x) on the bonds the law says may be in contact, 0 elsewhere (V' and V'' of the uncompressed law vanish
+    off contact and few bonds are in contact)."""
+    m = model.contact(x)
+    if m.all():
         return f(x)
     out = np.zeros_like(x)
-    m = x < 0.0
     out[m] = f(x[m])
     return out
 
 
-class _JacobianProduct:
-    """Matrix-free Jacobian of eq. ad (the ``shell`` kind of :meth:`AdvanceDelayProblem.create_jacobian`)."""
+# --- the problem --------------------------------------------------------------------------------------------------
+class AdvanceDelayProblem(ContinuationProblem):
+    """eq. ad for the lattice ``model`` at wavenumber ``q`` on ``grid`` (module docstring); methods are the SNES
+    callbacks and the continuation layer's hooks.
 
-    def __init__(self, problem):
-        self.problem = problem
+    ``omega``: the frequency of the fixed-frequency form (1: eq. ad); ``amplitude``: the fixed-amplitude form's a
+    (inf: the uncompressed limit delta0 / a = 0 of the Hertz law); ``measure``: 'a1' or 'sup' (what a is);
+    ``normalised``: the profile c* that carries the normalisation (default 0); ``parameter``: the continuation
+    parameter (default q).
+    """
+
+    FIELD_PARAMETERS = ("q", "omega", "a", "log_a", "delta0", "alpha", "epsilon")
+
+    def __init__(self, model, grid, q, omega=1.0, amplitude=None, measure="a1", normalised=0, parameter="q"):
+        if not isinstance(model, LatticeModel):
+            raise ParameterError("model", model, "must be a LatticeModel")
+        model.require_conservative("the travelling-wave problem (eq. ad)")
+        if measure not in MEASURES:
+            raise ParameterError("measure", measure, "must be 'a1' (first sine coefficient) or 'sup' (max |u|)")
+        self.p = model.cell
+        self.full = self.p >= 3                       # no reflection symmetry: the whole period is unknown
+        if self.full and grid.parity != 0:
+            from .grid import ProfileGrid
+            grid = ProfileGrid(grid.K, grid.comm, parity=0)
+        self.model, self.grid = model, grid
+        self.masses = np.array(model.masses, dtype=float)
+        if not (isinstance(normalised, (int, np.integer)) and 0 <= normalised < self.p):
+            raise ParameterError("normalised", normalised, f"must be a profile index in [0, {self.p - 1}]")
+        self.normalised, self.measure = int(normalised), measure
+        self.bordered = amplitude is not None
+        self.amplitude = None
+        self.lam = None
+        if self.bordered:
+            self._set_amplitude(amplitude)
+        else:
+            self._set_omega(omega)
+        self.comm = grid.comm
+        self.mpi = self.comm.tompi4py() if self.comm.getSize() > 1 else None
+        self.last = self.comm.getRank() == self.comm.getSize() - 1
+        self.nloc = grid.rend - grid.rstart
+        # scalars of X: lam (fixed amplitude), then the gauge unknowns (whole-period profiles)
+        self.i_gauge = 1 if self.bordered else 0
+        self.nsc = self.i_gauge + (2 if self.full else 0)
+        self.gauge = None                 # reference translation u_c' of the gauge column (owned rows)
+        self.simple = self.p == 1 and not self.bordered        # X is the grid's own Vec (the paper's problem)
+        ranges = np.array(grid._template.getOwnershipRanges(), dtype=np.int64)
+        self._starts, self._counts = ranges[:-1], np.diff(ranges)
+        self.stencils = None
+        self._assembler = None
+        self._set_q(q)
+        self.parameter = parameter
+        self._check_parameter(parameter)
+        self._work = [PETSc.Vec().createMPI((self.nloc, grid.size), comm=self.comm) for _ in range(2)]
+        self.a = self.b = None            # V''(d+), V''(d-) at the last Jacobian evaluation
+        self.arclength = None             # (row as a full array, value) while solving on Z
+        self.dparam = None                # dF/dp at the last Jacobian evaluation (Z solves)
+        self.solvers = {}
+        self.stats = None
+
+    # --- parameters (the lenses of the continuation layer) ----------------------------------------------------
+    def _check_parameter(self, name):
+        ok = name in self.FIELD_PARAMETERS or (name.startswith("m") and name[1:].isdigit() and
+                                                int(name[1:]) < self.p)
+        if name == "epsilon" and self.p < 2:
+            ok = False
+        if name == "omega" and self.bordered:
+            ok = False
+        if name in ("a", "log_a") and not self.bordered:
+            ok = False
+        if not ok:
+            have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
+                   [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
+            raise ParameterError("parameter", name, "this travelling-wave problem continues in one of "
+                                 + ", ".join(have))
+
+    def _set_omega(self, omega):
+        try:
+            w = float(omega)
+        except (TypeError, ValueError):
+            raise ParameterError("omega", omega, "must be a real number > 0") from None
+        if not (w > 0 and math.isfinite(w)):
+            raise ParameterError("omega", omega, "the frequency must be a finite number > 0")
+        self.omega = w
+        self.lam = w * w
+        self.lattice = self.model
+
+    def _set_amplitude(self, a):
+        try:
+            af = float(a)
+        except (TypeError, ValueError):
+            raise ParameterError("amplitude", a, "must be a real number > 0") from None
+        if not af > 0 or math.isnan(af):
+            raise ParameterError("amplitude", a, "the wave amplitude must be a number > 0")
+        self.amplitude = af
+        self.lattice = self.model.rescaled(af)          # the law seen by w = u / a
+
+    def _set_q(self, q):
+        q = check_wavenumber(q, self.grid.h)
+        if self.stencils is not None and q == self.q:
+            return
+        if self.stencils is not None:
+            self.stencils.destroy()
+        self.q = q
+        self.stencils = ShiftStencils(self.grid, q)
+        self.sigma = self.stencils.sigma
+        self._assembler = None
+
+    def set_parameter(self, name, value):
+        """Set one parameter of the problem (any of those it continues in)."""
+        value = float(value)
+        if name == "q":
+            self._set_q(value)
+        elif name == "omega":
+            self._set_omega(value)
+        elif name == "a":
+            self._set_amplitude(value)
+        elif name == "log_a":
+            self._set_amplitude(math.exp(value))
+        elif name in ("delta0", "alpha"):
+            self.model = self.model.with_delta0(value) if name == "delta0" else self.model.with_alpha(value)
+            self.lattice = self.model.rescaled(self.amplitude) if self.bordered else self.model
+        else:
+            c = 1 if name == "epsilon" else int(name[1:])
+            masses = list(self.masses)
+            masses[c] = value
+            self.model = self.model.with_masses(masses)
+            self.masses = np.array(self.model.masses)
+            self.lattice = self.model.rescaled(self.amplitude) if self.bordered else self.model
+
+    def get_parameter(self, name):
+        if name == "q":
+            return self.q
+        if name == "omega":
+            return self.omega
+        if name == "a":
+            return self.amplitude
+        if name == "log_a":
+            return math.log(self.amplitude)
+        if name in ("delta0", "alpha"):
+            return getattr(self.model, name)
+        return float(self.masses[1 if name == "epsilon" else int(name[1:])])
+
+    # --- layout: X = (profiles, [lam]), Z = (X, parameter) ------------------------------------------------------
+    def sizes(self, extended=False):
+        """(local, global) size of X (or of Z)."""
+        extra = self.nsc + (1 if extended else 0)
+        return (self.p * self.nloc + (extra if self.last else 0), self.p * self.grid.size + extra)
+
+    def create_state(self):
+        """A new X Vec."""
+        if self.simple:
+            return self.grid.create_vec()
+        return PETSc.Vec().createMPI(self.sizes(), comm=self.comm)
+
+    def create_vec(self):
+        """A new extended Vec Z = (X, parameter)."""
+        return PETSc.Vec().createMPI(self.sizes(True), comm=self.comm)
+
+    def global_index(self, c, i, extended=False):
+        """Index in X (or Z) of grid unknown i of profile c."""
+        i = np.asarray(i, dtype=np.int64)
+        owner = np.searchsorted(self._starts, i, side="right") - 1
+        start, count = self._starts[owner], self._counts[owner]
+        # each rank holds its rows of u_0 .. u_{p-1} one after the other; the scalars sit after them on the last
+        return self.p * start + c * count + (i - start)
+
+    def scalar_index(self, k, extended=False):
+        """Index of scalar k (0: lam; with ``extended``, the parameter after the scalars of X)."""
+        return self.p * self.grid.size + k
+
+    def pack(self, profiles_half, lam=None, parameter=None):
+        """An X Vec (or a Z Vec if ``parameter`` is given) from p half profiles (K+1 values on [0, pi]) and, in the
+        fixed-amplitude form, lam."""
+        extended = parameter is not None
+        V = self.create_vec() if extended else self.create_state()
+        a = V.getArray()
+        g = self.grid
+        for c in range(self.p):
+            a[c * self.nloc:(c + 1) * self.nloc] = \
+                np.asarray(profiles_half[c], float)[g.rstart + g.offset:g.rend + g.offset]
+        if self.last:
+            k = self.p * self.nloc
+            if self.bordered:
+                a[k] = self.lam if lam is None else lam
+                k += 1
+            if self.full:
+                a[k:k + 2] = 0.0
+                k += 2
+            if extended:
+                a[k] = parameter
+        return V
+
+    def to_extended(self, X):
+        """Z = (X, current parameter)."""
+        Z = self.create_vec()
+        Z.getArray()[:len(X.getArray(readonly=True))] = X.getArray(readonly=True)
+        if self.last:
+            Z.getArray()[-1] = self.get_parameter(self.parameter)
+        return Z
+
+    def _scalars(self, V):
+        """The scalars after the profiles (on every rank): lam (bordered form) then the parameter (Z)."""
+        n = V.getSize() - self.p * self.grid.size
+        out = np.zeros(max(n, 1))
+        if self.last and n:
+            out[:n] = V.getArray(readonly=True)[self.p * self.nloc:]
+        if self.mpi is not None and n:
+            out = self.mpi.allreduce(out)
+        return out[:n]
+
+    def half_profiles(self, V):
+        """The p half profiles (K+1 values each, on every rank) of an X or Z Vec."""
+        a = V.getArray(readonly=True)
+        out = []
+        for c in range(self.p):
+            w = self._work[0]
+            w.placeArray(a[c * self.nloc:(c + 1) * self.nloc])
+            try:
+                out.append(self.grid.half_profile(w))
+            finally:
+                w.resetArray()
+        return out
+
+    def frequency(self, V):
+        """omega of the wave held by V (fixed frequency: self.omega; fixed amplitude: a^((d-1)/2) sqrt(lam))."""
+        if not self.bordered:
+            return self.omega
+        lam = self._scalars(V)[0]
+        return self._omega_from(lam)
+
+    def _omega_from(self, lam):
+        d = self.model.law.scale_degree
+        a = self.amplitude if math.isfinite(self.amplitude) else 1.0
+        return a ** ((d - 1) / 2) * math.sqrt(max(lam, 0.0))
+
+    # --- the residual ---------------------------------------------------------------------------------------
+    def _profile_parts(self, V):
+        """Per profile: (D2 u_c, tau_q u_c, tau_{-q} u_c, u_c) on the owned rows (copies)."""
+        a = V.getArray(readonly=True)
+        n = self.nloc
+        out = []
+        w = self._work[0]
+        for c in range(self.p):
+            w.placeArray(a[c * n:(c + 1) * n])
+            try:
+                s = self.stencils.stacked(w).getArray(readonly=True)
+                out.append((s[:n].copy(), s[n:2 * n].copy(), s[2 * n:].copy(), a[c * n:(c + 1) * n].copy()))
+            finally:
+                w.resetArray()
+        return out
+
+    def _differences(self, parts):
+        """Per profile c: (D2 u_c, d+_c = tau_q u_{c+1} - u_c, d-_c = u_c - tau_{-q} u_{c-1}, u_c)."""
+        p = self.p
+        return [(parts[c][0], parts[(c + 1) % p][1] - parts[c][3], parts[c][3] - parts[(c - 1) % p][2], parts[c][3])
+                for c in range(p)]
+
+    def _field_rows(self, diffs, lam):
+        lat, force = self.lattice, self.lattice.force
+        rows = []
+        for c, (d2, dp, dm, _) in enumerate(diffs):
+            coef = self.masses[c] * lam
+            first = d2 if coef == 1.0 else coef * d2
+            rows.append(first - _on_contact(lat, force, dp) + _on_contact(lat, force, dm))
+        return rows
+
+    def _measure(self, profiles_local):
+        """The normalisation functional of profile c* (collective): a1(w) = (1/pi) int w sin, or ||w||_inf."""
+        w = profiles_local[self.normalised]
+        if self.measure == "a1":
+            xi = self.grid.owned_points() * self.grid.h
+            local = float(np.dot((1.0 if self.full else 2.0) / self.grid.K * np.sin(xi), w))
+            return self.mpi.allreduce(local) if self.mpi is not None else local
+        return profile_sup(self._gathered_profile(w), self.full)
+
+    def _gauge_rows(self, profiles_local):
+        """(mean(u_0), b1(u_0)) over the whole period (collective): the two gauge rows."""
+        xi = self.grid.owned_points() * self.grid.h
+        u0 = profiles_local[0]
+        local = np.array([np.sum(u0) / (2 * self.grid.K), np.dot(np.cos(xi), u0) / self.grid.K])
+        return self.mpi.allreduce(local) if self.mpi is not None else local
+
+    def set_gauge(self, V):
+        """The translation column of the gauge border: u_c' of V's profiles (centred differences), fixed for a
+        solve (a whole-period problem only)."""
+        if not self.full:
+            return
+        n, g = self.nloc, self.grid
+        out = []
+        for prof in self.half_profiles(V):
+            d = (np.roll(prof, -1) - np.roll(prof, 1)) / (2 * g.h)
+            out.append(d[g.rstart:g.rend])
+        self.gauge = np.concatenate(out) if out else np.zeros(self.p * n)
+
+    def _gathered_profile(self, w_local):
+        w = self._work[1]
+        w.placeArray(w_local)
+        try:
+            return self.grid.half_profile(w)
+        finally:
+            w.resetArray()
+
+    def formFunction(self, snes, X, F):
+        if self.simple and X.getSize() == self.grid.size:
+            dplus, dminus, d2u = self.shift_differences(X)
+            force, lat = self.lattice.force, self.lattice
+            first = d2u if self.lam == 1.0 else self.lam * d2u
+            F.getArray()[:] = first - _on_contact(lat, force, dplus) + _on_contact(lat, force, dminus)
+            return
+        extended = X.getSize() > self.p * self.grid.size + self.nsc
+        if extended:
+            self.set_parameter(self.parameter, self._scalars(X)[-1])
+        if self.full and self.gauge is None:
+            self.set_gauge(X)
+        sc = self._scalars(X)
+        lam = sc[0] if self.bordered else self.lam
+        parts = self._profile_parts(X)
+        diffs = self._differences(parts)
+        out = F.getArray()
+        n = self.nloc
+        for c, r in enumerate(self._field_rows(diffs, lam)):
+            out[c * n:(c + 1) * n] = r
+        k = self.p * n
+        if self.bordered:
+            m = self._measure([d[3] for d in diffs])
+            if self.last:
+                out[k] = m - 1.0
+            k += 1
+        if self.full:
+            i = self.i_gauge
+            out[:self.p * n] += sc[i] + sc[i + 1] * self.gauge
+            rows = self._gauge_rows([d[3] for d in diffs])
+            if self.last:
+                out[k:k + 2] = rows
+            k += 2
+        if extended:
+            row, value = self.arclength
+            local = float(np.dot(row[self._owned_slice(X)], X.getArray(readonly=True)))
+            total = self.mpi.allreduce(local) if self.mpi is not None else local
+            if self.last:
+                out[k] = total - value
+
+    def _owned_slice(self, V):
+        lo, hi = V.getOwnershipRange()
+        return slice(lo, hi)
+
+    def shift_differences(self, X):
+        """d+ = tau_q u - u, d- = u - tau_{-q} u and D2 u on the owned rows (p = 1, X the grid Vec)."""
+        w = self.stencils.stacked(X).getArray(readonly=True)
+        u = X.getArray(readonly=True)
+        n = self.nloc
+        return w[n:2 * n] - u, u - w[2 * n:], w[:n]
+
+    def residual_norm(self, X):
+        F = X.duplicate()
+        self.formFunction(None, X, F)
+        norm = F.norm(PETSc.NormType.NORM_INFINITY)
+        F.destroy()
+        return norm
+
+    # --- the Jacobian -----------------------------------------------------------------------------------------
+    @property
+    def assembler(self):
+        """The CSR pattern of the paper problem's assembled Jacobian (built on first use)."""
+        if self._assembler is None:
+            st = self.stencils
+            self_cols = np.arange(self.grid.rstart, self.grid.rend, dtype=np.int64)[:, None]
+            self._assembler = RowAssembler(self.grid, [st.cols["d2"], self_cols, st.cols["plus"], st.cols["minus"]])
+        return self._assembler
+
+    def _coefficients(self, X):
+        if self.simple and X.getSize() == self.grid.size:
+            lat = self.lattice
+            dplus, dminus, _ = self.shift_differences(X)
+            self.a = _on_contact(lat, lat.stiffness, dplus)
+            self.b = _on_contact(lat, lat.stiffness, dminus)
+            return
+        if X.getSize() > self.p * self.grid.size + self.nsc:
+            self.set_parameter(self.parameter, self._scalars(X)[-1])
+        if self.full and self.gauge is None:
+            self.set_gauge(X)
+        lat = self.lattice
+        diffs = self._differences(self._profile_parts(X))
+        self.a = [_on_contact(lat, lat.stiffness, d[1]) for d in diffs]
+        self.b = [_on_contact(lat, lat.stiffness, d[2]) for d in diffs]
+        self._diffs = diffs
+        self._lam_lin = self._scalars(X)[0] if self.bordered else self.lam
+
+    def _jacobian_blocks(self):
+        a, b = self.a[:, None], self.b[:, None]
+        c = self.stencils.coef
+        d2 = c["d2"] if self.lam == 1.0 else self.lam * c["d2"]
+        return [d2, a + b, -a * c["plus"], -b * c["minus"]]
+
+    def create_jacobian(self, X, kind="aij"):
+        """J(X) as a new parallel AIJ matrix with this q's pattern (``kind='aij'``), or as a matrix-free operator
+        (``kind='shell'``); X is an X Vec or, while continuing in a free parameter, a Z Vec."""
+        if kind not in ("aij", "shell"):
+            raise ParameterError("kind", kind, "must be 'aij' or 'shell'")
+        self._coefficients(X)
+        simple = self.simple and X.getSize() == self.grid.size
+        if kind == "aij":
+            if simple:
+                return self.assembler.create(self._jacobian_blocks())
+            return self._bordered_aij(X)
+        sizes = (X.getLocalSize(), X.getSize())
+        J = PETSc.Mat().createPython((sizes, sizes), _JacobianProduct(self, X.getSize()), comm=self.comm)
+        J.setUp()
+        if not simple:
+            self._border_columns(X)
+        return J
+
+    def formJacobian(self, snes, X, J, P):
+        self._coefficients(X)
+        simple = self.simple and X.getSize() == self.grid.size
+        if P.getType() != PETSc.Mat.Type.PYTHON:
+            if simple:
+                self.assembler.update(P, self._jacobian_blocks())
+            else:
+                indptr, indices, values = self._bordered_csr(X)
+                P.zeroEntries()
+                P.setValuesCSR(indptr, indices, values)
+                P.assemble()
+        elif not simple:
+            self._border_columns(X)
+        if J.handle != P.handle:
+            J.assemble()
+        pc = getattr(self, "preconditioner", None)
+        if pc is not None:
+            sc = self._scalars(X)
+            lam = sc[0] if self.bordered else self.lam
+            pc.scales = [self.masses[c] * lam for c in range(self.p)]
+
+    def _parameter_column(self, X):
+        """dF/dp (field rows and the normalisation row) as local arrays: exact for omega and the masses, a
+        finite difference otherwise."""
+        name = self.parameter
+        diffs = self._diffs
+        sc = self._scalars(X)
+        lam = sc[0] if self.bordered else self.lam
+        n = self.nloc
+        if name == "omega":
+            cols = [2 * self.omega * self.masses[c] * diffs[c][0] for c in range(self.p)]
+            return np.concatenate(cols), 0.0
+        if name == "epsilon" or (name.startswith("m") and name[1:].isdigit()):
+            c0 = 1 if name == "epsilon" else int(name[1:])
+            cols = [lam * diffs[c][0] if c == c0 else np.zeros(n) for c in range(self.p)]
+            return np.concatenate(cols), 0.0
+        value = self.get_parameter(name)
+        step = 1e-7 * max(abs(value), 1e-3)
+        if name == "q" and value + step > math.pi:
+            step = -step
+        base = np.concatenate(self._field_rows(diffs, lam))
+        self.set_parameter(name, value + step)
+        try:
+            parts = self._profile_parts(X) if name == "q" else None
+            shifted = np.concatenate(self._field_rows(self._differences(parts) if parts else diffs, lam))
+        finally:
+            self.set_parameter(name, value)
+        return (shifted - base) / step, 0.0
+
+    def _border_columns(self, X):
+        """The dense columns of the current Jacobian: d/dlam (bordered form) and d/dp (Z)."""
+        diffs = self._diffs
+        self.dlam = np.concatenate([self.masses[c] * diffs[c][0] for c in range(self.p)]) if self.bordered else None
+        extended = X.getSize() > self.p * self.grid.size + self.nsc
+        self.dparam = self._parameter_column(X)[0] if extended else None
+        self.measure_row = self._measure_gradient([d[3] for d in diffs])
+
+    def _measure_gradient(self, profiles_local):
+        """The normalisation row restricted to profile c*: (global unknown indices, values) on every rank."""
+        if not self.bordered:
+            return None
+        g = self.grid
+        if self.measure == "a1":
+            j = np.arange(g.size)
+            return j, (1.0 if self.full else 2.0) / g.K * np.sin((j + g.offset) * g.h)
+        u = self._gathered_profile(profiles_local[self.normalised])
+        idx, vals = _sup_gradient(u, self.full)
+        idx = idx - g.offset                    # grid points -> unknowns (odd profiles: u_1 is unknown 0)
+        keep = (idx >= 0) & (idx < g.size)
+        return idx[keep], vals[keep]
+
+    def _bordered_csr(self, X):
+        """CSR rows (owned) of the Jacobian on X (or Z) with the border columns and rows."""
+        self._border_columns(X)
+        extended = X.getSize() > self.p * self.grid.size + self.nsc
+        st = self.stencils
+        sc = self._scalars(X)
+        lam = sc[0] if self.bordered else self.lam
+        rows_i = np.arange(self.grid.rstart, self.grid.rend, dtype=np.int64)
+        n = self.nloc
+        cols, vals = [], []
+        j_lam = self.scalar_index(0)
+        j_gauge = self.scalar_index(self.i_gauge)
+        j_par = self.scalar_index(self.nsc)
+        for c in range(self.p):
+            a, b = self.a[c][:, None], self.b[c][:, None]
+            cp, cm = (c + 1) % self.p, (c - 1) % self.p
+            bc = [self.global_index(c, st.cols["d2"]), self.global_index(c, rows_i[:, None]),
+                  self.global_index(cp, st.cols["plus"]), self.global_index(cm, st.cols["minus"])]
+            bv = [self.masses[c] * lam * st.coef["d2"], a + b, -a * st.coef["plus"], -b * st.coef["minus"]]
+            if self.bordered:
+                bc.append(np.full((n, 1), j_lam))
+                bv.append(self.dlam[c * n:(c + 1) * n, None])
+            if self.full:
+                bc += [np.full((n, 1), j_gauge), np.full((n, 1), j_gauge + 1)]
+                bv += [np.ones((n, 1)), self.gauge[c * n:(c + 1) * n, None]]
+            if extended:
+                bc.append(np.full((n, 1), j_par))
+                bv.append(self.dparam[c * n:(c + 1) * n, None])
+            cols.append(np.concatenate(bc, axis=1))
+            vals.append(np.concatenate([np.broadcast_to(v, blk.shape) for v, blk in zip(bv, bc)], axis=1))
+        indptr, indices, values = merged_csr(np.concatenate(cols), np.concatenate(vals))
+        if self.last:
+            extra = []
+            if self.bordered:             # the measure row, with an explicit (zero) diagonal entry for LU
+                idx, v = self.measure_row
+                extra.append((np.append(self.global_index(self.normalised, idx), j_lam), np.append(v, 0.0)))
+            if self.full:                 # the gauge rows: mean(u_0), b1(u_0)
+                j = np.arange(self.grid.size)
+                cols0 = self.global_index(0, j)
+                extra.append((np.append(cols0, j_gauge), np.append(np.full(len(j), 0.5 / self.grid.K), 0.0)))
+                extra.append((np.append(cols0, j_gauge + 1), np.append(np.cos(j * self.grid.h) / self.grid.K, 0.0)))
+            if extended:
+                row = self.arclength[0]
+                nz = np.union1d(np.flatnonzero(row), [j_par])
+                extra.append((nz, row[nz]))
+            for rc, rv in extra:
+                rc = np.asarray(rc, dtype=np.int64)
+                order = np.argsort(rc)
+                indices = np.concatenate([indices, rc[order].astype(PETSc.IntType)])
+                values = np.concatenate([values, np.asarray(rv, float)[order]])
+                indptr = np.concatenate([indptr, [indptr[-1] + len(rc)]]).astype(PETSc.IntType)
+        return indptr, indices, values
+
+    def _bordered_aij(self, X):
+        indptr, indices, values = self._bordered_csr(X)
+        J = PETSc.Mat().create(comm=self.comm)
+        sizes = (X.getLocalSize(), X.getSize())
+        J.setSizes((sizes, sizes))
+        J.setType(PETSc.Mat.Type.AIJ)
+        J.setPreallocationCSR((indptr, indices, values))
+        J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+        J.assemble()
+        return J
+
+    # --- the linear wave (start of the amplitude families) -------------------------------------------------
+    def linear_guess(self, branch="acoustic"):
+        """Half profiles and lam of the discrete linear wave of the fixed-amplitude form (the law's linear
+        stiffness K = V''(0) > 0): the eigenvector of the scheme's p x p Bloch matrix (exact symbols of D2 and of
+        the shift stencils), normalised so that the measure of profile c* is 1, where c* (:attr:`normalised`) is
+        set to the profile of largest amplitude (the optical wave at the zone edge leaves a bead at rest)."""
+        if not self.bordered:
+            raise ParameterError("amplitude", None, "the linear wave starts the fixed-amplitude form")
+        K = self.lattice.law.linear_stiffness
+        if not K > 0:
+            raise ParameterError("delta0", self.model.delta0, "the linear wave needs a linear stiffness V''(0) > 0 "
+                                 "(a precompression > 0)")
+        if branch not in ("acoustic", "optical"):
+            raise ParameterError("branch", branch, "must be 'acoustic' or 'optical'")
+        g = self.grid
+        s = np.sin(g.xi_half())
+        if self.full:
+            return self._linear_guess_complex(K, branch, s)
+        v = g.vec_from_half_profile(s)
+        st = self.stencils.stacked(v).getArray(readonly=True)
+        n = self.nloc
+        sl = v.getArray(readonly=True)
+        dots = np.array([np.dot(sl, sl), np.dot(sl, st[:n]), np.dot(sl, st[n:2 * n]), np.dot(sl, st[2 * n:])])
+        dots = self.mpi.allreduce(dots) if self.mpi is not None else dots
+        v.destroy()
+        sigma_h, mu_plus, mu_minus = -dots[1] / dots[0], dots[2] / dots[0], dots[3] / dots[0]
+        L = np.zeros((self.p, self.p))
+        for c in range(self.p):
+            L[c, c] += 2 * K
+            L[c, (c + 1) % self.p] -= K * mu_plus
+            L[c, (c - 1) % self.p] -= K * mu_minus
+        import scipy.linalg
+        lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
+        k = 0 if branch == "acoustic" else self.p - 1
+        vec = vecs[:, k]
+        self.normalised = int(np.argmax(np.abs(vec)))
+        unit = 1.0 if self.measure == "a1" else sup_norm(s)
+        vec = vec / (vec[self.normalised] * unit)
+        return [vec[c] * s for c in range(self.p)], float(lams[k])
+
+    def _linear_guess_complex(self, K, branch, s):
+        """The linear wave of a whole-period problem: the profiles are Im(Y_c e^{i xi}) with Y the eigenvector of
+        the Hermitian Bloch matrix L_cc = 2K, L_{c,c+1} = -K mu, L_{c,c-1} = -K conj(mu) against diag(m) sigma_h,
+        mu the symbol of tau_q on e^{i xi} and sigma_h = 4 sin^2(h/2)/h^2 that of -D2 (the bead types' phases
+        differ when the pattern has no reflection symmetry)."""
+        from .stencil import shift_stencil
+        import scipy.linalg
+        h, p = self.grid.h, self.p
+        offsets, weights = shift_stencil(self.sigma)
+        mu = complex(np.sum(weights * np.exp(1j * offsets * h)))
+        sigma_h = 4 * math.sin(h / 2) ** 2 / h ** 2
+        L = np.zeros((p, p), dtype=complex)
+        for c in range(p):
+            L[c, c] += 2 * K
+            L[c, (c + 1) % p] -= K * mu
+            L[c, (c - 1) % p] -= K * np.conj(mu)
+        lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
+        k = 0 if branch == "acoustic" else p - 1
+        Y = vecs[:, k]
+        self.normalised = int(np.argmax(np.abs(Y)))
+        Y = Y * np.conj(Y[self.normalised]) / abs(Y[self.normalised]) ** 2
+        xi = self.grid.xi_half()
+        unit = 1.0 if self.measure == "a1" else profile_sup(s, True)
+        return [np.imag(Y[c] * np.exp(1j * xi)) / unit for c in range(p)], float(lams[k])
+
+    # --- solving --------------------------------------------------------------------------------------------
+    def tolerance_scale(self, V):
+        """max(m lam) ||u||_inf: the scale of the field rows' round-off (4 eps scale / h^2 per row)."""
+        sc = self._scalars(V)
+        lam = abs(sc[0]) if self.bordered else self.lam
+        return max(float(np.max(self.masses)) * lam, 1e-300) * max(V.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
+
+    def solver(self, extended, prefix=None, solver=None):
+        """The SNES of this problem's X (or Z) layout under ``prefix`` (built once)."""
+        from .resources import check_memory
+        from .twsolver import TW_PREFIX, TravellingWaveSolver, tw_solver
+        key = extended
+        if key not in self.solvers:
+            prefix = prefix or getattr(self, "prefix", TW_PREFIX)
+            check_memory(self.grid.K, self.comm, tw_solver(prefix, solver), profiles=self.p)
+            self.solvers[key] = TravellingWaveSolver(self.grid, prefix, solver, layout=self, extended=extended)
+        return self.solvers[key]
+
+    def solve_state(self, X, tolerances=None):
+        """Solve for X at the current parameters (SolveStats); ConvergenceError when SNES fails. With the 'sup'
+        measure, the normalised profile is the largest one (max_c ||u_c||_inf = A): solved again on the
+        largest profile if the solution's largest is another."""
+        self.set_gauge(X)
+        self.stats = self.solver(False).solve(self, X, tolerances)
+        self._renormalise(X, lambda: self.solver(False).solve(self, X, tolerances))
+        return self.stats
+
+    def _renormalise(self, V, solve):
+        if not (self.bordered and self.measure == "sup" and self.p > 1):
+            return
+        for _ in range(self.p):
+            largest = int(np.argmax([profile_sup(w, self.full) for w in self.half_profiles(V)]))
+            if largest == self.normalised:
+                return
+            self.normalised = largest
+            self.stats = solve()
+
+    def solve(self, Z, row=None, value=None):
+        """The continuation layer's corrector (:meth:`ContinuationProblem.solve`)."""
+        if row is None:
+            self.set_parameter(self.parameter, self._scalars(Z)[-1])
+            X = self.create_state()
+            n = len(X.getArray(readonly=True))
+            X.getArray()[:] = Z.getArray(readonly=True)[:n]
+            try:
+                stats = self.solve_state(X)
+                Z.getArray()[:n] = X.getArray(readonly=True)
+            finally:
+                X.destroy()
+            return stats.iterations
+        scatter, full = PETSc.Scatter.toAll(row)
+        scatter.scatter(row, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+        self.arclength = (full.getArray(readonly=True).copy(), float(value))
+        scatter.destroy()
+        full.destroy()
+        try:
+            self.set_gauge(Z)
+            self.stats = self.solver(True).solve(self, Z)
+            self._renormalise(Z, lambda: self.solver(True).solve(self, Z))
+        finally:
+            self.arclength = None
+        self.set_parameter(self.parameter, self._scalars(Z)[-1])
+        return self.stats.iterations
+
+    def predictor_ratio(self, p_from, p_to):
+        """(q_from / q_to)^(2/(d-1)) for the paper's continuation in q: the rescaled profile q^(2/(d-1)) u stays
+        O(1) (eq. normscaling); a ratio, so that exponents 2/(d-1) in the hundreds (alpha near 1) neither
+        overflow nor underflow."""
+        if self.parameter == "q" and not self.bordered and self.model.delta0 == 0.0:
+            d = self.model.law.scale_degree
+            return (p_from / p_to) ** (2.0 / (d - 1.0)) if d > 1 else 1.0
+        return 1.0
+
+    def weights(self):
+        """The arclength inner product: (h/pi) sum over the profiles' grid values (the integral over a period)
+        plus the scalars' squares."""
+        W = self.create_vec()
+        W.set(self.grid.h / math.pi)
+        if self.last:
+            W.getArray()[self.p * self.nloc:] = 1.0
+        return W
+
+    def test_functions(self, Z):
+        return {}
+
+    def report(self, Z):
+        profiles = self.half_profiles(Z)
+        sc = self._scalars(Z)
+        return dict(profiles=profiles, lam=float(sc[0]) if self.bordered else self.lam, omega=self.frequency(Z))
+
+    def destroy(self):
+        for s in self.solvers.values():
+            s.destroy()
+        self.solvers = {}
+        self.stencils.destroy()
+        for w in self._work:
+            w.destroy()
+
+
+class _JacobianProduct:
+    """Matrix-free Jacobian of eq. ad (the ``shell`` kind of :meth:`AdvanceDelayProblem.create_jacobian`), with
+    the border columns and rows of the fixed-amplitude form and of a free parameter."""
+
+    def __init__(self, problem, size):
+        self.problem, self.size = problem, size
 
     @PETSc.Log.EventDecorator("hz_tw_jacobian_mult")
     def mult(self, mat, x, y):
         p = self.problem
-        w = p.stacked(x).getArray(readonly=True)
-        v = x.getArray(readonly=True)
+        if p.simple and self.size == p.grid.size:
+            w = p.stencils.stacked(x).getArray(readonly=True)
+            v = x.getArray(readonly=True)
+            n = p.nloc
+            d2 = w[:n] if p.lam == 1.0 else p.lam * w[:n]
+            y.getArray()[:] = d2 + (p.a + p.b) * v - p.a * w[n:2 * n] - p.b * w[2 * n:]
+            return
+        extended = self.size > p.p * p.grid.size + p.nsc
+        sc = p._scalars(x)                    # the direction's components along lam and the parameter
+        lam = p._lam_lin
+        parts = p._profile_parts(x)
         n = p.nloc
-        y.getArray()[:] = w[:n] + (p.a + p.b) * v - p.a * w[n:2 * n] - p.b * w[2 * n:]
+        out = y.getArray()
+        for c in range(p.p):
+            d2 = parts[c][0]
+            plus = parts[(c + 1) % p.p][1]
+            minus = parts[(c - 1) % p.p][2]
+            v = parts[c][3]
+            r = p.masses[c] * lam * d2 + (p.a[c] + p.b[c]) * v - p.a[c] * plus - p.b[c] * minus
+            if p.bordered:
+                r = r + sc[0] * p.dlam[c * n:(c + 1) * n]
+            if p.full:
+                r = r + sc[p.i_gauge] + sc[p.i_gauge + 1] * p.gauge[c * n:(c + 1) * n]
+            if extended:
+                r = r + sc[-1] * p.dparam[c * n:(c + 1) * n]
+            out[c * n:(c + 1) * n] = r
+        k = p.p * n
+        if p.bordered:
+            idx, vals = p.measure_row
+            own = (idx >= p.grid.rstart) & (idx < p.grid.rend)
+            local = float(np.dot(vals[own], x.getArray(readonly=True)[p.normalised * n + idx[own] - p.grid.rstart]))
+            total = p.mpi.allreduce(local) if p.mpi is not None else local
+            if p.last:
+                out[k] = total
+            k += 1
+        if p.full:
+            rows = p._gauge_rows([parts[c][3] for c in range(p.p)])
+            if p.last:
+                out[k:k + 2] = rows
+            k += 2
+        if extended:
+            row = p.arclength[0]
+            lo, hi = x.getOwnershipRange()
+            local = float(np.dot(row[lo:hi], x.getArray(readonly=True)))
+            total = p.mpi.allreduce(local) if p.mpi is not None else local
+            if p.last:
+                out[k] = total

@@ -147,7 +147,7 @@ class Branch:
     def u(self):
         return np.array([p.u_half for p in self.points]).reshape(len(self.points), self.cells_per_pi + 1)
 
-    def column(self, name):
+    def column(self, name: str) -> np.ndarray:
         """A diagnostic or a solver statistic along the branch, as an array."""
         if name in WaveDiagnostics.names():
             return np.array([getattr(p.diagnostics, name) for p in self.points])
@@ -156,7 +156,7 @@ class Branch:
     def __len__(self):
         return len(self.points)
 
-    def point(self, q, tol=1e-12):
+    def point(self, q: float, tol: float = 1e-12) -> BranchPoint:
         """The point at wavenumber q, or :class:`RecordFileError` naming the range the branch has."""
         qs = self.q
         i = int(np.argmin(np.abs(qs - q))) if len(qs) else -1
@@ -178,11 +178,12 @@ class Branch:
                     meta=json.dumps(self.meta))
 
     @classmethod
-    def load(cls, path, comm=None):
-        """Read a branch file; :class:`RecordFileError` if it is missing, corrupt or of another kind. With a
+    def load(cls, path: str, comm=None, min_points: int = 1) -> "Branch":
+        """Read a branch file; :class:`RecordFileError` if it is missing, corrupt, of another kind, or holds fewer
+        than ``min_points`` points (an interrupted continuation's file may hold none: resume it first). With a
         communicator, rank 0 reads it and every rank gets the branch (or the error)."""
         if comm is not None:
-            return on_rank0(comm, cls.load, path, what=f"cannot read branch file {path!r}")
+            return on_rank0(comm, cls.load, path, None, min_points, what=f"cannot read branch file {path!r}")
         data = load_npz(path, "branch file")
         check_kind(data, path, BRANCH_FORMAT, "branch file")
         required = set(SCALARS) | set(POINT_FIELDS) | {"u", "xi", "meta"}
@@ -190,6 +191,9 @@ class Branch:
         if missing:
             raise RecordFileError(f"branch file {path!r} is corrupt: missing {sorted(missing)}")
         P = len(data["q"])
+        if P < min_points:
+            raise RecordFileError(f"branch file {path!r} holds {P} point(s), {min_points} needed (an interrupted "
+                                  "continuation: continue it with scripts/continuation.py -resume)")
         if data["u"].shape != (P, len(data["xi"])) or any(len(data[k]) != P for k in POINT_FIELDS):
             raise RecordFileError(f"branch file {path!r} is corrupt: inconsistent array shapes")
         try:
@@ -199,6 +203,7 @@ class Branch:
         branch = cls(LatticeModel.hertz(float(data["alpha"])), int(data["cells_per_pi"]), int(data["M"]), [], meta)
         rows = [{k: data[k][i] for k in POINT_FIELDS + ("u",)} for i in range(P)]
         branch.points = [BranchPoint.from_record(r, branch.h, branch.model) for r in rows]
+        branch.path = path
         return branch
 
 

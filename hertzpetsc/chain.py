@@ -13,6 +13,16 @@ With ``n_tangent = k`` the DMDA carries k tangent vectors Y_i = (y_n, ydot_n) ne
 side is that of the variational equations Y' = Df(X) Y as well: one TS then integrates the flow and its
 tangent-linear map together (the resolvent R(t; 0) of the paper's sections 3.4-3.5). The energy balance of
 :meth:`Chain.power`: dE/dt = (input power of the actuators) - (dissipation).
+
+Two chains reuse this one with other ghost rows: the Bloch cell, whose tangents satisfy y_{n+M} = e^{i theta} y_n
+(:attr:`Chain.theta`, :attr:`Chain.complex_modes`; :class:`hertzpetsc.bloch.TwistedChain`), and the chain in
+gap-lattice coordinates, whose bonds are r = gap + y_{n+1} - y_n (:attr:`Chain.gap`;
+:class:`hertzpetsc.compacton_window.WindowChain`), where one bond may carry an extra length (:attr:`Chain.step`:
+the beads behind it stored relative to their rest position, so that bonds closed by less than the positions'
+round-off are computed without cancellation).
+
+The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law; :meth:`Chain.rhs_reference`
+is the same arithmetic in numpy (any law; the reference the kernel is tested against).
 """
 import math
 from dataclasses import dataclass
@@ -20,7 +30,9 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
+from . import kernels
 from .errors import ConvergenceError, ParameterError
+from .hertz import HertzLaw
 from .model import Actuator, ChainSpec
 
 # The options prefix of the TS of simulations (long runs, compactons on the chain); the refinement's and the
@@ -63,8 +75,16 @@ class Chain:
         self.local = self.da.createLocalVec()
         self.first = self.xs == 0 and not periodic
         self.last = self.xe == spec.N and not periodic
-        self._shift = None
         self._take(spec)
+        self._shift = None
+        self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
+        # the compiled right-hand side: the Hertz law and this class's ghost rows (any other law, or a subclass that
+        # redefines the ghost rows or the right-hand side, evaluates in numpy)
+        compiled = type(self.model.law) is HertzLaw and type(self)._ghosted is Chain._ghosted \
+            and type(self).rhs_reference is Chain.rhs_reference
+        lib = kernels.library() if compiled else None
+        self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None
+        self._sync()
 
     def _take(self, spec):
         """The physics of ``spec`` on this layout: model, damping, masses and the ends this rank touches."""
@@ -79,15 +99,96 @@ class Chain:
             1.0 / self.model.mass(np.arange(self.xs, self.xe))
 
     def set_spec(self, spec):
-        """Take another chain of the same layout (same N and boundary; the law, masses, damping and the ends'
-        signals may differ): a continuation in a driving frequency or amplitude changes the actuator this way,
-        without a new DMDA."""
+        """Take another chain of the same layout (same N, boundary and kinds of ends; the Hertz parameters, masses,
+        damping and the actuators' signals may differ): a continuation in a driving frequency, amplitude or damping
+        changes the chain this way, without a new DMDA; the compiled kernel's context is updated in place (a TS
+        that calls it directly keeps working)."""
         if not isinstance(spec, ChainSpec):
             raise ParameterError("spec", spec, "must be a ChainSpec")
         if spec.N != self.spec.N or spec.boundary != self.spec.boundary:
             raise ParameterError("spec", (spec.N, spec.boundary), f"must keep N = {self.spec.N} and boundary "
                                  f"{self.spec.boundary!r} (the layout of this chain)")
+        def kind(end):
+            return "actuator" if isinstance(end, Actuator) else end
+        if (kind(spec.left), kind(spec.right)) != (kind(self.spec.left), kind(self.spec.right)) or type(spec.model.law) is not type(self.model.law):
+            raise ParameterError("spec", spec, "must keep the kinds of the ends (free, wall, actuator) and of the "
+                                 f"law ({type(self.model.law).__name__}) of this chain")
         self._take(spec)
+        if self.kernel is not None:
+            self.kernel.set_physics(self)
+        self._sync()
+
+    # --- the ghost rows of the Bloch cell and of the gap lattice ------------------------------------------------
+    @property
+    def theta(self):
+        """Bloch twist of the tangents across the seam of a periodic chain: y_{n+N} = e^{i theta} y_n (0: none)."""
+        return self._theta
+
+    @theta.setter
+    def theta(self, value):
+        self._theta = float(value)
+        self._sync()
+
+    @property
+    def complex_modes(self):
+        """True: tangent 2p is the real part u, tangent 2p + 1 the imaginary part w of complex mode p (any theta);
+        False: real tangents, twisted by cos theta (theta = 0 or pi)."""
+        return self._complex_modes
+
+    @complex_modes.setter
+    def complex_modes(self, value):
+        if value and self.n_tangent % 2:
+            raise ParameterError("n_tangent", self.n_tangent, "complex modes need an even number of tangents")
+        self._complex_modes = bool(value)
+        self._sync()
+
+    @property
+    def gap(self):
+        """Gap-lattice offset: bond n is r = gap + x_{n+1} - x_n (0: the lab frame)."""
+        return self._gap
+
+    @gap.setter
+    def gap(self, value):
+        self._gap = float(value)
+        self._sync()
+
+    @property
+    def step(self):
+        """(bond b, length s): bond b (joining beads b, b + 1) is r = s + gap + x_{b+1} - x_b, i.e. beads 0..b are
+        stored relative to a position s further back (b = -1: no step)."""
+        return self._step
+
+    @step.setter
+    def step(self, value):
+        b, s = value
+        if not (isinstance(b, (int, np.integer)) and -1 <= b < self.spec.N - 1):
+            raise ParameterError("step", b, f"the bond index must be in -1..{self.spec.N - 2}")
+        self._step = (int(b), float(s) if b >= 0 else 0.0)
+        self._sync()
+
+    def _step_row(self):
+        """The local index (ghosted numbering: bond i joins rows i, i + 1) of the step bond, or -1 off this rank."""
+        i = self._step[0] - self.xs + 1
+        return i if self._step[0] >= 0 and 0 <= i <= self.nloc else -1
+
+    def _bonds(self, a):
+        """Bond lengths r_i (nloc + 1) of the ghosted local rows ``a`` (gap included there), the step added."""
+        r = a[1:, 0] - a[:-1, 0]
+        i = self._step_row()
+        if i >= 0:
+            r[i] = r[i] + self._step[1]
+        return r
+
+    def bonds(self, values):
+        """Bond lengths (N - 1) of a gathered state ``values`` (N, dof): gap + x_{n+1} - x_n, the step added."""
+        r = self.gap + np.diff(np.asarray(values)[:, 0])
+        if self._step[0] >= 0:
+            r[self._step[0]] += self._step[1]
+        return r
+
+    def _sync(self):
+        if self.kernel is not None:
+            self.kernel.sync(self)
 
     # --- layout helpers ---------------------------------------------------------------------------------------
     def create_state(self):
@@ -95,10 +196,13 @@ class Chain:
 
     def _ghosted(self, X, t=None):
         """Local values with one ghost bead on each side, shape (nloc + 2, dof): the neighbours' values, or at an
-        end the wall at rest (all zero) or the actuator's position and velocity at time t (zero tangents)."""
+        end the wall at rest (all zero) or the actuator's position and velocity at time t (zero tangents); the
+        tangents of the ghost rows across a twisted seam multiplied by e^{-+i theta} (left, right); positions
+        offset by gap * (local row index) in the gap lattice."""
         self.da.globalToLocal(X, self.local)
         a = self.local.getArray(readonly=True).reshape(self.nloc + 2, self.dof)
-        if self.left_end in (None, "free") and self.right_end in (None, "free"):
+        if self.left_end in (None, "free") and self.right_end in (None, "free") and self.theta == 0.0 \
+                and self.gap == 0.0:
             return a
         a = a.copy()
         for row, end in ((0, self.left_end), (-1, self.right_end)):
@@ -109,6 +213,20 @@ class Chain:
                 a[row] = 0.0
                 a[row, 0] = end.signal.position(tt)
                 a[row, 1] = end.signal.velocity(tt)
+        if self.theta != 0.0 and self.spec.boundary == "periodic":
+            c, s = math.cos(self.theta), math.sin(self.theta)
+            for row, sign, wraps in ((0, -1.0, self.xs == 0), (-1, 1.0, self.xe == self.spec.N)):
+                if not wraps:
+                    continue
+                if not self.complex_modes:
+                    a[row, 2:] *= c                                          # e^{+-i pi} = -1
+                    continue
+                modes = a[:, 2:].reshape(self.nloc + 2, self.n_tangent // 2, 2, 2)  # bead, mode, (u, w), (y, y')
+                u, w = modes[row, :, 0, :].copy(), modes[row, :, 1, :].copy()
+                modes[row, :, 0, :] = c * u - sign * s * w
+                modes[row, :, 1, :] = sign * s * u + c * w
+        if self.gap != 0.0:
+            a[:, 0] += self.gap * np.arange(self.nloc + 2, dtype=float)
         return a
 
     def _bond_mask(self):
@@ -122,10 +240,21 @@ class Chain:
 
     # --- eq. nc and its variational equations -------------------------------------------------------------
     def rhs(self, ts, t, X, F):
+        """F = f(t, X): eq. nc and, with tangents, its variational equations (a TS callback); compiled when the
+        kernel is available (:mod:`hertzpetsc.kernels`), else :meth:`rhs_reference`."""
+        if self.kernel is None:
+            self.rhs_reference(ts, t, X, F)
+            return
+        if self.kernel.actuated:
+            self.kernel.set_time(self, t)
+        self.kernel(X, F)
+
+    def rhs_reference(self, ts, t, X, F):
+        """:meth:`rhs` in numpy, for any law: the reference of the compiled kernel (the same operations in the same
+        order)."""
         a = self._ghosted(X, t)
         model = self.model
-        x = a[:, 0]
-        r = x[1:] - x[:-1]                          # bond lengths x_{n+1} - x_n
+        r = self._bonds(a)                          # bond lengths x_{n+1} - x_n
         mask = self._bond_mask()
         bond = model.force(r) * mask
         out = F.getArray().reshape(self.nloc, self.dof)
@@ -137,10 +266,21 @@ class Chain:
             dy = y[1:] - y[:-1]
             out[:, 2::2] = a[1:-1, 3::2]
             out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1]
-        if self.damping is not None:                 # the same linear terms on the state's and tangents' velocities
+        if self.damping is not None:                 # the state's and the tangents' velocities alike
             out[:, 1::2] += self._damping_forces(a[:, 1::2], mask)
         if self.inverse_mass is not None:
             out[:, 1::2] *= self.inverse_mass[:, None]
+
+    def install_rhs(self, ts, F, compiled=True):
+        """Make this chain's right-hand side that of ``ts`` (residual vector F): the compiled function called by the
+        TS itself when the ends do not depend on time, else :meth:`rhs` (``compiled=False``:
+        :meth:`rhs_reference`)."""
+        if not compiled or self.kernel is None:
+            ts.setRHSFunction(self.rhs_reference, F)
+        elif self.kernel.actuated:
+            ts.setRHSFunction(self.rhs, F)
+        else:
+            self.kernel.install(ts, F)
 
     def _damping_forces(self, v, mask):
         """-gamma v_n + eta (dv_n - dv_{n-1}), dv the bonds' velocity differences (v: (nloc + 2, columns) ghosted
@@ -156,7 +296,7 @@ class Chain:
         """Exact Jacobian Df(X) of the chain (for implicit integrators); only for the chain without tangents.
         Assembled entry by entry: adequate for the chain lengths where implicit integration is used."""
         a = self._ghosted(X, t)
-        r = a[1:, 0] - a[:-1, 0]
+        r = self._bonds(a)
         mask = self._bond_mask()
         s = self.model.stiffness(r) * mask                # bond stiffness V''(x_{n+1} - x_n)
         inv = self.inverse_mass if self.inverse_mass is not None else np.ones(self.nloc)
@@ -196,7 +336,7 @@ class Chain:
         """Total energy (eq. ham): sum of m v^2/2 and of V over the bonds, the bonds to walls and actuators
         included (their positions at time t)."""
         a = self._ghosted(X, t)
-        r = a[1:, 0] - a[:-1, 0]
+        r = self._bonds(a)
         Vb = self.model.potential(r) * self._bond_mask()
         # each rank counts the bonds to the right of its beads, plus the bond at the left end
         kinetic = a[1:-1, 1] ** 2 if self.inverse_mass is None else a[1:-1, 1] ** 2 / self.inverse_mass
@@ -210,7 +350,7 @@ class Chain:
         dE/dt = input - dissipation: input = -f_0 x_0' + f_N x_{N+1}' (f the bond forces V' + eta dv of the bonds
         to the actuators; f < 0 in compression), dissipation = gamma sum v^2 + eta sum over bonds dv^2."""
         a = self._ghosted(X, t)
-        r = a[1:, 0] - a[:-1, 0]
+        r = self._bonds(a)
         mask = self._bond_mask()
         v = a[:, 1]
         dv = (v[1:] - v[:-1]) * mask
@@ -262,6 +402,8 @@ class Chain:
     def destroy(self):
         if self._shift is not None:
             self._shift.destroy()
+        if self.kernel is not None:
+            self.kernel.destroy()
         self.local.destroy()
         self.da.destroy()
 
@@ -269,7 +411,8 @@ class Chain:
 class ChainIntegrator:
     """PETSc TS for a chain, under the options prefix ``chain_`` (e.g. -chain_ts_type, -chain_ts_rk_type,
     -chain_ts_rtol). Default: adaptive explicit Runge-Kutta 8(7) (Verner), rtol 1e-12, atol 1e-14 as in the
-    paper, steps matched to the final time."""
+    paper, steps matched to the final time. The right-hand side is the chain's compiled one; ``-chain_rhs_compiled
+    0`` makes the TS call :meth:`Chain.rhs_reference` (numpy, the same numbers) instead."""
 
     def __init__(self, chain, tolerances=None, prefix=CHAIN_PREFIX, rk_type="8vr"):
         self.chain = chain
@@ -280,7 +423,8 @@ class ChainIntegrator:
         ts.setType(PETSc.TS.Type.RK)
         ts.setRKType(rk_type)
         self._F = chain.create_state()
-        ts.setRHSFunction(chain.rhs, self._F)
+        compiled = PETSc.Options(prefix).getBool("rhs_compiled", True)
+        chain.install_rhs(ts, self._F, compiled)
         if chain.n_tangent == 0:
             self._J = chain.create_jacobian()
             ts.setRHSJacobian(chain.rhs_jacobian, self._J, self._J)

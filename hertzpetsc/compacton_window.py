@@ -12,20 +12,9 @@ A window of M beads (j = 0 the rearmost, free ends) and the one-bead shift defin
 
 and an exact compacton of gap Delta is a fixed point of G, provided the window holds every bond that closes
 during a period plus a resting bead on each side (the free ends then never carry a force). The fixed points form
-a curve (the sub-bead phase), so :class:`CompactonRefiner` adds a phase condition; q is imposed through the
-paper's D / Delta = 2 pi / q, i.e. q y_0 = 2 pi Delta, with Delta an unknown (Delta = 0: the solitary wave,
-eq. adr, with the q condition dropped).
-
-Spectrum. V''(r) vanishes exactly for r >= 0, so a bead whose bonds stay open during the period is in exact
-free flight; ordering the window as (front buffer, core, rear buffer), D_Y G is exactly block lower-triangular
-with nilpotent transport blocks (a truncated shift composed with free flight), hence
-spec(D_Y G) = {0} U spec(core block), independent of the buffers. On the infinite chain, in the space weighted
-by exp(eta n) (heavier ahead), the essential spectrum is the disk |mu| <= exp(-eta) and the rest is spec(core).
-Krylov-Schur (:class:`WindowStability`, EPS prefix ``cstab_``) is run on the weighted operator
-W D_Y G W^-1, W = diag(exp(eta (j - j_ref))), whose transport part has norm exp(-eta): without the weight the
-nilpotent blocks' pseudospectrum fills a disk of radius ~ tol^(1/L) and SLEPc accepts spurious multipliers.
-The multiplier 1 is a Jordan block (translation v1 = the vector field; speed direction v2, (J - 1) v2 = v1):
-only the pair's mean is accurate, its split is ~ sqrt(integration error).
+a curve (the sub-bead phase): :class:`CompactonRefiner` adds a phase condition and imposes q by the paper's
+D / Delta = 2 pi / q, i.e. q y_0 = 2 pi Delta (Delta = 0: the solitary wave, eq. adr). Their spectrum:
+:mod:`hertzpetsc.compacton_spectrum`.
 
 Flows use the TS prefix ``cwin_`` (``-cwin_ts_*``). States are (M, 2) arrays (y_j, ydot_j), flattened
 bead-major (index 2 j + component) for matrices.
@@ -37,16 +26,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import Chain, ChainIntegrator, IntegrationTolerances
+from .chain import Chain, IntegrationTolerances
+from .continuation import ContinuationProblem
 from .errors import ConvergenceError, ParameterError
+from .gauss_newton import GaussNewton
 from .model import ChainSpec
-from .tangent import split_tangents, stack_tangents
+from .tangent import TangentFlow
 
 WINDOW_PREFIX = "cwin_"
-STABILITY_PREFIX = "cstab_"
 # the flows whose fixed points and spectra are measured (as the package's MEASURE_TOLERANCES)
 WINDOW_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
-DEFAULT_ETA = 2.5
 DEFAULT_REAR = 6
 
 
@@ -64,15 +53,28 @@ class WindowChain(Chain):
             raise ParameterError("boundary", spec.boundary, "the compacton window is a free-ended chain")
         super().__init__(spec, comm, n_tangent)
         self.gap = float(gap)
-        self._offset = np.arange(self.nloc + 2, dtype=float)
 
-    def _ghosted(self, X, t=None):
-        a = super()._ghosted(X, t)
-        if self.gap == 0.0:
-            return a
-        a = a.copy()
-        a[:, 0] += self.gap * self._offset
-        return a
+
+# the rearmost bond compressed by at least this fraction of the deepest compression closes the rear part
+REAR_STEP_LEVEL = 0.1
+
+
+def rear_step(Y, gap, level=REAR_STEP_LEVEL):
+    """(b, D): the beads 0..b behind the compression zone are integrated as y - D, D = y_0 their rest position,
+    and bond b carries the extra length -D (:attr:`hertzpetsc.chain.Chain.step`); (-1, 0.0) if no bond is closed.
+
+    Behind a solitary wave (Delta = 0) the bonds stay closed by doubly exponentially small amounts; computed as
+    differences of positions ~ D they are round-off, whose sign flips from stage to stage, and for alpha < 2 the
+    stiffness alpha |r|^(alpha-1) of such a bond (~1e-8 at alpha = 3/2) switches on and off: the tangent flow's
+    error control then cuts the steps a hundredfold. Relative to D these bonds are exact. b is the rearmost bond
+    closed by at least ``level`` of the deepest compression, so that during the period (the zone advances one
+    bead) the bonds computed across the step stay far above round-off."""
+    r = gap + np.diff(np.asarray(Y, float)[:, 0])
+    deep = -float(np.min(r))
+    if not deep > 0:
+        return -1, 0.0
+    b = int(np.argmax(-r >= level * deep))
+    return b, float(Y[0, 0])
 
 
 def shift_window(Z):
@@ -82,60 +84,38 @@ def shift_window(Z):
     return out
 
 
-class WindowFlow:
-    """Phi_1 of the M-bead window chain with k tangent columns in one TS (prefix ``cwin_``), for k = 0, 1, 2M + 1
-    (built on first use). Arrays in and out are given on every rank."""
+class CompactonWindow:
+    """The window map G of an M-bead window (module docstring) and its derivatives: Phi_1 of the window chain with
+    k = 0, 1 or 2M + 1 tangent columns in one TS (:class:`~hertzpetsc.tangent.TangentFlow`, prefix ``cwin_``, built on
+    first use). Arrays in and out are given on every rank."""
 
     def __init__(self, model, M, comm, tolerances=WINDOW_TOLERANCES, prefix=WINDOW_PREFIX, rk_type="8vr"):
         if not (isinstance(M, (int, np.integer)) and M >= 4):
             raise ParameterError("M", M, "the window needs at least 4 beads")
-        self.spec = ChainSpec(model, int(M), "free")
-        self.model, self.M, self.comm = model, int(M), comm
+        self.model, self.M, self.comm, self.spec = model, int(M), comm, ChainSpec(model, int(M), "free")
         self.tolerances, self.prefix, self.rk_type = tolerances, prefix, rk_type
         self._flows = {}
-        self.integrations = 0
-        self._get(0)                   # reads and checks the -cwin_ts_* options now
+        self._flow(0)                  # reads and checks the -cwin_ts_* options now
 
-    def _get(self, k):
+    def _flow(self, k):
         if k not in self._flows:
-            chain = WindowChain(self.spec, self.comm, 0.0, n_tangent=k)
-            integ = ChainIntegrator(chain, self.tolerances, self.prefix, self.rk_type)
-            self._flows[k] = (chain, integ, chain.create_state())
+            self._flows[k] = TangentFlow(self.spec, k, self.comm, self.tolerances, self.prefix, WindowChain,
+                                         self.rk_type)
         return self._flows[k]
 
     def run(self, Y, gap, tangents=None, T=1.0, monitor=None):
-        """(Y(T) (M, 2), R(T) tangents (M, 2, k) or None) from Y (M, 2) and tangents (M, 2, k)."""
-        M = self.M
-        Y = np.asarray(Y, float).reshape(M, 2)
+        """(Y(T) (M, 2), R(T) tangents (M, 2, k) or None) from Y (M, 2) and tangents (M, 2, k). The beads behind
+        the compression zone are integrated relative to the rear bead's position (:func:`rear_step`)."""
         k = 0 if tangents is None else tangents.shape[2]
-        chain, integ, Z = self._get(k)
-        chain.gap = float(gap)
-        chain.set_from_array(Z, Y if k == 0 else stack_tangents(Y, tangents))
-        if monitor is not None:
-            integ.ts.setMonitor(lambda ts, i, t, X: monitor(chain, X))
-        try:
-            integ.integrate(Z, 0.0, T, dt=integ.initial_step)
-        finally:
-            if monitor is not None:
-                integ.ts.cancelMonitor()
-        self.integrations += 1
-        out = chain.gather(Z)
-        return (out, None) if k == 0 else split_tangents(out, k)
-
-    def destroy(self):
-        for chain, integ, Z in self._flows.values():
-            Z.destroy()
-            integ.destroy()
-            chain.destroy()
-        self._flows = {}
-
-
-class CompactonWindow:
-    """The window map G of an M-bead window (module docstring) and its derivatives."""
-
-    def __init__(self, model, M, comm, tolerances=WINDOW_TOLERANCES, prefix=WINDOW_PREFIX, rk_type="8vr"):
-        self.model, self.M, self.comm = model, int(M), comm
-        self.flow = WindowFlow(model, M, comm, tolerances, prefix, rk_type)
+        flow = self._flow(k)
+        Y = np.array(Y, float).reshape(self.M, 2)
+        b, D = rear_step(Y, gap)
+        Y[:b + 1, 0] -= D
+        flow.aug.gap = float(gap)
+        flow.aug.step = (b, -D)
+        YT, W = flow.run(Y, T, np.zeros((self.M, 2, 0)) if k == 0 else tangents, monitor)
+        YT[:b + 1, 0] += D
+        return YT, (W if k else None)
 
     @property
     def dim(self):
@@ -143,7 +123,7 @@ class CompactonWindow:
 
     def map(self, Y, gap):
         """G(Y), (M, 2)."""
-        YT, _ = self.flow.run(Y, gap)
+        YT, _ = self.run(Y, gap)
         return shift_window(YT)
 
     def residual(self, Y, gap):
@@ -159,14 +139,14 @@ class CompactonWindow:
         T0 = np.zeros((M, 2, n + 1))
         T0.reshape(n, n + 1)[:, :n] = np.eye(n)
         T0[:, 0, n] = np.arange(M)
-        YT, W = self.flow.run(Y, gap, T0)
+        YT, W = self.run(Y, gap, T0)
         W[:, 0, n] -= np.arange(M)
         G, GW = shift_window(YT), shift_window(W).reshape(n, n + 1)
         return G, GW[:, :n].copy(), GW[:, n].copy()
 
     def apply(self, Y, gap, x):
         """J x by one tangent integration (the matrix-free product); x and the result are (2M,)."""
-        _, W = self.flow.run(Y, gap, np.asarray(x, float).reshape(self.M, 2, 1))
+        _, W = self.run(Y, gap, np.asarray(x, float).reshape(self.M, 2, 1))
         return shift_window(W[:, :, 0]).ravel()
 
     def vector_field(self, Y, gap):
@@ -187,12 +167,11 @@ class CompactonWindow:
         r_min = np.full(self.M - 1, np.inf)
 
         def watch(chain, X):
-            y = chain.gather(X)[:, 0]
-            np.minimum(r_min, gap + np.diff(y), out=r_min)
+            np.minimum(r_min, chain.bonds(chain.gather(X)), out=r_min)
         Y = np.asarray(Y, float).reshape(self.M, 2)
         watch_start = gap + np.diff(Y[:, 0])
         np.minimum(r_min, watch_start, out=r_min)
-        self.flow.run(Y, gap, monitor=watch)
+        self.run(Y, gap, monitor=watch)
         deepest = max(0.0, -float(r_min.min()))
         return np.nonzero(r_min < -relative * deepest)[0]
 
@@ -204,13 +183,9 @@ class CompactonWindow:
         return np.arange(max(b.min() - 1, 0), min(b.max() + 1, self.M - 1) + 1)
 
     def destroy(self):
-        self.flow.destroy()
-
-
-def bead_indices(beads):
-    """Bead-major state indices (2 j, 2 j + 1) of the given beads."""
-    beads = np.asarray(beads)
-    return np.stack([2 * beads, 2 * beads + 1], axis=1).ravel()
+        for flow in self._flows.values():
+            flow.destroy()
+        self._flows = {}
 
 
 # --- initial guesses and window sizes -------------------------------------------------------------------------------
@@ -281,206 +256,88 @@ class ExactCompacton:
         return float(np.max(np.abs(self.Y[:, 1])))
 
 
-class CompactonRefiner:
-    """Gauss-Newton on R(Y, Delta) = [G(Y) - Y; psi . (Y - Y_ref); q y_0 - 2 pi Delta] (2M + 2 equations, 2M + 1
-    unknowns; consistent because of the Jordan block at 1), least squares by LAPACK on rank 0 and broadcast.
-    psi is the vector field at the start (the translation direction). ``q = 0`` or ``fix_gap``: Delta fixed."""
+class WindowFixedPoint:
+    """The rows [G(Y) - Y; psi . (Y - Y_ref); q y_0 - 2 pi Delta] (the last one unless the gap is fixed: q = 0 or
+    ``fix_gap``) in z = (Y, Delta) or Y, psi the vector field at the start; measure max|R| / max|Y|."""
+
+    def __init__(self, window, Y, gap, q, fix_gap):
+        self.window, self.q, self.gap, self.fix_gap, self.n = window, float(q), float(gap), fix_gap, window.dim
+        self.Yref = np.asarray(Y, float).ravel().copy()
+        psi = window.vector_field(Y, gap)
+        self.psi = psi / np.linalg.norm(psi)
+
+    def split(self, z):
+        return z[:self.n].reshape(-1, 2), self.gap if self.fix_gap else float(z[self.n])
+
+    def residual(self, z):
+        Y, gap = self.split(z)
+        cond = [self.psi @ (Y.ravel() - self.Yref)] + ([] if self.fix_gap else [self.q * Y[0, 0] - 2 * math.pi * gap])
+        R = np.concatenate([(self.window.map(Y, gap) - Y).ravel(), cond])
+        return R, float(np.max(np.abs(R)) / np.max(np.abs(Y)))
+
+    def jacobian(self, z):
+        Y, gap = self.split(z)
+        n = self.n
+        _, J, Jg = self.window.jacobian(Y, gap)
+        A = np.zeros((n + 1 + (not self.fix_gap), n + (not self.fix_gap)))
+        A[:n, :n] = J - np.eye(n)
+        A[n, :n] = self.psi
+        if not self.fix_gap:
+            A[:n, n], A[n + 1, 0], A[n + 1, n] = Jg, self.q, -2 * math.pi
+        return A, None
+
+
+class CompactonRefiner(ContinuationProblem):
+    """Exact compactons of a window: Gauss-Newton (:class:`~hertzpetsc.gauss_newton.GaussNewton`, plain least squares,
+    a fresh Jacobian at every iterate) on the rows of :class:`WindowFixedPoint` (consistent because of the Jordan block
+    at 1); ``tol``: the target max|R| / max|Y|, ``residual_tol``: the largest max|G(Y) - Y| accepted. Also the
+    continuation problem in q (natural): Z = (Y, Delta, q) (:meth:`pack`), :meth:`solve` refines at the q of Z from its
+    (Y, Delta), each point reports its :class:`ExactCompacton`."""
+
+    parameter = "q"
 
     def __init__(self, window, tol=1e-13, max_iterations=20, residual_tol=1e-10):
         self.window, self.tol, self.max_iterations, self.residual_tol = window, tol, max_iterations, residual_tol
-        mpi = window.comm.tompi4py()
-        self._bcast = (lambda x: x) if mpi.Get_size() == 1 else (lambda x: mpi.bcast(x, root=0))
-        self._rank0 = mpi.Get_rank() == 0
+        self.engine = GaussNewton(window.comm, truncations=(0.0,), reuse_jacobian=False)
+        self.last = None
 
     def refine(self, Y0, gap0, q, fix_gap=False):
-        w, M, n = self.window, self.window.M, self.window.dim
-        fix_gap = fix_gap or q == 0
+        """The :class:`ExactCompacton` at ``q`` from the window state ``Y0`` (M, 2) and gap ``gap0``."""
         t0 = time.perf_counter()
-        Y, gap = np.array(Y0, float).reshape(M, 2), float(gap0)
-        Yref = Y.ravel().copy()
-        psi = w.vector_field(Y, gap)
-        psi /= np.linalg.norm(psi)
-        history, best = [], None
-        for it in range(self.max_iterations + 1):
-            G, J, Jg = w.jacobian(Y, gap)
-            F = (G - Y).ravel()
-            cond = [psi @ (Y.ravel() - Yref)] + ([] if fix_gap else [q * Y[0, 0] - 2 * math.pi * gap])
-            res = float(np.max(np.abs(F)))
-            total = max(res, float(np.max(np.abs(cond))))
-            history.append(dict(residual=res, conditions=float(np.max(np.abs(cond))), gap=gap))
-            if best is None or total < best[0]:
-                best = (total, Y.copy(), gap, res, it)
-            scale = float(np.max(np.abs(Y)))
-            if total < self.tol * scale or it == self.max_iterations:
-                break
-            if it >= 3 and total > 0.5 * max(history[-2]["residual"], history[-2]["conditions"]):
-                break                                   # stagnation at the flow's error
-            A = np.zeros((n + len(cond), n + (0 if fix_gap else 1)))
-            A[:n, :n] = J - np.eye(n)
-            A[n, :n] = psi
-            if not fix_gap:
-                A[:n, n] = Jg
-                A[n + 1, 0] = q
-                A[n + 1, n] = -2 * math.pi
-            step = np.linalg.lstsq(A, -np.concatenate([F, cond]), rcond=None)[0] if self._rank0 else None
-            step = self._bcast(step)
-            Y = Y + step[:n].reshape(M, 2)
-            if not fix_gap:
-                gap += float(step[n])
-        _, Y, gap, res, it = best
-        if not res <= self.residual_tol:
-            raise ConvergenceError("compacton Gauss-Newton (window map)", f"residual {res:.2e}", q=float(q))
-        return ExactCompacton(q=float(q), gap=gap, Y=Y, residual=res, iterations=it, history=history,
-                              seconds=time.perf_counter() - t0)
+        Y0 = np.asarray(Y0, float).reshape(self.window.M, 2)
+        problem = WindowFixedPoint(self.window, Y0, gap0, q, fix_gap or q == 0)
+        z0 = Y0.ravel() if problem.fix_gap else np.append(Y0.ravel(), gap0)
+        res = self.engine.solve(problem, z0, self.tol, self.max_iterations)
+        Y, gap = problem.split(res.z)
+        residual = float(np.max(np.abs(res.rows[:problem.n])))
+        if not residual <= self.residual_tol:
+            raise ConvergenceError("compacton Gauss-Newton (window map)", f"residual {residual:.2e}", q=float(q))
+        return ExactCompacton(q=float(q), gap=gap, Y=Y.copy(), residual=residual, iterations=res.iterations,
+                              history=res.history, seconds=time.perf_counter() - t0)
 
-    def continue_to(self, previous, q):
-        """Refine at q from a secant prediction on (Y, Delta) through the last two ExactCompactons (or one)."""
-        if len(previous) >= 2:
-            a, b = previous[-2], previous[-1]
-            s = (q - b.q) / (b.q - a.q)
-            Y, gap = b.Y + s * (b.Y - a.Y), b.gap + s * (b.gap - a.gap)
-        else:
-            Y, gap = previous[-1].Y, previous[-1].gap
-        return self.refine(Y, 0.0 if q == 0 else gap, q)
+    # --- the continuation problem in q --------------------------------------------------------------------------
+    def create_vec(self):
+        """Z on every rank (the window's unknowns are: the engine applies the same steps everywhere)."""
+        return PETSc.Vec().createSeq(self.window.dim + 2, comm=PETSc.COMM_SELF)
 
+    def pack(self, compacton):
+        """The extended vector Z = (Y, Delta, q) of an :class:`ExactCompacton` (a new Vec)."""
+        Z = self.create_vec()
+        Z.setArray(np.concatenate([compacton.Y.ravel(), [compacton.gap, compacton.q]]))
+        return Z
 
-# --- spectrum ---------------------------------------------------------------------------------------------------
-def sorted_eig(J):
-    """Eigenvalues (LAPACK dgeev) and right eigenvectors, by decreasing modulus."""
-    lam, V = np.linalg.eig(J)
-    order = np.argsort(-np.abs(lam), kind="stable")
-    return lam[order], V[:, order]
+    def solve(self, Z, row=None, value=None):
+        """Refine at the q of Z (Delta = 0 at q = 0) and write the compacton into Z; natural continuation only."""
+        if row is not None:
+            raise ParameterError("row", "pseudo-arclength", "the compacton window is continued in q naturally")
+        z = Z.getArray()
+        q = float(z[-1])
+        self.last = self.refine(z[:-2].reshape(-1, 2), 0.0 if q == 0 else z[-2], q)
+        z[:] = np.concatenate([self.last.Y.ravel(), [self.last.gap, q]])
+        return self.last.iterations
 
-
-def split_jordan_pair(lam):
-    """(mean, split, the other multipliers): the two multipliers nearest 1 are the Jordan pair."""
-    lam = np.asarray(lam)
-    near = np.argsort(np.abs(lam - 1.0), kind="stable")[:2]
-    pair = lam[near]
-    rest = np.delete(lam, near)
-    return complex(pair.mean()), float(abs(pair[0] - pair[1])), rest[np.argsort(-np.abs(rest), kind="stable")]
-
-
-@dataclass
-class JordanCheck:
-    """The Jordan block at 1: |J v1 - v1| / |v1|, |(J - 1) v2 - v1| / |v1|, the right vectors v1, v2 and the left
-    vectors u1, u2 with u_i . v_j = delta_ij (so delta = (u1.delta) v1 + (u2.delta) v2 + a remainder in the other
-    modes' span)."""
-
-    translation: float
-    generalized: float
-    v1: np.ndarray
-    v2: np.ndarray
-    u1: np.ndarray
-    u2: np.ndarray
-
-
-def jordan_check(window, J, Y, gap):
-    n = J.shape[0]
-    A = J - np.eye(n)
-    v1 = window.vector_field(Y, gap)
-    v2 = np.linalg.lstsq(A, v1, rcond=None)[0]
-    v2 -= (v2 @ v1) / (v1 @ v1) * v1
-    nv1 = np.linalg.norm(v1)
-    # left vectors: u2 spans the left kernel of A; u1 solves A^T u1 = u2 (up to the left kernel)
-    u2 = np.linalg.svd(A.T)[2][-1]
-    u2 = u2 / (u2 @ v2)
-    u1 = np.linalg.lstsq(A.T, u2, rcond=None)[0]
-    u1 -= (u1 @ v2) * u2
-    return JordanCheck(float(np.linalg.norm(J @ v1 - v1) / nv1), float(np.linalg.norm(A @ v2 - v1) / nv1),
-                       v1, v2, u1, u2)
-
-
-def exponential_weight(M, eta, j_ref):
-    """Diagonal of W = diag(exp(eta (j - j_ref))) on the bead-major state (heavier ahead)."""
-    w = np.exp(eta * (np.arange(M) - j_ref))
-    return np.repeat(w, 2)
-
-
-class WeightedWindowOperator:
-    """W D_Y G W^-1 as a ``Mat.createPython`` context: one tangent integration per product."""
-
-    def __init__(self, window, Y, gap, weight):
-        self.window, self.Y, self.gap, self.w = window, np.asarray(Y, float), float(gap), np.asarray(weight)
-        self.products = 0
-        self._gather = None
-
-    def mult(self, mat, x, y):
-        if self._gather is None:
-            self._gather, self._full = PETSc.Scatter.toAll(x)
-        self._gather.scatter(x, self._full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-        xs = self._full.getArray(readonly=True)
-        out = self.w * self.window.apply(self.Y, self.gap, xs / self.w)
-        lo, hi = y.getOwnershipRange()
-        y.getArray()[:] = out[lo:hi]
-        self.products += 1
-
-    def destroy(self, mat=None):
-        if self._gather is not None:
-            self._gather.destroy()
-            self._full.destroy()
-            self._gather = None
-
-
-@dataclass
-class DominantMultipliers:
-    values: np.ndarray
-    errors: np.ndarray
-    products: int
-    iterations: int
-    seconds: float
-    eta: float
-
-
-class WindowStability:
-    """Dominant multipliers of the window map by SLEPc Krylov-Schur (largest magnitude) on the weighted shell,
-    EPS prefix ``cstab_`` (``-cstab_eps_*``); ``nev`` multipliers are asked for (they must lie above exp(-eta) to
-    be meaningful: below, the transport part's pseudospectrum)."""
-
-    def __init__(self, window, nev=3, eta=DEFAULT_ETA, tol=1e-12, prefix=STABILITY_PREFIX):
-        from slepc4py import SLEPc
-        if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= window.dim):
-            raise ParameterError("-nev", nev, f"the window map has dimension 2M = {window.dim}: 1 <= nev <= "
-                                              f"{window.dim}")
-        if not (math.isfinite(eta) and 0 <= eta <= 700.0 / max(window.M, 1)):
-            raise ParameterError("-eta", eta, f"the weight exp(eta M) must stay finite: 0 <= eta <= "
-                                              f"{700.0 / window.M:.3g} for M = {window.M}")
-        self.window, self.nev, self.eta = window, int(nev), float(eta)
-        eps = SLEPc.EPS().create(comm=window.comm)
-        eps.setOptionsPrefix(prefix)
-        eps.setProblemType(SLEPc.EPS.ProblemType.NHEP)
-        eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
-        eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
-        eps.setDimensions(nev=self.nev, ncv=min(window.dim, max(2 * self.nev + 1, self.nev + 15)))
-        eps.setTolerances(tol=tol, max_it=500)
-        eps.setFromOptions()
-        self.eps = eps
-
-    def solve(self, Y, gap, j_ref):
-        """The converged multipliers (at least nev, by decreasing modulus) and their residual errors."""
-        w = self.window
-        ctx = WeightedWindowOperator(w, Y, gap, exponential_weight(w.M, self.eta, j_ref))
-        A = PETSc.Mat().createPython([w.dim, w.dim], ctx, comm=w.comm)
-        A.setUp()
-        t0 = time.perf_counter()
-        try:
-            self.eps.setOperators(A)
-            self.eps.solve()
-            nconv = self.eps.getConverged()
-            if nconv < self.eps.getDimensions()[0]:
-                raise ConvergenceError("window EPS (prefix -cstab_eps_)", int(self.eps.getConvergedReason()),
-                                       converged=nconv)
-            vals = np.array([complex(self.eps.getEigenvalue(i)) for i in range(nconv)])
-            errs = np.array([self.eps.computeError(i) for i in range(nconv)])
-        finally:
-            A.destroy()
-            ctx.destroy()
-        order = np.argsort(-np.abs(vals), kind="stable")
-        return DominantMultipliers(vals[order], errs[order], ctx.products, self.eps.getIterationNumber(),
-                                   time.perf_counter() - t0, self.eta)
-
-    def destroy(self):
-        self.eps.destroy()
+    def report(self, Z):
+        return dict(compacton=self.last)
 
 
 # --- the window state on a long chain ---------------------------------------------------------------------------

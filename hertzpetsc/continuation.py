@@ -30,14 +30,36 @@ from petsc4py import PETSc
 from .errors import ConvergenceError, ParameterError
 
 
+def illinois(f, a, fa, b, fb, tol, max_iter):
+    """A root of f between a and b (fa = f(a), fb = f(b) of opposite signs) by the Illinois rule (regula falsi with
+    the stale end's value halved): the last iterate, when the bracket is shorter than ``tol`` or f vanishes there,
+    or after ``max_iter`` evaluations."""
+    side, x = 0, None
+    for _ in range(max_iter):
+        x = (a * fb - b * fa) / (fb - fa)
+        fx = f(x)
+        if fx == 0.0 or abs(b - a) <= tol:
+            break
+        if fx * fb < 0:
+            a, fa = b, fb
+            side = 0
+        else:
+            if side == -1:
+                fa *= 0.5
+            side = -1
+        b, fb = x, fx
+    return x
+
+
 class ContinuationError(ConvergenceError):
     """The continuation could not take a step from ``last`` (every point up to it was yielded)."""
 
     def __init__(self, parameter, last, failed, reason):
         self.last, self.failed = last, failed
-        RuntimeError.__init__(self, f"continuation in {parameter} stopped: no convergence at {parameter} = "
-                                    f"{failed:.12g} even after step reduction ({reason}); last converged "
-                                    f"{parameter} = {last:.12g}, everything up to it was yielded")
+        done = (f"last converged {parameter} = {last:.12g}, everything up to it is saved" if last == last
+                else "no point converged")
+        RuntimeError.__init__(self, f"continuation stopped: no convergence at {parameter} = {failed:.12g} even "
+                                    f"after step reduction ({reason}); {done}")
         self.what, self.reason, self.where = "continuation", reason, {parameter: failed}
 
 
@@ -62,8 +84,9 @@ class ContinuationProblem:
         """Diagonal weights W of the arclength inner product (a Vec like Z), or None for the Euclidean one."""
         return None
 
-    def predictor_scale(self, p):
-        """A factor s(p) such that s(p) X varies slowly with p (the secant predictor extrapolates s X): 1."""
+    def predictor_ratio(self, p_from, p_to):
+        """s(p_from) / s(p_to) for a factor s(p) such that s(p) X varies slowly with p (the secant predictor
+        extrapolates s X): 1 (no rescaling)."""
         return 1.0
 
     def test_functions(self, Z):
@@ -88,6 +111,7 @@ class ContinuationPoint:
     event: str = None
     report: dict = field(default_factory=dict)
     tests: dict = field(default_factory=dict)
+    substeps: int = 1
 
 
 def _parameter(Z):
@@ -117,7 +141,7 @@ def unit_row(Z):
 
 @dataclass(frozen=True)
 class Natural:
-    """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`predictor_scale`), step
+    """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`~ContinuationProblem.predictor_ratio`), step
     halved on failure (or when the corrector moves X by more than ``max_corrector``, relative, sup norm) and doubled
     after a success, up to the next target."""
 
@@ -148,7 +172,7 @@ class PseudoArclength:
     max_halvings: int = 8
     max_step_changes: int = 64
     max_iterations: int = 12
-    max_corrector: float = 0.5
+    max_corrector: float = 1.0
 
     def __post_init__(self):
         for name in ("ds", "ds_min", "ds_max"):
@@ -187,6 +211,7 @@ class Continuation:
         self.ds = getattr(algorithm, "ds", None)
         self.changes = 0
         self.W = problem.weights()
+        self.events = []           # points located by natural steps (fold-free events), taken by the caller
 
     # --- vector helpers ------------------------------------------------------------------------------------
     def _dot(self, a, b):
@@ -228,7 +253,8 @@ class Continuation:
         solutions (copied, not corrected)."""
         for k, Z in enumerate(states[-2:]):
             self.history.append((Z.copy(), arclengths[k] if arclengths else 0.0, self.problem.test_functions(Z)))
-        self.s = self.history[-1][1]
+        if self.history:
+            self.s = self.history[-1][1]
 
     @property
     def parameter(self):
@@ -243,12 +269,11 @@ class Continuation:
         if len(self.history) == 2:
             Z0 = self.history[0][0]
             p0 = _parameter(Z0)
-            s0, s1, sn = prob.predictor_scale(p0), prob.predictor_scale(p1), prob.predictor_scale(p_new)
             f = (p_new - p1) / (p1 - p0)
-            Z.scale(s1 * (1 + f) / sn)
-            Z.axpy(-s0 * f / sn, Z0)
+            Z.scale((1 + f) * prob.predictor_ratio(p1, p_new))
+            Z.axpy(-f * prob.predictor_ratio(p0, p_new), Z0)
         else:
-            Z.scale(prob.predictor_scale(p1) / prob.predictor_scale(p_new))
+            Z.scale(prob.predictor_ratio(p1, p_new))
         set_parameter(Z, p_new)
         return Z
 
@@ -257,7 +282,7 @@ class Continuation:
         alg = self.natural
         p_last = self.parameter
         dp = p_target - p_last
-        total_its, halvings = 0, 0
+        total_its, halvings, substeps = 0, 0, 0
         while True:
             p = p_target if abs(p_last + dp - p_target) <= 1e-14 * max(1.0, abs(p_target)) else p_last + dp
             Z = self._natural_predict(p)
@@ -281,21 +306,33 @@ class Continuation:
                 dp *= 0.5
                 continue
             halvings = 0
-            ds = abs(p - p_last)
-            self.s += ds
+            substeps += 1
+            self.s += abs(p - p_last)
+            previous = self.history[-1]
             point = self._accept(Z, total_its)
+            for name, value in point.tests.items():
+                g0 = previous[2].get(name)
+                if g0 is not None and g0 * value < 0:
+                    located = self._locate_natural(previous[0], Z, previous[1], name, g0, value)
+                    if located is not None:
+                        self.events.append(located)
             if p == p_target:
                 self.changes = 0
+                point.substeps = substeps
                 return point
             p_last = p
             dp = p_target - p_last if abs(2 * dp) >= abs(p_target - p_last) else 2 * dp
 
     def _corrector_size(self, Z, pred):
+        """||X - X_pred||_inf / ||X||_inf (the parameter left out)."""
         d = Z.copy()
         d.axpy(-1.0, pred)
         set_parameter(d, 0.0)
-        size = d.norm(PETSc.NormType.NORM_INFINITY) / max(Z.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
+        x = Z.copy()
+        set_parameter(x, 0.0)
+        size = d.norm(PETSc.NormType.NORM_INFINITY) / max(x.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
         d.destroy()
+        x.destroy()
         return size
 
     # --- pseudo-arclength steps -----------------------------------------------------------------------------
@@ -414,12 +451,13 @@ class Continuation:
             return v
         return at
 
-    def _located(self, evals, sigma, s_origin, name):
+    def _located(self, evals, sigma, s, name):
+        """The ContinuationPoint of the solved point ``evals[sigma]`` (arclength s); frees the other points."""
         Z, its, _ = evals.pop(sigma)
         for Zo, _, _ in evals.values():
             Zo.destroy()
         evals.clear()
-        point = ContinuationPoint(parameter=_parameter(Z), s=s_origin + sigma, dp_ds=0.0 if name == "fold" else
+        point = ContinuationPoint(parameter=_parameter(Z), s=s, dp_ds=0.0 if name == "fold" else
                                   math.nan, iterations=its, event=name, report=self.problem.report(Z),
                                   tests=self.problem.test_functions(Z))
         Z.destroy()
@@ -458,7 +496,7 @@ class Continuation:
                 xs, ps = [u[0] for u in cand[k - 1:k + 2]], [u[1] for u in cand[k - 1:k + 2]]
             if x is None:
                 raise ConvergenceError("fold location", "degenerate parabola", sigma=sigma1)
-            return self._located(evals, x, s_origin, "fold")
+            return self._located(evals, x, s_origin + x, "fold")
         except ConvergenceError:
             for Z, _, _ in evals.values():
                 Z.destroy()
@@ -466,29 +504,51 @@ class Continuation:
         finally:
             c.destroy()
 
+    def _locate_natural(self, Z1, Z2, s_origin, name, g1, g2):
+        """The zero of the test function ``name`` between the natural points Z1 and Z2 (values g1, g2 of opposite
+        signs): Illinois rule in the parameter, each trial solved from the linear interpolation of Z1 and Z2."""
+        p1, p2 = _parameter(Z1), _parameter(Z2)
+        evals = {}
+
+        def at(p):
+            Z = Z1.copy()
+            f = (p - p1) / (p2 - p1)
+            Z.scale(1 - f)
+            Z.axpy(f, Z2)
+            set_parameter(Z, p)
+            try:
+                its = self._solve(Z)
+            except ConvergenceError:
+                Z.destroy()
+                raise
+            v = self.problem.test_functions(Z)[name]
+            if p in evals:
+                evals[p][0].destroy()
+            evals[p] = (Z, its, v)
+            return v
+
+        try:
+            x = illinois(at, p1, g1, p2, g2, self.locate_tol * abs(p2 - p1), self.locate_max)
+            return self._located(evals, x, s_origin + abs(x - p1), name)
+        except ConvergenceError:
+            for Z, _, _ in evals.values():
+                Z.destroy()
+            return None
+
+    def take_events(self):
+        """The points located by the natural steps since the last call (sorted by arclength)."""
+        out, self.events = sorted(self.events, key=lambda p: p.s), []
+        return out
+
     def _locate_root(self, Z1, Z2, s_origin, name, g1, g2):
         """The zero of the test function ``name`` between Z1 and Z2 (values g1, g2 of opposite signs): Illinois
         rule in the projection on the chord Z1 -> Z2."""
         c, length = self._chord(Z1, Z2)
         evals = {}
         at = self._on_chord(Z1, c, evals, lambda Z: self.problem.test_functions(Z)[name])
-        a, fa, b, fb = 0.0, g1, length, g2
-        side, x = 0, None
         try:
-            for _ in range(self.locate_max):
-                x = (a * fb - b * fa) / (fb - fa)
-                fx = at(x)
-                if fx == 0.0 or abs(b - a) <= self.locate_tol * length:
-                    break
-                if fx * fb < 0:
-                    a, fa = b, fb
-                    side = 0
-                else:
-                    if side == -1:
-                        fa *= 0.5
-                    side = -1
-                b, fb = x, fx
-            return self._located(evals, x, s_origin, name)
+            x = illinois(at, 0.0, g1, length, g2, self.locate_tol * length, self.locate_max)
+            return self._located(evals, x, s_origin + x, name)
         except ConvergenceError:
             for Z, _, _ in evals.values():
                 Z.destroy()

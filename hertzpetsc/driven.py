@@ -49,6 +49,7 @@ from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .continuation import ContinuationProblem, _parameter, set_parameter
 from .errors import ConvergenceError, ParameterError
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers
+from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, FunctionSignal, Harmonic, LatticeModel, SampledSignal, Signal
 from .tangent import MonodromyModShift
 
@@ -362,6 +363,11 @@ class Response:
         """The response's period k 2 pi / omega (the time of the monodromy)."""
         return self.periods * self.drive.period
 
+    @property
+    def N(self):
+        """The chain's number of beads."""
+        return self.drive.N
+
 
 def _peak(f):
     """The maximum of periodic samples f, refined by the parabola through it and its two neighbours."""
@@ -444,6 +450,12 @@ class PeriodicShooting(ContinuationProblem):
         self.drive = drive
         spec = drive.spec()
         self.N = spec.N
+        dense = "dense" in (jacobian, floquet)
+        if dense and spec.N > MAX_DENSE_BEADS:
+            raise ParameterError("N", spec.N, f"at most {MAX_DENSE_BEADS} beads with the dense Jacobian or dense "
+                                 "multipliers (2N x 2N matrices); longer chains: jacobian 'mf', floquet 'slepc' or 'none'")
+        # the state flow, and the tangent flow with 2N columns (dense) or one (matrix-free), before any allocation
+        check_chain_memory(spec.N, comm, columns=2 + 2 * spec.N if dense else 3, name="N")
         self.chain = Chain(spec, comm)
         self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
         if not PETSc.Options().hasName(prefix + "ts_max_steps"):
@@ -831,9 +843,9 @@ class PeriodicShooting(ContinuationProblem):
         if self.floquet_kind == "dense":
             mu = dense_multipliers(self.monodromy(x, p))
         elif self.floquet_kind == "slepc":
-            res = self.dominant.solve(Response(self.drive, self.periods, x, math.nan))
-            self.counters["products"] += res.products
-            mu = res.values
+            res = self.dominant.spectrum(Response(self.drive, self.periods, x, math.nan))
+            self.counters["products"] += res.work["products"]
+            mu = res.multipliers
         else:
             raise ParameterError("floquet", "none", "this problem computes no multipliers")
         self._spectra = {key: mu}

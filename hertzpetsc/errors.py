@@ -33,6 +33,14 @@ class ParameterError(HertzPetscError, ValueError):
         self.name, self.value, self.valid = name, value, valid
         super().__init__(f"invalid {name} = {value!r}: {valid}")
 
+    def as_option(self, options):
+        """The same error naming the command-line option ``-name`` when ``name`` (a Python argument of the API)
+        is one of the driver's ``options``; else itself."""
+        name = self.name
+        if isinstance(name, str) and not name.startswith("-") and name in options:
+            return ParameterError(f"-{name}", self.value, self.valid)
+        return self
+
 
 class OptionError(ParameterError):
     """An option on the command line that no part of the driver reads (a typo), or a malformed option."""

@@ -4,20 +4,21 @@ F_q = S R(script-T(q); 0) around X^(q)(t); on N beads with q = 2 pi m / N, F_q^N
 rho(Phi_q) = rho(F_q)^(N/m) and the wave is unstable iff rho(F_q) > 1. F_q is symplectic (eigenvalues in
 quadruplets lambda, 1/lambda, conj), so rho(F_q) >= 1.
 
-Two routes: :func:`dense_multipliers` (all 2N multipliers, LAPACK's dgeev on the assembled F_q, as the paper;
-N up to a few hundred) and :func:`dominant_multipliers` (SLEPc Krylov-Schur on the matrix-free shell operator,
-the nev multipliers of largest magnitude, options prefix ``floquet_``: -floquet_eps_nev, -floquet_eps_ncv,
--floquet_eps_tol, -floquet_eps_type ...). Translation and time shift give multipliers at 1 with Jordan partners
-(Galilean boost, amplitude): four trivial multipliers, which an orbit that is off by epsilon splits by about
-sqrt(epsilon); :func:`trivial_multipliers` identifies them. A :class:`Spectrum` is the result: the
-multipliers, which are trivial, rho and the verdict.
+Every route is a :class:`FloquetSolver` with one call signature, chosen by object (the shape of BifurcationKit's
+Floquet.jl): ``solver.spectrum(orbit, tol_rho=None, nev=None)`` returns a :class:`Spectrum`, sorted by decreasing
+modulus in one place. Routes: :class:`DenseFloquet` (all 2N by LAPACK, as the paper), :class:`DominantFloquet`
+(SLEPc Krylov-Schur, largest magnitude, matrix-free), :class:`hertzpetsc.bloch.SymmetricFloquet` (all 2N from the
+Bloch sectors of the wave's cell, any N = L M) and :class:`hertzpetsc.slow.DeflatedSectors` (symmetry multipliers
+deflated). Translation and time shift give four trivial multipliers at 1 (Jordan blocks), which an orbit off by
+epsilon splits by about sqrt(epsilon): :func:`trivial_multipliers` identifies them (a deflated route knows its own).
 
 Options: the prefix ``floquet_`` holds the flow of the variational equations (``-floquet_ts_rtol`` ...) and the
 eigensolver (``-floquet_eps_nev`` ...).
 """
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
+from typing import Optional
 
 import numpy as np
 
@@ -32,39 +33,6 @@ N_TRIVIAL = 4
 TOL_RHO = 1e-4
 # The flow of the spectra along the refined waves (as tight as the refinement's).
 FLOQUET_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
-
-
-class DenseFloquet:
-    """The dense monodromy of orbits on one chain: one TS with 2N tangent vectors, configured once (prefix
-    ``floquet_``), serving every orbit of a scan."""
-
-    def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
-        self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
-
-    def set_spec(self, spec):
-        """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
-        self.flow.set_spec(spec)
-
-    def monodromy(self, orbit, shift=True, T=None):
-        """Assembled S R(T; 0) (``shift``) or R(T; 0), 2N x 2N, on every rank; T defaults to script-T."""
-        T = orbit.T if T is None else T
-        return self.flow.monodromy_mod_shift(orbit.x, T)[0] if shift else self.flow.resolvent(orbit.x, T)[0]
-
-    def spectrum(self, orbit, tol_rho=None):
-        """All 2N multipliers of F_q as a :class:`Spectrum`."""
-        return Spectrum(dense_multipliers(self.monodromy(orbit)), True, TOL_RHO if tol_rho is None else tol_rho)
-
-    def destroy(self):
-        self.flow.destroy()
-
-
-def dense_monodromy(orbit, comm, tolerances=FLOQUET_TOLERANCES, shift=True, prefix=FLOQUET_PREFIX, T=None):
-    """One-off :meth:`DenseFloquet.monodromy`."""
-    dense = DenseFloquet(orbit.spec, comm, tolerances, prefix)
-    try:
-        return dense.monodromy(orbit, shift, T)
-    finally:
-        dense.destroy()
 
 
 def dense_multipliers(F):
@@ -88,26 +56,43 @@ def spectral_radius(lam, exclude_trivial=True):
 
 @dataclass
 class Spectrum:
-    """Multipliers of F_q (sorted by decreasing modulus) with the trivial ones identified, and the verdict.
-
-    ``complete``: all 2N multipliers (dense route) or only the dominant ones (SLEPc); the trivial multipliers are
-    only identified, and left out of rho, in a complete spectrum.
-    """
+    """Multipliers of F_q, sorted by decreasing modulus on construction, the trivial ones identified (``known``: a
+    mask of deflated symmetry multipliers; else the ``n_trivial`` nearest 1 of a ``complete`` spectrum, four for a
+    travelling wave, none for a driven chain) and left out of rho,
+    and the verdict. Bloch routes: ``sector`` l of each multiplier (theta_l = 2 pi l / L, M the cell's beads),
+    ``modes`` (mu, l, cell eigenvector) of the dominant ones. ``work``: runs, columns, products, wall_time ..."""
 
     multipliers: np.ndarray
     complete: bool
     tol_rho: float = TOL_RHO
-    n_trivial: int = N_TRIVIAL       # 0 for orbits without symmetry multipliers (driven chains)
+    known: np.ndarray = None
+    n_trivial: int = N_TRIVIAL       # symmetry multipliers at 1 of a complete spectrum (0: driven chains)
+    sector: np.ndarray = None
+    M: int = 0
+    L: int = 1
+    modes: list = field(default_factory=list)
+    work: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        lam = np.asarray(self.multipliers)
+        order = np.argsort(-np.abs(lam), kind="stable")          # largest magnitude first, for every route
+        self.multipliers = lam[order]
+        for name in ("known", "sector"):
+            if getattr(self, name) is not None:
+                setattr(self, name, np.asarray(getattr(self, name))[order])
 
     @property
     def trivial(self):
-        return trivial_multipliers(self.multipliers, self.n_trivial) if self.complete else np.zeros(0, dtype=int)
+        if self.known is not None:
+            return np.nonzero(self.known)[0]
+        if not (self.complete and self.n_trivial):
+            return np.zeros(0, dtype=int)
+        return trivial_multipliers(self.multipliers, self.n_trivial)
 
     @property
     def rho(self):
-        lam = np.asarray(self.multipliers)
-        if self.complete and self.n_trivial and len(lam) > self.n_trivial:
-            lam = np.delete(lam, self.trivial)
+        t = self.trivial
+        lam = np.delete(self.multipliers, t) if len(self.multipliers) > len(t) else self.multipliers
         return float(np.max(np.abs(lam)))
 
     @property
@@ -121,110 +106,142 @@ class Spectrum:
         """Multipliers with |mu| > 1 + tol_rho."""
         return int(np.sum(np.abs(self.multipliers) > 1 + self.tol_rho))
 
-    @property
-    def unstable(self):
-        return self.rho - 1 > self.tol_rho
-
     def growth(self, T):
         """ln(rho) / script-T, the growth per unit time of the most unstable mode."""
-        return growth_rate(self.rho, T)
+        return math.log(self.rho) / T
 
 
-@dataclass
-class EigenResult:
-    """Dominant multipliers from SLEPc and the work it took."""
+class FloquetSolver:
+    """The one call signature of the Floquet routes: :meth:`spectrum`. A route implements ``_spectrum(orbit, tol_rho,
+    nev)`` (a :class:`Spectrum`) and :meth:`destroy`; its solvers are configured once, when it is built."""
 
-    values: np.ndarray
-    vectors: list
-    converged: int
-    iterations: int
-    products: int
-    wall_time: float
+    def spectrum(self, orbit: "Orbit", tol_rho: Optional[float] = None, nev: Optional[int] = None) -> "Spectrum":
+        """The multipliers of F_q = S R(script-T; 0) around ``orbit`` (an :class:`~hertzpetsc.waves.Orbit`), the
+        ``nev`` largest if given; ``tol_rho``: the stability threshold of the verdict (default :data:`TOL_RHO`)."""
+        if nev is not None and not (isinstance(nev, (int, np.integer)) and 1 <= nev <= 2 * orbit.N):
+            raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {2 * orbit.N}]")
+        t0 = time.perf_counter()
+        spec = self._spectrum(orbit, TOL_RHO if tol_rho is None else tol_rho, nev)
+        spec.work.setdefault("wall_time", time.perf_counter() - t0)
+        if nev is None or nev >= len(spec.multipliers):
+            return spec
+        return replace(spec, multipliers=spec.multipliers[:nev], complete=False, known=None if spec.known is None
+                       else spec.known[:nev], sector=None if spec.sector is None else spec.sector[:nev])
+
+    def destroy(self):
+        pass
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.destroy()
 
 
-class DominantFloquet:
+class DenseFloquet(FloquetSolver):
+    """The dense monodromy of orbits on one chain: one TS with 2N tangent vectors, configured once (prefix
+    ``floquet_``), serving every orbit of a scan; ``with DenseFloquet(...) as d:`` frees it."""
+
+    def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+        self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
+
+    def monodromy(self, orbit, shift=True, T=None):
+        """Assembled S R(T; 0) (``shift``) or R(T; 0), 2N x 2N, on every rank; T defaults to script-T."""
+        T = orbit.T if T is None else T
+        return self.flow.monodromy_mod_shift(orbit.x, T)[0] if shift else self.flow.resolvent(orbit.x, T)[0]
+
+    def _spectrum(self, orbit, tol_rho, nev):
+        return Spectrum(np.linalg.eigvals(self.monodromy(orbit)), True, tol_rho, work=dict(columns=2 * orbit.N))
+
+    def set_spec(self, spec):
+        """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
+        self.flow.set_spec(spec)
+
+    def destroy(self):
+        self.flow.destroy()
+
+
+class DominantFloquet(FloquetSolver):
     """The ``nev`` multipliers of largest magnitude of F = S R(T; 0) by SLEPc Krylov-Schur on the matrix-free
     operator (:class:`~hertzpetsc.tangent.MonodromyModShift`), for orbits of one chain; the operator and the EPS
     (prefix ``floquet_``: -floquet_eps_nev, -floquet_eps_ncv, -floquet_eps_tol, -floquet_eps_type ...) are
     configured once.
 
-    ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N; clustered multipliers on the unit
-    circle need a generous subspace: the default ncv converged nothing); ``tol``: relative tolerance.
+    ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N: clustered multipliers on the unit circle
+    need it); ``tol``: relative tolerance; ``warm``: start from the previous solve's eigenvectors (a scan in q);
+    ``shift``: the shift S in beads (1: F_q of a travelling wave; 0: the plain monodromy R(T; 0) of a driven chain).
     """
 
     def __init__(self, spec, comm, nev=10, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, ncv=None,
-                 tol=1e-10, shift=1):
-        from slepc4py import SLEPc
+                 tol=1e-10, warm=False, shift=1):
         dim = 2 * spec.N
         if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
-        self.prefix, self.dim = prefix, dim
+        self.prefix, self.dim, self.warm, self.start, self.previous = prefix, dim, warm, [], []
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
-        eps = self.eps = SLEPc.EPS().create(comm=self.op.flow.base.comm)
-        eps.setOperators(self.A)
-        eps.setOptionsPrefix(prefix)
-        eps.setProblemType(SLEPc.EPS.ProblemType.NHEP)
-        eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
-        eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
-        eps.setDimensions(nev=nev, ncv=min(dim, max(2 * nev + 20, 60) if ncv is None else ncv))
-        eps.setTolerances(tol=tol, max_it=500)
-        eps.setFromOptions()
-        self.nev = eps.getDimensions()[0]
+        self.eps = largest_magnitude(self.op.flow.base.comm, prefix, nev,
+                                     min(dim, max(2 * nev + 20, 60) if ncv is None else ncv), tol)
+        self.nev = self.eps.getDimensions()[0]
         if self.nev > dim:
             self.destroy()
             raise ParameterError("-%seps_nev" % prefix, self.nev, f"must not exceed the dimension 2N = {dim}")
 
     def set_spec(self, spec):
         """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
-        self.op.flow.set_spec(spec)
+        self.op.set_spec(spec)
 
-    def solve(self, orbit, initial_space=None, keep_vectors=False):
-        """The dominant multipliers around ``orbit`` (an :class:`EigenResult`); ``initial_space``: PETSc Vecs
-        (e.g. the previous branch point's eigenvectors) to warm-start Krylov-Schur. ConvergenceError if fewer
-        than nev pairs converge."""
-        t0 = time.perf_counter()
+    def start_from(self, vectors):
+        """PETSc Vecs of the chain's layout (e.g. Bloch modes) to start the next solve from (owned by the caller)."""
+        self.start = list(vectors)
+
+    def _release(self):
+        for v in self.previous:
+            v.destroy()
+        self.previous = []
+
+    def _spectrum(self, orbit, tol_rho, nev):
+        if nev is not None and nev > self.nev:
+            raise ParameterError("nev", nev, f"the eigensolver was configured for {self.nev} multipliers")
         op, eps, A = self.op, self.eps, self.A
         op.set_orbit(orbit.x, orbit.T)
         products0 = op.products
         eps.setOperators(A)
-        if initial_space:
-            eps.setInitialSpace(initial_space)
+        if self.start or self.previous:
+            eps.setInitialSpace(self.start or self.previous)
+        self.start = []
         eps.solve()
         nconv = eps.getConverged()
         if nconv < self.nev:
             raise ConvergenceError("Floquet eigensolver (prefix -%s)" % self.prefix,
                                    f"{nconv} of {self.nev} multipliers converged ({eps.getConvergedReason()})",
                                    **({"q": float(orbit.q)} if hasattr(orbit, "q") else {"T": float(orbit.T)}))
-        vals, vecs = [], []
-        for i in range(self.nev):
-            vals.append(eps.getEigenvalue(i))
-            if keep_vectors:
-                vr = A.createVecRight()
-                eps.getEigenvector(i, vr)
-                vecs.append(vr)
-        vals = np.array(vals)
-        order = np.argsort(-np.abs(vals), kind="stable")
-        return EigenResult(values=vals[order], vectors=[vecs[i] for i in order] if vecs else [], converged=nconv,
-                           iterations=eps.getIterationNumber(), products=op.products - products0,
-                           wall_time=time.perf_counter() - t0)
+        values = np.array([eps.getEigenvalue(i) for i in range(self.nev)])
+        if self.warm:
+            self._release()
+            for i in np.argsort(-np.abs(values), kind="stable"):
+                self.previous.append(A.createVecRight())
+                eps.getEigenvector(int(i), self.previous[-1])
+        return Spectrum(values, False, tol_rho, work=dict(converged=nconv, iterations=eps.getIterationNumber(),
+                                                          products=op.products - products0))
 
     def destroy(self):
+        self._release()
         self.eps.destroy()
         self.A.destroy()
         self.op.destroy()
 
 
-def dominant_multipliers(orbit, nev=10, comm=None, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX,
-                         initial_space=None, keep_vectors=False, ncv=None, tol=1e-10):
-    """One-off :meth:`DominantFloquet.solve` (ParameterError if nev exceeds the dimension 2N)."""
-    solver = DominantFloquet(orbit.spec, comm, nev, tolerances, prefix, ncv, tol)
-    try:
-        return solver.solve(orbit, initial_space, keep_vectors)
-    finally:
-        solver.destroy()
-
-
-def growth_rate(rho, T):
-    """Growth per unit time ln(rho(F_q)) / script-T of the most unstable mode."""
-    return math.log(rho) / T
+def largest_magnitude(comm, prefix, nev, ncv, tol):
+    """A Krylov-Schur EPS for the multipliers of largest magnitude (the package's one set-up of the dominant routes:
+    Floquet, compacton window), configured from the options database under ``prefix`` once."""
+    from slepc4py import SLEPc
+    eps = SLEPc.EPS().create(comm=comm)
+    eps.setOptionsPrefix(prefix)
+    eps.setProblemType(SLEPc.EPS.ProblemType.NHEP)
+    eps.setType(SLEPc.EPS.Type.KRYLOVSCHUR)
+    eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
+    eps.setDimensions(nev=nev, ncv=ncv)
+    eps.setTolerances(tol=tol, max_it=500)
+    eps.setFromOptions()
+    return eps

@@ -32,16 +32,17 @@ def check_cells_per_pi(cells_per_pi):
 class ProfileGrid:
     """The uniform grid of [0, 2 pi) with step h = pi/K, restricted to odd profiles, on a communicator.
 
-    With ``parity = +1`` the profiles are even instead (u_{2K-j} = u_j, unknowns u_0 .. u_K); ``length``
-    replaces 2 pi by another period. With ``dirichlet`` (even profiles only) the profile lives on the line and
+    With ``parity = +1`` the profiles are even instead (u_{2K-j} = u_j, unknowns u_0 .. u_K); with ``parity = 0``
+    they have no symmetry (unknowns u_0 .. u_{2K-1}: the whole period; the waves of mass patterns of three or more
+    beads, where n -> -n exchanges bead types); ``length`` replaces 2 pi by another period. With ``dirichlet`` (even profiles only) the profile lives on the line and
     vanishes beyond +-length/2 instead of being periodic: the solitary wave of :mod:`hertzpetsc.solitary` (on a
     period, sum_j R_j = 0 for eq. adr and its Jacobian would be singular).
     """
 
     def __init__(self, cells_per_pi, comm, parity=-1, length=2 * math.pi, dirichlet=False):
         self.K = check_cells_per_pi(cells_per_pi)
-        if parity not in (-1, 1):
-            raise ParameterError("parity", parity, "must be -1 (odd profiles) or +1 (even profiles)")
+        if parity not in (-1, 0, 1):
+            raise ParameterError("parity", parity, "must be -1 (odd profiles), +1 (even) or 0 (no symmetry)")
         if dirichlet and parity < 0:
             raise ParameterError("dirichlet", dirichlet, "is only available for even profiles (parity +1)")
         self.parity = parity
@@ -49,7 +50,7 @@ class ProfileGrid:
         self.h = 0.5 * length / self.K
         self.comm = comm
         self.offset = 1 if parity < 0 else 0          # unknown index = grid index - offset
-        self.size = self.K - 1 if parity < 0 else self.K + 1
+        self.size = self.K - 1 if parity < 0 else (self.K + 1 if parity > 0 else 2 * self.K)
         # The PETSc default layout, fixed once so that every Vec and Mat of this grid shares it.
         self._template = PETSc.Vec().createMPI(self.size, comm=self.comm)
         self.rstart, self.rend = self._template.getOwnershipRange()
@@ -59,8 +60,9 @@ class ProfileGrid:
         return 2 * self.K
 
     def xi_half(self):
-        """Points xi_j = j h, j = 0..K (the half period [0, pi] on which profiles are stored)."""
-        return np.arange(self.K + 1) * self.h
+        """Points xi_j = j h, j = 0..K (the half period [0, pi] on which profiles are stored); the whole period
+        (j = 0 .. 2K-1) when the profiles have no symmetry."""
+        return np.arange(self.K + 1 if self.parity else 2 * self.K) * self.h
 
     def create_vec(self):
         return self._template.duplicate()
@@ -76,6 +78,8 @@ class ProfileGrid:
             j = np.abs(np.asarray(g))
             return np.minimum(j, self.K).astype(np.int64), np.where(j <= self.K, 1.0, 0.0)
         r = np.mod(g, 2 * self.K)
+        if self.parity == 0:
+            return r.astype(np.int64), np.ones(np.shape(g))
         j = np.where(r <= self.K, r, 2 * self.K - r)
         if self.parity > 0:
             return j.astype(np.int64), np.ones(np.shape(g))
@@ -85,10 +89,11 @@ class ProfileGrid:
         return idx.astype(np.int64), sign
 
     def half_profile(self, vec):
-        """The profile on the half period (K+1 values; zeros at both ends if odd) as a numpy array on every rank."""
+        """The profile on the half period (K+1 values; zeros at both ends if odd; the whole period's 2K values
+        without symmetry) as a numpy array on every rank."""
         scatter, full = PETSc.Scatter.toAll(vec)
         scatter.scatter(vec, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-        out = np.zeros(self.K + 1)
+        out = np.zeros(self.K + 1 if self.parity else 2 * self.K)
         out[self.offset:self.offset + self.size] = full.getArray(readonly=True)
         scatter.destroy()
         full.destroy()
@@ -97,9 +102,11 @@ class ProfileGrid:
     def vec_from_half_profile(self, values):
         """A distributed Vec holding the odd profile whose values on [0, pi] are ``values`` (K+1 numbers)."""
         values = np.asarray(values, dtype=float)
-        if values.shape != (self.K + 1,):
+        n = self.K + 1 if self.parity else 2 * self.K
+        if values.shape != (n,):
             raise ParameterError("profile", f"array of shape {values.shape}",
-                                 f"must have K+1 = {self.K + 1} values on [0, pi] for cells_per_pi = {self.K}")
+                                 f"must have {n} values on [0, {'pi' if self.parity else '2 pi'}) for cells_per_pi = "
+                                 f"{self.K}")
         vec = self.create_vec()
         vec.setArray(values[self.rstart + self.offset:self.rend + self.offset])
         return vec

@@ -75,8 +75,21 @@ class HertzLaw(InteractionLaw):
         return self.alpha
 
     def rescaled(self, a):
-        """r -> a^(-alpha) V'(a r), in closed form: the same exponent with the precompression delta0 / a."""
+        """r -> a^(-alpha) V'(a r), in closed form: the same exponent with the precompression delta0 / a (a = inf:
+        the uncompressed limit delta0 / a = 0)."""
+        if a == math.inf:
+            return HertzLaw(self.alpha, 0.0)
         return HertzLaw(self.alpha, self.delta0 / check_scale(a))
+
+    def stokes_coefficient(self, q):
+        """C(q) in omega / omega_lin - 1 = C(q) a^2 + O(a^4) for the monatomic precompressed chain (a: first sine
+        coefficient, or ||u||_inf, of the wave): C = (alpha-1)(alpha-1-sin^2(q/2)) / (4 delta0^2), from the cubic
+        Taylor term of V' directly and the quadratic one through the second harmonic (Lindstedt-Poincare at fixed
+        mean overlap)."""
+        if not self.delta0 > 0:
+            raise ParameterError("delta0", self.delta0, "the weakly nonlinear coefficient needs a precompression > 0")
+        s2 = np.sin(np.asarray(q, dtype=float) / 2) ** 2
+        return (self.alpha - 1) * (self.alpha - 1 - s2) / (4 * self.delta0 ** 2)
 
     def contact(self, r):
         """Bonds in contact (r < 0) for the uncompressed law, whose V' and V'' vanish elsewhere; every bond with

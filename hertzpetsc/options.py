@@ -9,12 +9,14 @@ options database), and calls :meth:`AppOptions.check_unused`: an option that not
 names it and the closest known option. :func:`guarded_main` turns every error into one ``error: ...`` line on
 stderr and the exit status of :mod:`hertzpetsc.errors`, on every rank.
 """
+import contextlib
 import ctypes
 import difflib
 import math
 import os
 import platform
 import re
+import signal
 import sys
 import tempfile
 import time
@@ -128,7 +130,10 @@ class AppOptions:
     check) and returns its validated value; under -help it returns the default without validating.
     """
 
+    current = None      # the driver's AppOptions (guarded_main names its options in errors)
+
     def __init__(self, doc="", roles=None):
+        AppOptions.current = self
         self.db = PETSc.Options()
         self.doc = (doc or "").strip()
         self.roles = dict(roles or {})
@@ -199,12 +204,14 @@ class AppOptions:
         return raw
 
     def path(self, name, default, help="", old=()):
-        """A file or directory name (non-empty)."""
-        self._declare(name, default, "a path", help)
+        """A file or directory name; empty only where the default is empty (none: an empty value says so too)."""
+        self._declare(name, default, "a path" + (", or empty for none" if default == "" else ""), help)
         raw = self._raw(name, old)
         if raw is None or self.help:
             return default
         if not raw.strip():
+            if default == "":
+                return ""
             raise ParameterError(f"-{name}", raw, "must be a non-empty path")
         return raw
 
@@ -233,6 +240,8 @@ class AppOptions:
         if self.help:
             return []
         if raw is not None and not raw.strip():
+            if minimum_count == 0:
+                return []                             # an optional list given empty: none, as its help says
             raise ParameterError(f"-{name}", raw, f"is empty: give {rule}, or leave the option out")
         try:
             items = [v.strip() for v in text.split(",")] if text.strip() else []
@@ -305,15 +314,22 @@ class AppOptions:
         return "\n".join(lines)
 
     def done(self):
-        """End of the declarations: under -help, print them and PETSc's options of the roles, and exit 0."""
+        """End of the declarations: under -help, print them and PETSc's options of the roles, and exit 0.
+        Otherwise check that every rank was given the same options (ranks that disagree would compute different
+        things and deadlock in the first collective call that depends on them)."""
         if not self.help:
+            check_ranks_agree(PETSc.COMM_WORLD)
             return
         if PETSc.COMM_WORLD.getRank() == 0:
             print(self.help_text(), flush=True)
-        if self.roles:
+        if self.roles and self.db.getString("help", "") == "solvers":
             print0("\nPETSc's options of these solvers (their defaults before the code's own):")
-            print_solver_help({p: kinds for p, (_, kinds) in self.roles.items()})
+            if PETSc.COMM_WORLD.getRank() == 0:          # the objects are made on COMM_SELF: one rank prints
+                print_solver_help({p: kinds for p, (_, kinds) in self.roles.items()})
+        elif self.roles:
+            print0("\nPETSc's own options of each solver role: -help solvers")
         sys.stdout.flush()
+        self.db.delValue("help")              # PETSc would print its viewer options again at its finalize
         raise SystemExit(0)
 
     def known(self):
@@ -325,12 +341,61 @@ class AppOptions:
         left = [(n, v) for n, v in unused_options() if n not in self.known() and not n.startswith(tuple(passed_on))]
         if not left:
             return
+        role_options = known_solver_options({p: kinds for p, (_, kinds) in self.roles.items()}) if self.roles else set()
+        idle = [(n, v) for n, v in left if n in role_options]
+        left = [(n, v) for n, v in left if n not in role_options]
+        if idle and not left:
+            # a documented option of one of the driver's solver roles, for a solver this run does not create (e.g.
+            # -floquet_eps_* with -method symmetric): accepted, and said
+            print0("note: " + ", ".join("-" + n + (f" {v}" if v else "") for n, v in idle)
+                   + " not used: this run creates no solver that reads " + ("them" if len(idle) > 1 else "it")
+                   + " (its solvers depend on the other options; -help lists the roles)", file=sys.stderr)
+            return
+        if not left:
+            return
         name, value = left[0]
-        candidates = self.known() | known_solver_options({p: kinds for p, (_, kinds) in self.roles.items()})
+        candidates = self.known() | role_options
         close = difflib.get_close_matches(name, sorted(candidates), n=1, cutoff=0.6)
         hint = f"; did you mean -{close[0]}?" if close else "; see -help for the options of this driver"
         more = f" (and {len(left) - 1} more: " + ", ".join("-" + n for n, _ in left[1:4]) + ")" if len(left) > 1 else ""
         raise OptionError(f"unknown option -{name}" + (f" {value}" if value else "") + more + hint)
+
+
+@contextlib.contextmanager
+def inserted_options(prefix, defaults):
+    """Insert ``defaults`` ({name: value}, names without ``prefix``) into the options database for the duration of
+    the block, only where the user set none, and delete afterwards only the keys inserted here (petsctools'
+    inserted_options): the one way a solver role gets code defaults that PETSc's own set-up would not accept
+    otherwise (e.g. before setFromOptions)."""
+    opts = PETSc.Options()
+    inserted = []
+    for key, value in defaults.items():
+        if not opts.hasName(prefix + key):
+            opts.setValue(prefix + key, value)
+            inserted.append(prefix + key)
+    try:
+        yield inserted
+    finally:
+        for key in inserted:
+            opts.delValue(key)
+
+
+def check_ranks_agree(comm):
+    """ParameterError on every rank, naming the first option whose value differs between ranks (collective)."""
+    if comm.getSize() == 1:
+        return
+    mine = sorted((k, "" if v is None else str(v)) for k, v in PETSc.Options().getAll().items())
+    everyone = comm.tompi4py().allgather(mine)
+    if all(other == everyone[0] for other in everyone):
+        return
+    names = sorted({k for other in everyone for k, _ in other})
+    for name in names:
+        values = [dict(other).get(name) for other in everyone]
+        if any(v != values[0] for v in values):
+            shown = ", ".join(f"rank {r}: {'(absent)' if v is None else v or '(no value)'}" for r, v in
+                              enumerate(values))
+            raise ParameterError(f"-{name}", values[0], f"the ranks were given different values ({shown}): give "
+                                 "every rank the same options")
 
 
 def print0(*args, file=sys.stdout):
@@ -376,26 +441,61 @@ def _exit(code, message, collective):
     comm.tompi4py().Abort(code)
 
 
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP (what ``timeout``, ``kill`` and batch schedulers send), raised like KeyboardInterrupt so
+    that ``finally`` blocks end child processes and leave record files consistent."""
+
+    def __init__(self, signum):
+        self.signum = signum
+        super().__init__(signal.Signals(signum).name)
+
+
+def _raise_terminated(signum, frame):
+    raise Terminated(signum)
+
+
 def guarded_main(main):
     """Run ``main()``; turn every error into one ``error:`` line on stderr and the documented exit status.
 
     Package errors are raised on every rank at once (see :mod:`hertzpetsc.errors`): rank 0 prints and every rank
-    exits. PETSc errors are collective as well (configuration and solver calls are) and are reported with
-    PETSc's own message. Anything else is a failure of one rank: that rank prints it and aborts the others, so an
+    exits. SIGINT, SIGTERM and SIGHUP end the run with status 130, 143 and 129 after the ``finally`` blocks ran
+    (child processes ended, record files left as after their last complete record). PETSc errors are collective
+    as well (configuration and solver calls are) and are reported with PETSc's own message. Anything else is a failure of one rank: that rank prints it and aborts the others, so an
     MPI run never hangs.
     """
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_terminated)
     try:
         main()
     except SystemExit:
         raise
-    except KeyboardInterrupt:
+    except BaseException as err:
+        # from here on a signal (mpiexec ending the ranks of a job another rank aborted) ends this rank quietly
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, signal.SIG_DFL)
+        _report(err)
+
+
+def _report(err):
+    """The one error line and exit status of an exception that ended ``main`` (:func:`guarded_main`)."""
+    if isinstance(err, KeyboardInterrupt):
         _exit(130, "interrupted", False)
-    except Exception as err:
-        if os.environ.get("HZ_TRACEBACK"):       # for developers: the full traceback instead of one line
-            raise
-        if isinstance(err, HertzPetscError):
-            _exit(err.exit_status, str(err), True)
-        elif isinstance(err, PETSc.Error):
-            _exit(EXIT_PETSC, petsc_message(err), True)
-        else:                                     # a bug or a rank-local failure: never a hang
-            _exit(1, f"internal error: {type(err).__name__}: {err}", False)
+    elif isinstance(err, Terminated):
+        if PETSc.COMM_WORLD.getSize() > 1:
+            # under mpiexec the signal is either the user's, forwarded to every rank, or mpiexec ending the ranks
+            # of a job that another rank aborted after printing its error: end quietly (the finally blocks ran)
+            sys.stdout.flush()
+            os._exit(128 + err.signum)
+        _exit(128 + err.signum, f"terminated by {signal.Signals(err.signum).name}", False)
+    elif not isinstance(err, Exception):
+        raise err
+    elif os.environ.get("HZ_TRACEBACK"):          # for developers: the full traceback instead of one line
+        raise err
+    elif isinstance(err, HertzPetscError):
+        if isinstance(err, ParameterError) and AppOptions.current is not None:
+            err = err.as_option(AppOptions.current.known())
+        _exit(err.exit_status, str(err), True)
+    elif isinstance(err, PETSc.Error):
+        _exit(EXIT_PETSC, petsc_message(err), True)
+    else:                                         # a bug or a rank-local failure: never a hang
+        _exit(1, f"internal error: {type(err).__name__}: {err}", False)

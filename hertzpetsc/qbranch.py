@@ -1,5 +1,6 @@
-"""Continuation of odd travelling waves in q, from the binary oscillation at q = pi down through a list of target
-wavenumbers (paper section 3.1), on a fixed grid or on grids refined as q decreases.
+"""The paper's branch: continuation of odd travelling waves in q, from the binary oscillation at q = pi down through
+a list of target wavenumbers (section 3.1), on a fixed grid or on grids refined as q decreases; a use of the one
+continuation layer (:mod:`hertzpetsc.continuation`) on the advance-delay problem (:mod:`hertzpetsc.advdelay`).
 
 Predictor: secant extrapolation of the rescaled profile q^(2/(alpha-1)) u, which stays O(1) along the whole
 branch while u grows like q^(-2/(alpha-1)) (eq. normscaling). Step control: if SNES fails, or the corrector moves
@@ -14,6 +15,7 @@ grid changes, the last two profiles are interpolated (degree-5 Lagrange, below t
 grid and the secant predictor goes on there (section 3.2, small q).
 """
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -22,6 +24,7 @@ from petsc4py import PETSc
 from .advdelay import AdvanceDelayProblem, check_wavenumber
 from .binary import binary_oscillation
 from .branch import BranchPoint
+from .continuation import Continuation, ContinuationError, Natural
 from .diagnostics import point_diagnostics
 from .errors import ConvergenceError, ParameterError
 from .grid import ProfileGrid, check_cells_per_pi
@@ -29,7 +32,7 @@ from .hertz import check_alpha
 from .model import LatticeModel
 from .resources import check_memory
 from .stencil import full_period, lagrange_periodic
-from .twsolver import TW_PREFIX, TravellingWaveSolver, tw_solver
+from .twsolver import TW_PREFIX, tw_solver
 
 
 @dataclass(frozen=True)
@@ -130,20 +133,10 @@ def regrid_half_profile(u_half, K_new):
     return out
 
 
-class ContinuationError(ConvergenceError):
-    """The branch could not be continued past ``last_q`` (all points up to it were yielded)."""
-
-    def __init__(self, last_q, failed_q, reason):
-        self.last_q, self.failed_q = last_q, failed_q
-        last = (f"last converged q = {last_q:.12g}, everything up to it is saved" if last_q == last_q
-                else "no point converged")
-        RuntimeError.__init__(self, f"continuation stopped: no convergence at q = {failed_q:.12g} even after step "
-                                    f"reduction ({reason}); {last}")
-        self.what, self.reason, self.where = "continuation", reason, dict(q=failed_q)
-
-
 class BranchContinuation:
-    """Continuation of eqs. ad-pbc in q on one grid. Iterate :meth:`points` to get the branch point by point.
+    """Continuation of eqs. ad-pbc in q on one grid: the paper's problem (:class:`AdvanceDelayProblem`, parameter
+    q) driven by the continuation layer's :class:`~hertzpetsc.continuation.Natural` algorithm (secant predictor on
+    the rescaled profile, step halving). Iterate :meth:`points` to get the branch point by point.
 
     One SNES (and KSP/PC) serves the whole branch; its options (prefix ``tw_``) are read once, here.
     """
@@ -156,105 +149,52 @@ class BranchContinuation:
         solver = tw_solver(prefix, solver)
         check_memory(K, comm, solver)
         self.grid = ProfileGrid(K, comm)
-        self.solver = TravellingWaveSolver(self.grid, prefix, solver)
-        self.exponent = self.model.law.rescaling_exponent
-        self.history = []   # the last two converged (q, rescaled profile Vec), intermediate q included
+        self.problem = AdvanceDelayProblem(self.model, self.grid, math.pi, parameter="q")
+        self.problem.prefix = prefix
+        self.problem.solver(False, prefix, solver)
+        self.continuation = Continuation(self.problem, Natural(params.max_halvings, params.max_corrector))
 
-    def _remember(self, q, u):
-        r = u.copy()
-        r.scale(q ** self.exponent)
-        self.history.append((q, r))
-        while len(self.history) > 2:
-            self.history.pop(0)[1].destroy()
+    @property
+    def history(self):
+        return self.continuation.history
 
-    def predict(self, q_new):
-        """Secant predictor on the rescaled profile (or the rescaled last point when only one is known)."""
-        (q1, r1) = self.history[-1]
-        r = r1.copy()
-        if len(self.history) == 2:
-            q0, r0 = self.history[0]
-            r.axpy((q_new - q1) / (q1 - q0), r1)
-            r.axpy(-(q_new - q1) / (q1 - q0), r0)
-        r.scale(q_new ** (-self.exponent))
-        return r
+    @property
+    def solver(self):
+        """The travelling-wave SNES of the branch (:class:`~hertzpetsc.twsolver.TravellingWaveSolver`)."""
+        return self.problem.solver(False)
 
     def resume_from(self, qs, profiles):
         """Seed the predictor with already computed points (the last two), given on any grid."""
-        for q, prof in zip(list(qs)[-2:], list(profiles)[-2:]):
-            u = self.grid.vec_from_half_profile(regrid_half_profile(prof, self.grid.K))
-            self._remember(float(q), u)
-            u.destroy()
+        seeds = [self.problem.pack([regrid_half_profile(prof, self.grid.K)], parameter=float(q))
+                 for q, prof in zip(list(qs)[-2:], list(profiles)[-2:])]
+        self.continuation.seed(seeds)
+        for Z in seeds:
+            Z.destroy()
 
-    def _solve_at(self, q, guess):
-        problem = AdvanceDelayProblem(self.model, self.grid, q)
-        try:
-            result = self.solver.solve(problem, guess)
-        finally:
-            problem.destroy()
-        return result
-
-    def _corrector_size(self, q, u, pred):
-        diff = u.copy()
-        diff.axpy(-1.0, pred)
-        size = diff.norm(PETSc.NormType.NORM_INFINITY) / max(u.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
-        diff.destroy()
-        return size
-
-    def _point(self, q, u, result, substeps, wall):
-        u_half = self.grid.half_profile(u)
+    def _point(self, cp, wall):
+        u_half = cp.report["profiles"][0]
+        q = cp.parameter
         diag = point_diagnostics(u_half, q, self.grid.h, self.model.alpha)
-        return BranchPoint(q=q, u_half=u_half, h=self.grid.h, model=self.model, diagnostics=diag, solve=result,
-                           substeps=substeps, wall_time=wall)
+        return BranchPoint(q=q, u_half=u_half, h=self.grid.h, model=self.model, diagnostics=diag,
+                           solve=self.problem.stats, substeps=cp.substeps, wall_time=wall)
 
     def start(self):
         """Solve at q = pi from the sampled binary oscillation u0 (lemma binary)."""
-        u = self.grid.vec_from_half_profile(binary_oscillation(self.model.law, self.grid.xi_half()))
-        q = math.pi
+        t0 = time.perf_counter()
+        Z = self.problem.pack([binary_oscillation(self.model.law, self.grid.xi_half())], parameter=math.pi)
         try:
-            result = self._solve_at(q, u)
+            cp = self.continuation.start(Z)
         except ConvergenceError as err:
-            raise ContinuationError(float("nan"), q, err.reason) from None
-        self._remember(q, u)
-        point = self._point(q, u, result, 1, result.wall_time)
-        u.destroy()
-        return point
+            raise ContinuationError("q", float("nan"), math.pi, err.reason) from None
+        finally:
+            Z.destroy()
+        return self._point(cp, time.perf_counter() - t0)
 
     def step_to(self, q_target):
         """Continue from the last converged point to ``q_target``, halving the step on failure."""
-        q_last = self.history[-1][0]
-        dq = q_target - q_last
-        substeps, wall, halvings = 0, 0.0, 0
-        while True:
-            q = q_last + dq if abs(q_last + dq - q_target) > 1e-14 * q_target else q_target
-            u = self.predict(q)
-            pred = u.copy()
-            failure = None
-            try:
-                result = self._solve_at(q, u)
-                wall += result.wall_time
-                size = self._corrector_size(q, u, pred)
-                if size > self.params.max_corrector:
-                    failure = f"corrector moved the profile by {size:.3g} > max_corrector"
-            except ConvergenceError as err:
-                failure = f"SNES reason {err.reason}"
-            pred.destroy()
-            if failure is not None:
-                u.destroy()
-                halvings += 1
-                if halvings > self.params.max_halvings:
-                    raise ContinuationError(q_last, q, failure)
-                dq *= 0.5
-                continue
-            substeps += 1
-            halvings = 0          # max_halvings bounds consecutive reductions, not their total
-            self._remember(q, u)
-            if q == q_target:
-                point = self._point(q, u, result, substeps, wall)
-                u.destroy()
-                return point
-            u.destroy()
-            q_last = q
-            dq = q_target - q_last if abs(2 * dq) >= abs(q_target - q_last) else 2 * dq
+        t0 = time.perf_counter()
+        cp = self.continuation.step_to(q_target)
+        return self._point(cp, time.perf_counter() - t0)
 
     def points(self, targets=None):
         """Yield the branch points at the targets not yet computed (all of them, from u0 at q = pi, unless
@@ -262,18 +202,14 @@ class BranchContinuation:
         targets = self.params.targets() if targets is None else targets
         if not self.history:
             yield self.start()
-        q_done = self.history[-1][0]
+        q_done = self.continuation.parameter
         for q in targets:
             if q < q_done * (1 - 1e-12):
                 yield self.step_to(q)
 
     def destroy(self):
-        for _, r in self.history:
-            r.destroy()
-        self.history = []
-        if self.solver is not None:
-            self.solver.destroy()
-            self.solver = None
+        self.continuation.destroy()
+        self.problem.destroy()
 
 
 def continue_branch(params, targets, grids, comm, seeds=(), prefix=TW_PREFIX, solver=None):

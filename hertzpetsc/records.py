@@ -157,10 +157,36 @@ def remove_stale_temporaries(path):
             pass
 
 
+def file_digest(path, comm=None, what="input file"):
+    """sha256 of a file's content (rank 0 reads it; every rank gets the digest): an input's identity in the
+    records made from it, so that a resume from another input is refused, naming it."""
+    import hashlib
+
+    def digest():
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        return h.hexdigest()
+    return on_rank0(comm, digest, what=f"cannot read {what} {path!r}")
+
+
+HDF5_SUFFIXES = (".h5", ".hdf5")
+
+
+def is_hdf5(path):
+    """A record file named ``*.h5`` or ``*.hdf5`` is written as HDF5 (one dataset per array, the same names as the
+    npz layout; strings as UTF-8 bytes), for readers outside Python (MATLAB, Julia); every other name is npz."""
+    return str(path).lower().endswith(HDF5_SUFFIXES)
+
+
 def load_npz(path, what, error=RecordFileError):
-    """All arrays of an npz archive as a dict; ``error`` (naming ``what``) if it is missing or unreadable."""
+    """All arrays of a record archive (npz, or HDF5 by its name: :func:`is_hdf5`) as a dict; ``error`` (naming
+    ``what``) if it is missing or unreadable."""
     if not os.path.exists(path):
         raise error(f"{what} {path!r} does not exist")
+    if is_hdf5(path):
+        return _load_h5(path, what, error)
     try:
         with np.load(path, allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
@@ -330,9 +356,75 @@ def npz_arrays(kind, constants, fields, records, state=None, dtypes=None, shapes
     return out
 
 
+class MemoryRecords(NpzRecords):
+    """The record store of a study run without an output file (a notebook, a test): the same records, state and
+    :meth:`arrays` as :class:`NpzRecords`, kept in memory; nothing is read or written."""
+
+    what = "in-memory records"
+
+    def __init__(self, kind, constants, fields, comm=None, dtypes=None, shapes=None):
+        super().__init__(None, kind, constants, constants, fields, comm, "new", dtypes, shapes, self.what)
+
+    def _exists(self):
+        return False
+
+    def _prepare(self):
+        pass
+
+    def _start(self, records):
+        pass
+
+    def _write_last(self):
+        pass
+
+
 def write_npz(path, arrays):
-    """Write an npz archive atomically (temporary file, fsync, rename)."""
+    """Write a record archive atomically (temporary file, fsync, rename): npz, or HDF5 by its name."""
+    if is_hdf5(path):
+        _write_h5(path, arrays)
+        return
     _replace_atomically(path, lambda f: np.savez(f, **arrays))
+
+
+def _h5py():
+    try:
+        import h5py
+    except ImportError:
+        raise RecordFileError("HDF5 record files need h5py (Debian's python3-h5py-mpi, installed by "
+                              "`bash scripts/hz.sh setup`)") from None
+    return h5py
+
+
+def _write_h5(path, arrays):
+    h5py = _h5py()
+    tmp = path + ".tmp"
+    with h5py.File(tmp, "w") as f:
+        for name, value in arrays.items():
+            value = np.asarray(value)
+            if value.dtype.kind == "U":
+                value = np.char.encode(value, "utf-8")
+            f.create_dataset(name, data=value)
+    fd = os.open(tmp, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+    os.replace(tmp, path)
+
+
+def _load_h5(path, what, error):
+    h5py = _h5py()
+    try:
+        with h5py.File(path, "r") as f:
+            out = {}
+            for name, dataset in f.items():
+                value = np.asarray(dataset[()])
+                if value.dtype.kind == "S":
+                    value = np.char.decode(value, "utf-8")
+                out[name] = value
+            return out
+    except (OSError, ValueError) as err:
+        raise error(f"{what} {path!r} is corrupt or not an HDF5 file ({err})") from None
 
 
 class AppendRecords(RecordStore):

@@ -36,16 +36,17 @@ def available_memory():
     return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
 
 
-def estimate_memory(cells_per_pi, ranks, solver="nk"):
-    """(bytes per rank, bytes in total) for a travelling-wave solve with K - 1 unknowns on ``ranks`` ranks."""
+def estimate_memory(cells_per_pi, ranks, solver="nk", profiles=1):
+    """(bytes per rank, bytes in total) for a travelling-wave solve with p (K - 1) unknowns (p = ``profiles``, the
+    mass pattern's length) on ``ranks`` ranks."""
     if solver not in BYTES_PER_UNKNOWN:
         raise ParameterError("solver", solver, "must be one of " + ", ".join(BYTES_PER_UNKNOWN))
-    unknowns = max(int(cells_per_pi) - 1, 0)
+    unknowns = max(int(cells_per_pi) - 1, 0) * int(profiles)
     per_rank = PROCESS_BYTES + BYTES_PER_UNKNOWN[solver] * unknowns / ranks
     return per_rank, per_rank * ranks
 
 
-def check_memory(cells_per_pi, comm=None, solver="nk", available=None):
+def check_memory(cells_per_pi, comm=None, solver="nk", available=None, profiles=1, name="cells_per_pi"):
     """Raise :class:`ParameterError` (naming cells_per_pi) if the grid would not fit on this machine.
 
     All ranks of ``comm`` are assumed to share one machine's memory (the ranks of a run on this 2-core box);
@@ -58,16 +59,43 @@ def check_memory(cells_per_pi, comm=None, solver="nk", available=None):
         if ranks > 1:
             available = comm.tompi4py().bcast(available, root=0)
     K = int(cells_per_pi)
-    if K - 1 > MAX_UNKNOWNS:
-        raise ParameterError("cells_per_pi", cells_per_pi, f"gives {K - 1} unknowns, more than PETSc's index type "
-                             f"allows ({MAX_UNKNOWNS}): must be <= {MAX_UNKNOWNS + 1}")
-    per_rank, total = estimate_memory(K, ranks, solver)
+    if profiles * (K - 1) + 2 > MAX_UNKNOWNS:
+        limit = (MAX_UNKNOWNS - 2) // profiles + 1
+        raise ParameterError(name, cells_per_pi, f"gives {profiles * (K - 1)} unknowns, more than PETSc's "
+                             f"index type allows ({MAX_UNKNOWNS}): must be <= {limit}")
+    per_rank, total = estimate_memory(K, ranks, solver, profiles)
     usable = USABLE_FRACTION * available
     if total > usable:
-        k_max = int((usable / ranks - PROCESS_BYTES) * ranks / BYTES_PER_UNKNOWN[solver]) + 1
+        k_max = int((usable / ranks - PROCESS_BYTES) * ranks / BYTES_PER_UNKNOWN[solver] / profiles) + 1
         fits = f"must be <= {k_max}" if k_max >= 4 else "no grid fits"
-        raise ParameterError("cells_per_pi", cells_per_pi,
+        raise ParameterError(name, cells_per_pi,
                              f"needs about {total / GIB:.1f} GiB ({per_rank / GIB:.2f} GiB on each of {ranks} "
                              f"rank(s), solver '{solver}') but {available / GIB:.1f} GiB are available: {fits} "
                              "on this machine")
     return per_rank, total
+
+
+# beads of a chain whose dense monodromy or Gauss-Newton Jacobian ((2N)^2 doubles: 0.8 GB at 5000) is formed
+MAX_DENSE_BEADS = 5000
+# bytes per bead and per state column (x, xdot) of a chain integrated by TS: the state and about 20 RK work vectors
+BYTES_PER_BEAD_COLUMN = 2 * 8 * 24
+
+
+def check_chain_memory(N, comm=None, columns=1, name="N", available=None):
+    """Raise :class:`ParameterError` naming ``name`` if a chain of N beads carrying ``columns`` state columns (the
+    state plus tangents) would not fit in memory or in PETSc's index type. Collective on ``comm``."""
+    comm = comm if comm is not None else PETSc.COMM_WORLD
+    if available is None:
+        available = available_memory()
+        if comm.getSize() > 1:
+            available = comm.tompi4py().bcast(available, root=0)
+    N, columns = int(N), int(columns)
+    if 2 * N * columns > MAX_UNKNOWNS:
+        raise ParameterError(name, N, f"gives {2 * N * columns} unknowns, more than PETSc's index type allows "
+                             f"({MAX_UNKNOWNS})")
+    total = PROCESS_BYTES * comm.getSize() + BYTES_PER_BEAD_COLUMN * N * columns
+    if total > USABLE_FRACTION * available:
+        fits = int((USABLE_FRACTION * available - PROCESS_BYTES * comm.getSize()) / (BYTES_PER_BEAD_COLUMN * columns))
+        raise ParameterError(name, N, f"a chain of {N} beads with {columns} column(s) needs about {total / GIB:.1f} "
+                             f"GiB but {available / GIB:.1f} GiB are available: at most {max(fits, 0)} beads")
+    return total

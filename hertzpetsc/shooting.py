@@ -2,21 +2,15 @@
 
     E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf,     script-T(q) = q ||u||_inf^((alpha-1)/2)  (eq. invv)
 
-The refinement solves G(X0) = S^k X(delta; X0) - X0 = 0 by Gauss-Newton with the Jacobian S^k R(delta; 0) - I
-from :class:`~hertzpetsc.tangent.TangentFlow`. By default (``symmetric``) it does so on the wave's cell of
-M = N / gcd(m, N) beads with the wave's shortest time symmetry, k beads in delta = script-T / m' (see
-:mod:`hertzpetsc.symmetry`): the refined cell, repeated, is a travelling wave on the N beads with exactly the
-wave's periodicity, at about (M / N)^2 / m' of the cost; E(q) is then measured on the N beads over script-T. With
-``symmetric=False`` it solves the paper's S X(script-T) = X(0) on the N beads.
+The refinement solves S^k X(delta; X0) = X0 by the package's Gauss-Newton engine (:mod:`hertzpetsc.gauss_newton`)
+with the Jacobian S^k R(delta; 0) - I (:class:`~hertzpetsc.tangent.TangentFlow`). By default (``symmetric``) on the
+wave's cell over its shortest time symmetry (:mod:`hertzpetsc.symmetry`, any mass pattern): the refined cell,
+repeated, is a travelling wave with exactly the wave's periodicity, at about (M / N)^2 / m' of the cost; else the
+paper's S X(script-T) = X(0) on the N beads. E(q) is measured on the N beads over script-T.
 
-The Jacobian is singular at a travelling wave: translation x_n -> x_n + c and time translation (direction f(X0))
-are exact symmetries, and slow modes (multipliers near 1) make it nearly singular in a few more directions, with
-singular values as small as the residual itself. Steps are therefore restricted to the orthogonal complement of
-the two symmetry directions (phase conditions, basis Q) and computed from the SVD of J Q truncated at a relative
-level: the levels :data:`TRUNCATIONS` are tried in turn and the first step that reduces E tenfold is taken (else
-the best). The dense algebra is done on rank 0 and broadcast, so every rank applies the same step. As in the
-paper, the Jacobian is kept across iterations and re-evaluated only when the steps it gives stop reducing the
-residual; it is computed with a looser flow (prefix ``shoot_jac_``, rtol 1e-10) than the residual (``shoot_``,
+The Jacobian is singular at a travelling wave (translation, time shift f(X0)) and nearly singular along slow modes:
+steps lie in the orthogonal complement of the two symmetry directions (phase conditions) and come from the engine's
+truncated SVD. The Jacobian's flow is looser (prefix ``shoot_jac_``, rtol 1e-10) than the residual's (``shoot_``,
 rtol 1e-14): an error of 1e-10 in J changes a step of size r by 1e-10 r.
 
 Options: the refinement's flows and Gauss-Newton live under the prefix ``shoot_`` (``-shoot_ts_rtol``, ...,
@@ -29,9 +23,9 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import CHAIN_PREFIX, Chain, ChainIntegrator, IntegrationTolerances
+from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .errors import ConvergenceError, ParameterError
-from .symmetry import WaveSymmetry
+from .gauss_newton import GaussNewton
 from .tangent import TangentFlow
 
 SHOOT_PREFIX = "shoot_"
@@ -77,15 +71,6 @@ def relative_residual(x0, sxT):
     return float(np.max(np.abs(sxT - x0)) / np.max(np.abs(x0)))
 
 
-def residual_E(orbit, comm, tolerances=PAPER_TOLERANCES, prefix=CHAIN_PREFIX):
-    """E(q) of an :class:`~hertzpetsc.waves.Orbit` (one flow over script-T)."""
-    smap = ShiftMap(orbit.spec, comm, tolerances, prefix)
-    try:
-        return smap.residual(orbit)
-    finally:
-        smap.destroy()
-
-
 @dataclass
 class Refinement:
     """The refined orbit and the history of the Gauss-Newton iteration."""
@@ -119,28 +104,27 @@ def symmetry_complement(chain, x):
     return Q[:, 2:]
 
 
-# Relative singular-value cut-offs tried at each Gauss-Newton iteration (0: plain least squares on J Q).
-TRUNCATIONS = (0.0, 1e-9, 1e-7, 1e-5, 1e-3)
+class ShiftMapFixedPoint:
+    """x = S^shift X(T; x) for the Gauss-Newton engine: rows S^shift X(T; x) - x (measure: their relative size),
+    Jacobian S^shift R(T; 0) - I by the tangent flow, steps off the translation and time-shift directions."""
 
+    def __init__(self, smap, flow, T, shift):
+        self.smap, self.flow, self.T, self.shift = smap, flow, T, shift
 
-def phase_conditioned_steps(J, g, Q, comm):
-    """Candidate steps d = Q c, c the SVD-truncated least-squares solution of J Q c = -g at each level of
-    :data:`TRUNCATIONS`; computed on rank 0 and broadcast. Also returns the smallest singular value of J Q."""
-    mpi = comm.tompi4py()
-    out = None
-    if mpi.rank == 0:
-        U, sv, Vt = np.linalg.svd(J @ Q, full_matrices=False)
-        coef = U.T @ -g
-        steps = []
-        for cut in TRUNCATIONS:
-            keep = sv > cut * sv[0]
-            steps.append(Q @ (Vt[keep].T @ (coef[keep] / sv[keep])))
-        out = (steps, float(sv[-1]))
-    return mpi.bcast(out, root=0)
+    def residual(self, z):
+        x = z.reshape(-1, 2)
+        sx = self.smap(x, self.T, self.shift)
+        return (sx - x).ravel(), relative_residual(x, sx)
+
+    def jacobian(self, z):
+        x = z.reshape(-1, 2)
+        M, _ = self.flow.monodromy_mod_shift(x, self.T, self.shift)
+        return M - np.eye(len(z)), symmetry_complement(self.smap.chain, x)
 
 
 class Refiner:
-    """Gauss-Newton refinement of travelling-wave orbits (flows built once per chain length, prefix ``shoot_``).
+    """Gauss-Newton refinement of travelling-wave orbits, any mass pattern (flows built once per chain length,
+    prefix ``shoot_``; the engine :class:`~hertzpetsc.gauss_newton.GaussNewton`); ``with Refiner(...) as r:``.
 
     ``tol``: the target E(q) (on the N beads over script-T); the iteration limit is ``-<prefix>gn_max_it``
     (default ``max_iterations``). ``symmetric``: refine on the wave's cell with its shortest time symmetry.
@@ -155,6 +139,7 @@ class Refiner:
         self.max_iterations = PETSc.Options().getInt(prefix + "gn_max_it", max_iterations)
         if self.max_iterations < 1:
             raise ParameterError(f"-{prefix}gn_max_it", self.max_iterations, "must be an integer >= 1")
+        self.engine = GaussNewton(comm)
         self._flows = {}
         self.smap = self._maps(spec.N)[0]          # configures both flows (options read now)
 
@@ -175,28 +160,25 @@ class Refiner:
         return self.smap.residual(orbit)
 
     @PETSc.Log.EventDecorator("hz_refine")
-    def refine(self, orbit):
+    def refine(self, orbit: "Orbit") -> Refinement:
         """The refined :class:`Refinement` of ``orbit``; :class:`ConvergenceError` if E cannot be brought below
         ``tol`` within the iteration limit."""
         t0 = time.perf_counter()
         E0 = self.residual(orbit)
-        if self.symmetric:
-            sym = WaveSymmetry(orbit.N, orbit.m)
-            M, shift, T = sym.M, sym.k, sym.delta(orbit.T)
-        else:
-            M, shift, T = orbit.N, 1, orbit.T
-        smap, flow = self._maps(M)
-        x = np.asarray(orbit.x[:M], dtype=float).copy()
+        sym = orbit.symmetry
+        M, shift, T, m_cell = (sym.M, sym.k, sym.delta(orbit.T), sym.m_cell) if self.symmetric else \
+            (orbit.N, 1, orbit.T, 1)
+        problem = ShiftMapFixedPoint(*self._maps(M), T, shift)
+        z = np.asarray(orbit.x[:M], dtype=float).ravel()
         # the short map's residual accumulates over the m' maps that make script-T: aim below tol / m'
-        target = self.tol / (orbit.m * M // orbit.N) if self.symmetric else self.tol
+        target = self.tol / m_cell
         total_it, jacobians, history, r, sigma_min = 0, 0, [E0], float("nan"), None
         while True:
-            x, it, jac, r_it, sig = self._gauss_newton(smap, flow, x, T, shift, target,
-                                                       self.max_iterations - total_it)
-            total_it, jacobians = total_it + it, jacobians + jac
-            r = r_it if r_it == r_it else r
-            sigma_min = sig if sig is not None else sigma_min
-            refined = orbit.with_state(np.tile(x, (orbit.N // M, 1)), "refined")
+            res = self.engine.solve(problem, z, target, self.max_iterations - total_it)
+            z, total_it, jacobians = res.z, total_it + res.iterations, jacobians + res.jacobians
+            r = res.r if res.r == res.r else r
+            sigma_min = res.sigma_min if res.sigma_min is not None else sigma_min
+            refined = orbit.with_state(np.tile(z.reshape(M, 2), (orbit.N // M, 1)), "refined")
             E = self.residual(refined)
             history.append(E)
             if E <= self.tol or total_it >= self.max_iterations or target < 1e-16:
@@ -208,57 +190,21 @@ class Refiner:
         return Refinement(orbit=refined, E_initial=E0, E=E, r=r, iterations=total_it, jacobians=jacobians,
                           history=history, sigma_min=sigma_min, wall_time=time.perf_counter() - t0)
 
-    def _gauss_newton(self, smap, flow, x, T, shift, tol, max_iterations):
-        """Gauss-Newton on x -> S^shift X(T; x) - x until its relative residual is below ``tol``:
-        (x, iterations, Jacobians, r of the last step, smallest singular value)."""
-        n = len(x)
-        sx = smap(x, T, shift)
-        g = (sx - x).ravel()
-        E = relative_residual(x, sx)
-        jacobians, J, fresh, r, sigma_min, it = 0, None, False, float("nan"), None, 0
-        while E > tol and it < max_iterations:
-            if J is None:
-                M, _ = flow.monodromy_mod_shift(x, T, shift)
-                J = M - np.eye(2 * n)
-                Q = symmetry_complement(smap.chain, x)
-                jacobians += 1
-                fresh = True
-            steps, sig = phase_conditioned_steps(J, g, Q, self.comm)
-            sigma_min = sig if fresh else sigma_min
-            best = None
-            for d in steps:               # the first step that reduces E tenfold, else the best one
-                x_new = x + d.reshape(n, 2)
-                sx = smap(x_new, T, shift)
-                cand = (x_new, (sx - x_new).ravel(), relative_residual(x_new, sx))
-                if best is None or cand[2] < best[2]:
-                    best = cand
-                if best[2] <= 0.1 * E:
-                    break
-            x_new, g_new, E_new = best
-            if E_new < E:
-                r = float(np.max(np.abs(x_new - x)) / np.max(np.abs(x_new)))
-                previous, (x, g, E) = E, (x_new, g_new, E_new)
-                it += 1
-                if E > 0.1 * previous and not fresh:
-                    J = None          # slow progress with a stale Jacobian: re-evaluate it
-                fresh = False
-            elif not fresh:
-                J = None              # the stale Jacobian gives no decrease: re-evaluate and retry
-            else:
-                break                 # no decrease even with a fresh Jacobian
-        return x, it, jacobians, r, sigma_min
-
     def destroy(self):
         for smap, flow in self._flows.values():
             smap.destroy()
             flow.destroy()
         self._flows = {}
 
+    def __enter__(self):
+        return self
 
-def refine(orbit, comm, tol=1e-10, **kwargs):
-    """One-off :meth:`Refiner.refine` of ``orbit``."""
-    refiner = Refiner(orbit.spec, comm, tol, **kwargs)
-    try:
+    def __exit__(self, *exc):
+        self.destroy()
+
+
+def refine(orbit: "Orbit", comm: PETSc.Comm, tol: float = 1e-10, **kwargs) -> Refinement:
+    """One-off :meth:`Refiner.refine` of ``orbit`` (``kwargs``: those of :class:`Refiner`); collective over
+    ``comm``."""
+    with Refiner(orbit.spec, comm, tol, **kwargs) as refiner:
         return refiner.refine(orbit)
-    finally:
-        refiner.destroy()

@@ -1,10 +1,9 @@
 """The monodromy route to slow instabilities on the infinite chain: Bloch sectors of the wave's cell with the
 symmetry multipliers deflated exactly (section 3.5 beyond the paper; eqs. nc, twper, invv).
 
-A refined wave on N beads (q = 2 pi m / N) has a cell of M = N / gcd(m, N) beads with m' wavelengths; for any twist
-Theta (y_{n+M} = e^{i Theta} y_n, i.e. any Bloch parameter of the infinite chain) the map of the cell over the
-short time symmetry G_Theta = S^k R(script-T / m') (:class:`hertzpetsc.bloch.BlochSectors`) gives the sector's block
-of F_q, P_Theta = e^{-i j Theta} G_Theta^{m'} (:mod:`hertzpetsc.symmetry`).
+For any twist Theta of the refined wave's cell (y_{n+M} = e^{i Theta} y_n: any Bloch parameter of the infinite chain)
+the cell's short map G_Theta (:class:`hertzpetsc.bloch.BlochSectors`) gives F_q's block P_Theta = e^{-i j Theta}
+G_Theta^{m'} (:mod:`hertzpetsc.symmetry`).
 
 Known multipliers at mu = 1, with their eigenvectors from the orbit itself (no profile, no fit):
 
@@ -15,11 +14,9 @@ Known multipliers at mu = 1, with their eigenvectors from the orbit itself (no p
   (least squares over the zones, :func:`zone_modes`);
 * at Theta = 0 also the uniform translation (1, 0) and its Jordan partner, the Galilean boost (0, 1) / script-T.
 
-Each zone mode has a Jordan partner (P - I) w = z, which is not known in closed form; it is computed as the
-minimum-norm least-squares solution. The deflation then splits P_Theta in the orthonormal basis [U, U_perp] of
-span{z, w} and its complement: the multipliers that are not symmetry multipliers are those of
-U_perp^H P U_perp, and the block U^H P U holds the symmetry cluster (exactly 1 for an exact orbit: its distance
-from 1 and the invariance residual ||P U - U U^H P U|| measure how exact the orbit and the flow are).
+Each zone mode's Jordan partner (P - I) w = z is the minimum-norm least-squares solution. In the orthonormal basis
+[U, U_perp] of span{z, w} and its complement, U_perp^H P U_perp holds the other multipliers and U^H P U the symmetry
+cluster (exactly 1 for an exact orbit: its distance from 1 and ||P U - U U^H P U|| measure the orbit and the flow).
 """
 import math
 import time
@@ -30,13 +27,12 @@ from petsc4py import PETSc
 
 from .bloch import BlochSectors
 from .errors import ParameterError
-from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES
-from .symmetry import WaveSymmetry
+from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, FloquetSolver, Spectrum
 
 
 def cell_map(sectors, orbit, theta):
     """P_Theta = e^{-i j Theta} G_Theta^{m'} (2M x 2M, index 2n + c) of ``orbit`` (an N-bead wave), and its cell."""
-    sym = WaveSymmetry(orbit.N, orbit.m)
+    sym = orbit.symmetry
     G = sectors.monodromy(orbit.x[:sym.M], sym.delta(orbit.T), theta, sym.k)
     P = np.linalg.matrix_power(G, sym.m_cell)
     if theta != 0.0:
@@ -50,7 +46,7 @@ def zone_directions(model, x0, q):
     zone floor(q n / 2 pi) (the wave's free flight is centred on q n = 0 mod 2 pi)."""
     M = len(x0)
     x, v = x0[:, 0], x0[:, 1]
-    acc = model.force(np.roll(x, -1) - x) - model.force(x - np.roll(x, 1))       # eq. nc on the periodic cell
+    acc = (model.force(np.roll(x, -1) - x) - model.force(x - np.roll(x, 1))) / model.mass(np.arange(M))  # eq. nc
     zone = np.floor(q * np.arange(M) / (2 * math.pi) + 1e-12).astype(int)
     n_zones = int(zone.max()) + 1
     f, t = np.zeros((n_zones, 2 * M)), np.zeros((n_zones, 2 * M))
@@ -127,12 +123,14 @@ def deflate(P, known, partners_of=None, extra=()):
     return values, np.linalg.eigvals(A11), partner_res, invariance, r
 
 
-class DeflatedSectors:
+class DeflatedSectors(FloquetSolver):
     """Deflated sector spectra of refined waves on their cells for any twist (the flow ``floquet_``, as the Bloch
-    routes; build once, reuse for every wave)."""
+    routes; build once, reuse for every wave). :meth:`spectrum` gathers the sectors at the cell twists ``twists``
+    (in [0, pi]): the multipliers of each and its deflated cluster, which are the known (trivial) ones; the
+    :class:`DeflatedSector` of each twist is in ``work["sectors"]``."""
 
-    def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
-        self.model = model
+    def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, twists=(0.0,)):
+        self.model, self.twists = model, [float(t) for t in twists]
         self.sectors = BlochSectors(model, comm, tolerances, prefix)
         self.sectors.configure()
 
@@ -160,6 +158,12 @@ class DeflatedSectors:
         raw = lam[np.argsort(np.abs(lam - 1.0))[:r]]
         return DeflatedSector(theta, sym.M, r, values, cluster, raw, lam, eig_res, partner_res, invariance, v,
                               time.perf_counter() - t0)
+
+    def _spectrum(self, orbit, tol_rho, nev):
+        sectors = [self.sector(orbit, theta) for theta in self.twists]
+        values = np.concatenate([np.concatenate([s.values, s.cluster]) for s in sectors])
+        known = np.concatenate([np.arange(len(s.values) + len(s.cluster)) >= len(s.values) for s in sectors])
+        return Spectrum(values, True, tol_rho, known=known, work=dict(sectors=sectors))
 
     def destroy(self):
         self.sectors.destroy()

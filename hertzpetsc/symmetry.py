@@ -1,22 +1,20 @@
 """The symmetries of a travelling wave on a periodic chain, and the smaller problems they reduce it to (section 3.5).
 
-The wave x_n(t) = u(q n - omega t) with q = 2 pi m / N on N beads has two symmetries that the paper's F_q = S R(T; 0)
-(T = script-T) does not use:
+The wave x_n(t) = u_c(q n - omega t) (c = n mod p, p the mass pattern's length; p = 1 is the paper's chain) with
+q = 2 pi m / N on N beads is counted in pattern cells: N / p cells, per-cell wavenumber p q, m wavelengths. The map
+F_q = S R(script-T; 0) (S: the shift by one cell, script-T = p q / omega) leaves two symmetries unused:
 
-* **space**: with g = gcd(m, N) it repeats every M = N / g beads, so F_q commutes with the shift by M beads and
-  splits into g Bloch sectors theta_l = 2 pi l / g of the M-bead cell (:mod:`hertzpetsc.bloch`);
-* **time**: on the cell the wave has m' = m / g wavelengths with gcd(m', M) = 1. With k the inverse of m' modulo M
-  (k m' = 1 + j M), the wave is invariant under the shift by k beads combined with the time delta = T / m':
-  x_{n+k}(t + delta) = x_n(t), because q k - omega delta = 2 pi (k m' - 1) / M = 2 pi j. So the map
-  G_theta = S_theta^k R_theta(delta; 0) (the k-bead shift on the twisted cell, y_{n+M} = e^{i theta} y_n) has
-  G_theta^{m'} = S_theta^{k m'} R_theta(T; 0) = e^{i j theta} F_theta, and
+* **space**: with g = gcd(m, N / p) the wave repeats every M = N / g beads (M / p cells), so F_q commutes with the
+  shift by M beads and splits into g Bloch sectors theta_l = 2 pi l / g of the M-bead cell (:mod:`hertzpetsc.bloch`);
+* **time**: on the cell the wave has m' = m / g wavelengths, coprime with its M / p cells. With k m' = 1 + j M / p,
+  x_{n+kp}(t + delta) = x_n(t) for delta = script-T / m' (p q k - omega delta = 2 pi j). So G_theta =
+  S_theta^k R_theta(delta; 0) on the twisted cell (y_{n+M} = e^{i theta} y_n) has G_theta^{m'} = e^{i j theta} F_theta:
 
-      spec(F_q on N beads) = union over l of { e^{-i j theta_l} mu^{m'} : mu in spec(G_theta_l) }.
+      spec(F_q on N beads) = union over l of { e^{-i j theta_l} mu^{m'} : mu in spec(G_theta_l) },
 
-A multiplier of F_q therefore costs an integration over T / m' of 2M tangent columns on M beads instead of T with 2N
-columns on N beads: about m times less work. The refinement uses the same map: a travelling wave is a fixed point of
-X0 -> S^k X(delta; X0) on the cell, which also enforces the wave's exact periodicity in time (a fixed point of the
-paper's map over T may drift along the near-degenerate directions that move the m compression zones apart).
+at about 1 / m of the work of F_q on the N beads. A travelling wave is a fixed point of X0 -> S^k X(delta; X0) on the
+cell, which also enforces its exact periodicity in time (a fixed point of the paper's map over script-T may drift
+along the near-degenerate directions that move the m compression zones apart).
 """
 import math
 from dataclasses import dataclass
@@ -26,39 +24,44 @@ from .errors import ParameterError
 
 @dataclass(frozen=True)
 class WaveSymmetry:
-    """m wavelengths on N beads: the cell (M = N / g beads, m_cell = m / g wavelengths), the bead shift k and the
-    time fraction 1 / m_cell of the short map, and j = (k m_cell - 1) / M."""
+    """m wavelengths on N beads of a lattice whose mass pattern has p beads: the cell (M = N / g beads, m_cell = m / g
+    wavelengths), the shift k (in pattern cells) and the time fraction 1 / m_cell of the short map, and
+    j = (k m_cell - 1) / (M / p)."""
 
     N: int
     m: int
+    p: int = 1
 
     def __post_init__(self):
+        if not (isinstance(self.p, int) and self.p >= 1 and self.N % self.p == 0):
+            raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length p = {self.p}")
         if not (1 <= self.m <= self.N):
             raise ParameterError("m", self.m, f"the number of wavelengths must lie in [1, N] = [1, {self.N}]")
 
     @property
     def g(self):
-        return math.gcd(self.m, self.N)
+        return math.gcd(self.m, self.N // self.p)
 
     @property
     def M(self):
-        """Beads of the cell."""
+        """Beads of the cell (a whole number of pattern cells)."""
         return self.N // self.g
 
     @property
     def m_cell(self):
-        """Wavelengths on the cell (coprime with M)."""
+        """Wavelengths on the cell (coprime with its M / p pattern cells)."""
         return self.m // self.g
 
     @property
     def k(self):
-        """The bead shift of the short map: k m_cell = 1 (mod M), 0 < k <= M."""
-        return pow(self.m_cell, -1, self.M) if self.M > 1 else 1
+        """The shift of the short map in pattern cells: k m_cell = 1 (mod M / p), 0 < k <= M / p."""
+        cells = self.M // self.p
+        return pow(self.m_cell, -1, cells) if cells > 1 else 1
 
     @property
     def j(self):
-        """(k m_cell - 1) / M: G^{m_cell} = S^{1 + j M} R(T) = e^{i j theta} F in the sector theta."""
-        return (self.k * self.m_cell - 1) // self.M
+        """(k m_cell - 1) / (M / p): G^{m_cell} = S^{1 + j M / p} R(script-T) = e^{i j theta} F in the sector theta."""
+        return (self.k * self.m_cell - 1) // (self.M // self.p)
 
     def delta(self, T):
         """The time of the short map, script-T / m_cell."""
@@ -74,3 +77,8 @@ class WaveSymmetry:
         real = sum(1 for th in self.sectors() if th in (0.0, math.pi))
         complex_ = len(self.sectors()) - real
         return (real + 2 * complex_) * (self.M / self.N) ** 2 / self.m_cell
+
+
+def real_sector(theta):
+    """theta = 0 or pi (mod 2 pi): the twist e^{i theta} = +-1 is real (real tangents, real pencils suffice)."""
+    return abs(math.sin(theta)) < 1e-14

@@ -6,11 +6,18 @@ with 2(1+k) dof per bead), so that R(T; 0) Y0 comes out with the same adaptive s
 :meth:`TangentFlow.monodromy_mod_shift` assembles S R(T; 0) densely (k = 2N columns, for N up to a few hundred);
 :class:`MonodromyModShift` is the same map as a matrix-free ``Mat.createPython`` operator (one product = one
 integration with k = 1) for SLEPc.
+
+:class:`CellPropagator`: for an orbit that repeats every M beads, the flow of the infinite chain in three cell
+blocks, from one run on three cells; every Bloch sector's map of the cell follows from them (section 3.5).
 """
+import math
+
 import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
+from .errors import HertzPetscError
+from .model import ChainSpec
 
 
 def stack_tangents(x, Y):
@@ -28,15 +35,16 @@ def split_tangents(z, k):
 
 
 class TangentFlow:
-    """Flow and tangent-linear flow of a chain over [0, T], with k tangent vectors at a time; its TS has the
-    options prefix of the role it serves (``shoot_`` for the refinement, ``floquet_`` for the spectra)."""
+    """Flow and tangent-linear flow of a chain over [0, T], with k >= 0 tangent vectors at a time; its TS has the
+    options prefix of the role it serves (``shoot_`` for the refinement, ``floquet_`` for the spectra, ``cwin_`` for
+    the compacton window, whose ``chain`` class is its gap-lattice chain) and the Runge-Kutta pair ``rk_type``."""
 
-    def __init__(self, spec, n_tangent, comm, tolerances, prefix):
+    def __init__(self, spec, n_tangent, comm, tolerances, prefix, chain=Chain, rk_type="8vr"):
         self.spec = spec
         self.k = int(n_tangent)
-        self.aug = Chain(spec, comm, n_tangent=self.k)
+        self.aug = chain(spec, comm, n_tangent=self.k)
         self.base = Chain(spec, comm)                  # same N and comm: same ownership ranges
-        self.integrator = ChainIntegrator(self.aug, tolerances, prefix)
+        self.integrator = ChainIntegrator(self.aug, tolerances, prefix, rk_type)
         self.Z = self.aug.create_state()
 
     def set_spec(self, spec):
@@ -46,15 +54,22 @@ class TangentFlow:
         self.base.set_spec(spec)
         self.spec = spec
 
-    def run(self, x0, T, Y0):
-        """Integrate from the state ``x0`` (N, 2) and tangent columns ``Y0`` (N, 2, k), both given on every rank.
+    def run(self, x0, T, Y0, monitor=None):
+        """Integrate from the state ``x0`` (N, 2) and tangent columns ``Y0`` (N, 2, k), both given on every rank;
+        ``monitor(chain, X)`` is called at every step.
 
         Returns (X(T) as (N, 2), R(T; 0) Y0 as (N, 2, k)) on every rank.
         """
-        N, k = self.spec.N, self.k
+        N, k, ts = self.spec.N, self.k, self.integrator.ts
         self.aug.set_from_array(self.Z, stack_tangents(np.asarray(x0, float).reshape(N, 2),
                                                        np.asarray(Y0, float).reshape(N, 2, k)))
-        self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)
+        if monitor is not None:
+            ts.setMonitor(lambda ts, i, t, X: monitor(self.aug, X))
+        try:
+            self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)
+        finally:
+            if monitor is not None:
+                ts.cancelMonitor()
         return split_tangents(self.aug.gather(self.Z), k)
 
     def resolvent(self, x0, T):
@@ -87,26 +102,75 @@ class MonodromyModShift:
     the plain monodromy R(T; 0), e.g. of a driven chain, which has no shift symmetry).
 
     Each product integrates the chain and one tangent vector over [0, T] (the orbit is recomputed, which keeps
-    memory at O(N)); ``products`` counts them.
+    memory at O(N)); :meth:`apply` takes a block of vectors through one integration. ``products`` counts the
+    vectors, ``integrations`` the TS runs.
     """
 
     def __init__(self, spec, x0, T, comm, tolerances, prefix, shift=1):
+        self.spec, self.comm, self.tolerances, self.prefix = spec, comm, tolerances, prefix
+        if shift not in (0, 1):
+            raise ParameterError("shift", shift, "must be 1 (F = S R, a travelling wave) or 0 (R, a driven chain)")
         self.shift = int(shift)
         self.flow = TangentFlow(spec, 1, comm, tolerances, prefix)
-        base = self.flow.base
-        self.x0_local = np.asarray(x0, dtype=float).reshape(spec.N, 2)[base.xs:base.xe].copy()
-        self.T = float(T)
-        self.products = 0
-        self._RY = base.create_state()
+        self.products = self.integrations = 0
+        self._RY = self.flow.base.create_state()
+        self._blocks = {}
+        self.set_orbit(x0, T)
+
+    def set_spec(self, spec):
+        """Move the operator to another chain of the same layout (:meth:`TangentFlow.set_spec`)."""
+        self.spec = spec
+        self.flow.set_spec(spec)
+        for flow in self._blocks.values():
+            flow.set_spec(spec)
 
     def set_orbit(self, x0, T):
         """Move the operator to another orbit of the same chain (the next wavenumber of a scan)."""
         base = self.flow.base
-        self.x0_local = np.asarray(x0, dtype=float).reshape(self.flow.spec.N, 2)[base.xs:base.xe].copy()
+        self.x0 = np.asarray(x0, dtype=float).reshape(self.spec.N, 2).copy()
+        self.x0_local = self.x0[base.xs:base.xe].copy()
         self.T = float(T)
 
+    def apply(self, Y):
+        """F Y for k vectors at once, ``Y`` (N, 2, k) given on every rank: one integration of the orbit with the k
+        tangent columns (instead of k integrations of the orbit with one); (N, 2, k) on every rank.
+
+        On several ranks, with at least as many vectors as ranks, the vectors are dealt to the ranks and each rank
+        integrates the whole chain with its share (no communication per stage: the ranks do not wait for each
+        other 13 times a step); an error on one rank is raised on every rank."""
+        Y = np.asarray(Y, dtype=float)
+        k, size = Y.shape[2], self.comm.getSize()
+        self.products += k
+        self.integrations += 1
+        if size == 1 or k < size:
+            return self._integrate(Y, self.comm)
+        rank = self.comm.getRank()
+        mine = list(range(rank, k, size))
+        try:
+            share, failure = self._integrate(Y[:, :, mine], PETSc.COMM_SELF), None
+        except HertzPetscError as err:
+            share, failure = None, (type(err), err.args)
+        parts = self.comm.tompi4py().allgather((mine, share, failure))
+        for _, _, failed in parts:
+            if failed is not None:
+                err = failed[0].__new__(failed[0])
+                err.args = failed[1]
+                raise err
+        FY = np.empty_like(Y)
+        for cols, part, _ in parts:
+            FY[:, :, cols] = part
+        return FY
+
+    def _integrate(self, Y, comm):
+        """S^shift R(T; 0) Y by one TangentFlow on ``comm`` (built once per column count and communicator)."""
+        key = (Y.shape[2], comm.getSize())
+        if key not in self._blocks:
+            self._blocks[key] = TangentFlow(self.spec, Y.shape[2], comm, self.tolerances, self.prefix)
+        _, RY = self._blocks[key].run(self.x0, self.T, Y)
+        return np.roll(RY, -self.spec.model.cell, axis=0) if self.shift else RY
+
     def mult(self, mat, x, y):
-        """y = S R(T; 0) x, all in the chain's distributed layout (no gathering)."""
+        """y = S^shift R(T; 0) x, all in the chain's distributed layout (no gathering)."""
         flow, base = self.flow, self.flow.base
         z = flow.Z.getArray().reshape(base.nloc, 4)
         z[:, :2] = self.x0_local
@@ -118,6 +182,7 @@ class MonodromyModShift:
         else:
             y.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
         self.products += 1
+        self.integrations += 1
 
     def create_mat(self):
         """The PETSc shell matrix (2N x 2N, the chain's layout)."""
@@ -134,3 +199,76 @@ class MonodromyModShift:
             self._RY.destroy()
             self.flow.destroy()
             self.flow = None
+            for flow in self._blocks.values():
+                flow.destroy()
+            self._blocks = {}
+
+
+# The cell propagator is used when the response in the halves of the neighbouring cells away from cell 0 is below this
+# fraction of the largest response: the blocks it neglects (two cells away) are smaller still, far below the flows'
+# rtol (>= 1e-14).
+LOCAL_RESPONSE = 1e-15
+
+
+class CellPropagator:
+    """The tangent flow over [0, T] of an orbit that repeats every M beads, as three cell blocks of the infinite
+    chain: P_l (2M x 2M, index 2n + c), the response in cell l = -1, 0, 1 to data in cell 0.
+
+    On the cell with the twisted boundary y_{n+M} = e^{i theta} y_n (a Bloch sector, :mod:`hertzpetsc.bloch`) the
+    data in cell l are e^{i l theta} times those in cell 0, so the twisted resolvent is
+
+        R_theta(T; 0) = P_0 + e^{-i theta} P_1 + e^{i theta} P_{-1}       (:meth:`twisted`),
+
+    exactly when the response two cells away vanishes: in time T a perturbation has to cross a whole cell of M
+    beads, and the lattice's coupling makes that decay faster than exponentially in M (out of contact, Hertz bonds
+    carry none at all). One run of 2M real columns on 3M periodic beads (the columns: the unit vectors of cell 0)
+    gives the three blocks, instead of one run of 2M complex columns per sector; :attr:`local` says whether the
+    response stayed within reach (:meth:`reaches`: the halves of cells +-1 away from cell 0 saw less than
+    :data:`LOCAL_RESPONSE` of the largest response). The TS has the prefix of the role (``floquet_``).
+    """
+
+    def __init__(self, model, M, comm, tolerances, prefix):
+        self.M = int(M)
+        self.flow = TangentFlow(ChainSpec(model, 3 * self.M), 2 * self.M, comm, tolerances, prefix)
+        self.probe = TangentFlow(ChainSpec(model, 3 * self.M), 4, comm, tolerances, prefix)
+        self.blocks = None
+        self.local = False
+
+    def _far(self, RY):
+        """The largest response in the halves of cells 1 and -1 away from cell 0 (RY: (3M, 2, columns))."""
+        M, h = self.M, self.M // 2
+        return float(max(np.max(np.abs(RY[M + h:2 * M])), np.max(np.abs(RY[2 * M:3 * M - h]))))
+
+    def reaches(self, x0, T):
+        """The relative response in the far halves of the neighbouring cells to data on the two beads at the edges
+        of cell 0 (4 columns: the beads nearest to those halves), a cheap test before :meth:`run`."""
+        M = self.M
+        Y = np.zeros((3 * M, 2, 4))
+        for j, (bead, c) in enumerate(((0, 0), (0, 1), (M - 1, 0), (M - 1, 1))):
+            Y[bead, c, j] = 1.0
+        _, RY = self.probe.run(np.tile(np.asarray(x0, float), (3, 1)), T, Y)
+        return self._far(RY) / max(1.0, float(np.max(np.abs(RY))))
+
+    def run(self, x0, T):
+        """Compute P_{-1}, P_0, P_1 around the orbit from the M-bead state ``x0`` (M, 2) over T (given on every
+        rank); sets :attr:`local`. Returns self."""
+        M = self.M
+        Y = np.zeros((3 * M, 2, 2 * M))
+        Y[:M] = np.eye(2 * M).reshape(M, 2, 2 * M)
+        _, RY = self.flow.run(np.tile(np.asarray(x0, float), (3, 1)), T, Y)
+        R = RY.reshape(6 * M, 2 * M)
+        self.blocks = (R[4 * M:], R[:2 * M], R[2 * M:4 * M])          # P_{-1}, P_0, P_1
+        self.local = self._far(RY) <= LOCAL_RESPONSE * float(np.max(np.abs(R)))
+        return self
+
+    def twisted(self, theta):
+        """R_theta(T; 0) of the twisted cell (2M x 2M; real for theta = 0, pi)."""
+        Pm, P0, P1 = self.blocks
+        if abs(math.sin(theta)) < 1e-14:
+            c = 1.0 if math.cos(theta) > 0 else -1.0
+            return P0 + c * (P1 + Pm)
+        return P0 + np.exp(-1j * theta) * P1 + np.exp(1j * theta) * Pm
+
+    def destroy(self):
+        self.flow.destroy()
+        self.probe.destroy()

@@ -22,6 +22,7 @@ from petsc4py import PETSc
 from .assembly import StencilGather
 from .branch import SolveStats
 from .errors import ConvergenceError, ParameterError
+from .options import inserted_options
 
 TW_PREFIX = "tw_"
 
@@ -111,10 +112,10 @@ class SecondDifferencePC:
     def setUp(self, pc):
         pass
 
-    def apply(self, pc, x, y):
-        out = y.getArray()
+    def solve_local(self, x, out):
+        """out = D2^{-1} x on the owned rows (numpy arrays; collective on several ranks)."""
         if self.nloc:
-            self.rhs.getArray()[:] = x.getArray(readonly=True)
+            self.rhs.getArray()[:] = x
             self.ksp.solve(self.rhs, self.sol)
             out[:] = self.sol.getArray(readonly=True)
         if self.mpi is None:
@@ -132,9 +133,72 @@ class SecondDifferencePC:
         x_prev, x_next = self.interface_inverse[r] @ b, self.interface_inverse[p + r] @ b
         out -= x_prev * self.spikes[0] + x_next * self.spikes[1]
 
+    def apply(self, pc, x, y):
+        self.solve_local(x.getArray(readonly=True), y.getArray())
+
     def destroy(self, pc=None):
         for obj in (self.ksp, self.block, self.rhs, self.sol):
             obj.destroy()
+
+
+class PeriodicSecondDifferencePC:
+    """The inner solve of ``-tw_solver nk`` for whole-period profiles (no symmetry): (D2 - I)^{-1} with the
+    periodic second difference (singular alone: the constants), factored once by PETSc (LU on one rank, MUMPS on
+    several). The shift stands for the bounded V'' part of the Jacobian on the lowest modes; GMRES corrects the
+    rest, and the gauge border removes the constants and translations."""
+
+    def __init__(self, grid, shift=1.0):
+        d2 = StencilGather(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2)},
+                           scatter=False)
+        from .assembly import RowAssembler
+        diag = np.arange(grid.rstart, grid.rend, dtype=np.int64)[:, None]
+        asm = RowAssembler(grid, [d2.cols["d2"], diag])
+        self.A = asm.create([d2.coef["d2"], np.full((grid.rend - grid.rstart, 1), -float(shift))])
+        d2.destroy()
+        self.ksp = PETSc.KSP().create(comm=grid.comm)
+        self.ksp.setOperators(self.A)
+        self.ksp.setType(PETSc.KSP.Type.PREONLY)
+        pc = self.ksp.getPC()
+        pc.setType(PETSc.PC.Type.LU)
+        if grid.comm.getSize() > 1:
+            pc.setFactorSolverType("mumps")
+        self.ksp.setUp()
+        self.x, self.y = self.A.createVecs()
+
+    def solve_local(self, x, out):
+        self.x.getArray()[:] = x
+        self.ksp.solve(self.x, self.y)
+        out[:] = self.y.getArray(readonly=True)
+
+    def destroy(self, pc=None):
+        for obj in (self.ksp, self.A, self.x, self.y):
+            obj.destroy()
+
+
+class BlockSecondDifferencePC:
+    """The preconditioner of ``-tw_solver nk`` for p profiles and border scalars (a mass pattern, the
+    fixed-amplitude form, a free continuation parameter): (m_c lam D2)^{-1} on each profile's rows (``scales`` =
+    m_c lam, set at every Jacobian evaluation) and the identity on the scalars. The border is a low-rank change,
+    which GMRES absorbs in a few iterations."""
+
+    def __init__(self, inner, p, nloc):
+        self.inner, self.p, self.nloc = inner, p, nloc
+        self.scales = [1.0] * p
+
+    def setUp(self, pc):
+        pass
+
+    def apply(self, pc, x, y):
+        xa, ya = x.getArray(readonly=True), y.getArray()
+        n = self.nloc
+        for c in range(self.p):
+            self.inner.solve_local(xa[c * n:(c + 1) * n], ya[c * n:(c + 1) * n])
+            if self.scales[c] != 1.0:
+                ya[c * n:(c + 1) * n] /= self.scales[c]
+        ya[self.p * n:] = xa[self.p * n:]
+
+    def destroy(self, pc=None):
+        self.inner.destroy()
 
 
 def default_tolerances(grid, u_scale):
@@ -179,36 +243,33 @@ def tw_solver(prefix=TW_PREFIX, solver=None):
     return solver
 
 
-def _set_linear_defaults(snes, solver, grid, stencils):
-    """The code defaults of the linear solves (before the options database is read)."""
+def _set_linear_defaults(snes, solver, grid, stencils, blocks=None):
+    """The code defaults of the linear solves (before the options database is read). ``blocks`` = (p, nloc): a
+    layout of p profiles and border scalars (the nk preconditioner is then :class:`BlockSecondDifferencePC`; LU is
+    MUMPS, whose pivoting handles the zero diagonal of the border rows, also on one rank)."""
     ksp = snes.getKSP()
     pc = ksp.getPC()
     if solver == "direct":
         ksp.setType(PETSc.KSP.Type.PREONLY)
         pc.setType(PETSc.PC.Type.LU)
-        if grid.comm.getSize() > 1:
+        if grid.comm.getSize() > 1 or blocks is not None:
             pc.setFactorSolverType("mumps")
-    else:
-        ksp.setType(PETSc.KSP.Type.GMRES)
-        ksp.setTolerances(rtol=NK_KSP_RTOL)
-        pc.setType(PETSc.PC.Type.PYTHON)
-        pc.setPythonContext(SecondDifferencePC(grid, stencils))
+        return None
+    ksp.setType(PETSc.KSP.Type.GMRES)
+    ksp.setTolerances(rtol=NK_KSP_RTOL)
+    pc.setType(PETSc.PC.Type.PYTHON)
+    context = PeriodicSecondDifferencePC(grid) if grid.parity == 0 else SecondDifferencePC(grid, stencils)
+    if blocks is not None:
+        context = BlockSecondDifferencePC(context, *blocks)
+    pc.setPythonContext(context)
+    return context
 
 
 def _set_from_options(snes, prefix):
     """snes.setFromOptions(), with :data:`QN_DEFAULTS` inserted for the call only (where the user set none)."""
-    opts = PETSc.Options()
-    inserted = []
-    if opts.getString(prefix + "snes_type", "") == "qn":
-        for key, value in QN_DEFAULTS.items():
-            if not opts.hasName(prefix + key):
-                opts.setValue(prefix + key, value)
-                inserted.append(prefix + key)
-    try:
+    defaults = QN_DEFAULTS if PETSc.Options().getString(prefix + "snes_type", "") == "qn" else {}
+    with inserted_options(prefix, defaults):
         snes.setFromOptions()
-    finally:
-        for key in inserted:
-            opts.delValue(key)
 
 
 def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None, solver=None):
@@ -237,27 +298,36 @@ class TravellingWaveSolver:
     """One SNES for eqs. ad-pbc, kept across the solves of a continuation on one grid.
 
     The SNES, its KSP/PC (for 'nk' the factored second difference) and work vectors are built, and the options
-    database under ``prefix`` read, once; each :meth:`solve` hands SNES the problem at the new q and a Jacobian
-    with that q's pattern. ``solver`` as in :func:`create_snes`. Tolerances given to :meth:`solve` (by default
-    :func:`default_tolerances`) apply unless the user set -<prefix>snes_rtol/atol/stol/max_it.
+    database under ``prefix`` read, once; each :meth:`solve` hands SNES the problem at its current parameters and
+    a Jacobian with that q's pattern. ``solver`` as in :func:`create_snes`. ``layout``: the
+    :class:`~hertzpetsc.advdelay.AdvanceDelayProblem` whose X (or, ``extended``, Z) Vecs are solved for, when they
+    are not the grid's own (a mass pattern, the fixed-amplitude form, a free parameter). Tolerances given to
+    :meth:`solve` (by default from the round-off floor of the discrete equations) apply unless the user set
+    -<prefix>snes_rtol/atol/stol/max_it. Every solve takes at least one Newton iteration.
     """
 
     _TOLERANCE_OPTIONS = dict(rtol="snes_rtol", atol="snes_atol", stol="snes_stol", max_it="snes_max_it")
 
-    def __init__(self, grid, prefix=TW_PREFIX, solver=None):
+    def __init__(self, grid, prefix=TW_PREFIX, solver=None, layout=None, extended=False):
         self.grid, self.prefix = grid, prefix
         self.solver = tw_solver(prefix, solver)
         self.problem = None
         self.snes = PETSc.SNES().create(comm=grid.comm)
         self.snes.setOptionsPrefix(prefix)
         self.snes.setType(PETSc.SNES.Type.NEWTONLS)
-        self.F = grid.create_vec()
+        self.snes.setForceIteration(True)
+        plain = layout is None or (layout.simple and not extended)
+        if plain:
+            self.F = grid.create_vec()
+        else:
+            self.F = layout.create_vec() if extended else layout.create_state()
         self.snes.setFunction(self._function, self.F)
         d2 = None
         if self.solver == "nk":
             d2 = StencilGather(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2)},
                                scatter=False)
-        _set_linear_defaults(self.snes, self.solver, grid, d2)
+        self.pc_context = _set_linear_defaults(self.snes, self.solver, grid, d2,
+                                               None if plain else (layout.p, layout.nloc))
         if d2 is not None:
             d2.destroy()
         _set_from_options(self.snes, prefix)
@@ -275,18 +345,24 @@ class TravellingWaveSolver:
     def _jacobian(self, snes, X, J, P):
         self.problem.formJacobian(snes, X, J, P)
 
+    def _tolerances(self, problem, u):
+        if getattr(problem, "simple", True) and u.getSize() == self.grid.size and getattr(problem, "lam", 1.0) == 1.0:
+            return default_tolerances(self.grid, u.norm(PETSc.NormType.NORM_INFINITY))
+        tol = default_tolerances(self.grid, problem.tolerance_scale(u))
+        tol["atol"] *= math.sqrt(u.getSize() / self.grid.size)
+        return tol
+
     @PETSc.Log.EventDecorator("hz_tw_solve")
     def solve(self, problem, u, tolerances=None):
-        """Solve eqs. ad-pbc at ``problem.q`` from the initial guess ``u`` (overwritten by the solution).
-
-        Raises :class:`ConvergenceError` with the converged reason and q if SNES fails.
-        """
+        """Solve eqs. ad-pbc at the problem's parameters from the initial guess ``u`` (overwritten by the
+        solution). Raises :class:`ConvergenceError` with the converged reason and q if SNES fails."""
         t0 = time.perf_counter()
         if tolerances is None:
-            tolerances = default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))
+            tolerances = self._tolerances(problem, u)
         self.snes.setTolerances(**{k: v for k, v in tolerances.items() if k not in self._user_set})
         J = problem.create_jacobian(u, self.jacobian_kind)
         self.problem = problem
+        problem.preconditioner = self.pc_context if isinstance(self.pc_context, BlockSecondDifferencePC) else None
         self.snes.setJacobian(self._jacobian, J, J)
         try:
             self.snes.solve(None, u)
@@ -299,12 +375,15 @@ class TravellingWaveSolver:
             self.problem = None
             J.destroy()        # SNES keeps its reference until the next solve
         what = "travelling-wave SNES (prefix -%s)" % self.prefix
+        where = dict(q=problem.q)
+        if getattr(problem, "parameter", "q") != "q":
+            where[problem.parameter] = problem.get_parameter(problem.parameter)
         if result.reason <= 0:
-            raise ConvergenceError(what, result.reason, q=problem.q)
-        accept = ACCEPT_FACTOR * default_tolerances(problem.grid, u.norm(PETSc.NormType.NORM_INFINITY))["atol"]
+            raise ConvergenceError(what, result.reason, **where)
+        accept = ACCEPT_FACTOR * self._tolerances(problem, u)["atol"]
         if not result.residual_norm <= accept:
             raise ConvergenceError(what, f"{result.reason}, but residual {result.residual_norm:.3g} > {accept:.3g}",
-                                   q=problem.q)
+                                   **where)
         return result
 
     def destroy(self):

@@ -1,22 +1,25 @@
-"""Travelling waves of eq. ad put on a chain (eq. twper): orbits x_n(t) = a u(q n - a^((alpha-1)/2) t), a = 1/||u||.
+"""Travelling waves of eq. ad put on a chain (eq. twper): orbits x_n(t) = s u_c(q n - omega t), c = n mod p, for any
+mass pattern of p beads (the paper's chain: p = 1, s = 1/||u||, omega = s^((alpha-1)/2)).
 
 On a periodic chain of N beads the wavenumber must be q = 2 pi m / N (m integer), so that x_{n+N} = x_n. Bead
-positions q n are generally not grid points of the branch profile: u and u' there come from the degree-5
-Lagrange interpolant of the profile (:func:`hertzpetsc.stencil.lagrange_periodic`), whose error is below the
-profile's own O(h^2) discretisation error.
+positions q n are generally not grid points of the profiles: u_c and u_c' there come from the degree-5 Lagrange
+interpolant (:func:`hertzpetsc.stencil.lagrange_periodic`), whose error is below the profiles' own O(h^2)
+discretisation error.
 
-An :class:`Orbit` is what the chain-side analyses take: the chain, the initial state, the wavenumber and the time
-script-T after which S X(script-T) = X(0) (eq. invv), and where the state came from (the interpolated branch
-profile, or a Gauss-Newton refinement of it).
+An :class:`Orbit` is what the chain-side analyses take: the chain, the initial state, the wavenumber, script-T with
+S X(script-T) = X(0) (eq. invv), and the state's source (the branch profile, or its refinement).
 """
 import math
 from dataclasses import dataclass, replace
+from typing import Optional
 
 import numpy as np
 
 from .errors import ParameterError
+from .diagnostics import sup_norm
 from .model import ChainSpec
-from .stencil import lagrange_periodic
+from .stencil import full_period, lagrange_periodic
+from .symmetry import WaveSymmetry
 
 
 @dataclass(frozen=True)
@@ -26,19 +29,19 @@ class Orbit:
     spec: ChainSpec
     q: float
     m: int                # wavelengths on the chain, q = 2 pi m / N
-    T: float              # script-T = q / omega
+    T: float              # script-T = p q / omega (p the mass pattern's length)
     x: np.ndarray         # (N, 2) initial state
-    omega: float          # frequency a^((alpha-1)/2)
+    omega: float          # frequency (the paper's chain: a^((alpha-1)/2))
     source: str = "branch"
-
-    @property
-    def period(self):
-        """Time period tau(q) = 2 pi / omega = (N/m) script-T of every bead (section 3.5)."""
-        return 2 * math.pi / self.omega
 
     @property
     def N(self):
         return self.spec.N
+
+    @property
+    def symmetry(self):
+        """The wave's :class:`~hertzpetsc.symmetry.WaveSymmetry` (cell, short map, Bloch sectors)."""
+        return WaveSymmetry(self.N, self.m, self.spec.model.cell)
 
     def with_state(self, x, source):
         """The same wave with another initial state (e.g. the refined one)."""
@@ -47,7 +50,7 @@ class Orbit:
             raise ParameterError("state", x.shape, f"must have shape (N, 2) = ({self.N}, 2)")
         return replace(self, x=x, source=source)
 
-    def tiled(self, L):
+    def tiled(self, L: int) -> "Orbit":
         """The wave on L times as many beads (the state repeated: the same script-T, m times L)."""
         return Orbit(self.spec.with_length(L * self.N), self.q, self.m * L, self.T, np.tile(self.x, (L, 1)),
                      self.omega, self.source)
@@ -73,19 +76,40 @@ def check_chain_wavenumber(q, N):
     return int(round(m))
 
 
-def orbit_on_chain(point, spec, phase=0.0, time=0.0):
-    """The travelling wave of branch point ``point`` on the periodic chain ``spec`` at ``time``:
-    x_n = a u(q n - omega t + phase), a = 1 / ||u||_inf (the paper's normalisation, section 3.4)."""
+def orbit_on_chain(point: "BranchPoint", spec: ChainSpec, phase: float = 0.0, time: float = 0.0,
+                   scale: Optional[float] = None) -> Orbit:
+    """The travelling wave of ``point`` (a :class:`~hertzpetsc.branch.BranchPoint`: p profiles u_c, frequency omega)
+    on the periodic chain ``spec`` at ``time``: x_n = s u_c(q n - s^((d-1)/2) omega t + phase), c = n mod p, with
+    script-T = p q / (s^((d-1)/2) omega), the time after which the shift by one cell (p beads) maps the state back.
+
+    ``scale`` s uses the law's exact scaling (degree d, :mod:`hertzpetsc.law`): the chain's law must be the point's
+    rescaled by 1/s. Default: the paper's normalisation s = 1 / max_c ||u_c||_inf (section 3.4) when the law is
+    scale-invariant (eq. ad fixes the shape only), else 1 (the wave as stored). Positions and velocities at q n
+    come from the degree-5 Lagrange interpolant of the profiles (error below their O(h^2) discretisation error)."""
     if spec.boundary != "periodic":
         raise ParameterError("boundary", spec.boundary, "a travelling wave modulo shifts needs a periodic chain")
-    if spec.model != point.model:
-        raise ParameterError("model", spec.model.describe(), f"differs from the branch's {point.model.describe()}")
-    q = point.q
+    model, q, p = point.model, point.q, point.model.cell
+    if scale is None:
+        scale = 1.0 / max(sup_norm(u) for u in point.profiles) if model.rescaled(2.0) == model else 1.0
+    seen = model if scale == 1.0 else model.rescaled(1.0 / scale)
+    if not same_lattice(spec.model, seen):
+        raise ParameterError("model", spec.model.describe(), f"differs from the wave's {seen.describe()} (scale "
+                                                             f"{scale:.6g})")
     m = check_chain_wavenumber(q, spec.N)
-    a = 1.0 / point.diagnostics.norm_inf
-    omega = a ** ((point.model.alpha - 1) / 2)
-    u_full = point.u_full
-    xi = np.mod(q * np.arange(spec.N) - omega * time + phase, 2 * math.pi)
-    x = a * lagrange_periodic(u_full, point.h, xi)
-    v = -a * omega * lagrange_periodic(u_full, point.h, xi, derivative=True)
-    return Orbit(spec=spec, q=q, m=m, T=q / omega, x=np.stack([x, v], axis=1), omega=omega, source="branch")
+    omega = scale ** ((model.law.scale_degree - 1) / 2) * point.omega
+    n = np.arange(spec.N)
+    xi = np.mod(q * n - omega * time + phase, 2 * math.pi)
+    x = np.empty((spec.N, 2))
+    for c, u in enumerate(point.profiles):       # odd half profiles on [0, pi], or whole periods of 2 pi / h values
+        u, beads = np.asarray(u, dtype=float), n % p == c
+        full = u if len(u) == round(2 * math.pi / point.h) else full_period(u)
+        x[beads, 0] = scale * lagrange_periodic(full, point.h, xi[beads])
+        x[beads, 1] = -scale * omega * lagrange_periodic(full, point.h, xi[beads], derivative=True)
+    return Orbit(spec=spec, q=q, m=m, T=p * q / omega, x=x, omega=omega, source="branch")
+
+
+def same_lattice(a, b, rtol=1e-12):
+    """The same masses and damping, and laws whose parameters agree to ``rtol`` (a rescaled law is rounded)."""
+    da, db = a.describe(), b.describe()
+    return type(a.law) is type(b.law) and da.keys() == db.keys() and all(
+        np.allclose(da[k], db[k], rtol=rtol, atol=0.0) for k in da)

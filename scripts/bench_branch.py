@@ -2,7 +2,7 @@
 """Benchmark: the full branch q = pi -> pi/50 (alpha = 3/2), hertzpetsc on 1 and 2 ranks against a plain SciPy
 implementation of the same discretisation (scipy.sparse Newton with spsolve), in the same run.
 
-    python scripts/bench_branch.py [-cells 1000,50000] [-repeats 3] [-direct_repeats 1]
+    python scripts/bench_branch.py [-cells 1000,50000] [-repeats 3] [-direct_repeats 1] [-previous DIR]
                                    [-output results/bench_branch.md] [-scipy_timeout 600] [-tw_... options]
 
 hertzpetsc runs both linear-solver paths: -tw_solver direct (LU; MUMPS on 2 ranks) and -tw_solver nk
@@ -11,6 +11,8 @@ per rank; the SciPy route keeps the library defaults. Each measurement runs in i
 mpiexec); wall time is that of the branch computation (imports excluded), best of -repeats; peak memory is each
 process's maximum resident set size (per rank for hertzpetsc). Other -tw_* options go to the hertzpetsc runs
 (e.g. -tw_pc_type lu). -records FILE keeps the measurements as they are taken (-resume continues).
+-previous DIR: also run the same branch with the hertzpetsc of another checkout (e.g. the previous release:
+``git worktree add DIR <commit>``) in the same run, for the side-by-side gate of a change of the solver stack.
 Measure on an otherwise idle machine: two ranks share the machine's two cores.
 """
 import math
@@ -122,13 +124,22 @@ def main():
     scipy_timeout = opts.integer("scipy_timeout", 600, "seconds before a SciPy run is given up", minimum=1)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
     M = opts.integer("M", 50, "targets q = m pi / M", minimum=1)
+    previous = opts.path("previous", "", "a checkout of another release, measured side by side (none if empty)")
     output, repeats, records_path, mode = declare_common(opts, "results/bench_branch.md")
     opts.done()
+    from hertzpetsc.resources import check_memory
+    for K in cells:                          # refused before any worker is started
+        check_memory(K, PETSc.COMM_WORLD, name="cells")
+    if previous and not os.path.isfile(os.path.join(previous, "hertzpetsc", "__init__.py")):
+        from hertzpetsc.errors import ParameterError
+        raise ParameterError("-previous", previous, "must be a checkout holding hertzpetsc/ (e.g. a git worktree)")
     extra = [w for k, v in PETSc.Options().getAll().items() if k.startswith("tw_")
              for w in ([f"-{k}"] + ([v] if v not in (None, "") else []))]
     opts.check_unused(passed_on=("tw_",))
     me = os.path.abspath(__file__)
-    rec = BenchRecords(records_path, "hertzpetsc-bench-branch-1", dict(alpha=alpha, M=M, extra=extra), mode)
+    rec = BenchRecords(records_path, "hertzpetsc-bench-branch-1", dict(alpha=alpha, M=M, extra=extra,
+                                                                       **({"previous": previous} if previous else {})),
+                       mode)
     lines = [f"Full branch q = pi -> pi/{M}, alpha = {alpha}: wall time of the computation, peak resident memory "
              f"per process; {machine(repeats)}.\n",
              "| h | unknowns | route | ranks | wall (s) | Newton its | Krylov its | peak MB/rank | SciPy / this | "
@@ -144,6 +155,11 @@ def main():
                 res = rec.measure(f"{K} {solver} {ranks}", lambda: best_of(reps, me, "petsc", req, ranks, 3600,
                                                                            ["-tw_solver", solver, *extra]))
                 rows.append((f"hertzpetsc {solver}", ranks, res))
+                if previous:
+                    res = rec.measure(f"{K} {solver} {ranks} previous",
+                                      lambda: best_of(reps, me, "petsc", req, ranks, 3600,
+                                                      ["-tw_solver", solver, *extra], package=previous))
+                    rows.append((f"previous release {solver}", ranks, res))
         for name, ranks, res in rows:
             if res is None:
                 lines.append(f"| pi/{K} | {K - 1} | {name} | {ranks} | > {scipy_timeout} (not finished) | | | | | |")
@@ -152,7 +168,7 @@ def main():
             diff = abs(res["norm_inf_last"] - sci["norm_inf_last"]) / sci["norm_inf_last"] if sci else float("nan")
             lines.append(f"| pi/{K} | {K - 1} | {name} | {ranks} | {res['wall']:.2f} | {res['newton']} | "
                          f"{res.get('krylov', '')} | {max(res['rss_mb']):.0f} | {ratio} | {diff:.1e} |")
-        print("\n".join(lines[-5:]), flush=True)
+        print("\n".join(lines[-len(rows):]), flush=True)
     lines.append(f"\nload average at the end {os.getloadavg()[0]:.2f}")
     write_report(output, lines)
 

@@ -57,13 +57,14 @@ def petsc_worker(branch_path, N, refine_only, petsc_args):
     from petsc4py import PETSc
 
     from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
-    from hertzpetsc.shooting import refine
+    from hertzpetsc.shooting import Refiner
     w = initial(branch_path, N)
     comm = MPI.COMM_WORLD
     if refine_only:
         comm.Barrier()
         t0 = time.perf_counter()
-        res = refine(w, PETSc.COMM_WORLD)
+        with Refiner(w.spec, PETSc.COMM_WORLD) as refiner:
+            res = refiner.refine(w)
         emit(comm, wall=time.perf_counter() - t0, steps=res.iterations, rhs=res.jacobians, E=res.E)
         return
     chain = Chain(w.spec, PETSc.COMM_WORLD)
@@ -99,6 +100,11 @@ def main():
     refine_N = opts.integer("refine_N", 100, "chain of the refinement measurement (0: none)", minimum=0)
     output, repeats, records_path, mode = declare_common(opts, "results/bench_chain.md")
     opts.done()
+    from petsc4py import PETSc
+
+    from hertzpetsc.resources import check_chain_memory
+    for N in sizes:                          # refused before any worker is started (the SciPy route's arrays too)
+        check_chain_memory(N, PETSc.COMM_WORLD, name="sizes")
     opts.check_unused()
     initial(branch, sizes[0])                                # the workers' input, checked before any worker runs
     me = os.path.abspath(__file__)

@@ -164,7 +164,9 @@ def worker(name, req, petsc_args):
 def main():
     from hertzpetsc.options import AppOptions
     opts = AppOptions(__doc__)
-    N = opts.integer("N", 20, "beads of the swept chain", minimum=1)
+    from hertzpetsc.resources import MAX_DENSE_BEADS, check_chain_memory
+    N = opts.integer("N", 20, "beads of the swept chain (dense Jacobian and multipliers)", minimum=1,
+                     maximum=MAX_DENSE_BEADS)
     points = opts.integer("points", 200, "frequencies of the sweep", minimum=2)
     omega0 = opts.real("omega0", 0.3, "first frequency", valid=(lambda x: x > 0, "> 0"))
     omega1 = opts.real("omega1", 2.3, "last frequency", valid=(lambda x: x > 0, "> 0"))
@@ -179,6 +181,11 @@ def main():
     output, repeats, records_path, mode = declare_common(opts, "results/bench_driven.md", repeats=1)
     opts.done()
     opts.check_unused()
+    if not opts.help:                    # before any worker starts: the sweep's tangent flow, the long chain's state
+        from petsc4py import PETSc
+        check_chain_memory(N, PETSc.COMM_WORLD, columns=2 + 2 * N, name="N")
+        if "long" in workloads and long_N:
+            check_chain_memory(long_N, PETSc.COMM_WORLD, columns=3, name="long_N")
     me = os.path.abspath(__file__)
     sweep = dict(N=N, points=points, omega0=omega0, omega1=omega1, delta0=delta0, gamma=gamma, amplitude=amplitude,
                  run_in=run_in)

@@ -4,7 +4,7 @@
 hertzpetsc's routes, 1 and 2 ranks: the Bloch route for long chains (hertzpetsc.bloch: all 2N multipliers from
 the g//2 + 1 Bloch sectors of the wave's cell of N/g beads, g = gcd(m, N), each over the wave's shortest time
 symmetry script-T/m' (hertzpetsc.symmetry), then the residuals of the 10 dominant modes on the full chain,
-matrix-free), the same followed by SLEPc Krylov-Schur on the full-chain shell started from the Bloch modes, plain
+matrix-free, all shell products in one integration of the orbit), the same followed by SLEPc Krylov-Schur on the full-chain shell started from the Bloch modes, plain
 SLEPc Krylov-Schur on the shell (N = 100 only: at N = 1000 it did not converge, > 1100 products), and the dense
 route (S R from 2N tangent vectors in one TS, then LAPACK; N = 100 only); against the dense route a SciPy user
 would take (assemble the 2N x 2N matrix S R(script-T; 0) column by column with solve_ivp DOP853 on the
@@ -81,9 +81,10 @@ def petsc_worker(name, branch_path, refined_path, N, petsc_args):
     from mpi4py import MPI
     from petsc4py import PETSc
 
-    from hertzpetsc.bloch import bloch_multipliers, bloch_residuals, real_pairs, seeded_dominant_multipliers
+    from hertzpetsc.bloch import bloch_residuals, real_pairs, seeded_dominant_multipliers
     from hertzpetsc.chain import IntegrationTolerances
-    from hertzpetsc.floquet import dense_monodromy, dense_multipliers, dominant_multipliers, spectral_radius
+    from hertzpetsc.bloch import SymmetricFloquet
+    from hertzpetsc.floquet import DenseFloquet, DominantFloquet
     cell = cell_orbit(branch_path, refined_path)
     L = N // 100
     full = cell.tiled(L)
@@ -93,20 +94,22 @@ def petsc_worker(name, branch_path, refined_path, N, petsc_args):
     comm.Barrier()
     t0 = time.perf_counter()
     if name in ("bloch", "bloch_slepc"):
-        b = bloch_multipliers(cell, N, PETSc.COMM_WORLD, tol, n_modes=10)
+        with SymmetricFloquet(cell.spec.model, PETSc.COMM_WORLD, tol, n_modes=10) as fast:
+            b = fast.spectrum(full)
         if name == "bloch_slepc":
             res = seeded_dominant_multipliers(full, b, 10, PETSc.COMM_WORLD, tol)
-            out = dict(rho=float(abs(res.values[0])), products=res.products, residual=None)
+            out = dict(rho=float(abs(res.multipliers[0])), products=res.work["products"], residual=None)
         else:
-            r, products = bloch_residuals(full, real_pairs(b.modes, L), PETSc.COMM_WORLD, tol)
-            out = dict(rho=float(abs(b.values[0])), products=products, residual=float(np.max(r)))
-        out.update(runs=b.runs, columns=b.columns)
+            r, products = bloch_residuals(full, real_pairs(b.modes, b.L), PETSc.COMM_WORLD, tol)
+            out = dict(rho=float(abs(b.multipliers[0])), products=products, residual=float(np.max(r)))
+        out.update(runs=b.work["runs"], columns=b.work["columns"], propagated=b.work["propagated"])
     elif name == "petsc_dense":
-        out = dict(rho=spectral_radius(dense_multipliers(dense_monodromy(full, PETSc.COMM_WORLD, tol))),
-                   products=2 * N)
+        with DenseFloquet(full.spec, PETSc.COMM_WORLD, tol) as dense:
+            out = dict(rho=dense.spectrum(full).rho, products=2 * N)
     else:
-        res = dominant_multipliers(full, 10, PETSc.COMM_WORLD, tol)
-        out = dict(rho=float(abs(res.values[0])), products=res.products)
+        with DominantFloquet(full.spec, PETSc.COMM_WORLD, 10, tol) as dominant:
+            res = dominant.spectrum(full)
+        out = dict(rho=float(abs(res.multipliers[0])), products=res.work["products"])
     emit(comm, wall=time.perf_counter() - t0, **out)
 
 
@@ -134,8 +137,11 @@ def main():
     rec = BenchRecords(records_path, "hertzpetsc-bench-floquet-1", dict(branch=branch, refined=refined), mode)
     lines = [f"10 dominant multipliers of F_q, q = 9pi/50, rtol {RTOL:g}; {machine(repeats)}. Bloch: g//2 + 1 "
              "sector runs of the wave's cell (g = gcd(m, N) = N/100 here: 200 complex tangent columns each, over "
-             "script-T/9, the wave's time symmetry), then on the full chain either the residuals of the dominant "
-             "modes (products = shell products over script-T, max relative residual in brackets) or seeded SLEPc "
+             "script-T/9, the wave's time symmetry), or, where two or more sectors are complex, every sector from "
+             "one run of the cell's 200 real columns on three cells (the cell propagator, hertzpetsc.tangent), then "
+             "on the full chain either the residuals of the dominant "
+             "modes (products = shell products over script-T, all in one integration, max relative residual in "
+             "brackets) or seeded SLEPc "
              "(products = shell products).\n",
              "| N | route | ranks | wall (s) | operator products (columns) | rho(F_q) | peak MB/rank | SciPy / this |",
              "|---|---|---|---|---|---|---|---|"]
@@ -164,6 +170,8 @@ def main():
             prod = str(res["products"])
             if res.get("runs"):
                 prod = f"{res['runs']} x {res['columns'] // res['runs']} + {res['products']}"
+                if res.get("propagated"):
+                    prod = f"{res['runs']} sectors from 1 x 200 on 3 cells + {res['products']}"
                 if res.get("residual") is not None:
                     prod += f" (residual {res['residual']:.0e})"
             lines.append(f"| {N} | {label} | {ranks} | {res['wall']:.1f} | {prod} | {res['rho']:.6f} | "

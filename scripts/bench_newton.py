@@ -75,6 +75,9 @@ def main():
     timeout = opts.integer("timeout", 1800, "seconds before a run is given up", minimum=1)
     output, repeats, records_path, mode = declare_common(opts, "results/bench_newton.md", repeats=2)
     opts.done()
+    from hertzpetsc.resources import check_memory
+    for K in cells:                          # refused before any worker is started
+        check_memory(K, PETSc.COMM_WORLD, name="cells")
     extra = [w for k, v in PETSc.Options().getAll().items() if k.startswith("tw_")
              for w in ([f"-{k}"] + ([v] if v not in (None, "") else []))]
     opts.check_unused(passed_on=("tw_",))

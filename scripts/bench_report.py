@@ -165,7 +165,7 @@ def main():
 
 
 if __name__ == "__main__":
-    import petsc4py
-    petsc4py.init(sys.argv)
+    from hertzpetsc.start import init_petsc
+    init_petsc(sys.argv)
     from hertzpetsc.options import guarded_main
     guarded_main(main)

@@ -6,9 +6,11 @@ Floquet multipliers modulo shifts) at every branch q = 2 pi m / N of the N = 100
   vectorised system, Gauss-Newton steps by numpy.linalg.lstsq, a fresh F_q at the refined state, numpy eigvals;
 * hertzpetsc's default routes (refine_branch.py -method symmetric, then floquet_scan.py -method symmetric: each
   wave on its cell of N/gcd(m,N) beads over its shortest time symmetry, the q dealt to the ranks), 1 and 2 ranks;
-* hertzpetsc's paper routes (-method full, then -method dense: the whole chain over script-T), 1 and 2 ranks.
+* hertzpetsc's paper routes (-method full, then -method dense: the whole chain over script-T), 1 and 2 ranks;
+* hertzpetsc's symmetric routes with the numpy right-hand side instead of the compiled one (-<prefix>rhs_compiled 0
+  for every flow: the same arithmetic, so the same numbers), 1 rank: what the compiled kernel gains.
 
-    python scripts/bench_stability.py [-N 100] [-routes scipy,symmetric,paper] [-repeats 1]
+    python scripts/bench_stability.py [-N 100] [-routes scipy,symmetric,paper,numpy] [-repeats 1]
                                       [-output results/bench_stability.md] [-records FILE [-resume]]
 
 Every route starts from the same branch waves (results/branch_alpha1.5.npz interpolated onto the chain) and
@@ -28,7 +30,9 @@ import time
 from benchlib import BenchRecords, best_of, declare_common, emit, machine, main_or_worker, write_report
 
 RTOL_SCIPY, ATOL_SCIPY = 2.3e-14, 1e-16      # DOP853's tightest rtol (100 eps) against hertzpetsc's rtol 1e-14
-ROUTES = ("scipy", "symmetric", "paper")
+ROUTES = ("scipy", "symmetric", "paper", "numpy")
+# the flows of the scan (refinement, its Jacobian, Floquet sectors, E with the paper's flow): the numpy route's options
+NUMPY_RHS = [arg for prefix in ("shoot_", "shoot_jac_", "floquet_", "chain_") for arg in (f"-{prefix}rhs_compiled", "0")]
 
 
 def initial_waves(branch_path, N, path):
@@ -132,13 +136,14 @@ def petsc_worker(name, req, petsc_args):
     comm.tompi4py().Barrier()
     t0 = time.perf_counter()
     branch = Branch.load(req["branch"], comm)
+    symmetric = name in ("symmetric", "numpy")
     refinement = RefinementScan(branch, req["branch"], N, comm, f"{work}/refined.npz", "force", tol=tol,
-                                symmetric=name == "symmetric")
+                                symmetric=symmetric)
     refined = list(refinement.run())
     comm.tompi4py().Barrier()
     t1 = time.perf_counter()
     scan = FloquetScan(branch, N, comm, f"{work}/floquet.npz", "force", RefinedStates.load(f"{work}/refined.npz",
-                       comm), method="symmetric" if name == "symmetric" else "dense")
+                       comm), method="symmetric" if symmetric else "dense")
     rows = list(scan.run())
     scan.destroy()
     comm.tompi4py().Barrier()
@@ -161,9 +166,10 @@ def main():
     import numpy as np
 
     from hertzpetsc.options import AppOptions
+    from hertzpetsc.resources import MAX_DENSE_BEADS
     opts = AppOptions(__doc__)
     branch = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
-    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3)
+    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3, maximum=MAX_DENSE_BEADS)
     tol = opts.real("tol", 1e-10, "target E(q) of every refinement", valid=(lambda x: x > 0, "> 0"))
     routes = opts.words("routes", ",".join(ROUTES), "routes to run", choices=ROUTES)
     output, repeats, records_path, mode = declare_common(opts, "results/bench_stability.md", repeats=1)
@@ -180,11 +186,14 @@ def main():
     runs = []
     labels = {"scipy": "SciPy (solve_ivp DOP853, state + 2N tangents; lstsq with phase conditions; eigvals)",
               "symmetric": "hertzpetsc, symmetric routes (refine_branch.py, floquet_scan.py defaults)",
-              "paper": "hertzpetsc, paper routes (-method full, -method dense)"}
+              "paper": "hertzpetsc, paper routes (-method full, -method dense)",
+              "numpy": "hertzpetsc, symmetric routes, numpy right-hand side (-*_rhs_compiled 0)"}
     for route in routes:
-        for ranks in ((None,) if route == "scipy" else (1, 2)):
+        for ranks in {"scipy": (None,), "numpy": (1,)}.get(route, (1, 2)):
             key = f"{route} {ranks or 1}"
-            res = rec.measure(key, lambda: best_of(1 if route == "scipy" else repeats, me, route, req, ranks, 7200))
+            args = NUMPY_RHS if route == "numpy" else ()
+            res = rec.measure(key, lambda: best_of(1 if route == "scipy" else repeats, me, route, req, ranks, 7200,
+                                                   args))
             runs.append((route, ranks or 1, res))
             print(key, json.dumps({k: v for k, v in (res or {}).items() if k not in ("rho", "multipliers")}),
                   flush=True)

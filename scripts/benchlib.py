@@ -21,6 +21,7 @@ import time
 import numpy as np
 
 WORKER = "-worker"
+MAX_CHAIN = 10 ** 7          # beads of a benchmark chain (the SciPy routes hold dense blocks of it)
 
 
 def worker_request(argv):
@@ -44,12 +45,15 @@ def emit(comm=None, **fields):
         print(json.dumps(dict(rss_mb=rss, **fields), default=float), flush=True)
 
 
-def launch(script, name, request, ranks=None, timeout=3600, petsc_args=()):
+def launch(script, name, request, ranks=None, timeout=3600, petsc_args=(), package=None):
     """Run one worker (under ``mpiexec -n ranks`` if ranks), return its JSON result, or None if it ran out of
     time. MPI runs get one OpenBLAS/OpenMP thread per rank (idle library threads otherwise spin on the cores the
-    ranks need); serial runs (the SciPy routes) keep the library defaults."""
+    ranks need); serial runs (the SciPy routes) keep the library defaults. ``package``: a checkout whose
+    ``hertzpetsc`` the worker imports instead of this one (another release, measured side by side)."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_ess_singleton_isolated="1", OMPI_MCA_orte_execute_quiet="1")
+    if package:
+        env["PYTHONPATH"] = os.path.abspath(package) + os.pathsep + env.get("PYTHONPATH", "")
     cmd = [sys.executable, script, WORKER, name, json.dumps(request), *map(str, petsc_args)]
     if ranks:
         cmd = ["mpiexec", "-n", str(ranks), *cmd]
@@ -67,11 +71,11 @@ def launch(script, name, request, ranks=None, timeout=3600, petsc_args=()):
     return json.loads(r.stdout.strip().splitlines()[-1])
 
 
-def best_of(repeats, script, name, request, ranks=None, timeout=3600, petsc_args=()):
+def best_of(repeats, script, name, request, ranks=None, timeout=3600, petsc_args=(), package=None):
     """The run with the smallest ``wall`` among ``repeats`` runs (None if one timed out)."""
     runs = []
     for _ in range(repeats):
-        res = launch(script, name, request, ranks, timeout, petsc_args)
+        res = launch(script, name, request, ranks, timeout, petsc_args, package)
         if res is None:
             return None
         runs.append(res)
@@ -115,7 +119,8 @@ def declare_chains(opts, sizes, multiple, why):
     """-branch (the branch file of the waves) and -sizes (chain lengths, multiples of ``multiple``)."""
     branch = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     return branch, opts.numbers("sizes", sizes, f"chain lengths (multiples of {multiple})", expr=False, kind=int,
-                                valid=(lambda N: N >= multiple and N % multiple == 0, f"a multiple of {multiple} ({why})"),
+                                valid=(lambda N: multiple <= N <= MAX_CHAIN and N % multiple == 0,
+                                       f"a multiple of {multiple} ({why}), at most {MAX_CHAIN}"),
                                 distinct=True)
 
 
@@ -125,6 +130,9 @@ def declare_common(opts, output, repeats=3):
     reps = opts.integer("repeats", repeats, "repeats of each hertzpetsc measurement (the best is kept)", minimum=1)
     records = opts.path("records", "", "record file of the measurements, for -resume (none if empty)")
     mode = opts.mode()
+    if not opts.help:                                  # the table is written at the end: know now that it can be
+        from hertzpetsc.records import prepare_output
+        prepare_output(out, None, "benchmark table")
     return out, reps, records, mode
 
 
@@ -143,7 +151,7 @@ def main_or_worker(main, worker):
     if request:
         worker(*request)
         return
-    import petsc4py
-    petsc4py.init(sys.argv)
+    from hertzpetsc.start import init_petsc
+    init_petsc(sys.argv)
     from hertzpetsc.options import guarded_main
     guarded_main(main)

@@ -23,9 +23,9 @@ Solver prefixes: -cdyn_ (the chain TS; its error norm defaults to -cdyn_ts_adapt
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
@@ -33,8 +33,9 @@ from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import load_npz, prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
-from hertzpetsc.studies.compacton_stability import (STABILITY_FORMAT, CompactonDynamics,  # noqa: E402
-                                                    CompactonPairs)
+from hertzpetsc.studies.compacton_dynamics import CompactonDynamics  # noqa: E402
+from hertzpetsc.studies.compacton_pairs import CompactonPairs  # noqa: E402
+from hertzpetsc.studies.compacton_stability import STABILITY_FORMAT  # noqa: E402
 
 ROLES = {"cdyn_": ("the long free chain's TS", ("ts",)), "cwin_": ("the window flows", ("ts",))}
 
@@ -70,9 +71,9 @@ def main():
                       valid=(lambda q: q >= 0, ">= 0"), distinct=True)
     if opts.flag("no_dynamics", "only the two-compacton test"):
         qs = []
-    N = opts.integer("N", 2100, "beads of the free chain", minimum=10)
+    N = opts.integer("N", 2100, "beads of the free chain", minimum=10, maximum=10 ** 7)
     n0 = opts.integer("n0", 50, "first bead of the compacton's window", minimum=1)
-    travel = opts.integer("travel", 1000, "units of time = beads of travel", minimum=10)
+    travel = opts.integer("travel", 1000, "units of time = beads of travel", minimum=10, maximum=10 ** 7)
     amplitude = opts.real("amplitude", 1e-8, "size of the perturbation (relative)", valid=(lambda x: x > 0, "> 0"))
     kinds = opts.words("kinds", "mode,noise", "perturbations", choices=("mode", "noise"))
     output, mode, table, figures = opts.record_table_figures(

@@ -17,9 +17,9 @@ Solver prefix: -chain_ (TS; default RK 8(7), rtol 1e-12, atol 1e-14).
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
@@ -37,7 +37,7 @@ def main():
     theta = opts.real("theta", 2.0, "phase between the two compactons")
     c = opts.real("c", 1.0, "velocity in beads per unit time", valid=(lambda x: x > 0, "> 0 beads per unit time"))
     margin = opts.integer("margin", 10, "beads at rest behind the train", minimum=2)
-    travel = opts.integer("travel", 100, "beads the whole train travels", minimum=5)
+    travel = opts.integer("travel", 100, "beads the whole train travels", minimum=5, maximum=10 ** 7)
     dt = opts.real("dt_snapshot", 0.05, "time between snapshots", valid=(lambda x: x > 0, "> 0"))
     output, figures = opts.table_and_figures("results/compactons.md", "graphulin.png and the space-time plots")
     opts.done()

@@ -12,9 +12,9 @@ figures). A grid that would not fit in memory is refused up front with an estima
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.qbranch import ContinuationParameters  # noqa: E402

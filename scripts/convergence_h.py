@@ -11,9 +11,9 @@ X_{h/2} + (X_{h/2} - X_h)/3. Solver prefix: -tw_ (travelling-wave SNES).
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.model import LatticeModel  # noqa: E402

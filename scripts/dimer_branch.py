@@ -14,20 +14,18 @@ arclength Newton), -dimer_natural_ (the first natural steps).
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
-from hertzpetsc.precompression import configure_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.precompression import DimerFamilies  # noqa: E402
+from hertzpetsc.studies.precompression import DimerFamilies, DimerParameters  # noqa: E402
 
-ROLES = {"dimer_": ("the pseudo-arclength Newton in epsilon", ("snes",)),
-         "dimer_natural_": ("the natural continuation to the starting waves", ("snes",))}
+ROLES = DimerFamilies.ROLES
 
 
 def main():
@@ -49,10 +47,9 @@ def main():
         check_wavenumber(q, math.pi / K)
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)
-    study = DimerFamilies(LatticeModel.hertz(alpha, delta0=delta0), qs, a, K, comm, output, mode, eps_end,
-                          max_steps, ds, ds_max)
-    configure_options(comm, "dimer_")
-    configure_options(comm, "dimer_natural_")
+    study = DimerFamilies(DimerParameters(LatticeModel.hertz(alpha, delta0=delta0), qs, a, K, eps_end, max_steps, ds,
+                                          ds_max), comm, output, mode)
+    study.configure()
     opts.check_unused()
     study.open()
     print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, a = {a:g}, h = pi/{K}")

@@ -25,6 +25,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.studies.driven import WaveEnds  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
@@ -40,7 +41,8 @@ def main():
                       "wavenumbers (refined in the file)", valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"),
                       distinct=True)
     sizes = opts.numbers("sizes", "10,20,40", "beads of the driven chains", expr=False, kind=int,
-                         valid=(lambda n: n >= 1, ">= 1"), distinct=True)
+                         valid=(lambda n: 1 <= n <= MAX_DENSE_BEADS, f"in [1, {MAX_DENSE_BEADS}] (dense multipliers)"),
+                         distinct=True)
     rtols = opts.numbers("rtols", "1e-12,1e-14", "flow tolerances (atol = rtol/100)", expr=False,
                          valid=(lambda r: 0 < r < 1, "in (0, 1)"))
     samples = opts.integer("samples", 8192, "least number of points of the sampled wave profile", minimum=64)

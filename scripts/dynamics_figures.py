@@ -14,9 +14,9 @@ import json
 import os
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 
 import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402

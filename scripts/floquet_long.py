@@ -19,9 +19,9 @@ Solver prefix: -floquet_ (TS of the variational equations -floquet_ts_*, the see
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 import slepc4py  # noqa: E402
 
 slepc4py.init(sys.argv)
@@ -30,7 +30,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_output, write_text  # noqa: E402
+from hertzpetsc.records import on_rank0, prepare_output, write_text  # noqa: E402
 from hertzpetsc.studies.floquet import BlochScan, floquet_reference, q_label  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
@@ -43,7 +43,7 @@ def main():
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     refined_path = opts.path("refined", "results/refined_N100.npz", "refinement file of the cell")
     sizes = opts.numbers("sizes", "1000,10000", "chain lengths N (multiples of the cell)", expr=False, kind=int,
-                         valid=(lambda n: n > 0, "> 0"), distinct=True)
+                         valid=(lambda n: 0 < n <= 10 ** 7, "in [1, 1e7]"), distinct=True)
     qs = opts.numbers("q", "7*pi/25,9*pi/50,pi/50,3*pi/10", "wavenumbers (refined on the cell)",
                       valid=(lambda q: q > 0, "> 0"), distinct=True)
     nev = opts.integer("nev", 10, "dominant multipliers checked on the full chain", minimum=1)
@@ -52,7 +52,7 @@ def main():
                                valid=(lambda n: n > 0, "> 0"), minimum_count=0)
     split = opts.string("split", "sectors", "sectors dealt to ranks, or each sector over all ranks",
                         choices=("sectors", "beads"))
-    reference = opts.path("reference", "results/floquet_N100.npz", "Floquet scan quoted for rho(N = 100)")
+    reference = opts.path("reference", "results/floquet_N100.npz", "Floquet scan quoted for rho(N = 100), or 'none'")
     output = opts.path("output", "results/floquet_long.md", "table")
     npz = opts.path("npz", "results/floquet_long.npz", "Bloch records (record store)")
     mode = opts.mode()
@@ -61,7 +61,8 @@ def main():
     prepare_output(output, comm)
     refined = RefinedStates.load(refined_path, comm)
     scan = BlochScan(Branch.load(branch_path, comm), refined, sizes, qs, comm, npz, mode, nev, tol_rho, slepc_sizes, split,
-                     IntegrationTolerances(), floquet_reference(reference))
+                     IntegrationTolerances(), on_rank0(comm, floquet_reference, reference, what="cannot read -reference")
+                     if reference != "none" else {})
     opts.check_unused()
     scan.open()
     print0(f"# cell M = {scan.M}, ranks {comm.getSize()}, split {split}, nev {nev}")

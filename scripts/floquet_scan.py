@@ -22,15 +22,16 @@ Solver prefix: -floquet_ (the flow of the variational equations -floquet_ts_*, t
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 import slepc4py  # noqa: E402
 
 slepc4py.init(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
+from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.floquet import METHODS, FloquetScan  # noqa: E402
@@ -44,7 +45,7 @@ ROLES = {"floquet_": ("Floquet spectra: the variational flow and the eigensolver
 def main():
     opts = AppOptions(__doc__, ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
-    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3)
+    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3, maximum=MAX_DENSE_BEADS)
     refined_path = opts.path("refined", f"results/refined_N{N}.npz", "refinement file, or 'none' for the "
                              "unrefined branch waves")
     qs = opts.numbers("q", "", "wavenumbers (default: every refined q)", valid=(lambda q: q > 0, "> 0"),

@@ -9,7 +9,8 @@
 #
 # Set-up is idempotent and needs only Debian's archive and PyPI: Debian's PETSc/SLEPc/MPI packages (a PETSc
 # source build is far too slow), a venv made from the system interpreter that sees them, a .pth file that
-# points it at petsc4py/slepc4py (no PETSC_DIR needed), and an offline editable install of hertzpetsc.
+# points it at petsc4py/slepc4py (no PETSC_DIR needed), an offline editable install of hertzpetsc, and the chain's
+# compiled right-hand side (gcc; hertzpetsc/kernels.py).
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -17,7 +18,7 @@ VENV=${HZ_VENV:-$ROOT/.venv}
 PY=$VENV/bin/python
 NRANKS=${HZ_NRANKS:-2}
 DEB_PACKAGES="python3-petsc4py python3-slepc4py python3-mpi4py python3-numpy python3-matplotlib python3-pytest \
-python3-scipy python3-venv python3-pip python3-setuptools openmpi-bin time"
+python3-scipy python3-venv python3-pip python3-setuptools python3-h5py-mpi openmpi-bin time gcc libc6-dev"
 
 # Open MPI refuses to run as root unless told; two ranks on two cores need no oversubscription, more do.
 # A process started without mpiexec initialises MPI alone (no daemon: no host name lookup, which takes seconds
@@ -72,7 +73,13 @@ need_venv() {
         || { log "the PETSc/SLEPc/MPI stack does not import in $VENV"; exit 1; }
 }
 
-setup() { need_debian_packages; need_venv; }
+# The compiled right-hand side of the chain (hertzpetsc/_chain_kernel.c, linked against Debian's libpetsc): built
+# when missing or older than its source.
+need_kernels() {
+    "$PY" -m hertzpetsc.kernels >/dev/null || { log "could not build the chain kernel (gcc, libc6-dev)"; exit 1; }
+}
+
+setup() { need_debian_packages; need_venv; need_kernels; }
 
 cmd=${1:-}
 [ $# -gt 0 ] && shift
@@ -98,7 +105,7 @@ case "$cmd" in
     run)
         setup
         cd "$ROOT"
-        "$@" ;;
+        PATH="$VENV/bin:$PATH" "$@" ;;     # the venv's python first: `run scripts/x.py` and `run python ...` use it
     *)
         echo "usage: bash scripts/hz.sh {main|paper|test|setup|run CMD...}" >&2
         exit 2 ;;

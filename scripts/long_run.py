@@ -17,9 +17,9 @@ import json
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
@@ -35,8 +35,8 @@ def main():
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     q = opts.real("q", 3 * math.pi / 10, "wavenumber (a branch point with N q / (2 pi) integer)", expr=True,
                   valid=(lambda x: x > 0, "> 0"))
-    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3)
-    t_final = opts.real("t_final", 100.0, "final time", valid=(lambda t: t > 0, "> 0"))
+    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3, maximum=10 ** 8)
+    t_final = opts.real("t_final", 100.0, "final time", valid=(lambda t: 0 < t <= 1e9, "in (0, 1e9]"))
     per_T = opts.integer("snapshots_per_T", 4, "snapshots per script-T", minimum=1)
     output = opts.path("output", "runs/run", "run directory")
     refined_path = opts.path("refined", "", "refinement file with the refined state at q (none if empty)")

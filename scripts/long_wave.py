@@ -12,9 +12,9 @@ composite over the period) at the smallest q of the branch. Solver prefix: -sol_
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
@@ -26,7 +26,8 @@ from hertzpetsc.studies.longwave import LongWaveStudy  # noqa: E402
 def main():
     opts = AppOptions(__doc__, {"sol_": ("solitary-wave SNES", ("snes",))})
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
-    n = opts.integer("cells_per_unit", 160, "grid of the solitary wave (delta = 1/n, even)", minimum=2)
+    n = opts.integer("cells_per_unit", 160, "grid of the solitary wave (delta = 1/n, even)", minimum=2,
+                     maximum=10 ** 5)
     window = opts.real("window", 0.1, "half-width of the window around pi", valid=(lambda x: 0 < x < math.pi,
                                                                                   "in (0, pi)"))
     output, figures = opts.table_and_figures("results/long_wave.md", "approxz.png and approx.png")

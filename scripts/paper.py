@@ -13,9 +13,9 @@ import os
 import sys
 import time
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.studies.paper import PaperPipeline, paper_steps  # noqa: E402

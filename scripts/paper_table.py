@@ -9,9 +9,9 @@ table and writes it to -output; exits 1 if a number disagrees with the paper.
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.diagnostics import crossing  # noqa: E402

@@ -15,20 +15,19 @@ Figure: precompressed_omega.png. Solver prefix: -precomp_ (the bordered Newton: 
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
 from hertzpetsc.hertz import check_delta0  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
-from hertzpetsc.precompression import configure_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.precompression import AmplitudeFamilies  # noqa: E402
+from hertzpetsc.studies.precompression import AmplitudeFamilies, AmplitudeParameters  # noqa: E402
 
-ROLES = {"precomp_": ("the bordered Newton solve of each precompressed wave", ("snes",))}
+ROLES = AmplitudeFamilies.ROLES
 
 
 def main():
@@ -49,8 +48,8 @@ def main():
     comm = PETSc.COMM_WORLD
     model = LatticeModel.hertz(alpha, delta0=check_delta0(delta0))
     prepare_outputs(comm, table_path, figures=figures)
-    study = AmplitudeFamilies(model, qs, K, comm, output, mode, a_min, a_max, ds)
-    configure_options(comm)
+    study = AmplitudeFamilies(AmplitudeParameters(model, qs, K, a_min, a_max, ds), comm, output, mode)
+    study.configure()
     opts.check_unused()
     study.open()
     print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, h = pi/{K}, a in [{a_min:g}, {a_max:g}], ds = {ds:g}")

@@ -18,20 +18,18 @@ rho - 1 per (q, a) (U: unstable, rho - 1 > tol_rho). Figure: precompression_map.
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
-from hertzpetsc.precompression import configure_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.precompression import StabilityMap  # noqa: E402
+from hertzpetsc.studies.precompression import MapParameters, StabilityMap  # noqa: E402
 
-ROLES = {"floquet_": ("the flow of the variational equations", ("ts",)),
-         "precomp_": ("the bordered Newton solve of each precompressed wave", ("snes",))}
+ROLES = StabilityMap.ROLES
 
 
 def main():
@@ -56,9 +54,9 @@ def main():
     prepare_outputs(comm, table_path, figures=figures)
     qs = [2 * math.pi * m / N for m in ms]
     masses = (1.0,) if epsilon == 1.0 else (1.0, epsilon)
-    study = StabilityMap(LatticeModel.hertz(alpha, masses, delta0), qs, amps, N, K, comm, output, mode,
-                         IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho)
-    configure_options(comm)
+    study = StabilityMap(MapParameters(LatticeModel.hertz(alpha, masses, delta0), qs, amps, N, K,
+                                       IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho), comm, output, mode)
+    study.configure()
     opts.check_unused()
     study.open()
     print0(f"# N = {N}, alpha = {alpha:g}, delta0 = {delta0:g}, h = pi/{K} and pi/{2 * K}, rtol {rtol:g}")

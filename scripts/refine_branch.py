@@ -18,12 +18,13 @@ for E: -chain_ts_*).
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
+from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates, RefinementScan  # noqa: E402
@@ -36,7 +37,7 @@ ROLES = {"shoot_": ("refinement: its flows and Gauss-Newton (-shoot_gn_max_it 20
 def main():
     opts = AppOptions(__doc__, ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
-    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3)
+    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3, maximum=MAX_DENSE_BEADS)
     tol = opts.real("tol", 1e-10, "target E(q) of the refinement", valid=(lambda x: x > 0, "> 0"))
     qs = opts.numbers("q", "", "wavenumbers to refine (default: every branch q with N q / (2 pi) integer)",
                       valid=(lambda q: q > 0, "> 0"), distinct=True, minimum_count=0)

@@ -24,9 +24,9 @@ Solver prefixes: -cm_ (the co-moving PEP: -cm_pep_*, -cm_st_*), -tw_ (profiles o
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 import slepc4py  # noqa: E402
 
 slepc4py.init(sys.argv)
@@ -35,6 +35,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
+from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import on_rank0, prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
@@ -52,7 +53,8 @@ ROLES = {"cm_": ("the co-moving quadratic eigenproblem", ("pep",)),
 def main():
     opts = AppOptions(__doc__, ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
-    N = opts.integer("N", 100, "beads of the periodic chain of the monodromy route", minimum=3)
+    N = opts.integer("N", 100, "beads of the periodic chain of the monodromy route", minimum=3,
+                     maximum=MAX_DENSE_BEADS)
     refined_path = opts.path("refined", "none", "refinement file to start the refinement from, or 'none' (branch wave)")
     q_min = opts.real("q_min", 0.9, "smallest branch q scanned (without -q)", expr=True,
                       valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"))
@@ -92,6 +94,9 @@ def main():
         if not fits_chain(q, N):
             raise ParameterError("-convergence_q", q, f"must list chain wavenumbers 2 pi m / N, N = {N}")
     refined = None if refined_path == "none" else RefinedStates.load(refined_path, comm)
+    # the validation's reference is read now: a missing one is an error before any computation, not a table of nan
+    reference_rho = (on_rank0(comm, floquet_reference, reference, what="cannot read -reference")
+                     if validate and reference != "none" else None)
     scan = SlowInstabilityScan(branch, branch_path, N, comm, output, mode, qs, refined, grids, n_theta, n_twist,
                                refine_tol, IntegrationTolerances(rtol=rtol, atol=rtol / 100), target, theta_lw)
     opts.check_unused()
@@ -113,8 +118,7 @@ def main():
         text += "\n" + convergence_table(rows)
     if validate and reference != "none":
         print0("# validation of the co-moving route at q = " + ", ".join(f"{q:.5f}" for q in validate))
-        rows = on_rank0(comm, comoving_validation, branch, validate, N, floquet_reference(reference),
-                        what="co-moving validation")
+        rows = on_rank0(comm, comoving_validation, branch, validate, N, reference_rho, what="co-moving validation")
         text += "\n" + validation_table(rows, N)
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:

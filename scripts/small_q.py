@@ -17,9 +17,9 @@ import math
 import os
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 import numpy as np  # noqa: E402

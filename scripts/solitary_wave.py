@@ -11,9 +11,9 @@ first alpha on the finest grid. Solver prefix: -sol_ (the solitary-wave SNES, e.
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
@@ -26,10 +26,11 @@ def main():
     alphas = opts.numbers("alphas", "1.5,2,2.5", "Hertz exponents", expr=False, valid=(lambda a: a > 1, "> 1"),
                           distinct=True)
     cells = opts.numbers("cells", "10,20,40,80,160", "grids n (delta = 1/n, even), at least three, all different",
-                         expr=False, kind=int, valid=(lambda n: n >= 2 and n % 2 == 0, "an even integer >= 2"),
+                         expr=False, kind=int, valid=(lambda n: 2 <= n <= 10 ** 5 and n % 2 == 0,
+                                                      "an even integer in [2, 1e5]"),
                          distinct=True, minimum_count=3)
     lengths = opts.numbers("lengths", "5,6,7,8,10", "half-lengths L of the domain study", expr=False,
-                           valid=(lambda L: L >= 3, ">= 3"), distinct=True)
+                           valid=(lambda L: 3 <= L <= 1000, "in [3, 1000]"), distinct=True)
     output, figures = opts.table_and_figures("results/solitary.md", "ondesol.png")
     opts.done()
     comm = PETSc.COMM_WORLD

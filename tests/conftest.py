@@ -27,6 +27,11 @@ def pytest_collection_modifyitems(config, items):
                 item.add_marker(skip)
 
 
+def shared_tmp(tmp_path):
+    """One directory for every rank (rank 0's pytest tmp_path), for files a study writes on one rank and reads on all."""
+    return PETSc.COMM_WORLD.tompi4py().bcast(str(tmp_path), root=0)
+
+
 def script_env():
     # A process that imported petsc4py must hand its environment explicitly to mpiexec children.
     env = dict(os.environ)
@@ -69,6 +74,20 @@ def _branch(alpha, K, M, q_stop, size):
 def small_branch(alpha=1.5, K=200, M=10, q_stop=math.pi / 5):
     """A coarse branch (h = pi/K, q = m pi / M down to q_stop) on one rank, computed once per session."""
     return _branch(alpha, K, M, q_stop, PETSc.COMM_WORLD.getSize())
+
+
+def refine(orbit, comm, tol=1e-10, **kwargs):
+    """One-off Gauss-Newton refinement of ``orbit`` (hertzpetsc.shooting.Refiner)."""
+    from hertzpetsc.shooting import Refiner
+    with Refiner(orbit.spec, comm, tol, **kwargs) as refiner:
+        return refiner.refine(orbit)
+
+
+def dense_monodromy(orbit, comm, tolerances, shift=True, T=None):
+    """One-off dense S R(T; 0) (hertzpetsc.floquet.DenseFloquet)."""
+    from hertzpetsc.floquet import DenseFloquet
+    with DenseFloquet(orbit.spec, comm, tolerances) as dense:
+        return dense.monodromy(orbit, shift, T)
 
 
 def chain(N, alpha=1.5, boundary="periodic"):

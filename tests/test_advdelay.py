@@ -121,10 +121,14 @@ def test_wavenumber_below_grid_step_is_rejected():
         AdvanceDelayProblem(LatticeModel.hertz(1.5), g, 0.1)
 
 
-def test_mass_patterns_are_refused_until_written_for():
+def test_damped_models_and_unknown_parameters_are_refused():
     g = ProfileGrid(10, PETSc.COMM_SELF)
-    with pytest.raises(ParameterError, match="masses"):
-        AdvanceDelayProblem(LatticeModel.hertz(1.5, masses=(1.0, 0.5)), g, 1.0)
+    with pytest.raises(ParameterError, match="damping"):
+        AdvanceDelayProblem(LatticeModel.hertz(1.5, gamma=0.1), g, 1.0)
+    with pytest.raises(ParameterError, match="parameter"):
+        AdvanceDelayProblem(LatticeModel.hertz(1.5), g, 1.0, parameter="epsilon")
+    with pytest.raises(ParameterError, match="parameter"):
+        AdvanceDelayProblem(LatticeModel.hertz(1.5), g, 1.0, parameter="a")
 
 
 @pytest.mark.parametrize("K", [3, 10.5, "many"])

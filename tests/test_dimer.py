@@ -13,7 +13,7 @@ from hertzpetsc.errors import ParameterError
 from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.grid import ProfileGrid
 from hertzpetsc.model import ChainSpec, LatticeModel
-from hertzpetsc.precompression import AmplitudeContinuation, MassContinuation, dimer_frequencies
+from hertzpetsc.families import AmplitudeFamily, MassFamily
 from hertzpetsc.studies.precompression import wave_orbit
 
 COMM = PETSc.COMM_WORLD
@@ -31,17 +31,18 @@ def test_small_amplitude_frequencies(eps, branch):
     symbol on sin xi (4 sin^2(h/2)/h^2 instead of 1; the shift q = 60 h is an integer shift, exact). Measured
     relative differences 1e-12 .. 1e-10: the O(a^2) nonlinear shift."""
     grid = ProfileGrid(200, COMM)
-    cont = AmplitudeContinuation(dimer(eps), Q, grid, branch=branch)
+    cont = AmplitudeFamily(dimer(eps), Q, grid, branch=branch)
     try:
         p = cont.solve_at(1e-5)
     finally:
         cont.destroy()
     symbol = 4 * math.sin(grid.h / 2) ** 2 / grid.h ** 2
-    exact = dimer_frequencies(Q, eps)[0 if branch == "acoustic" else 1]
+    exact = dimer(eps).linear_frequencies(Q)[0 if branch == "acoustic" else 1]
     assert abs(p.omega * math.sqrt(symbol) / exact - 1) < 1e-9
     # the profiles' ratio is the Bloch eigenvector's: v/u = (2K - m_0 omega^2) / (2K cos q), K = V''(0) = 1.5; at
     # xi = pi/2, where the O(a) second harmonic vanishes (it is large near the resonance eps ~ 0.517 at this q)
     ratio = p.profiles[1][100] / p.profiles[0][100]
+    assert max(abs(p.profiles[c][100]) for c in (0, 1)) > 0.5        # normalised on the larger profile
     lam_h = (p.omega * math.sqrt(symbol)) ** 2
     assert ratio == pytest.approx((3.0 - lam_h) / (3.0 * math.cos(Q)), rel=1e-6)
 
@@ -51,7 +52,7 @@ def test_epsilon_one_is_the_monatomic_wave():
     grid = ProfileGrid(100, COMM)
     out = []
     for model in (LatticeModel.hertz(1.5, delta0=1.0), dimer(1.0)):
-        cont = AmplitudeContinuation(model, Q, grid)
+        cont = AmplitudeFamily(model, Q, grid)
         try:
             out.append(list(cont.points([1e-3, 0.1, 0.5, 2.0]))[-1])
         finally:
@@ -66,7 +67,7 @@ def test_mass_continuation_gives_dimer_waves():
     """Each pseudo-arclength point (u, v, lam, epsilon) is the dimer wave at its epsilon: a natural solve at that
     epsilon from the linear wave gives the same omega (solver tolerance)."""
     grid = ProfileGrid(100, COMM)
-    mc = MassContinuation(dimer(1.0), Q, grid, 0.3, ds=0.05)
+    mc = MassFamily(dimer(1.0), Q, grid, 0.3, ds=0.05)
     try:
         mc.start()
         pts = [mc.step() for _ in range(4)]
@@ -75,7 +76,7 @@ def test_mass_continuation_gives_dimer_waves():
     eps = [p.epsilon for p in pts]
     assert np.all(np.diff(eps) < 0) and eps[-1] < 0.9
     for p in (pts[0], pts[-1]):
-        cont = AmplitudeContinuation(dimer(p.epsilon), Q, grid)
+        cont = AmplitudeFamily(dimer(p.epsilon), Q, grid)
         try:
             ref = list(cont.points([1e-3, 0.03, 0.3]))[-1]
         finally:
@@ -89,12 +90,12 @@ def test_dimer_chain_and_floquet_shift_by_one_cell():
     error: sqrt of it) and, at this small amplitude, every multiplier on the unit circle."""
     N, q, eps = 10, 2 * math.pi / 10, 0.5
     model = dimer(eps)
-    cont = AmplitudeContinuation(model, q, ProfileGrid(400, COMM))
+    cont = AmplitudeFamily(model, q, ProfileGrid(400, COMM))
     try:
         p = list(cont.points([1e-3, 0.05]))[-1]
     finally:
         cont.destroy()
-    orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N)
+    orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N, cont.grid.h)
     dense = DenseFloquet(ChainSpec(model, N), COMM, IntegrationTolerances(rtol=1e-11, atol=1e-13))
     try:
         spec = dense.spectrum(orbit)
@@ -106,19 +107,29 @@ def test_dimer_chain_and_floquet_shift_by_one_cell():
 
 def test_bad_dimer_input():
     with pytest.raises(ParameterError, match="masses"):
-        MassContinuation(LatticeModel.hertz(1.5, delta0=1.0), Q, ProfileGrid(20, COMM), 0.5)
+        MassFamily(LatticeModel.hertz(1.5, delta0=1.0), Q, ProfileGrid(20, COMM), 0.5)
     with pytest.raises(ParameterError, match="amplitude"):
-        MassContinuation(dimer(1.0), Q, ProfileGrid(20, COMM), -0.5)
+        MassFamily(dimer(1.0), Q, ProfileGrid(20, COMM), -0.5)
     with pytest.raises(ParameterError, match="multiple"):
         Chain(ChainSpec(dimer(0.5), 7), PETSc.COMM_SELF)
 
 
 @pytest.mark.serial
 def test_dimer_driver(tmp_path):
-    args = ["-cells_per_pi", "60", "-a", "0.3", "-max_steps", "4", "-output", tmp_path / "d.npz", "-table",
-            tmp_path / "d.md", "-figures", str(tmp_path)]
-    r = run_script("dimer_branch.py", *args, timeout=120)
+    """The driver writes the family; a run stopped after 2 steps and resumed with -max_steps 4 continues from its
+    saved state and equals the uninterrupted run bit for bit (one rank: the same arithmetic)."""
+    common = ["-cells_per_pi", "60", "-a", "0.3", "-figures", str(tmp_path)]
+    out = lambda k: ["-output", tmp_path / f"d{k}.npz", "-table", tmp_path / f"d{k}.md"]   # noqa: E731
+    r = run_script("dimer_branch.py", *common, "-max_steps", "4", *out(1), timeout=120)
     assert r.returncode == 0, r.stderr
-    d = np.load(tmp_path / "d.npz")
-    assert str(d["format"]) == "hertzpetsc-dimer-1" and len(d["epsilon"]) == 6 and d["epsilon"][0] == 1.0
-    assert "-epsilon_end" in one_error_line(run_script("dimer_branch.py", "-epsilon_end", "1.5", *args[6:]))
+    d = np.load(tmp_path / "d1.npz")
+    regular = d["event"] == 0
+    assert str(d["format"]) == "hertzpetsc-dimer-2" and regular.sum() == 6 and d["epsilon"][0] == 1.0
+    assert run_script("dimer_branch.py", *common, "-max_steps", "2", *out(2), timeout=120).returncode == 0
+    assert (np.load(tmp_path / "d2.npz")["event"] == 0).sum() == 4
+    r = run_script("dimer_branch.py", *common, "-max_steps", "4", *out(2), "-resume", timeout=120)
+    assert r.returncode == 0, r.stderr
+    d2 = np.load(tmp_path / "d2.npz")
+    for k in ("epsilon", "omega", "norm_v", "arclength", "event"):
+        assert np.array_equal(d[k], d2[k]), k
+    assert "-epsilon_end" in one_error_line(run_script("dimer_branch.py", "-epsilon_end", "1.5", *common, *out(3)))

@@ -9,6 +9,7 @@ processes, on every rank, with no hang and with the files left intact.
 """
 import math
 import os
+import re
 import runpy
 import signal
 import subprocess
@@ -42,8 +43,8 @@ DRIVERS = {
                          "branch", "output", ("-q", "2*pi/5,0"), ("-shoot_ts_type", "bogus")),
     "floquet_scan.py": (("-branch", BRANCH, "-refined", REFINED, "-q", "3*pi/10", "-output", "{t}/f.npz", "-table",
                          "{t}/f.md"), "refined", "output", ("-q", "3*pi/10,3*pi/10"), ("-floquet_ts_type", "bogus")),
-    "floquet_long.py": (("-branch", BRANCH, "-refined", REFINED, "-sizes", 200, "-q", "7*pi/25", "-output",
-                         "{t}/l.md", "-npz", "{t}/l.npz"), "refined", "npz", ("-sizes", 150),
+    "floquet_long.py": (("-branch", BRANCH, "-refined", REFINED, "-reference", FLOQUET, "-sizes", 200, "-q", "7*pi/25",
+                         "-output", "{t}/l.md", "-npz", "{t}/l.npz"), "refined", "npz", ("-sizes", 150),
                         ("-floquet_ts_type", "bogus")),
     "long_run.py": (("-branch", BRANCH, "-q", "3*pi/10", "-t_final", 1, "-output", "{t}/run"), "branch", "output",
                     None, ("-chain_ts_type", "bogus")),
@@ -83,6 +84,10 @@ DRIVERS = {
     "compacton_stability.py": (("-branches", BRANCH, "-q", "pi/5", "-no_solitary", "-no_ring", "-M", 12, "-rear", 3,
                                 "-output", "{t}/c.npz", "-table", "{t}/c.md"), "branches", "output",
                                ("-q", "pi/5,pi/5"), ("-cwin_ts_type", "bogus")),
+    "solitary_stability.py": (("-alphas", "2", "-c0", "0.5", "-tail", "1e-10", "-output", "{t}/s.npz", "-table",
+                               "{t}/s.md"), None, "output", ("-c0", "0.5,0.5"), ("-cwin_ts_type", "bogus")),
+    "wave.py": (("-masses", "1,0.5,0.25", "-q", "2*pi/15", "-N", 30, "-cells_per_pi", 60, "-output", "{t}/w.npz",
+                 "-table", "{t}/w.md"), None, "output", ("-masses", "1,0"), ("-shoot_ts_type", "bogus")),
     "compacton_dynamics.py": (("-stability", f"{RESULTS}/compacton_stability.npz", "-q", "7*pi/25", "-N", 40,
                                "-n0", 5, "-travel", 10, "-kinds", "mode", "-no_pairs", "-output", "{t}/d.npz",
                                "-table", "{t}/d.md"), "stability", "output", ("-q", "7*pi/25,7*pi/25"),
@@ -97,6 +102,8 @@ DRIVERS = {
     "driven_generation.py": (("-branch", BRANCH, "-N", 8, "-signals", "half_sine", "-omegas", 0.5, "-amplitudes", 0.1, "-gammas", 0.1,
                               "-run_in", 2, "-output", "{t}/g.npz", "-table", "{t}/g.md"), "branch", "output",
                              ("-omegas", "0.5,0.5"), ("-floquet_eps_type", "bogus")),
+    "bench_driven.py": (("-N", 2, "-points", 2, "-workloads", "sweep", "-output", "{t}/b.md"), None, "records",
+                        ("-workloads", "gpu"), None),
 }
 
 
@@ -150,6 +157,16 @@ def swap(args, option, value):
     return args
 
 
+def offers_empty_for_none(script):
+    """The driver's source (or the benchmark harness it declares its options with) has an option 'none if empty'."""
+    with open(os.path.join(SCRIPTS, script)) as f:
+        text = f.read()
+    return "none if empty" in text or "declare_common(" in text
+
+
+EMPTY_FOR_NONE = tuple(sorted(s for s in DRIVERS if offers_empty_for_none(s)))
+
+
 def cases():
     for script, (base, inp, record, bad_list, bad_solver) in DRIVERS.items():
         yield script, "typo"
@@ -164,6 +181,8 @@ def cases():
             yield script, "bad list"
         if bad_solver:
             yield script, "bad solver option"
+        if script in EMPTY_FOR_NONE:
+            yield script, "empty for none"
 
 
 @pytest.mark.parametrize("script,failure", list(cases()))
@@ -181,9 +200,15 @@ def test_failure_matrix(script, failure, tmp_path, capfd, monkeypatch):
         assert code == 0 and not err and "Application options" in out
         assert list(work.iterdir()) == []                       # nothing computed, nothing written
     elif failure == "unwritable":
-        option = record or ("output" if "-output" in args else "table")
-        code, _, err = drive(script, swap(args, option, str(tmp_path / "afile" / "x")), capfd, monkeypatch, tmp_path)
-        assert code == 4 and len(err) == 1 and "is not a directory" in err[0], err
+        # every file the run writes is checked before any computation: the record, the output and the table
+        options = [record] if record else []
+        options += [o for o in ("output", "table") if f"-{o}" in args and o not in options]
+        for option in options or ["table"]:
+            t0 = time.perf_counter()
+            code, _, err = drive(script, swap(args, option, str(tmp_path / "afile" / "x")), capfd, monkeypatch,
+                                 tmp_path)
+            assert code == 4 and len(err) == 1 and "is not a directory" in err[0], (option, err)
+            assert time.perf_counter() - t0 < 30, option          # refused up front, not after the work
     elif failure == "missing input":
         code, _, err = drive(script, swap(args, inp, str(tmp_path / "missing.npz")), capfd, monkeypatch, tmp_path)
         assert code == 4 and len(err) == 1 and ("does not exist" in err[0] or "missing" in err[0]), err
@@ -204,6 +229,15 @@ def test_failure_matrix(script, failure, tmp_path, capfd, monkeypatch):
         option, value = bad_list[0].lstrip("-"), bad_list[1]
         code, _, err = drive(script, swap(args, option, value), capfd, monkeypatch, tmp_path)
         assert code == 2 and len(err) == 1 and (f"-{option}" in err[0] or "q_k" in err[0]), err
+    elif failure == "empty for none":
+        # every option whose -help says "none if empty" takes an empty value: the run then stops at the typo given
+        # after it (checked once everything was read), not at the empty value
+        _, out, _ = drive(script, ["-help"], capfd, monkeypatch, tmp_path)
+        names = re.findall(r"^\s+-(\w+) .*none if empty", out, re.M)
+        assert names
+        for name in names:
+            code, _, err = drive(script, swap(args, name, "") + ["-alpah", "2"], capfd, monkeypatch, tmp_path)
+            assert code == 2 and len(err) == 1 and err[0].startswith("error: unknown option -alpah"), (name, err)
     elif failure == "bad solver option":
         code, _, err = drive(script, args + list(bad_solver), capfd, monkeypatch, tmp_path)
         assert code == 5 and len(err) == 1 and "bogus" in err[0] and f"from the option -{bad_solver[0][1:]}" in err[0]
@@ -232,8 +266,15 @@ def test_processes_fail_in_one_line_on_every_rank(tmp_path, ranks):
 
 
 def test_help_computes_nothing_on_two_ranks(tmp_path):
+    """-help: the driver's options and solver roles first, on a screen or two, no PETSc banner; -help solvers adds
+    PETSc's own options of each role. Neither computes nor writes anything."""
     r = run_script("continuation.py", "-help", ranks=2, cwd=tmp_path)
     assert r.returncode == 0 and "-cells_per_pi 1000" in r.stdout and "-tw_*" in r.stdout
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("Compute the travelling-wave branch") and len(lines) <= 60
+    assert "Petsc Release Version" not in r.stdout and "-tw_snes_type <" not in r.stdout
+    r = run_script("continuation.py", "-help", "solvers", ranks=2, cwd=tmp_path)
+    assert r.returncode == 0 and r.stdout.splitlines()[0].startswith("Compute the travelling-wave branch")
     assert "-tw_snes_type <" in r.stdout and "-sol_snes_type <" in r.stdout      # PETSc's own options of the roles
     assert list(tmp_path.iterdir()) == []
 
@@ -296,3 +337,47 @@ def test_a_killed_branch_resumes_to_the_same_branch(tmp_path):
     assert np.array_equal(full.q, resumed.q)
     assert np.max(np.abs(full.u - resumed.u)) <= 1e-10 * np.max(np.abs(full.u))
     assert math.isclose(resumed.q[-1], math.pi / 5)
+
+
+# a size, count or amplitude far beyond what the machine or the method allows: refused in one line (the option
+# named, status 2) before anything is allocated or computed, never MemoryError, an overflow or hours of work
+OVERSIZED = {
+    "continuation.py": ("cells_per_pi", "1000000000000"),
+    "convergence_h.py": ("cells", "20,40,1000000000000"),
+    "refine_branch.py": ("N", "1000000000"),
+    "floquet_scan.py": ("N", "1000000000"),
+    "floquet_long.py": ("sizes", "100000000000"),
+    "long_run.py": ("t_final", "1e15"),
+    "small_q.py": ("q_stop", "1e-12"),
+    "solitary_wave.py": ("cells", "10,20,1000000000000"),
+    "long_wave.py": ("cells_per_unit", "1000000000000"),
+    "compactons.py": ("travel", "1000000000000"),
+    "precompressed_branch.py": ("cells_per_pi", "1000000000000"),
+    "dimer_branch.py": ("cells_per_pi", "1000000000000"),
+    "precompression_map.py": ("N", "1000000000"),
+    "slow_instabilities.py": ("N", "1000000000"),
+    "compacton_stability.py": ("M", "1000000000"),
+    "compacton_dynamics.py": ("N", "1000000000000"),
+    "solitary_stability.py": ("M", "1000000000"),
+    "wave.py": ("cells_per_pi", "1000000000000"),
+    "bench_branch.py": ("cells", "1000000000000"),
+    "bench_chain.py": ("sizes", "1000000000000"),
+    "bench_newton.py": ("cells", "1000000000000"),
+    "bench_floquet.py": ("sizes", "100000000000"),
+    "bench_stability.py": ("N", "1000000000"),
+    "driven_response.py": ("N", "1000000000"),
+    "driven_resonances.py": ("N", "1000000000"),
+    "driven_wave_ends.py": ("sizes", "1000000000"),
+    "driven_generation.py": ("N", "1000000000"),
+    "bench_driven.py": ("long_N", "1000000000000"),
+}
+
+
+@pytest.mark.parametrize("script", sorted(OVERSIZED))
+def test_oversized_requests_are_refused_up_front(script, tmp_path, capfd, monkeypatch):
+    base = DRIVERS[script][0]
+    option, value = OVERSIZED[script]
+    t0 = time.perf_counter()
+    code, _, err = drive(script, swap(fill(base, tmp_path), option, value), capfd, monkeypatch, tmp_path)
+    assert code == 2 and len(err) == 1 and f"-{option}" in err[0], err
+    assert time.perf_counter() - t0 < 30

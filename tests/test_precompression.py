@@ -15,8 +15,7 @@ from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.grid import ProfileGrid
 from hertzpetsc.hertz import HertzLaw
 from hertzpetsc.model import ChainSpec, LatticeModel
-from hertzpetsc.precompression import (AmplitudeContinuation, check_amplitude, linear_frequency, uncompressed_limit,
-                                       weakly_nonlinear_coefficient)
+from hertzpetsc.families import AmplitudeFamily, check_amplitude, uncompressed_limit
 from hertzpetsc.stencil import full_period, shifted
 from hertzpetsc.studies.precompression import amplitude_grid, wave_orbit
 
@@ -76,11 +75,11 @@ def test_precompressed_advance_delay_problem_matches_its_definition():
 def _coefficient(q, alpha, delta0, K, amplitudes):
     """C_h from omega/omega_lin,h - 1 = C a^2 + D a^4 + E a^6 at the given a (discrete linear frequency)."""
     model = LatticeModel.hertz(alpha, delta0=delta0)
-    cont = AmplitudeContinuation(model, q, ProfileGrid(K, COMM))
+    cont = AmplitudeFamily(model, q, ProfileGrid(K, COMM))
     try:
         pts = list(cont.points(amplitudes))
-        _, lam = cont.system.linear_guess()
-        omega_lin_h = math.sqrt(lam) * (delta0 / cont.system.eta) ** ((alpha - 1) / 2)
+        _, lam = cont.problem.linear_guess()
+        omega_lin_h = math.sqrt(lam) * cont.problem.amplitude ** ((alpha - 1) / 2)
     finally:
         cont.destroy()
     y = np.array([p.omega / omega_lin_h - 1 for p in pts])
@@ -96,7 +95,7 @@ def test_small_amplitude_coefficient(q, alpha, delta0):
     the ratio (C_2K - C) / (C_K - C) is 0.25 to 3 digits (second order)."""
     a = delta0 * np.array([0.01, 0.02, 0.03, 0.04])
     C_K, C_2K = (_coefficient(q, alpha, delta0, K, a) for K in (200, 400))
-    C = weakly_nonlinear_coefficient(q, alpha, delta0)
+    C = HertzLaw(alpha, delta0).stokes_coefficient(q)
     assert abs((4 * C_2K - C_K) / 3 / C - 1) < 1e-6
     assert abs((C_2K - C) / (C_K - C) - 0.25) < 0.02
 
@@ -109,7 +108,7 @@ def test_large_amplitude_limit_is_the_uncompressed_wave():
     K = 200
     model = LatticeModel.hertz(1.5, delta0=1.0)
     grid = ProfileGrid(K, COMM)
-    cont = AmplitudeContinuation(model, Q, grid)
+    cont = AmplitudeFamily(model, Q, grid)
     try:
         pts = list(cont.points(amplitude_grid(1e-3, 1e4, math.log(10) / 4)))
         limit = uncompressed_limit(model, Q, grid, pts[-1])
@@ -123,7 +122,7 @@ def test_large_amplitude_limit_is_the_uncompressed_wave():
     assert c1[4] > 0
     assert abs(c1[3] / c1[4] - 1) < 2e-3 and abs(c1[2] / c1[3] - 1) < 2e-2
     assert np.all(np.diff([p.A for p in pts]) > 0)          # no fold in s = log a
-    assert [p.omega for p in pts][0] == pytest.approx(float(linear_frequency(Q)), rel=1e-4)  # h^2/24 ~ 1e-5
+    assert [p.omega for p in pts][0] == pytest.approx(model.linear_frequencies(Q)[0], rel=1e-4)  # h^2/24 ~ 1e-5
 
 
 def test_gap_opening():
@@ -134,13 +133,15 @@ def test_gap_opening():
     A_gap = []
     for K in (200, 400):
         grid = ProfileGrid(K, COMM)
-        cont = AmplitudeContinuation(LatticeModel.hertz(1.5, delta0=1.0), Q, grid)
+        cont = AmplitudeFamily(LatticeModel.hertz(1.5, delta0=1.0), Q, grid)
         try:
             pts = list(cont.points(amplitude_grid(0.5, 3.0, 0.3)))
-            i = next(k for k in range(1, len(pts)) if pts[k - 1].gap < 0 <= pts[k].gap)
-            gap = cont.locate_gap(pts[i - 1], pts[i])
+            gaps = cont.events()            # located by the continuation layer between the natural steps
         finally:
             cont.destroy()
+        assert len(gaps) == 1
+        gap = gaps[0]
+        assert any(pts[k - 1].gap < 0 <= pts[k].gap and pts[k - 1].a < gap.a < pts[k].a for k in range(1, len(pts)))
         assert abs(gap.gap) < 1e-9
         u = full_period(gap.a * gap.profiles[0])
         sigma = int(round(Q / grid.h))
@@ -159,12 +160,12 @@ def test_floquet_depends_on_delta0_over_A_only():
     spectra = []
     for d0, a in ((1.0, 1.5), (2.0, 3.0), (1.0, 0.01)):
         model = LatticeModel.hertz(1.5, delta0=d0)
-        cont = AmplitudeContinuation(model, q, ProfileGrid(200, COMM))
+        cont = AmplitudeFamily(model, q, ProfileGrid(200, COMM))
         try:
             p = list(cont.points([x * d0 for x in (0.01, 0.1, 0.5, 1.0, 1.5)] if a > 0.01 else [a]))[-1]
         finally:
             cont.destroy()
-        orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N)
+        orbit = wave_orbit(model, q, p.a, list(p.profiles), p.lam, N, cont.grid.h)
         dense = DenseFloquet(ChainSpec(model, N), COMM, tol)
         try:
             spectra.append(np.sort_complex(dense.spectrum(orbit).multipliers))
@@ -184,7 +185,7 @@ def test_bad_input():
     with pytest.raises(ParameterError, match="amplitude"):
         check_amplitude(-1.0)
     with pytest.raises(ParameterError, match="delta0"):
-        AmplitudeContinuation(LatticeModel.hertz(1.5), Q, ProfileGrid(20, COMM))
+        AmplitudeFamily(LatticeModel.hertz(1.5), Q, ProfileGrid(20, COMM))
 
 
 @pytest.mark.serial

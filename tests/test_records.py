@@ -7,18 +7,14 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
+from conftest import shared_tmp
 from hertzpetsc.branch import POINT_FIELDS, Branch, BranchPoint, SolveStats, branch_store
 from hertzpetsc.diagnostics import WaveDiagnostics
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.model import LatticeModel
-from hertzpetsc.records import AppendRecords, NpzRecords, prepare_output, write_text
+from hertzpetsc.records import AppendRecords, NpzRecords, load_npz, prepare_output, write_text
 
 COMM = PETSc.COMM_WORLD
-
-
-def shared_tmp(tmp_path):
-    """One directory for every rank (rank 0's pytest tmp_path)."""
-    return COMM.tompi4py().bcast(str(tmp_path), root=0)
 
 
 def small_branch(npts=3, K=8):
@@ -178,3 +174,32 @@ def test_bad_mode_and_model_are_refused():
         NpzRecords("x.npz", "k", {}, {}, ("q",), None, "sometimes")
     with pytest.raises(ParameterError, match="masses"):
         LatticeModel.hertz(1.5, masses=(1.0, -2.0))
+
+
+def test_hdf5_record_files_have_the_same_fields_and_identity_checks(tmp_path):
+    """A record file named *.h5 is HDF5 (for MATLAB and Julia): the same arrays as the npz layout, read back
+    equal, resumed with the same identity checks."""
+    import h5py
+    from petsc4py import PETSc
+    from hertzpetsc.qbranch import ContinuationParameters
+    from hertzpetsc.studies.branch import BranchStudy
+    d = str(tmp_path) if PETSc.COMM_WORLD.getSize() == 1 else None
+    if d is None:
+        pytest.skip("one rank: a file per process")
+    params = ContinuationParameters(M=10, cells_per_pi=100, q_stop=0.6 * math.pi)
+    for name in ("b.npz", "b.h5"):
+        list(BranchStudy(params, f"{d}/{name}", PETSc.COMM_SELF).run())
+    a, b = load_npz(f"{d}/b.npz", "x"), load_npz(f"{d}/b.h5", "x")
+    assert set(a) == set(b)
+    for k in a:
+        if a[k].dtype.kind in "fi":
+            assert np.array_equal(a[k], b[k]) or k in ("wall_time",), k
+        else:
+            assert str(a[k]) == str(b[k]) or k == "meta", k
+    with h5py.File(f"{d}/b.h5", "r") as f:                 # plain HDF5: datasets by name
+        assert f["u"].shape == a["u"].shape and f["format"][()] == b"hertzpetsc-branch-1"
+    with pytest.raises(RecordFileError, match="alpha"):
+        BranchStudy(ContinuationParameters(alpha=2.0, M=10, cells_per_pi=100, q_stop=0.6 * math.pi), f"{d}/b.h5",
+                    PETSc.COMM_SELF, "resume").open()
+    resumed = BranchStudy(params, f"{d}/b.h5", PETSc.COMM_SELF, "resume").open()
+    assert resumed.resumed == len(a["q"])

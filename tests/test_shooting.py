@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import chain, small_branch
+from conftest import chain, refine, small_branch
 from hertzpetsc.errors import ParameterError, RecordFileError
-from hertzpetsc.shooting import refine, residual_E
+from hertzpetsc.chain import CHAIN_PREFIX
+from hertzpetsc.shooting import PAPER_TOLERANCES, ShiftMap
 from hertzpetsc.waves import orbit_on_chain
 
 N = 20   # q = 2 pi m / 20 = m pi / 10: on the M = 10 branch
@@ -20,7 +21,9 @@ def test_residual_decreases_like_h_squared(m):
     Es = []
     for K in (100, 200, 400):
         w = orbit_on_chain(small_branch(K=K, q_stop=q).point(q), chain(N))
-        Es.append(residual_E(w, PETSc.COMM_WORLD))
+        smap = ShiftMap(w.spec, PETSc.COMM_WORLD, PAPER_TOLERANCES, CHAIN_PREFIX)
+        Es.append(smap.residual(w))
+        smap.destroy()
     orders = np.log2(np.array(Es[:-1]) / Es[1:])
     assert np.all(np.abs(orders - 2) < 0.35), orders
 

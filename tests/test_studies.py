@@ -8,13 +8,12 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import chain, small_branch
+from conftest import chain, refine, small_branch
 from hertzpetsc.bloch import SymmetricFloquet
 from hertzpetsc.branch import Branch
 from hertzpetsc.qbranch import ContinuationError, ContinuationParameters
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.model import LatticeModel
-from hertzpetsc.shooting import refine
 from hertzpetsc.simulation import read_snapshots
 from hertzpetsc.studies.branch import BranchStudy, ConvergenceStudy
 from hertzpetsc.studies.compactons import CompactonStudy
@@ -191,7 +190,10 @@ def test_long_run_resumes_bit_for_bit(tmp_path):
     a, b = read_snapshots(f"{d}/a"), read_snapshots(f"{d}/b")
     assert np.array_equal(a.times, b.times) and np.array_equal(a.states, b.states)
     assert np.array_equal(a.steps, b.steps)
-    assert summary.energy_drift < 1e-9 and summary.max_deviation < 1e-3 and math.isnan(summary.destruction_time)
+    # energy: 1e-11 between contact events; a step that straddles a contact opening or closing (V'' is only
+    # C^(1/2) there) loses RK 8(7)'s order and leaves a jump of 1e-10 .. 3e-9 depending on where the adaptive steps
+    # fall (measured on 1 and 2 ranks): the bound is 1e-8
+    assert summary.energy_drift < 1e-8 and summary.max_deviation < 1e-3 and math.isnan(summary.destruction_time)
     other = orbit_on_chain(small_branch().point(0.6 * math.pi), chain(20))
     with pytest.raises(RecordFileError, match="another computation"):
         LongRun(other, 10.0, 2, f"{d}/a", COMM, "resume").open()
@@ -234,3 +236,40 @@ def test_compacton_study_keeps_beads_ahead_at_rest():
     assert study.table().count("| pi/200 |") == 2
     with pytest.raises(ParameterError, match="q_k"):
         CompactonStudy([branch], [0.7 * math.pi], COMM)
+
+
+def test_studies_run_in_memory_without_an_output_file():
+    """A study built without an output path keeps its records in memory (a notebook): the same records and arrays
+    as the file would hold."""
+    params = ContinuationParameters(M=10, cells_per_pi=200, q_stop=math.pi / 2)
+    study = BranchStudy(params)
+    points = list(study.run())
+    arrays = study.arrays()
+    assert str(arrays["format"]) == "hertzpetsc-branch-1" and len(arrays["q"]) == len(points) == 6
+    assert np.array_equal(arrays["u"][-1], points[-1].u_half)
+    from hertzpetsc.studies.precompression import AmplitudeFamilies, AmplitudeParameters
+    fam = AmplitudeFamilies(AmplitudeParameters(LatticeModel.hertz(1.5, delta0=1.0), (0.9,), 60, 0.01, 1.0, 1.0))
+    rows = list(fam.run())
+    assert [int(r["kind"]) for r in rows].count(2) == 1 and len(fam.records) == len(rows)
+
+
+def test_a_resume_with_other_solver_options_is_refused(tmp_path, clean_options):
+    """The options of the study's solver roles that change numbers are part of the record file's identity."""
+    from hertzpetsc.studies.precompression import AmplitudeFamilies, AmplitudeParameters
+    d = shared(tmp_path)
+    params = AmplitudeParameters(LatticeModel.hertz(1.5, delta0=1.0), (0.9,), 60, 0.01, 1.0, 1.0)
+    list(AmplitudeFamilies(params, COMM, f"{d}/a.npz").run())
+    clean_options.setValue("precomp_snes_monitor", None)              # not a number-changing option
+    list(AmplitudeFamilies(params, COMM, f"{d}/a.npz", "resume").run())
+    clean_options.setValue("precomp_snes_rtol", "1e-6")
+    with pytest.raises(RecordFileError, match="solver_options"):
+        AmplitudeFamilies(params, COMM, f"{d}/a.npz", "resume").open()
+
+
+def test_parameter_errors_name_the_argument_or_the_option():
+    from hertzpetsc.studies.precompression import DimerParameters
+    with pytest.raises(ParameterError, match=r"invalid max_steps = 0"):
+        DimerParameters(LatticeModel.hertz(1.5, delta0=1.0), (0.9,), max_steps=0)
+    err = ParameterError("max_steps", 0, "must be >= 1")
+    assert str(err.as_option({"max_steps"})).startswith("invalid -max_steps = 0")
+    assert err.as_option({"q"}) is err

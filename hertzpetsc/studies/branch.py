@@ -6,34 +6,48 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..branch import Branch, branch_store, points_from_store
+from ..branch import BRANCH_FORMAT, INT_FIELDS, POINT_FIELDS, Branch, branch_store, points_from_store
 from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
                             paper_targets)
 from ..errors import ParameterError, RecordFileError
 from ..model import LatticeModel
-from ..records import NpzRecords, load_npz, npz_arrays, on_rank0, write_npz
+from ..records import MemoryRecords, NpzRecords, load_npz, npz_arrays, on_rank0, write_npz
+from ..resources import check_memory
 from ..richardson import richardson
-from ..twsolver import TW_PREFIX, configure_options
+from ..twsolver import TW_PREFIX
+from .base import Study, configure_roles
+
+TW_ROLE = {TW_PREFIX: ("the travelling-wave SNES (-tw_solver direct|nk, -tw_jacobian aij|shell)", ("snes",))}
 
 
-class BranchStudy:
-    """The branch q = pi -> q_stop through q = m pi / M (eqs. ad-pbc), each point appended to a branch file.
+class BranchStudy(Study):
+    """The branch q = pi -> q_stop through q = m pi / M (eqs. ad-pbc), each point appended to a branch file (or
+    kept in memory when ``output`` is None).
 
     Building it configures the SNES (prefix ``tw_``); :meth:`open` opens the record store (``mode``: new,
     resume or force; collective), and :meth:`run` (which opens it if need be) yields the new points as they are
     saved. ``branch`` holds every point, the resumed ones included.
     """
 
-    def __init__(self, params, output, comm, mode="new", meta=None, prefix=TW_PREFIX, solver=None):
-        self.params, self.output, self.comm, self.mode = params, output, comm, mode
+    Parameters = ContinuationParameters
+    FORMAT, FIELDS = BRANCH_FORMAT, POINT_FIELDS + ("u",)
+    ROLES = TW_ROLE
+    WHAT = "branch file"
+
+    def __init__(self, params, output=None, comm=None, mode="new", meta=None, prefix=TW_PREFIX, solver=None):
+        super().__init__(params, comm, output, mode)
         self.branch = Branch(params.model, params.cells_per_pi, params.M, [], dict(meta or {}))
-        self.continuation = BranchContinuation(params, comm, prefix, solver)
-        self.store, self.resumed = None, 0
+        self.continuation = BranchContinuation(params, self.comm, prefix, solver)
+        self.resumed = 0
 
     def open(self):
         """Open the branch file (collective); the resumed points seed the continuation."""
         if self.store is None:
-            self.store = branch_store(self.output, self.branch, self.comm, self.mode)
+            if self.output is None:
+                self.store = MemoryRecords(BRANCH_FORMAT, self.branch.constants(), self.FIELDS, self.comm,
+                                           {k: np.int64 for k in INT_FIELDS}, {"u": (self.params.cells_per_pi + 1,)})
+            else:
+                self.store = branch_store(self.output, self.branch, self.comm, self.mode)
             self.branch.points = points_from_store(self.store, self.branch)
             self.resumed = len(self.branch.points)       # points found in the file
             if self.branch.points:
@@ -57,17 +71,22 @@ Q_REPORT = (("pi", math.pi), ("3pi/10", 3 * math.pi / 10), ("7pi/25", 7 * math.p
             ("9pi/50", 9 * math.pi / 50), ("pi/50", math.pi / 50))
 
 
-class ConvergenceStudy:
+class ConvergenceStudy(Study):
     """The branch on the grids h = pi / K, K in ``cells`` (at least 3, all different), and at the reported q the
-    observed order on the three finest grids and the Richardson value (h^2) from the two finest."""
+    observed order on the three finest grids and the Richardson value (h^2) from the two finest, with the grids'
+    actual ratios (no record file: the table is the result)."""
 
-    def __init__(self, model, M, cells, comm, prefix=TW_PREFIX):
+    ROLES = TW_ROLE
+
+    def __init__(self, model, M, cells, comm=None, prefix=TW_PREFIX):
         cells = sorted(int(K) for K in cells)
         if len(cells) < 3 or len(set(cells)) != len(cells):
-            raise ParameterError("-cells", cells, "needs at least three different grids for an observed order")
-        self.model, self.M, self.cells, self.comm, self.prefix = model, M, cells, comm, prefix
+            raise ParameterError("cells", cells, "needs at least three different grids for an observed order")
+        super().__init__(dict(alpha=model.alpha, M=M, cells=cells), comm)
+        check_memory(cells[-1], self.comm, name="cells")
+        self.model, self.M, self.cells, self.prefix = model, M, cells, prefix
         self.values = {}
-        configure_options(comm, prefix)
+        configure_roles({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
 
     def run(self):
         """Compute the branch on every grid; yields K after each."""
@@ -84,7 +103,8 @@ class ConvergenceStudy:
     def table(self):
         cells = self.cells
         lines = [f"alpha = {self.model.alpha}, M = {self.M}, grids h = pi/K for K in {list(cells)}; order from the "
-                 "three finest grids; extrapolated = Richardson from the two finest (assumes h^2)\n",
+                 "three finest grids (their actual ratios); extrapolated = Richardson from the two finest (assumes "
+                 "h^2, with their ratio)\n",
                  "| q | quantity | " + " | ".join(f"K = {K}" for K in cells) + " | observed order | extrapolated |",
                  "|---|---|" + "---|" * len(cells) + "---|---|"]
         for label, q in Q_REPORT:
@@ -92,7 +112,7 @@ class ConvergenceStudy:
                 continue                     # not a target of this branch (q = m pi / M)
             for name in QUANTITIES:
                 xs = [self.values[(K, round(q, 12))][name] for K in cells]
-                order, extrap = richardson(xs, order=2)
+                order, extrap = richardson(xs, order=2, steps=[math.pi / K for K in cells])
                 lines.append(f"| {label} | {name} | " + " | ".join(f"{x:.8g}" for x in xs)
                              + f" | {order:.2f} | {extrap:.8g} |")
         return "\n".join(lines) + "\n"
@@ -176,7 +196,7 @@ def _legacy_smallq_progress(path, params):
                                {"level": np.int64, "K": np.int64}))
 
 
-class SmallQStudy:
+class SmallQStudy(Study):
     """The branch below q_first on ``levels`` resolutions (section 3.2): at every target q the observed order and
     the Richardson values of ||u||_inf, p(q), N(q) and ||u||_inf q^(2/(alpha-1)) (-> k_alpha).
 
@@ -185,15 +205,27 @@ class SmallQStudy:
     converted).
     """
 
-    def __init__(self, params, progress, comm, mode="new", prefix=TW_PREFIX):
-        self.params, self.comm, self.prefix, self.progress, self.mode = params, comm, prefix, progress, mode
-        self.store = None
+    Parameters = SmallQParameters
+    FORMAT, FIELDS = SMALLQ_FORMAT, ("level", "q", "K") + SMALLQ_FIELDS
+    DTYPES = {"level": np.int64, "K": np.int64}
+    ROLES = TW_ROLE
+    WHAT = "progress file"
+
+    def __init__(self, params, progress=None, comm=None, mode="new", prefix=TW_PREFIX):
+        super().__init__(params, comm, progress, mode)
+        check_memory(params.cells_per_pi(params.q_stop, params.levels - 1), self.comm, name="q_stop")
+        self.prefix, self.progress = prefix, progress
         self.continuation = ContinuationParameters(model=params.model, M=1, cells_per_pi=params.grid(0).cells_per_pi(
             params.q_first))
-        configure_options(comm, prefix)
+        configure_roles({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
+
+    def constants(self):
+        return self.params.identity()
 
     def open(self):
         """Open the progress file (collective; one of the first format is converted when resumed)."""
+        if self.store is None and self.progress is None:
+            super().open()
         if self.store is None:
             if self.mode == "resume":
                 on_rank0(self.comm, _legacy_smallq_progress, self.progress, self.params,

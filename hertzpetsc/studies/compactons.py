@@ -6,6 +6,7 @@ import time
 from dataclasses import dataclass
 
 from ..chain import configure_options
+from ..resources import check_chain_memory
 from ..model import ChainSpec
 from ..compacton import (CompactonScales, chain_length, compacton_train, extension_residuals, lattice_checks,
                          placement, simulate_on_chain, train_span)
@@ -50,7 +51,12 @@ class CompactonStudy:
         self.theta, self.c, self.margin, self.travel, self.dt = theta, c, margin, travel, dt_snapshot
         for b in branches:                                   # refuse bad input before any long run
             for q in qs:
-                compacton_train(b.point(q), (theta / q,), b.q_k())
+                train = compacton_train(b.point(q), (theta / q,), b.q_k())
+                N = chain_length(train, margin, travel + math.ceil(train_span(train)))
+                # the run's snapshots are kept: travel / (c dt) states of N beads, 16 bytes per bead each, i.e. one
+                # chain column (24 work vectors) per 24 snapshots
+                snapshots = travel / (c * dt_snapshot)
+                check_chain_memory(N, comm, columns=1 + math.ceil(snapshots / 24), name="travel")
         self.cases = []
         if branches:
             configure_options(ChainSpec(branches[0].model, 3, "free"), comm)

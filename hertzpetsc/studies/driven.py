@@ -54,6 +54,7 @@ from ..driven import (DRIVE_PREFIX, RESPONSE_TOLERANCES, TOL_MU, BranchFamily, H
 from ..errors import ConvergenceError, ParameterError
 from ..floquet import DenseFloquet
 from ..records import NpzRecords
+from ..resources import MAX_DENSE_BEADS, check_chain_memory
 from .dealing import dealt
 
 RESPONSE_FORMAT = "hertzpetsc-driven-response-1"
@@ -175,12 +176,38 @@ class ResponseCurve:
     def branch_records(self, branch=0):
         return [r for r in self.store.records if int(r["branch"]) == branch]
 
-    def _seed_from(self, cont, problem, records):
-        regular = [r for r in records if int(r["event"]) == 0 or int(r["confirmed"]) == -1][-2:]
+    def _regular(self, r):
+        """A point the continuation stepped to (not an event it located between two such points): on a grid every
+        record; else a record without event, or one whose event is bracketed on it (finite dp/ds), or a branch's
+        first point."""
+        if self.grid is not None and int(r["branch"]) == 0:
+            return True
+        dp = float(r["dp_ds"])
+        return int(r["event"]) == 0 or int(r["confirmed"]) == -1 or (math.isfinite(dp) and dp != 0.0)
+
+    def _seed_from(self, cont, problem, records, branch=0):
+        """Seed ``cont`` from the last two regular ``records`` and the step size the run had reached (resume);
+        the located events after the last regular record (a run stopped between them and the next point): they
+        are computed again and must not be recorded twice."""
+        last = max(i for i, r in enumerate(records) if self._regular(r))
+        regular = [r for r in records[:last + 1] if self._regular(r)][-2:]
         Zs = [problem.pack(np.asarray(r["x"]), float(r["p"])) for r in regular]
         cont.seed(Zs, [float(r["s"]) for r in regular])
         for Z in Zs:
             Z.destroy()
+        ds = self.store.state.get(f"ds_{branch}")
+        if ds is not None:
+            cont.ds = float(ds)
+        return records[last], list(records[last + 1:])
+
+    def _append(self, rec, cont=None):
+        """Append a record with the continuation's next step size (the state a resume starts from)."""
+        state = {f"ds_{int(rec['branch'])}": np.float64(cont.ds)} if cont is not None and cont.ds is not None else None
+        self.store.append(rec, state)
+
+    @staticmethod
+    def _same_event(rec, point, code):
+        return int(rec["event"]) == code and abs(float(rec["s"]) - point.s) <= 1e-12 * max(1.0, abs(point.s))
 
     def _passed(self, p, p_start):
         return (p - self.p_end) * (p_start - self.p_end) <= 0
@@ -204,10 +231,10 @@ class ResponseCurve:
         elif done and (len(done) >= self.max_steps or self._passed(float(done[-1]["p"]), p_start)):
             return
         cont = Continuation(prob, self.grid is not None and Natural() or self.algorithm)
+        trailing = []
         try:
             if done:
-                self._seed_from(cont, prob, done)
-                previous = done[-1]
+                previous, trailing = self._seed_from(cont, prob, done)
             else:
                 x = np.zeros((self.drive.N, 2))
                 if self.run_in:
@@ -216,12 +243,13 @@ class ResponseCurve:
                 point = cont.start(Z)
                 Z.destroy()
                 previous = self._record(prob, point, 0)
-                self.store.append(previous)
+                self._append(previous, cont)
                 yield previous
             if self.grid is not None:
                 yield from self._grid(cont, previous, targets)
             else:
-                yield from self._arclength(cont, previous, p_start, len(done) + (0 if done else 1))
+                yield from self._arclength(cont, previous, p_start, len(done) - len(trailing) + (0 if done else 1),
+                                           trailing)
         finally:
             cont.destroy()
 
@@ -239,14 +267,15 @@ class ResponseCurve:
             yield rec
             mu_prev = mu
 
-    def _arclength(self, cont, previous, p_start, count):
+    def _arclength(self, cont, previous, p_start, count, trailing=()):
         prob = self.problem
+        trailing = list(trailing)
         if len(cont.history) < 2:
             direction = math.copysign(1.0, self.p_end - p_start)
             step = getattr(self.algorithm, "ds", 0.02) * direction
             point = cont.step_to(float(previous["p"]) + step)
             previous = self._record(prob, point, 0)
-            self.store.append(previous)
+            self._append(previous, cont)
             yield previous
             count += 1
         pending = []
@@ -262,8 +291,11 @@ class ResponseCurve:
                 mu = point.report.get("multipliers", rec["multipliers"])
                 what = crossing(mu_prev, mu)
                 for ev in pending:
+                    if trailing and self._same_event(trailing[0], ev, EVENTS[ev.event]):
+                        trailing.pop(0)            # recorded before the run was stopped
+                        continue
                     er = self._record(prob, ev, 0, ev.event, int(what == ev.event))
-                    self.store.append(er)
+                    self._append(er, cont)
                     yield er
                 # a sign change (or a fold) the layer could not locate (its corrector failed on the chord: a corner
                 # of the curve) is recorded on this point, bracketed between it and the previous one
@@ -276,7 +308,7 @@ class ResponseCurve:
                 if missed:
                     rec["event"], rec["confirmed"] = EVENTS[missed[0]], int(what == missed[0])
                 pending = []
-                self.store.append(rec)
+                self._append(rec, cont)
                 yield rec
                 mu_prev, tests_prev, dp_prev = mu, point.tests or {}, point.dp_ds
         except ContinuationError:
@@ -289,35 +321,50 @@ class ResponseCurve:
         pds = [r for r in self.branch_records(0) if int(r["event"]) == EVENTS["period_doubling"]
                and int(r["confirmed"]) == 1]
         for j, ev in enumerate(pds, start=1):
-            if self.branch_records(j):
+            done = self.branch_records(j)
+            if len(done) > self.switch:                 # the first point and ``switch`` steps
                 continue
             double = PeriodicShooting(self.problem.drive.with_parameter(self.parameter, float(ev["p"])), self.comm,
                                       **dict(self.kw, periods=2 * self.problem.periods))
             cont = Continuation(double, self.algorithm)
+            trailing = []
             try:
+                if len(done) >= 2:                       # resume: the branch's last points and step size
+                    _, trailing = self._seed_from(cont, double, done, j)
+                else:
+                    try:
+                        self._seed_two(cont, double, ev)
+                    except ConvergenceError:
+                        continue        # no doubled response found from this doubling (table: no branch j)
+                    if not done:
+                        x1, p1 = double.state(cont.history[-1][0])
+                        first = _Point(p1, 0.0, math.nan, 1, double.report(cont.history[-1][0]),
+                                       double.test_functions(cont.history[-1][0]))
+                        rec = self._record(double, first, j)
+                        self._append(rec, cont)
+                        yield rec
                 try:
-                    Z0, Z1 = switch_to_doubled(self.problem, double, np.asarray(ev["x"]), float(ev["p"]))
-                except ConvergenceError:
-                    continue        # no doubled response found from this doubling (table: no branch j)
-                cont.seed([Z0, Z1], [0.0, 0.0])
-                Z0.destroy()
-                Z1.destroy()
-                x1, p1 = double.state(cont.history[-1][0])
-                first = _Point(p1, 0.0, math.nan, 1, double.report(cont.history[-1][0]),
-                               double.test_functions(cont.history[-1][0]))
-                rec = self._record(double, first, j)
-                self.store.append(rec)
-                yield rec
-                try:
-                    for n, point in enumerate(cont.run(max_steps=self.switch)):
+                    steps = self.switch - max(len(done) - len(trailing) - 1, 0)
+                    for point in cont.run(max_steps=steps):
+                        if trailing and point.event is not None and \
+                                self._same_event(trailing[0], point, EVENTS[point.event]):
+                            trailing.pop(0)
+                            continue
                         rec = self._record(double, point, j, point.event, -1 if point.event is None else 0)
-                        self.store.append(rec)
+                        self._append(rec, cont)
                         yield rec
                 except ContinuationError:
                     pass
             finally:
                 cont.destroy()
                 double.destroy()
+
+    def _seed_two(self, cont, double, ev):
+        """The two points onto the doubled branch from the period doubling ``ev`` (:func:`switch_to_doubled`)."""
+        Z0, Z1 = switch_to_doubled(self.problem, double, np.asarray(ev["x"]), float(ev["p"]))
+        cont.seed([Z0, Z1], [0.0, 0.0])
+        Z0.destroy()
+        Z1.destroy()
 
     def destroy(self):
         self.problem.destroy()
@@ -449,6 +496,8 @@ class LinearResonances:
         if not drive.model.delta0 > 0:
             raise ParameterError("delta0", drive.model.delta0, "the linear resonances need a precompressed chain "
                                  "(delta0 > 0)")
+        if drive.N > MAX_DENSE_BEADS:
+            raise ParameterError("N", drive.N, f"at most {MAX_DENSE_BEADS} beads (dense linear chain and multipliers)")
         self.drive, self.comm = drive, comm
         self.omega_k = normal_modes(drive)
         self.modes = list(range(1, drive.N + 1)) if modes is None else [int(k) for k in modes]
@@ -655,6 +704,8 @@ class Generation:
     def __init__(self, branch, model, N, waveforms, omegas, amplitudes, gammas, comm, output, mode="new", run_in=60,
                  tol=1e-9, rtol=1e-12, bulk=(0.25, 0.75), samples=128, width=0.5, branch_path=""):
         self.branch, self.model, self.N, self.comm = branch, model, int(N), comm
+        # each case on one rank: the state flow and the Jacobian's tangent flow (2N columns up to 200 beads, else one)
+        check_chain_memory(self.N, PETSc.COMM_SELF, columns=2 + 2 * self.N if self.N <= 200 else 3, name="N")
         self.family = BranchFamily(branch)
         self.cases = [(w, om, a, g) for w in waveforms for om in omegas for a in amplitudes for g in gammas]
         for w in waveforms:

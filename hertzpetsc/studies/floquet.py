@@ -19,15 +19,13 @@ from fractions import Fraction
 import numpy as np
 from petsc4py import PETSc
 
-from ..bloch import (SymmetricFloquet, bloch_multipliers, bloch_residuals, real_pairs, sector_solver,
-                     seeded_dominant_multipliers)
+from ..bloch import SymmetricFloquet, bloch_residuals, real_pairs, seeded_dominant_multipliers
 from ..errors import ParameterError, RecordFileError
-from ..floquet import (FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers,
-                       spectral_radius)
+from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
 from ..records import NpzRecords, check_kind, load_npz
-from ..symmetry import WaveSymmetry
 from ..waves import orbit_on_chain
+from .base import provenance
 from .dealing import dealt
 from .refinement import scan_wavenumbers
 
@@ -39,8 +37,11 @@ BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "
 
 
 def q_label(q):
-    """q as a fraction of pi (7pi/25), from the nearest denominator <= 100."""
-    f = Fraction(q / math.pi).limit_denominator(100)
+    """q as a fraction of pi (7pi/25) when it is one, with a denominator <= 1000, to 1e-12; else its decimal value
+    (q = 1 is '1', not the nearest fraction 7pi/22)."""
+    f = Fraction(q / math.pi).limit_denominator(1000)
+    if abs(float(f) * math.pi - q) > 1e-12 * max(q, 1.0):
+        return f"{q:.6g}"
     return f"{f.numerator if f.numerator != 1 else ''}pi/{f.denominator}" if f.denominator != 1 else f"{f.numerator}pi"
 
 
@@ -98,18 +99,22 @@ class FloquetScan:
         self.spec = ChainSpec(branch.model, N)
         self.qs, self.restriction = _select_wavenumbers(branch, N, qs, refined)
         path = refined.path if refined is not None else ""
-        self._open = lambda: NpzRecords(output, FLOQUET_FORMAT,
-                                dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path,
-                                     note=self.restriction),
-                                dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path),
-                                FLOQUET_FIELDS + ("multipliers",), comm, mode,
-                                dtypes={"outside": np.int64, "refined": np.int64, "multipliers": complex},
-                                shapes={"multipliers": (2 * N,)}, what="Floquet file")
+
+        def store():
+            extra = provenance(comm, ("floquet_",), branch=getattr(branch, "path", ""), refined=path)
+            return NpzRecords(output, FLOQUET_FORMAT,
+                              dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path,
+                                   note=self.restriction, **extra),
+                              dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path, **extra),
+                              FLOQUET_FIELDS + ("multipliers",), comm, mode,
+                              dtypes={"outside": np.int64, "refined": np.int64, "multipliers": complex},
+                              shapes={"multipliers": (2 * N,)}, what="Floquet file")
+        self._open = store
         self.store = None
         self.spectra = {}
         self.solver = (SymmetricFloquet(branch.model, PETSc.COMM_SELF, tolerances) if method == "symmetric" else
                        DenseFloquet(self.spec, comm, tolerances) if method == "dense" else
-                       DominantFloquet(self.spec, comm, nev, tolerances))
+                       DominantFloquet(self.spec, comm, nev, tolerances, warm=True))
 
     def open(self):
         """Open the Floquet file (collective)."""
@@ -129,42 +134,24 @@ class FloquetScan:
                     growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
                     multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
 
-    def _symmetric(self, q):
+    def _spectrum(self, q):
         orbit = self.orbit(q)
         t0 = time.perf_counter()
         spec = self.solver.spectrum(orbit, self.tol_rho)
         return self._row(q, spec, orbit, time.perf_counter() - t0)
 
     def run(self):
-        """Compute the spectrum at every q not yet in the file; yields the record after saving it."""
+        """Compute the spectrum at every q not yet in the file; yields the record after saving it. The symmetric
+        route deals the q to the ranks (each on one rank); the others distribute each q over the ranks, in order
+        (the SLEPc route starts from the previous q's eigenvectors)."""
         self.open()
         done = {round(float(r["q"]), 12) for r in self.store.records}
         todo = [q for q in self.qs if round(q, 12) not in done]
-        if self.method == "symmetric":
-            costs = [WaveSymmetry(self.N, self.orbit(q).m).cost() for q in todo]
-            for q, row in dealt(todo, costs, self.comm, self._symmetric):
-                self.store.append(row)
-                yield row
-            return
-        warm = None
-        try:
-            for q in todo:
-                orbit = self.orbit(q)
-                t0 = time.perf_counter()
-                if self.method == "dense":
-                    spec = self.solver.spectrum(orbit, self.tol_rho)
-                else:
-                    res = self.solver.solve(orbit, initial_space=warm, keep_vectors=True)
-                    for v in warm or ():
-                        v.destroy()
-                    warm = res.vectors
-                    spec = Spectrum(res.values, False, self.tol_rho)
-                row = self._row(q, spec, orbit, time.perf_counter() - t0)
-                self.store.append(row)
-                yield row
-        finally:
-            for v in warm or ():
-                v.destroy()
+        rows = (dealt(todo, [self.orbit(q).symmetry.cost() for q in todo], self.comm, self._spectrum)
+                if self.method == "symmetric" else ((q, self._spectrum(q)) for q in todo))
+        for _, row in rows:
+            self.store.append(row)
+            yield row
 
     def destroy(self):
         self.solver.destroy()
@@ -229,11 +216,9 @@ class FloquetScan:
 
 
 def floquet_reference(path):
-    """{round(q, 12): rho} from a Floquet file (either format), or {} if there is none."""
-    try:
-        data = load_npz(path, "Floquet file")
-    except RecordFileError:
-        return {}
+    """{round(q, 12): rho} from a Floquet file (either format); a missing or unreadable file is an error naming it
+    (a reference that is not there must not become a table of nan)."""
+    data = load_npz(path, "Floquet reference file")
     if "format" in data:
         check_kind(data, path, FLOQUET_FORMAT, "Floquet file")
     return {round(float(a), 12): float(b) for a, b in zip(data["q"], data["rho"])}
@@ -254,18 +239,22 @@ class BlochScan:
                                      f"{self.M} beads (it is tiled)")
         if split not in ("sectors", "beads"):
             raise ParameterError("-split", split, "must be sectors or beads")
-        self.sectors = sector_solver(branch.model, comm, split, tolerances)
+        self.solver = SymmetricFloquet(branch.model, comm, tolerances, split=split, n_modes=nev)
         self.sizes, self.nev, self.tol_rho, self.split = list(sizes), nev, tol_rho, split
         self.slepc_sizes, self.tolerances, self.reference = set(slepc_sizes), tolerances, reference or {}
         self.orbits = [refined.orbit(branch.point(q), self.cell) for q in qs]
-        self._open = lambda: NpzRecords(output, BLOCH_FORMAT,
-                                dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, split=split,
-                                     rtol=tolerances.rtol, refined_file=refined.path),
-                                dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, rtol=tolerances.rtol),
-                                BLOCH_FIELDS + ("dominant", "dominant_theta"), comm, mode,
-                                dtypes={"N": np.int64, "outside": np.int64, "slepc_products": np.int64,
-                                        "dominant": complex}, shapes={"dominant": (nev,), "dominant_theta": (nev,)},
-                                what="Bloch file")
+        def store():
+            extra = provenance(comm, ("floquet_",), branch=getattr(branch, "path", ""), refined=refined.path)
+            return NpzRecords(output, BLOCH_FORMAT,
+                              dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, split=split,
+                                   rtol=tolerances.rtol, refined_file=refined.path, **extra),
+                              dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, rtol=tolerances.rtol,
+                                   **extra),
+                              BLOCH_FIELDS + ("dominant", "dominant_theta"), comm, mode,
+                              dtypes={"N": np.int64, "outside": np.int64, "slepc_products": np.int64,
+                                      "dominant": complex}, shapes={"dominant": (nev,), "dominant_theta": (nev,)},
+                              what="Bloch file")
+        self._open = store
         self.store = None
         self.extra = {}
 
@@ -284,35 +273,37 @@ class BlochScan:
                 if (N, round(cell.q, 12)) in done:
                     continue
                 t0 = time.perf_counter()
-                b = bloch_multipliers(cell, N, self.comm, self.tolerances, split=self.split, n_modes=self.nev,
-                                      sectors=self.sectors)
-                t_bloch = time.perf_counter() - t0
                 full = cell.tiled(L)
+                b = self.solver.spectrum(full, self.tol_rho)
+                t_bloch = time.perf_counter() - t0
                 t0 = time.perf_counter()
                 res, res_products = bloch_residuals(full, real_pairs(b.modes, b.L), self.comm, self.tolerances)
                 t_res = time.perf_counter() - t0
                 slepc = None
                 if N in self.slepc_sizes:
                     s = seeded_dominant_multipliers(full, b, self.nev, self.comm, self.tolerances)
-                    slepc = dict(products=s.products, seconds=s.wall_time, rho=float(abs(s.values[0])),
-                                 dist=max(float(np.min(np.abs(b.values[:self.nev + 2] - v))) for v in s.values))
+                    slepc = dict(products=s.work["products"], seconds=s.work["wall_time"],
+                                 rho=float(abs(s.multipliers[0])),
+                                 dist=max(float(np.min(np.abs(b.multipliers[:self.nev + 2] - v)))
+                                          for v in s.multipliers))
                 # sector l of the wave's cell (b.M beads) is theta = 2 pi l / b.L per cell, i.e. theta_l per = l / L per
                 # refined cell of M beads: the refined cell's own spectrum is that of the sectors periodic over it
                 per = self.M // b.M
                 cell_sectors = np.isin(b.sector, [l for l in range(b.L) if (l * per) % b.L == 0])
-                row = dict(N=N, q=cell.q, rho=spectral_radius(b.values), rho_cell=spectral_radius(b.values[cell_sectors]),
-                           outside=int(np.sum(np.abs(b.values) > 1 + self.tol_rho)), residual=float(np.max(res)),
+                row = dict(N=N, q=cell.q, rho=b.rho, rho_cell=spectral_radius(b.multipliers[cell_sectors]),
+                           outside=b.outside, residual=float(np.max(res)),
                            seconds=t_bloch, slepc_products=slepc["products"] if slepc else -1,
                            slepc_seconds=slepc["seconds"] if slepc else math.nan,
                            dominant=np.array([mu for mu, _, _ in b.modes]),
                            dominant_theta=np.array([(j * per / b.L) % 1.0 for _, j, _ in b.modes]))
-                self.extra[(N, round(cell.q, 12))] = dict(m=full.m, L=L, runs=b.runs, columns=b.columns,
-                                                           res_products=res_products, t_res=t_res, slepc=slepc)
+                self.extra[(N, round(cell.q, 12))] = dict(m=full.m, L=L, runs=b.work["runs"], columns=b.work["columns"],
+                                                           res_products=res_products, t_res=t_res, slepc=slepc,
+                                                           propagated=b.work["propagated"])
                 self.store.append(row)
                 yield row, self.extra[(N, round(cell.q, 12))]
 
     def destroy(self):
-        self.sectors.destroy()
+        self.solver.destroy()
 
     def table(self, ranks):
         M = self.M
@@ -322,7 +313,9 @@ class BlochScan:
                  f" rho excludes the 4 trivial multipliers; outside: |lambda| > 1 + {self.tol_rho:g} among all 2N. "
                  f"rho(cell) is sector theta = 0, i.e. the N = {M} chain; rho(N={M} table) is the Floquet scan's "
                  "(rtol 1e-14). Residual: max relative ||F Y - lambda Y|| of the tiled Bloch modes of the dominant "
-                 "multipliers on the full chain (matrix-free, 2 shell products per complex pair). SLEPc: "
+                 "multipliers on the full chain (matrix-free, 2 shell products per complex pair, all in one "
+                 "integration). Bloch 'from 1 x 2M on 3 cells': every sector from the cell propagator "
+                 "(hertzpetsc.tangent.CellPropagator). SLEPc: "
                  "Krylov-Schur on the full-chain shell started from those modes (products, time, max distance of "
                  "its multipliers to the Bloch ones).\n",
                  "| N | q | m | rho(F_q) | rho(cell) | rho(N=100 table) | outside | Bloch runs x columns | Bloch time (s) "
@@ -339,7 +332,10 @@ class BlochScan:
             res_detail = (f"({e['res_products']}, {e['t_res']:.1f})" if "res_products" in e else "")
             lines.append(f"| {N} | {q_label(q)} | {int(round(N * q / (2 * math.pi)))} | {float(r['rho']):.8f} | "
                          f"{float(r['rho_cell']):.8f} | {f'{ref:.8f}' if ref is not None else 'n/a'} | "
-                         f"{int(r['outside'])} | {runs} x {cols // runs} | {float(r['seconds']):.1f} | "
+                         f"{int(r['outside'])} | "
+                         + (f"{runs} from 1 x {cols // runs} on 3 cells" if e.get("propagated") else
+                            f"{runs} x {cols // runs}")
+                         + f" | {float(r['seconds']):.1f} | "
                          f"{float(r['residual']):.1e} {res_detail} | "
                          + (f"{sl['products']}, {sl['seconds']:.1f}, {sl['dist']:.1e}" if sl else "not run") + " |")
             dom = ", ".join(f"{abs(v):.6f} @ {np.angle(v) / math.pi:+.4f} [{t:.3f}]"

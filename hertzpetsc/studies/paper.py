@@ -8,7 +8,9 @@ when it finished: a resumed pipeline skips the finished steps, continues an inte
 file (``-resume``) where the driver has one, and starts the others afresh (``-force`` overwrites the record files
 of earlier complete runs, e.g. the committed results).
 """
+import fcntl
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -16,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import HertzPetscError, ParameterError
-from ..records import NpzRecords, make_directory
+from ..errors import HertzPetscError, ParameterError, RecordFileError
+from ..records import NpzRecords, make_directory, prepare_output
 
 PAPER_FORMAT = "hertzpetsc-paper-1"
 
@@ -116,7 +118,9 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
              record=f"{runs}/branch_alpha2.5.npz"),
         Step("compacton_stability", "3.3", "compacton_stability.py",
              ("-branches", f"results/branch_alpha1.5.npz,{runs}/branch_alpha2.npz,{runs}/branch_alpha2.5.npz",
-              "-no_solitary", "-figures", figures), record="results/compacton_stability.npz"),
+              "-figures", figures), record="results/compacton_stability.npz"),
+        Step("solitary_stability", "3.3", "solitary_stability.py", ("-figures", figures),
+             record="results/solitary_stability.npz"),
         Step("compacton_dynamics", "3.3", "compacton_dynamics.py",
              ("-q", "7*pi/25,pi/50", "-pairs_branch", f"{runs}/branch_K4000.npz", "-figures", figures),
              parallel=False, record="results/compacton_dynamics.npz"),
@@ -140,6 +144,29 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
     return steps
 
 
+def run_child(cmd, cwd, out, grace=5.0):
+    """Run ``cmd`` in a process group of its own and return its exit status; if this process is interrupted or
+    terminated meanwhile (KeyboardInterrupt, :class:`~hertzpetsc.options.Terminated`), end the whole group (the
+    mpiexec and its ranks: SIGTERM, then SIGKILL after ``grace`` seconds) before passing the interruption on, so
+    that no step outlives the pipeline."""
+    child = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=subprocess.STDOUT, env=dict(os.environ),
+                             start_new_session=True)
+    try:
+        return child.wait()
+    except BaseException:
+        for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, None)):
+            try:
+                os.killpg(child.pid, sig)
+            except ProcessLookupError:
+                break
+            try:
+                child.wait(timeout=wait)
+                break
+            except subprocess.TimeoutExpired:
+                continue
+        raise
+
+
 class PaperPipeline:
     """Run :func:`paper_steps` (or ``only`` of them) from the repository ``root`` with ``ranks`` ranks, keeping
     the progress in ``progress`` (mode new, resume or force) and each step's output in ``logs``."""
@@ -157,8 +184,22 @@ class PaperPipeline:
         self.progress, self.mode, self.store = progress, mode, None
 
     def open(self):
-        """Open the progress file."""
+        """Open the progress file, holding its lock (one pipeline writes it at a time)."""
         if self.store is None:
+            make_directory(self.progress, "pipeline progress file")
+            self._lock = open(self.progress + ".lock", "a+")
+            try:
+                fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                self._lock.seek(0)
+                holder = self._lock.read().strip() or "another process"
+                self._lock.close()
+                raise RecordFileError(f"pipeline progress file {self.progress!r} is being written by {holder}: wait "
+                                      "for it to end (or end it) before resuming") from None
+            self._lock.seek(0)
+            self._lock.truncate()
+            self._lock.write(f"process {os.getpid()}\n")
+            self._lock.flush()
             names = ",".join(s.name for s in self.steps)
             self.store = NpzRecords(self.progress, PAPER_FORMAT, dict(steps=names), dict(steps=names),
                                     ("name", "event", "seconds"), None, self.mode,
@@ -187,12 +228,16 @@ class PaperPipeline:
                 yield i, step, None, ()
                 continue
             cmd, args = self.command(step)
-            self.store.append(dict(name=step.name, event="started", seconds=0.0))
             log = os.path.join(self.logs, f"{step.name}.log")
+            record = os.path.join(self.root, step.record) if step.record else ""
+            # the step's outputs must be writable before it is recorded as started (a run directory: its files)
+            for path in [log] + ([os.path.join(record, "run.json") if os.path.isdir(record)
+                                  or not os.path.splitext(record)[1] else record] if record else []):
+                prepare_output(path, None, f"output of step {step.name}")
+            self.store.append(dict(name=step.name, event="started", seconds=0.0))
             t0 = time.perf_counter()
             with open(log, "w") as out:
-                rc = subprocess.run(cmd, cwd=self.root, stdout=out, stderr=subprocess.STDOUT,
-                                    env=dict(os.environ)).returncode
+                rc = run_child(cmd, self.root, out)
             seconds = time.perf_counter() - t0
             if rc != 0:
                 with open(log) as f:

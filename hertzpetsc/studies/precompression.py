@@ -8,16 +8,20 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
   2 = the uncompressed limit delta0 / A = 0, where a and A are inf), a (first sine coefficient of u), A
   (||u||_inf), omega, omega_lin (closed form), Omega = omega A^(-(alpha-1)/2), lam, gap (2 u(q/2) - delta0),
   iterations.
-* ``hertzpetsc-dimer-1`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end;
-  per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u, norm_v
-  (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
-  iterations.
+* ``hertzpetsc-dimer-2`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end, ds,
+  ds_max; per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u,
+  norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
+  iterations, event (0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the
+  path); state (for -resume of the q in progress): ``state_q``, ``state_Z`` (2, n) the last two extended
+  vectors (profiles, lam, epsilon), ``state_s``, ``state_ds``, ``state_normalised``. A ``hertzpetsc-dimer-1``
+  file (no event, no state) is read for its tables; it cannot be resumed.
 * ``hertzpetsc-precompression-map-1`` (:class:`StabilityMap`): constants alpha, delta0, masses, N, cells_per_pi,
   rtol, tol_rho; per record: q, a (inf: uncompressed), A, omega, rho (trivial multipliers excluded), outside,
   trivial_spread, seconds.
 """
 import math
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -26,20 +30,24 @@ from ..diagnostics import sup_norm
 from ..errors import ConvergenceError, ParameterError
 from ..floquet import TOL_RHO, DenseFloquet
 from ..grid import ProfileGrid, check_cells_per_pi
+from ..advdelay import check_wavenumber
 from ..model import ChainSpec, LatticeModel
-from ..precompression import (AmplitudeContinuation, MassContinuation, check_amplitude, dimer_frequencies,
-                              linear_frequency, uncompressed_limit, weakly_nonlinear_coefficient)
-from ..records import NpzRecords
+from ..families import AmplitudeFamily, MassFamily, check_amplitude, uncompressed_limit
+from ..resources import check_memory
+from ..twsolver import tw_solver
+from .base import Study
 from ..richardson import extrapolate
 from ..stencil import full_period, lagrange_periodic
-from ..waves import Orbit, check_chain_wavenumber
+from ..branch import BranchPoint
+from ..waves import check_chain_wavenumber, orbit_on_chain
 from .floquet import q_label
 
 PRECOMPRESSED_FORMAT = "hertzpetsc-precompressed-1"
 PRECOMPRESSED_FIELDS = ("q", "kind", "a", "A", "omega", "omega_lin", "Omega", "lam", "gap", "iterations")
-DIMER_FORMAT = "hertzpetsc-dimer-1"
+DIMER_FORMAT = "hertzpetsc-dimer-2"
 DIMER_FIELDS = ("q", "epsilon", "omega", "omega_acoustic", "arclength", "tangent_epsilon", "norm_u", "norm_v",
-                "v1", "v2", "iterations")
+                "v1", "v2", "iterations", "event")
+EVENT_CODES = {None: 0, "fold": 1, "gap": 2}
 MAP_FORMAT = "hertzpetsc-precompression-map-1"
 MAP_FIELDS = ("q", "a", "A", "omega", "rho", "outside", "trivial_spread", "seconds")
 KIND_GRID, KIND_GAP, KIND_LIMIT = 0, 1, 2
@@ -53,10 +61,16 @@ def amplitude_grid(a_min, a_max, ds):
     if not (ds > 0 and math.isfinite(ds)):
         raise ParameterError("ds", ds, "the step in log a must be a finite number > 0")
     n = int(math.floor(math.log(a_max / a_min) / ds + 1e-9))
+    if n > MAX_AMPLITUDES:
+        raise ParameterError("ds", ds, f"gives {n + 1} amplitudes from a_min to a_max: at most {MAX_AMPLITUDES} "
+                             f"(ds >= {math.log(a_max / a_min) / MAX_AMPLITUDES:.3g})")
     grid = [a_min * math.exp(k * ds) for k in range(n + 1)]
     if grid[-1] < a_max * (1 - 1e-12):
         grid.append(a_max)
     return grid
+
+
+MAX_AMPLITUDES = 10000
 
 
 def _check_delta0_positive(model):
@@ -64,31 +78,60 @@ def _check_delta0_positive(model):
         raise ParameterError("delta0", model.delta0, "the families of this study need a precompression > 0")
 
 
-class AmplitudeFamilies:
+def _check_qs(q, h=None, name="q"):
+    qs = tuple(check_wavenumber(x, h, name) for x in q)
+    if not qs:
+        raise ParameterError(name, q, "give at least one wavenumber")
+    return qs
+
+
+@dataclass(frozen=True)
+class AmplitudeParameters:
+    """The amplitude families: the precompressed monatomic ``model``, wavenumbers ``q``, grid h = pi /
+    cells_per_pi, amplitudes a_min exp(k ds) up to a_max (at most :data:`MAX_AMPLITUDES`)."""
+
+    model: LatticeModel
+    q: tuple
+    cells_per_pi: int = 1000
+    a_min: float = 1e-3
+    a_max: float = 1e3
+    ds: float = 0.1
+
+    def __post_init__(self):
+        _check_delta0_positive(self.model)
+        if self.model.cell != 1:
+            raise ParameterError("masses", list(self.model.masses), "the amplitude families are the monatomic "
+                                 "chain's (dimers: DimerFamilies)")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
+        amplitude_grid(self.a_min, self.a_max, self.ds)
+
+
+class AmplitudeFamilies(Study):
     """omega(q, A) of the precompressed monatomic chain: at each q, the continuation in s = log a from a_min to
-    a_max (:class:`~hertzpetsc.precompression.AmplitudeContinuation`, prefix ``precomp_``), the gap opening
+    a_max (:class:`~hertzpetsc.families.AmplitudeFamily`, prefix ``precomp_``), the gap opening
     located on the way, and the uncompressed limit on the same grid. Records per point (module docstring)."""
 
-    def __init__(self, model, qs, cells_per_pi, comm, output, mode="new", a_min=1e-3, a_max=1e3, ds=0.1):
-        _check_delta0_positive(model)
-        self.model, self.qs, self.comm = model, [float(q) for q in qs], comm
-        self.K = check_cells_per_pi(cells_per_pi)
-        self.amplitudes = amplitude_grid(a_min, a_max, ds)
-        constants = dict(alpha=model.alpha, delta0=model.delta0, cells_per_pi=self.K, a_min=a_min, a_max=a_max,
-                         ds=ds)
-        self._open = lambda: NpzRecords(output, PRECOMPRESSED_FORMAT, constants, constants, PRECOMPRESSED_FIELDS,
-                                        comm, mode, dtypes={"kind": np.int64, "iterations": np.int64},
-                                        what="precompressed-wave file")
-        self.store = None
+    Parameters = AmplitudeParameters
+    FORMAT, FIELDS = PRECOMPRESSED_FORMAT, PRECOMPRESSED_FIELDS
+    DTYPES = {"kind": np.int64, "iterations": np.int64}
+    ROLES = {"precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
+    WHAT = "precompressed-wave file"
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        self.model, self.qs, self.K = params.model, list(params.q), params.cells_per_pi
+        self.amplitudes = amplitude_grid(params.a_min, params.a_max, params.ds)
+        check_memory(self.K, self.comm, tw_solver("precomp_"))
+
+    def constants(self):
+        p = self.params
+        return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a_min=p.a_min,
+                    a_max=p.a_max, ds=p.ds)
 
     def _row(self, point, kind):
         return dict(q=point.q, kind=kind, a=point.a, A=point.A, omega=point.omega,
-                    omega_lin=float(linear_frequency(point.q, self.model.alpha, self.model.delta0)),
+                    omega_lin=float(self.model.linear_frequencies(point.q)[0]),
                     Omega=point.Omega, lam=point.lam, gap=point.gap, iterations=point.iterations)
 
     def _done(self, q):
@@ -103,28 +146,26 @@ class AmplitudeFamilies:
             done = self._done(q)
             if any(k == KIND_LIMIT for k, _ in done):
                 continue
-            cont = AmplitudeContinuation(self.model, q, grid)
+            fam = AmplitudeFamily(self.model, q, grid)
             try:
-                previous = None
                 gap_found = any(k == KIND_GAP for k, _ in done)
                 for a in self.amplitudes:
-                    point = cont.step_to(a)
-                    if previous is not None and previous.gap < 0 <= point.gap and not gap_found:
-                        gap = cont.locate_gap(previous, point)
-                        gap_found = True
-                        row = self._row(gap, KIND_GAP)
-                        self.store.append(row)
-                        yield row
+                    point = fam.step_to(a)
+                    for gap in fam.events():
+                        if not gap_found:
+                            gap_found = True
+                            row = self._row(gap, KIND_GAP)
+                            self.store.append(row)
+                            yield row
                     if (KIND_GRID, round(a, 10)) not in done:
                         row = self._row(point, KIND_GRID)
                         self.store.append(row)
                         yield row
-                    previous = point
                 limit = uncompressed_limit(self.model, q, grid, point)
             finally:
-                cont.destroy()
+                fam.destroy()
             row = dict(q=q, kind=KIND_LIMIT, a=math.inf, A=math.inf, omega=math.inf,
-                       omega_lin=float(linear_frequency(q, self.model.alpha, self.model.delta0)),
+                       omega_lin=float(self.model.linear_frequencies(q)[0]),
                        Omega=limit["Omega0"], lam=limit["lam"], gap=math.inf, iterations=limit["iterations"])
             self.store.append(row)
             yield row
@@ -143,7 +184,7 @@ class AmplitudeFamilies:
         largest A, Omega0 and c1 = (Omega - Omega0) A / delta0 at the largest two A."""
         alpha, d0 = self.model.alpha, self.model.delta0
         grid, gap, limit = self.rows(q)
-        out = dict(q=q, C_theory=round(float(weakly_nonlinear_coefficient(q, alpha, d0)), 15) + 0.0)
+        out = dict(q=q, C_theory=round(float(self.model.law.stokes_coefficient(q)), 15) + 0.0)
         small = [r for r in grid if float(r["a"]) <= 0.05 * d0]
         if len(small) >= 3:
             a = np.array([float(r["a"]) for r in small])
@@ -188,7 +229,7 @@ class AmplitudeFamilies:
         for q in self.qs:
             s = self.summary(q)
             fmt = lambda k, f="{:.6f}": f.format(s[k]) if k in s else "n/a"   # noqa: E731
-            lines.append(f"| {q_label(q)} | {float(linear_frequency(q, alpha, d0)):.6f} | {s['C_theory']:.6f} | "
+            lines.append(f"| {q_label(q)} | {float(self.model.linear_frequencies(q)[0]):.6f} | {s['C_theory']:.6f} | "
                          + (f"{s['C_fit']:.6f} ({s['offset_h']:.1e})" if "C_fit" in s else "n/a")
                          + f" | {fmt('A_gap')} | {fmt('omega_gap')} | {fmt('A_max', '{:.4g}')} | {fmt('Omega_max')} | "
                          f"{fmt('Omega0', '{:.8f}')} | {fmt('Omega0_fit', '{:.8f}')} | "
@@ -215,59 +256,129 @@ def sine_coefficient(u_half, k):
     return float(2.0 / K * np.dot(np.sin(k * np.arange(K + 1) * math.pi / K), u_half))
 
 
-class DimerFamilies:
+MAX_STEPS = 100000
+
+
+@dataclass(frozen=True)
+class DimerParameters:
+    """The dimer families: the precompressed monatomic ``model`` (the dimer has masses 1, epsilon), per-bead
+    wavenumbers ``q``, amplitude a (first sine coefficient of the heavy bead's profile), grid h = pi /
+    cells_per_pi, pseudo-arclength from epsilon = 1 until epsilon_end or max_steps (at most :data:`MAX_STEPS`)
+    steps of ds (first) .. ds_max."""
+
+    model: LatticeModel
+    q: tuple
+    a: float = 0.5
+    cells_per_pi: int = 200
+    epsilon_end: float = 0.3
+    max_steps: int = 200
+    ds: float = 0.02
+    ds_max: float = 0.1
+
+    def __post_init__(self):
+        _check_delta0_positive(self.model)
+        if self.model.cell != 1:
+            raise ParameterError("masses", list(self.model.masses), "give the monatomic model; the dimer is built "
+                                 "from it")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
+        object.__setattr__(self, "a", check_amplitude(self.a, "a"))
+        if not (0 < self.epsilon_end < 1):
+            raise ParameterError("epsilon_end", self.epsilon_end, "must lie in (0, 1) (continuation from epsilon = 1 "
+                                 "down)")
+        if not (isinstance(self.max_steps, (int, np.integer)) and 1 <= self.max_steps <= MAX_STEPS):
+            raise ParameterError("max_steps", self.max_steps, f"must be an integer in [1, {MAX_STEPS}]")
+        for name in ("ds", "ds_max"):
+            v = getattr(self, name)
+            if not (0 < v <= 1):
+                raise ParameterError(name, v, "the arclength step must lie in (0, 1]")
+        if self.ds > self.ds_max:
+            raise ParameterError("ds", self.ds, f"must not exceed ds_max = {self.ds_max:g}")
+
+
+class DimerFamilies(Study):
     """Dimer waves (masses 1, epsilon) at fixed q and amplitude a, continued in epsilon from 1 by pseudo-arclength
-    (:class:`~hertzpetsc.precompression.MassContinuation`, prefix ``dimer_``) until epsilon passes epsilon_end or
+    (:class:`~hertzpetsc.families.MassFamily`, prefix ``dimer_``) until epsilon passes epsilon_end or
     ``max_steps``. A q whose continuation stops (no convergence after step halving) keeps its saved points and
     the table says where it stopped."""
 
-    def __init__(self, model, qs, a, cells_per_pi, comm, output, mode="new", epsilon_end=0.3, max_steps=200,
-                 ds=0.02, ds_max=0.1):
-        _check_delta0_positive(model)
-        if model.cell != 1:
-            raise ParameterError("masses", list(model.masses), "give the monatomic model; the dimer is built from it")
-        if not (0 < epsilon_end < 1):
-            raise ParameterError("epsilon_end", epsilon_end, "must lie in (0, 1) (continuation from epsilon = 1 down)")
-        self.model = LatticeModel(model.law, (1.0, 1.0))
-        self.qs, self.a, self.comm = [float(q) for q in qs], check_amplitude(a), comm
-        self.K = check_cells_per_pi(cells_per_pi)
-        self.epsilon_end, self.max_steps, self.ds, self.ds_max = epsilon_end, max_steps, ds, ds_max
-        constants = dict(alpha=model.alpha, delta0=model.delta0, cells_per_pi=self.K, a=self.a,
-                         epsilon_end=epsilon_end)
-        self._open = lambda: NpzRecords(output, DIMER_FORMAT, constants, constants, DIMER_FIELDS, comm, mode,
-                                        dtypes={"iterations": np.int64}, what="dimer file")
-        self.store = None
+    Parameters = DimerParameters
+    FORMAT, FIELDS = DIMER_FORMAT, DIMER_FIELDS
+    DTYPES = {"iterations": np.int64, "event": np.int64}
+    ROLES = {"dimer_": ("the pseudo-arclength Newton in epsilon (-dimer_solver direct|nk)", ("snes",)),
+             "dimer_natural_": ("the natural continuation to the starting waves (-dimer_natural_solver direct|nk)",
+                                ("snes",))}
+    WHAT = "dimer file"
+
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        p = params
+        self.model = LatticeModel(p.model.law, (1.0, 1.0))
+        self.qs, self.a, self.K = list(p.q), p.a, p.cells_per_pi
+        self.epsilon_end, self.max_steps, self.ds, self.ds_max = p.epsilon_end, p.max_steps, p.ds, p.ds_max
+        check_memory(self.K, self.comm, tw_solver("dimer_"), profiles=2)
         self.stopped = {}
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def constants(self):
+        return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a=self.a,
+                    epsilon_end=self.epsilon_end, ds=self.ds, ds_max=self.ds_max)
 
     def _row(self, q, p):
         w = p.wave
         return dict(q=q, epsilon=p.epsilon, omega=w.omega,
-                    omega_acoustic=dimer_frequencies(q, p.epsilon, self.model.alpha, self.model.delta0)[0],
+                    omega_acoustic=float(self.model.with_masses((1.0, p.epsilon)).linear_frequencies(q)[0]),
                     arclength=p.arclength, tangent_epsilon=p.tangent_epsilon, norm_u=self.a * sup_norm(w.profiles[0]),
                     norm_v=self.a * sup_norm(w.profiles[1]), v1=self.a * sine_coefficient(w.profiles[1], 1),
-                    v2=self.a * sine_coefficient(w.profiles[1], 2), iterations=w.iterations)
+                    v2=self.a * sine_coefficient(w.profiles[1], 2), iterations=w.iterations,
+                    event=EVENT_CODES[getattr(p, "event", None)])
+
+    def _progress(self, q):
+        """(regular points saved for q, finished?) from the records."""
+        rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q and int(r["event"]) == 0]
+        if not rows:
+            return 0, False
+        last = float(rows[-1]["epsilon"])
+        passed = (last - self.epsilon_end) * (1.0 - self.epsilon_end) < 0 or last <= 0
+        return len(rows), passed or len(rows) - 2 >= self.max_steps or q in self.stopped
 
     def run(self):
+        """Continue every q not finished in the file: a q in progress resumes from the saved state (the last two
+        points and the step), a larger -max_steps extends a finished path; yields each new record after saving
+        it (with the state for a resume)."""
         self.open()
         grid = ProfileGrid(self.K, self.comm)
         for q in self.qs:
-            if any(abs(float(r["q"]) - q) <= 1e-12 * q for r in self.store.records):
-                continue           # a q is computed in one go (the arclength path is not resumable mid-way)
-            mc = MassContinuation(self.model, q, grid, self.a, ds=self.ds, ds_max=self.ds_max)
+            saved, finished = self._progress(q)
+            if finished:
+                continue
+            mc = MassFamily(self.model, q, grid, self.a, ds=self.ds, ds_max=self.ds_max)
             try:
-                for p in mc.start():
-                    row = self._row(q, p)
-                    self.store.append(row)
-                    yield row
-                try:
-                    for p in mc.run(self.epsilon_end, self.max_steps):
+                state = self.store.state
+                if saved >= 2 and "q" in state and abs(float(state["q"]) - q) <= 1e-12 * q:
+                    mc.restore(state)
+                else:
+                    # the two start points; the state (both points) is saved with the second: a run stopped after
+                    # the first recomputes them and saves the second (the first is the same computation)
+                    points = list(mc.start())
+                    for i, p in enumerate(points):
+                        if i < saved:
+                            continue
                         row = self._row(q, p)
-                        self.store.append(row)
+                        self.store.append(row, state=dict(q=q, **mc.snapshot()) if i == len(points) - 1 else None)
+                        yield row
+                    saved = len(points)
+                try:
+                    for p in mc.run(self.epsilon_end, self.max_steps - (saved - 2)):
+                        row = self._row(q, p)
+                        if p.event is not None:
+                            # an event row keeps the state of the previous point: a resume recomputes this step
+                            # and finds the event again (not saved twice)
+                            if any(abs(float(r["q"]) - q) <= 1e-12 * q and int(r["event"]) == row["event"]
+                                   and abs(float(r["epsilon"]) - p.epsilon) <= 1e-9 for r in self.store.records):
+                                continue
+                            self.store.append(row)
+                        else:
+                            self.store.append(row, state=dict(q=q, **mc.snapshot()))
                         yield row
                 except ConvergenceError as err:
                     self.stopped[q] = str(err)
@@ -280,12 +391,17 @@ class DimerFamilies:
                  "coefficient of the heavy bead's profile u); pseudo-arclength in epsilon from 1. v1, v2: first and "
                  "second sine coefficients of the light bead's profile v at the end.\n",
                  "| q | points | epsilon reached (min) | omega at epsilon = 1 | omega at the end | ||v||/||u|| at the end "
-                 "| v1, v2 at the end | folds (sign changes of d epsilon/ds) | omega_acoustic(linear) at the end |",
-                 "|---|---|---|---|---|---|---|---|---|"]
+                 "| v1, v2 at the end | folds (sign changes of d epsilon/ds) | omega_acoustic(linear) at the end "
+                 "| located: folds, gap opening (epsilon) |",
+                 "|---|---|---|---|---|---|---|---|---|---|"]
+        names = {v: k for k, v in EVENT_CODES.items()}
         for q in self.qs:
-            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+            mine = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+            rows = [r for r in mine if int(r.get("event", 0)) == 0]
             if not rows:
                 continue
+            events = ", ".join(f"{names[int(r['event'])]} {float(r['epsilon']):.6f}" for r in mine
+                               if int(r.get("event", 0)) != 0) or "none"
             t = np.array([float(r["tangent_epsilon"]) for r in rows])
             t = t[np.isfinite(t)]
             folds = int(np.sum(np.sign(t[1:]) != np.sign(t[:-1]))) if len(t) > 1 else 0
@@ -294,7 +410,7 @@ class DimerFamilies:
                          f"({min(float(r['epsilon']) for r in rows):.5f}) | {float(rows[0]['omega']):.6f} | "
                          f"{float(last['omega']):.6f} | {float(last['norm_v']) / float(last['norm_u']):.4f} | "
                          f"{float(last['v1']):.4f}, {float(last['v2']):.4f} | {folds} | "
-                         f"{float(last['omega_acoustic']):.6f} |")
+                         f"{float(last['omega_acoustic']):.6f} | {events} |")
         for q, why in self.stopped.items():
             lines.append(f"\nq = {q_label(q)}: stopped: {why}")
         return "\n".join(lines) + "\n"
@@ -302,7 +418,8 @@ class DimerFamilies:
     def curves(self):
         out = {}
         for q in self.qs:
-            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q
+                    and int(r.get("event", 0)) == 0]
             if rows:
                 out[q] = tuple(np.array([float(r[k]) for r in rows]) for k in ("epsilon", "omega", "omega_acoustic",
                                                                                  "norm_v"))
@@ -317,7 +434,7 @@ def richardson_wave(model, q, a_values, K, comm):
     sols = []
     for k in (K, 2 * K):
         grid = ProfileGrid(k, comm)
-        cont = AmplitudeContinuation(model, q, grid)
+        cont = AmplitudeFamily(model, q, grid)
         try:
             pts = list(cont.points(a_values))
             limit = uncompressed_limit(model, q, grid, pts[-1])
@@ -328,62 +445,80 @@ def richardson_wave(model, q, a_values, K, comm):
             for (a1, w1, l1), (_, w2, l2) in zip(*sols)]
 
 
-def wave_orbit(model, q, a, profiles, lam, N):
-    """The travelling wave x_n = a w_c(q n - omega t) (c = n mod p, p the mass pattern's length; omega =
-    a^((alpha-1)/2) sqrt(lam)) on N beads of ``model`` as an :class:`~hertzpetsc.waves.Orbit` whose script-T
-    = p q / omega is the time after which the shift by one cell (p beads) maps the state back."""
-    spec = ChainSpec(model, N)
-    m = check_chain_wavenumber(q, N)
-    p = model.cell
-    if len(profiles) != p:
-        raise ParameterError("profiles", len(profiles), f"must be one per bead of the cell ({p})")
-    omega = a ** ((model.alpha - 1) / 2) * math.sqrt(lam)
-    n = np.arange(N)
-    xi = np.mod(q * n, 2 * math.pi)
-    x, v = np.empty(N), np.empty(N)
-    for c, w_half in enumerate(profiles):
-        h = math.pi / (len(w_half) - 1)
-        full = full_period(np.asarray(w_half, dtype=float))
-        beads = n % p == c
-        x[beads] = a * lagrange_periodic(full, h, xi[beads])
-        v[beads] = -a * omega * lagrange_periodic(full, h, xi[beads], derivative=True)
-    return Orbit(spec=spec, q=q, m=m, T=p * q / omega, x=np.stack([x, v], axis=1), omega=omega,
-                 source="precompressed")
+def wave_orbit(model, q, a, profiles, lam, N, h):
+    """The wave u_c = a w_c of the rescaled profiles ``profiles`` (grid step h) with omega^2 = a^(d-1) lam on N beads
+    of ``model`` (a = inf: the uncompressed limit, on the same model without precompression)."""
+    if not math.isfinite(a):
+        model, a = model.with_delta0(0.0), 1.0
+    point = BranchPoint(q, np.asarray(profiles[0]), h, model.rescaled(a), profiles=tuple(profiles),
+                        omega=math.sqrt(lam))
+    return orbit_on_chain(point, ChainSpec(model, N), scale=a)
 
 
-class StabilityMap:
+MAX_MAP_BEADS = 2000
+
+
+@dataclass(frozen=True)
+class MapParameters:
+    """The stability map: the precompressed ``model`` (any mass pattern), wavenumbers ``q`` (whole numbers of
+    wavelengths on N beads), amplitudes ``a`` (first sine coefficient), N beads (at most :data:`MAX_MAP_BEADS`:
+    the dense monodromy has (2N)^2 entries), the coarser grid of the Richardson pair (K, 2K), the flow's
+    tolerances and the verdict's threshold tol_rho."""
+
+    model: LatticeModel
+    q: tuple
+    a: tuple
+    N: int = 100
+    cells_per_pi: int = 1000
+    tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
+    tol_rho: float = TOL_RHO
+
+    def __post_init__(self):
+        _check_delta0_positive(self.model)
+        if not (isinstance(self.N, (int, np.integer)) and self.model.cell <= self.N <= MAX_MAP_BEADS):
+            raise ParameterError("N", self.N, f"must be an integer in [{self.model.cell}, {MAX_MAP_BEADS}]")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        qs = _check_qs(self.q, math.pi / self.cells_per_pi)
+        for q in qs:
+            check_chain_wavenumber(q, self.N)
+        object.__setattr__(self, "q", qs)
+        amps = tuple(sorted(check_amplitude(a, "a") for a in self.a))
+        if not amps:
+            raise ParameterError("a", self.a, "give at least one amplitude")
+        object.__setattr__(self, "a", amps)
+        if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
+            raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
+
+
+class StabilityMap(Study):
     """rho(F_q) of the precompressed waves on N beads over a (q, a) grid, plus the uncompressed limit per q
     (a = inf, the eta = 0 wave on the same grids). A dimer ``model`` gives its acoustic waves (natural
-    continuation in a at its mass ratio) and F = S R(2q/omega) with the shift by one cell. Initial data: Richardson (K, 2K) profiles; dense monodromy
-    modulo shift (:class:`~hertzpetsc.floquet.DenseFloquet`, prefix ``floquet_``). The multipliers depend on
-    (q, delta0 / A) only (exact scaling)."""
+    continuation in a at its mass ratio) and F = S R(2q/omega) with the shift by one cell. Initial data:
+    Richardson (K, 2K) profiles; dense monodromy modulo shift (:class:`~hertzpetsc.floquet.DenseFloquet`, prefix
+    ``floquet_``). The multipliers depend on (q, delta0 / A) only (exact scaling)."""
 
-    def __init__(self, model, qs, a_values, N, cells_per_pi, comm, output, mode="new",
-                 tolerances=IntegrationTolerances(rtol=1e-11, atol=1e-13), tol_rho=TOL_RHO):
-        _check_delta0_positive(model)
-        self.model, self.comm, self.N = model, comm, N
-        self.qs = [float(q) for q in qs]
-        for q in self.qs:
-            check_chain_wavenumber(q, N)
-        self.a_values = sorted(check_amplitude(a, "a") for a in a_values)
-        self.K = check_cells_per_pi(cells_per_pi)
-        self.tolerances, self.tol_rho = tolerances, tol_rho
-        constants = dict(alpha=model.alpha, delta0=model.delta0, masses=list(model.masses), N=N,
-                         cells_per_pi=self.K, rtol=tolerances.rtol, tol_rho=tol_rho)
-        self._open = lambda: NpzRecords(output, MAP_FORMAT, constants, constants, MAP_FIELDS, comm, mode,
-                                        dtypes={"outside": np.int64}, what="stability-map file")
-        self.store = None
-        self.floquet = DenseFloquet(ChainSpec(model, N), comm, tolerances)
+    Parameters = MapParameters
+    FORMAT, FIELDS = MAP_FORMAT, MAP_FIELDS
+    DTYPES = {"outside": np.int64}
+    ROLES = {"floquet_": ("the flow of the variational equations", ("ts",)),
+             "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
+    WHAT = "stability-map file"
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        p = params
+        self.model, self.N, self.qs, self.a_values = p.model, p.N, list(p.q), list(p.a)
+        self.K, self.tolerances, self.tol_rho = p.cells_per_pi, p.tolerances, p.tol_rho
+        check_memory(2 * self.K, self.comm, tw_solver("precomp_"), profiles=self.model.cell)
+        self.floquet = DenseFloquet(ChainSpec(self.model, self.N), self.comm, self.tolerances)
+
+    def constants(self):
+        return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses), N=self.N,
+                    cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho)
 
     def _spectrum_row(self, q, a, w, lam):
         model = self.model if math.isfinite(a) else self.model.with_delta0(0.0)
-        a_orbit = a if math.isfinite(a) else 1.0
-        orbit = wave_orbit(model, q, a_orbit, w, lam, self.N)
+        orbit = wave_orbit(self.model, q, a, w, lam, self.N, math.pi / self.K)
         t0 = time.perf_counter()
         if math.isfinite(a):
             spec = self.floquet.spectrum(orbit, self.tol_rho)

@@ -33,6 +33,7 @@ from ..records import NpzRecords, check_kind, load_npz, on_rank0
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
 from ..symmetry import WaveSymmetry
 from ..waves import chain_wavenumbers, check_chain_wavenumber, orbit_on_chain
+from .base import provenance
 from .dealing import dealt
 
 REFINED_FORMAT = "hertzpetsc-refined-1"
@@ -114,10 +115,12 @@ class RefinementScan:
         self.qs = scan_wavenumbers(branch, N, qs)
         self.refiner = Refiner(self.spec, PETSc.COMM_SELF, tol, prefix=SHOOT_PREFIX, symmetric=symmetric)
         self.paper_flow = ShiftMap(self.spec, PETSc.COMM_SELF, PAPER_TOLERANCES, CHAIN_PREFIX)
-        self._open = lambda: NpzRecords(output, REFINED_FORMAT, dict(alpha=branch.alpha, N=N, branch=branch_path,
-                                                                     tol=tol), dict(alpha=branch.alpha, N=N, tol=tol),
-                                        REFINED_FIELDS + ("x",), comm, mode, shapes={"x": (N, 2)},
-                                        what="refinement file")
+        def store():
+            extra = provenance(comm, ("shoot_", "chain_"), branch=branch_path)
+            return NpzRecords(output, REFINED_FORMAT, dict(alpha=branch.alpha, N=N, branch=branch_path, tol=tol,
+                                                           **extra), dict(alpha=branch.alpha, N=N, tol=tol, **extra),
+                              REFINED_FIELDS + ("x",), comm, mode, shapes={"x": (N, 2)}, what="refinement file")
+        self._open = store
         self.store = None
 
     def open(self):

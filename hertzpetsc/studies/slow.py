@@ -1,16 +1,20 @@
 """Slow instabilities above q_c on the infinite chain (the paper's closing question, section 3.5 and Discussion): the
 largest growth rate gamma(q) = max ln|mu| / script-T over all Bloch parameters, by two independent routes.
 
-* co-moving route (:mod:`hertzpetsc.comoving`, no time integration): the QEP of the linearisation in the wave's
-  frame on h = pi/K, theta in [0, pi] on a grid, the compacton band (mu = 1, split at O(h) by the scheme) identified
-  by its known location and excluded; the worst mode tracked on 2K and 4K (Richardson, order 2);
+* co-moving route (:mod:`hertzpetsc.comoving`, :mod:`~hertzpetsc.comoving_window`, no time integration): the QEP of
+  the linearisation in the wave's frame on h = pi/K, theta in [0, pi] on a grid, the compacton band (mu = 1, split
+  at O(h) by the scheme) identified by its known location and excluded; the worst mode tracked on 2K and 4K
+  (Richardson, order 2);
 * monodromy route (:mod:`hertzpetsc.slow`): the wave refined on its cell over its short time symmetry with tight
   flows, the cell's map at twists Theta in [0, pi], the symmetry multipliers (every zone's translation, and at
   Theta = 0 the uniform translation, each with its Jordan partner) deflated exactly.
 
 A wave is *slowly unstable* when the co-moving route's gamma exceeds the target resolution on every grid and
-converges (the last two grids agree to 10%): gamma is then the Richardson value. Otherwise it is *stable within
-resolution*, the resolution being the largest gamma either route measured (the co-moving values are rounding of
+converges (the last two grids agree to 10%): gamma is then the Richardson value. It is *stable within resolution*
+when no route measured a gamma above the target, the resolution being the largest gamma either route measured;
+and *unresolved* when some gamma exceeds the target but the grids do not agree (finer grids are needed: no bound is
+claimed). Grids coarser than :data:`CELLS_PER_Q` cells per q are refused (they cannot resolve the compression
+zone) (the co-moving values are rounding of
 eigenvalues that the scheme keeps on the axis exactly, lambda -> -conj(lambda); the monodromy values are the
 flow's and the orbit's error after deflation). The long-wave end: the largest Re lambda / theta of the eigenvalues
 near 0 at a small theta, against the 2x2 Whitham prediction from omega(q, A) (:func:`whitham_slope`).
@@ -36,7 +40,8 @@ invariance_mono        relative residual of the deflated subspace's invariance
 E_orbit                E(q) of the orbit after refinement (N beads over script-T); E_short: on the cell's short map
 slope_cm               largest Re lambda / theta near lambda = 0 at theta_longwave (K = grids[1])
 slope_whitham          |Im c| of the 2x2 Whitham characteristic speeds (nan: elliptic test not computable)
-resolution, verdict    the bound (per unit time) and 1 = slowly unstable, 0 = stable within resolution
+resolution, verdict    the bound (per unit time) and 1 = slowly unstable, 0 = stable within resolution,
+                       2 = unresolved (a gamma above the target on grids that do not agree)
 seconds                wall time of the point
 =====================  ======================================================================================
 """
@@ -46,7 +51,9 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from ..comoving import ComovingPEP, profile_on_grid, ComovingWave, sector_window, theta_scan, tracked_exponent
+from ..comoving import ComovingWave, profile_on_grid
+from ..comoving_pep import ComovingPEP
+from ..comoving_window import sector_window, theta_scan, tracked_exponent
 from ..errors import ConvergenceError, ParameterError
 from ..chain import IntegrationTolerances
 from ..model import ChainSpec
@@ -56,6 +63,7 @@ from ..shooting import SHOOT_PREFIX, Refiner, relative_residual
 from ..slow import DeflatedSectors
 from ..symmetry import WaveSymmetry
 from ..waves import fits_chain, orbit_on_chain
+from .base import provenance
 from .dealing import dealt
 from .floquet import q_label
 
@@ -97,6 +105,29 @@ def whitham_slope(point, comm, rel_step=0.01):
     return math.sqrt(-disc) / (beta * (beta - 1) * I[2]) if disc < 0 else 0.0
 
 
+def monodromy_fields(sectors, refiner, orbit, E):
+    """The mono fields of a record: the deflated sectors (:class:`~hertzpetsc.slow.DeflatedSectors`) of ``orbit``,
+    its E over script-T and the E of its cell's short map (the ``refiner``'s flow)."""
+    best, raw, clus, eig, inv = None, 0.0, 0.0, 0.0, 0.0
+    for s in sectors.spectrum(orbit).work["sectors"]:
+        g = math.log(s.rho) / orbit.T
+        if best is None or g > best[0]:
+            best = (g, s.theta)
+        raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
+        clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
+        eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
+    sym = orbit.symmetry
+    x0 = orbit.x[:sym.M]
+    return dict(twist_mono=best[1], gamma_mono=best[0], raw_cluster_mono=raw, cluster_mono=clus, eigvec_mono=eig,
+                invariance_mono=inv, E_orbit=E, E_short=relative_residual(x0, refiner.shift_map(sym.M)(
+                    x0, sym.delta(orbit.T), sym.k)))
+
+
+# cells per unit of q on the coarsest co-moving grid: the compression zone, about 4 q long (N(q) <= 5 beads),
+# then holds about 80 grid cells; coarser grids cannot resolve the growth they would be asked to bound
+CELLS_PER_Q = 20
+
+
 class SlowInstabilityScan:
     """gamma(q) above q_c by the co-moving and the monodromy routes (module docstring), written as it goes.
 
@@ -125,21 +156,36 @@ class SlowInstabilityScan:
         self.refine_tol, self.tolerances, self.target = refine_tol, tolerances, target
         self.theta_longwave = theta_longwave
         self.qs = [branch.point(q).q for q in (qs if qs else branch.q)]
+        coarse = [q for q in self.qs if q * grids[0] / math.pi < CELLS_PER_Q * (1 - 1e-12)]
+        if coarse:
+            q0 = coarse[0]
+            raise ParameterError("-grids", ",".join(map(str, grids)), f"the coarsest grid has {q0 * grids[0] / math.pi:.3g}"
+                                 f" cells per q at q = {q0:.6g}: at least {CELLS_PER_Q} are needed (K >= "
+                                 f"{math.ceil(CELLS_PER_Q * math.pi / q0)}) to resolve the compression zone")
         self.spec = ChainSpec(branch.model, N)
         self.pep = ComovingPEP(PETSc.COMM_SELF)
-        self.sectors = DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances) if n_twist else None
+        self.sectors = (DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances,
+                                        twists=np.linspace(0.0, math.pi, n_twist)) if n_twist else None)
         self.refiner = (Refiner(self.spec, PETSc.COMM_SELF, refine_tol, tolerances=tolerances, prefix=SHOOT_PREFIX,
                                 symmetric=True) if n_twist else None)
+        refined_path = getattr(refined, "path", "") if refined is not None else ""
         self._open = lambda: NpzRecords(
             output, SLOW_FORMAT,
             dict(alpha=branch.alpha, N=N, branch=branch_path, grids=np.array(grids), n_theta=n_theta,
                  n_twist=n_twist, refine_tol=refine_tol, rtol=tolerances.rtol, target=target,
-                 theta_longwave=theta_longwave),
+                 theta_longwave=theta_longwave, **self._provenance(branch_path, refined_path)),
             dict(alpha=branch.alpha, N=N, grids=list(grids), n_theta=n_theta, n_twist=n_twist,
-                 refine_tol=refine_tol, rtol=tolerances.rtol),
+                 refine_tol=refine_tol, rtol=tolerances.rtol, target=target, theta_longwave=theta_longwave,
+                 **self._provenance(branch_path, refined_path)),
             SLOW_FIELDS, comm, mode, dtypes={"m": np.int64, "verdict": np.int64},
             shapes={"gamma_cm": (len(grids),)}, what="slow-instability file")
         self.store = None
+
+    def _provenance(self, branch_path, refined_path):
+        if not hasattr(self, "_prov"):
+            self._prov = provenance(self.comm, ("cm_", "floquet_", "shoot_", "tw_"), branch=branch_path,
+                                    refined=refined_path)
+        return self._prov
 
     def open(self):
         if self.store is None:
@@ -169,8 +215,8 @@ class SlowInstabilityScan:
                     slope_cm=slope)
 
     def refine(self, point):
-        """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T, E of the short
-        map). Starts from the refinement file's state when it has this q."""
+        """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T). Starts from the
+        refinement file's state when it has this q."""
         orbit = orbit_on_chain(point, self.spec)
         if self.refined is not None and self.refined.has(point.q):
             orbit = self.refined.orbit(point, self.spec)
@@ -183,10 +229,7 @@ class SlowInstabilityScan:
                 refined, E = self._refined(orbit, 10 * self.refine_tol)
             except ConvergenceError:
                 refined, E = orbit, self.refiner.residual(orbit)
-        sym = WaveSymmetry(self.N, orbit.m)
-        smap = self.refiner.shift_map(sym.M)
-        x0 = refined.x[:sym.M]
-        return refined, E, relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
+        return refined, E
 
     def _refined(self, orbit, tol):
         self.refiner.tol = tol
@@ -198,29 +241,20 @@ class SlowInstabilityScan:
 
     def monodromy(self, point):
         """The monodromy route at a chain wavenumber: dict of the mono fields."""
-        orbit, E, E_short = self.refine(point)
-        best, raw, clus, eig, inv = None, 0.0, 0.0, 0.0, 0.0
-        for th in np.linspace(0.0, math.pi, self.n_twist):
-            s = self.sectors.sector(orbit, float(th))
-            g = math.log(s.rho) / orbit.T
-            if best is None or g > best[0]:
-                best = (g, float(th))
-            raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
-            clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
-            eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
-        return dict(twist_mono=best[1], gamma_mono=best[0], raw_cluster_mono=raw, cluster_mono=clus,
-                    eigvec_mono=eig, invariance_mono=inv, E_orbit=E, E_short=E_short)
+        return monodromy_fields(self.sectors, self.refiner, *self.refine(point))
 
     def verdict(self, row):
-        """(resolution, verdict): slowly unstable when the co-moving gamma exceeds the target on every grid and the
-        last two agree to 10% (gamma = the Richardson value); else stable within the largest gamma measured."""
+        """(resolution, verdict): slowly unstable (1) when the co-moving gamma exceeds the target on every grid
+        and the last two agree to 10% (gamma = the Richardson value); stable within the largest gamma measured (0)
+        when that is below the target; else unresolved (2): the resolution shown is not below what it would
+        bound."""
         g = np.asarray(row["gamma_cm"], dtype=float)
         if np.all(g > self.target) and abs(g[-1] - g[-2]) <= 0.1 * g[-1]:
             return abs(g[-1] - g[-2]) / 3, 1
         measured = [float(np.max(np.abs(g)))]
         if row["gamma_mono"] == row["gamma_mono"]:
             measured.append(abs(float(row["gamma_mono"])))
-        return max(measured), 0
+        return max(measured), 0 if max(measured) <= self.target else 2
 
     def point(self, q):
         t0 = time.perf_counter()
@@ -277,8 +311,8 @@ class SlowInstabilityScan:
             mono = (f"{r['gamma_mono']:.1e} | {r['raw_cluster_mono']:.1e} | {r['cluster_mono']:.1e} | "
                     f"{r['eigvec_mono']:.1e} | {r['E_orbit']:.1e} / {r['E_short']:.1e}") if m > 0 else \
                 "n/a | n/a | n/a | n/a | n/a"
-            verdict = (f"slowly unstable, gamma = {r['gamma_cm_extrapolated']:.2g}" if int(r["verdict"]) else
-                       "stable within resolution")
+            verdict = {1: f"slowly unstable, gamma = {r['gamma_cm_extrapolated']:.2g}", 0: "stable within resolution",
+                       2: "unresolved (refine the grids)"}[int(r["verdict"])]
             lines.append(f"| {q_label(float(r['q']))} ({float(r['q']):.4f}) | {m if m > 0 else '-'} | "
                          f"{float(r['theta_cm']):.3f} | {g} | {mono} | {float(r['band_cm']):.1e} | "
                          f"{float(r['slope_cm']):.1e} / {float(r['slope_whitham']):.2f} | "
@@ -354,24 +388,15 @@ def orbit_convergence(branch, qs, N, refined, settings, comm=PETSc.COMM_SELF, n_
             tolerances = IntegrationTolerances(rtol=rtol, atol=rtol / 100)
             refiner = Refiner(spec, comm, tol if tol else 1.0, tolerances=tolerances, prefix=SHOOT_PREFIX,
                               symmetric=True)
-            sectors = DeflatedSectors(branch.model, comm, tolerances)
+            sectors = DeflatedSectors(branch.model, comm, tolerances, twists=np.linspace(0.0, math.pi, n_twist))
             try:
                 orbit = refiner.refine(start).orbit if tol else start
-                sym = WaveSymmetry(N, orbit.m)
-                smap = refiner.shift_map(sym.M)
-                x0 = orbit.x[:sym.M]
-                E, E_short = refiner.residual(orbit), relative_residual(x0, smap(x0, sym.delta(orbit.T), sym.k))
-                raw, gamma, eig = 0.0, -math.inf, 0.0
-                for th in np.linspace(0.0, math.pi, n_twist):
-                    s = sectors.sector(orbit, float(th))
-                    raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
-                    gamma = max(gamma, math.log(s.rho) / orbit.T)
-                    eig = max(eig, s.eigenvector_residual)
+                f = monodromy_fields(sectors, refiner, orbit, refiner.residual(orbit))
             finally:
                 refiner.destroy()
                 sectors.destroy()
-            rows.append(dict(q=point.q, m=orbit.m, label=label, rtol=rtol, E=E, E_short=E_short, raw=raw,
-                             gamma=gamma, eig=eig))
+            rows.append(dict(q=point.q, m=orbit.m, label=label, rtol=rtol, E=f["E_orbit"], E_short=f["E_short"],
+                             raw=f["raw_cluster_mono"], gamma=f["gamma_mono"], eig=f["eigvec_mono"]))
     return rows
 
 

@@ -1,0 +1,147 @@
+"""The point spectrum of the compacton window map G (:mod:`hertzpetsc.compacton_window`; section 3.3 and the
+Discussion): the Jordan block at 1 and the dominant multipliers by SLEPc on a weighted shell.
+
+V''(r) vanishes exactly for r >= 0, so a bead whose bonds stay open during the period is in exact free flight;
+ordering the window as (front buffer, core, rear buffer), D_Y G is exactly block lower-triangular with nilpotent
+transport blocks (a truncated shift composed with free flight), hence spec(D_Y G) = {0} U spec(core block),
+independent of the buffers. On the infinite chain, in the space weighted by exp(eta n) (heavier ahead), the
+essential spectrum is the disk |mu| <= exp(-eta) and the rest is spec(core). Krylov-Schur (:class:`WindowStability`,
+EPS prefix ``cstab_``) is run on the weighted operator W D_Y G W^-1, W = diag(exp(eta (j - j_ref))), whose transport
+part has norm exp(-eta): without the weight the nilpotent blocks' pseudospectrum fills a disk of radius
+~ tol^(1/L) and SLEPc accepts spurious multipliers. The multiplier 1 is a Jordan block (translation v1 = the vector
+field, (J - 1) v2 = v1): only the pair's mean is accurate, its split is ~ sqrt(integration error).
+"""
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from petsc4py import PETSc
+
+from .errors import ConvergenceError, ParameterError
+from .floquet import Spectrum, largest_magnitude
+
+STABILITY_PREFIX = "cstab_"
+DEFAULT_ETA = 2.5
+
+
+def sorted_eig(J):
+    """Eigenvalues (LAPACK dgeev) and right eigenvectors, by decreasing modulus."""
+    lam, V = np.linalg.eig(J)
+    order = np.argsort(-np.abs(lam), kind="stable")
+    return lam[order], V[:, order]
+
+
+def split_jordan_pair(lam):
+    """(mean, split, the other multipliers): the two multipliers nearest 1 are the Jordan pair."""
+    lam = np.asarray(lam)
+    near = np.argsort(np.abs(lam - 1.0), kind="stable")[:2]
+    pair = lam[near]
+    rest = np.delete(lam, near)
+    return complex(pair.mean()), float(abs(pair[0] - pair[1])), rest[np.argsort(-np.abs(rest), kind="stable")]
+
+
+@dataclass
+class JordanCheck:
+    """The Jordan block at 1: |J v1 - v1| / |v1|, |(J - 1) v2 - v1| / |v1|, the right vectors v1, v2 and the left
+    vectors u1, u2 with u_i . v_j = delta_ij (so delta = (u1.delta) v1 + (u2.delta) v2 + a remainder in the other
+    modes' span)."""
+
+    translation: float
+    generalized: float
+    v1: np.ndarray
+    v2: np.ndarray
+    u1: np.ndarray
+    u2: np.ndarray
+
+
+def jordan_check(window, J, Y, gap):
+    n = J.shape[0]
+    A = J - np.eye(n)
+    v1 = window.vector_field(Y, gap)
+    v2 = np.linalg.lstsq(A, v1, rcond=None)[0]
+    v2 -= (v2 @ v1) / (v1 @ v1) * v1
+    nv1 = np.linalg.norm(v1)
+    # left vectors: u2 spans the left kernel of A; u1 solves A^T u1 = u2 (up to the left kernel)
+    u2 = np.linalg.svd(A.T)[2][-1]
+    u2 = u2 / (u2 @ v2)
+    u1 = np.linalg.lstsq(A.T, u2, rcond=None)[0]
+    u1 -= (u1 @ v2) * u2
+    return JordanCheck(float(np.linalg.norm(J @ v1 - v1) / nv1), float(np.linalg.norm(A @ v2 - v1) / nv1),
+                       v1, v2, u1, u2)
+
+
+def exponential_weight(M, eta, j_ref):
+    """Diagonal of W = diag(exp(eta (j - j_ref))) on the bead-major state (heavier ahead)."""
+    w = np.exp(eta * (np.arange(M) - j_ref))
+    return np.repeat(w, 2)
+
+
+class WeightedWindowOperator:
+    """W D_Y G W^-1 as a ``Mat.createPython`` context: one tangent integration per product."""
+
+    def __init__(self, window, Y, gap, weight):
+        self.window, self.Y, self.gap, self.w = window, np.asarray(Y, float), float(gap), np.asarray(weight)
+        self.products = 0
+        self._gather = None
+
+    def mult(self, mat, x, y):
+        if self._gather is None:
+            self._gather, self._full = PETSc.Scatter.toAll(x)
+        self._gather.scatter(x, self._full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+        xs = self._full.getArray(readonly=True)
+        out = self.w * self.window.apply(self.Y, self.gap, xs / self.w)
+        lo, hi = y.getOwnershipRange()
+        y.getArray()[:] = out[lo:hi]
+        self.products += 1
+
+    def destroy(self, mat=None):
+        if self._gather is not None:
+            self._gather.destroy()
+            self._full.destroy()
+            self._gather = None
+
+
+class WindowStability:
+    """Dominant multipliers of the window map by SLEPc Krylov-Schur (largest magnitude) on the weighted shell,
+    EPS prefix ``cstab_`` (``-cstab_eps_*``); ``nev`` multipliers are asked for (they must lie above exp(-eta) to
+    be meaningful: below, the transport part's pseudospectrum)."""
+
+    def __init__(self, window, nev=3, eta=DEFAULT_ETA, tol=1e-12, prefix=STABILITY_PREFIX):
+        if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= window.dim):
+            raise ParameterError("-nev", nev, f"the window map has dimension 2M = {window.dim}: 1 <= nev <= "
+                                              f"{window.dim}")
+        if not (math.isfinite(eta) and 0 <= eta <= 700.0 / max(window.M, 1)):
+            raise ParameterError("-eta", eta, f"the weight exp(eta M) must stay finite: 0 <= eta <= "
+                                              f"{700.0 / window.M:.3g} for M = {window.M}")
+        self.window, self.nev, self.eta = window, int(nev), float(eta)
+        self.eps = largest_magnitude(window.comm, prefix, self.nev, min(window.dim, max(2 * self.nev + 1,
+                                                                                        self.nev + 15)), tol)
+
+    def solve(self, Y, gap, j_ref):
+        """The converged multipliers (at least nev) as a :class:`~hertzpetsc.floquet.Spectrum` whose work holds
+        their residual errors (in its order), the products, iterations and eta."""
+        w = self.window
+        ctx = WeightedWindowOperator(w, Y, gap, exponential_weight(w.M, self.eta, j_ref))
+        A = PETSc.Mat().createPython([w.dim, w.dim], ctx, comm=w.comm)
+        A.setUp()
+        t0 = time.perf_counter()
+        try:
+            self.eps.setOperators(A)
+            self.eps.solve()
+            nconv = self.eps.getConverged()
+            if nconv < self.eps.getDimensions()[0]:
+                raise ConvergenceError("window EPS (prefix -cstab_eps_)", int(self.eps.getConvergedReason()),
+                                       converged=nconv)
+            vals = np.array([complex(self.eps.getEigenvalue(i)) for i in range(nconv)])
+            errs = np.array([self.eps.computeError(i) for i in range(nconv)])
+        finally:
+            A.destroy()
+            ctx.destroy()
+        order = np.argsort(-np.abs(vals), kind="stable")
+        return Spectrum(vals[order], False, work=dict(errors=errs[order], products=ctx.products, eta=self.eta,
+                                                      iterations=self.eps.getIterationNumber(),
+                                                      wall_time=time.perf_counter() - t0))
+
+    def destroy(self):
+        self.eps.destroy()

@@ -1,0 +1,361 @@
+"""Families of travelling waves beyond the paper's q-branch, as uses of the one continuation layer on the one
+advance-delay problem (:mod:`hertzpetsc.continuation`, :mod:`hertzpetsc.advdelay`): any lattice model (law with
+precompression, mass pattern) in its fixed-amplitude form (u_c = a w_c, lam = omega^2 a^(1-d)).
+
+* :class:`AmplitudeFamily`: the waves at fixed q continued in s = log a (natural steps, secant predictor) from the
+  linear wave (a -> 0), with the gap opening (the largest bond length reaching delta0, so that contact is lost
+  somewhere in the wave) located as an event of the layer; :func:`uncompressed_limit`: the delta0 / a = 0 wave on
+  the same grid (the paper's wave rescaled).
+* :class:`MassFamily`: a dimer's waves at fixed q and a, continued in the mass m_1 = epsilon by pseudo-arclength
+  (through folds, which the layer detects).
+* :func:`wave_at`: the wave of a given model at a given (q, A = max |u|), A imposed as a border row;
+  :func:`wave_of_amplitude`: the same for any model (scale-invariant ones by the paper's branch, rescaled), ready
+  to be put on a chain.
+
+Closed forms live with the model: the linear frequencies (:meth:`~hertzpetsc.model.LatticeModel.linear_frequencies`)
+and the Hertz law's weakly nonlinear coefficient (:meth:`~hertzpetsc.hertz.HertzLaw.stokes_coefficient`).
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from petsc4py import PETSc
+
+from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
+from .branch import BranchPoint
+from .continuation import Continuation, ContinuationError, Natural, PseudoArclength
+from .diagnostics import sup_norm
+from .errors import ConvergenceError, ParameterError
+from .stencil import full_period, lagrange_periodic
+
+PRECOMP_PREFIX = "precomp_"
+DIMER_PREFIX = "dimer_"
+
+
+def check_amplitude(a, name="amplitude"):
+    """a must be a finite number > 0."""
+    try:
+        x = float(a)
+    except (TypeError, ValueError):
+        raise ParameterError(name, a, "must be a real number > 0") from None
+    if not (x > 0 and math.isfinite(x)):
+        raise ParameterError(name, a, "the wave amplitude must be a finite number > 0")
+    return x
+
+
+@dataclass(frozen=True)
+class AmplitudePoint:
+    """One wave of a family: a (the scale of the normalised profile: first sine coefficient, or A itself for the
+    'sup' measure), A = max_c ||u_c||_inf, omega, Omega = omega A^(-(d-1)/2), lam, the gap indicator (> 0: a
+    bond is out of contact somewhere in the wave), the rescaled half profiles w_c (u_c = a w_c), Newton
+    iterations, and the dimer's m_1."""
+
+    q: float
+    a: float
+    A: float
+    omega: float
+    Omega: float
+    lam: float
+    gap: float
+    profiles: tuple
+    iterations: int
+    m1: float = float("nan")
+
+    @property
+    def s(self):
+        return math.log(self.a)
+
+    def branch_point(self, model, h):
+        """The wave as a :class:`~hertzpetsc.branch.BranchPoint` at its physical amplitude (u_c = a w_c, omega)."""
+        prof = tuple(self.a * np.asarray(w) for w in self.profiles)
+        return BranchPoint(q=self.q, u_half=prof[0], h=h, model=model, profiles=prof, omega=self.omega)
+
+
+class FamilyProblem(AdvanceDelayProblem):
+    """The fixed-amplitude advance-delay problem with the family's test function (the gap indicator) and report."""
+
+    def gap(self, profiles):
+        """max bond length - delta0 over the wave (in units of u = a w): 2 u(q/2) - delta0 for a monatomic odd
+        wave (the bond across xi = 0 is the longest); for a pattern the refined maximum of tau_q u_{c+1} - u_c."""
+        a = self.amplitude if math.isfinite(self.amplitude) else 1.0
+        h = self.grid.h
+        if self.p == 1:
+            w_half_q = float(lagrange_periodic(full_period(profiles[0]), h, np.array([self.q / 2]))[0])
+            return 2 * a * w_half_q - self.model.delta0
+        longest = -math.inf
+        xi = np.arange(2 * self.grid.K) * h
+        whole = [w if self.full else full_period(w) for w in profiles]
+        for c in range(self.p):
+            up = lagrange_periodic(whole[(c + 1) % self.p], h, xi + self.q)
+            r = up - whole[c]
+            j = int(np.argmax(r))
+            a3 = r[[(j - 1) % len(r), j, (j + 1) % len(r)]]
+            curv = a3[0] - 2 * a3[1] + a3[2]
+            longest = max(longest, a3[1] - (a3[0] - a3[2]) ** 2 / (8 * curv) if curv < 0 else a3[1])
+        return a * longest - self.model.delta0
+
+    def test_functions(self, Z):
+        if self.model.delta0 > 0 and math.isfinite(self.amplitude):
+            self.set_parameter(self.parameter, self._scalars(Z)[-1])
+            return {"gap": self.gap(self.half_profiles(Z))}
+        return {}
+
+    def point(self, V, iterations):
+        """The :class:`AmplitudePoint` of an X or Z Vec at the problem's current parameters."""
+        prof = self.half_profiles(V)
+        lam = float(self._scalars(V)[0])
+        a = self.amplitude
+        norm = max(profile_sup(w, self.full) for w in prof)
+        d = self.model.law.scale_degree
+        omega = self._omega_from(lam)
+        return AmplitudePoint(q=self.q, a=a, A=a * norm, omega=omega,
+                              Omega=math.sqrt(max(lam, 0.0)) * norm ** (-(d - 1) / 2), lam=lam,
+                              gap=self.gap(prof) if self.model.delta0 > 0 else math.inf, profiles=tuple(prof),
+                              iterations=iterations, m1=float(self.masses[1]) if self.p > 1 else 1.0)
+
+
+class AmplitudeFamily:
+    """Travelling waves of ``model`` at fixed q, continued in s = log a from the linear wave (module docstring):
+    the layer's natural algorithm (secant predictor on (w, lam), step halving on failure, at most
+    ``max_halvings``). One SNES under ``prefix``. ``branch``: the acoustic or optical linear wave to start from;
+    ``measure``: what a is ('a1': the first sine coefficient of the normalised profile; 'sup': A = max |u|)."""
+
+    def __init__(self, model, q, grid, prefix=PRECOMP_PREFIX, branch="acoustic", max_halvings=6, measure="a1",
+                 solver=None):
+        if not model.law.linear_stiffness > 0:
+            raise ParameterError("delta0", model.delta0, "the amplitude family starts from the linear wave: it needs "
+                                 "a precompression > 0")
+        self.model, self.grid, self.branch = model, grid, branch
+        self.problem = FamilyProblem(model, grid, q, amplitude=1.0, measure=measure, parameter="log_a")
+        self.problem.prefix = prefix
+        self.problem.solver(False, prefix, solver)
+        self.q = self.problem.q
+        self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=math.inf))
+
+    def solve_at(self, a):
+        """The wave at amplitude a: the first from the linear wave, the next by a natural step."""
+        a = check_amplitude(a)
+        if self.continuation.history:
+            return self.step_to(a)
+        self.problem.set_parameter("a", a)
+        prof, lam = self.problem.linear_guess(self.branch)
+        Z = self.problem.pack(prof, lam, parameter=math.log(a))
+        try:
+            cp = self.continuation.start(Z)
+        finally:
+            Z.destroy()
+        return self._point(cp)
+
+    def _point(self, cp):
+        self.problem.set_parameter("log_a", cp.parameter)
+        return self.problem.point(self.continuation.history[-1][0], cp.iterations)
+
+    def step_to(self, a_target):
+        """Continue from the last point to a_target (intermediate steps halved on failure)."""
+        if not self.continuation.history:
+            return self.solve_at(a_target)
+        try:
+            cp = self.continuation.step_to(math.log(check_amplitude(a_target)))
+        except ContinuationError as err:
+            raise ConvergenceError("amplitude continuation", err.reason, q=self.q, a=math.exp(err.failed)) from None
+        return self._point(cp)
+
+    def points(self, amplitudes):
+        """Yield the waves at the increasing amplitudes ``amplitudes``."""
+        for a in amplitudes:
+            yield self.step_to(a)
+
+    def events(self):
+        """The gap openings located since the last call (AmplitudePoints)."""
+        out = []
+        for cp in self.continuation.take_events():
+            prof = cp.report["profiles"]
+            self.problem.set_parameter("log_a", cp.parameter)
+            Z = self.problem.pack(prof, cp.report["lam"], cp.parameter)
+            out.append(self.problem.point(Z, cp.iterations))
+            Z.destroy()
+        self.problem.set_parameter("log_a", self.continuation.parameter)
+        return out
+
+    def destroy(self):
+        self.continuation.destroy()
+        self.problem.destroy()
+
+
+def uncompressed_limit(model, q, grid, start, prefix=PRECOMP_PREFIX):
+    """The delta0 / a = 0 wave on ``grid`` from the AmplitudePoint ``start`` (a large-amplitude wave of the family):
+    Omega(q, 0) = ||u(.;q)||^((1-alpha)/2) of eq. dispers on the same grid."""
+    problem = FamilyProblem(model, grid, q, amplitude=math.inf, parameter="q")
+    problem.prefix = prefix
+    try:
+        X = problem.pack(start.profiles, start.lam)
+        stats = problem.solve_state(X)
+        lam = float(problem._scalars(X)[0])
+        profiles = problem.half_profiles(X)
+        X.destroy()
+    finally:
+        problem.destroy()
+    norm = sup_norm(profiles[0])
+    return dict(Omega0=math.sqrt(lam) * norm ** (-(model.alpha - 1) / 2), lam=lam, norm=norm,
+                iterations=stats.iterations, profile=profiles[0], profiles=profiles)
+
+
+@dataclass(frozen=True)
+class MassPoint:
+    """One dimer wave of the mass-ratio family: m_1 = epsilon, the wave (:class:`AmplitudePoint`), the arclength
+    and d epsilon / ds of the unit tangent (a sign change is a fold; nan at the starting points); ``event`` is
+    'fold' for a located fold."""
+
+    epsilon: float
+    wave: AmplitudePoint
+    arclength: float
+    tangent_epsilon: float
+    event: str = None
+
+
+class MassFamily:
+    """Dimer waves (masses 1, epsilon) at fixed q and amplitude a, continued in epsilon from ``epsilon_start`` by
+    the layer's pseudo-arclength algorithm (unknowns (w_0, w_1, lam, epsilon); inner product (h/pi) sum w^2 +
+    lam^2 + epsilon^2; step ds from ``ds``, grown by 1.5 after easy steps up to ``ds_max``, halved on failure up to
+    ``max_halvings``). The two starting points are natural: the amplitude family at epsilon_start and
+    epsilon_start + first_step (prefix ``<prefix>natural_``). One SNES (``prefix``) for the arclength steps."""
+
+    def __init__(self, model, q, grid, a, prefix=DIMER_PREFIX, ds=0.02, ds_max=0.1, max_halvings=8, branch="acoustic",
+                 solver=None):
+        if model.cell != 2:
+            raise ParameterError("masses", list(model.masses), "must be a pattern of two masses (a dimer)")
+        if not model.law.linear_stiffness > 0:
+            raise ParameterError("delta0", model.delta0, "the dimer family is computed for a precompression > 0")
+        self.model, self.grid, self.q, self.a = model, grid, check_wavenumber(q, grid.h), check_amplitude(a)
+        self.prefix, self.branch, self.solver_kind = prefix, branch, solver
+        self.problem = FamilyProblem(model, grid, q, amplitude=self.a, parameter="epsilon")
+        self.problem.prefix = prefix
+        self.problem.solver(True, prefix, solver)
+        self.continuation = Continuation(self.problem, PseudoArclength(ds=min(ds, ds_max), ds_min=1e-10, ds_max=ds_max,
+                                                                       max_halvings=max_halvings))
+
+    def _natural(self, epsilon):
+        model = self.model.with_masses((self.model.masses[0], epsilon))
+        fam = AmplitudeFamily(model, self.q, self.grid, self.prefix + "natural_", self.branch, solver=self.solver_kind)
+        try:
+            pts = list(fam.points(np.geomspace(min(1e-3, self.a), self.a, 12)))
+            normalised = fam.problem.normalised
+        finally:
+            fam.destroy()
+        return pts[-1], normalised
+
+    def start(self, epsilon_start=1.0, first_step=-0.01):
+        """Two natural points, at epsilon_start and epsilon_start + first_step (the direction of the path)."""
+        out, states = [], []
+        for e in (epsilon_start, epsilon_start + first_step):
+            p, normalised = self._natural(e)
+            self.problem.normalised = normalised
+            self.problem.set_parameter("epsilon", e)
+            states.append(self.problem.pack(p.profiles, p.lam, e))
+            out.append(MassPoint(e, p, 0.0, float("nan")))
+        d = states[1].copy()
+        d.axpy(-1.0, states[0])
+        dist = self.continuation._norm(d)
+        d.destroy()
+        self.continuation.seed(states, [0.0, dist])
+        for Z in states:
+            Z.destroy()
+        return out
+
+    def snapshot(self):
+        """What a resume needs (collective; plain arrays, the same on every rank): the last two points' extended
+        vectors, their arclengths, the next step and the normalised profile."""
+        hist = self.continuation.history
+        return dict(Z=np.array([_gathered(Z) for Z, _, _ in hist]), s=np.array([s for _, s, _ in hist]),
+                    ds=float(self.continuation.ds), normalised=int(self.problem.normalised))
+
+    def restore(self, snap):
+        """Continue from a :meth:`snapshot` (instead of :meth:`start`)."""
+        self.problem.normalised = int(snap["normalised"])
+        states = []
+        for full in np.asarray(snap["Z"]):
+            Z = self.problem.create_vec()
+            lo, hi = Z.getOwnershipRange()
+            Z.getArray()[:] = full[lo:hi]
+            states.append(Z)
+        self.continuation.seed(states, [float(v) for v in snap["s"]])
+        self.continuation.ds = float(snap["ds"])
+        for Z in states:
+            Z.destroy()
+        self.problem.set_parameter("epsilon", self.continuation.parameter)
+
+    def step(self):
+        """One pseudo-arclength step (or a located fold first); returns the MassPoint."""
+        try:
+            cp = self.continuation.step()
+        except ContinuationError as err:
+            raise ConvergenceError("mass-ratio continuation", err.reason, q=self.q, epsilon=err.failed) from None
+        self.problem.set_parameter("epsilon", cp.parameter)
+        Z = self.problem.pack(cp.report["profiles"], cp.report["lam"], cp.parameter)
+        wave = self.problem.point(Z, cp.iterations)
+        Z.destroy()
+        self.problem.set_parameter("epsilon", self.continuation.parameter)
+        return MassPoint(cp.parameter, wave, cp.s, cp.dp_ds, cp.event)
+
+    def run(self, epsilon_end, max_steps=400):
+        """Yield MassPoints (and the located events) until epsilon passes epsilon_end, or after max_steps regular
+        points, or at epsilon <= 0."""
+        steps = 0
+        while steps < max_steps:
+            p = self.step()
+            yield p
+            if p.event is not None:
+                continue
+            steps += 1
+            if (p.epsilon - epsilon_end) * (self.model.masses[1] - epsilon_end) < 0 or p.epsilon <= 0:
+                return
+
+    def destroy(self):
+        self.continuation.destroy()
+        self.problem.destroy()
+
+
+def _gathered(V):
+    """The whole Vec as a numpy array on every rank."""
+    scatter, full = PETSc.Scatter.toAll(V)
+    scatter.scatter(V, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+    out = full.getArray(readonly=True).copy()
+    scatter.destroy()
+    full.destroy()
+    return out
+
+
+def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start=1e-3, ds=0.25, solver=None):
+    """The travelling wave of ``model`` with per-bead wavenumber q and amplitude A = max_c ||u_c||_inf: A is a
+    border row of the problem (measure 'sup'), reached by natural steps in log A of size ``ds`` from the linear wave
+    at ``a_start`` delta0 (precompressed lattices). Returns the AmplitudePoint (omega at that A)."""
+    A = check_amplitude(A, "A")
+    fam = AmplitudeFamily(model, q, grid, prefix, branch, measure="sup", solver=solver)
+    try:
+        a0 = min(a_start * max(model.delta0, 1e-300), A)
+        n = max(1, int(math.ceil(math.log(A / a0) / ds)))
+        point = None
+        for a in np.geomspace(a0, A, n + 1):
+            point = fam.step_to(float(a))
+        return point
+    finally:
+        fam.destroy()
+
+
+def wave_of_amplitude(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic"):
+    """The wave of any ``model`` at per-bead wavenumber q and amplitude A = max_c ||u_c||_inf, as (``BranchPoint``,
+    scale) for :func:`~hertzpetsc.waves.orbit_on_chain` (``scale=``): with precompression, :func:`wave_at` (A
+    imposed, the point at its physical amplitude, scale 1); without (eq. ad is scale-invariant), the q-branch from
+    the binary oscillation continued to q on ``grid`` (steps pi / round(pi / q)), scaled by A / ||u||_inf.
+    Collective over the grid's communicator."""
+    A = check_amplitude(A, "A")
+    if model.delta0 > 0:
+        return wave_at(model, q, A, grid, prefix, branch).branch_point(model, grid.h), 1.0
+    from .qbranch import BranchContinuation, ContinuationParameters
+    cont = BranchContinuation(ContinuationParameters(model=model, M=max(1, round(math.pi / q)),
+                                                     cells_per_pi=grid.K, q_stop=q), grid.comm)
+    try:
+        point = list(cont.points())[-1]
+    finally:
+        cont.destroy()
+    return point, A / point.diagnostics.norm_inf

@@ -1,0 +1,267 @@
+"""The compiled right-hand side of the chain (eq. nc) and of its variational equations (``_chain_kernel.c``).
+
+PETSc's TS spends its time in the right-hand side: thousands of evaluations per orbit, each on a small state (the
+wave's cell) or on a block of up to 4N tangent columns. In Python every evaluation pays a few microseconds of
+interpreter and numpy overhead per operation; the compiled kernel does the whole evaluation -- ghost exchange through
+the chain's DMDA, ends, Bloch twist, gap offset, the law, the tridiagonal stiffness on the whole tangent block,
+damping and masses -- in one C function that the TS calls directly (:func:`install`), or that
+:meth:`hertzpetsc.chain.Chain.rhs` calls when the chain's ends need Python (actuators).
+
+The library is built once per machine against Debian's libpetsc by ``python -m hertzpetsc.kernels`` (run by
+``scripts/hz.sh setup``; it needs gcc, which hz.sh installs; it is rebuilt when its source changes). Without it the
+chain uses
+:meth:`~hertzpetsc.chain.Chain.rhs_reference` (numpy, the same arithmetic): :func:`status` says which, and
+``tests/test_kernels.py`` fails when the library is missing.
+"""
+import ctypes
+import hashlib
+import math
+import os
+import subprocess
+import sys
+import tempfile
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SOURCE = os.path.join(HERE, "_chain_kernel.c")
+LIBRARY = os.path.join(HERE, "_chain_kernel.so")
+# IEEE arithmetic as numpy does it: no fast-math, no fused multiply-adds (the kernel matches the reference to the bit)
+CFLAGS = ["-O3", "-fPIC", "-shared", "-std=c99", "-ffp-contract=off", "-fno-fast-math"]
+
+END_INSIDE, END_FREE, END_WALL, END_ACTUATOR = 0, 1, 2, 3
+
+
+class KernelContext(ctypes.Structure):
+    """The C struct ``ChainKernel`` of ``_chain_kernel.c``, field by field."""
+
+    _fields_ = [("serial", ctypes.c_int), ("ghost_scatter", ctypes.c_void_p), ("ghost_vec", ctypes.c_void_p),
+                ("ghost", ctypes.c_void_p),
+                ("nloc", ctypes.c_int), ("dof", ctypes.c_int), ("ntan", ctypes.c_int),
+                ("left", ctypes.c_int), ("right", ctypes.c_int),
+                ("left_x", ctypes.c_double), ("left_v", ctypes.c_double),
+                ("right_x", ctypes.c_double), ("right_v", ctypes.c_double),
+                ("alpha", ctypes.c_double), ("delta0", ctypes.c_double), ("delta0_alpha", ctypes.c_double),
+                ("force_k", ctypes.c_int), ("force_half", ctypes.c_int),
+                ("stiff_k", ctypes.c_int), ("stiff_half", ctypes.c_int),
+                ("gamma", ctypes.c_double), ("eta", ctypes.c_double),
+                ("inv_mass", ctypes.c_void_p),
+                ("twist_left", ctypes.c_int), ("twist_right", ctypes.c_int),
+                ("complex_modes", ctypes.c_int),
+                ("cos_theta", ctypes.c_double), ("sin_theta", ctypes.c_double),
+                ("gap", ctypes.c_double), ("step_bond", ctypes.c_int), ("step", ctypes.c_double),
+                ("bond", ctypes.c_void_p), ("stiff", ctypes.c_void_p), ("dv", ctypes.c_void_p)]
+
+
+def power_recipe(e):
+    """(k, half) of :func:`hertzpetsc.hertz.abs_power` for the exponent e: k products and a sqrt if half, or
+    k = -1 for the general power."""
+    n2 = 2.0 * e
+    if n2 == round(n2) and 0 <= n2 <= 8:
+        k, half = divmod(int(round(n2)), 2)
+        return k, half
+    return -1, 0
+
+
+def petsc_library():
+    """The path of the libpetsc this process has loaded (through petsc4py)."""
+    from petsc4py import PETSc  # noqa: F401  (loads libpetsc)
+    with open("/proc/self/maps") as maps:
+        for line in maps:
+            path = line.split()[-1]
+            if "/libpetsc" in path and ".so" in path:
+                return path
+    raise RuntimeError("libpetsc is not loaded in this process")
+
+
+def source_digest():
+    """SHA-256 of the kernel's source (compiled into the library: a library built from another source is not
+    used)."""
+    with open(SOURCE, "rb") as f:
+        return hashlib.sha256(f.read()).hexdigest()[:16]
+
+
+def built_digest():
+    """The source digest the library was built from, or None if there is no library."""
+    if not os.path.exists(LIBRARY):
+        return None
+    petsc_library()                               # libpetsc first: the kernel resolves its symbols there
+    try:
+        lib = ctypes.CDLL(LIBRARY)
+        lib.hz_kernel_source.restype = ctypes.c_char_p
+        return lib.hz_kernel_source().decode()
+    except (OSError, AttributeError):               # not a library of this module (or from before the digest)
+        return "unknown"
+
+
+def build(compiler=None, force=False):
+    """Compile ``_chain_kernel.c`` into ``_chain_kernel.so`` (atomically) unless the library was built from this
+    source; returns the library's path. ``compiler``: default $CC, else gcc."""
+    compiler = compiler or os.environ.get("CC", "gcc")
+    digest = source_digest()
+    if not force and os.path.exists(LIBRARY) and built_digest() == digest:
+        return LIBRARY
+    fd, tmp = tempfile.mkstemp(suffix=".so", dir=HERE)
+    os.close(fd)
+    try:
+        subprocess.run([compiler, *CFLAGS, f'-DHZ_KERNEL_SOURCE="{digest}"', "-o", tmp, SOURCE, petsc_library(),
+                        "-lm"], check=True)
+        os.chmod(tmp, 0o755)
+        os.replace(tmp, LIBRARY)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return LIBRARY
+
+
+_lib = None
+_status = None
+
+
+def library():
+    """The loaded kernel library, or None when it is not built (or built from another source)."""
+    global _lib, _status
+    if _status is None:
+        from petsc4py import PETSc
+        built = built_digest()
+        if np.dtype(PETSc.ScalarType) != np.float64 or np.dtype(PETSc.RealType) != np.float64:
+            _status = "PETSc is not a real double-precision build (the kernel's PetscScalar is double)"
+        elif built is None:
+            _status = "not built (run: python -m hertzpetsc.kernels, or bash scripts/hz.sh setup)"
+        elif built != source_digest():
+            _status = "built from another source (run: python -m hertzpetsc.kernels)"
+        else:
+            lib = ctypes.CDLL(LIBRARY)
+            ptr, vp = ctypes.POINTER(KernelContext), ctypes.c_void_p
+            lib.hz_chain_rhs.argtypes = [vp, ctypes.c_double, vp, vp, ptr]
+            lib.hz_chain_rhs.restype = ctypes.c_int
+            lib.hz_install_rhs.argtypes = [vp, vp, ptr]
+            lib.hz_install_rhs.restype = ctypes.c_int
+            _lib, _status = lib, "compiled"
+    return _lib
+
+
+def status():
+    """'compiled', or why the chain falls back to its numpy right-hand side."""
+    library()
+    return _status
+
+
+class ChainKernel:
+    """The compiled right-hand side of one :class:`~hertzpetsc.chain.Chain` (its context and work arrays), kept in
+    step with the chain's parameters by the chain (:meth:`sync`)."""
+
+    def __init__(self, chain, lib):
+        self.lib = lib
+        law = chain.model.law
+        n = chain.nloc
+        self.work = np.zeros((3, n + 1))
+        self.ghost = np.zeros(2 * chain.dof)
+        ctx = KernelContext()
+        ctx.nloc, ctx.dof, ctx.ntan = n, chain.dof, chain.n_tangent
+        ctx.serial = int(chain.comm.getSize() == 1)
+        ctx.ghost = self.ghost.ctypes.data
+        self.scatter = self.ghost_vec = None
+        if not ctx.serial:
+            self.scatter, self.ghost_vec = ghost_scatter(chain)
+            ctx.ghost_scatter, ctx.ghost_vec = self.scatter.handle, self.ghost_vec.handle
+        ctx.bond, ctx.stiff, ctx.dv = (self.work[i].ctypes.data for i in range(3))
+        self.ctx = ctx
+        self.ref = ctypes.byref(ctx)
+        self.set_physics(chain)
+
+    def set_physics(self, chain):
+        """Copy the chain's law, damping, masses and kinds of ends into the context (at construction and after
+        :meth:`~hertzpetsc.chain.Chain.set_spec`; the context stays the same object)."""
+        ctx, law = self.ctx, chain.model.law
+        ctx.left, ctx.right = end_kind(chain.left_end), end_kind(chain.right_end)
+        ctx.alpha, ctx.delta0 = law.alpha, law.delta0
+        ctx.delta0_alpha = law.delta0 ** law.alpha
+        ctx.force_k, ctx.force_half = power_recipe(law.alpha)
+        ctx.stiff_k, ctx.stiff_half = power_recipe(law.alpha - 1.0)
+        damping = chain.model.damping
+        ctx.gamma, ctx.eta = damping.gamma, damping.eta
+        self.inverse_mass = None if chain.inverse_mass is None else np.ascontiguousarray(chain.inverse_mass, float)
+        ctx.inv_mass = None if self.inverse_mass is None else self.inverse_mass.ctypes.data
+        self.actuated = ctx.left == END_ACTUATOR or ctx.right == END_ACTUATOR
+
+    def sync(self, chain):
+        """Copy the chain's twist, gap and step (attributes that may change between integrations) into the context."""
+        ctx = self.ctx
+        seam = chain.spec.boundary == "periodic" and chain.theta != 0.0
+        ctx.twist_left = int(seam and chain.xs == 0)
+        ctx.twist_right = int(seam and chain.xe == chain.spec.N)
+        ctx.complex_modes = int(bool(chain.complex_modes))
+        ctx.cos_theta, ctx.sin_theta = math.cos(chain.theta), math.sin(chain.theta)
+        ctx.gap = chain.gap
+        ctx.step_bond, ctx.step = chain._step_row(), chain.step[1]
+
+    def set_time(self, chain, t):
+        """The actuators' position and velocity at time t (the only time dependence of eq. nc)."""
+        ctx = self.ctx
+        for end, side in ((chain.left_end, "left"), (chain.right_end, "right")):
+            if end_kind(end) == END_ACTUATOR:
+                setattr(ctx, side + "_x", float(end.signal.position(t)))
+                setattr(ctx, side + "_v", float(end.signal.velocity(t)))
+
+    def __call__(self, X, F):
+        """F = f(X) through PETSc objects (the chain's DMDA does the ghost exchange)."""
+        err = self.lib.hz_chain_rhs(None, 0.0, X.handle, F.handle, self.ref)
+        if err:
+            raise RuntimeError(f"the compiled chain right-hand side failed with PETSc error {err}")
+
+    def install(self, ts, F):
+        """Make the compiled function the right-hand side of the TS ``ts`` (residual vector F)."""
+        err = self.lib.hz_install_rhs(ts.handle, F.handle, self.ref)
+        if err:
+            raise RuntimeError(f"TSSetRHSFunction failed with PETSc error {err}")
+
+    def destroy(self):
+        if self.scatter is not None:
+            self.scatter.destroy()
+            self.ghost_vec.destroy()
+            self.scatter = self.ghost_vec = None
+
+
+def ghost_scatter(chain):
+    """(scatter, vector): the rows next to this rank's first and last beads (left, right; none beyond an end of a
+    non-periodic chain) from the chain's state into a sequential vector of 2 x dof values."""
+    from petsc4py import PETSc
+    N, d = chain.spec.N, chain.dof
+    periodic = chain.spec.boundary == "periodic"
+    src, dst = [], []
+    for slot, bead, exists in ((0, chain.xs - 1, periodic or chain.xs > 0), (1, chain.xe, periodic or chain.xe < N)):
+        if exists:
+            src += list((bead % N) * d + np.arange(d))
+            dst += list(slot * d + np.arange(d))
+    vec = PETSc.Vec().createSeq(2 * d, comm=PETSc.COMM_SELF)
+    vec.set(0.0)
+    template = chain.da.createGlobalVec()
+    isf = PETSc.IS().createGeneral(np.asarray(src, dtype=PETSc.IntType), comm=PETSc.COMM_SELF)
+    ist = PETSc.IS().createGeneral(np.asarray(dst, dtype=PETSc.IntType), comm=PETSc.COMM_SELF)
+    scatter = PETSc.Scatter().create(template, isf, vec, ist)
+    for obj in (isf, ist, template):
+        obj.destroy()
+    return scatter, vec
+
+
+def end_kind(end):
+    """END_* of a chain end as the chain stores it (None inside the chain or periodic)."""
+    from .model import Actuator
+    if end is None:
+        return END_INSIDE
+    if isinstance(end, Actuator):
+        return END_ACTUATOR
+    return {"free": END_FREE, "wall": END_WALL}[end]
+
+
+def main(argv):
+    """python -m hertzpetsc.kernels [--force]: build the library if it is missing or older than its source."""
+    import petsc4py
+    petsc4py.init([argv[0]])
+    path = build(force="--force" in argv[1:])
+    print(f"hertzpetsc kernel: {path}")
+
+
+if __name__ == "__main__":
+    main(sys.argv)

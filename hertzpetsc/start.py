@@ -1,0 +1,28 @@
+"""The drivers' first call: PETSc started from the command line, with ``-help`` left to the package.
+
+``-help`` shows a driver's own options and solver roles first and stops (PETSc's banner and its options for every
+object it creates are not printed: they are hundreds of lines); ``-help solvers`` adds PETSc's own options of each
+of the driver's solver roles. PETSc's other uses of -help (``-help intro``) pass through. Imports nothing of PETSc
+before it is started.
+"""
+import sys
+
+
+def init_petsc(argv=None):
+    """``petsc4py.init(argv)`` with ``-help [solvers]`` kept out of PETSc's start and put back into the options
+    database (read by :class:`hertzpetsc.options.AppOptions`)."""
+    import petsc4py
+    args = list(sys.argv if argv is None else argv)
+    value = None
+    if "-help" in args[1:]:
+        i = args.index("-help", 1)
+        nxt = args[i + 1] if i + 1 < len(args) else None
+        if nxt == "intro":
+            petsc4py.init(args)
+            return
+        value = "solvers" if nxt == "solvers" else ""
+        del args[i:i + (2 if nxt == "solvers" else 1)]
+    petsc4py.init(args)
+    if value is not None:
+        from petsc4py import PETSc
+        PETSc.Options().setValue("help", value or None)

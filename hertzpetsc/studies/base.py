@@ -1,0 +1,167 @@
+"""The study protocol: what every study of :mod:`hertzpetsc.studies` declares and does (defcon's
+BifurcationProblem shape: one documented base class whose hooks have a default or raise NotImplementedError).
+
+A study is a loop over parameters whose records are written as they are computed. It declares, once:
+
+* ``Parameters``: a frozen dataclass validated when built (its field names are the Python arguments; drivers name
+  their options alike, so an error names ``-field`` on the command line and ``field`` in the API);
+* ``FORMAT``, ``FIELDS`` (and ``DTYPES``, ``SHAPES``): the record kind and the per-record fields, which the record
+  store, the file schema and the identity checks read;
+* ``ROLES``: the solver roles it configures, ``{prefix: (description, ("snes" | "ts" | "eps" | "pep", ...))}``;
+  drivers hand them to :class:`~hertzpetsc.options.AppOptions` (``-help`` lists them; unknown options are
+  matched against them).
+
+It is built from its parameters, a communicator, and an output path: a record file (:class:`NpzRecords`,
+``mode`` new/resume/force) or, with ``output=None``, an in-memory store (:class:`MemoryRecords`), so every study
+runs from a notebook. :meth:`Study.run` yields each record after saving it; :meth:`Study.arrays` gives the records
+as numpy arrays (the file's content) and :meth:`Study.table` the Markdown table.
+"""
+import os
+from dataclasses import fields, is_dataclass
+
+from petsc4py import PETSc
+
+from ..errors import ParameterError
+from ..records import MemoryRecords, NpzRecords, file_digest
+
+
+class Study:
+    """Base class of the studies (module docstring)."""
+
+    Parameters = None
+    FORMAT = None
+    FIELDS = ()
+    DTYPES = {}
+    SHAPES = {}
+    ROLES = {}
+    WHAT = "record file"
+
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        if self.Parameters is not None and not isinstance(params, self.Parameters):
+            raise ParameterError("params", type(params).__name__, f"must be {self.Parameters.__name__}(...)")
+        self.params = params
+        self.comm = comm if comm is not None else PETSc.COMM_WORLD
+        self.output, self.mode = output, mode
+        self.store = None
+
+    # --- what identifies the records -------------------------------------------------------------------------
+    def constants(self):
+        """Arrays written once per file; by default the parameters (plain data)."""
+        return plain(self.params)
+
+    def inputs(self):
+        """{name: path} of the files the records are computed from (none by default): their content hashes
+        (``<name>_sha256``) are part of the identity."""
+        return {}
+
+    def identity(self):
+        """What a resumed file must agree with (a difference is named): by default the constants, the options
+        given under the study's solver roles that change numbers, and the content hashes of the input files."""
+        out = dict(self.constants(), solver_options=solver_options(self.ROLES))
+        for name, path in self.inputs().items():
+            out[f"{name}_sha256"] = file_digest(path, self.comm)
+        return out
+
+    def open(self):
+        """Open the record store (collective): the file of ``output`` in ``mode``, or memory."""
+        if self.store is None:
+            if self.output is None:
+                self.store = MemoryRecords(self.FORMAT, self.constants(), self.FIELDS, self.comm, self.DTYPES,
+                                           self.SHAPES)
+            else:
+                identity = self.identity()
+                self.store = NpzRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity,
+                                        self.FIELDS, self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT)
+        return self
+
+    @property
+    def records(self):
+        """The records computed so far (a list of dicts, one per record)."""
+        return self.open().store.records
+
+    def arrays(self):
+        """The records as numpy arrays, as the file holds them (``format``, constants, one array per field)."""
+        return self.open().store.arrays()
+
+    # --- the hooks ---------------------------------------------------------------------------------------------
+    def run(self):
+        """Compute what the store does not hold yet; yield each new record after saving it."""
+        raise NotImplementedError
+
+    def table(self):
+        """The Markdown table of the records."""
+        raise NotImplementedError
+
+    def configure(self):
+        """Read and check the options of every solver role now, so that a bad value fails before any computation
+        (:func:`configure_roles`)."""
+        configure_roles(self.ROLES, self.comm)
+
+    def destroy(self):
+        """Free the PETSc objects the study holds (none by default)."""
+
+
+def configure_roles(roles, comm):
+    """Build a small solver of each kind of each role under its prefix (``setFromOptions`` reads and checks the
+    options database), then free it: the one early options check of the studies. SNES roles are the
+    travelling-wave solver (``-<prefix>solver direct|nk`` included), TS roles the chain's integrator, EPS/PEP
+    roles SLEPc's solvers."""
+    from ..chain import configure_options as configure_ts
+    from ..model import ChainSpec, LatticeModel
+    from ..twsolver import configure_options as configure_snes
+    for prefix, (_, kinds) in roles.items():
+        for kind in kinds:
+            if kind == "snes":
+                configure_snes(comm, prefix)
+            elif kind == "ts":
+                configure_ts(ChainSpec(LatticeModel(), 3, "free"), comm, prefix)
+            else:
+                from slepc4py import SLEPc
+                obj = (SLEPc.EPS() if kind == "eps" else SLEPc.PEP()).create(comm=comm)
+                obj.setOptionsPrefix(prefix)
+                try:
+                    obj.setFromOptions()
+                finally:
+                    obj.destroy()
+
+
+def plain(params):
+    """A parameters dataclass as plain data (numbers, strings, lists; nested models by their describe())."""
+    if not is_dataclass(params):
+        return dict(params)
+    out = {}
+    for f in fields(params):
+        v = getattr(params, f.name)
+        if hasattr(v, "describe"):
+            for k, x in v.describe().items():
+                out[k] = x
+        elif isinstance(v, (tuple, list)):
+            out[f.name] = list(v)
+        elif v is not None:
+            out[f.name] = v
+    return out
+
+
+# options that do not change numbers (what is printed or logged, not what is computed)
+_NON_NUMERIC = ("monitor", "view", "converged_reason", "log", "help", "draw")
+
+
+def provenance(comm, prefixes=(), **inputs):
+    """Identity entries of a record file made from input files and solvers: ``<name>_sha256`` for each input
+    file given (a path that names no file, e.g. the label of a branch computed in memory, is skipped) and the
+    number-changing options under the solver ``prefixes`` (collective; a resume with another input or other
+    solver settings is then refused, naming the entry)."""
+    out = {f"{name}_sha256": file_digest(path, comm) for name, path in inputs.items()
+           if path and os.path.isfile(path)}
+    if prefixes:
+        out["solver_options"] = solver_options(prefixes)
+    return out
+
+
+def solver_options(prefixes):
+    """The options given under the solver prefixes that can change a result (tolerances, types, sizes; monitors
+    and views left out), as one sorted ``name=value`` string: part of a record file's identity, so that a resume
+    with other solver settings is refused, naming them."""
+    items = sorted((k, v) for k, v in PETSc.Options().getAll().items()
+                   if k.startswith(tuple(prefixes)) and not any(w in k for w in _NON_NUMERIC))
+    return " ".join(f"{k}={v}" for k, v in items)

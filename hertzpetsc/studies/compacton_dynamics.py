@@ -1,0 +1,185 @@
+"""Does the window spectrum (:mod:`hertzpetsc.studies.compacton_stability`) predict the dynamics (section 3.3,
+Discussion)? :class:`CompactonDynamics` puts an exact compacton on a long free chain, perturbs it and splits the
+moving window's deviation with the Jordan vectors. File
+``hertzpetsc-compacton-dynamics-1``: constants alpha, N, n0, travel, amplitude, rtol, M; per record: q, kind,
+mu3, rate (fitted decay of |rest| per bead), rate_first, rate_last, rest_floor, rest_max_late, a_end,
+a_predicted, b_start, b_end, dist_end, behind_v, seconds, steps, and the series rest, a, b, dist (travel + 1)
+and deviation (travel + 1, M).
+"""
+import math
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..chain import ChainIntegrator, IntegrationTolerances
+from ..compacton_spectrum import jordan_check, sorted_eig, split_jordan_pair
+from ..compacton_window import CompactonWindow, WindowChain, chain_from_window
+from ..errors import ParameterError
+from ..model import ChainSpec
+from ..records import NpzRecords
+from .compacton_stability import exact_compacton, fmt_multiplier, q_text
+
+DYNAMICS_FORMAT = "hertzpetsc-compacton-dynamics-1"
+DYNAMICS_PREFIX = "cdyn_"
+DYNAMICS_TOLERANCES = IntegrationTolerances(rtol=1e-13, atol=1e-16)
+
+
+def dynamics_integrator(chain, tolerances=DYNAMICS_TOLERANCES, prefix=DYNAMICS_PREFIX):
+    """The chain TS under ``prefix`` with the adaptor's error norm defaulting to the max norm
+    (``-<prefix>ts_adapt_wnormtype infinity``): the RMS norm of a mostly resting long chain lets local errors of
+    the few moving beads through. The default is inserted for this set-up only (a given value wins)."""
+    opts = PETSc.Options()
+    name = prefix + "ts_adapt_wnormtype"
+    inserted = not opts.hasName(name)
+    if inserted:
+        opts.setValue(name, "INFINITY")
+    try:
+        return ChainIntegrator(chain, tolerances, prefix)
+    finally:
+        if inserted:
+            opts.delValue(name)
+
+
+DYN_FIELDS = ("q", "kind", "mu3", "rate", "rate_first", "rate_last",
+              "rest_floor", "rest_max_late", "a_end", "a_predicted", "b_start", "b_end", "dist_end", "behind_v",
+              "seconds", "steps")
+
+
+class CompactonDynamics:
+    """Exact compactons (stability records, one alpha) on a free chain of N beads in gap-lattice coordinates
+    (:class:`WindowChain`, TS prefix ``cdyn_``), perturbed by ``amplitude`` times the least-stable mode ('mode')
+    or Gaussian noise ('noise') on the window (relative to D for positions and v_peak for velocities); after each
+    unit of time (one bead of travel) the window W_k at beads n0 + k.. is compared with Y*:
+    delta = a v1 + b v2 + rest (Jordan vectors). Linear prediction: b constant, a_k = a_0 + k b, and
+    |rest| ~ |mu_3|^k down to the flow's floor. Records keyed by (q, kind)."""
+
+    def __init__(self, records, model, comm, output, mode="new", N=2100, n0=50, travel=1000, amplitude=1e-8,
+                 kinds=("mode", "noise"), seed=12345, tolerances=DYNAMICS_TOLERANCES):
+        if not records:
+            raise ParameterError("-q", "", "no compacton to run")
+        self.cases = [exact_compacton(r) for r in records]
+        self.mu3 = {round(float(r["q"]), 12): complex(r["dominant"][0]) for r in records}
+        self.alpha = float(records[0]["alpha"])
+        M = self.cases[0].M
+        if n0 < 1 or N < n0 + travel + M + 2:
+            raise ParameterError("-N", N, f"the chain must hold n0 + travel + M + 2 = {n0 + travel + M + 2} beads")
+        for kind in kinds:
+            if kind not in ("mode", "noise"):
+                raise ParameterError("-kinds", kind, "each must be mode or noise")
+        self.model, self.comm, self.N, self.n0, self.travel = model, comm, int(N), int(n0), int(travel)
+        self.amplitude, self.kinds, self.seed, self.tolerances = float(amplitude), list(kinds), seed, tolerances
+        self.window = CompactonWindow(model, M, PETSc.COMM_SELF)
+        chain = WindowChain(ChainSpec(model, self.N, "free"), comm, 0.0)
+        self.chain, self.integ = chain, dynamics_integrator(chain, tolerances)
+        ident = dict(alpha=self.alpha, N=self.N, n0=self.n0, travel=self.travel, amplitude=self.amplitude,
+                     rtol=tolerances.rtol, M=M)
+        self._open = lambda: NpzRecords(output, DYNAMICS_FORMAT, ident, ident,
+                                        DYN_FIELDS + ("rest", "a", "b", "dist", "deviation"), comm, mode,
+                                        dtypes={"kind": str, "steps": np.int64, "mu3": complex},
+                                        shapes={**{k: (self.travel + 1,) for k in ("rest", "a", "b", "dist")},
+                                                "deviation": (self.travel + 1, M)}, what="compacton dynamics file")
+        self.store = None
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def perturbation(self, kind, scale, V):
+        M = len(scale) // 2
+        if kind == "noise":
+            p = np.random.default_rng(self.seed).standard_normal(2 * M) * scale
+        else:
+            p = np.real(V)
+        return (self.amplitude * p / np.max(np.abs(p / scale))).reshape(M, 2)
+
+    def run(self):
+        self.open()
+        done = {(round(float(r["q"]), 12), str(r["kind"])) for r in self.store.records}
+        for ex in self.cases:
+            todo = [k for k in self.kinds if (round(ex.q, 12), k) not in done]
+            if todo:
+                yield from self._run_case(ex, todo)
+
+    def _run_case(self, ex, kinds):
+        w, M = self.window, ex.M
+        _, J, _ = w.jacobian(ex.Y, ex.gap)
+        lam, V = sorted_eig(J)
+        _, _, rest_mu = split_jordan_pair(lam)
+        i3 = int(np.argmin(np.abs(lam - rest_mu[0])))
+        jc = jordan_check(w, J, ex.Y, ex.gap)
+        scale = np.tile([ex.D, ex.v_peak], M)
+        ystar = ex.Y.ravel()
+        self.chain.gap = ex.gap
+        mu3 = self.mu3[round(ex.q, 12)]
+        for kind in kinds:
+            X = self.chain.create_state()
+            self.chain.set_from_array(X, chain_from_window(ex.Y + self.perturbation(kind, scale, V[:, i3]),
+                                                           self.N, self.n0))
+            series = {k: np.zeros(self.travel + 1) for k in ("rest", "a", "b", "dist")}
+            deviation = np.zeros((self.travel + 1, M))
+            t0 = time.perf_counter()
+            steps = 0
+            try:
+                for k in range(self.travel + 1):
+                    if k:
+                        steps += self.integ.integrate(X, k - 1.0, float(k),
+                                                      dt=self.integ.initial_step if k == 1 else None)
+                    full = self.chain.gather(X)
+                    d = full[self.n0 + k:self.n0 + k + M].ravel() - ystar
+                    a, b = jc.u1 @ d, jc.u2 @ d
+                    r = (d - a * jc.v1 - b * jc.v2) / scale
+                    series["rest"][k], series["a"][k], series["b"][k] = np.max(np.abs(r)), a, b
+                    series["dist"][k] = np.max(np.abs(d / scale))
+                    deviation[k] = np.max(np.abs(r.reshape(M, 2)), axis=1)
+                behind = float(np.max(np.abs(full[:self.n0 + self.travel, 1]))) / ex.v_peak
+            finally:
+                X.destroy()
+            row = dict(q=ex.q, kind=kind, mu3=mu3, behind_v=behind, seconds=time.perf_counter() - t0,
+                       steps=steps, deviation=deviation, **series, **self.fit(series))
+            self.store.append(row)
+            yield row
+
+    def fit(self, s):
+        """Decay rate of |rest| over k >= 1 while it stays above 30 x its floor (median over k in [T/2, T]), at most
+        25 points; the late maximum of |rest|; the phase a(T) against a_10 + (T - 10) b_10."""
+        rest, a, b, T = s["rest"], s["a"], s["b"], self.travel
+        floor = float(np.median(rest[T // 2:]))
+        stop = next((k for k in range(1, T + 1) if rest[k] < 30 * floor), T + 1)
+        ks = np.arange(1, stop)[:25]
+        rate = float(np.polyfit(ks, np.log(rest[ks]), 1)[0]) if len(ks) >= 3 else math.nan
+        k10 = min(10, T)
+        return dict(rate=rate, rate_first=float(ks[0]) if len(ks) else math.nan,
+                    rate_last=float(ks[-1]) if len(ks) else math.nan, rest_floor=floor,
+                    rest_max_late=float(np.max(rest[min(50, T):])), a_end=float(a[-1]),
+                    a_predicted=float(a[k10] + (T - k10) * b[k10]), b_start=float(b[k10]), b_end=float(b[-1]),
+                    dist_end=float(s["dist"][-1]))
+
+    def table(self):
+        M = self.cases[0].M
+        lines = [f"alpha = {self.alpha:g}: exact compactons (M = {M} window) on a free chain of {self.N} beads at "
+                 f"bead {self.n0}, perturbed by {self.amplitude:g} x (mode: the eigenvector of the dominant "
+                 f"nontrivial multiplier mu_3; noise: Gaussian, seed {self.seed}) relative to D and v_peak, "
+                 f"travelling {self.travel} beads (TS -cdyn_, rtol {self.tolerances.rtol:g}, max-norm error "
+                 "control). delta_k = W_k - Y* = a v1 + b v2 + rest (Jordan vectors of mu = 1); prediction: "
+                 "|rest| ~ |mu_3|^k (rate ln|mu_3| per bead = per script-T), b constant, a_k = a_10 + (k - 10) b_10."
+                 " |rest| and |delta| relative (max over the window).\n",
+                 "| q | perturbation | mu_3 | fitted rate of \\|rest\\| (k range) | ln\\|mu_3\\| | ratio | floor of "
+                 "\\|rest\\| (median, k >= T/2) | max \\|rest\\|, k >= 50 | b at k = 10 -> T | a(T) / predicted | "
+                 "\\|delta\\|(T) | max \\|v\\| left behind / v_peak | TS steps | s |",
+                 "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in sorted(self.store.records, key=lambda r: (-float(r["q"]), str(r["kind"]))):
+            rate, ln3 = float(r["rate"]), math.log(abs(complex(r["mu3"])))
+            lines.append(f"| {q_text(float(r['q']))} | {r['kind']} | {fmt_multiplier(complex(r['mu3']))} | {rate:.4f} "
+                         f"({float(r['rate_first']):.0f}-{float(r['rate_last']):.0f}) | {ln3:.4f} | "
+                         f"{rate / ln3:.4f} | {float(r['rest_floor']):.1e} | {float(r['rest_max_late']):.1e} | "
+                         f"{float(r['b_start']):.3e} -> {float(r['b_end']):.3e} | {float(r['a_end']):.3e} / "
+                         f"{float(r['a_predicted']):.3e} | {float(r['dist_end']):.1e} | {float(r['behind_v']):.1e} | "
+                         f"{int(r['steps'])} | {float(r['seconds']):.1f} |")
+        return "\n".join(lines) + "\n"
+
+    def destroy(self):
+        self.integ.destroy()
+        self.chain.destroy()
+        self.window.destroy()

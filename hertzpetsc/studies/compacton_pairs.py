@@ -1,0 +1,137 @@
+"""The two-compacton test of section 3.3 (eq. extens2), each compacton unrefined or refined at the same gap, to
+locate the source of the 2-compacton error. File ``hertzpetsc-compacton-pairs-1``: constants alpha, q, h, spacing,
+travel, M, N, gap; per record: case, rear, front, error_x, error_v, debris_v, seconds."""
+import math
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..compacton_window import DEFAULT_REAR, CompactonRefiner, CompactonWindow, WindowChain, guess_from_branch
+from ..errors import ParameterError
+from ..model import ChainSpec
+from ..records import NpzRecords
+from .compacton_dynamics import DYNAMICS_TOLERANCES, dynamics_integrator
+from .compacton_stability import q_text
+
+PAIRS_FORMAT = "hertzpetsc-compacton-pairs-1"
+PAIR_FIELDS = ("case", "rear", "front", "error_x", "error_v", "debris_v", "seconds")
+PAIR_CASES = (("single", "", "unrefined"), ("single", "", "refined"), ("two", "unrefined", "unrefined"),
+              ("two", "refined", "refined"), ("two", "unrefined", "refined"), ("two", "refined", "unrefined"))
+
+
+class CompactonPairs:
+    """The compacton of a branch point at c = 1, unrefined (the branch profile, eqs. extens, compacton) or refined
+    at the same gap (window map, Delta fixed), alone or with a second one ``spacing`` beads behind (eq. extens2),
+    on a free chain in gap-lattice coordinates (TS ``cdyn_``), run until the rear one has passed ``travel`` beads
+    beyond the front one's start. Errors against the exactly translated initial chain (x relative to D, v to
+    v_peak) and the debris left behind the rear compacton (max |v| / v_peak)."""
+
+    def __init__(self, branch, q, comm, output, mode="new", spacing=132, travel=100, M=18, rear=DEFAULT_REAR,
+                 margin=10, tolerances=DYNAMICS_TOLERANCES):
+        self.branch, self.q, self.comm = branch, float(q), comm
+        self.spacing, self.travel, self.M, self.rear, self.margin = int(spacing), int(travel), int(M), int(rear), \
+            int(margin)
+        Yu, gap = guess_from_branch(branch.point(q), self.M, self.rear, branch.q_k())
+        if self.spacing < self.M:
+            raise ParameterError("-spacing", spacing, f"the two windows must not overlap: spacing >= M = {self.M}")
+        self.gap, self.states = gap, {"unrefined": Yu}
+        self.tolerances = tolerances
+        self.T = self.spacing + self.travel
+        self.N = self.margin + self.spacing + self.M + self.T + self.margin
+        self.model = branch.model
+        self._open = lambda: NpzRecords(output, PAIRS_FORMAT,
+                                        dict(alpha=branch.alpha, q=self.q, h=branch.h, spacing=self.spacing,
+                                             travel=self.travel, M=self.M, N=self.N, gap=gap),
+                                        dict(alpha=branch.alpha, q=self.q, h=branch.h, spacing=self.spacing,
+                                             travel=self.travel, M=self.M), PAIR_FIELDS, comm, mode,
+                                        dtypes={"case": str, "rear": str, "front": str}, what="compacton pairs file")
+        self.chain = WindowChain(ChainSpec(self.model, self.N, "free"), comm, gap)
+        self.integ = dynamics_integrator(self.chain, tolerances)
+        self.store = None
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def refined(self):
+        if "refined" not in self.states:
+            w = CompactonWindow(self.model, self.M, PETSc.COMM_SELF)
+            try:
+                ex = CompactonRefiner(w).refine(self.states["unrefined"], self.gap, self.q, fix_gap=True)
+            finally:
+                w.destroy()
+            self.states["refined"], self.refined_residual = ex.Y, ex.residual
+            self.unrefined_residual = None
+        return self.states["refined"]
+
+    def initial(self, rear, front):
+        """(N, 2) gap-lattice chain: the front window at bead margin + spacing, the rear one spacing beads behind."""
+        X = np.zeros((self.N, 2))
+        nf = self.margin + self.spacing
+        Yf = self.states[front]
+        X[:nf, 0] = Yf[0, 0]
+        X[nf:nf + self.M] = Yf
+        if rear:
+            Yr = self.states[rear]
+            nr = nf - self.spacing
+            X[:nr, 0] += Yr[0, 0]
+            X[nr:nr + self.M] = Yr + np.array([Yf[0, 0], 0.0])
+        return X
+
+    def run(self):
+        self.open()
+        self.refined()
+        w = CompactonWindow(self.model, self.M, PETSc.COMM_SELF)
+        try:
+            self.unrefined_residual = w.residual(self.states["unrefined"], self.gap)
+        finally:
+            w.destroy()
+        done = {(str(r["case"]), str(r["rear"]), str(r["front"])) for r in self.store.records}
+        v_peak = float(np.max(np.abs(self.states["unrefined"][:, 1])))
+        D = float(self.states["unrefined"][0, 0])
+        for case in PAIR_CASES:
+            if case in done:
+                continue
+            kind, rear, front = case
+            X0 = self.initial(rear, front)
+            X = self.chain.create_state()
+            self.chain.set_from_array(X, X0)
+            t0 = time.perf_counter()
+            try:
+                self.integ.integrate(X, 0.0, float(self.T), dt=self.integ.initial_step)
+                XT = self.chain.gather(X)
+            finally:
+                X.destroy()
+            # the exact translation by T beads (c = 1): bead n at T is bead n - T at 0, or at rest behind
+            n = np.arange(self.N)
+            err = np.abs(XT - X0[np.maximum(n - self.T, 0)])
+            rear_start = self.margin if rear else self.margin + self.spacing
+            behind = slice(0, rear_start + self.T - 2)
+            row = dict(case=kind, rear=rear, front=front, error_x=float(np.max(err[:, 0])) / D,
+                       error_v=float(np.max(err[:, 1])) / v_peak,
+                       debris_v=float(np.max(np.abs(XT[behind, 1]))) / v_peak, seconds=time.perf_counter() - t0)
+            self.store.append(row)
+            yield row
+
+    def table(self):
+        lines = [f"alpha = {self.branch.alpha:g}, q = {q_text(self.q)}, branch h = "
+                 f"pi/{round(math.pi / self.branch.h)}; c = 1, gap Delta = {self.gap:.6g} (the branch's a p q, "
+                 "shared by all cases; 'refined' = the window map's fixed point at this gap). Unrefined window "
+                 f"residual max|G(Y) - Y| = {self.unrefined_residual:.1e}, refined {self.refined_residual:.1e}. "
+                 f"Free chain of {self.N} beads; "
+                 f"front compacton at bead {self.margin + self.spacing}, rear one {self.spacing} beads behind; run "
+                 f"for T = {self.T} (the rear one passes {self.travel} beads beyond the front one's start). Errors: "
+                 "max over beads of |X(T) - X(0) translated by T beads|, x relative to D, v to v_peak; debris: max |v| "
+                 "behind the rear compacton / v_peak.\n",
+                 "| compactons | rear | front | profile error x | profile error v | debris behind / v_peak | s |",
+                 "|---|---|---|---|---|---|---|"]
+        for r in self.store.records:
+            lines.append(f"| {r['case']} | {r['rear'] or '-'} | {r['front']} | {float(r['error_x']):.1e} | "
+                         f"{float(r['error_v']):.1e} | {float(r['debris_v']):.1e} | {float(r['seconds']):.1f} |")
+        return "\n".join(lines) + "\n"
+
+    def destroy(self):
+        self.integ.destroy()
+        self.chain.destroy()

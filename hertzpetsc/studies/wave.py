@@ -1,0 +1,158 @@
+"""A wave of a chain of one's own choosing and its stability: for a lattice model (Hertz exponent, precompression,
+mass pattern), wavenumbers q and an amplitude A = max |u|, the travelling wave (eq. ad for the pattern, A a border
+row), put on a periodic chain of N beads, refined by Gauss-Newton on its cell (section 3.4) and its Floquet
+multipliers modulo shift from the Bloch sectors of its cell (section 3.5), on N beads and on longer chains L N.
+
+Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues): constants alpha, delta0, masses, A,
+cells_per_pi, N, sizes (the longer chains), tol, tol_rho, solver_options; per record: q, m (wavelengths on N
+beads), omega, E_profile (E(q) of the wave interpolated from the grid), E_refined, iterations (Gauss-Newton), rho
+(the largest multiplier modulus, trivial ones excluded), outside (multipliers with |mu| > 1 + tol_rho), spread
+(of the trivial multipliers), unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on each longer chain, in the order
+of ``sizes``), seconds.
+"""
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..advdelay import check_wavenumber
+from ..bloch import SymmetricFloquet
+from ..errors import ParameterError
+from ..families import check_amplitude, wave_of_amplitude
+from ..floquet import TOL_RHO
+from ..grid import ProfileGrid, check_cells_per_pi
+from ..model import ChainSpec, LatticeModel
+from ..resources import check_memory
+from ..shooting import Refiner
+from ..twsolver import tw_solver
+from ..waves import check_chain_wavenumber, orbit_on_chain
+from .base import Study
+
+WAVE_FORMAT = "hertzpetsc-wave-1"
+WAVE_FIELDS = ("q", "m", "omega", "E_profile", "E_refined", "iterations", "rho", "outside", "spread", "unstable",
+               "rho_sizes", "seconds")
+MAX_BEADS = 2000             # the refinement's dense Jacobian has (2 M)^2 entries on the wave's cell
+MAX_SIZE = 10 ** 6           # beads of the longer chains (Bloch sectors: the cell's cost times the sectors)
+
+
+@dataclass(frozen=True)
+class WaveParameters:
+    """The chain (``model``), wavenumbers ``q`` (per bead), amplitude A = max |u| (with delta0 = 0 and one mass: any
+    A, the waves scale), grid h = pi / cells_per_pi, N beads of the periodic chain (a whole number of wavelengths
+    and of pattern cells), longer chains ``sizes`` (multiples of N), the refinement's target E ``tol`` and the
+    verdict's threshold ``tol_rho``."""
+
+    model: LatticeModel
+    q: tuple
+    A: float = 1.0
+    cells_per_pi: int = 400
+    N: int = 100
+    sizes: tuple = ()
+    tol: float = 1e-10
+    tol_rho: float = TOL_RHO
+
+    def __post_init__(self):
+        m = self.model
+        m.require_conservative("a travelling wave")
+        if m.delta0 == 0 and m.cell > 1:
+            raise ParameterError("delta0", 0.0, "a mass pattern's waves start from the linear wave: give a "
+                                 "precompression > 0 (the sonic-vacuum dimer: dimer_branch.py from epsilon = 1)")
+        object.__setattr__(self, "A", check_amplitude(self.A, "A"))
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        if not (isinstance(self.N, (int, np.integer)) and 2 <= self.N <= MAX_BEADS and self.N % m.cell == 0):
+            raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {m.cell} in "
+                                 f"[2, {MAX_BEADS}]")
+        qs = tuple(check_wavenumber(q, math.pi / self.cells_per_pi) for q in self.q)
+        if not qs:
+            raise ParameterError("q", self.q, "give at least one wavenumber")
+        for q in qs:
+            check_chain_wavenumber(q, self.N)
+        object.__setattr__(self, "q", qs)
+        sizes = tuple(int(L) for L in self.sizes)
+        for L in sizes:
+            if not (L > self.N and L % self.N == 0 and L <= MAX_SIZE):
+                raise ParameterError("sizes", L, f"each longer chain must be a multiple of N = {self.N} beads, at "
+                                     f"most {MAX_SIZE}")
+        object.__setattr__(self, "sizes", sizes)
+        for name in ("tol", "tol_rho"):
+            v = getattr(self, name)
+            if not (0 < v < 1):
+                raise ParameterError(name, v, "must lie in (0, 1)")
+
+
+class WaveStudy(Study):
+    """The wave, its refinement and its multipliers at each q (module docstring). Solver roles: ``precomp_`` (the
+    wave, a precompressed chain) or ``tw_`` (the uncompressed monatomic chain's branch to q), ``shoot_`` and
+    ``shoot_jac_`` (the refinement's flows), ``floquet_`` (the Bloch sectors' flows). Collective over ``comm``."""
+
+    Parameters = WaveParameters
+    FORMAT, FIELDS = WAVE_FORMAT, WAVE_FIELDS
+    DTYPES = {"m": np.int64, "iterations": np.int64, "outside": np.int64, "unstable": np.int64}
+    ROLES = {"precomp_": ("the wave of a precompressed chain (-precomp_solver direct|nk)", ("snes",)),
+             "tw_": ("the uncompressed chain's branch to q (-tw_solver direct|nk)", ("snes",)),
+             "shoot_": ("the refinement's flow and Gauss-Newton (-shoot_gn_max_it)", ("ts",)),
+             "shoot_jac_": ("the flow of the refinement's Jacobian", ("ts",)),
+             "floquet_": ("the Bloch sectors' variational flows", ("ts",))}
+    WHAT = "wave file"
+
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        self.SHAPES = {"rho_sizes": (len(params.sizes),)}
+        check_memory(params.cells_per_pi, self.comm, tw_solver("precomp_"), profiles=params.model.cell)
+        self.waves = {}
+
+    def constants(self):
+        p = self.params
+        return dict(p.model.describe(), A=p.A, cells_per_pi=p.cells_per_pi, N=p.N, sizes=list(p.sizes), tol=p.tol,
+                    tol_rho=p.tol_rho)
+
+    def wave(self, q):
+        """The wave at q as a :class:`~hertzpetsc.branch.BranchPoint` and the scale of its orbit
+        (:func:`~hertzpetsc.families.wave_of_amplitude`)."""
+        p = self.params
+        return wave_of_amplitude(p.model, q, p.A, ProfileGrid(p.cells_per_pi, self.comm))
+
+    def compute(self, q):
+        p = self.params
+        t0 = time.perf_counter()
+        point, scale = self.wave(q)
+        spec = ChainSpec(p.model, p.N)
+        orbit = orbit_on_chain(point, spec, scale=scale)
+        with Refiner(spec, self.comm, p.tol) as refiner:
+            E0 = refiner.residual(orbit)
+            refined = refiner.refine(orbit)
+        with SymmetricFloquet(p.model, self.comm) as floquet:
+            s = floquet.spectrum(refined.orbit, p.tol_rho)
+            longer = [floquet.spectrum(refined.orbit.tiled(L // p.N), p.tol_rho).rho for L in p.sizes]
+        return dict(q=q, m=orbit.m, omega=orbit.omega, E_profile=E0, E_refined=refined.E,
+                    iterations=refined.iterations, rho=s.rho, outside=s.outside, spread=s.trivial_spread,
+                    unstable=int(s.rho - 1 > p.tol_rho), rho_sizes=np.array(longer, dtype=float),
+                    seconds=time.perf_counter() - t0)
+
+    def run(self):
+        self.open()
+        done = {round(float(r["q"]), 12) for r in self.store.records}
+        for q in self.params.q:
+            if round(q, 12) in done:
+                continue
+            row = self.compute(q)
+            self.store.append(row)
+            yield row
+
+    def table(self):
+        p = self.params
+        lines = [f"schema: {WAVE_FORMAT}; chain {p.model.describe()}, amplitude A = max |u| = {p.A:g}, h = pi/"
+                 f"{p.cells_per_pi}; refined on N = {p.N} beads (target E {p.tol:g}); multipliers modulo shift from "
+                 f"the Bloch sectors of the wave's cell; unstable when rho - 1 > {p.tol_rho:g}.\n",
+                 "| " + " | ".join(["q", "m", "omega", "E (profile)", "E (refined)", "rho - 1", "outside",
+                                    "trivial spread", "verdict"] + [f"rho - 1 on {L}" for L in p.sizes]) + " |",
+                 "|---" * (9 + len(p.sizes)) + "|"]
+        for r in self.store.records:
+            extra = "".join(f" {float(v) - 1:.2e} |" for v in np.atleast_1d(r["rho_sizes"]))
+            lines.append(f"| {float(r['q']):.6f} | {int(r['m'])} | {float(r['omega']):.8f} | "
+                         f"{float(r['E_profile']):.1e} | {float(r['E_refined']):.1e} | {float(r['rho']) - 1:.2e} | "
+                         f"{int(r['outside'])} | {float(r['spread']):.1e} | "
+                         f"{'unstable' if int(r['unstable']) else 'stable within ' + format(p.tol_rho, 'g')} |"
+                         + extra)
+        return "\n".join(lines) + "\n"

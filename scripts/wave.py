@@ -1,0 +1,67 @@
+#!/usr/bin/env python3
+"""A travelling wave of a chain of your own choosing, refined, and its stability (hertzpetsc.studies.wave).
+
+    mpiexec -n 2 python scripts/wave.py [-alpha 1.5] [-delta0 1] [-masses 1,0.5,0.333333] [-q 2*pi/15] [-A 0.5]
+        [-cells_per_pi 400] [-N 90] [-sizes 30000] [-tol 1e-10] [-tol_rho 1e-4]
+        [-output results/wave.npz] [-table results/wave.md] [-resume | -force]
+
+At each q (per bead; q N / (2 pi) whole): the wave with amplitude A = max |u| (eq. ad for the mass pattern, A a
+border row; from the linear wave for delta0 > 0, from the paper's branch for delta0 = 0 and one mass), put on a
+periodic chain of N beads, refined by Gauss-Newton on its cell (E before and after), its Floquet multipliers
+modulo shift from the Bloch sectors of the wave's cell on N beads and on each longer chain of -sizes. One line
+and one table row per q. Solver prefixes: -precomp_ (the precompressed wave), -tw_ (the branch), -shoot_ and
+-shoot_jac_ (the refinement), -floquet_ (the sectors' flows).
+"""
+import math
+import sys
+
+from hertzpetsc.start import init_petsc
+
+init_petsc(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.wave import MAX_BEADS, MAX_SIZE, WaveParameters, WaveStudy  # noqa: E402
+
+
+def main():
+    opts = AppOptions(__doc__, WaveStudy.ROLES)
+    alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
+    delta0 = opts.real("delta0", 1.0, "precompression (static overlap); 0: the sonic vacuum (one mass only)",
+                       valid=(lambda x: x >= 0, ">= 0"))
+    masses = opts.numbers("masses", "1", "the repeating mass pattern", valid=(lambda m: m > 0, "> 0"))
+    qs = opts.numbers("q", "2*pi/15", "per-bead wavenumbers (q N / (2 pi) whole)",
+                      valid=(lambda q: 0 < q <= math.pi * (1 + 1e-14), "in (0, pi]"), distinct=True)
+    A = opts.real("A", 0.5, "amplitude max |u|", valid=(lambda x: x > 0, "> 0"))
+    K = opts.integer("cells_per_pi", 400, "grid h = pi / cells_per_pi", minimum=4)
+    N = opts.integer("N", 90, "beads of the periodic chain of the refinement", minimum=2, maximum=MAX_BEADS)
+    sizes = opts.numbers("sizes", "", "longer chains for the Bloch spectra (multiples of N; none if empty)",
+                         expr=False, kind=int, valid=(lambda L: 2 <= L <= MAX_SIZE, f"in [2, {MAX_SIZE}]"),
+                         distinct=True, minimum_count=0)
+    tol = opts.real("tol", 1e-10, "the refinement's target E", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    tol_rho = opts.real("tol_rho", 1e-4, "unstable when rho - 1 > tol_rho", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    output = opts.path("output", "results/wave.npz", "wave file (record store)")
+    mode = opts.mode()
+    table_path = opts.path("table", "results/wave.md", "table")
+    opts.done()
+    comm = PETSc.COMM_WORLD
+    model = LatticeModel.hertz(alpha, tuple(masses), delta0)
+    study = WaveStudy(WaveParameters(model, tuple(qs), A, K, N, tuple(sizes), tol, tol_rho), comm, output, mode)
+    prepare_outputs(comm, table_path)
+    study.configure()
+    opts.check_unused()
+    study.open()
+    print0(f"# chain {model.describe()}, A = {A:g}, h = pi/{K}, N = {N}" + (f", sizes {sizes}" if sizes else ""))
+    print0(f"# {'q':>9} {'omega':>12} {'E before':>9} {'E after':>9} {'rho - 1':>10} {'outside':>7} {'s':>6}")
+    for r in study.run():
+        print0(f"  {r['q']:9.6f} {r['omega']:12.8f} {r['E_profile']:9.1e} {r['E_refined']:9.1e} "
+               f"{r['rho'] - 1:10.2e} {r['outside']:7d} {r['seconds']:6.1f}")
+    text = study.table()
+    write_text(table_path, text, comm)
+    print0(text)
+
+
+if __name__ == "__main__":
+    guarded_main(main)

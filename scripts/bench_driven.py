@@ -99,19 +99,12 @@ def petsc_sweep(req, petsc_args):
     from hertzpetsc.model import LatticeModel
     from hertzpetsc.studies.driven import ResponseCurve
 
-    class Memory:
-        records = []
-
-        def append(self, r):
-            self.records.append(r)
-
     grid = _grid(req)
     drive = Drive(LatticeModel.hertz(ALPHA, delta0=req["delta0"], gamma=req["gamma"]), req["N"], HarmonicWave(),
                   req["amplitude"], grid[0])
     comm = MPI.COMM_WORLD
     study = ResponseCurve(drive, "omega", grid[-1], PETSc.COMM_WORLD, None, tol=TOL, rtol=RTOL, grid=grid[1:],
                           run_in=req["run_in"], samples=0, max_steps=10 ** 6)
-    study.store = Memory()
     comm.Barrier()
     t0 = time.perf_counter()
     recs = list(study.run())

@@ -104,7 +104,6 @@ def test_normal_modes_closed_form_and_resonance_peaks():
     closed = [2 * math.sqrt(K) * math.sin(k * math.pi / 8) for k in (1, 2, 3)]
     assert np.allclose(normal_modes(drive), closed, rtol=1e-13)
     study = LinearResonances(drive, COMM, None, modes=[1], golden=30)
-    study.store = type("Mem", (), {"records": [], "append": lambda self, r: self.records.append(r)})()
     try:
         rec = next(study.run())
     finally:
@@ -210,7 +209,6 @@ def test_period_doubling_is_located_confirmed_and_switched():
     drive = Drive(LatticeModel.hertz(1.5, gamma=0.1), 2, HarmonicWave(), 1.0, 1.69)
     study = ResponseCurve(drive, "omega", 1.665, COMM, None, algorithm=PseudoArclength(ds=0.01, ds_max=0.02, easy=5),
                           run_in=100, samples=0, switch=2, max_steps=12)
-    study.store = type("Mem", (), {"records": [], "append": lambda self, r: self.records.append(r)})()
     try:
         records = list(study.run())
     finally:

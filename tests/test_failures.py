@@ -369,7 +369,7 @@ OVERSIZED = {
     "driven_resonances.py": ("N", "1000000000"),
     "driven_wave_ends.py": ("sizes", "1000000000"),
     "driven_generation.py": ("N", "1000000000"),
-    "bench_driven.py": ("long_N", "1000000000000"),
+    "bench_driven.py": ("N", "1000000000"),
 }
 
 

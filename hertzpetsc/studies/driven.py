@@ -53,7 +53,7 @@ from ..driven import (DRIVE_PREFIX, RESPONSE_TOLERANCES, TOL_MU, BranchFamily, H
                       switch_to_doubled, verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError
 from ..floquet import DenseFloquet
-from ..records import NpzRecords
+from ..records import MemoryRecords, NpzRecords
 from ..resources import MAX_DENSE_BEADS, check_chain_memory
 from .dealing import dealt
 
@@ -93,6 +93,13 @@ def tolerances_of(rtol, scale=1.0):
 
 
 # --- frequency and amplitude responses --------------------------------------------------------------------------
+def _store(output, kind, constants, identity, fields, comm, mode, dtypes=None, shapes=None, what=None):
+    """The record file ``output``, or the records in memory when ``output`` is None (a notebook, a test)."""
+    if output is None:
+        return MemoryRecords(kind, constants, fields, comm, dtypes, shapes)
+    return NpzRecords(output, kind, constants, identity, fields, comm, mode, dtypes=dtypes, shapes=shapes, what=what)
+
+
 def corner_arclength(ds=0.02, ds_max=0.05, max_corrector=1.5):
     """The pseudo-arclength algorithm for response curves of Hertz chains: their contacts open and close, so the
     curves are only piecewise smooth (grazing points are corners, where the secant is not the tangent and Newton
@@ -129,7 +136,7 @@ class ResponseCurve:
         constants = dict(drive=json.dumps(drive.describe(), sort_keys=True, default=str), parameter=parameter,
                          p_end=self.p_end, base_periods=periods, jacobian=jacobian, floquet=floquet, tol=tol, rtol=rtol,
                          mode="grid" if grid is not None else "arclength", N=drive.N, nmult=self.nmult)
-        self._open = lambda: NpzRecords(output, RESPONSE_FORMAT, constants, constants, RESPONSE_FIELDS, comm, mode,
+        self._open = lambda: _store(output, RESPONSE_FORMAT, constants, constants, RESPONSE_FIELDS, comm, mode,
                                         dtypes={"branch": np.int64, "periods": np.int64, "event": np.int64,
                                                 "confirmed": np.int64, "iterations": np.int64,
                                                 "outside": np.int64, "multipliers": complex},
@@ -509,7 +516,7 @@ class LinearResonances:
                                         tolerances=tolerances_of(rtol, drive.amplitude))
         constants = dict(drive=json.dumps(drive.describe(), sort_keys=True, default=str), modes=self.modes, tol=tol,
                          rtol=rtol)
-        self._open = lambda: NpzRecords(output, RESONANCE_FORMAT, constants, constants, RESONANCE_FIELDS, comm, mode,
+        self._open = lambda: _store(output, RESONANCE_FORMAT, constants, constants, RESONANCE_FIELDS, comm, mode,
                                         dtypes={"k": np.int64, "evaluations": np.int64},
                                         what="driven-resonances file")
         self.store = None
@@ -607,7 +614,7 @@ class WaveEnds:
         configure_options(comm)
         constants = dict(alpha=branch.alpha, P=P, branch=branch_path, refined=refined_path, samples=self.samples,
                          rtols=self.rtols)
-        self._open = lambda: NpzRecords(output, WAVE_ENDS_FORMAT, constants, dict(alpha=branch.alpha, P=P,
+        self._open = lambda: _store(output, WAVE_ENDS_FORMAT, constants, dict(alpha=branch.alpha, P=P,
                                                                                     samples=self.samples),
                                         WAVE_ENDS_FIELDS, comm, mode, dtypes={"m": np.int64, "N": np.int64,
                                                                               "iterations": np.int64,
@@ -720,7 +727,7 @@ class Generation:
         constants = dict(model=json.dumps(model.describe(), sort_keys=True), N=self.N, branch=branch_path,
                          bulk=list(self.bulk), run_in=self.run_in, width=width)
         identity = {k: v for k, v in constants.items() if k != "branch"}
-        self._open = lambda: NpzRecords(output, GENERATION_FORMAT, constants, identity,
+        self._open = lambda: _store(output, GENERATION_FORMAT, constants, identity,
                                         GENERATION_FIELDS, comm, mode,
                                         dtypes={"waveform": np.int64, "ok": np.int64, "iterations": np.int64},
                                         shapes={"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)},

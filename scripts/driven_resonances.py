@@ -15,9 +15,9 @@ exp(T lambda) of the linear damped chain. Records: schema hertzpetsc-driven-reso
 """
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402

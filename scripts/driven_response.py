@@ -1,30 +1,19 @@
 #!/usr/bin/env python3
-"""Frequency (or amplitude) response of a driven, damped chain: periodic responses by shooting, continued by the
-continuation layer, with their Floquet multipliers, folds, period doublings and Neimark-Sacker points, and branch
-switching onto the period-doubled branches (issue 22; Pozharskiy et al., Phys. Rev. E 92, 063203 (2015)).
+"""Frequency (or amplitude) response of a driven, damped chain (issue 22): periodic responses by shooting, continued
+with their Floquet multipliers, folds, period doublings, Neimark-Sacker points and period-doubled branches.
 
-    mpiexec -n 2 python scripts/driven_response.py [-N 20] [-alpha 1.5] [-delta0 0] [-gamma 0.05] [-eta 0]
-        [-masses 1] [-signal harmonic|half_sine|samples] [-width 0.5] [-signal_samples 0,1,0,-1,0]
-        [-amplitude 0.5] [-omega 1] [-right wall|free] [-parameter omega|amplitude] [-p_end 0.3]
-        [-mode arclength|grid] [-points 200] [-periods 1] [-jacobian dense|mf] [-floquet dense|slepc|none] [-nev 8]
-        [-tol 1e-10] [-rtol 1e-12] [-ds 0.02] [-ds_max 0.05] [-max_corrector 1.5] [-run_in 50]
-        [-samples_per_period 64] [-switch 0] [-max_steps 400] [-output results/driven_response.npz]
-        [-table results/driven_response.md]
-        [-figures figures] [-name driven_response] [-resume | -force]
+    mpiexec -n 2 python scripts/driven_response.py -N 20 -delta0 1 -gamma 0.02 -amplitude 0.2 -omega 0.3 -p_end 0.5
 
-The first response: -run_in driving periods from rest, then Newton at the start value of -parameter; then
-pseudo-arclength continuation to -p_end (-mode arclength; events located and confirmed by the multipliers on both
-sides) or natural steps through -points equally spaced values (-mode grid; events bracketed). -switch S: S steps
-on the period-doubled branch from each confirmed period doubling. Records: schema hertzpetsc-driven-response-1
-(hertzpetsc.studies.driven). Solver prefixes: -drive_ (the Newton SNES on P(X) - X and the state flow's TS),
--floquet_ (the tangent flow of the Jacobian and the multipliers; SLEPc's EPS with -floquet slepc).
+First response: -run_in periods from rest, then Newton; then pseudo-arclength to -p_end (events located and
+confirmed by the multipliers on both sides) or -points values (-mode grid; events bracketed); -switch S steps on
+each period-doubled branch. Records: hertzpetsc-driven-response-1 (docs/schemas.md).
 """
 import os
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402

@@ -17,9 +17,9 @@ Solver prefixes: -drive_ (Newton SNES and state flow), -floquet_ (tangent flows)
 import math
 import sys
 
-import petsc4py
+from hertzpetsc.start import init_petsc
 
-petsc4py.init(sys.argv)
+init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402

@@ -48,6 +48,11 @@ _EXPORTS = {
     "Refiner": "shooting", "Refinement": "shooting", "Spectrum": "floquet", "DenseFloquet": "floquet",
     "DominantFloquet": "floquet", "SymmetricFloquet": "bloch", "wave_of_amplitude": "families",
     "WaveStudy": "studies.wave", "WaveParameters": "studies.wave",
+    # driven, damped chains (issue 22)
+    "Drive": "driven", "HarmonicWave": "driven", "HalfSinePulses": "driven", "SampledWave": "driven",
+    "ProfileWave": "driven", "PeriodicShooting": "driven", "Response": "driven", "switch_to_doubled": "driven",
+    "ResponseCurve": "studies.driven", "LinearResonances": "studies.driven", "WaveEnds": "studies.driven",
+    "Generation": "studies.driven",
     # conveniences (this package's api module)
     "compute_branch": "api", "wave_at": "api", "wave": "api", "orbit": "api", "refine": "api",
     "multipliers": "api", "plot_spectrum": "api",

@@ -60,8 +60,6 @@ class Chain:
     def __init__(self, spec, comm, n_tangent=0):
         if not isinstance(spec, ChainSpec):
             raise ParameterError("spec", spec, "must be a ChainSpec")
-        self.spec = spec
-        self.model = spec.model
         self.comm = comm
         self.n_tangent = int(n_tangent)
         self.dof = 2 * (1 + self.n_tangent)
@@ -77,13 +75,7 @@ class Chain:
         self.local = self.da.createLocalVec()
         self.first = self.xs == 0 and not periodic
         self.last = self.xe == spec.N and not periodic
-        self.damping = self.model.damping if self.model.damped else None
-        # the ends this rank touches: ('free' | 'wall' | Actuator) or None inside the chain / periodic
-        self.left_end = spec.left if self.first else None
-        self.right_end = spec.right if self.last else None
-        # 1/m_n of the owned beads, or None for unit masses (the paper's chain: no extra arithmetic)
-        self.inverse_mass = None if self.model.uniform_masses else \
-            1.0 / self.model.mass(np.arange(self.xs, self.xe))
+        self._take(spec)
         self._shift = None
         self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
         # the compiled right-hand side: the Hertz law and this class's ghost rows (any other law, or a subclass that
@@ -92,6 +84,38 @@ class Chain:
             and type(self).rhs_reference is Chain.rhs_reference
         lib = kernels.library() if compiled else None
         self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None
+        self._sync()
+
+    def _take(self, spec):
+        """The physics of ``spec`` on this layout: model, damping, masses and the ends this rank touches."""
+        self.spec = spec
+        self.model = spec.model
+        self.damping = self.model.damping if self.model.damped else None
+        # the ends this rank touches: ('free' | 'wall' | Actuator) or None inside the chain / periodic
+        self.left_end = spec.left if self.first else None
+        self.right_end = spec.right if self.last else None
+        # 1/m_n of the owned beads, or None for unit masses (the paper's chain: no extra arithmetic)
+        self.inverse_mass = None if self.model.uniform_masses else \
+            1.0 / self.model.mass(np.arange(self.xs, self.xe))
+
+    def set_spec(self, spec):
+        """Take another chain of the same layout (same N, boundary and kinds of ends; the Hertz parameters, masses,
+        damping and the actuators' signals may differ): a continuation in a driving frequency, amplitude or damping
+        changes the chain this way, without a new DMDA; the compiled kernel's context is updated in place (a TS
+        that calls it directly keeps working)."""
+        if not isinstance(spec, ChainSpec):
+            raise ParameterError("spec", spec, "must be a ChainSpec")
+        if spec.N != self.spec.N or spec.boundary != self.spec.boundary:
+            raise ParameterError("spec", (spec.N, spec.boundary), f"must keep N = {self.spec.N} and boundary "
+                                 f"{self.spec.boundary!r} (the layout of this chain)")
+        def kind(end):
+            return "actuator" if isinstance(end, Actuator) else end
+        if (kind(spec.left), kind(spec.right)) != (kind(self.spec.left), kind(self.spec.right)) or type(spec.model.law) is not type(self.model.law):
+            raise ParameterError("spec", spec, "must keep the kinds of the ends (free, wall, actuator) and of the "
+                                 f"law ({type(self.model.law).__name__}) of this chain")
+        self._take(spec)
+        if self.kernel is not None:
+            self.kernel.set_physics(self)
         self._sync()
 
     # --- the ghost rows of the Bloch cell and of the gap lattice ------------------------------------------------

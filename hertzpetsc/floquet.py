@@ -57,7 +57,8 @@ def spectral_radius(lam, exclude_trivial=True):
 @dataclass
 class Spectrum:
     """Multipliers of F_q, sorted by decreasing modulus on construction, the trivial ones identified (``known``: a
-    mask of deflated symmetry multipliers; else the four nearest 1 of a ``complete`` spectrum) and left out of rho,
+    mask of deflated symmetry multipliers; else the ``n_trivial`` nearest 1 of a ``complete`` spectrum, four for a
+    travelling wave, none for a driven chain) and left out of rho,
     and the verdict. Bloch routes: ``sector`` l of each multiplier (theta_l = 2 pi l / L, M the cell's beads),
     ``modes`` (mu, l, cell eigenvector) of the dominant ones. ``work``: runs, columns, products, wall_time ..."""
 
@@ -65,6 +66,7 @@ class Spectrum:
     complete: bool
     tol_rho: float = TOL_RHO
     known: np.ndarray = None
+    n_trivial: int = N_TRIVIAL       # symmetry multipliers at 1 of a complete spectrum (0: driven chains)
     sector: np.ndarray = None
     M: int = 0
     L: int = 1
@@ -83,7 +85,9 @@ class Spectrum:
     def trivial(self):
         if self.known is not None:
             return np.nonzero(self.known)[0]
-        return trivial_multipliers(self.multipliers) if self.complete else np.zeros(0, dtype=int)
+        if not (self.complete and self.n_trivial):
+            return np.zeros(0, dtype=int)
+        return trivial_multipliers(self.multipliers, self.n_trivial)
 
     @property
     def rho(self):
@@ -149,6 +153,10 @@ class DenseFloquet(FloquetSolver):
     def _spectrum(self, orbit, tol_rho, nev):
         return Spectrum(np.linalg.eigvals(self.monodromy(orbit)), True, tol_rho, work=dict(columns=2 * orbit.N))
 
+    def set_spec(self, spec):
+        """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
+        self.flow.set_spec(spec)
+
     def destroy(self):
         self.flow.destroy()
 
@@ -160,16 +168,17 @@ class DominantFloquet(FloquetSolver):
     configured once.
 
     ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N: clustered multipliers on the unit circle
-    need it); ``tol``: relative tolerance; ``warm``: start from the previous solve's eigenvectors (a scan in q).
+    need it); ``tol``: relative tolerance; ``warm``: start from the previous solve's eigenvectors (a scan in q);
+    ``shift``: the shift S in beads (1: F_q of a travelling wave; 0: the plain monodromy R(T; 0) of a driven chain).
     """
 
     def __init__(self, spec, comm, nev=10, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, ncv=None,
-                 tol=1e-10, warm=False):
+                 tol=1e-10, warm=False, shift=1):
         dim = 2 * spec.N
         if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
         self.prefix, self.dim, self.warm, self.start, self.previous = prefix, dim, warm, [], []
-        self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix)
+        self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
         self.eps = largest_magnitude(self.op.flow.base.comm, prefix, nev,
                                      min(dim, max(2 * nev + 20, 60) if ncv is None else ncv), tol)
@@ -177,6 +186,10 @@ class DominantFloquet(FloquetSolver):
         if self.nev > dim:
             self.destroy()
             raise ParameterError("-%seps_nev" % prefix, self.nev, f"must not exceed the dimension 2N = {dim}")
+
+    def set_spec(self, spec):
+        """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
+        self.op.set_spec(spec)
 
     def start_from(self, vectors):
         """PETSc Vecs of the chain's layout (e.g. Bloch modes) to start the next solve from (owned by the caller)."""
@@ -202,7 +215,7 @@ class DominantFloquet(FloquetSolver):
         if nconv < self.nev:
             raise ConvergenceError("Floquet eigensolver (prefix -%s)" % self.prefix,
                                    f"{nconv} of {self.nev} multipliers converged ({eps.getConvergedReason()})",
-                                   q=float(orbit.q))
+                                   **({"q": float(orbit.q)} if hasattr(orbit, "q") else {"T": float(orbit.T)}))
         values = np.array([eps.getEigenvalue(i) for i in range(self.nev)])
         if self.warm:
             self._release()

@@ -157,26 +157,32 @@ class ChainKernel:
         n = chain.nloc
         self.work = np.zeros((3, n + 1))
         self.ghost = np.zeros(2 * chain.dof)
-        self.inverse_mass = None if chain.inverse_mass is None else np.ascontiguousarray(chain.inverse_mass, float)
         ctx = KernelContext()
         ctx.nloc, ctx.dof, ctx.ntan = n, chain.dof, chain.n_tangent
-        ctx.left, ctx.right = end_kind(chain.left_end), end_kind(chain.right_end)
         ctx.serial = int(chain.comm.getSize() == 1)
         ctx.ghost = self.ghost.ctypes.data
         self.scatter = self.ghost_vec = None
         if not ctx.serial:
             self.scatter, self.ghost_vec = ghost_scatter(chain)
             ctx.ghost_scatter, ctx.ghost_vec = self.scatter.handle, self.ghost_vec.handle
+        ctx.bond, ctx.stiff, ctx.dv = (self.work[i].ctypes.data for i in range(3))
+        self.ctx = ctx
+        self.ref = ctypes.byref(ctx)
+        self.set_physics(chain)
+
+    def set_physics(self, chain):
+        """Copy the chain's law, damping, masses and kinds of ends into the context (at construction and after
+        :meth:`~hertzpetsc.chain.Chain.set_spec`; the context stays the same object)."""
+        ctx, law = self.ctx, chain.model.law
+        ctx.left, ctx.right = end_kind(chain.left_end), end_kind(chain.right_end)
         ctx.alpha, ctx.delta0 = law.alpha, law.delta0
         ctx.delta0_alpha = law.delta0 ** law.alpha
         ctx.force_k, ctx.force_half = power_recipe(law.alpha)
         ctx.stiff_k, ctx.stiff_half = power_recipe(law.alpha - 1.0)
         damping = chain.model.damping
         ctx.gamma, ctx.eta = damping.gamma, damping.eta
+        self.inverse_mass = None if chain.inverse_mass is None else np.ascontiguousarray(chain.inverse_mass, float)
         ctx.inv_mass = None if self.inverse_mass is None else self.inverse_mass.ctypes.data
-        ctx.bond, ctx.stiff, ctx.dv = (self.work[i].ctypes.data for i in range(3))
-        self.ctx = ctx
-        self.ref = ctypes.byref(ctx)
         self.actuated = ctx.left == END_ACTUATOR or ctx.right == END_ACTUATOR
 
     def sync(self, chain):

@@ -530,3 +530,117 @@ def plot_precompression_map(q, A, rho, tol_rho, directory):
     ax.set_ylabel(r"$A = \|u\|_\infty$")
     ax.legend(fontsize=8, loc="upper right")
     return _save(fig, directory, "precompression_map.png")
+
+
+# --- driven, damped chains (issue 22) ---------------------------------------------------------------------------------
+_EVENT_MARKERS = {1: ("o", "fold"), 2: ("s", "period doubling"), 3: ("D", "Neimark-Sacker")}
+
+
+def plot_driven_response(records, parameter, directory, name="driven_response.png", title=""):
+    """A response curve: the largest force transmitted to the right end (Pozharskiy et al. 2015's observable) and
+    the largest Floquet multiplier modulus against the parameter; stable points solid, unstable dotted; events
+    marked; switched (period-doubled) branches in colour."""
+    plt = _pyplot()
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6.5, 6), sharex=True)
+    branches = sorted({int(r["branch"]) for r in records})
+    for j in branches:
+        rs = [r for r in records if int(r["branch"]) == j]
+        regular = [r for r in rs if int(r["event"]) == 0]
+        if not regular:
+            continue
+        p = np.array([float(r["p"]) for r in regular])
+        f = np.array([float(r["force_right"]) for r in regular])
+        rho = np.array([float(r["rho"]) for r in regular])
+        y = f if np.any(np.isfinite(f)) else np.array([float(r["amp_max"]) for r in regular])
+        color = "k" if j == 0 else f"C{j}"
+        stable = rho < 1
+        ax.plot(p, y, ":", color=color, lw=0.9)
+        bx.plot(p, rho, ":", color=color, lw=0.9)
+        ax.plot(p, np.where(stable, y, np.nan), "-", color=color, lw=1.6,
+                label=f"branch {j} (period {int(rs[0]['periods'])} T; solid: stable)")
+        bx.plot(p, np.where(stable, rho, np.nan), "-", color=color, lw=1.6)
+        for r in rs:
+            ev = int(r["event"])
+            if ev in _EVENT_MARKERS:
+                m, lab = _EVENT_MARKERS[ev]
+                yv = float(r["force_right"]) if np.isfinite(float(r["force_right"])) else float(r["amp_max"])
+                ax.plot(float(r["p"]), yv, m, mfc="none" if not int(r["confirmed"]) else "r", mec="r", ms=6)
+                bx.plot(float(r["p"]), float(r["rho"]), m, mfc="none" if not int(r["confirmed"]) else "r", mec="r",
+                        ms=6)
+    for ev, (m, lab) in _EVENT_MARKERS.items():
+        ax.plot([], [], m, mfc="r", mec="r", label=lab)
+    ax.set_ylabel("max force on the wall")
+    ax.legend(fontsize=7)
+    if title:
+        ax.set_title(title, fontsize=9)
+    bx.axhline(1.0, color="0.6", lw=0.8)
+    bx.set_ylabel(r"$\max |\mu|$")
+    bx.set_xlabel({"omega": r"$\omega$", "amplitude": "$a$", "gamma": r"$\gamma$"}.get(parameter, parameter))
+    return _save(fig, directory, name)
+
+
+def plot_driven_resonances(records, directory, name="driven_resonances.png"):
+    """Small-amplitude resonances: peak frequencies from shooting and from the damped linear chain against the
+    normal modes omega_k, and their differences."""
+    plt = _pyplot()
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6, 5.5), sharex=True)
+    recs = sorted(records, key=lambda r: int(r["k"]))
+    k = np.array([int(r["k"]) for r in recs])
+    wk = np.array([float(r["omega_k"]) for r in recs])
+    pl = np.array([float(r["peak_linear"]) for r in recs])
+    ps = np.array([float(r["peak_shooting"]) for r in recs])
+    ax.plot(k, wk, "k-", lw=1, label=r"$\omega_k$ (closed form)")
+    ax.plot(k, pl, "o", mfc="none", mec="C0", label="peak, damped linear chain")
+    ax.plot(k, ps, "x", color="C3", label="peak, shooting (Hertz chain)")
+    ax.set_ylabel("frequency")
+    ax.legend(fontsize=8)
+    bx.semilogy(k, np.abs(pl - wk), "o-", mfc="none", color="C0", label="|peak linear - omega_k|")
+    bx.semilogy(k, np.maximum(np.abs(ps - pl), 1e-16), "x-", color="C3", label="|peak shooting - peak linear|")
+    bx.set_xlabel("mode $k$")
+    bx.legend(fontsize=8)
+    return _save(fig, directory, name)
+
+
+def plot_driven_wave_ends(records, directory, name="driven_wave_ends.png"):
+    """rho of the travelling wave with driven ends (finite chain, tightest tolerance) against the periodic chain's
+    rho(F_q)^(P/m), against q, one curve per chain length."""
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    rt = min(float(r["rtol"]) for r in records)
+    recs = [r for r in records if float(r["rtol"]) == rt]
+    qs = sorted({float(r["q"]) for r in recs})
+    per = [next(float(r["rho_periodic"]) for r in recs if float(r["q"]) == q) for q in qs]
+    ax.semilogy(qs, np.array(per) - 1 + 1e-16, "k-o", ms=4, label="periodic chain, $\\rho(F_q)^{P/m} - 1$")
+    for i, N in enumerate(sorted({int(r["N"]) for r in recs})):
+        rr = sorted((r for r in recs if int(r["N"]) == N), key=lambda r: float(r["q"]))
+        ax.semilogy([float(r["q"]) for r in rr], [float(r["rho"]) - 1 + 1e-16 for r in rr], "s--", ms=4,
+                    color=f"C{i}", label=f"ends driven, N = {N}")
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$\rho - 1$ over $\tau = 2\pi/\omega$")
+    ax.legend(fontsize=8)
+    return _save(fig, directory, name)
+
+
+def plot_driven_generation(records, directory, name="driven_generation.png"):
+    """The generation map: per case the shape distance D of the bulk to the branch's wave against omega (one
+    curve per signal, amplitude and damping), and the bead amplitudes A_n along the chain for each case."""
+    plt = _pyplot()
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6.5, 7))
+    ok = [r for r in records if int(r["ok"])]
+    groups = sorted({(int(r["waveform"]), float(r["amplitude"]), float(r["gamma"])) for r in ok})
+    names = ("harmonic", "half-sine")
+    for i, (w, a, g) in enumerate(groups):
+        rs = sorted((r for r in ok if (int(r["waveform"]), float(r["amplitude"]), float(r["gamma"])) == (w, a, g)),
+                    key=lambda r: float(r["omega"]))
+        om = [float(r["omega"]) for r in rs]
+        lab = f"{names[w]}, a = {a:g}, $\\gamma$ = {g:g}"
+        ax.plot(om, [float(r["distance"]) for r in rs], "o-" if w == 0 else "s--", ms=4, color=f"C{i % 10}", label=lab)
+        for r in rs:
+            bx.semilogy(np.arange(1, len(r["A_n"]) + 1), r["A_n"], "-" if w == 0 else "--", lw=0.8,
+                        color=f"C{i % 10}")
+    ax.set_xlabel(r"$\omega$")
+    ax.set_ylabel("shape distance $D$ to the branch's wave")
+    ax.legend(fontsize=7)
+    bx.set_xlabel("bead $n$")
+    bx.set_ylabel("amplitude $A_n$")
+    return _save(fig, directory, name)

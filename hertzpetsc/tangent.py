@@ -47,6 +47,13 @@ class TangentFlow:
         self.integrator = ChainIntegrator(self.aug, tolerances, prefix, rk_type)
         self.Z = self.aug.create_state()
 
+    def set_spec(self, spec):
+        """Move both chains to another chain of the same layout (:meth:`~hertzpetsc.chain.Chain.set_spec`: e.g. an
+        actuator's signal at another driving frequency)."""
+        self.aug.set_spec(spec)
+        self.base.set_spec(spec)
+        self.spec = spec
+
     def run(self, x0, T, Y0, monitor=None):
         """Integrate from the state ``x0`` (N, 2) and tangent columns ``Y0`` (N, 2, k), both given on every rank;
         ``monitor(chain, X)`` is called at every step.
@@ -91,20 +98,31 @@ class TangentFlow:
 
 
 class MonodromyModShift:
-    """Matrix-free F = S R(T; 0) around the orbit from ``x0``: a ``Mat.createPython`` context.
+    """Matrix-free F = S^shift R(T; 0) around the orbit from ``x0``: a ``Mat.createPython`` context (``shift`` 0:
+    the plain monodromy R(T; 0), e.g. of a driven chain, which has no shift symmetry).
 
     Each product integrates the chain and one tangent vector over [0, T] (the orbit is recomputed, which keeps
     memory at O(N)); :meth:`apply` takes a block of vectors through one integration. ``products`` counts the
     vectors, ``integrations`` the TS runs.
     """
 
-    def __init__(self, spec, x0, T, comm, tolerances, prefix):
+    def __init__(self, spec, x0, T, comm, tolerances, prefix, shift=1):
         self.spec, self.comm, self.tolerances, self.prefix = spec, comm, tolerances, prefix
+        if shift not in (0, 1):
+            raise ParameterError("shift", shift, "must be 1 (F = S R, a travelling wave) or 0 (R, a driven chain)")
+        self.shift = int(shift)
         self.flow = TangentFlow(spec, 1, comm, tolerances, prefix)
         self.products = self.integrations = 0
         self._RY = self.flow.base.create_state()
         self._blocks = {}
         self.set_orbit(x0, T)
+
+    def set_spec(self, spec):
+        """Move the operator to another chain of the same layout (:meth:`TangentFlow.set_spec`)."""
+        self.spec = spec
+        self.flow.set_spec(spec)
+        for flow in self._blocks.values():
+            flow.set_spec(spec)
 
     def set_orbit(self, x0, T):
         """Move the operator to another orbit of the same chain (the next wavenumber of a scan)."""
@@ -144,22 +162,25 @@ class MonodromyModShift:
         return FY
 
     def _integrate(self, Y, comm):
-        """S R(T; 0) Y by one TangentFlow on ``comm`` (built once per column count and communicator)."""
+        """S^shift R(T; 0) Y by one TangentFlow on ``comm`` (built once per column count and communicator)."""
         key = (Y.shape[2], comm.getSize())
         if key not in self._blocks:
             self._blocks[key] = TangentFlow(self.spec, Y.shape[2], comm, self.tolerances, self.prefix)
         _, RY = self._blocks[key].run(self.x0, self.T, Y)
-        return np.roll(RY, -self.spec.model.cell, axis=0)
+        return np.roll(RY, -self.spec.model.cell, axis=0) if self.shift else RY
 
     def mult(self, mat, x, y):
-        """y = S R(T; 0) x, all in the chain's distributed layout (no gathering)."""
+        """y = S^shift R(T; 0) x, all in the chain's distributed layout (no gathering)."""
         flow, base = self.flow, self.flow.base
         z = flow.Z.getArray().reshape(base.nloc, 4)
         z[:, :2] = self.x0_local
         z[:, 2:] = x.getArray(readonly=True).reshape(base.nloc, 2)
         flow.integrator.integrate(flow.Z, 0.0, self.T, dt=flow.integrator.initial_step)
-        self._RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
-        base.shift(self._RY, y)
+        if self.shift:
+            self._RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
+            base.shift(self._RY, y)
+        else:
+            y.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
         self.products += 1
         self.integrations += 1
 

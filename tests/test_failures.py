@@ -92,6 +92,18 @@ DRIVERS = {
                                "-n0", 5, "-travel", 10, "-kinds", "mode", "-no_pairs", "-output", "{t}/d.npz",
                                "-table", "{t}/d.md"), "stability", "output", ("-q", "7*pi/25,7*pi/25"),
                               ("-cdyn_ts_type", "bogus")),
+    "driven_response.py": (("-N", 2, "-omega", 1.69, "-p_end", 1.68, "-run_in", 2, "-output", "{t}/r.npz", "-table",
+                            "{t}/r.md"), None, "output", ("-masses", ""), ("-drive_snes_type", "bogus")),
+    "driven_resonances.py": (("-N", 2, "-modes", 1, "-golden", 4, "-output", "{t}/s.npz", "-table", "{t}/s.md"), None,
+                             "output", ("-modes", "1,1"), ("-drive_snes_type", "bogus")),
+    "driven_wave_ends.py": (("-branch", BRANCH, "-refined", REFINED, "-q", "2*pi/5", "-sizes", 4, "-rtols", "1e-12", "-samples", 256, "-output", "{t}/w.npz",
+                             "-table", "{t}/w.md"), "refined", "output", ("-sizes", "4,4"),
+                            ("-drive_snes_type", "bogus")),
+    "driven_generation.py": (("-branch", BRANCH, "-N", 8, "-signals", "half_sine", "-omegas", 0.5, "-amplitudes", 0.1, "-gammas", 0.1,
+                              "-run_in", 2, "-output", "{t}/g.npz", "-table", "{t}/g.md"), "branch", "output",
+                             ("-omegas", "0.5,0.5"), ("-floquet_eps_type", "bogus")),
+    "bench_driven.py": (("-N", 2, "-points", 2, "-workloads", "sweep", "-output", "{t}/b.md"), None, "records",
+                        ("-workloads", "gpu"), None),
 }
 
 
@@ -353,6 +365,11 @@ OVERSIZED = {
     "bench_newton.py": ("cells", "1000000000000"),
     "bench_floquet.py": ("sizes", "100000000000"),
     "bench_stability.py": ("N", "1000000000"),
+    "driven_response.py": ("N", "1000000000"),
+    "driven_resonances.py": ("N", "1000000000"),
+    "driven_wave_ends.py": ("sizes", "1000000000"),
+    "driven_generation.py": ("N", "1000000000"),
+    "bench_driven.py": ("N", "1000000000"),
 }
 
 

@@ -172,3 +172,34 @@ def test_block_product_equals_the_dense_monodromy():
     expected = (F @ Y.reshape(20, 3)).reshape(10, 2, 3)
     assert np.max(np.abs(FY - expected)) <= 1e-9 * np.max(np.abs(expected))
     assert op.products == 3 and op.integrations == 1
+
+
+def test_set_spec_keeps_the_kernel_in_step():
+    """Chain.set_spec (a driven chain at another frequency, amplitude, damping, law or masses) rewrites the compiled
+    context in place (a TS that calls it directly keeps the same context): the moved chain's right-hand side equals
+    that of a chain built for the new spec to the bit (same operations on the same numbers), and its numpy reference
+    to 8 eps (libm's pow against numpy's at alpha = 5/2). Another kind of end is refused."""
+    a = ChainSpec(H(1.5, (1.0, 0.6), 0.5, gamma=0.05, eta=0.03), 12, "fixed", left=Actuator(Harmonic(0.2, 1.3)))
+    b = ChainSpec(H(2.5, (1.0, 0.8), 0.2, gamma=0.2), 12, "fixed", left=Actuator(Harmonic(0.1, 0.7)))
+    moved, fresh = Chain(a, COMM, 2), Chain(b, COMM, 2)
+    ctx = moved.kernel.ctx
+    moved.set_spec(b)
+    assert moved.kernel.ctx is ctx
+    X, F, G, R = moved.create_state(), moved.create_state(), moved.create_state(), moved.create_state()
+    rng = np.random.default_rng(3)
+    try:
+        for t in (0.0, 0.9, 2.3):
+            moved.set_from_array(X, rng.normal(size=(12, moved.dof)) * 0.3)
+            moved.rhs(None, t, X, F)
+            fresh.rhs(None, t, X, G)
+            moved.rhs_reference(None, t, X, R)
+            f, g, r = moved.gather(F), fresh.gather(G), moved.gather(R)
+            assert np.array_equal(f, g)
+            assert np.max(np.abs(f - r)) <= 8 * EPS * np.max(np.abs(r))
+        with pytest.raises(ParameterError, match="kinds of the ends"):
+            moved.set_spec(ChainSpec(H(1.5), 12, "fixed"))
+    finally:
+        for v in (X, F, G, R):
+            v.destroy()
+        moved.destroy()
+        fresh.destroy()

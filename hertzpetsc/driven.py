@@ -1,0 +1,1107 @@
+"""Driven, damped chains: periodic responses by shooting, their Floquet multipliers and bifurcations (issue 22: the
+question that closes the paper's Discussion -- how to generate periodic travelling waves from simple driving
+signals in dissipative granular chains).
+
+Beads n = 1..N of a :class:`~hertzpetsc.model.LatticeModel` (Hertz law with precompression delta0 >= 0, masses,
+damping gamma, eta) between an actuator x_0(t) and a wall, a free end or a second actuator:
+
+    m_n x_n'' = f_n - f_{n-1} - gamma x_n',    f_n = V'(x_{n+1} - x_n) + eta (x_{n+1}' - x_n')     (eq. nc + drive)
+
+A :class:`Drive` holds the chain and its driving: a :class:`Waveform` (a shape of period 2 pi: :class:`HarmonicWave`
+cos, :class:`HalfSinePulses`, :class:`SampledWave`, :class:`ProfileWave` = a travelling-wave profile of the branch,
+eq. twper), an amplitude a >= 0 and a frequency omega > 0; changing a parameter gives a new Drive whose
+:meth:`Drive.spec` is put on the existing chains by :meth:`~hertzpetsc.chain.Chain.set_spec` (no new DMDA).
+
+A periodic response of period k 2 pi / omega is a fixed point of the map P = flow over [0, kT]:
+
+    G(X; p) = P(X; p) - X = 0,
+
+solved by :class:`PeriodicShooting`, a :class:`~hertzpetsc.continuation.ContinuationProblem` on the extended vector
+Z = (X, p) (p = omega, amplitude or gamma, last entry on the last rank): Newton on SNES (prefix ``drive_``, the state
+flow is the TS of the same prefix) with the bordered Jacobian [R(kT; 0) - I, dG/dp; row], R the monodromy from the
+tangent flow (prefix ``floquet_``): assembled from 2N tangent columns (``jacobian='dense'``, small N; LU, MUMPS on
+several ranks) or matrix-free, one tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long
+chains). dG/dp is a central difference of two state flows. So the continuation layer's natural and
+pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
+
+Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by LAPACK on the dense monodromy
+(:class:`~hertzpetsc.floquet.DenseFloquet`, shared with the dense Jacobian) or the dominant ones by SLEPc
+Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A driven chain has no
+symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
+exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`). The test functions of the layer are
+
+    period doubling:   tau_PD = prod (1 + mu_i)              (a real multiplier through -1)
+    Neimark-Sacker:    tau_NS = prod_{i<j} (mu_i mu_j - 1)   (a complex pair through the unit circle; also
+                                                             neutral saddles mu_i mu_j = 1, told apart by
+                                                             :func:`crossing`)
+
+each reported as sign(tau) times its smallest factor's modulus (same zeros, linear near them, no overflow). Folds
+are the layer's (dp/ds changes sign). :func:`crossing` compares the multipliers on both sides of an event (what
+crossed where).
+"""
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from petsc4py import PETSc
+
+from .chain import Chain, ChainIntegrator, IntegrationTolerances
+from .continuation import ContinuationProblem, _parameter, set_parameter
+from .errors import ConvergenceError, ParameterError
+from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers
+from .resources import MAX_DENSE_BEADS, check_chain_memory
+from .model import Actuator, ChainSpec, FunctionSignal, Harmonic, LatticeModel, SampledSignal, Signal
+from .tangent import MonodromyModShift
+
+DRIVE_PREFIX = "drive_"
+# The flows of the responses: the paper's tolerances (state, residual of the shooting).
+RESPONSE_TOLERANCES = IntegrationTolerances(rtol=1e-12, atol=1e-14)
+PARAMETERS = ("omega", "amplitude", "gamma")
+# A chord step (the Jacobian of an earlier point) is kept while it reduces the residual at least this much: a fresh
+# Jacobian costs a flow with 2N tangent columns, a chord iteration one state flow.
+CHORD_CONTRACTION = 0.25
+# Steps a state flow over one driving period may take before it counts as failed (-drive_ts_max_steps overrides).
+MAX_STEPS_PER_FLOW = 200000
+JACOBIANS = ("dense", "mf")
+FLOQUET_METHODS = ("dense", "slepc", "none")
+# Multipliers within this distance of the unit circle are 'neutral' (the default resolution of the verdicts; the
+# measured one, from a looser flow, is ResponseFloquet.resolution).
+TOL_MU = 1e-6
+
+
+def _finite(name, value, what, minimum=None, strict=False):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(name, value, f"{what} must be a real number") from None
+    if not math.isfinite(v) or (minimum is not None and (v <= minimum if strict else v < minimum)):
+        rng = "" if minimum is None else (f" > {minimum:g}" if strict else f" >= {minimum:g}")
+        raise ParameterError(name, value, f"{what} must be a finite number{rng}")
+    return v
+
+
+# --- waveforms: the actuator's motion as a shape of period 2 pi ---------------------------------------------------
+class Waveform:
+    """A 2 pi-periodic shape w(theta); :meth:`signal` gives the actuator's motion x(t) = a w(omega t + phase)."""
+
+    name = "waveform"
+
+    def signal(self, amplitude, omega, phase=0.0):
+        raise NotImplementedError
+
+    def describe(self):
+        return dict(waveform=self.name)
+
+
+@dataclass(frozen=True)
+class HarmonicWave(Waveform):
+    """w = cos: the actuator x(t) = a cos(omega t + phase) (Pozharskiy et al., Phys. Rev. E 92, 063203 (2015))."""
+
+    name = "harmonic"
+
+    def signal(self, amplitude, omega, phase=0.0):
+        return Harmonic(amplitude, omega, phase)
+
+
+class HalfSineSignal(Signal):
+    """A periodic train of half-sine pulses: x = a sin(pi s / w) for s = (t mod P) < w, else 0 (w = width P)."""
+
+    def __init__(self, amplitude, omega, width, phase=0.0):
+        self.amplitude, self.omega, self.width, self.phase = amplitude, omega, width, phase
+        self.period = 2 * math.pi / omega
+
+    def _theta(self, t):
+        return np.mod(self.omega * np.asarray(t, float) + self.phase, 2 * math.pi)
+
+    def position(self, t):
+        th = self._theta(t)
+        w = 2 * math.pi * self.width
+        return np.where(th < w, self.amplitude * np.sin(math.pi * np.minimum(th, w) / w), 0.0)
+
+    def velocity(self, t):
+        th = self._theta(t)
+        w = 2 * math.pi * self.width
+        return np.where(th < w, self.amplitude * self.omega * math.pi / w * np.cos(math.pi * np.minimum(th, w) / w),
+                        0.0)
+
+    def describe(self):
+        return dict(signal="half_sine", amplitude=self.amplitude, omega=self.omega, width=self.width,
+                    phase=self.phase)
+
+
+@dataclass(frozen=True)
+class HalfSinePulses(Waveform):
+    """A train of half-sine pushes of duration ``width`` periods (0 < width <= 1; 1/2: the positive half of a sine,
+    the actuator at rest the other half): the simplest impulsive driving of a chain."""
+
+    width: float = 0.5
+    name = "half_sine"
+
+    def __post_init__(self):
+        w = _finite("width", self.width, "the pulse width (a fraction of the period)", 0.0, strict=True)
+        if w > 1.0:
+            raise ParameterError("width", self.width, "the pulse width must lie in (0, 1] periods (wider pulses "
+                                 "overlap: the signal would not be periodic with its period)")
+        object.__setattr__(self, "width", w)
+
+    def signal(self, amplitude, omega, phase=0.0):
+        return HalfSineSignal(_finite("amplitude", amplitude, "the actuator amplitude", 0.0),
+                              _finite("omega", omega, "the driving frequency", 0.0, strict=True), self.width, phase)
+
+    def describe(self):
+        return dict(waveform=self.name, width=self.width)
+
+
+@dataclass(frozen=True)
+class SampledWave(Waveform):
+    """A shape given by samples over one closed period, w(2 pi j / n) for j = 0..n (the last sample closes the
+    period and must equal the first: a signal that is not periodic with its period is refused); evaluated by the
+    trigonometric interpolant of the first n (:class:`~hertzpetsc.model.SampledSignal`)."""
+
+    samples: tuple
+    name = "samples"
+
+    def __post_init__(self):
+        try:
+            s = np.asarray(self.samples, dtype=float).ravel()
+        except (TypeError, ValueError):
+            raise ParameterError("samples", self.samples, "must be a list of real numbers") from None
+        if len(s) < 3 or not np.all(np.isfinite(s)):
+            raise ParameterError("samples", len(s), "at least 3 finite samples over one closed period")
+        scale = max(1.0, float(np.max(np.abs(s))))
+        if abs(s[-1] - s[0]) > 1e-12 * scale:
+            raise ParameterError("samples", f"first {s[0]:g}, last {s[-1]:g}", "the signal is not periodic with its "
+                                 "period: the last sample closes the period and must equal the first")
+        object.__setattr__(self, "samples", tuple(float(v) for v in s))
+
+    def signal(self, amplitude, omega, phase=0.0):
+        if phase != 0.0:
+            raise ParameterError("phase", phase, "a sampled waveform starts at its first sample (phase 0)")
+        a = _finite("amplitude", amplitude, "the actuator amplitude", 0.0)
+        omega = _finite("omega", omega, "the driving frequency", 0.0, strict=True)
+        return SampledSignal(tuple(a * v for v in self.samples[:-1]), 2 * math.pi / omega)
+
+    def describe(self):
+        return dict(waveform=self.name, samples=list(self.samples))
+
+
+class ProfileSignal(Signal):
+    """x(t) = a U(phase - omega t) for a 2 pi-periodic profile U tabulated on a uniform grid, by the degree-5
+    piecewise Lagrange interpolant of :func:`~hertzpetsc.stencil.lagrange_periodic` held as per-cell polynomial
+    coefficients (one cell lookup and Horner's rule per call: the right-hand side evaluates it at every stage)."""
+
+    def __init__(self, coefficients, h, amplitude, omega, phase=0.0):
+        self.c, self.h = coefficients, h
+        self.amplitude, self.omega, self.phase = amplitude, omega, phase
+        self.period = 2 * math.pi / omega
+        self.n = len(coefficients)
+
+    def _cell(self, t):
+        xi = np.mod(self.phase - self.omega * np.asarray(t, float), 2 * math.pi) / self.h
+        j = np.minimum(np.floor(xi).astype(np.int64), self.n - 1)
+        return self.c[j], xi - j
+
+    def position(self, t):
+        c, s = self._cell(t)
+        c = np.moveaxis(c, -1, 0)
+        out = c[5]
+        for k in range(4, -1, -1):
+            out = out * s + c[k]
+        return self.amplitude * out
+
+    def velocity(self, t):
+        c, s = self._cell(t)
+        c = np.moveaxis(c, -1, 0)
+        out = 5 * c[5]
+        for k in range(4, 0, -1):
+            out = out * s + k * c[k]
+        return -self.amplitude * self.omega * out / self.h
+
+    def describe(self):
+        return dict(signal="profile", amplitude=self.amplitude, omega=self.omega, phase=self.phase, cells=self.n)
+
+
+# Coefficients of the degree-5 interpolant through the nodes s = -2..3 of a cell (s in [0, 1)): c = V^-1 values.
+_NODES = np.arange(-2, 4)
+_VINV = np.linalg.inv(np.vander(_NODES, 6, increasing=True))
+
+
+class ProfileWave(Waveform):
+    """A travelling-wave profile U of period 2 pi as a waveform: x(t) = a U(phase - omega t), the motion of bead n
+    of the wave x_n(t) = a U(q n - omega t) (eq. twper) at phase = q n. ``values``: U on the uniform grid
+    j 2 pi / n, j = 0..n-1."""
+
+    name = "profile"
+
+    def __init__(self, values, label="profile"):
+        u = np.asarray(values, dtype=float).ravel()
+        if len(u) < 6 or not np.all(np.isfinite(u)):
+            raise ParameterError("profile", len(u), "at least 6 finite values over one period")
+        self.values, self.label = u, label
+        self.h = 2 * math.pi / len(u)
+        idx = (np.arange(len(u))[:, None] + _NODES[None, :]) % len(u)
+        self.coefficients = u[idx] @ _VINV.T
+
+    @classmethod
+    def from_branch_point(cls, point):
+        """The profile u of a branch point (the whole period, from its odd half), unnormalised: the chain's wave is
+        x_n = a u(q n - omega t) with a = 1 / ||u||_inf and omega = a^((alpha-1)/2) (as :func:`orbit_on_chain`)."""
+        return cls(point.u_full, label=f"branch q = {point.q:.12g}")
+
+    def signal(self, amplitude, omega, phase=0.0):
+        return ProfileSignal(self.coefficients, self.h, _finite("amplitude", amplitude, "the actuator amplitude", 0.0),
+                             _finite("omega", omega, "the driving frequency", 0.0, strict=True), float(phase))
+
+    def describe(self):
+        return dict(waveform=self.name, label=self.label, cells=len(self.values))
+
+
+def wave_amplitude_frequency(point):
+    """(a, omega) of a branch point's wave on the chain: a = 1/||u||_inf, omega = a^((alpha-1)/2) (section 3.4)."""
+    a = 1.0 / point.diagnostics.norm_inf
+    return a, a ** ((point.model.alpha - 1) / 2)
+
+
+# --- the driven chain -------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Drive:
+    """N beads of ``model`` driven at the left by ``waveform`` with ``amplitude`` and frequency ``omega``; the
+    right end is 'wall', 'free' or a second :class:`Waveform` (same amplitude and frequency, ``right_phase``)."""
+
+    model: LatticeModel
+    N: int
+    waveform: Waveform
+    amplitude: float
+    omega: float
+    right: object = "wall"
+    left_phase: float = 0.0
+    right_phase: float = 0.0
+
+    def __post_init__(self):
+        if not isinstance(self.model, LatticeModel):
+            raise ParameterError("model", self.model, "must be a LatticeModel")
+        if not (isinstance(self.N, (int, np.integer)) and not isinstance(self.N, bool) and self.N >= 1):
+            raise ParameterError("N", self.N, "the number of beads must be an integer >= 1")
+        if not isinstance(self.waveform, Waveform):
+            raise ParameterError("waveform", self.waveform, "must be a Waveform (harmonic, half_sine, samples, "
+                                 "profile)")
+        object.__setattr__(self, "amplitude", _finite("amplitude", self.amplitude, "the actuator amplitude", 0.0))
+        object.__setattr__(self, "omega", _finite("omega", self.omega, "the driving frequency", 0.0, strict=True))
+        if not (self.right in ("wall", "free") or isinstance(self.right, Waveform)):
+            raise ParameterError("right", self.right, "the far end is 'wall', 'free' or a Waveform (second actuator)")
+
+    @property
+    def period(self):
+        return 2 * math.pi / self.omega
+
+    @property
+    def gamma(self):
+        return self.model.damping.gamma
+
+    def spec(self):
+        """The :class:`~hertzpetsc.model.ChainSpec` of this drive (actuators with their signals)."""
+        left = Actuator(self.waveform.signal(self.amplitude, self.omega, self.left_phase))
+        right = self.right if isinstance(self.right, str) else \
+            Actuator(self.right.signal(self.amplitude, self.omega, self.right_phase))
+        return ChainSpec(self.model, int(self.N), "fixed", left=left, right=right)
+
+    def value(self, name):
+        """The parameter ``name`` (omega, amplitude, gamma)."""
+        _check_parameter(name)
+        return self.gamma if name == "gamma" else getattr(self, name)
+
+    def with_parameter(self, name, value):
+        """The same drive with parameter ``name`` (omega, amplitude or gamma) set to ``value``."""
+        _check_parameter(name)
+        if name == "gamma":
+            return replace(self, model=self.model.with_damping(value, self.model.damping.eta))
+        return replace(self, **{name: value})
+
+    def describe(self):
+        out = dict(self.model.describe(), N=int(self.N), amplitude=self.amplitude, omega=self.omega,
+                   **self.waveform.describe())
+        out["right"] = self.right if isinstance(self.right, str) else dict(self.right.describe(),
+                                                                            phase=self.right_phase)
+        return out
+
+
+def _check_parameter(name):
+    if name not in PARAMETERS:
+        raise ParameterError("parameter", name, "the continuation parameter is one of " + ", ".join(PARAMETERS))
+
+
+def damping_trace(spec):
+    """tr(M^-1 C) of the chain's damping matrix: sum_n (gamma + eta d_n) / m_n, d_n the dashpots at bead n (2
+    inside, 1 next to a free end): d/dt log det R = -tr(M^-1 C) (Liouville), so det R(T; 0) = exp(-T tr)."""
+    m = spec.model
+    N = spec.N
+    deg = np.full(N, 2.0)
+    if spec.boundary == "periodic":
+        pass
+    else:
+        if spec.left == "free":
+            deg[0] -= 1
+        if spec.right == "free":
+            deg[-1] -= 1
+    return float(np.sum((m.damping.gamma + m.damping.eta * deg) / m.mass(np.arange(N))))
+
+
+# --- the response and its multipliers ---------------------------------------------------------------------------
+@dataclass
+class Response:
+    """A periodic response: the drive, k (period k 2 pi / omega), the state X(0) as (N, 2) on every rank, the
+    relative residual ||P(X) - X||_inf / scale and Newton's iterations."""
+
+    drive: Drive
+    periods: int
+    x: np.ndarray
+    residual: float
+    iterations: int = 0
+
+    @property
+    def T(self):
+        """The response's period k 2 pi / omega (the time of the monodromy)."""
+        return self.periods * self.drive.period
+
+    @property
+    def N(self):
+        """The chain's number of beads."""
+        return self.drive.N
+
+
+def _peak(f):
+    """The maximum of periodic samples f, refined by the parabola through it and its two neighbours."""
+    f = np.asarray(f, float)
+    k = int(np.argmax(f))
+    a, b, c = f[k - 1], f[k], f[(k + 1) % len(f)]
+    den = a - 2 * b + c
+    return float(b - 0.125 * (a - c) ** 2 / den) if den < 0 else float(b)
+
+
+def verdict(rho, tol=TOL_MU):
+    """'unstable' (rho > 1 + tol), 'stable' (rho < 1 - tol) or 'neutral' (within the resolution of the circle)."""
+    return "unstable" if rho > 1 + tol else "stable" if rho < 1 - tol else "neutral"
+
+
+def _signed_min(values):
+    """sign(prod v) min |v|: the product's sign and zeros (a product over a conjugation-closed set is real), but
+    linear near a simple zero (the factor that vanishes is the smallest) and free of overflow."""
+    v = np.asarray(values, dtype=complex)
+    if not len(v):
+        return 1.0
+    mag = np.abs(v)
+    if not np.all(mag > 0):
+        return 0.0
+    return float(np.sign(np.prod(v / mag).real) * np.min(mag))
+
+
+def test_functions(mu):
+    """{'period_doubling': tau_PD, 'neimark_sacker': tau_NS} of the multipliers ``mu`` (module docstring)."""
+    mu = np.asarray(mu, dtype=complex)
+    i, j = np.triu_indices(len(mu), 1)
+    return {"period_doubling": _signed_min(1.0 + mu), "neimark_sacker": _signed_min(mu[i] * mu[j] - 1.0)}
+
+
+def counts(mu, tol=TOL_MU):
+    """Multipliers outside the unit circle by kind: real > 1, real < -1, complex (counted singly)."""
+    mu = np.asarray(mu, dtype=complex)
+    out = np.abs(mu) > 1 + tol
+    real = np.abs(mu.imag) <= 1e-9 * np.maximum(1.0, np.abs(mu))
+    return dict(real_plus=int(np.sum(out & real & (mu.real > 0))), real_minus=int(np.sum(out & real & (mu.real < 0))),
+                complex=int(np.sum(out & ~real)))
+
+
+def crossing(mu_before, mu_after, tol=TOL_MU):
+    """What crossed the unit circle between two spectra: 'fold' (a real multiplier through +1), 'period_doubling'
+    (through -1), 'neimark_sacker' (a complex pair), None if nothing, 'several' if more than one kind."""
+    a, b = counts(mu_before, tol), counts(mu_after, tol)
+    kinds = [name for k, name in (("real_plus", "fold"), ("real_minus", "period_doubling"),
+                                  ("complex", "neimark_sacker")) if a[k] != b[k]]
+    if not kinds:
+        return None
+    return kinds[0] if len(kinds) == 1 else "several"
+
+
+# --- the shooting problem -------------------------------------------------------------------------------------------
+class PeriodicShooting(ContinuationProblem):
+    """G(X; p) = P(X; p) - X for the responses of period k 2 pi / omega of one driven chain, as a continuation
+    problem in ``parameter`` (omega, amplitude or gamma) with one corrector :meth:`solve` (SNES, prefix ``drive_``).
+
+    ``jacobian``: 'dense' (R from 2N tangent columns, LU) or 'mf' (tangent-flow products, GMRES); ``floquet``:
+    multipliers for the test functions and reports, 'dense' (all 2N, the Jacobian's monodromy), 'slepc' (``nev``
+    dominant ones) or 'none'. ``tol``: the shooting tolerance on ||G||_inf / max(||X||_inf, amplitude).
+    """
+
+    def __init__(self, drive, comm, parameter="omega", periods=1, jacobian="dense", floquet="dense", nev=8,
+                 tol=1e-10, tolerances=RESPONSE_TOLERANCES, floquet_tolerances=None, prefix=DRIVE_PREFIX,
+                 floquet_prefix=FLOQUET_PREFIX, reuse_jacobian=True):
+        if not isinstance(drive, Drive):
+            raise ParameterError("drive", drive, "must be a Drive")
+        _check_parameter(parameter)
+        if not (isinstance(periods, (int, np.integer)) and periods >= 1):
+            raise ParameterError("periods", periods, "the response period in driving periods must be an integer >= 1")
+        if jacobian not in JACOBIANS:
+            raise ParameterError("jacobian", jacobian, "must be one of " + ", ".join(JACOBIANS))
+        if floquet not in FLOQUET_METHODS:
+            raise ParameterError("floquet", floquet, "must be one of " + ", ".join(FLOQUET_METHODS))
+        self.tol = _finite("tol", tol, "the shooting tolerance", 0.0, strict=True)
+        self.parameter, self.periods, self.comm = parameter, int(periods), comm
+        self.jacobian_kind, self.floquet_kind = jacobian, floquet
+        self.drive = drive
+        spec = drive.spec()
+        self.N = spec.N
+        dense = "dense" in (jacobian, floquet)
+        if dense and spec.N > MAX_DENSE_BEADS:
+            raise ParameterError("N", spec.N, f"at most {MAX_DENSE_BEADS} beads with the dense Jacobian or dense "
+                                 "multipliers (2N x 2N matrices); longer chains: jacobian 'mf', floquet 'slepc' or 'none'")
+        # the state flow, and the tangent flow with 2N columns (dense) or one (matrix-free), before any allocation
+        check_chain_memory(spec.N, comm, columns=2 + 2 * spec.N if dense else 3, name="N")
+        self.chain = Chain(spec, comm)
+        self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
+        if not PETSc.Options().hasName(prefix + "ts_max_steps"):
+            # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
+            self.integrator.ts.setMaxSteps(MAX_STEPS_PER_FLOW * self.periods)
+        self.X, self.Y = self.chain.create_state(), self.chain.create_state()
+        ftol = floquet_tolerances or tolerances
+        self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if "dense" in (jacobian, floquet) else None
+        self.product = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, ftol, floquet_prefix, shift=0) \
+            if jacobian == "mf" else None
+        self.dominant = DominantFloquet(spec, comm, min(nev, 2 * spec.N), ftol, floquet_prefix, shift=0) \
+            if floquet == "slepc" else None
+        self.mpi = comm.tompi4py()
+        self.last_rank = comm.getRank() == comm.getSize() - 1
+        self.nloc = 2 * self.chain.nloc
+        self.size = 2 * spec.N + 1
+        self._mono = None              # (x, p, R) of the last dense monodromy
+        self._spectra = {}             # key of (x, p) -> multipliers
+        self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
+        self.reuse = self._reuse_now = reuse_jacobian
+        self._solves, self._assembled, self._mono_version = 0, None, 0
+        self._residuals = {}
+        self._snes = self._make_snes(prefix)
+
+    # --- layout ---------------------------------------------------------------------------------------------------
+    def create_vec(self):
+        return PETSc.Vec().createMPI((self.nloc + (1 if self.last_rank else 0), self.size), comm=self.comm)
+
+    def pack(self, x, p=None):
+        """A new Z from the state ``x`` ((N, 2), on every rank) and the parameter (default: the drive's)."""
+        Z = self.create_vec()
+        a = Z.getArray()
+        xs = self.chain.xs
+        a[:self.nloc] = np.asarray(x, float).reshape(self.N, 2)[xs:xs + self.nloc // 2].ravel()
+        if self.last_rank:
+            a[-1] = self.drive.value(self.parameter) if p is None else p
+        return Z
+
+    def state(self, Z):
+        """(x as (N, 2) on every rank, p) of an extended vector."""
+        self.X.getArray()[:] = Z.getArray(readonly=True)[:self.nloc]
+        return self.chain.gather(self.X), _parameter(Z)
+
+    def weights(self):
+        """RMS over the 2N state entries, the parameter as it is."""
+        W = self.create_vec()
+        W.set(1.0 / (2 * self.N))
+        set_parameter(W, 1.0)
+        return W
+
+    # --- the drive's parameter --------------------------------------------------------------------------------
+    def set_drive(self, drive):
+        """Move every chain of the problem to ``drive`` (same N and ends' kinds)."""
+        if drive == self.drive:
+            return
+        spec = drive.spec()
+        self.chain.set_spec(spec)
+        for engine in (self.dense, self.dominant):
+            if engine is not None:
+                engine.set_spec(spec)
+        if self.product is not None:
+            self.product.flow.set_spec(spec)
+        self.drive = drive
+
+    def _at(self, p):
+        if p != self.drive.value(self.parameter):
+            self.set_drive(self.drive.with_parameter(self.parameter, p))
+
+    def scale(self, x=None):
+        """The size the residual is measured against: max(||X||_inf, amplitude), 1 if both vanish."""
+        s = max(self.drive.amplitude, float(np.max(np.abs(x))) if x is not None else 0.0)
+        return s if s > 0 else 1.0
+
+    @property
+    def T(self):
+        return self.periods * self.drive.period
+
+    # --- the map ----------------------------------------------------------------------------------------------
+    def flow(self, X):
+        """X <- P(X) (in place, the chain's layout) at the current drive."""
+        self.integrator.integrate(X, 0.0, self.T, dt=self.integrator.initial_step)
+        self.counters["state_flows"] += 1
+
+    def map(self, x):
+        """P(x) as (N, 2) on every rank."""
+        self.chain.set_from_array(self.X, x)
+        self.flow(self.X)
+        return self.chain.gather(self.X)
+
+    def residual(self, x):
+        """||P(x) - x||_inf / scale at the current drive."""
+        return float(np.max(np.abs(self.map(x) - x))) / self.scale(x)
+
+    def run_in(self, x, periods):
+        """The state after ``periods`` driving periods from ``x`` (a transient, e.g. from rest)."""
+        self.chain.set_from_array(self.X, x)
+        T = self.drive.period
+        for k in range(int(periods)):
+            self.integrator.integrate(self.X, k * T, (k + 1) * T, dt=self.integrator.initial_step if k == 0 else None)
+        self.counters["state_flows"] += int(periods)
+        return self.chain.gather(self.X)
+
+    def trajectory(self, x, samples=64):
+        """(times (J+1,), states (J+1, N, 2)) at J = ``samples`` equal steps over one response period from x, on
+        every rank (one state flow stopped J times)."""
+        J = int(samples)
+        if J < 2:
+            raise ParameterError("samples", samples, "at least 2 samples per period")
+        self.chain.set_from_array(self.X, x)
+        t = np.linspace(0.0, self.T, J + 1)
+        out = [np.asarray(x, float).reshape(self.N, 2)]
+        for j in range(J):
+            self.integrator.integrate(self.X, t[j], t[j + 1], dt=self.integrator.initial_step if j == 0 else None)
+            out.append(self.chain.gather(self.X))
+        self.counters["state_flows"] += 1
+        return t, np.array(out)
+
+    def diagnostics(self, x, samples=64):
+        """What a response does over its period (plain data): per bead the amplitude (max - min)/2 and mean of
+        x_n; the largest compressive force of the bond to the right end (the force transmitted to the wall, the
+        observable of Pozharskiy et al. 2015) and to the left end (the actuator), each from the samples with a
+        parabola through the largest three; the mean input power and mean dissipation (periodic trapezoid rule:
+        equal for an exact response, the energy balance dE/dt = input - dissipation over a period)."""
+        t, X = self.trajectory(x, samples)
+        pos = X[:, :, 0]
+        spec = self.drive.spec()
+        law = self.drive.model
+        eta = law.damping.eta
+
+        def end_motion(end, tt):
+            if isinstance(end, Actuator):
+                return end.signal.position(tt), end.signal.velocity(tt)
+            return np.zeros_like(tt), np.zeros_like(tt)
+        x0, v0 = end_motion(spec.left, t)
+        f_left = -(law.force(pos[:, 0] - x0) + eta * (X[:, 0, 1] - v0))
+        if spec.right == "free":
+            f_right = np.zeros_like(t)
+        else:
+            xr, vr = end_motion(spec.right, t)
+            f_right = -(law.force(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))
+        p_in, diss = [], []
+        for j in range(len(t) - 1):
+            self.chain.set_from_array(self.X, X[j])
+            a, b = self.chain.power(self.X, t[j])
+            p_in.append(a)
+            diss.append(b)
+        return dict(amplitude=0.5 * (pos.max(axis=0) - pos.min(axis=0)), mean=pos[:-1].mean(axis=0),
+                    force_right=_peak(f_right[:-1]), force_left=_peak(f_left[:-1]), power_in=float(np.mean(p_in)),
+                    dissipation=float(np.mean(diss)))
+
+    # --- SNES callbacks ------------------------------------------------------------------------------------------
+    def _make_snes(self, prefix):
+        snes = PETSc.SNES().create(comm=self.comm)
+        snes.setOptionsPrefix(prefix)
+        snes.setType(PETSc.SNES.Type.NEWTONLS)
+        self.F = self.create_vec()
+        snes.setFunction(self.formFunction, self.F)
+        ksp = snes.getKSP()
+        local = self.nloc + (1 if self.last_rank else 0)
+        sizes = ((local, self.size), (local, self.size))
+        if self.jacobian_kind == "dense":
+            # LU with pivoting: the bordered row's diagonal vanishes at a fold in the parameter. One rank: LAPACK on
+            # a dense matrix; several: MUMPS on AIJ.
+            if self.comm.getSize() == 1:
+                self.J = PETSc.Mat().createDense(sizes, comm=self.comm)
+            else:
+                self.J = PETSc.Mat().createAIJ(sizes, nnz=(local, self.size - local), comm=self.comm)
+                self.J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+            self.J.setUp()
+            ksp.setType(PETSc.KSP.Type.PREONLY)
+            pc = ksp.getPC()
+            pc.setType(PETSc.PC.Type.LU)
+            if self.comm.getSize() > 1:
+                pc.setFactorSolverType("mumps")
+        else:
+            self._shell = _BorderedProduct(self)
+            self.J = PETSc.Mat().createPython(sizes, context=self._shell, comm=self.comm)
+            self.J.setUp()
+            ksp.setType(PETSc.KSP.Type.GMRES)
+            ksp.setGMRESRestart(200)
+            ksp.getPC().setType(PETSc.PC.Type.NONE)
+            ksp.setTolerances(rtol=1e-8, max_it=2000)
+        snes.setJacobian(self.formJacobian, self.J, self.J)
+        snes.setTolerances(rtol=1e-30, stol=1e-30, max_it=20)
+        snes.setConvergenceTest(self._converged)
+        opts = PETSc.Options()
+        self._user_set = {k for k in ("atol", "rtol", "stol", "max_it") if opts.hasName(prefix + "snes_" + k)}
+        snes.setFromOptions()
+        return snes
+
+    def _converged(self, snes, it, norms):
+        """SNES's tests on ||F|| (atol, rtol, max_it from -drive_snes_*) and one more: a corrector that has not
+        halved the residual in three iterations is not converging (it would only spend flows): DIVERGED_LOCAL_MIN."""
+        R = PETSc.SNES.ConvergedReason
+        fnorm = norms[2]
+        rtol, atol, _, max_it = snes.getTolerances()
+        if it == 0:
+            self._fhist = []
+        self._fhist.append(fnorm)
+        if not math.isfinite(fnorm):
+            return R.DIVERGED_FNORM_NAN
+        if fnorm <= atol:
+            return R.CONVERGED_FNORM_ABS
+        if fnorm <= rtol * self._fhist[0]:
+            return R.CONVERGED_FNORM_RELATIVE
+        if it >= 3 and fnorm > 0.5 * self._fhist[-4]:
+            return R.DIVERGED_LOCAL_MIN
+        if it >= max_it:
+            return R.DIVERGED_MAX_IT
+        return R.ITERATING
+
+    def formFunction(self, snes, Z, F):
+        z = Z.getArray(readonly=True)
+        p = _parameter(Z)
+        try:
+            self._at(p)
+            self.X.getArray()[:] = z[:self.nloc]
+            self.flow(self.X)
+        except (ParameterError, ConvergenceError):
+            # outside the parameter's range (omega <= 0, a < 0) or a failed flow: NaN makes the line search
+            # shorten the step, or SNES stop with a negative reason
+            F.set(math.nan)
+            return
+        f = F.getArray()
+        f[:self.nloc] = self.X.getArray(readonly=True) - z[:self.nloc]
+        g = (self._row.dot(Z) - self._value) if self._row is not None else 0.0
+        if self._row is None and self.last_rank:
+            g = z[-1] - self._p_fixed
+        if self.last_rank:
+            f[-1] = g
+
+    def _dG_dp(self, x, p, G):
+        """dG/dp (local rows) by a forward difference from G = G(x; p) with one state flow (the drive changes with
+        p, and with omega the period): step h = 1e-6 max(|p|, 1e-3), truncation O(h) and noise (flow tolerance) / h
+        both ~1e-6 relative: the bordered column of a Newton step, which then converges linearly at that rate."""
+        h = 1e-6 * max(abs(p), 1e-3)
+        self._at(p + h)
+        xh = self.map(x)
+        self._at(p)
+        xs = self.chain.xs
+        return ((xh - x).ravel()[2 * xs:2 * xs + self.nloc] - G) / h
+
+    def monodromy(self, x, p):
+        """Dense R(kT; 0) at (x, p), on every rank (cached for the last point)."""
+        if self._mono is not None and self._mono[1] == p and np.array_equal(self._mono[0], x):
+            return self._mono[2]
+        self._at(p)
+        R = self.dense.monodromy(Response(self.drive, self.periods, x, math.nan), shift=False, T=self.T)
+        self.counters["tangent_flows"] += 1
+        self._mono_version += 1
+        self._mono = (np.array(x, copy=True), p, R, self._mono_version)
+        return R
+
+    def formJacobian(self, snes, Z, J, P):
+        """The bordered Jacobian at Z. dG/dp is computed once per corrector solve. Dense route: the monodromy of
+        the last point where one was computed (e.g. the previous response's multipliers) is reused while Newton
+        contracts the residual by CHORD_CONTRACTION per iteration (a chord step), and recomputed otherwise."""
+        x, p = self.state(Z)
+        if self._row is not None and self._dGdp is None:
+            G = snes.getFunction()[0].getArray(readonly=True)[:self.nloc].copy()
+            self._dGdp = self._dG_dp(x, p, G)
+        dGdp = self._dGdp if self._row is not None else np.zeros(self.nloc)
+        if self.jacobian_kind == "mf":
+            self.counters["jacobians"] += 1
+            self._shell.set_point(x, p, dGdp)
+            return
+        fnorm = snes.getFunctionNorm()
+        first = snes.getIterationNumber() == 0
+        contracting = (first and self._near(x, p)) or (not first and fnorm <= CHORD_CONTRACTION * self._last_fnorm)
+        self._last_fnorm = fnorm
+        if not (self._reuse_now and contracting and self._mono is not None):
+            self.monodromy(x, p)
+            self.counters["jacobians"] += 1
+        key = (self._mono[3], self._solves)
+        if key == self._assembled:
+            return                                 # the matrix (and its factorisation) is the chord's
+        self._assembled = key
+        R = self._mono[2]
+        lo, hi = P.getOwnershipRange()
+        P.zeroEntries()
+        n2 = 2 * self.N
+        rows = np.arange(lo, min(hi, n2), dtype=PETSc.IntType)
+        if len(rows):
+            block = np.zeros((len(rows), self.size))
+            block[:, :n2] = R[rows]
+            block[np.arange(len(rows)), rows] -= 1.0
+            block[:, n2] = dGdp
+            P.setValues(rows, np.arange(self.size, dtype=PETSc.IntType), block.ravel())
+        if hi == self.size:
+            last = self._row_full if self._row is not None else np.eye(1, self.size, self.size - 1)[0]
+            P.setValues([self.size - 1], np.arange(self.size, dtype=PETSc.IntType), last)
+        P.assemble()
+
+    def _near(self, x, p):
+        """Whether the cached monodromy was computed within 5% (parameter and state) of (x, p)."""
+        if self._mono is None:
+            return False
+        xm, pm = self._mono[0], self._mono[1]
+        return abs(p - pm) <= 0.05 * max(abs(p), 1e-12) and \
+            np.max(np.abs(x - xm)) <= 0.05 * max(float(np.max(np.abs(x))), 1e-300)
+
+    def _gather_row(self, row):
+        sc, full = PETSc.Scatter.toAll(row)
+        sc.scatter(row, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+        out = full.getArray(readonly=True).copy()
+        sc.destroy()
+        full.destroy()
+        return out
+
+    # --- the corrector -------------------------------------------------------------------------------------------
+    def solve(self, Z, row=None, value=None):
+        """Newton (SNES ``drive_``) on G(X; p) = 0 with row . Z = value (row None: p fixed at Z's). Returns the
+        iterations (at least 1: a Z that is already a response counts as one); ConvergenceError naming p."""
+        self._row, self._value = row, value
+        self._dGdp, self._last_fnorm, self._solves = None, math.inf, self._solves + 1
+        self._row_full = self._gather_row(row) if row is not None and self.jacobian_kind == "dense" else None
+        x0, p0 = self.state(Z)
+        self._p_fixed = p0
+        try:
+            self._at(p0)
+        except ParameterError as err:            # a predictor beyond the parameter's range: no response there
+            raise ConvergenceError("periodic-response Newton", f"parameter out of range ({err.valid})",
+                                   **{self.parameter: p0}) from None
+        if "atol" not in self._user_set:
+            self._snes.setTolerances(atol=self.tol * self.scale(x0))
+        self._reuse_now = self.reuse
+        Z0 = Z.copy() if self.reuse else None
+        try:
+            self._snes.solve(None, Z)
+            reason = int(self._snes.getConvergedReason())
+            its = int(self._snes.getIterationNumber())
+            if reason <= 0 and self.reuse:          # a chord step that led nowhere: again with fresh Jacobians
+                Z0.copy(Z)
+                self._reuse_now, self._last_fnorm, self._solves = False, math.inf, self._solves + 1
+                self._snes.solve(None, Z)
+                reason = int(self._snes.getConvergedReason())
+                its += int(self._snes.getIterationNumber())
+        finally:
+            if Z0 is not None:
+                Z0.destroy()
+        p = _parameter(Z)
+        if reason <= 0:
+            raise ConvergenceError(f"periodic-response Newton (prefix -{self._snes.getOptionsPrefix()})", reason,
+                                   **{self.parameter: p})
+        self._at(p)
+        # the residual of the converged point, from the last function evaluation (the flow from this very state)
+        x, _ = self.state(Z)
+        self.Y.getArray()[:] = self.F.getArray(readonly=True)[:self.nloc]
+        g = self.Y.norm(PETSc.NormType.NORM_INFINITY)
+        self._residuals = {(float(p), hash(x.tobytes())): g / self.scale(x)}
+        return max(its, 1)
+
+    def known_residual(self, x, p):
+        """The relative residual of the last converged point if (x, p) is it, else None."""
+        return self._residuals.get((float(p), hash(np.asarray(x).tobytes())))
+
+    def response(self, Z, check=True):
+        """The :class:`Response` at Z (its residual re-measured with one state flow when ``check``)."""
+        x, p = self.state(Z)
+        self._at(p)
+        res = self.residual(x) if check else math.nan
+        return Response(self.drive, self.periods, x, res, int(self._snes.getIterationNumber()))
+
+    def solve_response(self, x, p=None):
+        """Newton at fixed parameter from the state ``x``: the converged :class:`Response`."""
+        Z = self.pack(x, p)
+        try:
+            its = self.solve(Z)
+            r = self.response(Z)
+            r.iterations = its
+            return r
+        finally:
+            Z.destroy()
+
+    # --- multipliers, test functions, report -----------------------------------------------------------------------
+    def multipliers(self, Z=None, x=None, p=None):
+        """The Floquet multipliers at Z (or at the state x and parameter p): all 2N ('dense') or the dominant
+        ('slepc'), sorted by decreasing modulus; cached per point."""
+        if Z is not None:
+            x, p = self.state(Z)
+        key = (float(p), hash(np.asarray(x).tobytes()))
+        if key in self._spectra:
+            return self._spectra[key]
+        self._at(p)
+        if self.floquet_kind == "dense":
+            mu = dense_multipliers(self.monodromy(x, p))
+        elif self.floquet_kind == "slepc":
+            res = self.dominant.spectrum(Response(self.drive, self.periods, x, math.nan))
+            self.counters["products"] += res.work["products"]
+            mu = res.multipliers
+        else:
+            raise ParameterError("floquet", "none", "this problem computes no multipliers")
+        self._spectra = {key: mu}
+        return mu
+
+    def spectrum(self, mu, tol=TOL_MU):
+        """A :class:`~hertzpetsc.floquet.Spectrum` (no symmetry multipliers) of the multipliers ``mu``."""
+        return Spectrum(np.asarray(mu), self.floquet_kind == "dense", tol, n_trivial=0)
+
+    def test_functions(self, Z):
+        if self.floquet_kind == "none":
+            return {}
+        return test_functions(self.multipliers(Z))
+
+    def report(self, Z):
+        x, p = self.state(Z)
+        out = dict(x=x, periods=self.periods)
+        if self.floquet_kind != "none":
+            mu = self.multipliers(x=x, p=p)
+            out.update(multipliers=mu, rho=float(np.max(np.abs(mu))), verdict=verdict(float(np.max(np.abs(mu)))),
+                       **counts(mu))
+        return out
+
+    def destroy(self):
+        self._snes.destroy()
+        self.J.destroy()
+        self.F.destroy()
+        for v in (self.X, self.Y):
+            v.destroy()
+        self.integrator.destroy()
+        self.chain.destroy()
+        if self.dense is not None:
+            self.dense.destroy()
+        if self.product is not None:
+            self.product.destroy()
+        if self.dominant is not None:
+            self.dominant.destroy()
+
+
+class _BorderedProduct:
+    """The bordered Jacobian [R - I, dG/dp; row] as a ``Mat.createPython`` context: R v by one tangent-flow
+    product (:class:`~hertzpetsc.tangent.MonodromyModShift` without shift)."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        chain = problem.chain
+        self.vX, self.RvX = chain.create_state(), chain.create_state()
+        self.dGdp = None
+
+    def set_point(self, x, p, dGdp):
+        prob = self.problem
+        prob.product.set_orbit(x, prob.T)
+        self.dGdp = dGdp
+
+    def mult(self, mat, v, y):
+        prob = self.problem
+        a = v.getArray(readonly=True)
+        n = prob.nloc
+        self.vX.getArray()[:] = a[:n]
+        vp = prob.mpi.bcast(float(a[-1]) if prob.last_rank else None, root=prob.comm.getSize() - 1)
+        prob.product.mult(None, self.vX, self.RvX)
+        prob.counters["products"] += 1
+        out = y.getArray()
+        out[:n] = self.RvX.getArray(readonly=True) - a[:n] + vp * self.dGdp
+        if prob._row is not None:
+            g = prob._row.dot(v)
+        else:
+            g = vp
+        if prob.last_rank:
+            out[-1] = g
+
+    def destroy(self, mat=None):
+        if self.vX is not None:
+            self.vX.destroy()
+            self.RvX.destroy()
+            self.vX = None
+
+
+# --- branch switching at a period doubling ---------------------------------------------------------------------
+def doubling_direction(problem, x, p):
+    """(v as (N, 2) with ||v||_inf = 1, mu) for the real multiplier mu of R(kT; 0) closest to -1 at the response
+    (x, p) of ``problem`` (dense monodromy): the direction in which the period-doubled branch leaves."""
+    problem._at(p)
+    R = problem.monodromy(x, p) if problem.dense is not None else None
+    if R is None:
+        raise ParameterError("floquet", problem.floquet_kind, "branch switching needs the dense monodromy")
+    lam, V = np.linalg.eig(R)
+    i = int(np.argmin(np.abs(lam + 1.0)))
+    v = V[:, i].real
+    return (v / np.max(np.abs(v))).reshape(problem.N, 2), complex(lam[i])
+
+
+def switch_to_doubled(single, double, x, p, step=None):
+    """(Z0, Z1) to start the period-doubled branch at the period doubling (x, p) of ``single`` (period k T), on
+    ``double`` (period 2 k T, the same drive and parameter): Z0 is the doubling point itself (a fixed point of P^2
+    on both branches), Z1 the first point of the new branch, from the pseudo-arclength corrector of ``double`` along
+    the eigenvector v of the multiplier -1, (v, 0), at W-distance ``step`` (default 5% of ||x||_inf) -- the
+    period-1 branch crosses that hyperplane only at a distance O(step) from the prediction, the doubled one at
+    O(step^2). The layer continues from the two (:meth:`~hertzpetsc.continuation.Continuation.seed`)."""
+    if double.periods != 2 * single.periods:
+        raise ParameterError("periods", double.periods, f"the doubled problem's period must be 2 x {single.periods}")
+    v, mu = doubling_direction(single, x, p)
+    Z0 = double.pack(x, p)
+    t = double.pack(v, 0.0)
+    W = double.weights()
+    w = t.copy()
+    w.pointwiseMult(w, W)
+    t.scale(1.0 / math.sqrt(w.dot(t)))
+    step = 0.05 * float(np.max(np.abs(x))) if step is None else step
+    Z1 = Z0.copy()
+    Z1.axpy(step, t)
+    row = t.copy()
+    row.pointwiseMult(row, W)
+    try:
+        double.solve(Z1, row, row.dot(Z1))
+    except ConvergenceError:
+        Z0.destroy()
+        Z1.destroy()
+        raise
+    finally:
+        for vec in (t, w, row, W):
+            vec.destroy()
+    return Z0, Z1
+
+
+# --- a refined travelling wave's profile, for the exact boundary driving (paper's Discussion) ---------------------
+def refined_profile(orbit, comm, samples=8192, tolerances=None):
+    """The travelling-wave profile U (x_n(t) = U(q n - omega t)) of a refined periodic-chain wave ``orbit``
+    (:class:`~hertzpetsc.waves.Orbit`: P beads, q = 2 pi m / P) on a uniform grid of at least ``samples`` points of
+    [0, 2 pi): the chain integrated over script-T with J stops gives U(q (n - j / J)) for every bead n and stop j,
+    i.e. the grid 2 pi k / L, L = P J / gcd(m, P J), k = (m / gcd) (n J - j) mod L. Returns a :class:`ProfileWave`
+    (U includes the wave's amplitude: drive it with amplitude 1 and the orbit's omega)."""
+    from .chain import Chain, ChainIntegrator
+    from .shooting import MEASURE_TOLERANCES
+    P, m = orbit.N, orbit.m
+    J = 1
+    while P * J // math.gcd(m, P * J) < samples:
+        J *= 2
+    g = math.gcd(m, P * J)
+    L = P * J // g
+    chain = Chain(orbit.spec, comm)
+    integ = ChainIntegrator(chain, tolerances or MEASURE_TOLERANCES, "floquet_")
+    X = chain.create_state()
+    try:
+        chain.set_from_array(X, orbit.x)
+        U = np.full(L, np.nan)
+        n = np.arange(P)
+        dt = orbit.T / J
+        for j in range(J):
+            if j:
+                integ.integrate(X, (j - 1) * dt, j * dt, dt=integ.initial_step if j == 1 else None)
+            k = ((m // g) * (n * J - j)) % L
+            U[k] = chain.gather(X)[:, 0]
+    finally:
+        X.destroy()
+        integ.destroy()
+        chain.destroy()
+    if not np.all(np.isfinite(U)):
+        raise ParameterError("samples", samples, "the stops did not cover the profile's grid")
+    return ProfileWave(U, label=f"refined wave q = {orbit.q:.12g} on {P} beads")
+
+
+def wave_ends_drive(model, N, profile, omega, q, amplitude=1.0):
+    """The finite chain of N beads whose ends move as beads 0 and N + 1 of the travelling wave x_n(t) =
+    a U(q n - omega t): both ends actuators with the wave's profile at phases 0 and q (N + 1) (the paper's
+    Discussion: 'the motions of the first and last beads are imposed, following an exact travelling wave
+    profile'). Undamped unless the model is."""
+    return Drive(model, N, profile, amplitude, omega, right=profile, left_phase=0.0, right_phase=q * (N + 1))
+
+
+# --- the bulk of a driven response against the travelling-wave family -------------------------------------------
+def local_wave(t, positions, omega):
+    """Per bead of a sampled response (times t over one period, positions (J+1, N)): the amplitude A_n =
+    (max - min)/2, the offset c_n = (max + min)/2 and the local wavenumber q_n = omega tau_n in (-pi, pi], tau_n
+    the time by which bead n+1 lags bead n (the peak of their periodic cross-correlation, refined by a parabola;
+    nan for the last bead; q_n < 0: the wave runs towards the actuator). For a travelling wave
+    x_n = c + A U(q n - omega t): q_n = q, A_n = A."""
+    x = np.asarray(positions, float)[:-1]              # one period of samples
+    J = len(x)
+    A = 0.5 * (x.max(axis=0) - x.min(axis=0))
+    c = 0.5 * (x.max(axis=0) + x.min(axis=0))
+    F = np.fft.rfft(x - x.mean(axis=0), axis=0)
+    q = np.full(x.shape[1], np.nan)
+    dt = (t[-1] - t[0]) / J
+    for n in range(x.shape[1] - 1):
+        cc = np.fft.irfft(F[:, n + 1] * np.conj(F[:, n]), n=J)   # cc[s] = sum_j x_{n+1}(t_j + s) x_n(t_j)
+        k = int(np.argmax(cc))
+        a, b, d = cc[k - 1], cc[k], cc[(k + 1) % J]
+        den = a - 2 * b + d
+        shift = k + (0.5 * (a - d) / den if den < 0 else 0.0)
+        lag = shift * dt                               # x_{n+1}(t) = x_n(t - lag)
+        q[n] = (omega * lag + math.pi) % (2 * math.pi) - math.pi
+    return A, c, q
+
+
+class BranchFamily:
+    """The travelling waves of a branch (eq. ad, uncompressed chain) as a family in (q, amplitude) at a given
+    frequency: the normalised profiles U_q = u_q / ||u_q||_inf (interpolated linearly in q between branch points)
+    and the amplitude of the wave of wavenumber q at frequency omega, A(q, omega) = ||u_q|| omega^(2/(alpha-1))
+    (x = a u(q n - omega t) with omega = a^((alpha-1)/2))."""
+
+    def __init__(self, branch):
+        self.branch = branch
+        order = np.argsort(branch.q)
+        self.q = np.asarray(branch.q, float)[order]
+        self.norm = np.array([branch.points[i].diagnostics.norm_inf for i in order])
+        self.shapes = np.array([branch.points[i].u_full / branch.points[i].diagnostics.norm_inf for i in order])
+        self.h = branch.points[0].h
+        self.alpha = branch.model.alpha
+
+    def _weights(self, q):
+        q = float(np.clip(q, self.q[0], self.q[-1]))
+        i = int(np.clip(np.searchsorted(self.q, q) - 1, 0, len(self.q) - 2))
+        s = (q - self.q[i]) / (self.q[i + 1] - self.q[i])
+        return i, s
+
+    def amplitude(self, q, omega):
+        i, s = self._weights(q)
+        return ((1 - s) * self.norm[i] + s * self.norm[i + 1]) * omega ** (2 / (self.alpha - 1))
+
+    def shape(self, q, xi):
+        """U_q at the phases xi (degree-5 Lagrange in xi, linear in q)."""
+        from .stencil import lagrange_periodic
+        i, s = self._weights(q)
+        return (1 - s) * lagrange_periodic(self.shapes[i], self.h, np.mod(xi, 2 * math.pi)) + \
+            s * lagrange_periodic(self.shapes[i + 1], self.h, np.mod(xi, 2 * math.pi))
+
+    def distance(self, t, x, omega, q):
+        """min over the phase of the RMS distance between the normalised motion (x - c)/A of one bead over a period
+        (samples x at times t, the last closing the period) and U_q(phi - omega t): 0 for a wave of the family."""
+        xs = np.asarray(x, float)[:-1]
+        tt = np.asarray(t, float)[:-1]
+        A = 0.5 * (xs.max() - xs.min())
+        if not A > 0:
+            return math.nan
+        y = (xs - 0.5 * (xs.max() + xs.min())) / A
+        phis = np.linspace(0, 2 * math.pi, 256, endpoint=False)
+        d = [np.sqrt(np.mean((y - self.shape(q, ph - omega * tt)) ** 2)) for ph in phis]
+        k = int(np.argmin(d))
+        # refine the phase by golden section around the best grid phase
+        a, b = phis[k] - 2 * math.pi / 256, phis[k] + 2 * math.pi / 256
+        f = lambda ph: np.sqrt(np.mean((y - self.shape(q, ph - omega * tt)) ** 2))   # noqa: E731
+        g = (math.sqrt(5) - 1) / 2
+        for _ in range(30):
+            c1, c2 = b - g * (b - a), a + g * (b - a)
+            if f(c1) < f(c2):
+                b = c2
+            else:
+                a = c1
+        return float(f(0.5 * (a + b)))
+
+
+def configure_options(comm, prefix=DRIVE_PREFIX, floquet_prefix=FLOQUET_PREFIX):
+    """Read and check the options of every solver role of the driven studies (SNES and TS ``drive_``, TS and EPS
+    ``floquet_``) on a tiny driven chain, for studies that build their problems later: a bad value fails here,
+    before any computation."""
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), max(2, comm.getSize()), HarmonicWave(), 0.1, 1.0)
+    for kw in (dict(jacobian="dense", floquet="dense"), dict(jacobian="mf", floquet="slepc", nev=1)):
+        PeriodicShooting(drive, comm, prefix=prefix, floquet_prefix=floquet_prefix, **kw).destroy()

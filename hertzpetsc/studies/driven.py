@@ -1,0 +1,872 @@
+"""Studies of driven, damped chains (issue 22; the question closing the paper's Discussion): frequency and amplitude
+responses with their bifurcations, small-amplitude resonances against the linear chain's normal modes, the paper's
+exact boundary driving by a travelling wave, and the generation of travelling waves by simple signals.
+
+Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues):
+
+* ``hertzpetsc-driven-response-1`` (:class:`ResponseCurve`): constants ``drive`` (JSON of the drive at the start),
+  parameter, p_end, base_periods (k of branch 0), jacobian, floquet, tol, rtol, mode ('arclength' or 'grid'), N,
+  nmult; per record: branch (0: the continued branch; j >= 1: the branch switched onto at the j-th confirmed period
+  doubling, period 2 k), periods, p (the parameter), omega, amplitude, s (arclength; the grid mode: the parameter
+  distance), dp_ds (nan on the grid), event (0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by
+  the layer; on a regular point (dp_ds finite, on the grid always): a crossing bracketed between this point and the
+  previous one, which the layer could not locate), confirmed (1: the multipliers of the
+  regular points on both sides differ as the event says; 0: they do not (e.g. a neutral saddle for tau_NS); -1:
+  regular point), iterations, residual (||P^k(X) - X||_inf / scale: from Newton's last evaluation, or measured
+  again), rho, outside (|mu| > 1 + 1e-6),
+  tau_pd, tau_ns (the test functions), force_right, force_left (largest compressive force of the end bonds over the
+  period: the force transmitted to the wall; nan without samples), amp_first, amp_last, amp_max (bead amplitudes
+  (max - min)/2), power_in, dissipation (means over the period), half_residual (even k: ||P^(k/2)(X) - X||_inf /
+  scale, large for a genuine period-k response; nan for odd k), multipliers (nmult complex, the largest, nan
+  padded), x (N, 2) the state at t = 0.
+* ``hertzpetsc-driven-resonances-1`` (:class:`LinearResonances`): constants drive, modes; per record (one per mode
+  k): k, omega_k (normal mode, closed form), peak_linear (the peak of the last bead's amplitude |X_N(omega)| of the
+  damped linear chain, complex solve), peak_shooting (the same from shooting responses of the Hertz chain),
+  amp_linear, amp_shooting (|X_N| at the peaks, per unit drive amplitude), mu_error (max distance of the sorted
+  multipliers at the shooting peak to exp(T lambda), lambda the eigenvalues of the linear damped chain),
+  evaluations (shooting solves).
+* ``hertzpetsc-driven-wave-ends-1`` (:class:`WaveEnds`): constants alpha, P (beads of the periodic chain of the
+  refined waves), branch, refined, samples, rtols; per record (q, N, rtol): q, m, N, rtol, imposed (residual of the
+  refined wave itself in the driven chain), residual (after Newton), moved (relative distance Newton moved it),
+  iterations, rho (the driven finite chain over tau = 2 pi / omega), outside, rho_periodic (rho(F_q)^(P/m): the
+  periodic chain over tau), multipliers (nmult).
+* ``hertzpetsc-driven-generation-1`` (:class:`Generation`): constants model, N, branch, bulk; per record (one per
+  waveform, omega, amplitude, gamma): waveform (0 harmonic, 1 half-sine train), omega, amplitude, gamma, ok (1: a
+  periodic response converged), runin_residual (||P(X) - X|| / scale after the run-in: a motion that has not
+  settled to a periodic one keeps it large), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan), amp_first,
+  decay (-d ln A_n / dn over the bulk), q_bulk (median local wavenumber over the bulk), q_spread (its interquartile
+  range), amp_bulk (median A_n), family_ratio (median A_n / A(q_n, omega): 1 for the branch's wave at that
+  frequency), distance (median shape distance D_n to the branch's wave U_{q_n} over the bulk), distance_slope
+  (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic
+  (median (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
+"""
+import json
+import math
+import time
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..continuation import Continuation, ContinuationError, Natural, PseudoArclength
+from ..driven import (DRIVE_PREFIX, RESPONSE_TOLERANCES, TOL_MU, BranchFamily, HalfSinePulses, HarmonicWave,
+                      PeriodicShooting, configure_options, counts, crossing, local_wave, refined_profile,
+                      switch_to_doubled, verdict, wave_ends_drive)
+from ..errors import ConvergenceError, ParameterError
+from ..floquet import DenseFloquet
+from ..records import MemoryRecords, NpzRecords
+from ..resources import MAX_DENSE_BEADS, check_chain_memory
+from .dealing import dealt
+
+RESPONSE_FORMAT = "hertzpetsc-driven-response-1"
+RESPONSE_FIELDS = ("branch", "periods", "p", "omega", "amplitude", "s", "dp_ds", "event", "confirmed", "iterations",
+                   "residual", "rho", "outside", "tau_pd", "tau_ns", "force_right", "force_left", "amp_first",
+                   "amp_last", "amp_max", "power_in", "dissipation", "half_residual", "multipliers", "x")
+EVENTS = {None: 0, "fold": 1, "period_doubling": 2, "neimark_sacker": 3}
+EVENT_NAMES = {v: k for k, v in EVENTS.items()}
+RESONANCE_FORMAT = "hertzpetsc-driven-resonances-1"
+RESONANCE_FIELDS = ("k", "omega_k", "peak_linear", "peak_shooting", "amp_linear", "amp_shooting", "mu_error",
+                    "evaluations")
+WAVE_ENDS_FORMAT = "hertzpetsc-driven-wave-ends-1"
+WAVE_ENDS_FIELDS = ("q", "m", "N", "rtol", "imposed", "residual", "moved", "iterations", "rho", "outside",
+                    "rho_periodic", "multipliers")
+GENERATION_FORMAT = "hertzpetsc-driven-generation-1"
+GENERATION_FIELDS = ("waveform", "omega", "amplitude", "gamma", "ok", "runin_residual", "residual", "iterations",
+                     "rho", "verdict",
+                     "amp_first", "decay", "q_bulk", "q_spread", "amp_bulk", "family_ratio", "distance",
+                     "distance_slope", "strain_static", "strain_dynamic", "A_n", "q_n", "D_n")
+WAVEFORMS = ("harmonic", "half_sine")
+
+
+def _padded(mu, n):
+    out = np.full(n, np.nan, dtype=complex)
+    mu = np.asarray(mu, dtype=complex)[:n]
+    out[:len(mu)] = mu
+    return out
+
+
+def tolerances_of(rtol, scale=1.0):
+    """Flow tolerances rtol and atol = rtol scale / 100, scale the size of the motion (the drive's amplitude when
+    it is below 1: an absolute tolerance must not swamp a small-amplitude response)."""
+    from ..chain import IntegrationTolerances
+    scale = min(1.0, scale) if scale > 0 else 1.0
+    return IntegrationTolerances(rtol=rtol, atol=rtol * scale / 100)
+
+
+# --- frequency and amplitude responses --------------------------------------------------------------------------
+def _store(output, kind, constants, identity, fields, comm, mode, dtypes=None, shapes=None, what=None):
+    """The record file ``output``, or the records in memory when ``output`` is None (a notebook, a test)."""
+    if output is None:
+        return MemoryRecords(kind, constants, fields, comm, dtypes, shapes)
+    return NpzRecords(output, kind, constants, identity, fields, comm, mode, dtypes=dtypes, shapes=shapes, what=what)
+
+
+def corner_arclength(ds=0.02, ds_max=0.05, max_corrector=1.5):
+    """The pseudo-arclength algorithm for response curves of Hertz chains: their contacts open and close, so the
+    curves are only piecewise smooth (grazing points are corners, where the secant is not the tangent and Newton
+    converges linearly): a corrector may land up to ``max_corrector`` ds from the prediction and take up to 20
+    Newton iterations (the chord iterations of :class:`~hertzpetsc.driven.PeriodicShooting` are cheap), and the step
+    grows after steps of at most 5."""
+    return PseudoArclength(ds=ds, ds_max=max(ds, ds_max), easy=5, max_iterations=20, max_corrector=max_corrector,
+                           max_halvings=10)
+class ResponseCurve:
+    """Responses of one :class:`~hertzpetsc.driven.Drive` continued in ``parameter`` from its value to ``p_end``.
+
+    ``mode`` 'arclength': the layer's pseudo-arclength (``algorithm``), through folds, with folds, period doublings
+    and Neimark-Sacker points located and each confirmed by the multipliers on both sides; 'grid': natural steps to
+    each of ``grid`` (every target recorded; events bracketed between grid points). The first response: Newton from
+    rest after ``run_in`` driving periods (0: from rest). ``switch``: steps taken on the period-doubled branch from
+    each confirmed period doubling (branch switching). ``samples``: samples per period for the diagnostics (0: none).
+    Solver prefixes: ``drive_`` (SNES and state flow), ``floquet_`` (tangent flow, EPS)."""
+
+    def __init__(self, drive, parameter, p_end, comm, output, mode="new", periods=1, jacobian="dense",
+                 floquet="dense", nev=8, tol=1e-10, rtol=1e-12, algorithm=None, grid=None, run_in=50,
+                 samples=64, switch=0, max_steps=400, nmult=64):
+        self.drive, self.parameter, self.comm = drive, parameter, comm
+        self.p_end = float(p_end)
+        p0 = drive.value(parameter)
+        if not self.p_end != p0:
+            raise ParameterError("p_end", p_end, f"must differ from the start {parameter} = {p0:g}")
+        self.grid = None if grid is None else [float(g) for g in grid]
+        self.algorithm = algorithm or corner_arclength()
+        self.run_in, self.samples, self.switch, self.max_steps = int(run_in), int(samples), int(switch), max_steps
+        self.nmult = min(int(nmult), 2 * drive.N)
+        self.kw = dict(parameter=parameter, periods=periods, jacobian=jacobian, floquet=floquet, nev=nev, tol=tol,
+                       tolerances=tolerances_of(rtol, drive.amplitude))
+        self.problem = PeriodicShooting(drive, comm, **self.kw)       # configures drive_ and floquet_ now
+        constants = dict(drive=json.dumps(drive.describe(), sort_keys=True, default=str), parameter=parameter,
+                         p_end=self.p_end, base_periods=periods, jacobian=jacobian, floquet=floquet, tol=tol, rtol=rtol,
+                         mode="grid" if grid is not None else "arclength", N=drive.N, nmult=self.nmult)
+        self._open = lambda: _store(output, RESPONSE_FORMAT, constants, constants, RESPONSE_FIELDS, comm, mode,
+                                        dtypes={"branch": np.int64, "periods": np.int64, "event": np.int64,
+                                                "confirmed": np.int64, "iterations": np.int64,
+                                                "outside": np.int64, "multipliers": complex},
+                                        shapes={"multipliers": (self.nmult,), "x": (drive.N, 2)},
+                                        what="driven-response file")
+        self.store = None
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    # records
+    def _record(self, problem, point, branch, event=None, confirmed=-1):
+        rep = point.report
+        mu = rep.get("multipliers", np.zeros(0))
+        x = rep["x"]
+        drive = problem.drive.with_parameter(problem.parameter, point.parameter)
+        problem.set_drive(drive)
+        res = problem.known_residual(x, point.parameter)
+        if res is None:
+            res = problem.residual(x)
+        half = math.nan
+        if problem.periods % 2 == 0:                # not a response of half the period: ||P^(k/2) X - X|| / scale
+            k = problem.periods
+            problem.periods = k // 2
+            try:
+                half = problem.residual(x)
+            finally:
+                problem.periods = k
+        diag = problem.diagnostics(x, self.samples) if self.samples else {}
+        amp = diag.get("amplitude", np.full(drive.N, np.nan))
+        tests = point.tests or {}
+        return dict(branch=branch, periods=problem.periods, p=point.parameter, omega=drive.omega,
+                    amplitude=drive.amplitude, s=point.s, dp_ds=point.dp_ds, event=EVENTS[event],
+                    confirmed=confirmed, iterations=point.iterations, residual=res,
+                    rho=rep.get("rho", math.nan), outside=int(np.sum(np.abs(mu) > 1 + TOL_MU)),
+                    tau_pd=tests.get("period_doubling", math.nan), tau_ns=tests.get("neimark_sacker", math.nan),
+                    force_right=diag.get("force_right", math.nan), force_left=diag.get("force_left", math.nan),
+                    amp_first=float(amp[0]), amp_last=float(amp[-1]), amp_max=float(np.max(amp)),
+                    power_in=diag.get("power_in", math.nan), dissipation=diag.get("dissipation", math.nan),
+                    half_residual=half, multipliers=_padded(mu, self.nmult), x=x)
+
+    def branch_records(self, branch=0):
+        return [r for r in self.store.records if int(r["branch"]) == branch]
+
+    def _regular(self, r):
+        """A point the continuation stepped to (not an event it located between two such points): on a grid every
+        record; else a record without event, or one whose event is bracketed on it (finite dp/ds), or a branch's
+        first point."""
+        if self.grid is not None and int(r["branch"]) == 0:
+            return True
+        dp = float(r["dp_ds"])
+        return int(r["event"]) == 0 or int(r["confirmed"]) == -1 or (math.isfinite(dp) and dp != 0.0)
+
+    def _seed_from(self, cont, problem, records, branch=0):
+        """Seed ``cont`` from the last two regular ``records`` and the step size the run had reached (resume);
+        the located events after the last regular record (a run stopped between them and the next point): they
+        are computed again and must not be recorded twice."""
+        last = max(i for i, r in enumerate(records) if self._regular(r))
+        regular = [r for r in records[:last + 1] if self._regular(r)][-2:]
+        Zs = [problem.pack(np.asarray(r["x"]), float(r["p"])) for r in regular]
+        cont.seed(Zs, [float(r["s"]) for r in regular])
+        for Z in Zs:
+            Z.destroy()
+        ds = self.store.state.get(f"ds_{branch}")
+        if ds is not None:
+            cont.ds = float(ds)
+        return records[last], list(records[last + 1:])
+
+    def _append(self, rec, cont=None):
+        """Append a record with the continuation's next step size (the state a resume starts from)."""
+        state = {f"ds_{int(rec['branch'])}": np.float64(cont.ds)} if cont is not None and cont.ds is not None else None
+        self.store.append(rec, state)
+
+    @staticmethod
+    def _same_event(rec, point, code):
+        return int(rec["event"]) == code and abs(float(rec["s"]) - point.s) <= 1e-12 * max(1.0, abs(point.s))
+
+    def _passed(self, p, p_start):
+        return (p - self.p_end) * (p_start - self.p_end) <= 0
+
+    def run(self):
+        """Compute what the file lacks: the main branch, then the period-doubled branches. Yields each record."""
+        self.open()
+        yield from self._main()
+        if self.switch:
+            yield from self._switched()
+
+    def _main(self):
+        prob = self.problem
+        done = self.branch_records(0)
+        p_start = self.drive.value(self.parameter)
+        if self.grid is not None:
+            targets = [p for p in self.grid if not any(abs(float(r["p"]) - p) <= 1e-12 * max(1, abs(p))
+                                                       for r in done)]
+            if not targets:
+                return
+        elif done and (len(done) >= self.max_steps or self._passed(float(done[-1]["p"]), p_start)):
+            return
+        cont = Continuation(prob, self.grid is not None and Natural() or self.algorithm)
+        trailing = []
+        try:
+            if done:
+                previous, trailing = self._seed_from(cont, prob, done)
+            else:
+                x = np.zeros((self.drive.N, 2))
+                if self.run_in:
+                    x = prob.run_in(x, self.run_in)
+                Z = prob.pack(x)
+                point = cont.start(Z)
+                Z.destroy()
+                previous = self._record(prob, point, 0)
+                self._append(previous, cont)
+                yield previous
+            if self.grid is not None:
+                yield from self._grid(cont, previous, targets)
+            else:
+                yield from self._arclength(cont, previous, p_start, len(done) - len(trailing) + (0 if done else 1),
+                                           trailing)
+        finally:
+            cont.destroy()
+
+    def _grid(self, cont, previous, targets):
+        prob = self.problem
+        mu_prev = previous["multipliers"]
+        for p in targets:
+            point = cont.step_to(p)
+            rec = self._record(prob, point, 0)
+            mu = point.report.get("multipliers", rec["multipliers"])
+            kind = crossing(mu_prev, mu)
+            if kind in EVENTS and kind is not None:
+                rec["event"], rec["confirmed"] = EVENTS[kind], 1
+            self.store.append(rec)
+            yield rec
+            mu_prev = mu
+
+    def _arclength(self, cont, previous, p_start, count, trailing=()):
+        prob = self.problem
+        trailing = list(trailing)
+        if len(cont.history) < 2:
+            direction = math.copysign(1.0, self.p_end - p_start)
+            step = getattr(self.algorithm, "ds", 0.02) * direction
+            point = cont.step_to(float(previous["p"]) + step)
+            previous = self._record(prob, point, 0)
+            self._append(previous, cont)
+            yield previous
+            count += 1
+        pending = []
+        mu_prev = previous["multipliers"]          # the full spectra confirm the events (records keep nmult)
+        tests_prev = dict(period_doubling=float(previous["tau_pd"]), neimark_sacker=float(previous["tau_ns"]))
+        dp_prev = float(previous["dp_ds"])
+        try:
+            for point in cont.run(until=self.p_end, max_steps=self.max_steps - count):
+                if point.event is not None:
+                    pending.append(point)
+                    continue
+                rec = self._record(prob, point, 0)
+                mu = point.report.get("multipliers", rec["multipliers"])
+                what = crossing(mu_prev, mu)
+                for ev in pending:
+                    if trailing and self._same_event(trailing[0], ev, EVENTS[ev.event]):
+                        trailing.pop(0)            # recorded before the run was stopped
+                        continue
+                    er = self._record(prob, ev, 0, ev.event, int(what == ev.event))
+                    self._append(er, cont)
+                    yield er
+                # a sign change (or a fold) the layer could not locate (its corrector failed on the chord: a corner
+                # of the curve) is recorded on this point, bracketed between it and the previous one
+                located = {ev.event for ev in pending}
+                changed = [name for name, v in (point.tests or {}).items()
+                           if name in tests_prev and v * tests_prev[name] < 0]
+                if math.isfinite(point.dp_ds) and math.isfinite(dp_prev) and point.dp_ds * dp_prev < 0:
+                    changed.append("fold")
+                missed = [name for name in changed if name not in located]
+                if missed:
+                    rec["event"], rec["confirmed"] = EVENTS[missed[0]], int(what == missed[0])
+                pending = []
+                self._append(rec, cont)
+                yield rec
+                mu_prev, tests_prev, dp_prev = mu, point.tests or {}, point.dp_ds
+        except ContinuationError:
+            # everything up to the last point was recorded; the curve ends there (e.g. the response is lost)
+            return
+
+    def _switched(self):
+        """From each confirmed period doubling of branch 0 (in order), switch onto the doubled branch and take
+        ``switch`` steps on it (branch j, periods 2 k)."""
+        pds = [r for r in self.branch_records(0) if int(r["event"]) == EVENTS["period_doubling"]
+               and int(r["confirmed"]) == 1]
+        for j, ev in enumerate(pds, start=1):
+            done = self.branch_records(j)
+            if len(done) > self.switch:                 # the first point and ``switch`` steps
+                continue
+            double = PeriodicShooting(self.problem.drive.with_parameter(self.parameter, float(ev["p"])), self.comm,
+                                      **dict(self.kw, periods=2 * self.problem.periods))
+            cont = Continuation(double, self.algorithm)
+            trailing = []
+            try:
+                if len(done) >= 2:                       # resume: the branch's last points and step size
+                    _, trailing = self._seed_from(cont, double, done, j)
+                else:
+                    try:
+                        self._seed_two(cont, double, ev)
+                    except ConvergenceError:
+                        continue        # no doubled response found from this doubling (table: no branch j)
+                    if not done:
+                        x1, p1 = double.state(cont.history[-1][0])
+                        first = _Point(p1, 0.0, math.nan, 1, double.report(cont.history[-1][0]),
+                                       double.test_functions(cont.history[-1][0]))
+                        rec = self._record(double, first, j)
+                        self._append(rec, cont)
+                        yield rec
+                try:
+                    steps = self.switch - max(len(done) - len(trailing) - 1, 0)
+                    for point in cont.run(max_steps=steps):
+                        if trailing and point.event is not None and \
+                                self._same_event(trailing[0], point, EVENTS[point.event]):
+                            trailing.pop(0)
+                            continue
+                        rec = self._record(double, point, j, point.event, -1 if point.event is None else 0)
+                        self._append(rec, cont)
+                        yield rec
+                except ContinuationError:
+                    pass
+            finally:
+                cont.destroy()
+                double.destroy()
+
+    def _seed_two(self, cont, double, ev):
+        """The two points onto the doubled branch from the period doubling ``ev`` (:func:`switch_to_doubled`)."""
+        Z0, Z1 = switch_to_doubled(self.problem, double, np.asarray(ev["x"]), float(ev["p"]))
+        cont.seed([Z0, Z1], [0.0, 0.0])
+        Z0.destroy()
+        Z1.destroy()
+
+    def destroy(self):
+        self.problem.destroy()
+
+    # --- tables ---------------------------------------------------------------------------------------------
+    def table(self):
+        recs = self.store.records
+        d = json.loads(str(self.store.constants["drive"]))
+        lines = [f"schema: {RESPONSE_FORMAT}; drive {d}; continuation in {self.parameter} towards {self.p_end:g}; "
+                 f"{len(recs)} records.\n",
+                 "Events (fold, period doubling, Neimark-Sacker) located by the continuation layer, or 'bracketed' "
+                 "between the listed point and the previous one where the layer's location failed (a corner of the "
+                 "curve) or on a grid; 'confirmed': the multipliers of the regular points on both sides differ by the "
+                 "crossing the event names (1), or not (0: e.g. two crossings at once, a neutral saddle).\n",
+                 "| branch | periods | event | " + self.parameter + " | confirmed | rho | residual | force_right | "
+                 "amp_max |", "|---|---|---|---|---|---|---|---|---|"]
+        arclength = str(self.store.constants.get("mode", "arclength")) == "arclength"
+        for r in recs:
+            if int(r["event"]) == 0 and int(r["branch"]) == 0:
+                continue
+            if int(r["branch"]) > 0 and int(r["event"]) == 0 and r is not self.branch_records(int(r["branch"]))[0]:
+                continue
+            name = EVENT_NAMES[int(r["event"])] or "first point"
+            dp = float(r["dp_ds"])
+            if int(r["event"]) and (not arclength or (math.isfinite(dp) and dp != 0.0)):
+                name += " (bracketed)"
+            lines.append(f"| {int(r['branch'])} | {int(r['periods'])} | {name} | {float(r['p']):.8f} | "
+                         f"{int(r['confirmed'])} | {float(r['rho']):.6f} | {float(r['residual']):.1e} | "
+                         f"{float(r['force_right']):.4g} | {float(r['amp_max']):.4g} |")
+        main = self.branch_records(0)
+        if main:
+            stable = sum(1 for r in main if float(r["rho"]) < 1 - TOL_MU)
+            lines.append("")
+            lines.append(f"Branch 0: {len(main)} points, {self.parameter} from {float(main[0]['p']):.6g} to "
+                         f"{float(main[-1]['p']):.6g}; stable (rho < 1 - {TOL_MU:g}) at {stable}; max residual "
+                         f"{max(float(r['residual']) for r in main):.1e}; max force_right "
+                         f"{np.nanmax([float(r['force_right']) for r in main]):.4g}.")
+        for j in sorted({int(r["branch"]) for r in recs} - {0}):
+            br = self.branch_records(j)
+            lines.append(f"Branch {j} (period {int(br[0]['periods'])} T): {len(br)} points, {self.parameter} from "
+                         f"{float(br[0]['p']):.6g} to {float(br[-1]['p']):.6g}, max residual "
+                         f"{max(float(r['residual']) for r in br):.1e}.")
+        return "\n".join(lines) + "\n"
+
+
+class _Point:
+    """A ContinuationPoint-like record of a seeded point (branch switching)."""
+
+    def __init__(self, parameter, s, dp_ds, iterations, report, tests, event=None):
+        self.parameter, self.s, self.dp_ds, self.iterations = parameter, s, dp_ds, iterations
+        self.report, self.tests, self.event = report, tests, event
+
+
+# --- small-amplitude resonances of the precompressed chain ---------------------------------------------------------
+def linear_chain(drive):
+    """(M, C, Kmat, f) of the linearised chain of a drive with a harmonic actuator at the left and a wall (or free
+    end) at the right: M x'' + C x' + Kmat x = Re(f e^{i omega t}) with f = (K + i omega eta) a e_1, K = V''(0)."""
+    model, N = drive.model, drive.N
+    K = model.law.linear_stiffness
+    L = 2 * np.eye(N) - np.eye(N, k=1) - np.eye(N, k=-1)
+    if drive.right == "free":
+        L[-1, -1] = 1.0
+    M = np.diag(model.mass(np.arange(N)))
+    C = model.damping.gamma * np.eye(N) + model.damping.eta * L
+    return M, C, K * L, K
+
+
+def linear_response(drive, omega=None):
+    """Complex amplitudes X (x_n = Re X_n e^{i omega t}) of the damped linear chain driven by a cos(omega t)."""
+    M, C, Kmat, K = linear_chain(drive)
+    w = drive.omega if omega is None else omega
+    f = np.zeros(drive.N, complex)
+    f[0] = (K + 1j * w * drive.model.damping.eta) * drive.amplitude
+    return np.linalg.solve(-w * w * M + 1j * w * C + Kmat, f)
+
+
+def normal_modes(drive):
+    """The undamped linear chain's frequencies: sqrt of the eigenvalues of M^-1 Kmat (unit masses and a wall:
+    2 sqrt(K) sin(k pi / (2 (N + 1))))."""
+    M, _, Kmat, _ = linear_chain(drive)
+    return np.sqrt(np.sort(np.linalg.eigvals(np.linalg.solve(M, Kmat)).real))
+
+
+def linear_multipliers(drive, T):
+    """exp(T lambda) for the eigenvalues lambda of the linear damped chain's first-order matrix (sorted by
+    decreasing modulus, then argument)."""
+    M, C, Kmat, _ = linear_chain(drive)
+    N = drive.N
+    Mi = np.linalg.inv(M)
+    A = np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ Kmat, -Mi @ C]])
+    return np.exp(T * np.linalg.eigvals(A))
+
+
+def _golden_max(f, a, b, iterations=40):
+    """The maximiser of a unimodal f on [a, b] by golden section (interval shrinks 0.618^iterations)."""
+    g = (math.sqrt(5) - 1) / 2
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = f(c), f(d)
+    for _ in range(iterations):
+        if fc > fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = f(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = f(d)
+    return 0.5 * (a + b)
+
+
+def _match(mu, ref):
+    """max |mu_i - ref_j| after matching each multiplier to the nearest of the reference set (greedy)."""
+    ref = list(np.asarray(ref, complex))
+    worst = 0.0
+    for m in np.asarray(mu, complex):
+        j = int(np.argmin([abs(m - r) for r in ref]))
+        worst = max(worst, abs(m - ref[j]))
+        ref.pop(j)
+    return worst
+
+
+class LinearResonances:
+    """Small-amplitude responses of a precompressed chain between an actuator a cos(omega t) and a wall: for each
+    normal mode k, the peak of the last bead's amplitude from shooting responses of the Hertz chain against the
+    damped linear chain's (closed form: complex solve) and against omega_k; the multipliers at the peak against
+    exp(T lambda) of the linear chain. Records per mode (module docstring)."""
+
+    def __init__(self, drive, comm, output, mode="new", modes=None, tol=1e-10, rtol=1e-12, golden=40):
+        if not drive.model.delta0 > 0:
+            raise ParameterError("delta0", drive.model.delta0, "the linear resonances need a precompressed chain "
+                                 "(delta0 > 0)")
+        if drive.N > MAX_DENSE_BEADS:
+            raise ParameterError("N", drive.N, f"at most {MAX_DENSE_BEADS} beads (dense linear chain and multipliers)")
+        self.drive, self.comm = drive, comm
+        self.omega_k = normal_modes(drive)
+        self.modes = list(range(1, drive.N + 1)) if modes is None else [int(k) for k in modes]
+        for k in self.modes:
+            if not 1 <= k <= drive.N:
+                raise ParameterError("modes", k, f"a mode number in [1, N] = [1, {drive.N}]")
+        self.golden = int(golden)
+        self.problem = PeriodicShooting(drive, comm, parameter="omega", tol=tol,
+                                        tolerances=tolerances_of(rtol, drive.amplitude))
+        constants = dict(drive=json.dumps(drive.describe(), sort_keys=True, default=str), modes=self.modes, tol=tol,
+                         rtol=rtol)
+        self._open = lambda: _store(output, RESONANCE_FORMAT, constants, constants, RESONANCE_FIELDS, comm, mode,
+                                        dtypes={"k": np.int64, "evaluations": np.int64},
+                                        what="driven-resonances file")
+        self.store = None
+        self._x = None
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def window(self, k):
+        w = self.omega_k
+        lo = w[k - 2] if k >= 2 else 0.0
+        hi = w[k] if k < len(w) else w[k - 1] + (w[k - 1] - lo)
+        return w[k - 1] - 0.4 * (w[k - 1] - lo), w[k - 1] + 0.4 * (hi - w[k - 1])
+
+    def shooting_amplitude(self, omega):
+        """|X_N| / a of the response at omega: the first harmonic of the last bead from x_N(0), x_N'(0)."""
+        prob = self.problem
+        prob.set_drive(prob.drive.with_parameter("omega", omega))
+        x0 = self._x if self._x is not None else np.zeros((self.drive.N, 2))
+        r = prob.solve_response(x0)
+        self._x = r.x
+        self._evals += 1
+        xN, vN = r.x[-1]
+        return math.hypot(xN, vN / omega) / self.drive.amplitude
+
+    def run(self):
+        self.open()
+        done = {int(r["k"]) for r in self.store.records}
+        for k in self.modes:
+            if k in done:
+                continue
+            a, b = self.window(k)
+            lin = lambda w: abs(linear_response(self.drive, w)[-1]) / self.drive.amplitude   # noqa: E731
+            peak_lin = _golden_max(lin, a, b, 60)
+            self._evals, self._x = 0, None
+            peak = _golden_max(self.shooting_amplitude, a, b, self.golden)
+            amp = self.shooting_amplitude(peak)
+            prob = self.problem
+            mu = prob.multipliers(x=self._x, p=peak)
+            ref = linear_multipliers(prob.drive, prob.T)
+            rec = dict(k=k, omega_k=float(self.omega_k[k - 1]), peak_linear=peak_lin, peak_shooting=peak,
+                       amp_linear=lin(peak_lin), amp_shooting=amp, mu_error=_match(mu, ref),
+                       evaluations=self._evals)
+            self.store.append(rec)
+            yield rec
+
+    def table(self):
+        d = self.drive
+        lines = [f"schema: {RESONANCE_FORMAT}; precompressed chain alpha = {d.model.alpha:g}, delta0 = "
+                 f"{d.model.delta0:g} (K = V''(0) = {d.model.law.linear_stiffness:.6g}), N = {d.N}, masses "
+                 f"{list(d.model.masses)}, gamma = {d.model.damping.gamma:g}, eta = {d.model.damping.eta:g}; actuator "
+                 f"a cos(omega t), a = {d.amplitude:g}; right end {d.right}.\n",
+                 "omega_k: normal modes of the undamped linear chain (closed form); peak (linear): maximum over omega "
+                 "of the last bead's |X_N| for the damped linear chain (complex solve, golden section); peak "
+                 "(shooting): the same from periodic responses of the Hertz chain (Newton shooting, golden section); "
+                 "mu error: max distance of the response's Floquet multipliers at its peak to exp(T lambda) of the "
+                 "linear damped chain.\n",
+                 "| k | omega_k | peak (linear) | peak - omega_k | peak (shooting) | shooting - linear | "
+                 "|X_N|/a linear | |X_N|/a shooting | mu error | solves |", "|---|---|---|---|---|---|---|---|---|---|"]
+        for r in sorted(self.store.records, key=lambda r: int(r["k"])):
+            lines.append(f"| {int(r['k'])} | {float(r['omega_k']):.8f} | {float(r['peak_linear']):.8f} | "
+                         f"{float(r['peak_linear']) - float(r['omega_k']):.2e} | {float(r['peak_shooting']):.8f} | "
+                         f"{float(r['peak_shooting']) - float(r['peak_linear']):.1e} | {float(r['amp_linear']):.6g} | "
+                         f"{float(r['amp_shooting']):.6g} | {float(r['mu_error']):.1e} | {int(r['evaluations'])} |")
+        return "\n".join(lines) + "\n"
+
+    def destroy(self):
+        self.problem.destroy()
+
+
+# --- the paper's exact boundary driving ------------------------------------------------------------------------------
+class WaveEnds:
+    """The refined travelling waves of a periodic chain of P beads (refinement file) imposed at both ends of finite
+    undamped chains of N beads (:func:`~hertzpetsc.driven.wave_ends_drive`, the end signals from the refined
+    wave's profile :func:`~hertzpetsc.driven.refined_profile`): the wave's residual in the driven chain, the
+    periodic response Newton finds from it, its multipliers over tau = 2 pi / omega, at each flow tolerance of
+    ``rtols``, against the periodic chain's rho(F_q)^(P/m) (dense Floquet modulo shift, same tolerance)."""
+
+    def __init__(self, branch, refined, qs, sizes, comm, output, mode="new", rtols=(1e-12, 1e-14), samples=8192,
+                 nmult=12, branch_path="", refined_path=""):
+        self.branch, self.refined, self.comm = branch, refined, comm
+        self.qs, self.sizes = [float(q) for q in qs], [int(N) for N in sizes]
+        P = refined.N
+        for N in self.sizes:
+            if not 1 <= N <= P - 2:
+                raise ParameterError("sizes", N, f"the driven chain must be a window of the periodic chain: "
+                                     f"1 <= N <= P - 2 = {P - 2}")
+        for q in self.qs:
+            if not refined.has(q):
+                raise ParameterError("q", q, f"the refinement file has no refined wave at q = {q:.12g}")
+        self.rtols = [float(r) for r in rtols]
+        self.samples, self.nmult = int(samples), int(nmult)
+        configure_options(comm)
+        constants = dict(alpha=branch.alpha, P=P, branch=branch_path, refined=refined_path, samples=self.samples,
+                         rtols=self.rtols)
+        self._open = lambda: _store(output, WAVE_ENDS_FORMAT, constants, dict(alpha=branch.alpha, P=P,
+                                                                                    samples=self.samples),
+                                        WAVE_ENDS_FIELDS, comm, mode, dtypes={"m": np.int64, "N": np.int64,
+                                                                              "iterations": np.int64,
+                                                                              "outside": np.int64,
+                                                                              "multipliers": complex},
+                                        shapes={"multipliers": (self.nmult,)}, what="driven wave-ends file")
+        self.store = None
+        self._rho_periodic = {}
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def periodic_rho(self, orbit, rtol):
+        key = (round(orbit.q, 12), rtol)
+        if key not in self._rho_periodic:
+            dense = DenseFloquet(orbit.spec, self.comm, tolerances_of(rtol))
+            try:
+                sp = dense.spectrum(orbit)
+            finally:
+                dense.destroy()
+            self._rho_periodic[key] = sp.rho ** (orbit.N / orbit.m)
+        return self._rho_periodic[key]
+
+    def _done(self):
+        return {(round(float(r["q"]), 12), int(r["N"]), float(r["rtol"])) for r in self.store.records}
+
+    def run(self):
+        self.open()
+        done = self._done()
+        for q in self.qs:
+            orbit = self.refined.orbit(self.branch.point(q))
+            profile = None
+            for N in self.sizes:
+                for rtol in self.rtols:
+                    if (round(q, 12), N, rtol) in done:
+                        continue
+                    if profile is None:
+                        profile = refined_profile(orbit, self.comm, self.samples)
+                    drive = wave_ends_drive(orbit.spec.model, N, profile, orbit.omega, q)
+                    prob = PeriodicShooting(drive, self.comm, tol=1e4 * rtol, tolerances=tolerances_of(rtol))
+                    try:
+                        x0 = orbit.x[1:N + 1]
+                        imposed = prob.residual(x0)
+                        r = prob.solve_response(x0)
+                        mu = prob.multipliers(x=r.x, p=orbit.omega)
+                    finally:
+                        prob.destroy()
+                    rec = dict(q=q, m=orbit.m, N=N, rtol=rtol, imposed=imposed, residual=r.residual,
+                               moved=float(np.max(np.abs(r.x - x0)) / np.max(np.abs(x0))), iterations=r.iterations,
+                               rho=float(np.max(np.abs(mu))), outside=int(np.sum(np.abs(mu) > 1 + TOL_MU)),
+                               rho_periodic=self.periodic_rho(orbit, rtol), multipliers=_padded(mu, self.nmult))
+                    self.store.append(rec)
+                    yield rec
+
+    def table(self):
+        from .floquet import q_label
+        recs = sorted(self.store.records, key=lambda r: (-float(r["q"]), int(r["N"]), -float(r["rtol"])))
+        P = self.refined.N
+        lines = [f"schema: {WAVE_ENDS_FORMAT}; refined waves of the periodic chain of P = {P} beads (alpha = "
+                 f"{self.branch.alpha:g}) imposed at both ends of N beads (beads 0 and N + 1 move as the wave's, from "
+                 f"its profile sampled on >= {self.samples} points), undamped. rho: largest |multiplier| of the "
+                 f"driven chain over tau = 2 pi / omega; rho periodic: rho(F_q)^(P/m), the periodic chain over tau. "
+                 "'imposed': residual ||P(X) - X||_inf / ||X||_inf of the refined wave itself in the driven chain; "
+                 "'residual': after Newton. Driving the ends stabilises the wave where rho < rho periodic.\n",
+                 "| q | m | N | rtol | imposed | residual | moved | rho | outside | rho periodic | driven / periodic |",
+                 "|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in recs:
+            lines.append(f"| {q_label(float(r['q']))} ({float(r['q']):.4f}) | {int(r['m'])} | {int(r['N'])} | "
+                         f"{float(r['rtol']):.0e} | {float(r['imposed']):.1e} | {float(r['residual']):.1e} | "
+                         f"{float(r['moved']):.1e} | {float(r['rho']):.8f} | {int(r['outside'])} | "
+                         f"{float(r['rho_periodic']):.8f} | {float(r['rho']) / float(r['rho_periodic']):.4f} |")
+        return "\n".join(lines) + "\n"
+
+
+# --- generation of travelling waves by simple signals -----------------------------------------------------------------
+def make_waveform(name, width=0.5):
+    if name == "harmonic":
+        return HarmonicWave()
+    if name == "half_sine":
+        return HalfSinePulses(width)
+    raise ParameterError("waveform", name, "one of " + ", ".join(WAVEFORMS))
+
+
+class Generation:
+    """A long damped chain driven at one end (wall at the other) by simple signals: for each waveform, omega,
+    amplitude and gamma, the periodic response (run-in transient from rest, then Newton: dense for N <= 200,
+    Newton-Krylov above), its multipliers, and its bulk (beads in the fraction ``bulk`` of the chain) against the
+    branch's travelling-wave family (:class:`~hertzpetsc.driven.BranchFamily`): local wavenumber and amplitude,
+    the amplitude the family has at that (q, omega), the shape distance, their trends along the chain, and the
+    static and dynamic strains. The cases are dealt to the ranks (each on one rank)."""
+
+    def __init__(self, branch, model, N, waveforms, omegas, amplitudes, gammas, comm, output, mode="new", run_in=60,
+                 tol=1e-9, rtol=1e-12, bulk=(0.25, 0.75), samples=128, width=0.5, branch_path=""):
+        self.branch, self.model, self.N, self.comm = branch, model, int(N), comm
+        # each case on one rank: the state flow and the Jacobian's tangent flow (2N columns up to 200 beads, else one)
+        check_chain_memory(self.N, PETSc.COMM_SELF, columns=2 + 2 * self.N if self.N <= 200 else 3, name="N")
+        self.family = BranchFamily(branch)
+        self.cases = [(w, om, a, g) for w in waveforms for om in omegas for a in amplitudes for g in gammas]
+        for w in waveforms:
+            make_waveform(w, width)
+        self.width = width
+        self.run_in, self.tol, self.rtol, self.samples = int(run_in), tol, rtol, int(samples)
+        lo, hi = bulk
+        if not 0 <= lo < hi <= 1:
+            raise ParameterError("bulk", bulk, "a fraction (lo, hi) of the chain with 0 <= lo < hi <= 1")
+        self.bulk = (lo, hi)
+        configure_options(PETSc.COMM_SELF)
+        constants = dict(model=json.dumps(model.describe(), sort_keys=True), N=self.N, branch=branch_path,
+                         bulk=list(self.bulk), run_in=self.run_in, width=width)
+        identity = {k: v for k, v in constants.items() if k != "branch"}
+        self._open = lambda: _store(output, GENERATION_FORMAT, constants, identity,
+                                        GENERATION_FIELDS, comm, mode,
+                                        dtypes={"waveform": np.int64, "ok": np.int64, "iterations": np.int64},
+                                        shapes={"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)},
+                                        what="driven-generation file")
+        self.store = None
+
+    def open(self):
+        if self.store is None:
+            self.store = self._open()
+        return self
+
+    def _key(self, w, om, a, g):
+        return (WAVEFORMS.index(w), round(om, 12), round(a, 12), round(g, 12))
+
+    def case(self, w, om, a, g):
+        """One case on this rank (COMM_SELF): the record."""
+        from ..driven import Drive
+        drive = Drive(self.model.with_damping(g, self.model.damping.eta), self.N, make_waveform(w, self.width), a, om)
+        rec = dict(waveform=WAVEFORMS.index(w), omega=om, amplitude=a, gamma=g)
+        nan = dict(ok=0, runin_residual=math.nan, residual=math.nan, iterations=0, rho=math.nan, verdict=math.nan, amp_first=math.nan,
+                   decay=math.nan, q_bulk=math.nan, q_spread=math.nan, amp_bulk=math.nan, family_ratio=math.nan,
+                   distance=math.nan, distance_slope=math.nan, strain_static=math.nan, strain_dynamic=math.nan,
+                   A_n=np.full(self.N, np.nan), q_n=np.full(self.N, np.nan), D_n=np.full(self.N, np.nan))
+        jac = "dense" if self.N <= 200 else "mf"
+        prob = PeriodicShooting(drive, PETSc.COMM_SELF, jacobian=jac, floquet="dense" if jac == "dense" else "slepc",
+                                tol=self.tol, tolerances=tolerances_of(self.rtol, a))
+        try:
+            x = prob.run_in(np.zeros((self.N, 2)), self.run_in)
+            runin = prob.residual(x)
+            try:
+                r = prob.solve_response(x)
+            except ConvergenceError:
+                rec.update(nan, runin_residual=runin)
+                return rec
+            mu = prob.multipliers(x=r.x, p=om)
+            rho = float(np.max(np.abs(mu)))
+            t, X = prob.trajectory(r.x, self.samples)
+        finally:
+            prob.destroy()
+        pos = X[:, :, 0]
+        A, c, q = local_wave(t, pos, om)
+        D = np.full(self.N, np.nan)
+        lo, hi = int(self.bulk[0] * self.N), max(int(self.bulk[0] * self.N) + 2, int(self.bulk[1] * self.N))
+        bulk = np.arange(lo, min(hi, self.N - 1))
+        for n in bulk:
+            if np.isfinite(q[n]) and A[n] > 0:
+                D[n] = self.family.distance(t, pos[:, n], om, abs(q[n]))
+        strain = np.diff(pos, axis=1)[:-1]
+        static = strain.mean(axis=0)
+        dynamic = 0.5 * (strain.max(axis=0) - strain.min(axis=0))
+        fam = np.array([self.family.amplitude(abs(q[n]), om) if np.isfinite(q[n]) else np.nan for n in bulk])
+        good = A[bulk] > 0
+        decay = -np.polyfit(bulk[good], np.log(A[bulk][good]), 1)[0] if np.sum(good) >= 2 else math.nan
+        dfin = np.isfinite(D[bulk])
+        slope = np.polyfit(bulk[dfin], D[bulk][dfin], 1)[0] if np.sum(dfin) >= 2 else math.nan
+        qb = q[bulk]
+        rec.update(ok=1, runin_residual=runin, residual=r.residual, iterations=r.iterations, rho=rho,
+                   verdict={"stable": 1, "neutral": 0, "unstable": -1}[verdict(rho)], amp_first=float(A[0]),
+                   decay=float(decay), q_bulk=float(np.nanmedian(qb)),
+                   q_spread=float(np.nanpercentile(qb, 75) - np.nanpercentile(qb, 25)),
+                   amp_bulk=float(np.median(A[bulk])), family_ratio=float(np.nanmedian(A[bulk] / fam)),
+                   distance=float(np.nanmedian(D[bulk])), distance_slope=float(slope),
+                   strain_static=float(np.median(static[bulk])), strain_dynamic=float(np.median(dynamic[bulk])),
+                   A_n=A, q_n=q, D_n=D)
+        return rec
+
+    def run(self):
+        self.open()
+        done = {self._key(WAVEFORMS[int(r["waveform"])], float(r["omega"]), float(r["amplitude"]), float(r["gamma"]))
+                for r in self.store.records}
+        todo = [c for c in self.cases if self._key(*c) not in done]
+        costs = [self.run_in / c[1] for c in todo]
+        for _, rec in dealt(todo, costs, self.comm, lambda c: self.case(*c)):
+            self.store.append(rec)
+            yield rec
+
+    def linear_wavenumber(self, omega, strain):
+        """q of the linear wave at omega of the chain compressed by the static strain (nan above the band edge)."""
+        K = float(self.model.law.d2V(strain))           # V'' at the static strain (alpha |s|^(alpha-1), delta0 = 0)
+        if not K > 0:
+            return math.nan
+        edge = 2 * math.sqrt(K)
+        return 2 * math.asin(omega / edge) if omega < edge else math.nan
+
+    def table(self):
+        lines = [f"schema: {GENERATION_FORMAT}; chain {json.loads(str(self.store.constants['model']))}, N = {self.N}, "
+                 f"actuator at bead 0, wall at bead N + 1; periodic response after {self.run_in} periods of run-in "
+                 f"from rest and Newton; bulk = beads {self.bulk[0]:g} N .. {self.bulk[1]:g} N.\n",
+                 "q: median local wavenumber over the bulk (bead-to-bead time lag x omega); A/A_fam: median ratio of "
+                 "the bead amplitude to the amplitude of the branch's wave with that q at the driving frequency "
+                 "(1: on the family); D: median RMS distance of the normalised bead motion to the branch's profile "
+                 "U_q (0: the wave's shape); decay: -d ln A_n/dn; strains: static (mean x_{n+1} - x_n, < 0 "
+                 "compressed) and dynamic ((max - min)/2); q lin: the wavenumber of the linear wave at omega in the "
+                 "chain statically compressed by the bulk's static strain s: omega = 2 sqrt(K) sin(q/2), K = V''(s) = "
+                 "alpha |s|^(alpha-1) (the actuator's mean push compresses the chain against the wall).\n",
+                 "| signal | omega | a | gamma | periodic | rho | q | q lin | q IQR | A bulk | A/A_fam | D | dD/dn | decay | "
+                 "static strain | dynamic strain |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in sorted(self.store.records, key=lambda r: (int(r["waveform"]), float(r["gamma"]), float(r["amplitude"]),
+                                                           float(r["omega"]))):
+            if not int(r["ok"]):
+                lines.append(f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
+                             f"{float(r['gamma']):g} | no (run-in residual {float(r['runin_residual']):.1e}) "
+                             "| | | | | | | | | | | |")
+                continue
+            lines.append(f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
+                         f"{float(r['gamma']):g} | yes | {float(r['rho']):.4f} | {float(r['q_bulk']):.4f} | "
+                         f"{self.linear_wavenumber(float(r['omega']), float(r['strain_static'])):.4f} | "
+                         f"{float(r['q_spread']):.3f} | {float(r['amp_bulk']):.3g} | {float(r['family_ratio']):.3g} | "
+                         f"{float(r['distance']):.3f} | {float(r['distance_slope']):.1e} | {float(r['decay']):.3f} | "
+                         f"{float(r['strain_static']):.2e} | {float(r['strain_dynamic']):.2e} |")
+        return "\n".join(lines) + "\n"
+
+
+# --- the drivers' shared options -------------------------------------------------------------------------------------
+def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, signal="harmonic"):
+    """Declare and read the options that define a driven chain (for the drivers; ``opts`` an
+    :class:`~hertzpetsc.options.AppOptions`): the Hertz law (-alpha, -delta0), -N, -masses, -gamma, -eta, the
+    actuator's -signal (harmonic, half_sine with -width, samples with -signal_samples over one closed period),
+    -amplitude, -omega and the far end -right (wall, free). Returns the :class:`~hertzpetsc.driven.Drive`
+    (ParameterError naming the parameter for a value out of range: negative damping, amplitude < 0, omega <= 0,
+    a sampled signal that is not periodic)."""
+    from ..driven import Drive, SampledWave
+    from ..model import LatticeModel
+    alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
+    d0 = opts.real("delta0", delta0, "precompression (static overlap; 0: the sonic vacuum)")
+    n = opts.integer("N", N, "beads between the actuator and the far end", minimum=1)
+    masses = opts.numbers("masses", "1", "mass pattern (repeated along the chain)", expr=False)
+    gamma = opts.real("gamma", gamma, "on-site damping (force -gamma x_n')")
+    eta = opts.real("eta", 0.0, "damping between neighbours (a dashpot in every bond)")
+    kind = opts.string("signal", signal, "the actuator's waveform", choices=("harmonic", "half_sine", "samples"))
+    width = opts.real("width", 0.5, "half_sine: pulse duration in periods")
+    samples = opts.numbers("signal_samples", "0,1,0,-1,0", "samples: the waveform over one closed period (the last "
+                           "sample closes the period)")
+    a = opts.real("amplitude", amplitude, "actuator amplitude a >= 0")
+    om = opts.real("omega", omega, "driving frequency omega > 0", expr=True)
+    right = opts.string("right", "wall", "the far end", choices=("wall", "free"))
+    if opts.help:
+        return None
+    model = LatticeModel.hertz(alpha, tuple(masses), d0, gamma, eta)
+    waveform = {"harmonic": HarmonicWave, "half_sine": lambda: HalfSinePulses(width),
+                "samples": lambda: SampledWave(tuple(samples))}[kind]()
+    return Drive(model, n, waveform, a, om, right)

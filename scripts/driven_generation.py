@@ -1,0 +1,89 @@
+#!/usr/bin/env python3
+"""The paper's open question (Discussion, last paragraph): which simple driving signals generate periodic
+travelling waves in a damped chain? A long chain driven at one end (wall at the other) by a harmonic signal or a
+train of half-sine pulses: the periodic response, its stability, and how close its bulk is to the branch's
+travelling waves (local wavenumber and amplitude, shape distance, decay along the chain), over the driving
+frequency, amplitude and damping.
+
+    mpiexec -n 2 python scripts/driven_generation.py [-branch results/branch_alpha1.5.npz] [-N 60] [-alpha 1.5]
+        [-delta0 0] [-eta 0] [-signals harmonic,half_sine] [-width 0.5] [-omegas 0.2,0.3,0.5]
+        [-amplitudes 0.1,0.5] [-gammas 0.02,0.05] [-run_in 60] [-tol 1e-9] [-rtol 1e-12] [-bulk 0.25,0.75]
+        [-samples 128] [-output results/driven_generation.npz] [-table results/driven_generation.md]
+        [-figures figures] [-resume | -force]
+
+Each case: -run_in driving periods from rest, Newton (dense Jacobian for N <= 200, Newton-Krylov above), the
+multipliers, then the response sampled -samples times per period. The cases are dealt to the ranks. Records:
+schema hertzpetsc-driven-generation-1. Solver prefixes: -drive_ (Newton SNES and state flow), -floquet_ (tangent
+flow, SLEPc for N > 200).
+"""
+import sys
+
+from hertzpetsc.start import init_petsc
+
+init_petsc(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.branch import Branch  # noqa: E402
+from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.driven import WAVEFORMS, Generation  # noqa: E402
+
+ROLES = {"drive_": ("Newton on P(X) - X and the state flow", ("snes", "ts")),
+         "floquet_": ("the tangent flow and SLEPc's eigensolver", ("ts", "eps"))}
+
+
+def main():
+    opts = AppOptions(__doc__, ROLES)
+    branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file (the travelling-wave family)")
+    N = opts.integer("N", 60, "beads", minimum=1)
+    alpha = opts.real("alpha", 1.5, "Hertz exponent (must be the branch's)", valid=(lambda x: x > 1, "> 1"))
+    delta0 = opts.real("delta0", 0.0, "precompression")
+    eta = opts.real("eta", 0.0, "damping between neighbours")
+    signals = opts.words("signals", "harmonic,half_sine", "actuator waveforms", choices=WAVEFORMS)
+    width = opts.real("width", 0.5, "half_sine: pulse duration in periods")
+    omegas = opts.numbers("omegas", "0.2,0.3,0.5", "driving frequencies", valid=(lambda x: x > 0, "> 0"),
+                          distinct=True)
+    amps = opts.numbers("amplitudes", "0.1,0.5", "actuator amplitudes", valid=(lambda x: x >= 0, ">= 0"),
+                        distinct=True)
+    gammas = opts.numbers("gammas", "0.02,0.05", "on-site damping", valid=(lambda x: x >= 0, ">= 0"), distinct=True)
+    run_in = opts.integer("run_in", 60, "driving periods of transient from rest", minimum=0)
+    tol = opts.real("tol", 1e-9, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    bulk = opts.numbers("bulk", "0.25,0.75", "the bulk: fractions (lo, hi) of the chain", expr=False)
+    samples = opts.integer("samples", 128, "samples per period", minimum=8)
+    output, mode, table_path, figures = opts.record_table_figures(
+        "results/driven_generation.npz", "driven-generation file", "results/driven_generation.md",
+        "driven_generation.png")
+    opts.done()
+    comm = PETSc.COMM_WORLD
+    prepare_outputs(comm, table_path, figures=figures)
+    branch = Branch.load(branch_path, comm)
+    model = LatticeModel.hertz(alpha, (1.0,), delta0, 0.0, eta)
+    if abs(alpha - branch.alpha) > 1e-12:
+        from hertzpetsc.errors import ParameterError
+        raise ParameterError("-alpha", alpha, f"must be the branch's exponent {branch.alpha:g}")
+    if len(bulk) != 2:
+        from hertzpetsc.errors import ParameterError
+        raise ParameterError("-bulk", bulk, "two fractions lo,hi of the chain")
+    study = Generation(branch, model, N, signals, omegas, amps, gammas, comm, output, mode, run_in, tol, rtol,
+                       tuple(bulk), samples, width, branch_path)
+    opts.check_unused()
+    study.open()
+    print0(f"# {'signal':>9} {'omega':>6} {'a':>6} {'gamma':>6} {'ok':>3} {'rho':>8} {'q':>7} {'A/A_fam':>8} "
+           f"{'D':>6}")
+    for r in study.run():
+        print0(f"  {WAVEFORMS[int(r['waveform'])]:>9} {float(r['omega']):6.3g} {float(r['amplitude']):6.3g} "
+               f"{float(r['gamma']):6.3g} {int(r['ok']):3d} {float(r['rho']):8.4f} {float(r['q_bulk']):7.4f} "
+               f"{float(r['family_ratio']):8.3g} {float(r['distance']):6.3f}")
+    text = study.table()
+    records = study.store.records
+    write_text(table_path, text, comm)
+    if figures and comm.getRank() == 0:
+        from hertzpetsc import plotting
+        print("wrote " + plotting.plot_driven_generation(records, figures), flush=True)
+    print0(text)
+
+
+if __name__ == "__main__":
+    guarded_main(main)

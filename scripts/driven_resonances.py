@@ -1,0 +1,63 @@
+#!/usr/bin/env python3
+"""Small-amplitude resonances of a precompressed chain between an actuator a cos(omega t) and a wall, against the
+linear chain's normal modes omega_k = 2 sqrt(K/m) sin(k pi / (2 (N + 1))) (uniform masses; K = V''(0) =
+alpha delta0^(alpha - 1)) and the damped linear chain's response (closed form: the complex linear system).
+
+    python scripts/driven_resonances.py [-N 20] [-alpha 1.5] [-delta0 1] [-gamma 0.01] [-eta 0] [-masses 1]
+        [-amplitude 1e-6] [-modes 1,2,...] [-golden 40] [-tol 1e-10] [-rtol 1e-12]
+        [-output results/driven_resonances.npz] [-table results/driven_resonances.md] [-figures figures]
+        [-resume | -force]
+
+For each mode k: the peak of the last bead's amplitude over omega near omega_k (golden section) from Newton-shooting
+periodic responses of the Hertz chain, and from the damped linear chain; the multipliers at the peak against
+exp(T lambda) of the linear damped chain. Records: schema hertzpetsc-driven-resonances-1. Solver prefixes: -drive_
+(Newton SNES and state flow), -floquet_ (tangent flow).
+"""
+import sys
+
+from hertzpetsc.start import init_petsc
+
+init_petsc(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.driven import LinearResonances, drive_options  # noqa: E402
+
+ROLES = {"drive_": ("Newton on P(X) - X and the state flow", ("snes", "ts")),
+         "floquet_": ("the tangent flow (Jacobian, multipliers)", ("ts",))}
+
+
+def main():
+    opts = AppOptions(__doc__, ROLES)
+    drive = drive_options(opts, N=20, delta0=1.0, gamma=0.01, amplitude=1e-6, omega=1.0)
+    modes = opts.numbers("modes", "", "mode numbers k (default: all 1..N)", expr=False, kind=int,
+                         valid=(lambda k: k >= 1, ">= 1"), distinct=True, minimum_count=0)
+    golden = opts.integer("golden", 40, "golden-section steps per peak (shooting)", minimum=4)
+    tol = opts.real("tol", 1e-10, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    output, mode, table_path, figures = opts.record_table_figures(
+        "results/driven_resonances.npz", "driven-resonances file", "results/driven_resonances.md",
+        "driven_resonances.png")
+    opts.done()
+    comm = PETSc.COMM_WORLD
+    prepare_outputs(comm, table_path, figures=figures)
+    study = LinearResonances(drive, comm, output, mode, modes or None, tol, rtol, golden)
+    opts.check_unused()
+    study.open()
+    print0(f"# {'k':>3} {'omega_k':>12} {'peak linear':>12} {'peak shooting':>14} {'mu error':>9}")
+    for r in study.run():
+        print0(f"  {int(r['k']):3d} {float(r['omega_k']):12.8f} {float(r['peak_linear']):12.8f} "
+               f"{float(r['peak_shooting']):14.8f} {float(r['mu_error']):9.1e}")
+    text = study.table()
+    records = study.store.records
+    study.destroy()
+    write_text(table_path, text, comm)
+    if figures and comm.getRank() == 0:
+        from hertzpetsc import plotting
+        print("wrote " + plotting.plot_driven_resonances(records, figures), flush=True)
+    print0(text)
+
+
+if __name__ == "__main__":
+    guarded_main(main)

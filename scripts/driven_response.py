@@ -1,0 +1,82 @@
+#!/usr/bin/env python3
+"""Frequency (or amplitude) response of a driven, damped chain (issue 22): periodic responses by shooting, continued
+with their Floquet multipliers, folds, period doublings, Neimark-Sacker points and period-doubled branches.
+
+    mpiexec -n 2 python scripts/driven_response.py -N 20 -delta0 1 -gamma 0.02 -amplitude 0.2 -omega 0.3 -p_end 0.5
+
+First response: -run_in periods from rest, then Newton; then pseudo-arclength to -p_end (events located and
+confirmed by the multipliers on both sides) or -points values (-mode grid; events bracketed); -switch S steps on
+each period-doubled branch. Records: hertzpetsc-driven-response-1 (docs/schemas.md).
+"""
+import os
+import sys
+
+from hertzpetsc.start import init_petsc
+
+init_petsc(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.driven import EVENT_NAMES, ResponseCurve, corner_arclength, drive_options  # noqa: E402
+
+ROLES = {"drive_": ("Newton on P(X) - X (bordered) and the state flow", ("snes", "ts")),
+         "floquet_": ("the tangent flow (Jacobian, multipliers) and SLEPc's eigensolver", ("ts", "eps"))}
+
+
+def main():
+    opts = AppOptions(__doc__, ROLES)
+    drive = drive_options(opts)
+    parameter = opts.string("parameter", "omega", "continuation parameter", choices=("omega", "amplitude"))
+    p_end = opts.real("p_end", 0.3, "end value of the parameter", expr=True)
+    mode = opts.string("mode", "arclength", "pseudo-arclength or a grid of values", choices=("arclength", "grid"))
+    points = opts.integer("points", 200, "grid mode: number of parameter values (start and p_end included)", minimum=2)
+    periods = opts.integer("periods", 1, "response period in driving periods", minimum=1)
+    jacobian = opts.string("jacobian", "dense", "Newton's Jacobian", choices=("dense", "mf"))
+    floquet = opts.string("floquet", "dense", "multipliers", choices=("dense", "slepc", "none"))
+    nev = opts.integer("nev", 8, "SLEPc: dominant multipliers", minimum=1)
+    tol = opts.real("tol", 1e-10, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    ds = opts.real("ds", 0.02, "first arclength step")
+    ds_max = opts.real("ds_max", 0.05, "largest arclength step")
+    max_corrector = opts.real("max_corrector", 1.5, "largest corrector distance, in steps (corners of the curve)",
+                              valid=(lambda x: x > 0, "> 0"))
+    run_in = opts.integer("run_in", 50, "driving periods of transient from rest before the first Newton", minimum=0)
+    samples = opts.integer("samples_per_period", 64, "samples per period for forces and energy balance (0: none)",
+                           minimum=0)
+    switch = opts.integer("switch", 0, "steps on each period-doubled branch (branch switching)", minimum=0)
+    max_steps = opts.integer("max_steps", 400, "largest number of continuation steps", minimum=1)
+    output, omode, table_path, figures = opts.record_table_figures(
+        "results/driven_response.npz", "driven-response file", "results/driven_response.md", "the response figure")
+    name = opts.string("name", "driven_response", "figure name (without .png)")
+    opts.done()
+    comm = PETSc.COMM_WORLD
+    prepare_outputs(comm, table_path, figures=figures)
+    p0 = drive.value(parameter)
+    grid = None
+    if mode == "grid":
+        grid = [p0 + (p_end - p0) * k / (points - 1) for k in range(1, points)]
+    algorithm = corner_arclength(ds, ds_max, max_corrector)
+    study = ResponseCurve(drive, parameter, p_end, comm, output, omode, periods, jacobian, floquet, nev, tol, rtol,
+                          algorithm, grid, run_in, samples, switch, max_steps)
+    opts.check_unused()
+    study.open()
+    print0(f"# {drive.describe()}")
+    print0(f"# {'branch':>6} {parameter:>12} {'event':>16} {'rho':>10} {'residual':>9} {'force':>10}")
+    for r in study.run():
+        ev = EVENT_NAMES[int(r["event"])] or ""
+        print0(f"  {int(r['branch']):6d} {float(r['p']):12.8f} {ev:>16} {float(r['rho']):10.6f} "
+               f"{float(r['residual']):9.1e} {float(r['force_right']):10.4g}")
+    text = study.table()
+    records = study.store.records
+    study.destroy()
+    write_text(table_path, text, comm)
+    if figures and comm.getRank() == 0:
+        from hertzpetsc import plotting
+        print("wrote " + plotting.plot_driven_response(records, parameter, figures, name + ".png",
+                                                        os.path.basename(output)), flush=True)
+    print0(text)
+
+
+if __name__ == "__main__":
+    guarded_main(main)

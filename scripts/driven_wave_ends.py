@@ -1,0 +1,74 @@
+#!/usr/bin/env python3
+"""The paper's exact boundary driving (Discussion): refined travelling waves of the periodic chain imposed at both
+ends of a finite undamped chain are periodic responses; their Floquet multipliers in the finite driven chain
+against the periodic chain's, for q above and below q_c: does driving the ends stabilise or destabilise the wave?
+
+    mpiexec -n 2 python scripts/driven_wave_ends.py [-branch results/branch_alpha1.5.npz]
+        [-refined results/refined_N100.npz] [-q 9*pi/50,...] [-sizes 10,20,40] [-rtols 1e-12,1e-14]
+        [-samples 8192] [-output results/driven_wave_ends.npz] [-table results/driven_wave_ends.md]
+        [-figures figures] [-resume | -force]
+
+Beads 1..N of the periodic chain of P beads (the refinement file's) between actuators moving as beads 0 and N + 1
+of the wave (its profile sampled from the refined chain on >= -samples points); Newton from the wave; all 2N
+multipliers over tau = 2 pi / omega; rho(F_q)^(P/m) of the periodic chain for comparison; each at every flow
+tolerance of -rtols (the convergence of the multipliers). Records: schema hertzpetsc-driven-wave-ends-1.
+Solver prefixes: -drive_ (Newton SNES and state flow), -floquet_ (tangent flows).
+"""
+import math
+import sys
+
+from hertzpetsc.start import init_petsc
+
+init_petsc(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.branch import Branch  # noqa: E402
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
+from hertzpetsc.studies.driven import WaveEnds  # noqa: E402
+from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
+
+ROLES = {"drive_": ("Newton on P(X) - X and the state flow", ("snes", "ts")),
+         "floquet_": ("the tangent flows (Jacobian, multipliers, periodic chain)", ("ts",))}
+
+
+def main():
+    opts = AppOptions(__doc__, ROLES)
+    branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
+    refined_path = opts.path("refined", "results/refined_N100.npz", "refinement file (the periodic chain's waves)")
+    qs = opts.numbers("q", "9*pi/50,13*pi/50,14*pi/50,15*pi/50,16*pi/50,20*pi/50,30*pi/50,40*pi/50",
+                      "wavenumbers (refined in the file)", valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"),
+                      distinct=True)
+    sizes = opts.numbers("sizes", "10,20,40", "beads of the driven chains", expr=False, kind=int,
+                         valid=(lambda n: 1 <= n <= MAX_DENSE_BEADS, f"in [1, {MAX_DENSE_BEADS}] (dense multipliers)"),
+                         distinct=True)
+    rtols = opts.numbers("rtols", "1e-12,1e-14", "flow tolerances (atol = rtol/100)", expr=False,
+                         valid=(lambda r: 0 < r < 1, "in (0, 1)"))
+    samples = opts.integer("samples", 8192, "least number of points of the sampled wave profile", minimum=64)
+    output, mode, table_path, figures = opts.record_table_figures(
+        "results/driven_wave_ends.npz", "driven wave-ends file", "results/driven_wave_ends.md", "driven_wave_ends.png")
+    opts.done()
+    comm = PETSc.COMM_WORLD
+    prepare_outputs(comm, table_path, figures=figures)
+    branch = Branch.load(branch_path, comm)
+    refined = RefinedStates.load(refined_path, comm)
+    study = WaveEnds(branch, refined, [branch.point(q).q for q in qs], sizes, comm, output, mode, rtols, samples,
+                     branch_path=branch_path, refined_path=refined_path)
+    opts.check_unused()
+    study.open()
+    print0(f"# {'q':>8} {'N':>4} {'rtol':>7} {'imposed':>9} {'residual':>9} {'rho':>12} {'rho periodic':>12}")
+    for r in study.run():
+        print0(f"  {float(r['q']):8.5f} {int(r['N']):4d} {float(r['rtol']):7.0e} {float(r['imposed']):9.1e} "
+               f"{float(r['residual']):9.1e} {float(r['rho']):12.8f} {float(r['rho_periodic']):12.8f}")
+    text = study.table()
+    records = study.store.records
+    write_text(table_path, text, comm)
+    if figures and comm.getRank() == 0:
+        from hertzpetsc import plotting
+        print("wrote " + plotting.plot_driven_wave_ends(records, figures), flush=True)
+    print0(text)
+
+
+if __name__ == "__main__":
+    guarded_main(main)

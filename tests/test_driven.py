@@ -1,0 +1,274 @@
+"""Driven, damped chains (issue 22): the damped tangent flow, periodic responses by shooting against closed forms
+(the linear damped chain, its normal modes and multipliers, Liouville's formula, the energy balance), the exact
+travelling wave imposed at both ends, dense against SLEPc and Newton-Krylov against dense, period doubling with
+branch switching, bad input, and the drivers."""
+import math
+import os
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from conftest import RESULTS, ROOT, one_error_line, run_script
+from hertzpetsc.chain import Chain, IntegrationTolerances
+from hertzpetsc.continuation import PseudoArclength
+from hertzpetsc.driven import (Drive, HalfSinePulses, HarmonicWave, PeriodicShooting, SampledWave, crossing,
+                               damping_trace, refined_profile, wave_ends_drive)
+from hertzpetsc.errors import ParameterError
+from hertzpetsc.floquet import DenseFloquet, dense_multipliers
+from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel
+from hertzpetsc.studies.driven import (EVENTS, LinearResonances, ResponseCurve, linear_multipliers, linear_response,
+                                       normal_modes)
+from hertzpetsc.tangent import TangentFlow
+
+COMM = PETSc.COMM_WORLD
+TIGHT = IntegrationTolerances(1e-12, 1e-14)
+
+
+def small_drive(N=6, **kw):
+    """A precompressed dimer chain with both dampings between a harmonic actuator of tiny amplitude and a wall."""
+    model = LatticeModel.hertz(1.5, masses=(1.0, 0.7), delta0=1.0, gamma=kw.pop("gamma", 0.1), eta=kw.pop("eta", 0.05))
+    return Drive(model, N, HarmonicWave(), kw.pop("amplitude", 1e-6), kw.pop("omega", 0.9), **kw)
+
+
+def test_damped_tangent_flow_is_the_derivative_of_the_flow():
+    """R(T; 0) from the tangent columns against central differences of the damped, driven flow: agreement to
+    O(h^2) + tol/h ~ 1e-8 for h = 1e-5 (the damping terms act on the tangents' velocities too)."""
+    model = LatticeModel.hertz(1.5, delta0=0.5, gamma=0.3, eta=0.2)
+    spec = ChainSpec(model, 4, "fixed", left=Actuator(Harmonic(0.2, 1.3)))
+    x0 = np.random.default_rng(3).normal(size=(4, 2)) * 0.05
+    flow = TangentFlow(spec, 8, COMM, TIGHT, "floquet_")
+    try:
+        R, _ = flow.resolvent(x0, 2.0)
+        fd = np.zeros_like(R)
+        for j in range(8):
+            xs = []
+            for s in (1, -1):
+                e = x0.ravel().copy()
+                e[j] += s * 1e-5
+                xs.append(flow.run(e.reshape(4, 2), 2.0, np.zeros((4, 2, 8)))[0].ravel())
+            fd[:, j] = (xs[0] - xs[1]) / 2e-5
+    finally:
+        flow.destroy()
+    assert np.max(np.abs(R - fd)) < 1e-7 * np.max(np.abs(R))
+    # Liouville over a flow that is not periodic: det R = exp(-T tr(M^-1 C)) (an exact identity of the ODE)
+    assert abs(np.linalg.slogdet(R)[1] + 2.0 * damping_trace(spec)) < 1e-9
+
+
+def test_undamped_undriven_chain_gives_back_the_previous_numbers():
+    """The refined wave of the record of the previous implementation (N = 20, q = 3 pi/10): the same Floquet
+    multipliers modulo shift, on one rank as the record was made (the undamped code path is unchanged: the same
+    numbers to round-off; across ranks see test_floquet)."""
+    prev = np.load(os.path.join(ROOT, "tests", "data", "previous_records.npz"))
+    spec = ChainSpec(LatticeModel.hertz(1.5), 20)
+    dense = DenseFloquet(spec, PETSc.COMM_SELF)
+    try:
+        from hertzpetsc.waves import Orbit
+        orbit = Orbit(spec, 3 * math.pi / 10, 3, float(prev["refined_T"]), prev["refined_x"], 1.0)
+        sp = dense.spectrum(orbit)
+    finally:
+        dense.destroy()
+    assert np.max(np.abs(np.sort_complex(sp.multipliers) - np.sort_complex(prev["refined_multipliers"]))) < 1e-12
+    assert abs(sp.rho - float(prev["refined_rho"])) < 1e-12
+
+
+def test_small_amplitude_response_is_the_linear_closed_form():
+    """Newton shooting of the Hertz chain (masses 1, 0.7; gamma, eta; a = 1e-6 << delta0 = 1) against the damped
+    linear chain's complex amplitudes X (x(0) = Re X, v(0) = -omega Im X): relative difference O(a / delta0) from
+    the nonlinearity plus the shooting tolerance; the multipliers against exp(T lambda) of the linear chain."""
+    drive = small_drive()
+    prob = PeriodicShooting(drive, COMM, tolerances=IntegrationTolerances(1e-12, 1e-20))
+    try:
+        r = prob.solve_response(np.zeros((6, 2)))
+        X = linear_response(drive)
+        xc = np.stack([X.real, -drive.omega * X.imag], axis=1)
+        assert np.max(np.abs(r.x - xc)) < 1e-6 * np.max(np.abs(xc))
+        mu = prob.multipliers(x=r.x, p=drive.omega)
+        ref = linear_multipliers(drive, prob.T)
+        assert np.max(np.abs(np.sort_complex(mu) - np.sort_complex(ref))) < 1e-8
+        # the energy balance over the period: mean input power = mean dissipation (the periodic trapezoid rule on
+        # 64 samples of a smooth (linear-regime) response is spectrally accurate)
+        d = prob.diagnostics(r.x, 64)
+        assert d["dissipation"] > 0 and abs(d["power_in"] - d["dissipation"]) < 1e-6 * d["dissipation"]
+    finally:
+        prob.destroy()
+
+
+def test_normal_modes_closed_form_and_resonance_peaks():
+    """omega_k = 2 sqrt(K) sin(k pi / (2 (N + 1))) for unit masses between an actuator and a wall; the peak of the
+    shooting response near omega_1 equals the damped linear chain's to the golden-section resolution (0.618^30 of
+    the window, ~2e-7) and lies O(gamma^2) from omega_1."""
+    model = LatticeModel.hertz(1.5, delta0=1.0, gamma=0.02)
+    drive = Drive(model, 3, HarmonicWave(), 1e-6, 1.0)
+    K = model.law.linear_stiffness
+    closed = [2 * math.sqrt(K) * math.sin(k * math.pi / 8) for k in (1, 2, 3)]
+    assert np.allclose(normal_modes(drive), closed, rtol=1e-13)
+    study = LinearResonances(drive, COMM, None, modes=[1], golden=30)
+    try:
+        rec = next(study.run())
+    finally:
+        study.destroy()
+    width = np.diff(study.window(1))[0]
+    assert abs(rec["peak_shooting"] - rec["peak_linear"]) < 2 * 0.618 ** 30 * width
+    assert abs(rec["peak_linear"] - closed[0]) < 0.02 ** 2 * 10 and rec["mu_error"] < 1e-8
+    assert abs(rec["amp_shooting"] / rec["amp_linear"] - 1) < 1e-5
+
+
+@pytest.mark.parametrize("masses,right", [((1.0,), "wall"), ((1.0, 0.6), "free")])
+def test_liouville_product_of_the_multipliers(masses, right):
+    """prod mu = exp(-T tr(M^-1 C)) (= exp(-N gamma T) for unit masses and on-site damping) for a nonlinear
+    response (sonic vacuum, a = 0.3), to the flow's tolerance (log det error ~ 2N x rtol x growth)."""
+    model = LatticeModel.hertz(1.5, masses=masses, delta0=0.0 if right == "wall" else 1.0, gamma=0.05,
+                               eta=0.0 if right == "wall" else 0.02)
+    drive = Drive(model, 4, HarmonicWave(), 0.3, 1.1, right=right)
+    prob = PeriodicShooting(drive, COMM)
+    try:
+        r = prob.solve_response(prob.run_in(np.zeros((4, 2)), 30))
+        mu = prob.multipliers(x=r.x, p=drive.omega)
+    finally:
+        prob.destroy()
+    logdet = float(np.sum(np.log(np.abs(mu))))
+    expected = -prob.T * damping_trace(drive.spec())
+    if masses == (1.0,) and right == "wall":
+        assert expected == pytest.approx(-4 * 0.05 * prob.T, rel=1e-14)
+    assert abs(logdet - expected) < 1e-8 * abs(expected)
+    assert r.residual < 1e-10
+
+
+def test_dense_and_slepc_multipliers_agree_and_newton_krylov_agrees_with_dense():
+    """The same response by the dense bordered Newton and by Newton-Krylov (tangent-flow products); its dominant
+    multipliers by LAPACK on the dense monodromy and by SLEPc Krylov-Schur on the matrix-free one (dashpots between
+    neighbours damp the modes unequally, so the dominant ones are well separated in modulus)."""
+    model = LatticeModel.hertz(1.5, delta0=0.5, gamma=0.01, eta=0.1)
+    drive = Drive(model, 6, HarmonicWave(), 0.05, 1.2)
+    dense = PeriodicShooting(drive, COMM)
+    mf = PeriodicShooting(drive, COMM, jacobian="mf", floquet="slepc", nev=4)
+    try:
+        x0 = dense.run_in(np.zeros((6, 2)), 10)
+        rd, rm = dense.solve_response(x0), mf.solve_response(x0)
+        assert rd.residual < 1e-10 and rm.residual < 1e-10
+        assert np.max(np.abs(rd.x - rm.x)) < 1e-9 * np.max(np.abs(rd.x))
+        mu_d, mu_s = dense.multipliers(x=rd.x, p=1.2), mf.multipliers(x=rd.x, p=1.2)
+        assert np.abs(mu_d[3]) - np.abs(mu_d[4]) > 1e-3          # a gap after the fourth
+        assert np.max(np.abs(np.sort_complex(mu_d[:4]) - np.sort_complex(mu_s[:4]))) < 1e-8
+        assert mf.counters["products"] > 0 and mf.counters["tangent_flows"] == 0
+    finally:
+        dense.destroy()
+        mf.destroy()
+
+
+def test_a_response_does_not_depend_on_the_number_of_ranks():
+    """The same response on this communicator and on one rank: both are responses to the shooting tolerance
+    (1e-10 relative), and they agree to it (the reductions' order changes the round-off, not the steps' size)."""
+    drive = Drive(LatticeModel.hertz(1.5, delta0=0.5, gamma=0.08), 6, HalfSinePulses(0.4), 0.05, 1.2)
+    out = []
+    for comm in (COMM, PETSc.COMM_SELF):
+        prob = PeriodicShooting(drive, comm)
+        try:
+            out.append(prob.solve_response(np.zeros((6, 2))).x)
+        finally:
+            prob.destroy()
+    assert np.max(np.abs(out[0] - out[1])) < 1e-10 * np.max(np.abs(out[1]))
+
+
+def test_travelling_wave_imposed_at_both_ends_is_a_periodic_response():
+    """The refined wave q = 2 pi/5 (m = 20 on the 100-bead chain) with beads 0 and N + 1 of a 10-bead window as
+    actuators: its residual in the driven chain is at the level of the refined wave's E(q) (1e-11 .. 1e-10, plus
+    the profile's interpolation ~1e-11), Newton barely moves it, and the multipliers agree between the flow
+    tolerances 1e-12 and 1e-14 (undamped: det R = 1)."""
+    from hertzpetsc.branch import Branch
+    from hertzpetsc.studies.refinement import RefinedStates
+    branch = Branch.load(f"{RESULTS}/branch_alpha1.5.npz")
+    ref = RefinedStates.load(f"{RESULTS}/refined_N100.npz")
+    q = 2 * math.pi / 5
+    orbit = ref.orbit(branch.point(q))
+    profile = refined_profile(orbit, COMM, 4096)
+    drive = wave_ends_drive(orbit.spec.model, 10, profile, orbit.omega, q)
+    x0 = orbit.x[1:11]
+    rhos = []
+    for rtol in (1e-12, 1e-14):
+        prob = PeriodicShooting(drive, COMM, tol=1e4 * rtol, tolerances=IntegrationTolerances(rtol, rtol / 100))
+        try:
+            imposed = prob.residual(x0)
+            r = prob.solve_response(x0)
+            mu = prob.multipliers(x=r.x, p=orbit.omega)
+        finally:
+            prob.destroy()
+        assert imposed < 1e-9 if rtol == 1e-12 else imposed < 2e-10
+        assert np.max(np.abs(r.x - x0)) < 1e-8
+        assert abs(np.sum(np.log(np.abs(mu)))) < 1e-8
+        rhos.append(float(np.max(np.abs(mu))))
+    assert abs(rhos[0] - rhos[1]) < 1e-8
+
+
+def test_period_doubling_is_located_confirmed_and_switched():
+    """Two beads of the sonic vacuum between an actuator (a = 1) and a wall, gamma = 0.1: continuing down from
+    omega = 1.69 the period-1 response loses stability through a multiplier -1 near omega = 1.675; the event is
+    located (|mu + 1| small), confirmed by the multipliers on both sides, and the branch switched onto has period
+    2 T: P^2 X = X to the shooting tolerance while P X != X."""
+    drive = Drive(LatticeModel.hertz(1.5, gamma=0.1), 2, HarmonicWave(), 1.0, 1.69)
+    study = ResponseCurve(drive, "omega", 1.665, COMM, None, algorithm=PseudoArclength(ds=0.01, ds_max=0.02, easy=5),
+                          run_in=100, samples=0, switch=2, max_steps=12)
+    try:
+        records = list(study.run())
+    finally:
+        study.destroy()
+    pd = [r for r in records if r["event"] == EVENTS["period_doubling"] and r["branch"] == 0]
+    assert len(pd) == 1 and pd[0]["confirmed"] == 1
+    assert abs(pd[0]["p"] - 1.6752) < 1e-3
+    assert np.min(np.abs(pd[0]["multipliers"] + 1)) < 1e-6
+    regular = [r for r in records if r["branch"] == 0 and r["event"] == 0]
+    before = [r for r in regular if r["p"] > pd[0]["p"]][-1]
+    after = [r for r in regular if r["p"] < pd[0]["p"]][0]
+    assert crossing(before["multipliers"], after["multipliers"]) == "period_doubling"
+    doubled = [r for r in records if r["branch"] == 1]
+    assert len(doubled) >= 2 and all(r["periods"] == 2 for r in doubled)
+    for r in doubled:
+        assert r["residual"] < 1e-9 and r["half_residual"] > 1e-4
+
+
+@pytest.mark.parametrize("make,name", [
+    (lambda: LatticeModel.hertz(1.5, gamma=-0.1), "gamma"),
+    (lambda: Drive(LatticeModel.hertz(), 4, HarmonicWave(), -0.1, 1.0), "amplitude"),
+    (lambda: Drive(LatticeModel.hertz(), 4, HarmonicWave(), 0.1, 0.0), "omega"),
+    (lambda: Drive(LatticeModel.hertz(), 0, HarmonicWave(), 0.1, 1.0), "N"),
+    (lambda: SampledWave((0.0, 1.0, 0.5)), "not periodic"),
+    (lambda: HalfSinePulses(1.5), "width"),
+])
+def test_bad_input_is_refused_naming_the_parameter(make, name):
+    with pytest.raises(ParameterError, match=name):
+        make()
+
+
+# --- the drivers -----------------------------------------------------------------------------------------------------
+BAD = [(("-gamma", "-0.1"), "gamma"), (("-amplitude", "-1"), "amplitude"), (("-omega", "0"), "omega"),
+       (("-N", "0"), "-N"), (("-signal", "samples", "-signal_samples", "0,1,0.5"), "not periodic")]
+
+
+@pytest.mark.serial
+def test_drivers_refuse_bad_input_in_one_line_on_every_rank(tmp_path):
+    for args, needle in BAD:
+        r = run_script("driven_response.py", *args, "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md",
+                       ranks=2, timeout=120, cwd=tmp_path)
+        line = one_error_line(r)
+        assert r.returncode == 2 and needle in line, (args, r.stderr)
+    assert not (tmp_path / "r.npz").exists()
+
+
+@pytest.mark.serial
+def test_driven_drivers_run(tmp_path):
+    r = run_script("driven_response.py", "-N", 2, "-gamma", 0.1, "-amplitude", 1, "-omega", 1.69, "-p_end", 1.68,
+                   "-mode", "grid", "-points", 3, "-run_in", 20, "-samples_per_period", 16, "-output",
+                   tmp_path / "r.npz", "-table", tmp_path / "r.md", "-figures", tmp_path, ranks=2)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "driven_response.png").exists() and "Branch 0: 3 points" in (tmp_path / "r.md").read_text()
+    r = run_script("driven_resonances.py", "-N", 2, "-modes", 1, "-golden", 6, "-output", tmp_path / "s.npz",
+                   "-table", tmp_path / "s.md", "-figures", tmp_path)
+    assert r.returncode == 0 and "| 1 | 1.22474487 |" in (tmp_path / "s.md").read_text(), r.stderr
+    r = run_script("driven_wave_ends.py", "-q", "2*pi/5", "-sizes", 4, "-rtols", "1e-12", "-samples", 1024,
+                   "-output", tmp_path / "w.npz", "-table", tmp_path / "w.md", "-figures", tmp_path)
+    assert r.returncode == 0 and "| 2pi/5 (1.2566) | 20 | 4 |" in (tmp_path / "w.md").read_text(), r.stderr
+    r = run_script("driven_generation.py", "-N", 8, "-signals", "half_sine", "-omegas", 0.5, "-amplitudes", 0.1,
+                   "-gammas", 0.1, "-run_in", 10, "-output", tmp_path / "g.npz", "-table", tmp_path / "g.md",
+                   "-figures", tmp_path, ranks=2)
+    assert r.returncode == 0 and "| half_sine | 0.5 | 0.1 | 0.1 | yes |" in (tmp_path / "g.md").read_text(), r.stderr

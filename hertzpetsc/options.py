@@ -17,6 +17,7 @@ import os
 import platform
 import re
 import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -452,6 +453,37 @@ class Terminated(BaseException):
 
 def _raise_terminated(signum, frame):
     raise Terminated(signum)
+
+
+def run_child(cmd, cwd=None, out=None, grace=5.0, err=subprocess.STDOUT, env=None, timeout=None):
+    """Run ``cmd`` in a process group of its own (stdout to ``out``, stderr to ``err``) and return its exit status,
+    124 if it ran longer than ``timeout`` seconds. If it times out, or this process is interrupted or terminated
+    meanwhile (KeyboardInterrupt, :class:`Terminated`), the whole group (an mpiexec and its ranks) is ended --
+    SIGTERM, then SIGKILL after ``grace`` seconds -- before the interruption is passed on: no child outlives its
+    parent (the paper pipeline's steps, the benchmarks' workers)."""
+    child = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=err, env=dict(os.environ) if env is None else env,
+                             start_new_session=True)
+    try:
+        return child.wait(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        _end_group(child, grace)
+        return 124
+    except BaseException:
+        _end_group(child, grace)
+        raise
+
+
+def _end_group(child, grace):
+    for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, None)):
+        try:
+            os.killpg(child.pid, sig)
+        except ProcessLookupError:
+            return
+        try:
+            child.wait(timeout=wait)
+            return
+        except subprocess.TimeoutExpired:
+            continue
 
 
 def guarded_main(main):

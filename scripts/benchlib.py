@@ -14,8 +14,8 @@ import json
 import os
 import platform
 import resource
-import subprocess
 import sys
+import tempfile
 import time
 
 import numpy as np
@@ -58,17 +58,22 @@ def launch(script, name, request, ranks=None, timeout=3600, petsc_args=(), packa
     if ranks:
         cmd = ["mpiexec", "-n", str(ranks), *cmd]
         env.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
-    r = subprocess.run(["timeout", str(timeout), *cmd], capture_output=True, text=True, env=env)
-    if r.returncode == 124:
+    from hertzpetsc.options import run_child          # the worker's group ends with this process (no orphans)
+    with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+        rc = run_child(cmd, out=out, err=err, env=env, timeout=timeout)
+        out.seek(0)
+        err.seek(0)
+        stdout, stderr = out.read(), err.read()
+    if rc == 124:
         return None
-    if r.returncode != 0:
+    if rc != 0:
         from hertzpetsc.errors import HertzPetscError
-        last = [line for line in r.stderr.splitlines() if line.strip()][-1:] or ["no message"]
+        last = [line for line in stderr.splitlines() if line.strip()][-1:] or ["no message"]
         failure = HertzPetscError(f"benchmark worker {name} ({os.path.basename(script)}, {ranks or 1} rank(s)) "
-                                  f"failed with exit status {r.returncode}: {last[0].strip()}")
-        failure.exit_status = r.returncode if 0 < r.returncode < 126 else 1
+                                  f"failed with exit status {rc}: {last[0].strip()}")
+        failure.exit_status = rc if 0 < rc < 126 else 1
         raise failure
-    return json.loads(r.stdout.strip().splitlines()[-1])
+    return json.loads(stdout.strip().splitlines()[-1])
 
 
 def best_of(repeats, script, name, request, ranks=None, timeout=3600, petsc_args=(), package=None):

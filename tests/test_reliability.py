@@ -47,6 +47,26 @@ def test_sigterm_ends_the_pipeline_step_and_its_ranks_then_resume_finishes(tmp_p
 
 
 @pytest.mark.serial
+def test_sigterm_to_a_benchmark_ends_its_workers_and_their_ranks(tmp_path):
+    """A benchmark's worker (here under mpiexec, 2 ranks) runs in a process group that ends with the benchmark: no
+    worker or rank keeps computing after SIGTERM."""
+    args = [sys.executable, os.path.join(SCRIPTS, "bench_branch.py"), "-cells", "400000", "-M", "50",
+            "-output", str(tmp_path / "b.md")]
+    proc = subprocess.Popen(args, env=script_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=ROOT)
+    marker = '"K": 400000'                           # the workers' request, on their command lines
+    deadline = time.time() + 60
+    while time.time() < deadline and not _children_of(marker):
+        time.sleep(0.2)
+    assert _children_of(marker), "no worker started"
+    proc.send_signal(signal.SIGTERM)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, err
+    time.sleep(1.0)
+    assert not _children_of(marker)
+
+
+@pytest.mark.serial
 def test_a_second_pipeline_on_the_same_progress_file_is_refused(tmp_path):
     args = [sys.executable, os.path.join(SCRIPTS, "paper.py"), "-steps", "convergence_h", "-progress",
             str(tmp_path / "p.npz"), "-logs", str(tmp_path / "logs")]

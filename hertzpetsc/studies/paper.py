@@ -10,8 +10,6 @@ of earlier complete runs, e.g. the committed results).
 """
 import fcntl
 import os
-import signal
-import subprocess
 import sys
 import time
 from dataclasses import dataclass
@@ -19,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import HertzPetscError, ParameterError, RecordFileError
+from ..options import run_child
 from ..records import NpzRecords, make_directory, prepare_output
 
 PAPER_FORMAT = "hertzpetsc-paper-1"
@@ -142,29 +141,6 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
                            f"results/precompression_map_dimer{eps}.md"),
                           record=f"results/precompression_map_dimer{eps}.npz"))
     return steps
-
-
-def run_child(cmd, cwd, out, grace=5.0):
-    """Run ``cmd`` in a process group of its own and return its exit status; if this process is interrupted or
-    terminated meanwhile (KeyboardInterrupt, :class:`~hertzpetsc.options.Terminated`), end the whole group (the
-    mpiexec and its ranks: SIGTERM, then SIGKILL after ``grace`` seconds) before passing the interruption on, so
-    that no step outlives the pipeline."""
-    child = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=subprocess.STDOUT, env=dict(os.environ),
-                             start_new_session=True)
-    try:
-        return child.wait()
-    except BaseException:
-        for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, None)):
-            try:
-                os.killpg(child.pid, sig)
-            except ProcessLookupError:
-                break
-            try:
-                child.wait(timeout=wait)
-                break
-            except subprocess.TimeoutExpired:
-                continue
-        raise
 
 
 class PaperPipeline:

@@ -37,8 +37,8 @@ _EXPORTS = {
     "Study": "studies.base", "BranchStudy": "studies.branch", "SmallQStudy": "studies.branch",
     "SmallQParameters": "studies.branch", "AmplitudeFamilies": "studies.precompression",
     "AmplitudeParameters": "studies.precompression", "DimerFamilies": "studies.precompression",
-    "DimerParameters": "studies.precompression", "StabilityMap": "studies.precompression",
-    "MapParameters": "studies.precompression",
+    "DimerParameters": "studies.precompression", "StabilityMap": "studies.maps",
+    "MapParameters": "studies.maps",
     # errors
     "ParameterError": "errors", "ConvergenceError": "errors", "RecordFileError": "errors",
     # conveniences (this package's api module)

@@ -112,13 +112,16 @@ class DeflatedSector:
         return float(np.max(np.abs(self.values))) if len(self.values) else 1.0
 
 
-def deflate(P, known, partners_of=None, extra=(), vectors=False):
+def deflate(P, known, partners_of=None, extra=(), vectors=False, nearest=0):
     """Deflate the known eigenvectors ``known`` (columns, eigenvalue 1 of P) and their Jordan partners.
 
     ``partners_of``: columns whose partners are computed (minimum-norm least squares of (P - I) w = z; default all
-    of ``known``); ``extra``: further (eigenvector, partner) columns known in closed form. Returns (values outside,
-    cluster eigenvalues, partner residual, invariance residual, r); with nothing known, P's eigenvalues and r = 0.
-    ``vectors``: the values' eigenvectors (columns, in P's space) are appended to the tuple."""
+    of ``known``); ``extra``: further (eigenvector, partner) columns known in closed form; ``nearest``: then that
+    many eigenvalues nearest 1 of the deflated matrix join the cluster (the partners of known eigenvectors not
+    computed: with the exact eigenvector deflated, its partner's eigenvalue is 1 to the orbit's error, not to its
+    square root). Returns (values outside, cluster eigenvalues, partner residual, invariance residual, r); with
+    nothing known, P's eigenvalues and r = 0. ``vectors``: the values' eigenvectors (columns, in P's space) are
+    appended to the tuple."""
     n = len(P)
     known = np.asarray(known, dtype=complex).reshape(n, -1)
     if known.shape[1] == 0 and not extra:
@@ -143,11 +146,20 @@ def deflate(P, known, partners_of=None, extra=(), vectors=False):
     U, Uperp = Q[:, :r], Q[:, r:]
     A11 = U.conj().T @ P @ U
     invariance = float(np.linalg.norm(P @ U - U @ A11) / np.linalg.norm(P))
+    cluster = np.linalg.eigvals(A11)
     if vectors:
         values, Y = np.linalg.eig(Uperp.conj().T @ P @ Uperp)
-        return values, np.linalg.eigvals(A11), partner_res, invariance, r, Uperp @ Y
-    values = np.linalg.eigvals(Uperp.conj().T @ P @ Uperp)
-    return values, np.linalg.eigvals(A11), partner_res, invariance, r
+    else:
+        values, Y = np.linalg.eigvals(Uperp.conj().T @ P @ Uperp), None
+    if nearest:
+        near = np.argsort(np.abs(values - 1.0), kind="stable")[:nearest]
+        cluster = np.concatenate([cluster, values[near]])
+        values = np.delete(values, near)
+        Y = None if Y is None else np.delete(Y, near, axis=1)
+        r += len(near)
+    if vectors:
+        return values, cluster, partner_res, invariance, r, Uperp @ Y
+    return values, cluster, partner_res, invariance, r
 
 
 def symplectic_form(model, M):
@@ -189,21 +201,25 @@ ZONE_TOL = 1e-6
 
 def known_vectors(model, orbit, P, theta, decoupled=None, zone_tol=ZONE_TOL):
     """The symmetry eigenvectors of P_Theta at 1 for ``orbit`` (module docstring): (known columns, the columns whose
-    partners are computed, closed-form (eigenvector, partner) extras, the known columns' largest residual, v, the
-    zone modes' residual, decoupled).
+    partners are computed, closed-form (eigenvector, partner) extras, the number of partners taken as the nearest 1
+    after deflation (:func:`deflate`), the known columns' largest residual, v, the zone modes' residual, decoupled).
 
-    ``decoupled``: whether the zone translations are exact (None: decided here from their residual against
-    ``zone_tol``, where that is informative, i.e. the cell holds several zones or Theta != 0; with one zone at
+    ``decoupled``: whether the zone translations are exact (None: always for a law without linear stiffness, else
+    decided from their residual against ``zone_tol``, where that is informative, i.e. the cell holds several zones or
+    Theta != 0; with one zone at
     Theta = 0 the only symmetry modes are the wave's time shift and the uniform translation). Zones joined by a
-    contact (a precompressed wave below its gap opening) leave at Theta = 0 the time shift f of the whole cell, with
-    a computed partner, and the uniform translation with the boost; at Theta != 0 nothing."""
+    contact (a precompressed wave below its gap opening) leave at Theta = 0 the time shift f of the whole cell, and
+    the uniform translation with the boost; f's partner (the family's amplitude direction, an eigenvector itself in
+    the linear limit, where the least-squares partner fails) is the eigenvalue nearest 1 once they are deflated; at
+    Theta != 0 nothing."""
     sym = orbit.symmetry
     M = sym.M
     f, t = zone_directions(model, orbit.x[:M], orbit.q)
     Z, v, zone_res = zone_modes(P, f, t)
     informative = len(f) > 1 or abs(theta) > 1e-14
     if decoupled is None:
-        decoupled = bool(zone_res <= zone_tol) if informative else False
+        # without precompression no contact outlives a compression zone: the zones are always decoupled
+        decoupled = informative and (not model.law.linear_stiffness > 0 or bool(zone_res <= zone_tol))
     I = np.eye(2 * M)
 
     def residual(vec):
@@ -214,17 +230,17 @@ def known_vectors(model, orbit, P, theta, decoupled=None, zone_tol=ZONE_TOL):
     else:
         known = partners = np.zeros((2 * M, 0))
         eig_res = 0.0
-    extra = ()
+    extra, nearest = (), 0
     if abs(theta) < 1e-14:                     # uniform translation and the Galilean boost (0, 1) / script-T
         trans, boost = np.tile([1.0, 0.0], M), np.tile([0.0, 1.0], M) / orbit.T
-        if not decoupled:                      # the whole cell's time shift
+        if not decoupled:                      # the whole cell's time shift; its partner: the nearest 1 left
             whole = f.sum(axis=0)
-            known = partners = whole[:, None]
+            known, partners, nearest = whole[:, None], np.zeros((2 * M, 0)), 1
             eig_res = residual(whole)
         known = np.concatenate([known, trans[:, None]], axis=1)
         eig_res = max(eig_res, residual(trans))
         extra = (boost,)
-    return known, partners, extra, eig_res, v, zone_res, decoupled
+    return known, partners, extra, nearest, eig_res, v, zone_res, decoupled
 
 
 class DeflatedSectors(FloquetSolver):
@@ -246,9 +262,9 @@ class DeflatedSectors(FloquetSolver):
 
     def _deflated(self, orbit, P, theta, decoupled=None):
         t0 = time.perf_counter()
-        known, partners, extra, eig_res, v, _, decoupled = known_vectors(self.model, orbit, P, theta, decoupled,
-                                                                         self.zone_tol)
-        out = deflate(P, known, partners, extra, vectors=self.krein is not None)
+        known, partners, extra, nearest, eig_res, v, _, decoupled = known_vectors(self.model, orbit, P, theta,
+                                                                                  decoupled, self.zone_tol)
+        out = deflate(P, known, partners, extra, vectors=self.krein is not None, nearest=nearest)
         values, cluster, partner_res, invariance, r = out[:5]
         signatures = None if self.krein is None else \
             krein_signatures(values, out[5], symplectic_form(self.model, len(P) // 2), self.krein)

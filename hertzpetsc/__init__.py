@@ -7,11 +7,14 @@ The public surface, for notebooks and scripts (``import hertzpetsc as hz``; the 
 ``import hertzpetsc`` itself does not start PETSc)::
 
     model = hz.LatticeModel.hertz(alpha=1.5)                       # the lattice: law, masses, damping
-    branch = hz.branch(model, M=10, cells_per_pi=200)              # eq. ad continued in q (section 3.1)
-    wave = hz.wave_at(hz.LatticeModel.hertz(1.5, (1, 0.5), delta0=1), q=0.9, A=0.5, cells_per_pi=200)
+    branch = hz.compute_branch(model, M=10, cells_per_pi=400)      # eq. ad continued in q (section 3.1)
+    orbit = hz.orbit(branch.point(3 * math.pi / 10), N=100)        # the wave on a chain (eq. twper)
+    refined = hz.refine(orbit)                                     # Gauss-Newton, E(q) (section 3.4)
+    spectrum = hz.multipliers(refined.orbit)                       # Floquet multipliers modulo shift (3.5)
+    trimer = hz.wave(hz.LatticeModel.hertz(1.5, (1, 0.5, 0.5), delta0=1), q=2 * math.pi / 15, A=0.5, N=60)
 
 Calls that take a communicator (``comm``, default PETSc.COMM_WORLD) are collective over it: every rank calls them
-with the same arguments and gets the same result. See docs/api.md for the list and what each returns.
+with the same arguments and gets the same result. docs/api.md lists the names and what each returns.
 """
 import importlib
 
@@ -41,8 +44,13 @@ _EXPORTS = {
     "MapParameters": "studies.maps",
     # errors
     "ParameterError": "errors", "ConvergenceError": "errors", "RecordFileError": "errors",
+    # refinement and Floquet spectra
+    "Refiner": "shooting", "Refinement": "shooting", "Spectrum": "floquet", "DenseFloquet": "floquet",
+    "DominantFloquet": "floquet", "SymmetricFloquet": "bloch", "wave_of_amplitude": "families",
+    "WaveStudy": "studies.wave", "WaveParameters": "studies.wave",
     # conveniences (this package's api module)
-    "branch": "api", "wave_at": "api",
+    "compute_branch": "api", "wave_at": "api", "wave": "api", "orbit": "api", "refine": "api",
+    "multipliers": "api", "plot_spectrum": "api",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -8,7 +8,7 @@
  * rank (the periodic wrap) and scattered from the neighbouring ranks on several -- only those rows, not the whole
  * ghosted vector; this file then applies what the ghost rows mean: walls and actuators at the ends, the Bloch twist
  * of the tangents at a periodic cell's seam (hertzpetsc.bloch.TwistedChain); and the gap-lattice offset of the
- * positions (hertzpetsc.compacton_window.WindowChain).
+ * positions and the extra length of one bond (hertzpetsc.compacton_window.WindowChain).
  *
  * Built by `python -m hertzpetsc.kernels` (scripts/hz.sh setup) against Debian's libpetsc; PETSc's headers are not
  * needed: the few functions used are declared below with their C signatures (PetscErrorCode = int, PetscScalar =
@@ -59,6 +59,8 @@ typedef struct {
     int complex_modes;          /* tangents 2p, 2p + 1 are Re, Im of complex mode p */
     double cos_theta, sin_theta;
     double gap;                 /* gap-lattice offset: ghosted position i is x_i + gap i */
+    int step_bond;              /* the bond (ghosted numbering) that carries the extra length step, or -1 */
+    double step;
     double *bond, *stiff, *dv;  /* work arrays, nloc + 1 each */
 } ChainKernel;
 
@@ -138,6 +140,7 @@ static void evaluate(const ChainKernel *k, const double *gl, const double *x, co
             xr = xr + k->gap * (double)(i + 1);
         }
         double r = xr - xl, mask = MASK(i);
+        if (i == k->step_bond) r = r + k->step;
         bond[i] = force(k, r) * mask;
         if (ntan) stiff[i] = stiffness(k, r) * mask;
     }

@@ -1,42 +1,127 @@
-"""One-call conveniences of the public surface (``hz.branch``, ``hz.wave_at``), for notebooks: each builds the
-package's objects with the paper's defaults, runs them, frees the PETSc objects, and returns plain results. They
-are collective over ``comm`` (default PETSc.COMM_WORLD)."""
+"""One-call conveniences of the public surface (``import hertzpetsc as hz``), for notebooks and scripts: each builds
+the package's objects with the paper's defaults (solver options still read from the options database, e.g.
+``-shoot_ts_rtol``), runs them, frees the PETSc objects and returns plain results. Every call here is collective over
+``comm`` (default PETSc.COMM_WORLD): all ranks call it with the same arguments and get the same result, except
+:func:`plot_spectrum` (local: call it on one rank).
+
+The pipeline of the paper, in four calls (sections 3.1, 3.4, 3.5)::
+
+    branch = hz.compute_branch(hz.LatticeModel.hertz(1.5), M=10, cells_per_pi=400)   # eq. ad continued in q
+    orbit = hz.orbit(branch.point(3 * math.pi / 10), N=100)                      # eq. twper, ||x|| = 1
+    refined = hz.refine(orbit)                                                    # Gauss-Newton, E(q)
+    spectrum = hz.multipliers(refined.orbit)                                      # F_q modulo shift
+"""
 from __future__ import annotations
 
-from typing import Optional
+from typing import Optional, Union
 
+import numpy as np
 from petsc4py import PETSc
 
-from .branch import Branch
+from .bloch import SymmetricFloquet
+from .branch import Branch, BranchPoint
+from .errors import ParameterError
 from .families import AmplitudePoint
 from .families import wave_at as _wave_at
+from .families import wave_of_amplitude
+from .floquet import DenseFloquet, DominantFloquet, Spectrum
 from .grid import ProfileGrid
-from .model import LatticeModel
+from .model import ChainSpec, LatticeModel
 from .qbranch import ContinuationParameters
+from .shooting import Refinement
+from .shooting import refine as _refine
 from .studies.branch import BranchStudy
+from .waves import Orbit, orbit_on_chain
+
+METHODS = ("symmetric", "dense", "slepc")
 
 
-def branch(model: Optional[LatticeModel] = None, M: int = 50, cells_per_pi: int = 1000,
-           q_stop: Optional[float] = None, output: Optional[str] = None, mode: str = "new",
-           comm=None) -> Branch:
+def _comm(comm):
+    return comm if comm is not None else PETSc.COMM_WORLD
+
+
+def compute_branch(model: Optional[LatticeModel] = None, M: int = 50, cells_per_pi: int = 1000,
+                   q_stop: Optional[float] = None, output: Optional[str] = None, mode: str = "new",
+                   comm: Optional[PETSc.Comm] = None) -> Branch:
     """The branch of eq. ad from the binary oscillation at q = pi down to q_stop through q = m pi / M (section
-    3.1), on the grid h = pi / cells_per_pi, for the uncompressed monatomic ``model`` (default: the paper's, alpha
-    = 3/2). Written to ``output`` as it goes when given (a branch file; ``mode`` new/resume/force), else kept in
-    memory. Collective over ``comm``."""
+    3.1), on the grid h = pi / cells_per_pi, for the uncompressed ``model`` (default: the paper's, alpha = 3/2).
+    Written to ``output`` as it goes when given (a branch file; ``mode`` new/resume/force), else kept in memory.
+    Collective."""
     model = model if model is not None else LatticeModel.hertz()
     params = ContinuationParameters(M=M, cells_per_pi=cells_per_pi, q_stop=q_stop, model=model)
-    study = BranchStudy(params, output, comm if comm is not None else PETSc.COMM_WORLD, mode)
+    study = BranchStudy(params, output, _comm(comm), mode)
     for _ in study.run():
         pass
     return study.branch
 
 
 def wave_at(model: LatticeModel, q: float, A: float, cells_per_pi: int = 400, branch: str = "acoustic",
-            comm=None) -> AmplitudePoint:
+            comm: Optional[PETSc.Comm] = None) -> AmplitudePoint:
     """The travelling wave of a precompressed ``model`` (any mass pattern) with per-bead wavenumber q and amplitude
     A = max |u| (A is a border row of eq. ad; reached from the linear wave by natural steps), on the grid h = pi /
-    cells_per_pi. Returns an :class:`~hertzpetsc.families.AmplitudePoint` (omega, profiles, ...); its
-    ``branch_point(model, h)`` puts it on a chain. Collective over ``comm``."""
-    grid = ProfileGrid(cells_per_pi, comm if comm is not None else PETSc.COMM_WORLD)
+    cells_per_pi: an :class:`~hertzpetsc.families.AmplitudePoint` (omega, the rescaled profiles, the gap
+    indicator). :func:`wave` puts such a wave on a chain. Collective."""
+    grid = ProfileGrid(cells_per_pi, _comm(comm))
     return _wave_at(model, q, A, grid, branch=branch)
 
+
+def wave(model: LatticeModel, q: float, A: float, N: int, cells_per_pi: int = 400,
+         comm: Optional[PETSc.Comm] = None) -> Orbit:
+    """The travelling wave of any ``model`` (Hertz exponent, precompression, mass pattern) with per-bead wavenumber
+    q and amplitude A = max |u|, on a periodic chain of N beads (N q / 2 pi wavelengths, whole pattern cells): an
+    :class:`~hertzpetsc.waves.Orbit` (state, script-T) ready for :func:`refine` and :func:`multipliers`.
+    Collective."""
+    point, scale = wave_of_amplitude(model, q, A, ProfileGrid(cells_per_pi, _comm(comm)))
+    return orbit_on_chain(point, ChainSpec(model, N), scale=scale)
+
+
+def orbit(point: BranchPoint, N: int, A: Optional[float] = None) -> Orbit:
+    """A point of a branch (eq. ad) as a travelling wave on a periodic chain of N beads (eq. twper): max |x| = 1 (the
+    paper's normalisation, section 3.4) or ``A`` for a scale-invariant law. Local (numpy only)."""
+    scale = None
+    if A is not None:
+        if not (isinstance(A, (int, float)) and A > 0):
+            raise ParameterError("A", A, "the amplitude must be a number > 0")
+        scale = A / point.diagnostics.norm_inf
+    return orbit_on_chain(point, ChainSpec(point.model, N), scale=scale)
+
+
+def refine(orbit: Orbit, tol: float = 1e-10, symmetric: bool = True,
+           comm: Optional[PETSc.Comm] = None) -> Refinement:
+    """Gauss-Newton refinement of ``orbit`` until E(q) <= ``tol`` (section 3.4; prefix ``shoot_``): a
+    :class:`~hertzpetsc.shooting.Refinement` (``.orbit`` the refined wave, ``.E_initial``, ``.E``, ``.iterations``);
+    ``symmetric``: on the wave's cell over its shortest time symmetry. ConvergenceError if E stays above tol.
+    Collective."""
+    return _refine(orbit, _comm(comm), tol, symmetric=symmetric)
+
+
+def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = None,
+                tol_rho: Optional[float] = None, comm: Optional[PETSc.Comm] = None) -> Spectrum:
+    """The Floquet multipliers of F_q = S R(script-T; 0) around ``orbit`` (section 3.5; prefix ``floquet_``): a
+    :class:`~hertzpetsc.floquet.Spectrum` (``.multipliers`` sorted by modulus, ``.rho`` without the trivial ones,
+    ``.outside``, ``.trivial_spread``). ``method``: ``symmetric`` (all 2N, from the Bloch sectors of the wave's
+    cell; any N = L M), ``dense`` (all 2N on the whole chain, the paper's route) or ``slepc`` (the ``nev`` largest,
+    Krylov-Schur, default 10). Collective."""
+    if method not in METHODS:
+        raise ParameterError("method", method, f"must be one of {', '.join(METHODS)}")
+    comm = _comm(comm)
+    if method == "symmetric":
+        solver = SymmetricFloquet(orbit.spec.model, comm)
+    elif method == "dense":
+        solver = DenseFloquet(orbit.spec, comm)
+    else:
+        solver = DominantFloquet(orbit.spec, comm, nev if nev is not None else 10)
+    with solver:
+        return solver.spectrum(orbit, tol_rho, nev)
+
+
+def plot_spectrum(spectrum: Union[Spectrum, np.ndarray], ax=None, title: Optional[str] = None):
+    """The multipliers in the complex plane with the unit circle (fig. eigen of the paper), on the matplotlib axes
+    ``ax`` (a new figure if None); returns the axes. Local: call it on one rank."""
+    from .plotting import draw_multipliers
+    if ax is None:
+        import matplotlib.pyplot as plt
+        _, ax = plt.subplots(figsize=(4.5, 4.5))
+    lam = spectrum.multipliers if isinstance(spectrum, Spectrum) else np.asarray(spectrum)
+    draw_multipliers(ax, lam, title)
+    return ax

@@ -147,7 +147,7 @@ class Branch:
     def u(self):
         return np.array([p.u_half for p in self.points]).reshape(len(self.points), self.cells_per_pi + 1)
 
-    def column(self, name):
+    def column(self, name: str) -> np.ndarray:
         """A diagnostic or a solver statistic along the branch, as an array."""
         if name in WaveDiagnostics.names():
             return np.array([getattr(p.diagnostics, name) for p in self.points])
@@ -156,7 +156,7 @@ class Branch:
     def __len__(self):
         return len(self.points)
 
-    def point(self, q, tol=1e-12):
+    def point(self, q: float, tol: float = 1e-12) -> BranchPoint:
         """The point at wavenumber q, or :class:`RecordFileError` naming the range the branch has."""
         qs = self.q
         i = int(np.argmin(np.abs(qs - q))) if len(qs) else -1
@@ -178,7 +178,7 @@ class Branch:
                     meta=json.dumps(self.meta))
 
     @classmethod
-    def load(cls, path, comm=None, min_points=1):
+    def load(cls, path: str, comm=None, min_points: int = 1) -> "Branch":
         """Read a branch file; :class:`RecordFileError` if it is missing, corrupt, of another kind, or holds fewer
         than ``min_points`` points (an interrupted continuation's file may hold none: resume it first). With a
         communicator, rank 0 reads it and every rank gets the branch (or the error)."""

@@ -17,7 +17,9 @@ tangent-linear map together (the resolvent R(t; 0) of the paper's sections 3.4-3
 Two chains reuse this one with other ghost rows: the Bloch cell, whose tangents satisfy y_{n+M} = e^{i theta} y_n
 (:attr:`Chain.theta`, :attr:`Chain.complex_modes`; :class:`hertzpetsc.bloch.TwistedChain`), and the chain in
 gap-lattice coordinates, whose bonds are r = gap + y_{n+1} - y_n (:attr:`Chain.gap`;
-:class:`hertzpetsc.compacton_window.WindowChain`).
+:class:`hertzpetsc.compacton_window.WindowChain`), where one bond may carry an extra length (:attr:`Chain.step`:
+the beads behind it stored relative to their rest position, so that bonds closed by less than the positions'
+round-off are computed without cancellation).
 
 The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law; :meth:`Chain.rhs_reference`
 is the same arithmetic in numpy (any law; the reference the kernel is tested against).
@@ -83,7 +85,7 @@ class Chain:
         self.inverse_mass = None if self.model.uniform_masses else \
             1.0 / self.model.mass(np.arange(self.xs, self.xe))
         self._shift = None
-        self._theta, self._complex_modes, self._gap = 0.0, False, 0.0
+        self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
         # the compiled right-hand side: the Hertz law and this class's ghost rows (any other law, or a subclass that
         # redefines the ghost rows or the right-hand side, evaluates in numpy)
         compiled = type(self.model.law) is HertzLaw and type(self)._ghosted is Chain._ghosted \
@@ -125,6 +127,40 @@ class Chain:
     def gap(self, value):
         self._gap = float(value)
         self._sync()
+
+    @property
+    def step(self):
+        """(bond b, length s): bond b (joining beads b, b + 1) is r = s + gap + x_{b+1} - x_b, i.e. beads 0..b are
+        stored relative to a position s further back (b = -1: no step)."""
+        return self._step
+
+    @step.setter
+    def step(self, value):
+        b, s = value
+        if not (isinstance(b, (int, np.integer)) and -1 <= b < self.spec.N - 1):
+            raise ParameterError("step", b, f"the bond index must be in -1..{self.spec.N - 2}")
+        self._step = (int(b), float(s) if b >= 0 else 0.0)
+        self._sync()
+
+    def _step_row(self):
+        """The local index (ghosted numbering: bond i joins rows i, i + 1) of the step bond, or -1 off this rank."""
+        i = self._step[0] - self.xs + 1
+        return i if self._step[0] >= 0 and 0 <= i <= self.nloc else -1
+
+    def _bonds(self, a):
+        """Bond lengths r_i (nloc + 1) of the ghosted local rows ``a`` (gap included there), the step added."""
+        r = a[1:, 0] - a[:-1, 0]
+        i = self._step_row()
+        if i >= 0:
+            r[i] = r[i] + self._step[1]
+        return r
+
+    def bonds(self, values):
+        """Bond lengths (N - 1) of a gathered state ``values`` (N, dof): gap + x_{n+1} - x_n, the step added."""
+        r = self.gap + np.diff(np.asarray(values)[:, 0])
+        if self._step[0] >= 0:
+            r[self._step[0]] += self._step[1]
+        return r
 
     def _sync(self):
         if self.kernel is not None:
@@ -194,8 +230,7 @@ class Chain:
         order)."""
         a = self._ghosted(X, t)
         model = self.model
-        x = a[:, 0]
-        r = x[1:] - x[:-1]                          # bond lengths x_{n+1} - x_n
+        r = self._bonds(a)                          # bond lengths x_{n+1} - x_n
         mask = self._bond_mask()
         bond = model.force(r) * mask
         out = F.getArray().reshape(self.nloc, self.dof)
@@ -237,7 +272,7 @@ class Chain:
         """Exact Jacobian Df(X) of the chain (for implicit integrators); only for the chain without tangents.
         Assembled entry by entry: adequate for the chain lengths where implicit integration is used."""
         a = self._ghosted(X, t)
-        r = a[1:, 0] - a[:-1, 0]
+        r = self._bonds(a)
         mask = self._bond_mask()
         s = self.model.stiffness(r) * mask                # bond stiffness V''(x_{n+1} - x_n)
         inv = self.inverse_mass if self.inverse_mass is not None else np.ones(self.nloc)
@@ -277,7 +312,7 @@ class Chain:
         """Total energy (eq. ham): sum of m v^2/2 and of V over the bonds, the bonds to walls and actuators
         included (their positions at time t)."""
         a = self._ghosted(X, t)
-        r = a[1:, 0] - a[:-1, 0]
+        r = self._bonds(a)
         Vb = self.model.potential(r) * self._bond_mask()
         # each rank counts the bonds to the right of its beads, plus the bond at the left end
         kinetic = a[1:-1, 1] ** 2 if self.inverse_mass is None else a[1:-1, 1] ** 2 / self.inverse_mass
@@ -291,7 +326,7 @@ class Chain:
         dE/dt = input - dissipation: input = -f_0 x_0' + f_N x_{N+1}' (f the bond forces V' + eta dv of the bonds
         to the actuators; f < 0 in compression), dissipation = gamma sum v^2 + eta sum over bonds dv^2."""
         a = self._ghosted(X, t)
-        r = a[1:, 0] - a[:-1, 0]
+        r = self._bonds(a)
         mask = self._bond_mask()
         v = a[:, 1]
         dv = (v[1:] - v[:-1]) * mask

@@ -31,6 +31,36 @@ from petsc4py import PETSc
 from .errors import ConvergenceError, ParameterError
 
 
+def illinois(f, a, fa, b, fb, tol, max_iter, bisect=False, bracket=False):
+    """A root of f between a and b (fa = f(a), fb = f(b) of opposite signs) by the Illinois rule (regula falsi with
+    the stale end's value halved): the last iterate, when the bracket is shorter than ``tol`` or f vanishes there,
+    or after ``max_iter`` evaluations. ``bisect``: halve the bracket instead, until it is at most ``tol`` long (a
+    verdict's margin, flat on one side, makes the Illinois rule crawl). ``bracket``: return (x, ((a, f(a)), (b,
+    f(b)))), the final bracket's ends in increasing order with f's values there (not the halved ones)."""
+    raw = {a: fa, b: fb}
+    side, x = 0, None
+    for _ in range(max_iter):
+        x = 0.5 * (a + b) if bisect else (a * fb - b * fa) / (fb - fa)
+        fx = raw[x] = f(x)
+        width = abs(b - a)                       # the Illinois rule stops on the bracket before this trial
+        if fx == 0.0:
+            a = b = x
+            break
+        if fx * fb < 0:
+            a, fa = b, fb
+            side = 0
+        else:
+            if side == -1 and not bisect:
+                fa *= 0.5
+            side = -1
+        b, fb = x, fx
+        if (abs(b - a) if bisect else width) <= tol:
+            break
+    if bracket:
+        return x, tuple(sorted(((a, raw[a]), (b, raw[b]))))
+    return x
+
+
 class ContinuationError(ConvergenceError):
     """The continuation could not take a step from ``last`` (every point up to it was yielded)."""
 
@@ -541,32 +571,12 @@ class Continuation:
             evals[p] = (Z, its, v)
             return v
 
-        a, fa, b, fb = p1, g1, p2, g2
-        raw = {p1: g1, p2: g2}                   # the test's values (Illinois halves fa)
-        bisect = name in self.bisect
         tol = self.locate_step if self.locate_step is not None else self.locate_tol * abs(p2 - p1)
-        side, x = 0, None
         try:
-            for _ in range(self.locate_max):
-                x = 0.5 * (a + b) if bisect else (a * fb - b * fa) / (fb - fa)
-                fx = at(x)
-                raw[x] = fx
-                width = abs(b - a)               # the Illinois rule stops on the bracket before this trial
-                if fx == 0.0:
-                    a, b = x, x
-                    break
-                if fx * fb < 0:
-                    a, fa = b, fb
-                    side = 0
-                else:
-                    if side == -1 and not bisect:
-                        fa *= 0.5
-                    side = -1
-                b, fb = x, fx
-                if (abs(b - a) if bisect else width) <= tol:
-                    break
+            x, bracket = illinois(at, p1, g1, p2, g2, tol, self.locate_max, bisect=name in self.bisect,
+                                  bracket=True)
             point = self._located(evals, x, s_origin + abs(x - p1), name)
-            point.bracket = tuple(sorted(((a, raw[a]), (b, raw[b]))))
+            point.bracket = bracket
             return point
         except ConvergenceError:
             for Z, _, _ in evals.values():
@@ -584,22 +594,8 @@ class Continuation:
         c, length = self._chord(Z1, Z2)
         evals = {}
         at = self._on_chord(Z1, c, evals, lambda Z: self.problem.test_functions(Z)[name])
-        a, fa, b, fb = 0.0, g1, length, g2
-        side, x = 0, None
         try:
-            for _ in range(self.locate_max):
-                x = (a * fb - b * fa) / (fb - fa)
-                fx = at(x)
-                if fx == 0.0 or abs(b - a) <= self.locate_tol * length:
-                    break
-                if fx * fb < 0:
-                    a, fa = b, fb
-                    side = 0
-                else:
-                    if side == -1:
-                        fa *= 0.5
-                    side = -1
-                b, fb = x, fx
+            x = illinois(at, 0.0, g1, length, g2, self.locate_tol * length, self.locate_max)
             return self._located(evals, x, s_origin + x, name)
         except ConvergenceError:
             for Z, _, _ in evals.values():

@@ -8,7 +8,9 @@ precompression, mass pattern) in its fixed-amplitude form (u_c = a w_c, lam = om
   the same grid (the paper's wave rescaled).
 * :class:`MassFamily`: a dimer's waves at fixed q and a, continued in the mass m_1 = epsilon by pseudo-arclength
   (through folds, which the layer detects).
-* :func:`wave_at`: the wave of a given model at a given (q, A = max |u|), A imposed as a border row.
+* :func:`wave_at`: the wave of a given model at a given (q, A = max |u|), A imposed as a border row;
+  :func:`wave_of_amplitude`: the same for any model (scale-invariant ones by the paper's branch, rescaled), ready
+  to be put on a chain.
 
 Closed forms live with the model: the linear frequencies (:meth:`~hertzpetsc.model.LatticeModel.linear_frequencies`)
 and the Hertz law's weakly nonlinear coefficient (:meth:`~hertzpetsc.hertz.HertzLaw.stokes_coefficient`).
@@ -352,3 +354,22 @@ def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start
         return point
     finally:
         fam.destroy()
+
+
+def wave_of_amplitude(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic"):
+    """The wave of any ``model`` at per-bead wavenumber q and amplitude A = max_c ||u_c||_inf, as (``BranchPoint``,
+    scale) for :func:`~hertzpetsc.waves.orbit_on_chain` (``scale=``): with precompression, :func:`wave_at` (A
+    imposed, the point at its physical amplitude, scale 1); without (eq. ad is scale-invariant), the q-branch from
+    the binary oscillation continued to q on ``grid`` (steps pi / round(pi / q)), scaled by A / ||u||_inf.
+    Collective over the grid's communicator."""
+    A = check_amplitude(A, "A")
+    if model.delta0 > 0:
+        return wave_at(model, q, A, grid, prefix, branch).branch_point(model, grid.h), 1.0
+    from .qbranch import BranchContinuation, ContinuationParameters
+    cont = BranchContinuation(ContinuationParameters(model=model, M=max(1, round(math.pi / q)),
+                                                     cells_per_pi=grid.K, q_stop=q), grid.comm)
+    try:
+        point = list(cont.points())[-1]
+    finally:
+        cont.destroy()
+    return point, A / point.diagnostics.norm_inf

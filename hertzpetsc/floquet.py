@@ -18,6 +18,7 @@ eigensolver (``-floquet_eps_nev`` ...).
 import math
 import time
 from dataclasses import dataclass, field, replace
+from typing import Optional
 
 import numpy as np
 
@@ -110,7 +111,7 @@ class FloquetSolver:
     """The one call signature of the Floquet routes: :meth:`spectrum`. A route implements ``_spectrum(orbit, tol_rho,
     nev)`` (a :class:`Spectrum`) and :meth:`destroy`; its solvers are configured once, when it is built."""
 
-    def spectrum(self, orbit, tol_rho=None, nev=None):
+    def spectrum(self, orbit: "Orbit", tol_rho: Optional[float] = None, nev: Optional[int] = None) -> "Spectrum":
         """The multipliers of F_q = S R(script-T; 0) around ``orbit`` (an :class:`~hertzpetsc.waves.Orbit`), the
         ``nev`` largest if given; ``tol_rho``: the stability threshold of the verdict (default :data:`TOL_RHO`)."""
         if nev is not None and not (isinstance(nev, (int, np.integer)) and 1 <= nev <= 2 * orbit.N):

@@ -49,7 +49,7 @@ class KernelContext(ctypes.Structure):
                 ("twist_left", ctypes.c_int), ("twist_right", ctypes.c_int),
                 ("complex_modes", ctypes.c_int),
                 ("cos_theta", ctypes.c_double), ("sin_theta", ctypes.c_double),
-                ("gap", ctypes.c_double),
+                ("gap", ctypes.c_double), ("step_bond", ctypes.c_int), ("step", ctypes.c_double),
                 ("bond", ctypes.c_void_p), ("stiff", ctypes.c_void_p), ("dv", ctypes.c_void_p)]
 
 
@@ -180,7 +180,7 @@ class ChainKernel:
         self.actuated = ctx.left == END_ACTUATOR or ctx.right == END_ACTUATOR
 
     def sync(self, chain):
-        """Copy the chain's twist and gap (attributes that may change between integrations) into the context."""
+        """Copy the chain's twist, gap and step (attributes that may change between integrations) into the context."""
         ctx = self.ctx
         seam = chain.spec.boundary == "periodic" and chain.theta != 0.0
         ctx.twist_left = int(seam and chain.xs == 0)
@@ -188,6 +188,7 @@ class ChainKernel:
         ctx.complex_modes = int(bool(chain.complex_modes))
         ctx.cos_theta, ctx.sin_theta = math.cos(chain.theta), math.sin(chain.theta)
         ctx.gap = chain.gap
+        ctx.step_bond, ctx.step = chain._step_row(), chain.step[1]
 
     def set_time(self, chain, t):
         """The actuators' position and velocity at time t (the only time dependence of eq. nc)."""

@@ -88,7 +88,8 @@ class LatticeModel:
             raise ParameterError("damping", self.damping, "must be a Damping(gamma, eta)")
 
     @classmethod
-    def hertz(cls, alpha=1.5, masses=(1.0,), delta0=0.0, gamma=0.0, eta=0.0):
+    def hertz(cls, alpha: float = 1.5, masses: tuple = (1.0,), delta0: float = 0.0, gamma: float = 0.0,
+              eta: float = 0.0) -> "LatticeModel":
         """The Hertzian chain with exponent alpha (eq. vhertz), the given mass pattern, precompression delta0 >= 0
         (static overlap of neighbours; 0 is the paper's uncompressed chain) and damping gamma, eta >= 0."""
         return cls(HertzLaw(alpha, delta0), masses, Damping(gamma, eta))

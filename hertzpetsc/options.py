@@ -204,12 +204,14 @@ class AppOptions:
         return raw
 
     def path(self, name, default, help="", old=()):
-        """A file or directory name (non-empty)."""
-        self._declare(name, default, "a path", help)
+        """A file or directory name; empty only where the default is empty (none: an empty value says so too)."""
+        self._declare(name, default, "a path" + (", or empty for none" if default == "" else ""), help)
         raw = self._raw(name, old)
         if raw is None or self.help:
             return default
         if not raw.strip():
+            if default == "":
+                return ""
             raise ParameterError(f"-{name}", raw, "must be a non-empty path")
         return raw
 
@@ -238,6 +240,8 @@ class AppOptions:
         if self.help:
             return []
         if raw is not None and not raw.strip():
+            if minimum_count == 0:
+                return []                             # an optional list given empty: none, as its help says
             raise ParameterError(f"-{name}", raw, f"is empty: give {rule}, or leave the option out")
         try:
             items = [v.strip() for v in text.split(",")] if text.strip() else []
@@ -337,8 +341,20 @@ class AppOptions:
         left = [(n, v) for n, v in unused_options() if n not in self.known() and not n.startswith(tuple(passed_on))]
         if not left:
             return
+        role_options = known_solver_options({p: kinds for p, (_, kinds) in self.roles.items()}) if self.roles else set()
+        idle = [(n, v) for n, v in left if n in role_options]
+        left = [(n, v) for n, v in left if n not in role_options]
+        if idle and not left:
+            # a documented option of one of the driver's solver roles, for a solver this run does not create (e.g.
+            # -floquet_eps_* with -method symmetric): accepted, and said
+            print0("note: " + ", ".join("-" + n + (f" {v}" if v else "") for n, v in idle)
+                   + " not used: this run creates no solver that reads " + ("them" if len(idle) > 1 else "it")
+                   + " (its solvers depend on the other options; -help lists the roles)", file=sys.stderr)
+            return
+        if not left:
+            return
         name, value = left[0]
-        candidates = self.known() | known_solver_options({p: kinds for p, (_, kinds) in self.roles.items()})
+        candidates = self.known() | role_options
         close = difflib.get_close_matches(name, sorted(candidates), n=1, cutoff=0.6)
         hint = f"; did you mean -{close[0]}?" if close else "; see -help for the options of this driver"
         more = f" (and {len(left) - 1} more: " + ", ".join("-" + n for n, _ in left[1:4]) + ")" if len(left) > 1 else ""

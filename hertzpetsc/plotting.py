@@ -213,18 +213,25 @@ def plot_floquet_radius(q, rho, tol_rho, directory):
     return _save(fig, directory, "floquet.png")
 
 
+def draw_multipliers(ax, lam, title=None):
+    """Multipliers ``lam`` in the complex plane with the unit circle, on the matplotlib axes ``ax`` (fig. eigen)."""
+    th = np.linspace(0, 2 * math.pi, 400)
+    lam = np.asarray(lam)
+    lam = lam[np.isfinite(lam)]
+    ax.plot(np.cos(th), np.sin(th), "b-", lw=0.6)
+    ax.plot(lam.real, lam.imag, "k+", ms=5)
+    ax.set_aspect("equal")
+    if title:
+        ax.set_title(title, fontsize=10)
+    return ax
+
+
 def plot_multipliers(panels, directory):
     """Fig. eigen: multipliers in the complex plane with the unit circle; ``panels`` = [(label, multipliers)]."""
     plt = _pyplot()
     fig, axes = plt.subplots(2, 2, figsize=(8, 8))
-    th = np.linspace(0, 2 * math.pi, 400)
     for ax, (label, lam) in zip(axes.ravel(), panels):
-        lam = np.asarray(lam)
-        lam = lam[np.isfinite(lam)]
-        ax.plot(np.cos(th), np.sin(th), "b-", lw=0.6)
-        ax.plot(lam.real, lam.imag, "k+", ms=5)
-        ax.set_aspect("equal")
-        ax.set_title(f"q = {label}", fontsize=10)
+        draw_multipliers(ax, lam, f"q = {label}")
     return _save(fig, directory, "eigen.png")
 
 
@@ -359,6 +366,42 @@ def plot_compacton_spectra(rows, eta, directory):
         ax.set_aspect("equal")
         ax.set_title(rf"$\alpha = {float(r['alpha']):g}$, $q = {float(r['q']):.4f}$", fontsize=10)
     return _save(fig, directory, "compacton_stability_spectra.png")
+
+
+def plot_solitary_stability(rows, directory):
+    """Left: the energy slope d ln H / d ln c at fixed lattice against the Mach number c / c0 (Jordan vectors: lines,
+    finite differences along the family: circles), the uncompressed value 2(alpha+1)/(alpha-1) dashed; right: the
+    largest nontrivial |mu| of the window map and the weighted essential-spectrum radius against c0."""
+    plt = _pyplot()
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4))
+    for a in sorted({float(r["alpha"]) for r in rows}):
+        rs = sorted((r for r in rows if float(r["alpha"]) == a), key=lambda r: float(r["c0"]))
+        c0 = np.array([float(r["c0"]) for r in rs])
+        slope = np.array([float(r["log_slope"]) for r in rs])
+        fd = np.array([float(r["log_slope_fd"]) for r in rs])
+        pos = c0 > 0
+        line, = ax.plot(1 / c0[pos], slope[pos], "-", lw=0.9, label=rf"$\alpha = {a:g}$")
+        ax.plot(1 / c0[pos], fd[pos], "o", mfc="none", color=line.get_color(), ms=5)
+        ax.axhline(2 * (a + 1) / (a - 1), color=line.get_color(), lw=0.6, ls="--")
+        bx.plot(c0, [float(r["max_nontrivial"]) for r in rs], ".-", color=line.get_color(), lw=0.9,
+                label=rf"max $|\mu|$, $\alpha = {a:g}$")
+    ess = sorted({(float(r["c0"]), float(r["essential"])) for r in rows})
+    bx.plot([e[0] for e in ess], [e[1] for e in ess], "k:", lw=0.9, label=r"$r_{ess}$")
+    bx.axhline(1.0, color="k", lw=0.6)
+    ax.set_xscale("log")
+    ax.set_xticks([1.1, 1.25, 1.5, 2, 3, 5])
+    ax.set_xticklabels(["1.1", "1.25", "1.5", "2", "3", "5"])
+    ax.minorticks_off()
+    ax.set_xlabel("Mach number $c / c_0$")
+    ax.set_ylabel(r"$d \ln H / d \ln c$ (fixed lattice)")
+    ax.set_title("energy criterion: no change of sign", fontsize=9)
+    ax.legend(fontsize=8)
+    bx.set_xlabel("$c_0 / c$")
+    bx.set_ylabel(r"window multipliers")
+    bx.set_ylim(0, 1.05)
+    bx.set_title("spectral route: largest nontrivial multiplier", fontsize=9)
+    bx.legend(fontsize=7)
+    return _save(fig, directory, "solitary_stability.png")
 
 
 def plot_compacton_dynamics(records, directory):

@@ -160,7 +160,7 @@ class Refiner:
         return self.smap.residual(orbit)
 
     @PETSc.Log.EventDecorator("hz_refine")
-    def refine(self, orbit):
+    def refine(self, orbit: "Orbit") -> Refinement:
         """The refined :class:`Refinement` of ``orbit``; :class:`ConvergenceError` if E cannot be brought below
         ``tol`` within the iteration limit."""
         t0 = time.perf_counter()
@@ -201,3 +201,10 @@ class Refiner:
 
     def __exit__(self, *exc):
         self.destroy()
+
+
+def refine(orbit: "Orbit", comm: PETSc.Comm, tol: float = 1e-10, **kwargs) -> Refinement:
+    """One-off :meth:`Refiner.refine` of ``orbit`` (``kwargs``: those of :class:`Refiner`); collective over
+    ``comm``."""
+    with Refiner(orbit.spec, comm, tol, **kwargs) as refiner:
+        return refiner.refine(orbit)

@@ -11,6 +11,7 @@ S X(script-T) = X(0) (eq. invv), and the state's source (the branch profile, or 
 """
 import math
 from dataclasses import dataclass, replace
+from typing import Optional
 
 import numpy as np
 
@@ -49,7 +50,7 @@ class Orbit:
             raise ParameterError("state", x.shape, f"must have shape (N, 2) = ({self.N}, 2)")
         return replace(self, x=x, source=source)
 
-    def tiled(self, L):
+    def tiled(self, L: int) -> "Orbit":
         """The wave on L times as many beads (the state repeated: the same script-T, m times L)."""
         return Orbit(self.spec.with_length(L * self.N), self.q, self.m * L, self.T, np.tile(self.x, (L, 1)),
                      self.omega, self.source)
@@ -75,7 +76,8 @@ def check_chain_wavenumber(q, N):
     return int(round(m))
 
 
-def orbit_on_chain(point, spec, phase=0.0, time=0.0, scale=None):
+def orbit_on_chain(point: "BranchPoint", spec: ChainSpec, phase: float = 0.0, time: float = 0.0,
+                   scale: Optional[float] = None) -> Orbit:
     """The travelling wave of ``point`` (a :class:`~hertzpetsc.branch.BranchPoint`: p profiles u_c, frequency omega)
     on the periodic chain ``spec`` at ``time``: x_n = s u_c(q n - s^((d-1)/2) omega t + phase), c = n mod p, with
     script-T = p q / (s^((d-1)/2) omega), the time after which the shift by one cell (p beads) maps the state back.

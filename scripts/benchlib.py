@@ -130,6 +130,9 @@ def declare_common(opts, output, repeats=3):
     reps = opts.integer("repeats", repeats, "repeats of each hertzpetsc measurement (the best is kept)", minimum=1)
     records = opts.path("records", "", "record file of the measurements, for -resume (none if empty)")
     mode = opts.mode()
+    if not opts.help:                                  # the table is written at the end: know now that it can be
+        from hertzpetsc.records import prepare_output
+        prepare_output(out, None, "benchmark table")
     return out, reps, records, mode
 
 

@@ -4,17 +4,18 @@ that travels with them, and the window map's multipliers, against q, for each br
 
     mpiexec -n 2 python scripts/compacton_stability.py \
         -branches results/branch_alpha1.5.npz,runs/branch_alpha2.npz,runs/branch_alpha2.5.npz \
-        [-q 1.5,...,pi/800] [-no_solitary] [-M 18] [-rear 6] [-nev 3] [-eta 2.5] \
+        [-q 1.5,...,pi/6400] [-no_solitary] [-M 18] [-rear 6] [-nev 3] [-eta 2.5] \
         [-output results/compacton_stability.npz] [-table results/compacton_stability.md] [-figures figures] \
         [-resume | -force]
 
 For each branch the scan starts at the branch's largest q with F(q) >= 1 (the compacton of that branch point,
 hertzpetsc.compacton, refined by Gauss-Newton on the window map), continues in q through -q (each <= q_k) and
-ends at the solitary wave (q = 0, Delta = 0) unless -no_solitary. Per q: residual (refinement flow and an
-independent flow), all 2M multipliers (LAPACK), the Jordan pair at 1, the dominant nontrivial multipliers, the
-unstable ones, their change when M is doubled, and SLEPc Krylov-Schur on the exponentially weighted shell
-(weight exp(eta j); -nev multipliers at most, only those above 2 exp(-eta)) against LAPACK. Each (alpha, q) runs
-on one rank; the alphas of a continuation step are dealt to the ranks.
+ends at the solitary wave (q = 0, Delta = 0; the table then ends with the q -> 0 limit of the family against it)
+unless -no_solitary. Per q: residual (refinement flow and an independent flow), all 2M multipliers (LAPACK), the
+Jordan pair at 1, the dominant nontrivial multipliers, the unstable ones, their change when M is doubled, and SLEPc
+Krylov-Schur on the exponentially weighted shell (weight exp(eta j); -nev multipliers at most, only those above
+2 exp(-eta)) against LAPACK. Each (alpha, q) runs on one rank; the alphas of a continuation step are dealt to the
+ranks.
 Solver prefixes: -cwin_ (TS of the window flows), -ccheck_ (TS of the independent residual check), -cstab_
 (the EPS: -cstab_eps_*), -floquet_ (the ring check's flow).
 Ring check (-ring_q, skipped with -no_ring): the exact compacton of the first alpha at each -ring_q on a periodic
@@ -92,6 +93,10 @@ def main():
     finally:
         scan.destroy()
     text = scan.summary() + "\n" + scan.table()
+    if solitary:
+        text += ("\nThe q -> 0 end of the family: the three smallest q extrapolated to q = 0 (Richardson with the "
+                 "leading order 1: the gap Delta = q D / 2 pi opens every bond by O(q)) against the solitary wave "
+                 "itself.\n\n" + scan.limit_table())
     if ring_qs:
         a0 = min(b.alpha for b in branches)
         lines = [f"\nThe same exact compactons (alpha = {a0:g}) on a periodic chain of N = 2 pi / q beads, i.e. the "

@@ -27,6 +27,11 @@ def pytest_collection_modifyitems(config, items):
                 item.add_marker(skip)
 
 
+def shared_tmp(tmp_path):
+    """One directory for every rank (rank 0's pytest tmp_path), for files a study writes on one rank and reads on all."""
+    return PETSc.COMM_WORLD.tompi4py().bcast(str(tmp_path), root=0)
+
+
 def script_env():
     # A process that imported petsc4py must hand its environment explicitly to mpiexec children.
     env = dict(os.environ)

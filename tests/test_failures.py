@@ -9,6 +9,7 @@ processes, on every rank, with no hang and with the files left intact.
 """
 import math
 import os
+import re
 import runpy
 import signal
 import subprocess
@@ -83,6 +84,8 @@ DRIVERS = {
     "compacton_stability.py": (("-branches", BRANCH, "-q", "pi/5", "-no_solitary", "-no_ring", "-M", 12, "-rear", 3,
                                 "-output", "{t}/c.npz", "-table", "{t}/c.md"), "branches", "output",
                                ("-q", "pi/5,pi/5"), ("-cwin_ts_type", "bogus")),
+    "solitary_stability.py": (("-alphas", "2", "-c0", "0.5", "-tail", "1e-10", "-output", "{t}/s.npz", "-table",
+                               "{t}/s.md"), None, "output", ("-c0", "0.5,0.5"), ("-cwin_ts_type", "bogus")),
     "wave.py": (("-masses", "1,0.5,0.25", "-q", "2*pi/15", "-N", 30, "-cells_per_pi", 60, "-output", "{t}/w.npz",
                  "-table", "{t}/w.md"), None, "output", ("-masses", "1,0"), ("-shoot_ts_type", "bogus")),
     "compacton_dynamics.py": (("-stability", f"{RESULTS}/compacton_stability.npz", "-q", "7*pi/25", "-N", 40,
@@ -142,6 +145,16 @@ def swap(args, option, value):
     return args
 
 
+def offers_empty_for_none(script):
+    """The driver's source (or the benchmark harness it declares its options with) has an option 'none if empty'."""
+    with open(os.path.join(SCRIPTS, script)) as f:
+        text = f.read()
+    return "none if empty" in text or "declare_common(" in text
+
+
+EMPTY_FOR_NONE = tuple(sorted(s for s in DRIVERS if offers_empty_for_none(s)))
+
+
 def cases():
     for script, (base, inp, record, bad_list, bad_solver) in DRIVERS.items():
         yield script, "typo"
@@ -156,6 +169,8 @@ def cases():
             yield script, "bad list"
         if bad_solver:
             yield script, "bad solver option"
+        if script in EMPTY_FOR_NONE:
+            yield script, "empty for none"
 
 
 @pytest.mark.parametrize("script,failure", list(cases()))
@@ -173,9 +188,15 @@ def test_failure_matrix(script, failure, tmp_path, capfd, monkeypatch):
         assert code == 0 and not err and "Application options" in out
         assert list(work.iterdir()) == []                       # nothing computed, nothing written
     elif failure == "unwritable":
-        option = record or ("output" if "-output" in args else "table")
-        code, _, err = drive(script, swap(args, option, str(tmp_path / "afile" / "x")), capfd, monkeypatch, tmp_path)
-        assert code == 4 and len(err) == 1 and "is not a directory" in err[0], err
+        # every file the run writes is checked before any computation: the record, the output and the table
+        options = [record] if record else []
+        options += [o for o in ("output", "table") if f"-{o}" in args and o not in options]
+        for option in options or ["table"]:
+            t0 = time.perf_counter()
+            code, _, err = drive(script, swap(args, option, str(tmp_path / "afile" / "x")), capfd, monkeypatch,
+                                 tmp_path)
+            assert code == 4 and len(err) == 1 and "is not a directory" in err[0], (option, err)
+            assert time.perf_counter() - t0 < 30, option          # refused up front, not after the work
     elif failure == "missing input":
         code, _, err = drive(script, swap(args, inp, str(tmp_path / "missing.npz")), capfd, monkeypatch, tmp_path)
         assert code == 4 and len(err) == 1 and ("does not exist" in err[0] or "missing" in err[0]), err
@@ -196,6 +217,15 @@ def test_failure_matrix(script, failure, tmp_path, capfd, monkeypatch):
         option, value = bad_list[0].lstrip("-"), bad_list[1]
         code, _, err = drive(script, swap(args, option, value), capfd, monkeypatch, tmp_path)
         assert code == 2 and len(err) == 1 and (f"-{option}" in err[0] or "q_k" in err[0]), err
+    elif failure == "empty for none":
+        # every option whose -help says "none if empty" takes an empty value: the run then stops at the typo given
+        # after it (checked once everything was read), not at the empty value
+        _, out, _ = drive(script, ["-help"], capfd, monkeypatch, tmp_path)
+        names = re.findall(r"^\s+-(\w+) .*none if empty", out, re.M)
+        assert names
+        for name in names:
+            code, _, err = drive(script, swap(args, name, "") + ["-alpah", "2"], capfd, monkeypatch, tmp_path)
+            assert code == 2 and len(err) == 1 and err[0].startswith("error: unknown option -alpah"), (name, err)
     elif failure == "bad solver option":
         code, _, err = drive(script, args + list(bad_solver), capfd, monkeypatch, tmp_path)
         assert code == 5 and len(err) == 1 and "bogus" in err[0] and f"from the option -{bad_solver[0][1:]}" in err[0]
@@ -316,6 +346,7 @@ OVERSIZED = {
     "slow_instabilities.py": ("N", "1000000000"),
     "compacton_stability.py": ("M", "1000000000"),
     "compacton_dynamics.py": ("N", "1000000000000"),
+    "solitary_stability.py": ("M", "1000000000"),
     "wave.py": ("cells_per_pi", "1000000000000"),
     "bench_branch.py": ("cells", "1000000000000"),
     "bench_chain.py": ("sizes", "1000000000000"),

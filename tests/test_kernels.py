@@ -11,6 +11,7 @@ from hertzpetsc import kernels
 from hertzpetsc.bloch import TwistedChain
 from hertzpetsc.chain import Chain
 from hertzpetsc.compacton_window import WindowChain
+from hertzpetsc.errors import ParameterError
 from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal
 from hertzpetsc.tangent import TangentFlow
 
@@ -18,6 +19,11 @@ COMM = PETSc.COMM_WORLD
 EPS = np.finfo(float).eps
 H = LatticeModel.hertz
 SAMPLED = SampledSignal((0.1, 0.3, -0.2, 0.05, 0.0), 2.5)
+
+def stepped(chain, step):
+    chain.step = step
+    return chain
+
 
 # (label, chain factory): every kind of ghost row and every term of eq. nc
 CHAINS = [
@@ -30,6 +36,8 @@ CHAINS = [
                                                                       right=Actuator(SAMPLED)), COMM, 2)),
     ("gap lattice", lambda: WindowChain(ChainSpec(H(1.5), 12, "free"), COMM, gap=0.37, n_tangent=2)),
     ("gap lattice, precompression", lambda: WindowChain(ChainSpec(H(1.5, delta0=0.2), 12, "free"), COMM, 0.37, 2)),
+    ("gap lattice, step", lambda: stepped(WindowChain(ChainSpec(H(1.5), 12, "free"), COMM, gap=0.37, n_tangent=2),
+                                          (5, -1.3))),
     ("real twist theta = pi", lambda: TwistedChain(ChainSpec(H(1.5), 12), 4, COMM, complex_modes=False,
                                                    theta=math.pi)),
     ("complex twist, damping", lambda: TwistedChain(ChainSpec(H(1.5, gamma=0.1, eta=0.2), 12), 4, COMM,
@@ -64,6 +72,40 @@ def test_kernel_equals_the_numpy_reference(label, make):
         for v in (X, F, G):
             v.destroy()
         ch.destroy()
+
+
+def test_a_step_is_the_same_chain_with_the_beads_behind_it_moved():
+    """Chain.step = (b, s): beads 0..b stored as x - s give the right-hand side of the chain without a step, to the
+    round-off of the positions (|x| <= 3: 1e-15), compiled and in numpy; also Chain.bonds on the gathered state."""
+    spec = ChainSpec(H(1.5), 12, "free")
+    plain, step = WindowChain(spec, COMM, gap=0.05, n_tangent=2), WindowChain(spec, COMM, gap=0.05, n_tangent=2)
+    b, s = 6, 2.7
+    step.step = (b, -s)
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(12, plain.dof)) * 0.3
+    x[:b + 1, 0] += s
+    xs = x.copy()
+    xs[:b + 1, 0] -= s
+    vecs = [plain.create_state() for _ in range(3)] + [step.create_state() for _ in range(3)]
+    X, F, G, Xs, Fs, Gs = vecs
+    try:
+        plain.set_from_array(X, x)
+        step.set_from_array(Xs, xs)
+        plain.rhs(None, 0.0, X, F)
+        plain.rhs_reference(None, 0.0, X, G)
+        step.rhs(None, 0.0, Xs, Fs)
+        step.rhs_reference(None, 0.0, Xs, Gs)
+        f = plain.gather(F)
+        for other in (G, Fs, Gs):
+            assert np.max(np.abs(plain.gather(other) - f)) <= 1e-14 * np.max(np.abs(f))
+        assert np.max(np.abs(step.bonds(xs) - plain.bonds(x))) <= 1e-15
+        with pytest.raises(ParameterError):
+            step.step = (11, 1.0)
+    finally:
+        for v in vecs:
+            v.destroy()
+        plain.destroy()
+        step.destroy()
 
 
 def test_the_ts_calls_the_kernel_and_the_flow_is_unchanged(clean_options):

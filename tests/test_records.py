@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
+from conftest import shared_tmp
 from hertzpetsc.branch import POINT_FIELDS, Branch, BranchPoint, SolveStats, branch_store
 from hertzpetsc.diagnostics import WaveDiagnostics
 from hertzpetsc.errors import ParameterError, RecordFileError
@@ -14,11 +15,6 @@ from hertzpetsc.model import LatticeModel
 from hertzpetsc.records import AppendRecords, NpzRecords, load_npz, prepare_output, write_text
 
 COMM = PETSc.COMM_WORLD
-
-
-def shared_tmp(tmp_path):
-    """One directory for every rank (rank 0's pytest tmp_path)."""
-    return COMM.tompi4py().bcast(str(tmp_path), root=0)
 
 
 def small_branch(npts=3, K=8):

@@ -5,16 +5,13 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
+from conftest import shared_tmp
 from hertzpetsc.qbranch import BranchContinuation, ContinuationParameters, regrid_half_profile
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.richardson import richardson
 from hertzpetsc.studies.branch import SmallQParameters, SmallQStudy
 
 COMM = PETSc.COMM_WORLD
-
-
-def shared_tmp(tmp_path):
-    return COMM.tompi4py().bcast(str(tmp_path), root=0)
 
 
 def test_targets_and_grids():

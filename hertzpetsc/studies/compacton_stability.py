@@ -29,6 +29,7 @@ from ..continuation import Continuation, Natural
 from ..errors import ParameterError
 from ..model import ChainSpec
 from ..records import NpzRecords
+from ..richardson import richardson
 from .base import provenance
 from .dealing import dealt
 
@@ -39,7 +40,7 @@ CHECK_TOLERANCES = IntegrationTolerances(rtol=1e-13, atol=1e-16)
 NDOM = 6
 TOL_UNSTABLE = 1e-8
 DEFAULT_QS = ("1.5, 1.3, 1.1, 3*pi/10, 7*pi/25, 0.7, 9*pi/50, 0.45, pi/10, 0.2, pi/25, pi/50, pi/100, pi/200, "
-              "pi/400, pi/800")
+              "pi/400, pi/800, pi/1600, pi/3200, pi/6400")
 FIELDS = ("alpha", "q", "gap", "D", "residual", "residual_check", "iterations", "jordan_mean", "jordan_split",
           "jordan_translation", "jordan_generalized", "max_nontrivial", "unstable", "doubling_change",
           "slepc_change", "slepc_products", "slepc_nev", "core_first", "core_last", "seconds")
@@ -265,6 +266,32 @@ class CompactonStabilityScan:
                          f"{max(float(r['residual_check']) for r in rs):.1e} | "
                          f"{max(float(r['doubling_change']) for r in rs):.1e} | "
                          f"{max(float(r['slepc_change']) for r in rs):.1e} |")
+        return "\n".join(lines) + "\n"
+
+
+    def limit_table(self):
+        """The q -> 0 limit of the compacton family against the solitary wave (q = 0), per alpha: D and the dominant
+        multipliers mu_3, mu_4, mu_5 at the three smallest q, the observed order, the value extrapolated in q with
+        the leading order 1 (the gap Delta = q D / 2 pi opens every bond by O(q)) and the solitary wave's."""
+        lines = ["| alpha | quantity | at the three smallest q | observed order | extrapolated to q = 0 (order 1) | "
+                 "solitary wave (q = 0) | extrapolated - solitary | smallest q - solitary |",
+                 "|---|---|---|---|---|---|---|---|"]
+        for a in sorted({float(r["alpha"]) for r in self.store.records}):
+            rs = [r for r in self.rows() if float(r["alpha"]) == a]
+            sol = [r for r in rs if float(r["q"]) == 0]
+            small = sorted((r for r in rs if float(r["q"]) > 0), key=lambda r: -float(r["q"]))[-3:]
+            if not sol or len(small) < 3:
+                continue
+            qs = [float(r["q"]) for r in small]
+            quantities = [("D", lambda r: float(r["D"]))] + [
+                (f"mu_{k + 3}", lambda r, k=k: complex(r["dominant"][k]).real) for k in range(3)]
+            for name, get in quantities:
+                values = [get(r) for r in small]
+                order, limit = richardson(values, order=1.0, steps=qs)
+                exact = get(sol[0])
+                lines.append(f"| {a:g} | {name} | " + ", ".join(f"{v:.6f}" for v in values) + f" (q = "
+                             + ", ".join(q_text(q).split(" ")[0] for q in qs) + f") | {order:.3f} | {limit:.7f} | "
+                             f"{exact:.7f} | {limit - exact:+.1e} | {values[-1] - exact:+.1e} |")
         return "\n".join(lines) + "\n"
 
 

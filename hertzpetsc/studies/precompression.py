@@ -348,18 +348,19 @@ class DimerFamilies(Study):
             mc = MassFamily(self.model, q, grid, self.a, ds=self.ds, ds_max=self.ds_max)
             try:
                 state = self.store.state
-                if saved and "q" in state and abs(float(state["q"]) - q) <= 1e-12 * q:
+                if saved >= 2 and "q" in state and abs(float(state["q"]) - q) <= 1e-12 * q:
                     mc.restore(state)
                 else:
-                    if saved:
-                        raise ParameterError("-resume", self.store.path, f"q = {q:.6g} has points but no saved state "
-                                             "to continue from: rerun it with -force")
-                    for p in mc.start():
+                    # the two start points; the state (both points) is saved with the second: a run stopped after
+                    # the first recomputes them and saves the second (the first is the same computation)
+                    points = list(mc.start())
+                    for i, p in enumerate(points):
+                        if i < saved:
+                            continue
                         row = self._row(q, p)
-                        self.store.append(row, state=dict(q=q, **mc.snapshot()) if len(mc.continuation.history)
-                                          == 2 else None)
+                        self.store.append(row, state=dict(q=q, **mc.snapshot()) if i == len(points) - 1 else None)
                         yield row
-                    saved = 2
+                    saved = len(points)
                 try:
                     for p in mc.run(self.epsilon_end, self.max_steps - (saved - 2)):
                         row = self._row(q, p)
@@ -446,3 +447,12 @@ def wave_orbit(model, q, a, profiles, lam, N, h):
     point = BranchPoint(q, np.asarray(profiles[0]), h, model.rescaled(a), profiles=tuple(profiles),
                         omega=math.sqrt(lam))
     return orbit_on_chain(point, ChainSpec(model, N), scale=a)
+
+
+def __getattr__(name):
+    """The stability map's names at their place before issue 23 (``studies.precompression.StabilityMap``, ...): the
+    study of :mod:`hertzpetsc.studies.maps` (imported when first asked: it imports this module)."""
+    if name in ("StabilityMap", "MapParameters", "map_table", "MAP_FORMAT", "MAP_FIELDS"):
+        from . import maps
+        return getattr(maps, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

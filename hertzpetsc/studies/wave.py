@@ -19,11 +19,10 @@ import numpy as np
 from ..advdelay import check_wavenumber
 from ..bloch import SymmetricFloquet
 from ..errors import ParameterError
-from ..families import check_amplitude, wave_at
+from ..families import check_amplitude, wave_of_amplitude
 from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
-from ..qbranch import BranchContinuation, ContinuationParameters
 from ..resources import check_memory
 from ..shooting import Refiner
 from ..twsolver import tw_solver
@@ -109,18 +108,10 @@ class WaveStudy(Study):
                     tol_rho=p.tol_rho)
 
     def wave(self, q):
-        """The wave at q as a :class:`~hertzpetsc.branch.BranchPoint` at amplitude A (and the scale of the orbit)."""
+        """The wave at q as a :class:`~hertzpetsc.branch.BranchPoint` and the scale of its orbit
+        (:func:`~hertzpetsc.families.wave_of_amplitude`)."""
         p = self.params
-        grid = ProfileGrid(p.cells_per_pi, self.comm)
-        if p.model.delta0 > 0:
-            return wave_at(p.model, q, p.A, grid).branch_point(p.model, grid.h), 1.0
-        cont = BranchContinuation(ContinuationParameters(model=p.model, M=max(1, round(math.pi / q)),
-                                                         cells_per_pi=p.cells_per_pi, q_stop=q), self.comm)
-        try:
-            point = list(cont.points())[-1]
-        finally:
-            cont.destroy()
-        return point, p.A / point.diagnostics.norm_inf
+        return wave_of_amplitude(p.model, q, p.A, ProfileGrid(p.cells_per_pi, self.comm))
 
     def compute(self, q):
         p = self.params
@@ -154,8 +145,8 @@ class WaveStudy(Study):
         lines = [f"schema: {WAVE_FORMAT}; chain {p.model.describe()}, amplitude A = max |u| = {p.A:g}, h = pi/"
                  f"{p.cells_per_pi}; refined on N = {p.N} beads (target E {p.tol:g}); multipliers modulo shift from "
                  f"the Bloch sectors of the wave's cell; unstable when rho - 1 > {p.tol_rho:g}.\n",
-                 "| q | m | omega | E (profile) | E (refined) | rho - 1 | outside | trivial spread | verdict | "
-                 + " | ".join(f"rho - 1 on {L}" for L in p.sizes) + (" |" if p.sizes else "|"),
+                 "| " + " | ".join(["q", "m", "omega", "E (profile)", "E (refined)", "rho - 1", "outside",
+                                    "trivial spread", "verdict"] + [f"rho - 1 on {L}" for L in p.sizes]) + " |",
                  "|---" * (9 + len(p.sizes)) + "|"]
         for r in self.store.records:
             extra = "".join(f" {float(v) - 1:.2e} |" for v in np.atleast_1d(r["rho_sizes"]))

@@ -6,7 +6,7 @@ periodic chain of N beads and on the infinite chain.
         [-m 10,12,14,15,16,18,20,22,24,25] [-q LIST] [-a 0.1,0.3,0.5,0.7,1,1.5,2,3,5,10,20,30,50,100,1000]
         [-a_min 0.01 -a_max 1000 -ds 0] [-cells_per_pi 1000] [-rtol 1e-11] [-tol_rho 1e-6] [-twists 0]
         [-locate chain] [-locate_tol 1e-3] [-output results/precompression_map.npz]
-        [-table results/precompression_map.md] [-figures figures] [-resume | -force]
+        [-table results/precompression_map.md] [-figures figures] [-resume | -force | -render]
 
 For q = 2 pi m / N (and the wavenumbers of -q, infinite chain only) and each amplitude a (first sine coefficient
 of u; -a, and with -ds > 0 the grid a_min exp(k ds) up to a_max): the wave (Richardson combination of the h = pi/K
@@ -19,6 +19,10 @@ the uncompressed limit closes each q. With -epsilon != 1 the chain is the dimer 
 acoustic ones. The q are dealt to the ranks. Table: the located boundary with rho - 1 on both sides, and the
 verdicts; figure precompression_map.png. Solver prefixes: -precomp_ (the wave solves), -floquet_ (the flows of
 the cell maps, -floquet_ts_*).
+
+-render computes nothing: it rewrites -table (and the figure) from the file -output, of this kind or of kind
+hertzpetsc-precompression-map-1 (the maps before issue 23: rho - 1 per (q, a) on the dense route); such a file is
+not resumed (-resume refuses it and says so).
 """
 import math
 import os
@@ -33,7 +37,9 @@ from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.maps import MapParameters, StabilityMap, TESTS  # noqa: E402
+from hertzpetsc.errors import RecordFileError  # noqa: E402
+from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MapParameters, StabilityMap, TESTS, map_format,  # noqa: E402
+                                     map_table, map_v1_as_v2, read_map)
 from hertzpetsc.studies.precompression import amplitude_grid  # noqa: E402
 
 ROLES = StabilityMap.ROLES
@@ -70,8 +76,22 @@ def main():
     output, mode, table_path, figures = opts.record_table_figures(
         "results/precompression_map.npz", "stability-map file", "results/precompression_map.md",
         "precompression_map.png")
+    render = opts.flag("render", "compute nothing: rewrite -table and the figure from the file -output (either kind)")
     opts.done()
     comm = PETSc.COMM_WORLD
+    if render:
+        if mode != "new":
+            raise RecordFileError("-render reads -output and writes only -table and the figure: give it without "
+                                  "-resume or -force")
+        opts.check_unused()
+        z = read_map(output, comm)
+        prepare_outputs(comm, table_path, figures=figures)
+        write_figure_and_table(comm, z, table_path, figures)
+        return
+    if mode == "resume" and map_format(output, comm) == MAP_FORMAT_V1:
+        raise RecordFileError(f"-output {output!r} is a stability map of the route before issue 23 ({MAP_FORMAT_V1}, "
+                              "no located boundary): it cannot be resumed; -render rewrites its table and figure, "
+                              "-force recomputes it (or give another -output)")
     prepare_outputs(comm, table_path, figures=figures)
     qs = [2 * math.pi * m / N for m in ms] + list(extra_q)
     grid = amplitude_grid(a_min, a_max, ds) if ds > 0 else []
@@ -88,13 +108,19 @@ def main():
     for r in study.run():
         print0(f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.5g} {r['A']:10.5g} {r['rho'] - 1:10.3e} "
                f"{r['rho_inf'] - 1:10.3e} {r['seconds']:6.1f}")
-    text = study.table()
+    z = study.arrays()
     study.destroy()
+    write_figure_and_table(comm, z, table_path, figures)
+
+
+def write_figure_and_table(comm, z, table_path, figures):
+    text = map_table(z)
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         name = os.path.splitext(os.path.basename(table_path))[0] + ".png"
-        print("wrote " + plotting.plot_stability_map(study.arrays(), figures, name), flush=True)
+        v2 = map_v1_as_v2(z) if str(z["format"]) == MAP_FORMAT_V1 else z
+        print("wrote " + plotting.plot_stability_map(v2, figures, name), flush=True)
     print0(text)
 
 

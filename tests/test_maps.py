@@ -3,6 +3,7 @@ both sides, instability bubbles narrower than the sampling found through Krein c
 the infinite chain's Bloch parameter), the trivial multipliers of a dimer deflated exactly, the driver on 1 and 2
 ranks."""
 import math
+import pathlib
 
 import numpy as np
 import pytest
@@ -172,3 +173,29 @@ def test_driver_on_one_and_two_ranks_resumes_and_refuses_bad_input(tmp_path):
     r = run_script("precompression_map.py", *args, "-m", "3", "-tol_rho", "1e-5", "-output", tmp_path / "one.npz",
                    "-table", tmp_path / "one.md", "-resume")
     assert "tol_rho" in one_error_line(r)                      # the file's identity names the parameter
+
+
+@pytest.mark.serial
+def test_maps_before_issue_23_are_rendered_not_resumed_and_the_old_import_path_works(tmp_path):
+    """The committed files of kind -1 (dense route, no located boundary): -render rewrites each table exactly as
+    its driver wrote it (byte for byte: the same records, the same format) and the figure; -resume refuses the file
+    with one error line that says what to do; the study's old import path is the new study."""
+    import shutil
+
+    import hertzpetsc.studies.maps as maps
+    from hertzpetsc.studies import precompression
+    assert precompression.StabilityMap is maps.StabilityMap and precompression.MapParameters is maps.MapParameters
+    results = pathlib.Path(__file__).resolve().parent.parent / "results"
+    for name in ("precompression_map", "precompression_map_dimer0.7", "precompression_map_dimer0.4"):
+        with np.load(results / f"{name}.npz") as z:
+            assert str(z["format"]) == maps.MAP_FORMAT_V1
+        assert maps.map_table(maps.read_map(str(results / f"{name}.npz"))) == (results / f"{name}.md").read_text()
+    shutil.copy(results / "precompression_map_dimer0.4.npz", tmp_path / "old.npz")
+    r = run_script("precompression_map.py", "-render", "-output", tmp_path / "old.npz", "-table", tmp_path / "old.md",
+                   "-figures", tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "old.md").read_text() == (results / "precompression_map_dimer0.4.md").read_text()
+    assert (tmp_path / "old.png").exists()
+    r = run_script("precompression_map.py", "-epsilon", 0.4, "-m", "10,14,15,20", "-a", "0.1,0.3,1,3,10,100",
+                   "-output", tmp_path / "old.npz", "-table", tmp_path / "old.md", "-resume")
+    assert "-render" in one_error_line(r) and "-force" in one_error_line(r)

@@ -27,10 +27,12 @@ alpha, delta0, masses, N, cells_per_pi, rtol, tol_rho, twists, locate, locate_to
 of the map, 1: a located boundary point on N beads, 2: on the infinite chain, 3: the uncompressed limit, 4: the gap
 opening), a, A, omega, rho, outside, sector, cluster, raw_cluster, eigvec, decoupled, rho_inf, theta_inf,
 cluster_inf, a_stable, a_unstable, A_stable, A_unstable, rho_stable, rho_unstable, theta_unstable, evaluations,
-seconds. Files of kind ``hertzpetsc-precompression-map-1`` (the dense route, trivial multipliers the four nearest 1)
-are read for their tables.
+seconds. Files of kind ``hertzpetsc-precompression-map-1`` (the dense route before issue 23, trivial multipliers
+the four nearest 1, no located boundary) are read for their tables and figure (:func:`read_map`,
+:func:`map_table`); they cannot be resumed by this study.
 """
 import math
+import os
 import time
 from dataclasses import dataclass
 from fractions import Fraction
@@ -46,6 +48,7 @@ from ..families import PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_amp
 from ..floquet import FLOQUET_PREFIX
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..qbranch import regrid_half_profile
+from ..records import RecordFileError, check_kind, load_npz, on_rank0
 from ..resources import check_memory
 from ..richardson import extrapolate
 from ..slow import DeflatedSectors, crossing_search, twist_scan
@@ -58,6 +61,7 @@ from .floquet import q_label
 from .precompression import _check_delta0_positive, _check_qs, wave_orbit
 
 MAP_FORMAT = "hertzpetsc-precompression-map-2"
+MAP_FORMAT_V1 = "hertzpetsc-precompression-map-1"
 MAP_FIELDS = ("q", "m", "kind", "a", "A", "omega", "rho", "outside", "sector", "cluster", "raw_cluster", "eigvec",
               "decoupled", "rho_inf", "theta_inf", "cluster_inf", "a_stable", "a_unstable", "A_stable", "A_unstable",
               "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds")
@@ -469,8 +473,81 @@ def _records(z, q):
     return {k: np.asarray(z[k])[mine] for k in MAP_FIELDS if k in z}
 
 
+def read_map(path, comm=None):
+    """The arrays of a stability-map file of either kind (``format``: :data:`MAP_FORMAT` or :data:`MAP_FORMAT_V1`),
+    read on rank 0 and given to every rank; :class:`~hertzpetsc.errors.RecordFileError` for any other file."""
+    def load():
+        z = load_npz(path, "stability-map file")
+        if str(z.get("format", "")) == MAP_FORMAT_V1:
+            return z
+        check_kind(z, path, MAP_FORMAT, "stability-map file")
+        return z
+    return on_rank0(comm, load, what="stability-map file")
+
+
+def map_format(path, comm=None):
+    """The ``format`` of an existing record file (None if there is no file or it is not a record archive)."""
+    def peek():
+        if not os.path.exists(path):
+            return None
+        try:
+            return str(load_npz(path, "file").get("format", ""))
+        except RecordFileError:
+            return None
+    return on_rank0(comm, peek, what="stability-map file")
+
+
+def map_v1_as_v2(z):
+    """The arrays of a ``-1`` file in the layout of this kind, for the figure: its (q, a) records as map points
+    (kind 0), a = inf as the uncompressed limit (kind 3); nothing located, no infinite chain."""
+    a = np.asarray(z["a"], float)
+    n = len(a)
+    nan = np.full(n, math.nan)
+    out = {k: z[k] for k in ("alpha", "delta0", "masses", "N", "cells_per_pi", "rtol", "tol_rho", "q", "a", "A",
+                             "omega", "rho", "outside")}
+    out.update(format=MAP_FORMAT_V1, twists=0, locate="none", locate_tol=math.nan,
+               kind=np.where(np.isfinite(a), KIND_POINT, KIND_LIMIT), cluster=np.asarray(z["trivial_spread"], float))
+    for k in MAP_FIELDS:
+        out.setdefault(k, nan)
+    return out
+
+
+def map_v1_table(z):
+    """The table of a ``-1`` file, as its driver wrote it: rho - 1 per (q, a), U where unstable, A = inf last."""
+    q, a, rho = (np.asarray(z[k], float) for k in ("q", "a", "rho"))
+    spread = np.asarray(z["trivial_spread"], float)
+    tol = float(z["tol_rho"])
+    qs = list(dict.fromkeys(q.tolist()))
+    amps = sorted(set(float(x) for x in a if math.isfinite(x)))
+    masses = ", ".join(f"{m:g}" for m in np.asarray(z["masses"], float))
+    lines = [f"schema: {MAP_FORMAT_V1}; rho(F_q) (trivial multipliers excluded) of the precompressed waves on N = "
+             f"{int(z['N'])} beads, alpha = {float(z['alpha']):g}, delta0 = {float(z['delta0']):g}, masses "
+             f"{masses} (repeated); initial data from the Richardson combination of h = pi/{int(z['cells_per_pi'])} "
+             f"and pi/{2 * int(z['cells_per_pi'])}; flow rtol {float(z['rtol']):g}; unstable (U) when rho - 1 > "
+             f"{tol:g}. Rows: q; columns: a (first sine coefficient; A = ||u||_inf is in the record file), last column "
+             "the uncompressed limit A = inf. Each cell: rho - 1 (max trivial spread in the last line).\n"]
+    lines += ["| q | " + " | ".join(f"a = {x:g}" for x in amps) + " | A = inf |", "|" + "---|" * (len(amps) + 2)]
+    worst = 0.0
+    for qq in qs:
+        cells = []
+        for x in amps + [math.inf]:
+            i = np.nonzero((np.abs(q - qq) <= 1e-12 * qq) & ((a == x) if not math.isfinite(x) else
+                                                            np.isclose(a, x, rtol=1e-10, atol=0)))[0]
+            if not len(i):
+                cells.append("")
+                continue
+            worst = max(worst, float(spread[i[0]]))
+            cells.append(f"{rho[i[0]] - 1:.1e}" + (" U" if rho[i[0]] - 1 > tol else ""))
+        lines.append(f"| {q_label(qq)} ({qq:.4f}) | " + " | ".join(cells) + " |")
+    lines.append(f"\nmax trivial spread {worst:.1e}")
+    return "\n".join(lines) + "\n"
+
+
 def map_table(z):
-    """The Markdown tables of a map file's arrays (kind -2): the located boundary, then the verdicts."""
+    """The Markdown tables of a map file's arrays: for this kind the located boundary, then the verdicts; a ``-1``
+    file's table as its driver wrote it."""
+    if str(z.get("format", "")) == MAP_FORMAT_V1:
+        return map_v1_table(z)
     tol = float(z["tol_rho"])
     twists = int(z["twists"])
     qs = sorted(set(float(q) for q in np.asarray(z["q"])))

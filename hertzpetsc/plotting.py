@@ -517,9 +517,9 @@ def plot_dimer_epsilon(curves, directory):
 def plot_stability_map(z, directory, name="precompression_map.png"):
     """The stability map of a ``hertzpetsc-precompression-map-2`` file's arrays ``z`` in the (q, A) plane: one panel
     per chain (N beads; the infinite chain when computed): the map's verdicts (open: stable; filled, coloured by
-    log10(rho - 1): unstable), the located boundary points (triangles up: onset, down: offset; joined along q per
-    edge order), the gap opening A_gap(q) (dashed) and q_c of the uncompressed limit (dotted: the largest q
-    unstable at A = infinity)."""
+    log10(rho - 1): unstable), the located boundary points (triangles up: onset, down: offset), the unstable
+    intervals between them (red bars), the uppermost located edge of each q joined along q, the gap opening A_gap(q)
+    (dashed) and q_c of the uncompressed limit (dotted: the largest q unstable at A = infinity)."""
     plt = _pyplot()
     tol = float(z["tol_rho"])
     kind = np.asarray(z["kind"])
@@ -547,16 +547,30 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
                    zorder=3)
         ax.scatter(q[located & ~onset], A[located & ~onset], marker="v", s=22, c="orange", edgecolors="k", lw=0.4,
                    label="offset (located)", zorder=3)
-        for k in range(1, 4):          # the k-th located edge of each q, joined along q
-            xs, ys = [], []
-            for qq in np.unique(q[located]):
-                mine = np.nonzero(located & (q == qq))[0]
-                mine = mine[np.argsort(A[mine])]
-                if len(mine) >= k:
-                    xs.append(qq)
-                    ys.append(A[mine[k - 1]])
-            if len(xs) > 1:
-                ax.plot(xs, ys, "k-", lw=0.6, zorder=2)
+        top_q, top_A = [], []
+        lo_A = np.nanmin(A[np.isfinite(A) & (A > 0)]) if np.any(np.isfinite(A) & (A > 0)) else 1e-2
+        hi_A = np.nanmax(A[np.isfinite(A)]) if np.any(np.isfinite(A)) else 1e3
+        for qq in np.unique(q[pts]):
+            # the unstable intervals of this q: between an onset and the next offset (from the lowest amplitude
+            # when the first edge is an offset, to the largest when the last is an onset)
+            mine = np.nonzero(located & (q == qq))[0]
+            mine = mine[np.argsort(A[mine])]
+            first = np.nonzero(pts & (q == qq))[0]
+            first = first[np.argmin(A[first])] if len(first) else None
+            start = lo_A if first is not None and rho[first] - 1 > tol else None
+            for i in mine:
+                if onset[i]:
+                    start = A[i]
+                elif start is not None:
+                    ax.plot([qq, qq], [start, A[i]], color="r", lw=2.5, alpha=0.35, solid_capstyle="butt", zorder=1)
+                    start = None
+            if start is not None:
+                ax.plot([qq, qq], [start, hi_A], color="r", lw=2.5, alpha=0.35, solid_capstyle="butt", zorder=1)
+            if len(mine):
+                top_q.append(qq)
+                top_A.append(A[mine[-1]])
+        if len(top_q) > 1:           # the uppermost located edge of each q: where the verdict becomes final
+            ax.plot(top_q, top_A, "k-", lw=0.7, zorder=2, label="uppermost edge")
         if gap.any():
             ax.plot(q[gap][order], A[gap][order], "b--", lw=0.9, label=r"$A_{gap}(q)$")
         limit = (kind == 3) & np.isfinite(rho)

@@ -6,7 +6,7 @@ periodic chain of N beads and on the infinite chain.
         [-m 10,12,14,15,16,18,20,22,24,25] [-q LIST] [-a 0.1,0.3,0.5,0.7,1,1.5,2,3,5,10,20,30,50,100,1000]
         [-a_min 0.01 -a_max 1000 -ds 0] [-cells_per_pi 1000] [-rtol 1e-11] [-tol_rho 1e-6] [-twists 0]
         [-locate chain] [-locate_tol 1e-3] [-output results/precompression_map.npz]
-        [-table results/precompression_map.md] [-figures figures] [-resume | -force | -render]
+        [-table results/precompression_map.md] [-figures figures] [-compare FILE] [-resume | -force | -render]
 
 For q = 2 pi m / N (and the wavenumbers of -q, infinite chain only) and each amplitude a (first sine coefficient
 of u; -a, and with -ds > 0 the grid a_min exp(k ds) up to a_max): the wave (Richardson combination of the h = pi/K
@@ -22,7 +22,8 @@ the cell maps, -floquet_ts_*).
 
 -render computes nothing: it rewrites -table (and the figure) from the file -output, of this kind or of kind
 hertzpetsc-precompression-map-1 (the maps before issue 23: rho - 1 per (q, a) on the dense route); such a file is
-not resumed (-resume refuses it and says so).
+not resumed (-resume refuses it and says so). -compare FILE (a map of kind -1) adds to the table the verdicts of
+both maps at the (q, a) both computed, at that file's threshold.
 """
 import math
 import os
@@ -38,8 +39,8 @@ from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.errors import RecordFileError  # noqa: E402
-from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MapParameters, StabilityMap, TESTS, map_format,  # noqa: E402
-                                     map_table, map_v1_as_v2, read_map)
+from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MapParameters, StabilityMap, TESTS,  # noqa: E402
+                                     compare_v1, map_format, map_table, map_v1_as_v2, read_map)
 from hertzpetsc.studies.precompression import amplitude_grid  # noqa: E402
 
 ROLES = StabilityMap.ROLES
@@ -76,6 +77,8 @@ def main():
     output, mode, table_path, figures = opts.record_table_figures(
         "results/precompression_map.npz", "stability-map file", "results/precompression_map.md",
         "precompression_map.png")
+    compare = opts.path("compare", "", "a map of kind hertzpetsc-precompression-map-1 to compare the verdicts with "
+                        "(none if empty)")
     render = opts.flag("render", "compute nothing: rewrite -table and the figure from the file -output (either kind)")
     opts.done()
     comm = PETSc.COMM_WORLD
@@ -86,8 +89,10 @@ def main():
         opts.check_unused()
         z = read_map(output, comm)
         prepare_outputs(comm, table_path, figures=figures)
-        write_figure_and_table(comm, z, table_path, figures)
+        write_figure_and_table(comm, z, table_path, figures, compare)
         return
+    if compare and map_format(compare, comm) != MAP_FORMAT_V1:
+        raise RecordFileError(f"-compare {compare!r}: not a stability map of kind {MAP_FORMAT_V1}")
     if mode == "resume" and map_format(output, comm) == MAP_FORMAT_V1:
         raise RecordFileError(f"-output {output!r} is a stability map of the route before issue 23 ({MAP_FORMAT_V1}, "
                               "no located boundary): it cannot be resumed; -render rewrites its table and figure, "
@@ -110,11 +115,13 @@ def main():
                f"{r['rho_inf'] - 1:10.3e} {r['seconds']:6.1f}")
     z = study.arrays()
     study.destroy()
-    write_figure_and_table(comm, z, table_path, figures)
+    write_figure_and_table(comm, z, table_path, figures, compare)
 
 
-def write_figure_and_table(comm, z, table_path, figures):
+def write_figure_and_table(comm, z, table_path, figures, compare=""):
     text = map_table(z)
+    if compare and str(z["format"]) != MAP_FORMAT_V1:
+        text += compare_v1(z, read_map(compare, comm))
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting

@@ -543,6 +543,34 @@ def map_v1_table(z):
     return "\n".join(lines) + "\n"
 
 
+def compare_v1(z, old, tol=None):
+    """A Markdown section: the verdicts of this map (arrays ``z``) against a ``-1`` map (``old``) at the (q, a) both
+    computed, at the old threshold (``tol``: the old file's tol_rho); rho's agreement where rho - 1 > 10 tol."""
+    tol = float(old["tol_rho"]) if tol is None else tol
+    kind = np.asarray(z["kind"])
+    qn, an, rn = (np.asarray(z[k], float) for k in ("q", "a", "rho"))
+    usable = (kind == KIND_POINT) | (kind == KIND_LIMIT)
+    common, agree, worst, differ = 0, 0, 0.0, []
+    for q, a, r in zip(*(np.asarray(old[k], float) for k in ("q", "a", "rho"))):
+        i = np.nonzero(usable & (np.abs(qn - q) <= 1e-12 * q) & ((an == a) | np.isclose(an, a, rtol=1e-10, atol=0)))[0]
+        if not len(i):
+            continue
+        common += 1
+        new = rn[i[0]]
+        if (r - 1 > tol) == (new - 1 > tol):
+            agree += 1
+        else:
+            differ.append(f"{q_label(q)}, a = {a:g}: rho - 1 = {r - 1:.1e} before, {new - 1:.1e} now")
+        if r - 1 > 10 * tol:
+            worst = max(worst, abs(new - r) / (r - 1))
+    lines = ["\n### Against the map before issue 23\n",
+             f"At the {common} (q, a) computed by both (the dense route's map, kind -1, unstable when rho - 1 > "
+             f"{tol:g}): the verdicts at that threshold agree at {agree} of {common}; where rho - 1 > {10 * tol:g}, "
+             f"rho - 1 agrees to {worst:.1e} relative." + (" Verdicts that differ: " + "; ".join(differ) + "."
+                                                            if differ else "")]
+    return "\n".join(lines) + "\n"
+
+
 def map_table(z):
     """The Markdown tables of a map file's arrays: for this kind the located boundary, then the verdicts; a ``-1``
     file's table as its driver wrote it."""

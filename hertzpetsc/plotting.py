@@ -547,28 +547,17 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
                    zorder=3)
         ax.scatter(q[located & ~onset], A[located & ~onset], marker="v", s=22, c="orange", edgecolors="k", lw=0.4,
                    label="offset (located)", zorder=3)
+        from .studies.maps import unstable_intervals
+        finite = np.isfinite(A) & (A > 0)
+        lo_A, hi_A = (A[finite].min(), A[finite].max()) if finite.any() else (1e-2, 1e3)
+        for qq, spans in unstable_intervals(z, key).items():
+            for a1, a2 in spans:
+                ax.plot([qq, qq], [max(a1, lo_A), min(a2, hi_A)], color="r", lw=2.5, alpha=0.35,
+                        solid_capstyle="butt", zorder=1)
         top_q, top_A = [], []
-        lo_A = np.nanmin(A[np.isfinite(A) & (A > 0)]) if np.any(np.isfinite(A) & (A > 0)) else 1e-2
-        hi_A = np.nanmax(A[np.isfinite(A)]) if np.any(np.isfinite(A)) else 1e3
-        for qq in np.unique(q[pts]):
-            # the unstable intervals of this q: between an onset and the next offset (from the lowest amplitude
-            # when the first edge is an offset, to the largest when the last is an onset)
-            mine = np.nonzero(located & (q == qq))[0]
-            mine = mine[np.argsort(A[mine])]
-            first = np.nonzero(pts & (q == qq))[0]
-            first = first[np.argmin(A[first])] if len(first) else None
-            start = lo_A if first is not None and rho[first] - 1 > tol else None
-            for i in mine:
-                if onset[i]:
-                    start = A[i]
-                elif start is not None:
-                    ax.plot([qq, qq], [start, A[i]], color="r", lw=2.5, alpha=0.35, solid_capstyle="butt", zorder=1)
-                    start = None
-            if start is not None:
-                ax.plot([qq, qq], [start, hi_A], color="r", lw=2.5, alpha=0.35, solid_capstyle="butt", zorder=1)
-            if len(mine):
-                top_q.append(qq)
-                top_A.append(A[mine[-1]])
+        for qq in np.unique(q[located]):
+            top_q.append(qq)
+            top_A.append(A[located & (q == qq)].max())
         if len(top_q) > 1:           # the uppermost located edge of each q: where the verdict becomes final
             ax.plot(top_q, top_A, "k-", lw=0.7, zorder=2, label="uppermost edge")
         if gap.any():

@@ -199,3 +199,20 @@ def test_maps_before_issue_23_are_rendered_not_resumed_and_the_old_import_path_w
     r = run_script("precompression_map.py", "-epsilon", 0.4, "-m", "10,14,15,20", "-a", "0.1,0.3,1,3,10,100",
                    "-output", tmp_path / "old.npz", "-table", tmp_path / "old.md", "-resume")
     assert "-render" in one_error_line(r) and "-force" in one_error_line(r)
+
+
+def test_unstable_intervals_pair_the_located_edges():
+    """Intervals from the located edges of a q (records as the study writes them): an onset opens, an offset closes;
+    unstable at the smallest amplitude opens from 0, an onset never closed runs to inf; a chain without edges and
+    stable points has none."""
+    from hertzpetsc.studies.maps import KIND_EDGE, unstable_intervals
+    nan = math.nan
+    rows = [  # q, kind, A, rho, A_stable, A_unstable
+        (1.0, KIND_POINT, 0.1, 1.0 + 1e-3, nan, nan), (1.0, KIND_EDGE, 0.2, nan, 0.21, 0.19),
+        (1.0, KIND_POINT, 0.3, 1.0, nan, nan), (1.0, KIND_EDGE, 0.5, nan, 0.49, 0.51),
+        (1.0, KIND_POINT, 0.7, 1.1, nan, nan), (1.0, KIND_EDGE, 0.8, nan, 0.81, 0.79),
+        (1.0, KIND_EDGE, 2.0, nan, 1.99, 2.01), (1.0, KIND_POINT, 3.0, 1.2, nan, nan),
+        (2.0, KIND_POINT, 0.1, 1.0, nan, nan), (2.0, KIND_POINT, 3.0, 1.0 + 1e-9, nan, nan)]
+    z = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("q", "kind", "A", "rho", "A_stable", "A_unstable"))}
+    z["tol_rho"] = 1e-6
+    assert unstable_intervals(z) == {1.0: [(0.0, 0.2), (0.5, 0.8), (2.0, math.inf)], 2.0: []}

@@ -543,6 +543,36 @@ def map_v1_table(z):
     return "\n".join(lines) + "\n"
 
 
+def unstable_intervals(z, key="rho"):
+    """{q: [(A_from, A_to), ...]} the intervals of A where the chain of ``key`` (``rho``: N beads, ``rho_inf``: the
+    infinite chain) is unstable, between its located edges (the located points' A, the midpoints of their
+    brackets): from 0 when the smallest map amplitude is unstable before the first edge, to inf when the verdict
+    stays unstable (then the uncompressed limit's verdict is unstable too unless a change beyond the largest map
+    amplitude was not located)."""
+    tol = float(z["tol_rho"])
+    kind, q, A = np.asarray(z["kind"]), np.asarray(z["q"], float), np.asarray(z["A"], float)
+    rho = np.asarray(z[key], float)
+    edge = KIND_EDGE if key == "rho" else KIND_EDGE_INF
+    onset_of = np.asarray(z["A_unstable"], float) > np.asarray(z["A_stable"], float)
+    out = {}
+    for qq in sorted(set(q[(kind == KIND_POINT) & np.isfinite(rho)].tolist())):
+        pts = np.nonzero((kind == KIND_POINT) & (q == qq) & np.isfinite(rho))[0]
+        first = pts[np.argmin(A[pts])]
+        mine = np.nonzero((kind == edge) & (q == qq))[0]
+        start = 0.0 if rho[first] - 1 > tol else None
+        spans = []
+        for i in mine[np.argsort(A[mine])]:
+            if onset_of[i]:
+                start = float(A[i])
+            elif start is not None:
+                spans.append((start, float(A[i])))
+                start = None
+        if start is not None:
+            spans.append((start, math.inf))
+        out[qq] = spans
+    return out
+
+
 def compare_v1(z, old, tol=None):
     """A Markdown section: the verdicts of this map (arrays ``z``) against a ``-1`` map (``old``) at the (q, a) both
     computed, at the old threshold (``tol``: the old file's tol_rho); rho's agreement where rho - 1 > 10 tol."""
@@ -602,6 +632,20 @@ def map_table(z):
                          f"{abs(Au - As) / min(As, Au):.1e} | {float(r['rho_stable'][i]):.1e} | "
                          f"{float(r['rho_unstable'][i]):.1e} | {float(r['theta_unstable'][i]):.4f} | "
                          f"{'onset' if Au > As else 'offset'} | {int(r['evaluations'][i])} |")
+    lines += ["\n### Unstable intervals\n",
+              "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within its "
+              "bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed limit.\n",
+              "| q | A_gap | N beads | infinite chain |", "|---|---|---|---|"]
+    spans = {key: unstable_intervals(z, key) for key in (("rho", "rho_inf") if twists else ("rho",))}
+
+    def shown(v):
+        return "none" if not v else ", ".join(f"[{lo:.5g}, {hi:.5g}]" for lo, hi in v)
+    kinds, qarr = np.asarray(z["kind"]), np.asarray(z["q"], float)
+    for q in qs:
+        g = np.nonzero((kinds == KIND_GAP) & (np.abs(qarr - q) <= 1e-12 * q))[0]
+        lines.append(f"| {q_label(q)} | " + (f"{float(np.asarray(z['A'])[g[0]]):.4f}" if len(g) else "n/a") + " | "
+                     + (shown(spans["rho"][q]) if q in spans["rho"] else "n/a") + " | "
+                     + (shown(spans["rho_inf"].get(q)) if twists and q in spans["rho_inf"] else "n/a") + " |")
     amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), np.asarray(z["kind"])) if k == KIND_POINT))
     lines += ["\n### Verdicts on the map\n",
               f"Amplitudes a (first sine coefficient) of the map: {', '.join(f'{a:.4g}' for a in amps)}. Per q, one "

@@ -519,7 +519,8 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
     per chain (N beads; the infinite chain when computed): the map's verdicts (open: stable; filled, coloured by
     log10(rho - 1): unstable), the located boundary points (triangles up: onset, down: offset), the unstable
     intervals between them (red bars), the uppermost located edge of each q joined along q, the gap opening A_gap(q)
-    (dashed) and q_c of the uncompressed limit (dotted: the largest q unstable at A = infinity)."""
+    (dashed) and q_c of the uncompressed limit (shaded: between the largest q unstable at A = infinity and the next
+    stable q of the map)."""
     plt = _pyplot()
     tol = float(z["tol_rho"])
     kind = np.asarray(z["kind"])
@@ -564,8 +565,13 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
             ax.plot(q[gap][order], A[gap][order], "b--", lw=0.9, label=r"$A_{gap}(q)$")
         limit = (kind == 3) & np.isfinite(rho)
         unstable_limit = q[limit & (rho - 1 > tol)]
-        if len(unstable_limit):
-            ax.axvline(unstable_limit.max(), color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed)")
+        if len(unstable_limit):        # q_c lies between the largest q unstable at A = inf and the next stable one
+            q_lo = unstable_limit.max()
+            stable_above = q[limit & (rho - 1 <= tol) & (q > q_lo)]
+            if len(stable_above):
+                ax.axvspan(q_lo, stable_above.min(), color="0.85", zorder=0, label=r"$q_c$ (uncompressed) in here")
+            else:
+                ax.axvline(q_lo, color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed) above")
         ax.set_yscale("log")
         ax.set_xlabel("$q$")
         ax.set_ylabel(r"$A = \|u\|_\infty$")

@@ -127,7 +127,8 @@ def main():
     base = dict(alpha=alpha, N=N, a=a_values, twists=0, locate=[], limit=True)
     plans = {"map": (dict(base, m=ms), 2, ()),
              "boundary": (dict(base, m=ms, twists=twists, locate=["chain", "infinite"]), 2,
-                          (f"-log_view", f":{os.path.join(os.path.dirname(output) or '.', 'logview_map_boundary_np2.txt')}")
+                          ("-log_view", ":" + os.path.join(os.path.dirname(output) or ".",
+                                                           "logview_map_boundary_np2.txt"))
                           if log_view else ()),
              "dense": (dict(base, m=subset), None, ()),
              "subset": (dict(base, m=subset, limit=False), 1, ())}      # the dense route's work: no limit
@@ -149,8 +150,8 @@ def main():
              f"flow rtol 1e-11. {start}; load average at the end {os.getloadavg()[0]:.2f}. One BLAS thread per "
              "rank. Wall times under load are indicative only (the machine is shared): compare rows measured at "
              "similar load.\n",
-             "| route | ranks | points | located (N / infinite) | wall (s) | s per point | projected to 40 q x 60 a (s) "
-             "| target (s) | load at start |",
+             "| route | ranks | points | located (N / infinite) | wall (s) | s per point | projected to 40 q x 60 a "
+             "(s) | target (s) | load at start |",
              "|---|---|---|---|---|---|---|---|---|"]
     for route in routes:
         res, ranks = results[route], plans[route][1] or 1

@@ -300,7 +300,8 @@ class StabilityMap(Study):
     # --- one q -------------------------------------------------------------------------------------------------
     def _row(self, q, kind, a, A, omega, probe=None, entry=None, **extra):
         nan = math.nan
-        row = dict(q=q, m=check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1, kind=kind, a=a, A=A, omega=omega, rho=nan, outside=-1,
+        m = check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1
+        row = dict(q=q, m=m, kind=kind, a=a, A=A, omega=omega, rho=nan, outside=-1,
                    sector=nan, cluster=nan, raw_cluster=nan, eigvec=nan, decoupled=-1, rho_inf=nan, theta_inf=nan,
                    cluster_inf=nan, a_stable=nan, a_unstable=nan, A_stable=nan, A_unstable=nan, rho_stable=nan,
                    rho_unstable=nan, theta_unstable=nan, evaluations=0, seconds=0.0)
@@ -633,8 +634,9 @@ def map_table(z):
                          f"{float(r['rho_unstable'][i]):.1e} | {float(r['theta_unstable'][i]):.4f} | "
                          f"{'onset' if Au > As else 'offset'} | {int(r['evaluations'][i])} |")
     lines += ["\n### Unstable intervals\n",
-              "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within its "
-              "bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed limit.\n",
+              "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within "
+              "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
+              "limit.\n",
               "| q | A_gap | N beads | infinite chain |", "|---|---|---|---|"]
     spans = {key: unstable_intervals(z, key) for key in (("rho", "rho_inf") if twists else ("rho",))}
 
@@ -652,7 +654,8 @@ def map_table(z):
               "character per amplitude, increasing: '.' stable, 'U' unstable (rho - 1 > tol_rho), then the "
               "uncompressed limit after '|'; A_gap: the located gap opening; largest deflated cluster |mu - 1| and "
               "eigenvector residual over the row (what the deflation removed, and how exact it was).\n",
-              "| q | A_gap | N beads | infinite chain | cluster (N) | eigenvector residual |", "|---|---|---|---|---|---|"]
+              "| q | A_gap | N beads | infinite chain | cluster (N) | eigenvector residual |",
+              "|---|---|---|---|---|---|"]
     for q in qs:
         r = _records(z, q)
         pts = np.nonzero(r["kind"] == KIND_POINT)[0]

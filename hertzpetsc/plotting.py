@@ -9,7 +9,7 @@ import os
 import numpy as np
 
 from .diagnostics import dispersion, dispersion_long_wave
-from .hertz import HertzLaw
+from .model import LatticeModel
 from .records import save_figure
 
 
@@ -113,7 +113,7 @@ def plot_free_flight(branch, directory):
 def plot_dispersion(branch, directory, k_alpha=None):
     """Fig. dispersplot: omega(q, A0) (eq. dispers) and its linear approximation at q = 0 (eq. disperseq)."""
     plt = _pyplot()
-    law = HertzLaw(branch.alpha)
+    law = LatticeModel.hertz(branch.alpha).law
     A0 = float(law.amplitude(law.p0))
     k = branch_k_alpha(branch) if k_alpha is None else k_alpha
     q, norm = branch.q, branch.column("norm_inf")

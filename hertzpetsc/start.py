@@ -4,8 +4,17 @@
 object it creates are not printed: they are hundreds of lines); ``-help solvers`` adds PETSc's own options of each
 of the driver's solver roles. PETSc's other uses of -help (``-help intro``) pass through. Imports nothing of PETSc
 before it is started.
+
+Importing this module sets one BLAS thread per process unless the user set OPENBLAS_NUM_THREADS / OMP_NUM_THREADS
+(it runs before numpy loads its BLAS): the ranks of a run share the cores, and the small dense solves on rank 0
+(the Gauss-Newton steps' least squares, the dense multipliers) are then the same arithmetic on every machine -- a
+refinement that sits at the flow's floor of E(q) must not pass or fail with the machine's core count.
 """
+import os
 import sys
+
+for _name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS"):
+    os.environ.setdefault(_name, "1")
 
 
 def init_petsc(argv=None):

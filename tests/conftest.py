@@ -7,6 +7,7 @@ import os
 import subprocess
 import sys
 
+import hertzpetsc.start  # noqa: F401  (one BLAS thread per process, as in the drivers)
 import pytest
 from petsc4py import PETSc
 

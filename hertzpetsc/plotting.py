@@ -553,6 +553,8 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
         lo_A, hi_A = (A[finite].min(), A[finite].max()) if finite.any() else (1e-2, 1e3)
         for qq, spans in unstable_intervals(z, key).items():
             for a1, a2 in spans:
+                if not (a1 == a1 and a2 == a2):        # an edge not located: nothing to draw between
+                    continue
                 ax.plot([qq, qq], [max(a1, lo_A), min(a2, hi_A)], color="r", lw=2.5, alpha=0.35,
                         solid_capstyle="butt", zorder=1)
         top_q, top_A = [], []

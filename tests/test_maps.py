@@ -203,8 +203,8 @@ def test_maps_before_issue_23_are_rendered_not_resumed_and_the_old_import_path_w
 
 def test_unstable_intervals_pair_the_located_edges():
     """Intervals from the located edges of a q (records as the study writes them): an onset opens, an offset closes;
-    unstable at the smallest amplitude opens from 0, an onset never closed runs to inf; a chain without edges and
-    stable points has none."""
+    unstable at the smallest amplitude opens from 0, an onset never closed runs to inf, two onsets in a row leave
+    an offset not located (nan); a chain without edges and stable points has none."""
     from hertzpetsc.studies.maps import KIND_EDGE, unstable_intervals
     nan = math.nan
     rows = [  # q, kind, A, rho, A_stable, A_unstable
@@ -216,3 +216,7 @@ def test_unstable_intervals_pair_the_located_edges():
     z = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("q", "kind", "A", "rho", "A_stable", "A_unstable"))}
     z["tol_rho"] = 1e-6
     assert unstable_intervals(z) == {1.0: [(0.0, 0.2), (0.5, 0.8), (2.0, math.inf)], 2.0: []}
+    z["A_stable"][1], z["A_unstable"][1] = 0.19, 0.21      # the first edge an onset too: an offset not located
+    spans = unstable_intervals(z)[1.0]
+    # onsets at 0.2 and 0.5 after the unstable first point: two offsets not located
+    assert np.array_equal(spans, [(0.0, math.nan), (0.2, math.nan), (0.5, 0.8), (2.0, math.inf)], equal_nan=True)

@@ -549,7 +549,8 @@ def unstable_intervals(z, key="rho"):
     infinite chain) is unstable, between its located edges (the located points' A, the midpoints of their
     brackets): from 0 when the smallest map amplitude is unstable before the first edge, to inf when the verdict
     stays unstable (then the uncompressed limit's verdict is unstable too unless a change beyond the largest map
-    amplitude was not located)."""
+    amplitude was not located); nan where an edge between two located ones was not located (an onset after an
+    onset, or an offset after an offset: the family stepped into a window the map's amplitudes do not show)."""
     tol = float(z["tol_rho"])
     kind, q, A = np.asarray(z["kind"]), np.asarray(z["q"], float), np.asarray(z["A"], float)
     rho = np.asarray(z[key], float)
@@ -564,9 +565,11 @@ def unstable_intervals(z, key="rho"):
         spans = []
         for i in mine[np.argsort(A[mine])]:
             if onset_of[i]:
+                if start is not None:          # unstable already: an offset between was not located
+                    spans.append((start, math.nan))
                 start = float(A[i])
-            elif start is not None:
-                spans.append((start, float(A[i])))
+            else:                              # stable before: nan, an onset between was not located
+                spans.append((math.nan if start is None else start, float(A[i])))
                 start = None
         if start is not None:
             spans.append((start, math.inf))
@@ -636,12 +639,12 @@ def map_table(z):
     lines += ["\n### Unstable intervals\n",
               "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within "
               "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
-              "limit.\n",
+              "limit; ?: an edge not located (a window found between two edges of the same kind).\n",
               "| q | A_gap | N beads | infinite chain |", "|---|---|---|---|"]
     spans = {key: unstable_intervals(z, key) for key in (("rho", "rho_inf") if twists else ("rho",))}
 
     def shown(v):
-        return "none" if not v else ", ".join(f"[{lo:.5g}, {hi:.5g}]" for lo, hi in v)
+        return "none" if not v else ", ".join(f"[{lo:.5g}, {hi:.5g}]".replace("nan", "?") for lo, hi in v)
     kinds, qarr = np.asarray(z["kind"]), np.asarray(z["q"], float)
     for q in qs:
         g = np.nonzero((kinds == KIND_GAP) & (np.abs(qarr - q) <= 1e-12 * q))[0]

@@ -40,8 +40,8 @@ _EXPORTS = {
     "Study": "studies.base", "BranchStudy": "studies.branch", "SmallQStudy": "studies.branch",
     "SmallQParameters": "studies.branch", "AmplitudeFamilies": "studies.precompression",
     "AmplitudeParameters": "studies.precompression", "DimerFamilies": "studies.precompression",
-    "DimerParameters": "studies.precompression", "StabilityMap": "studies.precompression",
-    "MapParameters": "studies.precompression",
+    "DimerParameters": "studies.precompression", "StabilityMap": "studies.maps",
+    "MapParameters": "studies.maps",
     # errors
     "ParameterError": "errors", "ConvergenceError": "errors", "RecordFileError": "errors",
     # refinement and Floquet spectra

@@ -31,7 +31,7 @@ from .errors import ParameterError
 from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, DominantFloquet, FloquetSolver, Spectrum
 from .model import ChainSpec
 from .symmetry import real_sector
-from .tangent import LOCAL_RESPONSE, CellPropagator, MonodromyModShift
+from .tangent import LOCAL_RESPONSE, CellPropagator, MonodromyModShift, twisted_resolvent
 
 
 class TwistedChain(Chain):
@@ -127,6 +127,18 @@ class BlochSectors:
         for theta in thetas:
             yield self._twisted_shift(prop.twisted(theta), theta, shift) if prop else \
                 self.monodromy(x0, T, theta, shift)
+
+    def sector_maps(self, x0, T, shift=1, propagate=True):
+        """The function theta -> G_theta around one orbit (any number of twists, e.g. a scan of the infinite chain's
+        Bloch parameters with refinements): every twist from one cell-propagator run when ``propagate`` and the
+        response stays within a cell (cells of 4 beads or more), else one twisted run per call."""
+        x0 = np.asarray(x0, dtype=float)
+        prop = self._propagate(x0, T) if propagate and len(x0) >= 4 else None
+        if prop is None:
+            return lambda theta: self.monodromy(x0, T, theta, shift)
+        blocks = prop.blocks                        # this orbit's blocks (a later run makes new arrays)
+
+        return lambda theta: self._twisted_shift(twisted_resolvent(blocks, theta), theta, shift)
 
     @PETSc.Log.EventDecorator("hz_bloch_propagator")
     def _propagate(self, x0, T):

@@ -22,6 +22,7 @@ control is bounded: at most ``max_halvings`` reductions per step and ``max_step_
 without progress. Resume: :meth:`Continuation.seed` with the last two stored points.
 """
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -30,24 +31,33 @@ from petsc4py import PETSc
 from .errors import ConvergenceError, ParameterError
 
 
-def illinois(f, a, fa, b, fb, tol, max_iter):
+def illinois(f, a, fa, b, fb, tol, max_iter, bisect=False, bracket=False):
     """A root of f between a and b (fa = f(a), fb = f(b) of opposite signs) by the Illinois rule (regula falsi with
     the stale end's value halved): the last iterate, when the bracket is shorter than ``tol`` or f vanishes there,
-    or after ``max_iter`` evaluations."""
+    or after ``max_iter`` evaluations. ``bisect``: halve the bracket instead, until it is at most ``tol`` long (a
+    verdict's margin, flat on one side, makes the Illinois rule crawl). ``bracket``: return (x, ((a, f(a)), (b,
+    f(b)))), the final bracket's ends in increasing order with f's values there (not the halved ones)."""
+    raw = {a: fa, b: fb}
     side, x = 0, None
     for _ in range(max_iter):
-        x = (a * fb - b * fa) / (fb - fa)
-        fx = f(x)
-        if fx == 0.0 or abs(b - a) <= tol:
+        x = 0.5 * (a + b) if bisect else (a * fb - b * fa) / (fb - fa)
+        fx = raw[x] = f(x)
+        width = abs(b - a)                       # the Illinois rule stops on the bracket before this trial
+        if fx == 0.0:
+            a = b = x
             break
         if fx * fb < 0:
             a, fa = b, fb
             side = 0
         else:
-            if side == -1:
+            if side == -1 and not bisect:
                 fa *= 0.5
             side = -1
         b, fb = x, fx
+        if (abs(b - a) if bisect else width) <= tol:
+            break
+    if bracket:
+        return x, tuple(sorted(((a, raw[a]), (b, raw[b]))))
     return x
 
 
@@ -98,6 +108,26 @@ class ContinuationProblem:
         return {}
 
 
+class LazyTests(Mapping):
+    """Test-function values computed when first read (and kept): {name: function of no argument}. A problem whose
+    tests are expensive returns one, so that locating one test's root does not compute the others; the functions
+    must hold what they need (not the Vec Z, which the layer may destroy before they are read)."""
+
+    def __init__(self, functions):
+        self._functions, self._values = dict(functions), {}
+
+    def __getitem__(self, name):
+        if name not in self._values:
+            self._values[name] = float(self._functions[name]())
+        return self._values[name]
+
+    def __iter__(self):
+        return iter(self._functions)
+
+    def __len__(self):
+        return len(self._functions)
+
+
 @dataclass
 class ContinuationPoint:
     """An accepted point: the parameter, the arclength s from the start, dp/ds of the unit tangent (nan for the
@@ -112,6 +142,7 @@ class ContinuationPoint:
     report: dict = field(default_factory=dict)
     tests: dict = field(default_factory=dict)
     substeps: int = 1
+    bracket: tuple = None      # a located root: ((p, value), (p, value)) of the last bracket, the root between them
 
 
 def _parameter(Z):
@@ -199,10 +230,17 @@ class Continuation:
     """The continuation loop over a :class:`ContinuationProblem` with a :class:`Natural` or
     :class:`PseudoArclength` algorithm (module docstring). Collective over the problem's communicator."""
 
-    def __init__(self, problem, algorithm, detect_folds=True, locate_tol=1e-9, locate_max=40):
+    def __init__(self, problem, algorithm, detect_folds=True, locate_tol=1e-9, locate_max=40, bisect=(),
+                 locate_step=None):
         if not isinstance(algorithm, (Natural, PseudoArclength)):
             raise ParameterError("algorithm", algorithm, "must be Natural(...) or PseudoArclength(...)")
+        if locate_step is not None and not (locate_step > 0 and math.isfinite(locate_step)):
+            raise ParameterError("locate_step", locate_step, "must be a finite number > 0 (or None)")
         self.problem, self.algorithm = problem, algorithm
+        # test functions located by bisection (values that are not smooth across the root, e.g. a verdict's margin,
+        # flat on one side, which slows the Illinois rule); locate_step: stop when the bracket is at most this long
+        # in the parameter (natural steps), else locate_tol times the bracketing step
+        self.bisect, self.locate_step = frozenset(bisect), locate_step
         # the natural steps (also the first steps of a pseudo-arclength run)
         self.natural = algorithm if isinstance(algorithm, Natural) else Natural()
         self.detect_folds, self.locate_tol, self.locate_max = detect_folds, locate_tol, locate_max
@@ -260,15 +298,20 @@ class Continuation:
     def parameter(self):
         return _parameter(self.history[-1][0]) if self.history else math.nan
 
+    @property
+    def previous(self):
+        """The parameter of the point accepted before the last (nan if none)."""
+        return _parameter(self.history[0][0]) if len(self.history) == 2 else math.nan
+
     # --- natural steps ----------------------------------------------------------------------------------------
     def _natural_predict(self, p_new):
         prob = self.problem
         Z1 = self.history[-1][0]
         p1 = _parameter(Z1)
         Z = Z1.copy()
-        if len(self.history) == 2:
-            Z0 = self.history[0][0]
-            p0 = _parameter(Z0)
+        Z0 = self.history[0][0] if len(self.history) == 2 else None
+        p0 = _parameter(Z0) if Z0 is not None else p1
+        if abs(p1 - p0) > 1e-12 * max(1.0, abs(p1)):      # else the same point twice: no secant
             f = (p_new - p1) / (p1 - p0)
             Z.scale((1 + f) * prob.predictor_ratio(p1, p_new))
             Z.axpy(-f * prob.predictor_ratio(p0, p_new), Z0)
@@ -506,7 +549,8 @@ class Continuation:
 
     def _locate_natural(self, Z1, Z2, s_origin, name, g1, g2):
         """The zero of the test function ``name`` between the natural points Z1 and Z2 (values g1, g2 of opposite
-        signs): Illinois rule in the parameter, each trial solved from the linear interpolation of Z1 and Z2."""
+        signs): Illinois rule in the parameter (bisection for the tests in ``bisect``), each trial solved from the
+        linear interpolation of Z1 and Z2; the located point keeps the last bracket."""
         p1, p2 = _parameter(Z1), _parameter(Z2)
         evals = {}
 
@@ -527,9 +571,13 @@ class Continuation:
             evals[p] = (Z, its, v)
             return v
 
+        tol = self.locate_step if self.locate_step is not None else self.locate_tol * abs(p2 - p1)
         try:
-            x = illinois(at, p1, g1, p2, g2, self.locate_tol * abs(p2 - p1), self.locate_max)
-            return self._located(evals, x, s_origin + abs(x - p1), name)
+            x, bracket = illinois(at, p1, g1, p2, g2, tol, self.locate_max, bisect=name in self.bisect,
+                                  bracket=True)
+            point = self._located(evals, x, s_origin + abs(x - p1), name)
+            point.bracket = bracket
+            return point
         except ConvergenceError:
             for Z, _, _ in evals.values():
                 Z.destroy()

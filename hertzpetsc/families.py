@@ -16,14 +16,14 @@ Closed forms live with the model: the linear frequencies (:meth:`~hertzpetsc.mod
 and the Hertz law's weakly nonlinear coefficient (:meth:`~hertzpetsc.hertz.HertzLaw.stokes_coefficient`).
 """
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from petsc4py import PETSc
 
 from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
 from .branch import BranchPoint
-from .continuation import Continuation, ContinuationError, Natural, PseudoArclength
+from .continuation import Continuation, ContinuationError, LazyTests, Natural, PseudoArclength
 from .diagnostics import sup_norm
 from .errors import ConvergenceError, ParameterError
 from .stencil import full_period, lagrange_periodic
@@ -60,6 +60,8 @@ class AmplitudePoint:
     profiles: tuple
     iterations: int
     m1: float = float("nan")
+    event: str = None          # a located point: the test function whose root it is ('gap', or a caller's test)
+    bracket: tuple = None      # ... and the last bracket ((s, value), (s, value)) in s = log a around the root
 
     @property
     def s(self):
@@ -94,11 +96,20 @@ class FamilyProblem(AdvanceDelayProblem):
             longest = max(longest, a3[1] - (a3[0] - a3[2]) ** 2 / (8 * curv) if curv < 0 else a3[1])
         return a * longest - self.model.delta0
 
+    # the caller's tests: a function of the AmplitudePoint returning {name: function of no argument} (values read
+    # when the layer needs them, :class:`~hertzpetsc.continuation.LazyTests`)
+    extra_tests = None
+
     def test_functions(self, Z):
+        functions = {}
         if self.model.delta0 > 0 and math.isfinite(self.amplitude):
             self.set_parameter(self.parameter, self._scalars(Z)[-1])
-            return {"gap": self.gap(self.half_profiles(Z))}
-        return {}
+            gap = self.gap(self.half_profiles(Z))
+            functions["gap"] = lambda: gap
+        if self.extra_tests is not None:
+            self.set_parameter(self.parameter, self._scalars(Z)[-1])
+            functions.update(self.extra_tests(self.point(Z, 0)))
+        return LazyTests(functions)
 
     def point(self, V, iterations):
         """The :class:`AmplitudePoint` of an X or Z Vec at the problem's current parameters."""
@@ -121,7 +132,7 @@ class AmplitudeFamily:
     ``measure``: what a is ('a1': the first sine coefficient of the normalised profile; 'sup': A = max |u|)."""
 
     def __init__(self, model, q, grid, prefix=PRECOMP_PREFIX, branch="acoustic", max_halvings=6, measure="a1",
-                 solver=None):
+                 solver=None, tests=None, bisect=(), locate_step=None):
         if not model.law.linear_stiffness > 0:
             raise ParameterError("delta0", model.delta0, "the amplitude family starts from the linear wave: it needs "
                                  "a precompression > 0")
@@ -130,7 +141,9 @@ class AmplitudeFamily:
         self.problem.prefix = prefix
         self.problem.solver(False, prefix, solver)
         self.q = self.problem.q
-        self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=math.inf))
+        self.problem.extra_tests = tests
+        self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=math.inf),
+                                         bisect=bisect, locate_step=locate_step)
 
     def solve_at(self, a):
         """The wave at amplitude a: the first from the linear wave, the next by a natural step."""
@@ -166,13 +179,14 @@ class AmplitudeFamily:
             yield self.step_to(a)
 
     def events(self):
-        """The gap openings located since the last call (AmplitudePoints)."""
+        """The points located since the last call (AmplitudePoints: the gap openings, and the roots of the caller's
+        ``tests``), each with its ``event`` and ``bracket``."""
         out = []
         for cp in self.continuation.take_events():
             prof = cp.report["profiles"]
             self.problem.set_parameter("log_a", cp.parameter)
             Z = self.problem.pack(prof, cp.report["lam"], cp.parameter)
-            out.append(self.problem.point(Z, cp.iterations))
+            out.append(replace(self.problem.point(Z, cp.iterations), event=cp.event, bracket=cp.bracket))
             Z.destroy()
         self.problem.set_parameter("log_a", self.continuation.parameter)
         return out

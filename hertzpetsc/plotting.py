@@ -514,22 +514,78 @@ def plot_dimer_epsilon(curves, directory):
     return _save(fig, directory, "dimer_epsilon.png")
 
 
-def plot_precompression_map(q, A, rho, tol_rho, directory):
-    """Floquet stability of the precompressed waves in the (q, A) plane: filled markers coloured by
-    log10(rho - 1) where rho - 1 > tol_rho, open circles where stable."""
+def plot_stability_map(z, directory, name="precompression_map.png"):
+    """The stability map of a ``hertzpetsc-precompression-map-2`` file's arrays ``z`` in the (q, A) plane: one panel
+    per chain (N beads; the infinite chain when computed): the map's verdicts (open: stable; filled, coloured by
+    log10(rho - 1): unstable), the located boundary points (triangles up: onset, down: offset), the unstable
+    intervals between them (red bars), the uppermost located edge of each q joined along q, the gap opening A_gap(q)
+    (dashed) and q_c of the uncompressed limit (shaded: between the largest q unstable at A = infinity and the next
+    stable q of the map)."""
     plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    q, A, rho = map(np.asarray, (q, A, rho))
-    bad = rho - 1 > tol_rho
-    ax.scatter(q[~bad], A[~bad], s=25, facecolors="none", edgecolors="k", lw=0.7, label="stable")
-    if bad.any():
-        sc = ax.scatter(q[bad], A[bad], s=30, c=np.log10(rho[bad] - 1), cmap="viridis", label="unstable")
-        fig.colorbar(sc, ax=ax, label=r"$\log_{10}(\rho - 1)$")
-    ax.set_yscale("log")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$A = \|u\|_\infty$")
-    ax.legend(fontsize=8, loc="upper right")
-    return _save(fig, directory, "precompression_map.png")
+    tol = float(z["tol_rho"])
+    kind = np.asarray(z["kind"])
+    q, A = np.asarray(z["q"], float), np.asarray(z["A"], float)
+    panels = [("rho", 1, f"N = {int(z['N'])}")]
+    if int(z["twists"]):
+        panels.append(("rho_inf", 2, "infinite chain"))
+    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.8), squeeze=False)
+    rho_all = np.concatenate([np.asarray(z[key], float) for key, _, _ in panels])
+    bad_all = rho_all[np.isfinite(rho_all) & (rho_all - 1 > tol)]
+    vmin, vmax = (np.log10(tol), max(np.log10(tol) + 1, float(np.log10(bad_all.max() - 1)))) if len(bad_all) else \
+        (np.log10(tol), np.log10(tol) + 1)
+    gap = kind == 4
+    order = np.argsort(q[gap])
+    for ax, (key, edge, title) in zip(axes[0], panels):
+        rho = np.asarray(z[key], float)
+        pts = (kind == 0) & np.isfinite(rho)
+        bad = pts & (rho - 1 > tol)
+        ax.scatter(q[pts & ~bad], A[pts & ~bad], s=6, facecolors="none", edgecolors="0.6", lw=0.5, label="stable")
+        sc = ax.scatter(q[bad], A[bad], s=8, c=np.log10(rho[bad] - 1), cmap="viridis", vmin=vmin, vmax=vmax,
+                        label="unstable")
+        located = kind == edge
+        onset = located & (np.asarray(z["A_unstable"], float) > np.asarray(z["A_stable"], float))
+        ax.scatter(q[onset], A[onset], marker="^", s=22, c="r", edgecolors="k", lw=0.4, label="onset (located)",
+                   zorder=3)
+        ax.scatter(q[located & ~onset], A[located & ~onset], marker="v", s=22, c="orange", edgecolors="k", lw=0.4,
+                   label="offset (located)", zorder=3)
+        from .studies.maps import unstable_intervals
+        finite = np.isfinite(A) & (A > 0)
+        lo_A, hi_A = (A[finite].min(), A[finite].max()) if finite.any() else (1e-2, 1e3)
+        for qq, spans in unstable_intervals(z, key).items():
+            for a1, a2 in spans:
+                if not (a1 == a1 and a2 == a2):        # an edge not located: nothing to draw between
+                    continue
+                ax.plot([qq, qq], [max(a1, lo_A), min(a2, hi_A)], color="r", lw=2.5, alpha=0.35,
+                        solid_capstyle="butt", zorder=1)
+        top_q, top_A = [], []
+        for qq in np.unique(q[located]):
+            top_q.append(qq)
+            top_A.append(A[located & (q == qq)].max())
+        if len(top_q) > 1:           # the uppermost located edge of each q: where the verdict becomes final
+            ax.plot(top_q, top_A, "k-", lw=0.7, zorder=2, label="uppermost edge")
+        if gap.any():
+            ax.plot(q[gap][order], A[gap][order], "b--", lw=0.9, label=r"$A_{gap}(q)$")
+        limit = (kind == 3) & np.isfinite(rho)
+        unstable_limit = q[limit & (rho - 1 > tol)]
+        if len(unstable_limit):        # q_c lies between the largest q unstable at A = inf and the next stable one
+            q_lo = unstable_limit.max()
+            stable_above = q[limit & (rho - 1 <= tol) & (q > q_lo)]
+            if len(stable_above):
+                ax.axvspan(q_lo, stable_above.min(), color="0.85", zorder=0, label=r"$q_c$ (uncompressed) in here")
+            else:
+                ax.axvline(q_lo, color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed) above")
+        ax.set_yscale("log")
+        ax.set_xlabel("$q$")
+        ax.set_ylabel(r"$A = \|u\|_\infty$")
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="upper right")
+    fig.colorbar(sc, ax=list(axes[0]), label=r"$\log_{10}(\rho - 1)$")
+    fig.suptitle(rf"$\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$, masses "
+                 + ", ".join(f"{m:g}" for m in np.asarray(z["masses"], float)), fontsize=10)
+    try:
+        return save_figure(fig, os.path.join(directory, name))
+    finally:
+        plt.close(fig)
 
 
 # --- driven, damped chains (issue 22) ---------------------------------------------------------------------------------

@@ -263,12 +263,18 @@ class CellPropagator:
 
     def twisted(self, theta):
         """R_theta(T; 0) of the twisted cell (2M x 2M; real for theta = 0, pi)."""
-        Pm, P0, P1 = self.blocks
-        if abs(math.sin(theta)) < 1e-14:
-            c = 1.0 if math.cos(theta) > 0 else -1.0
-            return P0 + c * (P1 + Pm)
-        return P0 + np.exp(-1j * theta) * P1 + np.exp(1j * theta) * Pm
+        return twisted_resolvent(self.blocks, theta)
 
     def destroy(self):
         self.flow.destroy()
         self.probe.destroy()
+
+
+def twisted_resolvent(blocks, theta):
+    """R_theta = P_0 + e^{-i theta} P_1 + e^{i theta} P_{-1} from the cell blocks (P_{-1}, P_0, P_1) of a
+    :class:`CellPropagator` run (real for theta = 0, pi)."""
+    Pm, P0, P1 = blocks
+    if abs(math.sin(theta)) < 1e-14:
+        c = 1.0 if math.cos(theta) > 0 else -1.0
+        return P0 + c * (P1 + Pm)
+    return P0 + np.exp(-1j * theta) * P1 + np.exp(1j * theta) * Pm

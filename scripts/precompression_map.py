@@ -1,21 +1,32 @@
 #!/usr/bin/env python3
-"""Floquet stability of the precompressed travelling waves in the (q, A) plane, on a periodic chain.
+"""Floquet stability of the precompressed travelling waves in the (q, A) plane, and its boundary located, on a
+periodic chain of N beads and on the infinite chain.
 
     mpiexec -n 2 python scripts/precompression_map.py [-alpha 1.5] [-delta0 1] [-N 100] [-epsilon 1]
-        [-m 10,12,14,15,16,18,20,22,24,25]
-        [-a 0.1,0.3,0.5,0.7,1,1.5,2,3,5,10,20,30,50,100,1000] [-cells_per_pi 1000] [-rtol 1e-11]
-        [-tol_rho 1e-4] [-output results/precompression_map.npz] [-table results/precompression_map.md]
-        [-figures figures] [-resume | -force]
+        [-m 10,12,14,15,16,18,20,22,24,25] [-q LIST] [-a 0.1,0.3,0.5,0.7,1,1.5,2,3,5,10,20,30,50,100,1000]
+        [-a_min 0.01 -a_max 1000 -ds 0] [-cells_per_pi 1000] [-rtol 1e-11] [-tol_rho 1e-6] [-twists 0]
+        [-locate chain] [-locate_tol 1e-3] [-output results/precompression_map.npz]
+        [-table results/precompression_map.md] [-figures figures] [-compare FILE] [-resume | -force | -render]
 
-For q = 2 pi m / N and each amplitude a (first sine coefficient of u): the wave from the Richardson combination
-of the h = pi/K and pi/(2K) amplitude continuations, put on the N-bead chain of the precompressed law, and all 2N
-Floquet multipliers modulo shift (dense monodromy S R(script-T; 0)); plus the uncompressed limit A = inf. With
--epsilon != 1 the chain is the dimer (masses 1, epsilon), the waves its acoustic ones at that mass ratio (natural
-continuation in a from the linear wave) and S the shift by one cell. Table:
-rho - 1 per (q, a) (U: unstable, rho - 1 > tol_rho). Figure: precompression_map.png. Solver prefixes: -floquet_
-(the variational flow, -floquet_ts_*), -precomp_ (the wave solves).
+For q = 2 pi m / N (and the wavenumbers of -q, infinite chain only) and each amplitude a (first sine coefficient
+of u; -a, and with -ds > 0 the grid a_min exp(k ds) up to a_max): the wave (Richardson combination of the h = pi/K
+and pi/(2K) waves, K = -cells_per_pi) continued in log a from the linear wave, put on the chain; all 2N multipliers
+modulo shift on N beads from the sectors of its cell, and with -twists T > 0 the infinite chain's over the cell twists
+(bead-level Bloch step <= pi/T), symmetry multipliers deflated by their known eigenvectors; unstable when
+rho - 1 > tol_rho. Where the verdict of a chain of -locate (chain, infinite, or none) changes between two amplitudes,
+its root is located by bisection in log a to a relative bracket -locate_tol; the gap opening is located on the way;
+the uncompressed limit closes each q. With -epsilon != 1 the chain is the dimer (masses 1, epsilon), the waves its
+acoustic ones. The q are dealt to the ranks. Table: the located boundary with rho - 1 on both sides, and the
+verdicts; figure precompression_map.png. Solver prefixes: -precomp_ (the wave solves), -floquet_ (the flows of
+the cell maps, -floquet_ts_*).
+
+-render computes nothing: it rewrites -table (and the figure) from the file -output, of this kind or of kind
+hertzpetsc-precompression-map-1 (the maps before issue 23: rho - 1 per (q, a) on the dense route); such a file is
+not resumed (-resume refuses it and says so). -compare FILE (a map of kind -1) adds to the table the verdicts of
+both maps at the (q, a) both computed, at that file's threshold.
 """
 import math
+import os
 import sys
 
 from hertzpetsc.start import init_petsc
@@ -27,7 +38,10 @@ from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.precompression import MapParameters, StabilityMap  # noqa: E402
+from hertzpetsc.errors import RecordFileError  # noqa: E402
+from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MapParameters, StabilityMap, TESTS,  # noqa: E402
+                                     compare_v1, map_format, map_table, map_v1_as_v2, read_map)
+from hertzpetsc.studies.precompression import amplitude_grid  # noqa: E402
 
 ROLES = StabilityMap.ROLES
 
@@ -40,36 +54,80 @@ def main():
     epsilon = opts.real("epsilon", 1.0, "mass of every second bead (1: monatomic chain; else the dimer's acoustic "
                         "waves)", valid=(lambda x: x > 0, "> 0"))
     ms = opts.numbers("m", "10,12,14,15,16,18,20,22,24,25", "wavelengths on the chain (q = 2 pi m / N)", kind=int,
-                      valid=(lambda m: 1 <= m <= N // 2, f"in [1, N/2]"), distinct=True)
-    amps = opts.numbers("a", "0.1,0.3,0.5,0.7,1,1.5,2,3,5,10,20,30,50,100,1000", "amplitudes (first sine coefficient of u)",
-                        valid=(lambda x: x > 0, "> 0"), distinct=True)
+                      valid=(lambda m: 1 <= m <= N // 2, "in [1, N/2]"), distinct=True)
+    extra_q = opts.numbers("q", "", "further wavenumbers, on the infinite chain only (q / 2 pi a fraction; pi "
+                           "allowed)", valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"), distinct=True,
+                           minimum_count=0)
+    amps = opts.numbers("a", "0.1,0.3,0.5,0.7,1,1.5,2,3,5,10,20,30,50,100,1000", "amplitudes (first sine coefficient "
+                        "of u)", valid=(lambda x: x > 0, "> 0"), distinct=True)
+    a_min = opts.real("a_min", 0.01, "smallest amplitude of the geometric grid (with -ds > 0)",
+                      valid=(lambda x: x > 0, "> 0"))
+    a_max = opts.real("a_max", 1000.0, "largest amplitude of the geometric grid", valid=(lambda x: x > 0, "> 0"))
+    ds = opts.real("ds", 0.0, "step in log a of the geometric grid added to -a (0: none)",
+                   valid=(lambda x: x >= 0, ">= 0"))
     K = opts.integer("cells_per_pi", 1000, "coarser grid of the Richardson pair (h = pi/K and pi/2K)", minimum=4)
     rtol = opts.real("rtol", 1e-11, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    tol_rho = opts.real("tol_rho", 1e-4, "unstable when rho - 1 > tol_rho", valid=(lambda x: x > 0, "> 0"))
+    tol_rho = opts.real("tol_rho", 1e-6, "unstable when rho - 1 > tol_rho", valid=(lambda x: x > 0, "> 0"))
+    twists = opts.integer("twists", 0, "infinite chain: bead-level Bloch parameters per pi (0: not computed)",
+                          minimum=0, maximum=10 ** 6)
+    locate = opts.words("locate", "chain", "verdicts whose changes are located: chain, infinite, or none",
+                        choices=TESTS + ("none",))
+    locate_tol = opts.real("locate_tol", 1e-3, "relative bracket of a located boundary point",
+                           valid=(lambda x: 0 < x < 0.5, "in (0, 0.5)"))
     output, mode, table_path, figures = opts.record_table_figures(
         "results/precompression_map.npz", "stability-map file", "results/precompression_map.md",
         "precompression_map.png")
+    compare = opts.path("compare", "", "a map of kind hertzpetsc-precompression-map-1 to compare the verdicts with "
+                        "(none if empty)")
+    render = opts.flag("render", "compute nothing: rewrite -table and the figure from the file -output (either kind)")
     opts.done()
     comm = PETSc.COMM_WORLD
+    if render:
+        if mode != "new":
+            raise RecordFileError("-render reads -output and writes only -table and the figure: give it without "
+                                  "-resume or -force")
+        opts.check_unused()
+        z = read_map(output, comm)
+        prepare_outputs(comm, table_path, figures=figures)
+        write_figure_and_table(comm, z, table_path, figures, compare)
+        return
+    if compare and map_format(compare, comm) != MAP_FORMAT_V1:
+        raise RecordFileError(f"-compare {compare!r}: not a stability map of kind {MAP_FORMAT_V1}")
+    if mode == "resume" and map_format(output, comm) == MAP_FORMAT_V1:
+        raise RecordFileError(f"-output {output!r} is a stability map of the route before issue 23 ({MAP_FORMAT_V1}, "
+                              "no located boundary): it cannot be resumed; -render rewrites its table and figure, "
+                              "-force recomputes it (or give another -output)")
     prepare_outputs(comm, table_path, figures=figures)
-    qs = [2 * math.pi * m / N for m in ms]
+    qs = [2 * math.pi * m / N for m in ms] + list(extra_q)
+    grid = amplitude_grid(a_min, a_max, ds) if ds > 0 else []
     masses = (1.0,) if epsilon == 1.0 else (1.0, epsilon)
-    study = StabilityMap(MapParameters(LatticeModel.hertz(alpha, masses, delta0), qs, amps, N, K,
-                                       IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho), comm, output, mode)
+    study = StabilityMap(MapParameters(LatticeModel.hertz(alpha, masses, delta0), qs, tuple(amps) + tuple(grid), N, K,
+                                       IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho, twists,
+                                       tuple(w for w in locate if w != "none"), locate_tol), comm, output, mode)
     study.configure()
     opts.check_unused()
     study.open()
-    print0(f"# N = {N}, alpha = {alpha:g}, delta0 = {delta0:g}, h = pi/{K} and pi/{2 * K}, rtol {rtol:g}")
-    print0(f"# {'q':>8} {'a':>8} {'A':>10} {'rho - 1':>10} {'outside':>7} {'trivial':>8} {'s':>6}")
+    print0(f"# N = {N}, alpha = {alpha:g}, delta0 = {delta0:g}, masses {', '.join(f'{m:g}' for m in masses)}, "
+           f"h = pi/{K} and pi/{2 * K}, rtol {rtol:g}, {len(study.a_values)} amplitudes, twists {twists}")
+    print0(f"# {'q':>8} {'kind':>4} {'a':>10} {'A':>10} {'rho - 1':>10} {'inf - 1':>10} {'s':>6}")
     for r in study.run():
-        print0(f"  {r['q']:8.5f} {r['a']:8.4g} {r['A']:10.4g} {r['rho'] - 1:10.3e} {r['outside']:7d} "
-               f"{r['trivial_spread']:8.1e} {r['seconds']:6.1f}")
-    text = study.table()
+        print0(f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.5g} {r['A']:10.5g} {r['rho'] - 1:10.3e} "
+               f"{r['rho_inf'] - 1:10.3e} {r['seconds']:6.1f}")
+    z = study.arrays()
     study.destroy()
+    write_figure_and_table(comm, z, table_path, figures, compare)
+
+
+def write_figure_and_table(comm, z, table_path, figures, compare=""):
+    text = map_table(z)
+    if compare and str(z["format"]) != MAP_FORMAT_V1:
+        text += compare_v1(z, read_map(compare, comm))
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_precompression_map(*study.grid_values(), tol_rho, figures), flush=True)
+        name = os.path.splitext(os.path.basename(table_path))[0] + ".png"
+        v2 = map_v1_as_v2(z) if str(z["format"]) == MAP_FORMAT_V1 else z
+        print("wrote " + plotting.plot_stability_map(v2, figures, name), flush=True)
     print0(text)
 
 

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.continuation import Continuation, ContinuationError, ContinuationProblem, Natural, PseudoArclength
+from hertzpetsc.continuation import (Continuation, ContinuationError, ContinuationProblem, LazyTests, Natural,
+                                     PseudoArclength)
 from hertzpetsc.errors import ConvergenceError, ParameterError
 
 
@@ -138,3 +139,47 @@ def test_algorithm_parameters_are_validated():
         Natural(max_halvings=-1)
     with pytest.raises(ParameterError):
         Continuation(Bratu(5), algorithm="arclength")
+
+
+class FlatBratu(Bratu):
+    """The Bratu problem with a verdict's margin as test: flat (-1e-6) while u_max < 1/2, then u_max - 1/2 - 1e-6 (the
+    Illinois rule crawls on such a function); and a second test that counts its evaluations."""
+
+    def __init__(self, n):
+        super().__init__(n)
+        self.counted = 0
+
+    def test_functions(self, Z):
+        u_max = float(np.max(Z.getArray(readonly=True)[:-1]))
+
+        def counted():
+            self.counted += 1
+            return 1.0
+        return LazyTests({"margin": lambda: max(u_max - 0.5, 0.0) - 1e-6, "other": counted})
+
+
+def test_bisection_locates_a_flat_sided_root_to_the_step_and_keeps_the_bracket():
+    """Natural steps lambda = 1 -> 3 cross u_max = 1/2 + 1e-6 on the lower branch: located by bisection to a bracket of
+    1e-4 in lambda in about log2(2 / 1e-4) = 15 trials, the bracket's ends of opposite signs; the lazy second test is
+    not evaluated at the trials."""
+    prob = FlatBratu(29)
+    cont = Continuation(prob, Natural(), bisect=("margin",), locate_step=1e-4)
+    Z = prob.create_vec()
+    Z.set(0.0)
+    Z.getArray()[-1] = 1.0
+    try:
+        cont.start(Z)
+        substeps = cont.step_to(3.0).substeps
+        counted = prob.counted
+        events = cont.take_events()
+    finally:
+        Z.destroy()
+        cont.destroy()
+    assert [e.event for e in events] == ["margin"]
+    (p1, g1), (p2, g2) = events[0].bracket
+    assert p1 < p2 and p2 - p1 <= 1e-4 and g1 < 0 < g2
+    assert p1 <= events[0].parameter <= p2
+    assert abs(events[0].report["u_max"] - 0.5) < 1e-4           # the root, to the bracket's 1e-4 in lambda
+    assert counted == substeps + 1                             # at the natural points only, not at the ~15 trials
+    with pytest.raises(ParameterError):
+        Continuation(Bratu(5), Natural(), locate_step=0.0)

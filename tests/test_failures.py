@@ -70,6 +70,8 @@ DRIVERS = {
                         None),
     "bench_stability.py": (("-N", 20, "-routes", "symmetric", "-branch", BRANCH, "-output", "{t}/b.md"), "branch",
                            "records", ("-routes", "symmetric,gpu"), None),
+    "bench_map.py": (("-N", 20, "-m", 3, "-subset_m", 3, "-a", 0.5, "-ds", 0, "-routes", "subset", "-output",
+                      "{t}/b.md"), None, "records", ("-m", "3,3"), None),
     "precompressed_branch.py": (("-q", "3*pi/10", "-cells_per_pi", 50, "-a_min", 0.1, "-a_max", 10, "-ds", 1, "-output",
                                  "{t}/p.npz", "-table", "{t}/p.md"), None, "output", ("-q", "3*pi/10,3*pi/10"),
                                 ("-precomp_pc_type", "bogus")),
@@ -370,6 +372,7 @@ OVERSIZED = {
     "driven_wave_ends.py": ("sizes", "1000000000"),
     "driven_generation.py": ("N", "1000000000"),
     "bench_driven.py": ("N", "1000000000"),
+    "bench_map.py": ("N", "1000000000"),
 }
 
 

@@ -166,8 +166,9 @@ def _resumable_studies():
     from hertzpetsc.driven import Drive, HarmonicWave
     from hertzpetsc.model import LatticeModel
     from hertzpetsc.studies.driven import ResponseCurve
+    from hertzpetsc.studies.maps import MapParameters, StabilityMap
     from hertzpetsc.studies.precompression import (AmplitudeFamilies, AmplitudeParameters, DimerFamilies,
-                                                   DimerParameters, MapParameters, StabilityMap)
+                                                   DimerParameters)
     from hertzpetsc.studies.wave import WaveParameters, WaveStudy
     pre = LatticeModel.hertz(1.5, delta0=0.5)
     trimer = LatticeModel.hertz(1.5, (1.0, 0.5, 1 / 3), delta0=1.0)
@@ -197,7 +198,7 @@ def test_a_study_killed_after_any_record_resumes_to_the_uninterrupted_file(name,
     run (two uninterrupted 2-rank runs of the dimer families differ by 4e-14 in the tangent), and the map's
     multipliers, integrated by an adaptive TS from waves that differ by that round-off, follow it: rho by 2e-10, the
     undeflated trivial group's spread by 3e-8. There the arrays agree to 1e-8 relative and 1e-6 absolute: far below
-    the verdicts' tol_rho = 1e-4 and any step a continuation takes, above that spread."""
+    the verdicts' tol_rho (1e-6 in the map) and any step a continuation takes, above that spread."""
     make = _resumable_studies()[name]
     exact = PETSc.COMM_WORLD.getSize() == 1
     tmp_path = pathlib.Path(shared_tmp(tmp_path))

@@ -131,15 +131,19 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
         Step("dimer_a0.5", "issue 16", "dimer_branch.py", ("-a", "0.5", "-cells_per_pi", "400", "-output",
                                                            "results/dimer_a0.5.npz", "-table", "results/dimer_a0.5.md"),
              record="results/dimer_a0.5.npz"),
-        Step("precompression_map", "issue 16", "precompression_map.py", ("-figures", figures),
-             record="results/precompression_map.npz"),
+        # issue 23: the boundary located on N = 100 and on the infinite chain, compared with the map of kind -1
+        # (results/precompression_map.npz, kept as it was: -render re-renders it); the dimers' maps likewise
+        Step("precompression_map", "issue 23", "precompression_map.py",
+             ("-twists", "512", "-locate", "chain,infinite", "-compare", "results/precompression_map.npz", "-output",
+              "results/stability_boundary_alpha1.5.npz", "-table", "results/stability_boundary_alpha1.5.md",
+              "-figures", figures), record="results/stability_boundary_alpha1.5.npz"),
     ]
     for eps in ("0.7", "0.4"):
-        steps.append(Step(f"precompression_map_dimer{eps}", "issue 16", "precompression_map.py",
-                          ("-epsilon", eps, "-m", "10,14,15,20", "-a", "0.1,0.3,1,3,10,100", "-output",
-                           f"results/precompression_map_dimer{eps}.npz", "-table",
-                           f"results/precompression_map_dimer{eps}.md"),
-                          record=f"results/precompression_map_dimer{eps}.npz"))
+        steps.append(Step(f"precompression_map_dimer{eps}", "issue 23", "precompression_map.py",
+                          ("-epsilon", eps, "-m", "10,14,15,20", "-a", "0.1,0.3,1,3,10,100", "-compare",
+                           f"results/precompression_map_dimer{eps}.npz", "-output",
+                           f"results/stability_map_dimer{eps}.npz", "-table", f"results/stability_map_dimer{eps}.md"),
+                          record=f"results/stability_map_dimer{eps}.npz"))
     return steps
 
 

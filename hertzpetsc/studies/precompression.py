@@ -1,5 +1,5 @@
 """Studies of precompressed and dimer chains (issue 16): amplitude families at fixed q from the linear wave to
-the uncompressed limit, the gap opening, dimer families in the mass ratio, and Floquet stability in (q, A).
+the uncompressed limit, the gap opening, dimer families in the mass ratio; the waves of the stability map.
 
 Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.records.NpzRecords`):
 
@@ -15,20 +15,17 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
   path); state (for -resume of the q in progress): ``state_q``, ``state_Z`` (2, n) the last two extended
   vectors (profiles, lam, epsilon), ``state_s``, ``state_ds``, ``state_normalised``. A ``hertzpetsc-dimer-1``
   file (no event, no state) is read for its tables; it cannot be resumed.
-* ``hertzpetsc-precompression-map-1`` (:class:`StabilityMap`): constants alpha, delta0, masses, N, cells_per_pi,
-  rtol, tol_rho; per record: q, a (inf: uncompressed), A, omega, rho (trivial multipliers excluded), outside,
-  trivial_spread, seconds.
+
+The stability map in (q, A) (record kind ``hertzpetsc-precompression-map-2``) is :mod:`hertzpetsc.studies.maps`,
+on the waves of :func:`richardson_wave` / :func:`wave_orbit` here.
 """
 import math
-import time
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..chain import IntegrationTolerances
 from ..diagnostics import sup_norm
 from ..errors import ConvergenceError, ParameterError
-from ..floquet import TOL_RHO, DenseFloquet
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..advdelay import check_wavenumber
 from ..model import ChainSpec, LatticeModel
@@ -37,9 +34,8 @@ from ..resources import check_memory
 from ..twsolver import tw_solver
 from .base import Study
 from ..richardson import extrapolate
-from ..stencil import full_period, lagrange_periodic
 from ..branch import BranchPoint
-from ..waves import check_chain_wavenumber, orbit_on_chain
+from ..waves import orbit_on_chain
 from .floquet import q_label
 
 PRECOMPRESSED_FORMAT = "hertzpetsc-precompressed-1"
@@ -48,8 +44,6 @@ DIMER_FORMAT = "hertzpetsc-dimer-2"
 DIMER_FIELDS = ("q", "epsilon", "omega", "omega_acoustic", "arclength", "tangent_epsilon", "norm_u", "norm_v",
                 "v1", "v2", "iterations", "event")
 EVENT_CODES = {None: 0, "fold": 1, "gap": 2}
-MAP_FORMAT = "hertzpetsc-precompression-map-1"
-MAP_FIELDS = ("q", "a", "A", "omega", "rho", "outside", "trivial_spread", "seconds")
 KIND_GRID, KIND_GAP, KIND_LIMIT = 0, 1, 2
 
 
@@ -455,127 +449,10 @@ def wave_orbit(model, q, a, profiles, lam, N, h):
     return orbit_on_chain(point, ChainSpec(model, N), scale=a)
 
 
-MAX_MAP_BEADS = 2000
-
-
-@dataclass(frozen=True)
-class MapParameters:
-    """The stability map: the precompressed ``model`` (any mass pattern), wavenumbers ``q`` (whole numbers of
-    wavelengths on N beads), amplitudes ``a`` (first sine coefficient), N beads (at most :data:`MAX_MAP_BEADS`:
-    the dense monodromy has (2N)^2 entries), the coarser grid of the Richardson pair (K, 2K), the flow's
-    tolerances and the verdict's threshold tol_rho."""
-
-    model: LatticeModel
-    q: tuple
-    a: tuple
-    N: int = 100
-    cells_per_pi: int = 1000
-    tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
-    tol_rho: float = TOL_RHO
-
-    def __post_init__(self):
-        _check_delta0_positive(self.model)
-        if not (isinstance(self.N, (int, np.integer)) and self.model.cell <= self.N <= MAX_MAP_BEADS):
-            raise ParameterError("N", self.N, f"must be an integer in [{self.model.cell}, {MAX_MAP_BEADS}]")
-        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        qs = _check_qs(self.q, math.pi / self.cells_per_pi)
-        for q in qs:
-            check_chain_wavenumber(q, self.N)
-        object.__setattr__(self, "q", qs)
-        amps = tuple(sorted(check_amplitude(a, "a") for a in self.a))
-        if not amps:
-            raise ParameterError("a", self.a, "give at least one amplitude")
-        object.__setattr__(self, "a", amps)
-        if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
-            raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
-
-
-class StabilityMap(Study):
-    """rho(F_q) of the precompressed waves on N beads over a (q, a) grid, plus the uncompressed limit per q
-    (a = inf, the eta = 0 wave on the same grids). A dimer ``model`` gives its acoustic waves (natural
-    continuation in a at its mass ratio) and F = S R(2q/omega) with the shift by one cell. Initial data:
-    Richardson (K, 2K) profiles; dense monodromy modulo shift (:class:`~hertzpetsc.floquet.DenseFloquet`, prefix
-    ``floquet_``). The multipliers depend on (q, delta0 / A) only (exact scaling)."""
-
-    Parameters = MapParameters
-    FORMAT, FIELDS = MAP_FORMAT, MAP_FIELDS
-    DTYPES = {"outside": np.int64}
-    ROLES = {"floquet_": ("the flow of the variational equations", ("ts",)),
-             "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
-    WHAT = "stability-map file"
-
-    def __init__(self, params, comm=None, output=None, mode="new"):
-        super().__init__(params, comm, output, mode)
-        p = params
-        self.model, self.N, self.qs, self.a_values = p.model, p.N, list(p.q), list(p.a)
-        self.K, self.tolerances, self.tol_rho = p.cells_per_pi, p.tolerances, p.tol_rho
-        check_memory(2 * self.K, self.comm, tw_solver("precomp_"), profiles=self.model.cell)
-        self.floquet = DenseFloquet(ChainSpec(self.model, self.N), self.comm, self.tolerances)
-
-    def constants(self):
-        return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses), N=self.N,
-                    cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho)
-
-    def _spectrum_row(self, q, a, w, lam):
-        model = self.model if math.isfinite(a) else self.model.with_delta0(0.0)
-        orbit = wave_orbit(self.model, q, a, w, lam, self.N, math.pi / self.K)
-        t0 = time.perf_counter()
-        if math.isfinite(a):
-            spec = self.floquet.spectrum(orbit, self.tol_rho)
-        else:
-            dense = DenseFloquet(ChainSpec(model, self.N), self.comm, self.tolerances)
-            try:
-                spec = dense.spectrum(orbit, self.tol_rho)
-            finally:
-                dense.destroy()
-        return dict(q=q, a=a, A=a * sup_norm(w[0]) if math.isfinite(a) else math.inf, omega=orbit.omega,
-                    rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
-                    seconds=time.perf_counter() - t0)
-
-    def run(self):
-        self.open()
-        for q in self.qs:
-            done = {round(float(r["a"]), 10) for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q}
-            if all(round(a, 10) in done for a in self.a_values + [math.inf]):
-                continue
-            for a, w, lam in richardson_wave(self.model, q, self.a_values, self.K, self.comm):
-                if round(a, 10) in done:
-                    continue
-                row = self._spectrum_row(q, a, w, lam)
-                self.store.append(row)
-                yield row
-
-    def destroy(self):
-        self.floquet.destroy()
-
-    def table(self):
-        lines = [f"schema: {MAP_FORMAT}; rho(F_q) (trivial multipliers excluded) of the precompressed waves on N = "
-                 f"{self.N} beads, alpha = {self.model.alpha:g}, delta0 = {self.model.delta0:g}, masses "
-                 f"{', '.join(f'{m:g}' for m in self.model.masses)} (repeated); initial data from "
-                 f"the Richardson combination of h = pi/{self.K} and pi/{2 * self.K}; flow rtol "
-                 f"{self.tolerances.rtol:g}; unstable (U) when rho - 1 > {self.tol_rho:g}. Rows: q; columns: a "
-                 "(first sine coefficient; A = ||u||_inf is in the record file), last column the uncompressed limit "
-                 "A = inf. Each cell: rho - 1 (max trivial spread in the last line).\n"]
-        header = "| q | " + " | ".join(f"a = {a:g}" for a in self.a_values) + " | A = inf |"
-        lines += [header, "|" + "---|" * (len(self.a_values) + 2)]
-        spread = 0.0
-        for q in self.qs:
-            cells = []
-            for a in self.a_values + [math.inf]:
-                r = next((r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q
-                          and math.isclose(float(r["a"]), a, rel_tol=1e-10)), None)
-                if r is None:
-                    cells.append("")
-                    continue
-                spread = max(spread, float(r["trivial_spread"]))
-                rho = float(r["rho"])
-                cells.append(f"{rho - 1:.1e}" + (" U" if rho - 1 > self.tol_rho else ""))
-            lines.append(f"| {q_label(q)} ({q:.4f}) | " + " | ".join(cells) + " |")
-        lines.append(f"\nmax trivial spread {spread:.1e}")
-        return "\n".join(lines) + "\n"
-
-    def grid_values(self):
-        """(q, A, rho) arrays of the finite-amplitude records, for the figure."""
-        recs = [r for r in self.store.records if math.isfinite(float(r["a"]))]
-        return (np.array([float(r["q"]) for r in recs]), np.array([float(r["A"]) for r in recs]),
-                np.array([float(r["rho"]) for r in recs]))
+def __getattr__(name):
+    """The stability map's names at their place before issue 23 (``studies.precompression.StabilityMap``, ...): the
+    study of :mod:`hertzpetsc.studies.maps` (imported when first asked: it imports this module)."""
+    if name in ("StabilityMap", "MapParameters", "map_table", "MAP_FORMAT", "MAP_FIELDS"):
+        from . import maps
+        return getattr(maps, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -113,8 +113,9 @@ def monodromy_fields(sectors, refiner, orbit, E):
         g = math.log(s.rho) / orbit.T
         if best is None or g > best[0]:
             best = (g, s.theta)
-        raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
-        clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
+        if s.r:
+            raw = max(raw, float(np.max(np.abs(s.raw_cluster))) - 1)
+            clus = max(clus, float(np.max(np.abs(s.cluster - 1))))
         eig, inv = max(eig, s.eigenvector_residual), max(inv, s.invariance_residual)
     sym = orbit.symmetry
     x0 = orbit.x[:sym.M]

@@ -1,0 +1,680 @@
+"""Stability maps of precompressed chains and dimers in the (q, A) plane, with the stability boundary located
+(issue 23; section 3.5 beyond the paper).
+
+For each wavenumber q = 2 pi m / N the amplitude family (:class:`~hertzpetsc.families.AmplitudeFamily`, natural
+steps in s = log a through the map's amplitudes, prefix ``precomp_``) carries two test functions of the continuation
+layer, each the margin ln(rho) - ln(1 + tol_rho) of a verdict:
+
+* ``chain``: rho of all 2N multipliers of F_q on the periodic chain of N beads, from the sectors of the wave's cell
+  with the symmetry multipliers deflated by their known eigenvectors (:class:`~hertzpetsc.slow.DeflatedSectors`:
+  time shift and translation with their Jordan partners at the cell twist 0, every zone's translation at every twist
+  when the zones are decoupled), so that no verdict rests on the numerical splitting of the trivial group;
+* ``infinite``: rho over every Bloch parameter of the infinite chain: the cell twists Theta in [0, pi] of the wave's
+  cell of M beads (:func:`~hertzpetsc.slow.twist_scan`: a grid of ceil(twists / M) steps, i.e. a bead-level Bloch
+  step of at most pi / twists, the largest local maxima refined by golden section, and the twists where an unstable
+  mode was last seen: a band of instability narrows to a point at its onset, and is followed there).
+
+Where a verdict changes between two amplitudes of the map, the layer locates the root by bisection in s until the
+bracket is at most ``locate_tol`` / 2 long (:class:`~hertzpetsc.continuation.Continuation`, ``bisect``): the located
+point's record keeps both ends with their rho - 1, so the boundary is confirmed by the multipliers on both sides. The
+gap opening (2 u(q/2) = delta0 for a monatomic chain) is located on the way. Each wave is the Richardson combination
+of the h = pi/K wave of the family and the h = pi/(2K) one solved at the same amplitude from it (initial data with an
+O(h^4) error). The uncompressed limit (delta0 / A = 0) closes each q. The q are dealt to the ranks, each computed on
+one rank (:mod:`hertzpetsc.studies.dealing`): the records do not depend on the number of ranks.
+
+Record file (npz, record store, kind ``hertzpetsc-precompression-map-2``; schema in docs/schemas.md): constants
+alpha, delta0, masses, N, cells_per_pi, rtol, tol_rho, twists, locate, locate_tol; per record: q, m, kind (0: a point
+of the map, 1: a located boundary point on N beads, 2: on the infinite chain, 3: the uncompressed limit, 4: the gap
+opening), a, A, omega, rho, outside, sector, cluster, raw_cluster, eigvec, decoupled, rho_inf, theta_inf,
+cluster_inf, a_stable, a_unstable, A_stable, A_unstable, rho_stable, rho_unstable, theta_unstable, evaluations,
+seconds. Files of kind ``hertzpetsc-precompression-map-1`` (the dense route before issue 23, trivial multipliers
+the four nearest 1, no located boundary) are read for their tables and figure (:func:`read_map`,
+:func:`map_table`); they cannot be resumed by this study.
+"""
+import math
+import os
+import time
+from dataclasses import dataclass
+from fractions import Fraction
+from types import SimpleNamespace
+
+import numpy as np
+from petsc4py import PETSc
+
+from ..chain import IntegrationTolerances
+from ..diagnostics import sup_norm
+from ..errors import ParameterError
+from ..families import PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_amplitude, uncompressed_limit
+from ..floquet import FLOQUET_PREFIX
+from ..grid import ProfileGrid, check_cells_per_pi
+from ..qbranch import regrid_half_profile
+from ..records import RecordFileError, check_kind, load_npz, on_rank0
+from ..resources import check_memory
+from ..richardson import extrapolate
+from ..slow import DeflatedSectors, crossing_search, twist_scan
+from ..symmetry import WaveSymmetry
+from ..twsolver import tw_solver
+from ..waves import check_chain_wavenumber, fits_chain
+from .base import Study
+from .dealing import dealt
+from .floquet import q_label
+from .precompression import _check_delta0_positive, _check_qs, wave_orbit
+
+MAP_FORMAT = "hertzpetsc-precompression-map-2"
+MAP_FORMAT_V1 = "hertzpetsc-precompression-map-1"
+MAP_FIELDS = ("q", "m", "kind", "a", "A", "omega", "rho", "outside", "sector", "cluster", "raw_cluster", "eigvec",
+              "decoupled", "rho_inf", "theta_inf", "cluster_inf", "a_stable", "a_unstable", "A_stable", "A_unstable",
+              "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds")
+KIND_POINT, KIND_EDGE, KIND_EDGE_INF, KIND_LIMIT, KIND_GAP, KIND_CROSSING = 0, 1, 2, 3, 4, 5
+TESTS = ("chain", "infinite")
+EDGE_KIND = {"chain": KIND_EDGE, "infinite": KIND_EDGE_INF}
+MAX_MAP_BEADS = 2000
+# deflated spectra of Richardson waves keep rho - 1 below 1e-8 where the wave is stable (the orbit's error after
+# deflation); the verdict's margin keeps a factor 100
+MAP_TOL_RHO = 1e-6
+
+
+def wave_cell(q, p=1):
+    """The shortest cell of a wave of per-bead wavenumber q on the infinite chain of a mass pattern of p beads: q / 2 pi
+    = m' / M in lowest terms (denominator at most :data:`MAX_MAP_BEADS`, to 1e-12), M a multiple of p; its
+    :class:`~hertzpetsc.symmetry.WaveSymmetry` (one cell: N = M)."""
+    f = Fraction(q / (2 * math.pi)).limit_denominator(MAX_MAP_BEADS)
+    if abs(float(f) * 2 * math.pi - q) > 1e-12 * max(q, 1.0):
+        raise ParameterError("q", q, f"q / 2 pi must be a fraction with a denominator of at most {MAX_MAP_BEADS} "
+                             "(the wave's cell on the infinite chain)")
+    M, m = f.denominator, f.numerator
+    if M % p:
+        M, m = M * p // math.gcd(M, p), m * p // math.gcd(M, p)
+    return WaveSymmetry(M, m, p)
+
+
+@dataclass(frozen=True)
+class MapParameters:
+    """The stability map: the precompressed ``model`` (any mass pattern), wavenumbers ``q`` (whole numbers of
+    wavelengths on N beads), amplitudes ``a`` (first sine coefficient of the first bead type's profile), N beads (at
+    most :data:`MAX_MAP_BEADS`), the coarser grid of the Richardson pair (K, 2K), the flow's tolerances, the
+    verdict's threshold tol_rho; ``twists``: the infinite chain's bead-level Bloch parameters per pi (0: no infinite
+    chain); ``locate``: the verdicts whose changes are located (subset of 'chain', 'infinite'), to a relative
+    bracket ``locate_tol`` in a; ``limit``: add the uncompressed limit (delta0 / A = 0) of each q."""
+
+    model: object
+    q: tuple
+    a: tuple
+    N: int = 100
+    cells_per_pi: int = 1000
+    tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
+    tol_rho: float = MAP_TOL_RHO
+    twists: int = 0
+    locate: tuple = ("chain",)
+    locate_tol: float = 1e-3
+    limit: bool = True
+
+    def __post_init__(self):
+        _check_delta0_positive(self.model)
+        p = self.model.cell
+        if not (isinstance(self.N, (int, np.integer)) and p <= self.N <= MAX_MAP_BEADS and self.N % p == 0):
+            raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {p} in [{p}, "
+                                 f"{MAX_MAP_BEADS}]")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        qs = _check_qs(self.q, math.pi / self.cells_per_pi)
+        for q in qs:
+            if not fits_chain(q, self.N):
+                if not self.twists:
+                    check_chain_wavenumber(q, self.N)
+                wave_cell(q, p)
+        object.__setattr__(self, "q", qs)
+        amps = []
+        for a in sorted(check_amplitude(a, "a") for a in self.a):
+            if not amps or a > amps[-1] * (1 + 1e-9):
+                amps.append(a)
+        if not amps:
+            raise ParameterError("a", self.a, "give at least one amplitude")
+        object.__setattr__(self, "a", tuple(amps))
+        if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
+            raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
+        if not (isinstance(self.twists, (int, np.integer)) and 0 <= self.twists <= 10 ** 6):
+            raise ParameterError("twists", self.twists, "must be an integer in [0, 1e6] (0: no infinite chain)")
+        locate = tuple(self.locate)
+        if any(name not in TESTS for name in locate):
+            raise ParameterError("locate", ",".join(locate), f"must be a subset of {', '.join(TESTS)}")
+        if "infinite" in locate and not self.twists:
+            raise ParameterError("locate", ",".join(locate), "locating the infinite chain's boundary needs twists > 0")
+        object.__setattr__(self, "locate", locate)
+        if not (0 < self.locate_tol < 0.5):
+            raise ParameterError("locate_tol", self.locate_tol, "must lie in (0, 0.5)")
+
+
+class RichardsonCompanion:
+    """The wave on h = pi/(2K) at the amplitude of a wave of the h = pi/K family (Newton from its profiles
+    interpolated, prefix of the family), and their Richardson combination (second order: O(h^4) initial data)."""
+
+    def __init__(self, model, q, K, comm, prefix=PRECOMP_PREFIX):
+        self.K = K
+        self.problem = FamilyProblem(model, ProfileGrid(2 * K, comm), q, amplitude=1.0, parameter="log_a")
+        self.problem.prefix = prefix
+        self.problem.solver(False, prefix)
+
+    def fine(self, point):
+        """(profiles, lam) on the fine grid at the amplitude of ``point`` (an AmplitudePoint of the K grid)."""
+        s = math.log(point.a)
+        self.problem.set_parameter("log_a", s)
+        Z = self.problem.pack([regrid_half_profile(w, 2 * self.K) for w in point.profiles], point.lam, s)
+        try:
+            self.problem.solve(Z)
+            return self.problem.half_profiles(Z), float(self.problem._scalars(Z)[0])
+        finally:
+            Z.destroy()
+
+    def combine(self, point):
+        """(profiles, lam): the Richardson combination of ``point`` and its fine-grid companion."""
+        fine, lam2 = self.fine(point)
+        return [extrapolate(np.asarray(w1), np.asarray(w2)[::2]) for w1, w2 in zip(point.profiles, fine)], \
+            extrapolate(point.lam, lam2), (fine, lam2)
+
+    def destroy(self):
+        self.problem.destroy()
+
+
+class MapProbe:
+    """The test functions of one q's amplitude family (module docstring): per amplitude the Richardson wave, its
+    deflated spectrum on N beads and its twist scan on the infinite chain, each computed once, when first read."""
+
+    def __init__(self, study, q, model=None):
+        self.study, self.q = study, q
+        self.model = study.model if model is None else model
+        self._companion = None
+        self.cache, self.hints, self.evaluations = {}, [], {name: 0 for name in TESTS}
+
+    @property
+    def companion(self):
+        if self._companion is None:
+            self._companion = RichardsonCompanion(self.model, self.q, self.study.K, PETSc.COMM_SELF)
+        return self._companion
+
+    def entry(self, point):
+        key = math.log(point.a)
+        for k, v in self.cache.items():
+            if abs(k - key) <= 1e-12 * max(1.0, abs(key)):
+                return v
+        self.cache[key] = entry = dict(point=point)
+        return entry
+
+    def tests(self, point):
+        """{name: function} for :class:`~hertzpetsc.continuation.LazyTests` (FamilyProblem.extra_tests)."""
+        entry = self.entry(point)
+        margin = math.log1p(self.study.tol_rho)
+        out = {}
+        if "chain" in self.study.locate and fits_chain(self.q, self.study.N):
+            out["chain"] = lambda: math.log(self.chain(entry)["rho"]) - margin
+        if "infinite" in self.study.locate:
+            out["infinite"] = lambda: math.log(self.infinite(entry)["rho"]) - margin
+        return out
+
+    def wave(self, entry):
+        if "w" not in entry:
+            p = entry["point"]
+            w, lam, fine = self.companion.combine(p)
+            entry.update(w=w, lam=lam, fine=fine, A=p.a * max(sup_norm(x) for x in w))
+        return entry
+
+    def chain(self, entry):
+        if "chain" not in entry:
+            st, e = self.study, self.wave(entry)
+            t0 = time.perf_counter()
+            orbit = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], st.N, math.pi / st.K)
+            spec = st.route(self.model).spectrum(orbit, st.tol_rho)
+            sectors = spec.work["sectors"]
+            rest = ~spec.known
+            top = int(np.argmax(np.abs(spec.multipliers) * rest))
+            sym = orbit.symmetry
+            entry["omega"] = orbit.omega
+            entry["chain"] = dict(
+                rho=spec.rho, outside=int(np.sum(np.abs(spec.multipliers[rest]) > 1 + st.tol_rho)),
+                sector=2 * math.pi * float(spec.sector[top]) / sym.g, cluster=spec.trivial_spread,
+                raw=max((float(np.max(np.abs(s.raw_cluster))) - 1 for s in sectors if s.r), default=0.0),
+                eigvec=max(s.eigenvector_residual for s in sectors), decoupled=bool(spec.work["decoupled"]),
+                patterns=tuple(s.pattern() for s in sectors), seconds=time.perf_counter() - t0)
+            self.evaluations["chain"] += 1
+        return entry["chain"]
+
+    def infinite(self, entry):
+        if "infinite" not in entry:
+            st, e = self.study, self.wave(entry)
+            t0 = time.perf_counter()
+            sym = wave_cell(self.q, self.model.cell)
+            cell = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], sym.M, math.pi / st.K)
+            scan = twist_scan(st.route(self.model), cell, max(2, -(-st.twists // sym.M)), hints=self.hints,
+                              floor=st.tol_rho)
+            if scan.rho_max - 1 > st.tol_rho:
+                self.hints = ([scan.theta] + [h for h in self.hints if abs(h - scan.theta) > 1e-9])[:3]
+            entry["omega"] = cell.omega
+            entry["infinite"] = dict(rho=scan.rho_max, theta=scan.theta, cluster=scan.cluster, M=sym.M,
+                                     decoupled=scan.decoupled, evaluated=len(scan.thetas),
+                                     seconds=time.perf_counter() - t0)
+            self.evaluations["infinite"] += 1
+        return entry["infinite"]
+
+    def at(self, s):
+        """The cache entry of the amplitude a = exp(s)."""
+        return min(self.cache.items(), key=lambda kv: abs(kv[0] - s))[1]
+
+    def destroy(self):
+        if self._companion is not None:
+            self._companion.destroy()
+
+
+class StabilityMap(Study):
+    """The stability map and boundary of waves of a precompressed ``model`` (module docstring). Prefixes:
+    ``precomp_`` (the wave solves), ``floquet_`` (the flows of the cell maps)."""
+
+    Parameters = MapParameters
+    FORMAT, FIELDS = MAP_FORMAT, MAP_FIELDS
+    DTYPES = {"m": np.int64, "kind": np.int64, "outside": np.int64, "decoupled": np.int64, "evaluations": np.int64}
+    ROLES = {"floquet_": ("the flow of the variational equations (the cells' maps)", ("ts",)),
+             "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
+    WHAT = "stability-map file"
+
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        p = params
+        self.model, self.N, self.qs, self.a_values = p.model, p.N, list(p.q), list(p.a)
+        self.K, self.tolerances, self.tol_rho, self.twists = p.cells_per_pi, p.tolerances, p.tol_rho, p.twists
+        self.locate, self.locate_tol, self.limit = p.locate, p.locate_tol, p.limit
+        check_memory(2 * self.K, PETSc.COMM_SELF, tw_solver(PRECOMP_PREFIX), profiles=self.model.cell)
+        self._routes = {}
+
+    def constants(self):
+        return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses), N=self.N,
+                    cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists,
+                    locate=",".join(self.locate) or "none", locate_tol=self.locate_tol)
+
+    def route(self, model):
+        """The deflated sector route of ``model`` on one rank (built once per model, prefix ``floquet_``)."""
+        key = repr(model.describe())
+        if key not in self._routes:
+            # Krein signatures where crossings are searched: along a (chain) and over the twists (infinite chain)
+            self._routes[key] = DeflatedSectors(model, PETSc.COMM_SELF, self.tolerances, FLOQUET_PREFIX, twists=None,
+                                                krein=self.tol_rho if self.locate else None)
+        return self._routes[key]
+
+    # --- one q -------------------------------------------------------------------------------------------------
+    def _row(self, q, kind, a, A, omega, probe=None, entry=None, **extra):
+        nan = math.nan
+        m = check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1
+        row = dict(q=q, m=m, kind=kind, a=a, A=A, omega=omega, rho=nan, outside=-1,
+                   sector=nan, cluster=nan, raw_cluster=nan, eigvec=nan, decoupled=-1, rho_inf=nan, theta_inf=nan,
+                   cluster_inf=nan, a_stable=nan, a_unstable=nan, A_stable=nan, A_unstable=nan, rho_stable=nan,
+                   rho_unstable=nan, theta_unstable=nan, evaluations=0, seconds=0.0)
+        if entry is not None:
+            if fits_chain(q, self.N):
+                c = probe.chain(entry)
+                row.update(rho=c["rho"], outside=c["outside"], sector=c["sector"], cluster=c["cluster"],
+                           raw_cluster=c["raw"], eigvec=c["eigvec"], decoupled=int(c["decoupled"]))
+            if self.twists:
+                i = probe.infinite(entry)
+                row.update(rho_inf=i["rho"], theta_inf=i["theta"], cluster_inf=i["cluster"],
+                           decoupled=int(i["decoupled"]) if row["decoupled"] < 0 else row["decoupled"])
+            row["omega"] = entry.get("omega", omega)
+        row.update(extra)
+        return row
+
+    def _edge(self, q, probe, event, seconds):
+        (s1, g1), (s2, g2) = event.bracket
+        (ss, _), (su, _) = ((s1, g1), (s2, g2)) if g1 <= 0 else ((s2, g2), (s1, g1))
+        stable, unstable = probe.at(ss), probe.at(su)
+        name = event.event
+        get = probe.chain if name == "chain" else probe.infinite
+        located = probe.entry(event)
+        row = self._row(q, EDGE_KIND[name], event.a, probe.wave(located)["A"], event.omega, probe, located)
+        row.update(a_stable=stable["point"].a, a_unstable=unstable["point"].a, A_stable=probe.wave(stable)["A"],
+                   A_unstable=probe.wave(unstable)["A"], rho_stable=get(stable)["rho"] - 1,
+                   rho_unstable=get(unstable)["rho"] - 1,
+                   theta_unstable=get(unstable)["sector" if name == "chain" else "theta"], seconds=seconds)
+        return row
+
+    def compute(self, q):
+        """Every record of one q (on this rank), in order of amplitude; the uncompressed limit last."""
+        grid = ProfileGrid(self.K, PETSc.COMM_SELF)
+        probe = MapProbe(self, q)
+        fam = AmplitudeFamily(self.model, q, grid, tests=probe.tests, bisect=self.locate,
+                              locate_step=0.5 * self.locate_tol)
+        rows, point, previous = [], None, None
+        try:
+            for a in self.a_values:
+                t0 = time.perf_counter()
+                before = dict(probe.evaluations)
+                point = fam.step_to(a)
+                entry = probe.entry(point)
+                row = self._row(q, KIND_POINT, point.a, probe.wave(entry)["A"], point.omega, probe, entry)
+                if previous is not None and "chain" in self.locate and fits_chain(q, self.N):
+                    rows += self._bubble(q, fam, probe, previous, entry)
+                rows += self._events(q, fam, probe, t0, before, rows)
+                row["seconds"] = time.perf_counter() - t0
+                rows.append(row)
+                previous = entry
+            if self.limit:
+                rows.append(self._limit(q, fam, probe, point))
+        finally:
+            fam.destroy()
+            probe.destroy()
+        return sorted(rows, key=lambda r: (r["a"], r["kind"] != KIND_POINT))
+
+    def _events(self, q, fam, probe, t0, before, rows):
+        """The records of the points the family located since the last call: the gap opening and the boundary
+        points, each once (a search that steps the family back and forth across a root locates it again)."""
+        out = []
+        for event in fam.events():
+            kind = KIND_GAP if event.event == "gap" else EDGE_KIND.get(event.event)
+            if kind is None or (kind != KIND_GAP and event.event not in self.locate) or any(
+                    r["kind"] == kind and abs(math.log(r["a"] / event.a)) <= self.locate_tol for r in rows + out):
+                continue
+            if kind == KIND_GAP:
+                out.append(self._row(q, KIND_GAP, event.a, event.A, event.omega))
+            else:
+                edge = self._edge(q, probe, event, time.perf_counter() - t0)
+                edge["evaluations"] = probe.evaluations[event.event] - before[event.event]
+                out.append(edge)
+        return out
+
+    def _bubble(self, q, fam, probe, first, last):
+        """Between two stable amplitudes of the map whose sectors' Krein patterns differ (a crossing of multipliers
+        of opposite signatures: an instability bubble between them, perhaps narrower than the map's step), the
+        bubble by bisection in log a keeping the half whose patterns differ; when a sample is unstable, the family
+        steps to it from both stable sides, so that the layer locates both edges; else a record of the crossing
+        (kind 5). The family ends where it was, at ``last``."""
+        c1, c2 = probe.chain(first), probe.chain(last)
+        tol = self.tol_rho
+        if c1["rho"] - 1 > tol or c2["rho"] - 1 > tol or c1["patterns"] == c2["patterns"]:
+            return []
+        lo, hi = math.log(first["point"].a), math.log(last["point"].a)
+        found = crossing_search(lambda s: probe.chain(probe.entry(fam.step_to(math.exp(s)))),
+                                lambda c: c["rho"] - 1 > tol, lambda c: c["patterns"], lo, hi, c1["patterns"],
+                                c2["patterns"], 0.5 * self.locate_tol)
+        if found is None:
+            # no sample above tol_rho: the crossing's bubble (if any) is narrower than the bracket, or weaker
+            row = self._row(q, KIND_CROSSING, last["point"].a, probe.wave(last)["A"], math.nan)
+            row.update(a_stable=first["point"].a, a_unstable=last["point"].a, A_stable=probe.wave(first)["A"],
+                       A_unstable=probe.wave(last)["A"], rho_stable=c1["rho"] - 1, rho_unstable=c2["rho"] - 1)
+            if abs(fam.continuation.parameter - hi) > 1e-12:
+                fam.step_to(math.exp(hi))
+            return [row]
+        # the family is at the unstable sample, coming from one stable end around it (the layer located that edge):
+        # a step to the other end locates the other edge
+        inside, _, a, b = found
+        came_from = fam.continuation.previous
+        for target in (b if abs(came_from - a) < abs(came_from - b) else a, hi):
+            if abs(target - fam.continuation.parameter) > 1e-12:
+                fam.step_to(math.exp(target))
+        return []
+
+    def _limit(self, q, fam, probe, point):
+        """The uncompressed limit (delta0 / A = 0) from the largest amplitude, on both grids, and its spectra."""
+        t0 = time.perf_counter()
+        entry = probe.wave(probe.entry(point))
+        fine, lam2 = entry["fine"]
+        coarse = uncompressed_limit(self.model, q, fam.grid, point)
+        fine = uncompressed_limit(self.model, q, probe.companion.problem.grid,
+                                  SimpleNamespace(profiles=fine, lam=lam2))
+        w = [extrapolate(np.asarray(w1), np.asarray(w2)[::2]) for w1, w2 in zip(coarse["profiles"],
+                                                                               fine["profiles"])]
+        lam = extrapolate(coarse["lam"], fine["lam"])
+        bare = self.model.with_delta0(0.0)
+        limit = MapProbe(self, q, bare)
+        try:
+            # the probe of the delta0 = 0 chain on this wave (a = inf: wave_orbit takes the wave as it is)
+            entry = dict(point=SimpleNamespace(a=math.inf), w=w, lam=lam, A=math.inf)
+            row = self._row(q, KIND_LIMIT, math.inf, math.inf, math.nan, limit, entry)
+        finally:
+            limit.destroy()
+        row["seconds"] = time.perf_counter() - t0
+        return row
+
+    # --- the study ---------------------------------------------------------------------------------------------
+    def _complete(self, q):
+        mine = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+        return any(int(r["kind"]) == KIND_LIMIT for r in mine) if self.limit else \
+            sum(1 for r in mine if int(r["kind"]) == KIND_POINT) >= len(self.a_values)
+
+    def cost(self, q):
+        """Estimated work of one q (for dealing): the chain's sectors and the infinite chain's scan."""
+        chain = WaveSymmetry(self.N, check_chain_wavenumber(q, self.N), self.model.cell).cost() * 50 \
+            if fits_chain(q, self.N) else 0.0
+        M = wave_cell(q, self.model.cell).M
+        return 1.0 + chain + (math.ceil(self.twists / M) * (M / 20) ** 3 / 20 if self.twists else 0.0)
+
+    def run(self):
+        """Compute every q not complete in the file (a q in progress is recomputed: its records are the same);
+        yields each new record after saving it."""
+        self.open()
+        todo = [q for q in self.qs if not self._complete(q)]
+        for q, rows in dealt(todo, [self.cost(q) for q in todo], self.comm, self.compute):
+            have = {(int(r["kind"]), round(float(r["a"]), 10)) for r in self.store.records
+                    if abs(float(r["q"]) - q) <= 1e-12 * q}
+            for row in rows:
+                if (row["kind"], round(row["a"], 10)) in have:
+                    continue
+                self.store.append(row)
+                yield row
+
+    def destroy(self):
+        for route in self._routes.values():
+            route.destroy()
+        self._routes = {}
+
+    # --- tables and figures ------------------------------------------------------------------------------------
+    def table(self):
+        return map_table(self.arrays())
+
+    def figure_data(self):
+        return self.arrays()
+
+
+def _records(z, q):
+    mine = np.abs(np.asarray(z["q"], dtype=float) - q) <= 1e-12 * q
+    return {k: np.asarray(z[k])[mine] for k in MAP_FIELDS if k in z}
+
+
+def read_map(path, comm=None):
+    """The arrays of a stability-map file of either kind (``format``: :data:`MAP_FORMAT` or :data:`MAP_FORMAT_V1`),
+    read on rank 0 and given to every rank; :class:`~hertzpetsc.errors.RecordFileError` for any other file."""
+    def load():
+        z = load_npz(path, "stability-map file")
+        if str(z.get("format", "")) == MAP_FORMAT_V1:
+            return z
+        check_kind(z, path, MAP_FORMAT, "stability-map file")
+        return z
+    return on_rank0(comm, load, what="stability-map file")
+
+
+def map_format(path, comm=None):
+    """The ``format`` of an existing record file (None if there is no file or it is not a record archive)."""
+    def peek():
+        if not os.path.exists(path):
+            return None
+        try:
+            return str(load_npz(path, "file").get("format", ""))
+        except RecordFileError:
+            return None
+    return on_rank0(comm, peek, what="stability-map file")
+
+
+def map_v1_as_v2(z):
+    """The arrays of a ``-1`` file in the layout of this kind, for the figure: its (q, a) records as map points
+    (kind 0), a = inf as the uncompressed limit (kind 3); nothing located, no infinite chain."""
+    a = np.asarray(z["a"], float)
+    n = len(a)
+    nan = np.full(n, math.nan)
+    out = {k: z[k] for k in ("alpha", "delta0", "masses", "N", "cells_per_pi", "rtol", "tol_rho", "q", "a", "A",
+                             "omega", "rho", "outside")}
+    out.update(format=MAP_FORMAT_V1, twists=0, locate="none", locate_tol=math.nan,
+               kind=np.where(np.isfinite(a), KIND_POINT, KIND_LIMIT), cluster=np.asarray(z["trivial_spread"], float))
+    for k in MAP_FIELDS:
+        out.setdefault(k, nan)
+    return out
+
+
+def map_v1_table(z):
+    """The table of a ``-1`` file, as its driver wrote it: rho - 1 per (q, a), U where unstable, A = inf last."""
+    q, a, rho = (np.asarray(z[k], float) for k in ("q", "a", "rho"))
+    spread = np.asarray(z["trivial_spread"], float)
+    tol = float(z["tol_rho"])
+    qs = list(dict.fromkeys(q.tolist()))
+    amps = sorted(set(float(x) for x in a if math.isfinite(x)))
+    masses = ", ".join(f"{m:g}" for m in np.asarray(z["masses"], float))
+    lines = [f"schema: {MAP_FORMAT_V1}; rho(F_q) (trivial multipliers excluded) of the precompressed waves on N = "
+             f"{int(z['N'])} beads, alpha = {float(z['alpha']):g}, delta0 = {float(z['delta0']):g}, masses "
+             f"{masses} (repeated); initial data from the Richardson combination of h = pi/{int(z['cells_per_pi'])} "
+             f"and pi/{2 * int(z['cells_per_pi'])}; flow rtol {float(z['rtol']):g}; unstable (U) when rho - 1 > "
+             f"{tol:g}. Rows: q; columns: a (first sine coefficient; A = ||u||_inf is in the record file), last column "
+             "the uncompressed limit A = inf. Each cell: rho - 1 (max trivial spread in the last line).\n"]
+    lines += ["| q | " + " | ".join(f"a = {x:g}" for x in amps) + " | A = inf |", "|" + "---|" * (len(amps) + 2)]
+    worst = 0.0
+    for qq in qs:
+        cells = []
+        for x in amps + [math.inf]:
+            i = np.nonzero((np.abs(q - qq) <= 1e-12 * qq) & ((a == x) if not math.isfinite(x) else
+                                                            np.isclose(a, x, rtol=1e-10, atol=0)))[0]
+            if not len(i):
+                cells.append("")
+                continue
+            worst = max(worst, float(spread[i[0]]))
+            cells.append(f"{rho[i[0]] - 1:.1e}" + (" U" if rho[i[0]] - 1 > tol else ""))
+        lines.append(f"| {q_label(qq)} ({qq:.4f}) | " + " | ".join(cells) + " |")
+    lines.append(f"\nmax trivial spread {worst:.1e}")
+    return "\n".join(lines) + "\n"
+
+
+def unstable_intervals(z, key="rho"):
+    """{q: [(A_from, A_to), ...]} the intervals of A where the chain of ``key`` (``rho``: N beads, ``rho_inf``: the
+    infinite chain) is unstable, between its located edges (the located points' A, the midpoints of their
+    brackets): from 0 when the smallest map amplitude is unstable before the first edge, to inf when the verdict
+    stays unstable (then the uncompressed limit's verdict is unstable too unless a change beyond the largest map
+    amplitude was not located); nan where an edge between two located ones was not located (an onset after an
+    onset, or an offset after an offset: the family stepped into a window the map's amplitudes do not show)."""
+    tol = float(z["tol_rho"])
+    kind, q, A = np.asarray(z["kind"]), np.asarray(z["q"], float), np.asarray(z["A"], float)
+    rho = np.asarray(z[key], float)
+    edge = KIND_EDGE if key == "rho" else KIND_EDGE_INF
+    onset_of = np.asarray(z["A_unstable"], float) > np.asarray(z["A_stable"], float)
+    out = {}
+    for qq in sorted(set(q[(kind == KIND_POINT) & np.isfinite(rho)].tolist())):
+        pts = np.nonzero((kind == KIND_POINT) & (q == qq) & np.isfinite(rho))[0]
+        first = pts[np.argmin(A[pts])]
+        mine = np.nonzero((kind == edge) & (q == qq))[0]
+        start = 0.0 if rho[first] - 1 > tol else None
+        spans = []
+        for i in mine[np.argsort(A[mine])]:
+            if onset_of[i]:
+                if start is not None:          # unstable already: an offset between was not located
+                    spans.append((start, math.nan))
+                start = float(A[i])
+            else:                              # stable before: nan, an onset between was not located
+                spans.append((math.nan if start is None else start, float(A[i])))
+                start = None
+        if start is not None:
+            spans.append((start, math.inf))
+        out[qq] = spans
+    return out
+
+
+def compare_v1(z, old, tol=None):
+    """A Markdown section: the verdicts of this map (arrays ``z``) against a ``-1`` map (``old``) at the (q, a) both
+    computed, at the old threshold (``tol``: the old file's tol_rho); rho's agreement where rho - 1 > 10 tol."""
+    tol = float(old["tol_rho"]) if tol is None else tol
+    kind = np.asarray(z["kind"])
+    qn, an, rn = (np.asarray(z[k], float) for k in ("q", "a", "rho"))
+    usable = (kind == KIND_POINT) | (kind == KIND_LIMIT)
+    common, agree, worst, differ = 0, 0, 0.0, []
+    for q, a, r in zip(*(np.asarray(old[k], float) for k in ("q", "a", "rho"))):
+        i = np.nonzero(usable & (np.abs(qn - q) <= 1e-12 * q) & ((an == a) | np.isclose(an, a, rtol=1e-10, atol=0)))[0]
+        if not len(i):
+            continue
+        common += 1
+        new = rn[i[0]]
+        if (r - 1 > tol) == (new - 1 > tol):
+            agree += 1
+        else:
+            differ.append(f"{q_label(q)}, a = {a:g}: rho - 1 = {r - 1:.1e} before, {new - 1:.1e} now")
+        if r - 1 > 10 * tol:
+            worst = max(worst, abs(new - r) / (r - 1))
+    lines = ["\n### Against the map before issue 23\n",
+             f"At the {common} (q, a) computed by both (the dense route's map, kind -1, unstable when rho - 1 > "
+             f"{tol:g}): the verdicts at that threshold agree at {agree} of {common}; where rho - 1 > {10 * tol:g}, "
+             f"rho - 1 agrees to {worst:.1e} relative." + (" Verdicts that differ: " + "; ".join(differ) + "."
+                                                            if differ else "")]
+    return "\n".join(lines) + "\n"
+
+
+def map_table(z):
+    """The Markdown tables of a map file's arrays: for this kind the located boundary, then the verdicts; a ``-1``
+    file's table as its driver wrote it."""
+    if str(z.get("format", "")) == MAP_FORMAT_V1:
+        return map_v1_table(z)
+    tol = float(z["tol_rho"])
+    twists = int(z["twists"])
+    qs = sorted(set(float(q) for q in np.asarray(z["q"])))
+    lines = [f"schema: {MAP_FORMAT}; alpha = {float(z['alpha']):g}, delta0 = {float(z['delta0']):g}, masses "
+             f"{', '.join(f'{m:g}' for m in np.asarray(z['masses']))} (repeated), N = {int(z['N'])}; waves: "
+             f"Richardson of h = pi/{int(z['cells_per_pi'])} and pi/{2 * int(z['cells_per_pi'])}; flow rtol "
+             f"{float(z['rtol']):g}; symmetry multipliers deflated; unstable when rho - 1 > {tol:g}; infinite chain: "
+             + (f"cell twists with a bead-level Bloch step <= pi/{twists}, maxima refined" if twists else "not "
+                "computed") + f"; boundary located by bisection in log a to a bracket of {float(z['locate_tol']):g} "
+             "(relative).\n",
+             "### Located boundary\n",
+             "Each row: an amplitude where the verdict changes, between A (stable side) and A (unstable side); "
+             "rho - 1 of the chain (N beads or the infinite chain) at both ends: the multipliers' distance to the unit "
+             "circle on each side; Theta: the sector angle (N) or cell twist (infinite chain) of the unstable mode; "
+             "the edge is an onset (stable below, unstable above) or an offset.\n",
+             "| q | chain | A stable | A unstable | relative width | rho - 1 stable side | rho - 1 unstable side | "
+             "Theta | edge | bisections |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    for q in qs:
+        r = _records(z, q)
+        for i in np.nonzero((r["kind"] == KIND_EDGE) | (r["kind"] == KIND_EDGE_INF))[0]:
+            As, Au = float(r["A_stable"][i]), float(r["A_unstable"][i])
+            lines.append(f"| {q_label(q)} | {'N' if r['kind'][i] == KIND_EDGE else 'inf'} | {As:.6g} | {Au:.6g} | "
+                         f"{abs(Au - As) / min(As, Au):.1e} | {float(r['rho_stable'][i]):.1e} | "
+                         f"{float(r['rho_unstable'][i]):.1e} | {float(r['theta_unstable'][i]):.4f} | "
+                         f"{'onset' if Au > As else 'offset'} | {int(r['evaluations'][i])} |")
+    lines += ["\n### Unstable intervals\n",
+              "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within "
+              "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
+              "limit; ?: an edge not located (a window found between two edges of the same kind).\n",
+              "| q | A_gap | N beads | infinite chain |", "|---|---|---|---|"]
+    spans = {key: unstable_intervals(z, key) for key in (("rho", "rho_inf") if twists else ("rho",))}
+
+    def shown(v):
+        return "none" if not v else ", ".join(f"[{lo:.5g}, {hi:.5g}]".replace("nan", "?") for lo, hi in v)
+    kinds, qarr = np.asarray(z["kind"]), np.asarray(z["q"], float)
+    for q in qs:
+        g = np.nonzero((kinds == KIND_GAP) & (np.abs(qarr - q) <= 1e-12 * q))[0]
+        lines.append(f"| {q_label(q)} | " + (f"{float(np.asarray(z['A'])[g[0]]):.4f}" if len(g) else "n/a") + " | "
+                     + (shown(spans["rho"][q]) if q in spans["rho"] else "n/a") + " | "
+                     + (shown(spans["rho_inf"].get(q)) if twists and q in spans["rho_inf"] else "n/a") + " |")
+    amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), np.asarray(z["kind"])) if k == KIND_POINT))
+    lines += ["\n### Verdicts on the map\n",
+              f"Amplitudes a (first sine coefficient) of the map: {', '.join(f'{a:.4g}' for a in amps)}. Per q, one "
+              "character per amplitude, increasing: '.' stable, 'U' unstable (rho - 1 > tol_rho), then the "
+              "uncompressed limit after '|'; A_gap: the located gap opening; largest deflated cluster |mu - 1| and "
+              "eigenvector residual over the row (what the deflation removed, and how exact it was).\n",
+              "| q | A_gap | N beads | infinite chain | cluster (N) | eigenvector residual |",
+              "|---|---|---|---|---|---|"]
+    for q in qs:
+        r = _records(z, q)
+        pts = np.nonzero(r["kind"] == KIND_POINT)[0]
+        pts = pts[np.argsort(r["a"][pts])]
+        lim = np.nonzero(r["kind"] == KIND_LIMIT)[0]
+        gap = np.nonzero(r["kind"] == KIND_GAP)[0]
+
+        def verdicts(key):
+            v = "".join("U" if float(x) - 1 > tol else "." for x in r[key][pts])
+            return v + ("|" + ("U" if float(r[key][lim[0]]) - 1 > tol else ".") if len(lim) else "")
+
+        lines.append(f"| {q_label(q)} | {float(r['A'][gap[0]]):.4f} | `{verdicts('rho')}` | "
+                     + (f"`{verdicts('rho_inf')}`" if twists else "n/a") + f" | "
+                     f"{np.nanmax(r['cluster'][pts]):.1e} | {np.nanmax(r['eigvec'][pts]):.1e} |"
+                     if len(gap) else
+                     f"| {q_label(q)} | n/a | `{verdicts('rho')}` | " + (f"`{verdicts('rho_inf')}`" if twists else
+                                                                          "n/a")
+                     + f" | {np.nanmax(r['cluster'][pts]):.1e} | {np.nanmax(r['eigvec'][pts]):.1e} |")
+    return "\n".join(lines) + "\n"

@@ -61,6 +61,26 @@ def illinois(f, a, fa, b, fb, tol, max_iter, bisect=False, bracket=False):
     return x
 
 
+def golden_maximum(f, a, b, tol):
+    """(x, f(x)) maximising f on [a, b] by golden-section search to an interval of ``tol`` (f unimodal there), the
+    ends included among the candidates (the one golden-section search: Floquet maxima over twists, resonance peaks,
+    best-fit phases)."""
+    g = (math.sqrt(5) - 1) / 2
+    best = max(((a, f(a)), (b, f(b))), key=lambda e: e[1])
+    c, d = b - g * (b - a), a + g * (b - a)
+    fc, fd = f(c), f(d)
+    while b - a > tol:
+        if fc >= fd:
+            b, d, fd = d, c, fc
+            c = b - g * (b - a)
+            fc = f(c)
+        else:
+            a, c, fc = c, d, fd
+            d = a + g * (b - a)
+            fd = f(d)
+    return max((best, (c, fc), (d, fd)), key=lambda e: e[1])
+
+
 class ContinuationError(ConvergenceError):
     """The continuation could not take a step from ``last`` (every point up to it was yielded)."""
 

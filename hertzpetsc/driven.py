@@ -46,7 +46,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator, IntegrationTolerances
-from .continuation import ContinuationProblem, _parameter, set_parameter
+from .continuation import ContinuationProblem, _parameter, golden_maximum, set_parameter
 from .errors import ConvergenceError, ParameterError
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
@@ -1088,14 +1088,7 @@ class BranchFamily:
         # refine the phase by golden section around the best grid phase
         a, b = phis[k] - 2 * math.pi / 256, phis[k] + 2 * math.pi / 256
         f = lambda ph: np.sqrt(np.mean((y - self.shape(q, ph - omega * tt)) ** 2))   # noqa: E731
-        g = (math.sqrt(5) - 1) / 2
-        for _ in range(30):
-            c1, c2 = b - g * (b - a), a + g * (b - a)
-            if f(c1) < f(c2):
-                b = c2
-            else:
-                a = c1
-        return float(f(0.5 * (a + b)))
+        return -golden_maximum(lambda ph: -f(ph), a, b, 1e-9)[1]
 
 
 def configure_options(comm, prefix=DRIVE_PREFIX, floquet_prefix=FLOQUET_PREFIX):

@@ -26,6 +26,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .bloch import BlochSectors
+from .continuation import golden_maximum
 from .errors import ParameterError
 from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, FloquetSolver, Spectrum
 from .symmetry import real_sector
@@ -381,25 +382,6 @@ def crossing_search(evaluate, unstable, pattern, a, b, pa, pb, min_width):
         else:
             a, pa = c, pc
     return None
-
-
-def golden_maximum(f, a, b, tol):
-    """(x, f(x)) maximising f on [a, b] by golden-section search to an interval of ``tol`` (f unimodal there), the
-    ends included among the candidates."""
-    g = (math.sqrt(5) - 1) / 2
-    best = max(((a, f(a)), (b, f(b))), key=lambda e: e[1])
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = f(c), f(d)
-    while b - a > tol:
-        if fc >= fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = f(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = f(d)
-    return max((best, (c, fc), (d, fd)), key=lambda e: e[1])
 
 
 @PETSc.Log.EventDecorator("hz_twist_scan")

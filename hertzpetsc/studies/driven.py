@@ -47,7 +47,7 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from ..continuation import Continuation, ContinuationError, Natural, PseudoArclength
+from ..continuation import Continuation, ContinuationError, Natural, PseudoArclength, golden_maximum
 from ..driven import (DRIVE_PREFIX, RESPONSE_TOLERANCES, TOL_MU, BranchFamily, HalfSinePulses, HarmonicWave,
                       PeriodicShooting, configure_options, counts, crossing, local_wave, refined_profile,
                       switch_to_doubled, verdict, wave_ends_drive)
@@ -56,6 +56,8 @@ from ..floquet import DenseFloquet
 from ..records import MemoryRecords, NpzRecords
 from ..resources import MAX_DENSE_BEADS, check_chain_memory
 from .dealing import dealt
+
+GOLDEN = (math.sqrt(5) - 1) / 2     # the interval of a golden-section search shrinks by this per evaluation
 
 RESPONSE_FORMAT = "hertzpetsc-driven-response-1"
 RESPONSE_FIELDS = ("branch", "periods", "p", "omega", "amplitude", "s", "dp_ds", "event", "confirmed", "iterations",
@@ -465,23 +467,6 @@ def linear_multipliers(drive, T):
     return np.exp(T * np.linalg.eigvals(A))
 
 
-def _golden_max(f, a, b, iterations=40):
-    """The maximiser of a unimodal f on [a, b] by golden section (interval shrinks 0.618^iterations)."""
-    g = (math.sqrt(5) - 1) / 2
-    c, d = b - g * (b - a), a + g * (b - a)
-    fc, fd = f(c), f(d)
-    for _ in range(iterations):
-        if fc > fd:
-            b, d, fd = d, c, fc
-            c = b - g * (b - a)
-            fc = f(c)
-        else:
-            a, c, fc = c, d, fd
-            d = a + g * (b - a)
-            fd = f(d)
-    return 0.5 * (a + b)
-
-
 def _match(mu, ref):
     """max |mu_i - ref_j| after matching each multiplier to the nearest of the reference set (greedy)."""
     ref = list(np.asarray(ref, complex))
@@ -552,9 +537,9 @@ class LinearResonances:
                 continue
             a, b = self.window(k)
             lin = lambda w: abs(linear_response(self.drive, w)[-1]) / self.drive.amplitude   # noqa: E731
-            peak_lin = _golden_max(lin, a, b, 60)
+            peak_lin = golden_maximum(lin, a, b, GOLDEN ** 60 * (b - a))[0]
             self._evals, self._x = 0, None
-            peak = _golden_max(self.shooting_amplitude, a, b, self.golden)
+            peak = golden_maximum(self.shooting_amplitude, a, b, GOLDEN ** self.golden * (b - a))[0]
             amp = self.shooting_amplitude(peak)
             prob = self.problem
             mu = prob.multipliers(x=self._x, p=peak)

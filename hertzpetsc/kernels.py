@@ -130,6 +130,9 @@ def library():
             _status = "not built (run: python -m hertzpetsc.kernels, or bash scripts/hz.sh setup)"
         elif built != source_digest():
             _status = "built from another source (run: python -m hertzpetsc.kernels)"
+            if PETSc.COMM_WORLD.getRank() == 0:       # same numbers, much slower: say so once
+                print(f"note: the compiled chain kernel {LIBRARY} is {_status}; using the numpy right-hand side",
+                      file=sys.stderr, flush=True)
         else:
             lib = ctypes.CDLL(LIBRARY)
             ptr, vp = ctypes.POINTER(KernelContext), ctypes.c_void_p

@@ -203,3 +203,21 @@ def test_set_spec_keeps_the_kernel_in_step():
             v.destroy()
         moved.destroy()
         fresh.destroy()
+
+
+def test_a_stale_kernel_is_said_once_and_the_numpy_route_taken(monkeypatch, capsys):
+    """A library built from another C source is not loaded (its context layout may differ): the chain falls back
+    to the numpy right-hand side and rank 0 says so in one note line, once."""
+    monkeypatch.setattr(kernels, "_lib", None)
+    monkeypatch.setattr(kernels, "_status", None)
+    monkeypatch.setattr(kernels, "source_digest", lambda: "another source")
+    chain = Chain(ChainSpec(H(1.5), 6), COMM)
+    try:
+        assert chain.kernel is None and kernels.library() is None
+    finally:
+        chain.destroy()
+    notes = [line for line in capsys.readouterr().err.splitlines() if line.startswith("note:")]
+    if COMM.getRank() == 0:
+        assert len(notes) == 1 and "built from another source" in notes[0], notes
+    else:
+        assert not notes, notes

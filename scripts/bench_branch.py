@@ -7,10 +7,10 @@ implementation of the same discretisation (scipy.sparse Newton with spsolve), in
 
 hertzpetsc runs both linear-solver paths: -tw_solver direct (LU; MUMPS on 2 ranks) and -tw_solver nk
 (Newton-Krylov: GMRES + exact second-difference preconditioner, matrix-free Jacobian), with one OpenBLAS thread
-per rank; the SciPy route keeps the library defaults. Each measurement runs in its own process (hertzpetsc under
-mpiexec); wall time is that of the branch computation (imports excluded), best of -repeats; peak memory is each
-process's maximum resident set size (per rank for hertzpetsc). Other -tw_* options go to the hertzpetsc runs
-(e.g. -tw_pc_type lu). -records FILE keeps the measurements as they are taken (-resume continues).
+per rank, the SciPy route too (unless OPENBLAS_NUM_THREADS is set). Each measurement runs in its own process
+(hertzpetsc under mpiexec); wall time is that of the branch computation (imports excluded), best of -repeats;
+peak memory is each process's maximum resident set size (per rank for hertzpetsc). Other -tw_* options go to the
+hertzpetsc runs (e.g. -tw_pc_type lu). -records FILE keeps the measurements as they are taken (-resume continues).
 -previous DIR: also run the same branch with the hertzpetsc of another checkout (e.g. the previous release:
 ``git worktree add DIR <commit>``) in the same run, for the side-by-side gate of a change of the solver stack.
 Measure on an otherwise idle machine: two ranks share the machine's two cores.

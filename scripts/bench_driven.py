@@ -184,7 +184,7 @@ def main():
                  run_in=run_in)
     long = dict(N=long_N, delta0=delta0, gamma=long_gamma, amplitude=0.1, omega=1.0, run_in=long_run_in)
     rec = BenchRecords(records_path, "hertzpetsc-bench-driven-1", dict(sweep=sweep, long=long), mode)
-    lines = [f"Driven chains; {machine(repeats)}. One BLAS thread per MPI rank; SciPy with the library defaults.\n"]
+    lines = [f"Driven chains; {machine(repeats)}. One BLAS thread per process, SciPy's too.\n"]
     if "sweep" in workloads:
         lines += [f"Frequency sweep: N = {N} beads, alpha = {ALPHA}, delta0 = {delta0:g}, gamma = {gamma:g}, actuator "
                   f"a cos(omega t), a = {amplitude:g}, wall; {run_in} periods from rest at omega = {omega0:g}, then "

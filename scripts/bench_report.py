@@ -133,7 +133,8 @@ def main():
     opts.check_unused()
     rec = BenchRecords(records_path, "hertzpetsc-bench-report-1", dict(which=sorted(which)), mode)
     lines = [f"Performance report; {machine(repeats)}. hertzpetsc best of {repeats}, one OpenBLAS thread per rank; "
-             "SciPy one run with library defaults. Efficiency = t1 / (2 t2). Memory per unknown = peak resident set "
+             "SciPy one run, one BLAS thread unless OPENBLAS_NUM_THREADS is set. "
+             "Efficiency = t1 / (2 t2). Memory per unknown = peak resident set "
              "summed over ranks / unknowns (includes about 70 MB of interpreter and libraries per process).\n",
              "| workload | unknowns | SciPy (s) | SciPy MB | hertzpetsc 1 rank (s) | MB | 2 ranks (s) | MB/rank | "
              "SciPy / 1 rank | SciPy / 2 ranks | 1 -> 2 efficiency | MB/rank 2 vs 1 | bytes/unknown (1 rank) |",

@@ -47,8 +47,9 @@ def emit(comm=None, **fields):
 
 def launch(script, name, request, ranks=None, timeout=3600, petsc_args=(), package=None):
     """Run one worker (under ``mpiexec -n ranks`` if ranks), return its JSON result, or None if it ran out of
-    time. MPI runs get one OpenBLAS/OpenMP thread per rank (idle library threads otherwise spin on the cores the
-    ranks need); serial runs (the SciPy routes) keep the library defaults. ``package``: a checkout whose
+    time. Every worker gets one OpenBLAS/OpenMP thread per process, the SciPy routes too (idle library threads
+    otherwise spin on the cores the ranks need; hertzpetsc.start sets it for the benchmark and its children unless the
+    user set OPENBLAS_NUM_THREADS / OMP_NUM_THREADS). ``package``: a checkout whose
     ``hertzpetsc`` the worker imports instead of this one (another release, measured side by side)."""
     env = dict(os.environ, OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
                OMPI_MCA_ess_singleton_isolated="1", OMPI_MCA_orte_execute_quiet="1")

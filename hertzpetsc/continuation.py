@@ -61,6 +61,12 @@ def illinois(f, a, fa, b, fb, tol, max_iter, bisect=False, bracket=False):
     return x
 
 
+def _discard(evals):
+    """Destroy the trial solutions of a location that failed (``evals``: parameter -> (Z, its, value))."""
+    for Z, _, _ in evals.values():
+        Z.destroy()
+
+
 def golden_maximum(f, a, b, tol):
     """(x, f(x)) maximising f on [a, b] by golden-section search to an interval of ``tol`` (f unimodal there), the
     ends included among the candidates (the one golden-section search: Floquet maxima over twists, resonance peaks,
@@ -561,8 +567,7 @@ class Continuation:
                 raise ConvergenceError("fold location", "degenerate parabola", sigma=sigma1)
             return self._located(evals, x, s_origin + x, "fold")
         except ConvergenceError:
-            for Z, _, _ in evals.values():
-                Z.destroy()
+            _discard(evals)
             return None
         finally:
             c.destroy()
@@ -599,8 +604,7 @@ class Continuation:
             point.bracket = bracket
             return point
         except ConvergenceError:
-            for Z, _, _ in evals.values():
-                Z.destroy()
+            _discard(evals)
             return None
 
     def take_events(self):
@@ -618,8 +622,7 @@ class Continuation:
             x = illinois(at, 0.0, g1, length, g2, self.locate_tol * length, self.locate_max)
             return self._located(evals, x, s_origin + x, name)
         except ConvergenceError:
-            for Z, _, _ in evals.values():
-                Z.destroy()
+            _discard(evals)
             return None
         finally:
             c.destroy()

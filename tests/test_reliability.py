@@ -68,17 +68,22 @@ def test_sigterm_to_a_benchmark_ends_its_workers_and_their_ranks(tmp_path):
 
 @pytest.mark.serial
 def test_a_second_pipeline_on_the_same_progress_file_is_refused(tmp_path):
+    """While a pipeline holds its progress file (stopped with SIGSTOP once its step runs, so that it cannot finish
+    first: the step takes about a second), a second pipeline on that file is refused, naming the holder."""
     args = [sys.executable, os.path.join(SCRIPTS, "paper.py"), "-steps", "convergence_h", "-progress",
             str(tmp_path / "p.npz"), "-logs", str(tmp_path / "logs")]
     first = subprocess.Popen(args, env=script_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
     try:
         deadline = time.time() + 60
-        while time.time() < deadline and not os.path.exists(tmp_path / "p.npz"):
-            time.sleep(0.2)
+        while time.time() < deadline and not _children_of("scripts/convergence_h.py"):
+            time.sleep(0.05)
+        first.send_signal(signal.SIGSTOP)
+        assert first.poll() is None, "the pipeline ended before it could be held"
         second = subprocess.run(args + ["-resume"], env=script_env(), capture_output=True, text=True, cwd=ROOT,
                                 timeout=120)
         assert "being written by process" in one_error_line(second)
     finally:
+        first.send_signal(signal.SIGCONT)
         first.send_signal(signal.SIGTERM)
         first.wait(timeout=60)
 

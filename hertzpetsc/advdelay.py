@@ -34,7 +34,7 @@ import weakref
 import numpy as np
 from petsc4py import PETSc
 
-from .assembly import RowAssembler, StencilGather, merged_csr
+from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
 from .errors import ConvergenceError, ParameterError
@@ -840,11 +840,7 @@ class AdvanceDelayProblem(ContinuationProblem):
             finally:
                 X.destroy()
             return stats.iterations
-        scatter, full = PETSc.Scatter.toAll(row)
-        scatter.scatter(row, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-        self.arclength = (full.getArray(readonly=True).copy(), float(value))
-        scatter.destroy()
-        full.destroy()
+        self.arclength = (gathered(row), float(value))
         try:
             self.set_gauge(Z)
             self.stats = self.solver(True).solve(self, Z)

@@ -8,6 +8,17 @@ import numpy as np
 from petsc4py import PETSc
 
 
+def gathered(V):
+    """The whole Vec ``V`` as a numpy array on every rank (collective)."""
+    scatter, full = PETSc.Scatter.toAll(V)
+    try:
+        scatter.scatter(V, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
+        return full.getArray(readonly=True).copy()
+    finally:
+        scatter.destroy()
+        full.destroy()
+
+
 class StencilGather:
     """Fetches, for the rows owned by this rank, the values that a set of stencils needs.
 

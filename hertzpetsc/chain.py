@@ -31,6 +31,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import kernels
+from .assembly import gathered
 from .errors import ConvergenceError, ParameterError
 from .hertz import HertzLaw
 from .model import Actuator, ChainSpec
@@ -387,12 +388,7 @@ class Chain:
 
     def gather(self, X):
         """The whole state as a numpy array of shape (N, dof) on every rank."""
-        scatter, full = PETSc.Scatter.toAll(X)
-        scatter.scatter(X, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-        out = full.getArray(readonly=True).reshape(self.spec.N, self.dof).copy()
-        scatter.destroy()
-        full.destroy()
-        return out
+        return gathered(X).reshape(self.spec.N, self.dof)
 
     def set_from_array(self, X, values):
         """Set X from a (N, dof) array given on every rank."""

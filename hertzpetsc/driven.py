@@ -45,6 +45,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from petsc4py import PETSc
 
+from .assembly import gathered
 from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .continuation import ContinuationProblem, _parameter, golden_maximum, set_parameter
 from .errors import ConvergenceError, ParameterError
@@ -757,21 +758,13 @@ class PeriodicShooting(ContinuationProblem):
         return abs(p - pm) <= 0.05 * max(abs(p), 1e-12) and \
             np.max(np.abs(x - xm)) <= 0.05 * max(float(np.max(np.abs(x))), 1e-300)
 
-    def _gather_row(self, row):
-        sc, full = PETSc.Scatter.toAll(row)
-        sc.scatter(row, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-        out = full.getArray(readonly=True).copy()
-        sc.destroy()
-        full.destroy()
-        return out
-
     # --- the corrector -------------------------------------------------------------------------------------------
     def solve(self, Z, row=None, value=None):
         """Newton (SNES ``drive_``) on G(X; p) = 0 with row . Z = value (row None: p fixed at Z's). Returns the
         iterations (at least 1: a Z that is already a response counts as one); ConvergenceError naming p."""
         self._row, self._value = row, value
         self._dGdp, self._last_fnorm, self._solves = None, math.inf, self._solves + 1
-        self._row_full = self._gather_row(row) if row is not None and self.jacobian_kind == "dense" else None
+        self._row_full = gathered(row) if row is not None and self.jacobian_kind == "dense" else None
         x0, p0 = self.state(Z)
         self._p_fixed = p0
         try:

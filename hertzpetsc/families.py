@@ -19,9 +19,9 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from petsc4py import PETSc
 
 from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
+from .assembly import gathered
 from .branch import BranchPoint
 from .continuation import Continuation, ContinuationError, LazyTests, Natural, PseudoArclength
 from .diagnostics import sup_norm
@@ -280,7 +280,7 @@ class MassFamily:
         """What a resume needs (collective; plain arrays, the same on every rank): the last two points' extended
         vectors, their arclengths, the next step and the normalised profile."""
         hist = self.continuation.history
-        return dict(Z=np.array([_gathered(Z) for Z, _, _ in hist]), s=np.array([s for _, s, _ in hist]),
+        return dict(Z=np.array([gathered(Z) for Z, _, _ in hist]), s=np.array([s for _, s, _ in hist]),
                     ds=float(self.continuation.ds), normalised=int(self.problem.normalised))
 
     def restore(self, snap):
@@ -327,16 +327,6 @@ class MassFamily:
     def destroy(self):
         self.continuation.destroy()
         self.problem.destroy()
-
-
-def _gathered(V):
-    """The whole Vec as a numpy array on every rank."""
-    scatter, full = PETSc.Scatter.toAll(V)
-    scatter.scatter(V, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-    out = full.getArray(readonly=True).copy()
-    scatter.destroy()
-    full.destroy()
-    return out
 
 
 def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start=1e-3, ds=0.25, solver=None):

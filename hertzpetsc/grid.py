@@ -15,6 +15,7 @@ import math
 import numpy as np
 from petsc4py import PETSc
 
+from .assembly import gathered
 from .errors import ParameterError
 
 
@@ -91,12 +92,8 @@ class ProfileGrid:
     def half_profile(self, vec):
         """The profile on the half period (K+1 values; zeros at both ends if odd; the whole period's 2K values
         without symmetry) as a numpy array on every rank."""
-        scatter, full = PETSc.Scatter.toAll(vec)
-        scatter.scatter(vec, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
         out = np.zeros(self.K + 1 if self.parity else 2 * self.K)
-        out[self.offset:self.offset + self.size] = full.getArray(readonly=True)
-        scatter.destroy()
-        full.destroy()
+        out[self.offset:self.offset + self.size] = gathered(vec)
         return out
 
     def vec_from_half_profile(self, values):

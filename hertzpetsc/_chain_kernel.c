@@ -62,6 +62,8 @@ typedef struct {
     int step_bond;              /* the bond (ghosted numbering) that carries the extra length step, or -1 */
     double step;
     double *bond, *stiff, *dv;  /* work arrays, nloc + 1 each */
+    int harmonic_left, harmonic_right;   /* that end is an actuator offset + a cos(omega t + phase) ... */
+    double harmonic[2][4];      /* ... with (offset, a, omega, phase): its position and velocity computed here */
 } ChainKernel;
 
 /* a^e for a >= 0 as hertzpetsc.hertz.abs_power: whole or half-whole e up to 4 by products and one sqrt. */
@@ -198,14 +200,25 @@ static PetscErrorCode ghost_rows(const ChainKernel *k, Vec X, const double *x, d
     return 0;
 }
 
-/* The TS right-hand side: F = f(X) (t enters only through the actuators' values, set by the caller). */
+/* Position and velocity at time t of a harmonic actuator h = (offset, a, omega, phase), in the operations' order of
+ * hertzpetsc.model.Harmonic.position and velocity. */
+static void harmonic_end(const double *h, double t, double *x, double *v)
+{
+    const double arg = h[2] * t + h[3];
+    *x = h[0] + h[1] * cos(arg);
+    *v = -h[1] * h[2] * sin(arg);
+}
+
+/* The TS right-hand side: F = f(t, X). t enters only through the actuators' motion: computed here for harmonic
+ * actuators, set by the caller (hertzpetsc.kernels.ChainKernel.set_time) for other signals. */
 PetscErrorCode hz_chain_rhs(TS ts, double t, Vec X, Vec F, void *ctx)
 {
     ChainKernel *k = (ChainKernel *)ctx;
     const double *x;
     double *g, *out;
     (void)ts;
-    (void)t;
+    if (k->harmonic_left) harmonic_end(k->harmonic[0], t, &k->left_x, &k->left_v);
+    if (k->harmonic_right) harmonic_end(k->harmonic[1], t, &k->right_x, &k->right_v);
     CHECK(VecGetArrayRead(X, &x));
     CHECK(ghost_rows(k, X, x, &g));
     CHECK(VecGetArrayWrite(F, &out));

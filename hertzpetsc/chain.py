@@ -246,9 +246,9 @@ class Chain:
         if self.kernel is None:
             self.rhs_reference(ts, t, X, F)
             return
-        if self.kernel.actuated:
-            self.kernel.set_time(self, t)
-        self.kernel(X, F)
+        if self.kernel.python_signals:
+            self.kernel.set_time(t)
+        self.kernel(X, F, t)
 
     def rhs_reference(self, ts, t, X, F):
         """:meth:`rhs` in numpy, for any law: the reference of the compiled kernel (the same operations in the same
@@ -274,11 +274,11 @@ class Chain:
 
     def install_rhs(self, ts, F, compiled=True):
         """Make this chain's right-hand side that of ``ts`` (residual vector F): the compiled function called by the
-        TS itself when the ends do not depend on time, else :meth:`rhs` (``compiled=False``:
-        :meth:`rhs_reference`)."""
+        TS itself unless an actuator's signal needs Python (any signal but :class:`~hertzpetsc.model.Harmonic`),
+        else :meth:`rhs` (``compiled=False``: :meth:`rhs_reference`)."""
         if not compiled or self.kernel is None:
             ts.setRHSFunction(self.rhs_reference, F)
-        elif self.kernel.actuated:
+        elif self.kernel.python_signals:
             ts.setRHSFunction(self.rhs, F)
         else:
             self.kernel.install(ts, F)
@@ -439,6 +439,22 @@ class ChainIntegrator:
                 raise ParameterError(f"-{prefix}ts_{name}", value, "the integration tolerance must be positive")
         self.ts = ts
         self.steps = 0
+
+    def control_state_only(self):
+        """Measure the step's local error on the state x, x' alone, not on the tangent columns (vector tolerances:
+        rtol, atol on the state, zero on the tangents, which PETSc's weighted norm then leaves out). The columns are
+        the exact derivative of the steps taken (they move with the same Runge-Kutta formula) but the steps do not
+        resolve them to the flow's tolerance: a Newton Jacobian's accuracy in fewer steps, never the multipliers'."""
+        ts = self.ts
+        rtol, atol = ts.getTolerances()
+        vr, va = self.chain.create_state(), self.chain.create_state()
+        r = vr.getArray().reshape(self.chain.nloc, self.chain.dof)
+        a = va.getArray().reshape(self.chain.nloc, self.chain.dof)
+        r[:], a[:] = 0.0, 0.0
+        r[:, :2], a[:, :2] = rtol, atol
+        ts.setTolerances(rtol=vr, atol=va)
+        vr.destroy()
+        va.destroy()
 
     @PETSc.Log.EventDecorator("hz_chain_integrate")
     def integrate(self, X, t0, t1, dt=None):

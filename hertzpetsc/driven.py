@@ -20,12 +20,13 @@ solved by :class:`PeriodicShooting`, a :class:`~hertzpetsc.continuation.Continua
 Z = (X, p) (p = omega, amplitude or gamma, last entry on the last rank): Newton on SNES (prefix ``drive_``, the state
 flow is the TS of the same prefix) with the bordered Jacobian [R(kT; 0) - I, dG/dp; row], R the monodromy from the
 tangent flow (prefix ``floquet_``): assembled from 2N tangent columns (``jacobian='dense'``, small N; LU, MUMPS on
-several ranks) or matrix-free, one tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long
-chains). dG/dp is a central difference of two state flows. So the continuation layer's natural and
+several ranks; the steps controlled by the state's error alone, reused as a chord while Newton contracts) or
+matrix-free, one tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long
+chains). dG/dp is a forward difference with one state flow. So the continuation layer's natural and
 pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
 
 Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by LAPACK on the dense monodromy
-(:class:`~hertzpetsc.floquet.DenseFloquet`, shared with the dense Jacobian) or the dominant ones by SLEPc
+(:class:`~hertzpetsc.floquet.DenseFloquet`, the tangents resolved too, the Newton Jacobian's where it is one) or the dominant ones by SLEPc
 Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A driven chain has no
 symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
 exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`). The test functions of the layer are
@@ -52,7 +53,7 @@ from .errors import ConvergenceError, ParameterError
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, FunctionSignal, Harmonic, LatticeModel, SampledSignal, Signal
-from .tangent import MonodromyModShift
+from .tangent import MonodromyModShift, TangentFlow
 
 DRIVE_PREFIX = "drive_"
 # The flows of the responses: the paper's tolerances (state, residual of the shooting).
@@ -455,8 +456,10 @@ class PeriodicShooting(ContinuationProblem):
         if dense and spec.N > MAX_DENSE_BEADS:
             raise ParameterError("N", spec.N, f"at most {MAX_DENSE_BEADS} beads with the dense Jacobian or dense "
                                  "multipliers (2N x 2N matrices); longer chains: jacobian 'mf', floquet 'slepc' or 'none'")
-        # the state flow, and the tangent flow with 2N columns (dense) or one (matrix-free), before any allocation
-        check_chain_memory(spec.N, comm, columns=2 + 2 * spec.N if dense else 3, name="N")
+        # the state flow, and the tangent flows with 2N columns (dense: the multipliers' and the Jacobian's) or one
+        # (matrix-free), before any allocation
+        check_chain_memory(spec.N, comm, columns=(2 + 2 * spec.N) * (2 if jacobian == "dense" else 1) if dense else 3,
+                           name="N")
         self.chain = Chain(spec, comm)
         self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
         if not PETSc.Options().hasName(prefix + "ts_max_steps"):
@@ -465,6 +468,11 @@ class PeriodicShooting(ContinuationProblem):
         self.X, self.Y = self.chain.create_state(), self.chain.create_state()
         ftol = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if "dense" in (jacobian, floquet) else None
+        # the Newton Jacobian's monodromy: the same 2N columns, steps controlled by the state's error alone
+        self.jacobian_flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, floquet_prefix) \
+            if jacobian == "dense" else None
+        if self.jacobian_flow is not None:
+            self.jacobian_flow.integrator.control_state_only()
         self.product = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, ftol, floquet_prefix, shift=0) \
             if jacobian == "mf" else None
         self.dominant = DominantFloquet(spec, comm, min(nev, 2 * spec.N), ftol, floquet_prefix, shift=0) \
@@ -473,7 +481,7 @@ class PeriodicShooting(ContinuationProblem):
         self.last_rank = comm.getRank() == comm.getSize() - 1
         self.nloc = 2 * self.chain.nloc
         self.size = 2 * spec.N + 1
-        self._mono = None              # (x, p, R) of the last dense monodromy
+        self._mono = None              # (x, p, R, version, accurate) of the last dense monodromy
         self._spectra = {}             # key of (x, p) -> multipliers
         self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
         self.reuse = self._reuse_now = reuse_jacobian
@@ -514,7 +522,7 @@ class PeriodicShooting(ContinuationProblem):
             return
         spec = drive.spec()
         self.chain.set_spec(spec)
-        for engine in (self.dense, self.dominant):
+        for engine in (self.dense, self.dominant, self.jacobian_flow):
             if engine is not None:
                 engine.set_spec(spec)
         if self.product is not None:
@@ -637,7 +645,13 @@ class PeriodicShooting(ContinuationProblem):
             self.J.setUp()
             ksp.setType(PETSc.KSP.Type.GMRES)
             ksp.setGMRESRestart(200)
-            ksp.getPC().setType(PETSc.PC.Type.NONE)
+            if LinearChainPreconditioner.applies(self.drive):
+                # right preconditioning: GMRES measures the true residual of the Newton step
+                ksp.getPC().setType(PETSc.PC.Type.PYTHON)
+                ksp.getPC().setPythonContext(LinearChainPreconditioner(self))
+                ksp.setPCSide(PETSc.PC.Side.RIGHT)
+            else:
+                ksp.getPC().setType(PETSc.PC.Type.NONE)
             ksp.setTolerances(rtol=1e-8, max_it=2000)
         snes.setJacobian(self.formJacobian, self.J, self.J)
         snes.setTolerances(rtol=1e-30, stol=1e-30, max_it=20)
@@ -699,15 +713,19 @@ class PeriodicShooting(ContinuationProblem):
         xs = self.chain.xs
         return ((xh - x).ravel()[2 * xs:2 * xs + self.nloc] - G) / h
 
-    def monodromy(self, x, p):
-        """Dense R(kT; 0) at (x, p), on every rank (cached for the last point)."""
-        if self._mono is not None and self._mono[1] == p and np.array_equal(self._mono[0], x):
-            return self._mono[2]
+    def monodromy(self, x, p, accurate=True):
+        """Dense R(kT; 0) at (x, p), on every rank (cached for the last point): ``accurate``, the tangents resolved
+        to the Floquet flow's tolerance (multipliers, branch switching), else the Newton Jacobian's (the steps of
+        the state's error, :meth:`~hertzpetsc.chain.ChainIntegrator.control_state_only`)."""
+        m = self._mono
+        if m is not None and m[1] == p and (m[4] or not accurate) and np.array_equal(m[0], x):
+            return m[2]
         self._at(p)
-        R = self.dense.monodromy(Response(self.drive, self.periods, x, math.nan), shift=False, T=self.T)
+        flow = self.dense.flow if accurate or self.jacobian_flow is None else self.jacobian_flow
+        R = flow.resolvent(x, self.T)[0]
         self.counters["tangent_flows"] += 1
         self._mono_version += 1
-        self._mono = (np.array(x, copy=True), p, R, self._mono_version)
+        self._mono = (np.array(x, copy=True), p, R, self._mono_version, accurate)
         return R
 
     def formJacobian(self, snes, Z, J, P):
@@ -728,7 +746,7 @@ class PeriodicShooting(ContinuationProblem):
         contracting = (first and self._near(x, p)) or (not first and fnorm <= CHORD_CONTRACTION * self._last_fnorm)
         self._last_fnorm = fnorm
         if not (self._reuse_now and contracting and self._mono is not None):
-            self.monodromy(x, p)
+            self.monodromy(x, p, accurate=False)
             self.counters["jacobians"] += 1
         key = (self._mono[3], self._solves)
         if key == self._assembled:
@@ -872,10 +890,82 @@ class PeriodicShooting(ContinuationProblem):
         self.chain.destroy()
         if self.dense is not None:
             self.dense.destroy()
+        if self.jacobian_flow is not None:
+            self.jacobian_flow.destroy()
         if self.product is not None:
             self.product.destroy()
         if self.dominant is not None:
             self.dominant.destroy()
+
+
+class LinearChainPreconditioner:
+    """(R_lin - I)^-1, the preconditioner of Newton-Krylov shooting (a PETSc ``PC`` python context, prefix
+    ``drive_``: -drive_pc_type none turns it off). R_lin is the monodromy over the response's period of the chain
+    linearised about rest, m x'' + (gamma + eta L) x' + K L x = 0 with K = V''(0) and L the second difference with the
+    actuator's end fixed and the far end fixed (wall, actuator) or free: uniform masses make it diagonal in the sine
+    modes of L (a sine transform by numpy's FFT), each mode a damped oscillator with its 2 x 2 monodromy in closed
+    form. Without it GMRES on R - I stalls for about N / (c T) iterations on a long damped chain: the overdamped long
+    waves have multipliers 1 - O(omega_k^2 T / gamma). The border row (the parameter's) is left as it is."""
+
+    def __init__(self, problem):
+        self.problem = problem
+        self._key = None
+
+    @staticmethod
+    def applies(drive):
+        """Uniform masses and a precompressed law (V''(0) > 0: in a sonic vacuum R_lin - I is singular)."""
+        return len(set(drive.model.masses)) == 1 and drive.model.law.linear_stiffness > 0.0
+
+    def _modes(self):
+        """The transform's length and frequencies and the 2 x 2 inverses per mode, for the current drive and T."""
+        prob = self.problem
+        drive, T = prob.drive, prob.T
+        if self._key == (drive, T):
+            return
+        N, model = drive.N, drive.model
+        k = np.arange(1, N + 1)
+        if drive.right == "free":                  # sin(pi (2k - 1) n / (2N + 1)), n = 1..N
+            self.ext, self.freq, self.norm = 2 * (2 * N + 1), 2 * k - 1, (2 * N + 1) / 4.0
+        else:                                      # sin(pi k n / (N + 1))
+            self.ext, self.freq, self.norm = 2 * (N + 1), k, (N + 1) / 2.0
+        lam = 4.0 * np.sin(np.pi * self.freq / self.ext) ** 2
+        m = model.masses[0]
+        w2 = model.law.linear_stiffness * lam / m
+        half = 0.5 * (model.damping.gamma + model.damping.eta * lam) / m
+        s = np.sqrt(half * half - w2 + 0j)
+        decay, cosh = np.exp(-half * T), np.cosh(s * T)
+        sinc = np.where(np.abs(s * T) > 1e-8, np.sinh(s * T) / np.where(s == 0, 1.0, s), T)   # sinh(s T) / s
+        phi = np.empty((N, 2, 2))
+        phi[:, 0, 0] = (decay * (cosh + half * sinc)).real
+        phi[:, 0, 1] = (decay * sinc).real
+        phi[:, 1, 0] = (-decay * w2 * sinc).real
+        phi[:, 1, 1] = (decay * (cosh - half * sinc)).real
+        self.inverse = np.linalg.inv(phi - np.eye(2))
+        self._key = (drive, T)
+
+    def _sine(self, x):
+        """sum_n x_n sin(2 pi j n / ext) at the modes' frequencies j (x: (N, c))."""
+        z = np.zeros((self.ext, x.shape[1]))
+        z[1:len(x) + 1] = x
+        return -np.fft.rfft(z, axis=0).imag[self.freq]
+
+    def _inverse_sine(self, y):
+        """x_n = sum_k y_k sin(2 pi j_k n / ext) / norm, n = 1..N."""
+        w = np.zeros((self.ext, y.shape[1]))
+        w[self.freq] = y
+        return -np.fft.rfft(w, axis=0).imag[1:len(y) + 1] / self.norm
+
+    def apply(self, pc, x, y):
+        prob = self.problem
+        self._modes()
+        full = gathered(x)
+        modes = self._sine(full[:2 * prob.N].reshape(prob.N, 2))
+        solved = self._inverse_sine(np.einsum("kij,kj->ki", self.inverse, modes))
+        out = y.getArray()
+        xs = prob.chain.xs
+        out[:prob.nloc] = solved[xs:xs + prob.nloc // 2].ravel()
+        if prob.last_rank:
+            out[-1] = x.getArray(readonly=True)[-1]
 
 
 class _BorderedProduct:

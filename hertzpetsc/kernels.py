@@ -50,7 +50,9 @@ class KernelContext(ctypes.Structure):
                 ("complex_modes", ctypes.c_int),
                 ("cos_theta", ctypes.c_double), ("sin_theta", ctypes.c_double),
                 ("gap", ctypes.c_double), ("step_bond", ctypes.c_int), ("step", ctypes.c_double),
-                ("bond", ctypes.c_void_p), ("stiff", ctypes.c_void_p), ("dv", ctypes.c_void_p)]
+                ("bond", ctypes.c_void_p), ("stiff", ctypes.c_void_p), ("dv", ctypes.c_void_p),
+                ("harmonic_left", ctypes.c_int), ("harmonic_right", ctypes.c_int),
+                ("harmonic", (ctypes.c_double * 4) * 2)]
 
 
 def power_recipe(e):
@@ -186,7 +188,17 @@ class ChainKernel:
         ctx.gamma, ctx.eta = damping.gamma, damping.eta
         self.inverse_mass = None if chain.inverse_mass is None else np.ascontiguousarray(chain.inverse_mass, float)
         ctx.inv_mass = None if self.inverse_mass is None else self.inverse_mass.ctypes.data
-        self.actuated = ctx.left == END_ACTUATOR or ctx.right == END_ACTUATOR
+        # harmonic actuators move in C; any other signal is evaluated in Python at each right-hand side (set_time)
+        from .model import Harmonic
+        self.python_signals = []
+        for i, (end, side) in enumerate(((chain.left_end, "left"), (chain.right_end, "right"))):
+            harmonic = end_kind(end) == END_ACTUATOR and type(end.signal) is Harmonic
+            setattr(ctx, "harmonic_" + side, int(harmonic))
+            if harmonic:
+                s = end.signal
+                ctx.harmonic[i][:] = (s.offset, s.amplitude, s.omega, s.phase)
+            elif end_kind(end) == END_ACTUATOR:
+                self.python_signals.append((side, end.signal))
 
     def sync(self, chain):
         """Copy the chain's twist, gap and step (attributes that may change between integrations) into the context."""
@@ -199,17 +211,17 @@ class ChainKernel:
         ctx.gap = chain.gap
         ctx.step_bond, ctx.step = chain._step_row(), chain.step[1]
 
-    def set_time(self, chain, t):
-        """The actuators' position and velocity at time t (the only time dependence of eq. nc)."""
+    def set_time(self, t):
+        """The position and velocity at time t of the actuators whose signal is not harmonic (the only time
+        dependence of eq. nc that the kernel does not compute itself)."""
         ctx = self.ctx
-        for end, side in ((chain.left_end, "left"), (chain.right_end, "right")):
-            if end_kind(end) == END_ACTUATOR:
-                setattr(ctx, side + "_x", float(end.signal.position(t)))
-                setattr(ctx, side + "_v", float(end.signal.velocity(t)))
+        for side, signal in self.python_signals:
+            setattr(ctx, side + "_x", float(signal.position(t)))
+            setattr(ctx, side + "_v", float(signal.velocity(t)))
 
-    def __call__(self, X, F):
-        """F = f(X) through PETSc objects (the chain's DMDA does the ghost exchange)."""
-        err = self.lib.hz_chain_rhs(None, 0.0, X.handle, F.handle, self.ref)
+    def __call__(self, X, F, t=0.0):
+        """F = f(t, X) through PETSc objects (the chain's DMDA does the ghost exchange)."""
+        err = self.lib.hz_chain_rhs(None, t, X.handle, F.handle, self.ref)
         if err:
             raise RuntimeError(f"the compiled chain right-hand side failed with PETSc error {err}")
 

@@ -221,6 +221,12 @@ class Signal:
         raise NotImplementedError
 
 
+# libm's cosine and sine, those of the compiled kernel, which moves harmonic actuators itself (numpy's own differ in
+# the last bit): the numpy reference and the kernel stay equal to the bit
+_cos = np.vectorize(math.cos, otypes=[float])
+_sin = np.vectorize(math.sin, otypes=[float])
+
+
 @dataclass(frozen=True)
 class Harmonic(Signal):
     """x(t) = offset + amplitude cos(omega t + phase)."""
@@ -244,10 +250,10 @@ class Harmonic(Signal):
         return 2 * math.pi / self.omega
 
     def position(self, t):
-        return self.offset + self.amplitude * np.cos(self.omega * np.asarray(t, float) + self.phase)
+        return self.offset + self.amplitude * _cos(self.omega * np.asarray(t, float) + self.phase)
 
     def velocity(self, t):
-        return -self.amplitude * self.omega * np.sin(self.omega * np.asarray(t, float) + self.phase)
+        return -self.amplitude * self.omega * _sin(self.omega * np.asarray(t, float) + self.phase)
 
     def describe(self):
         return dict(signal="harmonic", amplitude=self.amplitude, omega=self.omega, phase=self.phase,

@@ -10,6 +10,7 @@ import pytest
 from petsc4py import PETSc
 
 from conftest import RESULTS, ROOT, one_error_line, run_script
+from hertzpetsc.assembly import gathered
 from hertzpetsc.chain import Chain, IntegrationTolerances
 from hertzpetsc.continuation import PseudoArclength
 from hertzpetsc.driven import (Drive, HalfSinePulses, HarmonicWave, PeriodicShooting, SampledWave, crossing,
@@ -17,8 +18,8 @@ from hertzpetsc.driven import (Drive, HalfSinePulses, HarmonicWave, PeriodicShoo
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.floquet import DenseFloquet, dense_multipliers
 from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel
-from hertzpetsc.studies.driven import (EVENTS, LinearResonances, ResponseCurve, linear_multipliers, linear_response,
-                                       normal_modes)
+from hertzpetsc.studies.driven import (EVENTS, LinearResonances, ResponseCurve, linear_chain, linear_multipliers,
+                                       linear_response, normal_modes)
 from hertzpetsc.tangent import TangentFlow
 
 COMM = PETSc.COMM_WORLD
@@ -133,6 +134,68 @@ def test_liouville_product_of_the_multipliers(masses, right):
         assert expected == pytest.approx(-4 * 0.05 * prob.T, rel=1e-14)
     assert abs(logdet - expected) < 1e-8 * abs(expected)
     assert r.residual < 1e-10
+
+
+def test_newton_jacobians_resolve_the_state_and_the_multipliers_the_tangents():
+    """The Newton Jacobian's monodromy comes from steps controlled by the state's error alone: fewer steps, and
+    within 1e-6 of the multipliers' monodromy (both resolve the state to rtol 1e-12; only the accurate one resolves
+    the tangents, and only it satisfies Liouville to the flow's tolerance). A Jacobian's monodromy is never served as
+    the multipliers' (the cache knows which it holds); the accurate one serves both."""
+    drive = Drive(LatticeModel.hertz(1.5, gamma=0.05), 4, HarmonicWave(), 0.3, 1.1)
+    prob = PeriodicShooting(drive, COMM)
+    try:
+        r = prob.solve_response(prob.run_in(np.zeros((4, 2)), 30))
+        steps_j, steps_a = prob.jacobian_flow.integrator.steps, prob.dense.flow.integrator.steps
+        flows = prob.counters["tangent_flows"]
+        R_j = prob.monodromy(r.x, 1.1, accurate=False).copy()
+        steps_j = prob.jacobian_flow.integrator.steps - steps_j
+        R_a = prob.monodromy(r.x, 1.1).copy()
+        steps_a = prob.dense.flow.integrator.steps - steps_a
+        assert prob.counters["tangent_flows"] == flows + 2 and 0 < steps_j < steps_a
+        assert np.array_equal(prob.monodromy(r.x, 1.1, accurate=False), R_a)        # served from the cache
+        assert prob.counters["tangent_flows"] == flows + 2
+        assert 0 < np.max(np.abs(R_j - R_a)) < 1e-6 * np.max(np.abs(R_a))
+        expected = -prob.T * damping_trace(drive.spec())
+        assert abs(np.sum(np.log(np.abs(np.linalg.eigvals(R_a)))) - expected) < 1e-8 * abs(expected)
+    finally:
+        prob.destroy()
+
+
+@pytest.mark.parametrize("right,eta", [("wall", 0.0), ("free", 0.03)])
+def test_linear_chain_preconditioner_is_the_inverse_of_the_linear_monodromy_minus_one(right, eta):
+    """The preconditioner of Newton-Krylov shooting applies (R_lin - I)^-1 (sine modes, closed-form 2 x 2 monodromies)
+    equal to the dense one, R_lin = V exp(T Lambda) V^-1 from the eigen-decomposition of the linear chain's first-order
+    matrix (studies.driven.linear_chain), to rounding amplified by the condition number; and with it GMRES on a
+    small-amplitude response converges in a few iterations."""
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.05, eta=eta), 9, HarmonicWave(), 1e-6, 0.8, right=right)
+    prob = PeriodicShooting(drive, COMM, jacobian="mf", floquet="none")
+    try:
+        pc = prob._snes.getKSP().getPC()
+        assert pc.getType() == "python"
+        M, C, Kmat, _ = linear_chain(drive)
+        N = drive.N
+        A = np.block([[np.zeros((N, N)), np.eye(N)], [-np.linalg.solve(M, Kmat), -np.linalg.solve(M, C)]])
+        lam, V = np.linalg.eig(A)
+        R = (V @ np.diag(np.exp(prob.T * lam)) @ np.linalg.inv(V)).real
+        perm = np.arange(2 * N).reshape(2, N).T.ravel()          # (x_1..x_N, v_1..v_N) -> bead-major (x_n, v_n)
+        B = (R - np.eye(2 * N))[np.ix_(perm, perm)]
+        rng = np.random.default_rng(5)
+        b = rng.normal(size=2 * N + 1)
+        X, Y = prob.create_vec(), prob.create_vec()
+        lo, hi = X.getOwnershipRange()
+        X.getArray()[:] = b[lo:hi]
+        pc.apply(X, Y)
+        y = gathered(Y)
+        expected = np.linalg.solve(B, b[:2 * N])
+        assert np.max(np.abs(y[:2 * N] - expected)) < 1e-11 * np.linalg.cond(B) * np.max(np.abs(expected))
+        assert y[-1] == b[-1]
+        r = prob.solve_response(prob.run_in(np.zeros((N, 2)), 5))
+        assert r.residual < 1e-10
+        assert prob.counters["products"] <= 4 * prob.counters["jacobians"]     # a few GMRES iterations per step
+        X.destroy()
+        Y.destroy()
+    finally:
+        prob.destroy()
 
 
 def test_dense_and_slepc_multipliers_agree_and_newton_krylov_agrees_with_dense():

@@ -108,10 +108,14 @@ def test_a_step_is_the_same_chain_with_the_beads_behind_it_moved():
         step.destroy()
 
 
-def test_the_ts_calls_the_kernel_and_the_flow_is_unchanged(clean_options):
+@pytest.mark.parametrize("spec", [ChainSpec(H(1.5), 16),
+                                  ChainSpec(H(1.5, gamma=0.05, eta=0.02), 16, "fixed",
+                                            left=Actuator(Harmonic(0.2, 1.3, phase=0.4, offset=0.01)))],
+                         ids=["periodic", "harmonic actuator"])
+def test_the_ts_calls_the_kernel_and_the_flow_is_unchanged(clean_options, spec):
     """A tangent flow with the compiled right-hand side and with -chain_rhs_compiled 0 (numpy): the same
-    operations give the same adaptive steps and the same numbers, to the bit."""
-    spec = ChainSpec(H(1.5), 16)
+    operations give the same adaptive steps and the same numbers, to the bit (the harmonic actuator's motion too,
+    computed by the kernel at each stage's time: no Python between the TS and the kernel)."""
     rng = np.random.default_rng(3)
     x0 = np.stack([np.sin(2 * math.pi * 2 * np.arange(16) / 16) - 0.1, 0.2 * rng.normal(size=16)], axis=1)
     Y0 = rng.normal(size=(16, 2, 3))
@@ -119,6 +123,8 @@ def test_the_ts_calls_the_kernel_and_the_flow_is_unchanged(clean_options):
     for compiled in ("1", "0"):
         clean_options.setValue("chain_rhs_compiled", compiled)
         flow = TangentFlow(spec, 3, COMM, None, "chain_")
+        if compiled == "1":
+            assert flow.aug.kernel.python_signals == []       # the kernel moves the harmonic actuator itself
         out.append(flow.run(x0, 2.0, Y0) + (flow.integrator.steps,))
         flow.destroy()
     (x1, R1, n1), (x2, R2, n2) = out

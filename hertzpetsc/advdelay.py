@@ -236,6 +236,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.dparam = None                # dF/dp at the last Jacobian evaluation (Z solves)
         self.solvers = {}
         self.stats = None
+        self._state = None                # X of the natural solves (:meth:`solve` with row None)
 
     # --- parameters (the lenses of the continuation layer) ----------------------------------------------------
     def _check_parameter(self, name):
@@ -830,15 +831,14 @@ class AdvanceDelayProblem(ContinuationProblem):
     def solve(self, Z, row=None, value=None):
         """The continuation layer's corrector (:meth:`ContinuationProblem.solve`)."""
         if row is None:
-            self.set_parameter(self.parameter, self._scalars(Z)[-1])
-            X = self.create_state()
-            n = len(X.getArray(readonly=True))
+            self.set_parameter(self.parameter, self._scalars(Z)[-1] if value is None else value)
+            if self._state is None:               # the X of the natural solves, kept (one per problem)
+                self._state = self.create_state()
+            X = self._state
+            n = X.getLocalSize()
             X.getArray()[:] = Z.getArray(readonly=True)[:n]
-            try:
-                stats = self.solve_state(X)
-                Z.getArray()[:n] = X.getArray(readonly=True)
-            finally:
-                X.destroy()
+            stats = self.solve_state(X)
+            Z.getArray()[:n] = X.getArray(readonly=True)
             return stats.iterations
         self.arclength = (gathered(row), float(value))
         try:
@@ -873,8 +873,8 @@ class AdvanceDelayProblem(ContinuationProblem):
 
     def report(self, Z):
         profiles = self.half_profiles(Z)
-        sc = self._scalars(Z)
-        return dict(profiles=profiles, lam=float(sc[0]) if self.bordered else self.lam, omega=self.frequency(Z))
+        lam = float(self._scalars(Z)[0]) if self.bordered else self.lam
+        return dict(profiles=profiles, lam=lam, omega=self.frequency(Z))
 
     def destroy(self):
         for s in self.solvers.values():
@@ -883,6 +883,9 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.stencils.destroy()
         for w in self._work:
             w.destroy()
+        if self._state is not None:
+            self._state.destroy()
+            self._state = None
 
 
 class _JacobianProduct:

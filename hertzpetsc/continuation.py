@@ -26,7 +26,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-from petsc4py import PETSc
 
 from .errors import ConvergenceError, ParameterError
 
@@ -112,7 +111,8 @@ class ContinuationProblem:
 
     def solve(self, Z, row=None, value=None):
         """Correct Z in place so that F(X; p) = 0 and row . Z = value; row None: the parameter is fixed at its
-        entry of Z (natural continuation). Returns the number of Newton iterations (>= 1); raises
+        entry of Z (natural continuation; ``value``, when given, is that entry, which the caller set: the problem
+        need not read it from Z, a reduction). Returns the number of Newton iterations (>= 1); raises
         :class:`~hertzpetsc.errors.ConvergenceError` when it fails."""
         raise NotImplementedError
 
@@ -271,6 +271,7 @@ class Continuation:
         self.natural = algorithm if isinstance(algorithm, Natural) else Natural()
         self.detect_folds, self.locate_tol, self.locate_max = detect_folds, locate_tol, locate_max
         self.history = []          # [(Z, s, tests)] of the last two accepted points
+        self._known = {}           # id(Z) -> (Z, parameter) of the history's points (read without a reduction)
         self.s = 0.0
         self.ds = getattr(algorithm, "ds", None)
         self.changes = 0
@@ -290,13 +291,27 @@ class Continuation:
     def _norm(self, a):
         return math.sqrt(max(self._dot(a, a), 0.0))
 
-    def _accept(self, Z, its, event=None, dp_ds=math.nan):
+    def _accept(self, Z, its, event=None, dp_ds=math.nan, parameter=None):
+        """Append Z to the history (``parameter``: Z's, when the caller knows it; else read from Z)."""
+        p = _parameter(Z) if parameter is None else parameter
         tests = self.problem.test_functions(Z)
-        self.history.append((Z, self.s, tests))
-        while len(self.history) > 2:
-            self.history.pop(0)[0].destroy()
-        return ContinuationPoint(parameter=_parameter(Z), s=self.s, dp_ds=dp_ds, iterations=its, event=event,
+        self._remember(Z, self.s, tests, p)
+        return ContinuationPoint(parameter=p, s=self.s, dp_ds=dp_ds, iterations=its, event=event,
                                  report=self.problem.report(Z), tests=tests)
+
+    def _remember(self, Z, s, tests, p):
+        self.history.append((Z, s, tests))
+        self._known[id(Z)] = (Z, p)
+        while len(self.history) > 2:
+            old = self.history.pop(0)[0]
+            self._known.pop(id(old), None)
+            old.destroy()
+
+    def _p(self, Z):
+        """The parameter of Z: kept for the points of the history (a natural step needs no reduction for it),
+        else read from Z (collective)."""
+        known = self._known.get(id(Z))
+        return known[1] if known is not None and known[0] is Z else _parameter(Z)
 
     def _solve(self, Z, row=None, value=None):
         its = self.problem.solve(Z, row, value)
@@ -316,27 +331,28 @@ class Continuation:
         """Resume from stored points: ``states`` are the last (up to two) extended Vecs, oldest first, already
         solutions (copied, not corrected)."""
         for k, Z in enumerate(states[-2:]):
-            self.history.append((Z.copy(), arclengths[k] if arclengths else 0.0, self.problem.test_functions(Z)))
+            self._remember(Z.copy(), arclengths[k] if arclengths else 0.0, self.problem.test_functions(Z),
+                           _parameter(Z))
         if self.history:
             self.s = self.history[-1][1]
 
     @property
     def parameter(self):
-        return _parameter(self.history[-1][0]) if self.history else math.nan
+        return self._p(self.history[-1][0]) if self.history else math.nan
 
     @property
     def previous(self):
         """The parameter of the point accepted before the last (nan if none)."""
-        return _parameter(self.history[0][0]) if len(self.history) == 2 else math.nan
+        return self._p(self.history[0][0]) if len(self.history) == 2 else math.nan
 
     # --- natural steps ----------------------------------------------------------------------------------------
     def _natural_predict(self, p_new):
         prob = self.problem
         Z1 = self.history[-1][0]
-        p1 = _parameter(Z1)
+        p1 = self._p(Z1)
         Z = Z1.copy()
         Z0 = self.history[0][0] if len(self.history) == 2 else None
-        p0 = _parameter(Z0) if Z0 is not None else p1
+        p0 = self._p(Z0) if Z0 is not None else p1
         if abs(p1 - p0) > 1e-12 * max(1.0, abs(p1)):      # else the same point twice: no secant
             f = (p_new - p1) / (p1 - p0)
             Z.scale((1 + f) * prob.predictor_ratio(p1, p_new))
@@ -358,7 +374,7 @@ class Continuation:
             pred = Z.copy()
             failure = None
             try:
-                its = self._solve(Z)
+                its = self._solve(Z, None, p)
                 total_its += its
                 size = self._corrector_size(Z, pred)
                 if size > alg.max_corrector:
@@ -378,7 +394,7 @@ class Continuation:
             substeps += 1
             self.s += abs(p - p_last)
             previous = self.history[-1]
-            point = self._accept(Z, total_its)
+            point = self._accept(Z, total_its, parameter=p)
             for name, value in point.tests.items():
                 g0 = previous[2].get(name)
                 if g0 is not None and g0 * value < 0:
@@ -393,16 +409,18 @@ class Continuation:
             dp = p_target - p_last if abs(2 * dp) >= abs(p_target - p_last) else 2 * dp
 
     def _corrector_size(self, Z, pred):
-        """||X - X_pred||_inf / ||X||_inf (the parameter left out)."""
-        d = Z.copy()
-        d.axpy(-1.0, pred)
-        set_parameter(d, 0.0)
-        x = Z.copy()
-        set_parameter(x, 0.0)
-        size = d.norm(PETSc.NormType.NORM_INFINITY) / max(x.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
-        d.destroy()
-        x.destroy()
-        return size
+        """||X - X_pred||_inf / ||X||_inf (the parameter left out): both norms from the local arrays, in one
+        reduction."""
+        z, zp = Z.getArray(readonly=True), pred.getArray(readonly=True)
+        n = Z.getSize()
+        lo, hi = Z.getOwnershipRange()
+        k = len(z) - 1 if lo <= n - 1 < hi else len(z)
+        local = np.array([np.max(np.abs(z[:k] - zp[:k]), initial=0.0), np.max(np.abs(z[:k]), initial=0.0)])
+        comm = Z.getComm().tompi4py()
+        if comm.Get_size() > 1:
+            from mpi4py import MPI
+            comm.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        return local[0] / max(local[1], 1e-300)
 
     # --- pseudo-arclength steps -----------------------------------------------------------------------------
     def _tangent(self):
@@ -471,8 +489,8 @@ class Continuation:
             ds *= 0.5
         t.destroy()
         self.changes = 0
+        pm, p1 = self._p(Zm), self._p(Z1)
         Zm, Z1 = Zm.copy(), Z1.copy()
-        pm, p1 = _parameter(Zm), _parameter(Z1)
         self.s = s1 + ds
         point = self._accept(Z, its)
         t_new = self._tangent()
@@ -586,7 +604,7 @@ class Continuation:
             Z.axpy(f, Z2)
             set_parameter(Z, p)
             try:
-                its = self._solve(Z)
+                its = self._solve(Z, None, p)
             except ConvergenceError:
                 Z.destroy()
                 raise
@@ -633,7 +651,7 @@ class Continuation:
             point = self.step()
             yield point
             if until is not None and point.event is None and len(self.history) == 2:
-                p_prev = _parameter(self.history[0][0])
+                p_prev = self._p(self.history[0][0])
                 if (point.parameter - until) * (p_prev - until) <= 0:
                     return
 
@@ -641,6 +659,7 @@ class Continuation:
         for Z, _, _ in self.history:
             Z.destroy()
         self.history = []
+        self._known = {}
 
 
 _MOVED = ("BranchContinuation", "ContinuationParameters", "FixedGrid", "RefiningGrid", "continue_branch",

@@ -97,10 +97,14 @@ def hertzpetsc_branch(alpha, M, K):
 
 
 def worker(name, req, petsc_args):
+    # the routes' modules are imported before the clock starts (imports excluded: a package's import time, which
+    # grows with its size, is no part of the branch computation)
     if name == "petsc":
         import petsc4py
         petsc4py.init(sys.argv[:1] + petsc_args)
         from mpi4py import MPI
+
+        from hertzpetsc.continuation import BranchContinuation, ContinuationParameters  # noqa: F401
         comm = MPI.COMM_WORLD
         comm.Barrier()
         t0 = time.perf_counter()
@@ -108,6 +112,9 @@ def worker(name, req, petsc_args):
         comm.Barrier()
         emit(comm, wall=time.perf_counter() - t0, **res)
     else:
+        import scipy.sparse.linalg  # noqa: F401
+
+        from hertzpetsc.binary import binary_oscillation  # noqa: F401
         t0 = time.perf_counter()
         res = scipy_branch(req["alpha"], req["M"], req["K"])
         emit(None, wall=time.perf_counter() - t0, **res)

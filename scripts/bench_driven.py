@@ -14,7 +14,8 @@ the continuation layer, bordered Newton on SNES with the dense tangent-flow Jaco
 contracts, LAPACK multipliers of the monodromy at each response) on 1 and 2 ranks, and SciPy (solve_ivp DOP853 on
 the state and its 2N variational columns at each Newton iteration, numpy.linalg.solve, numpy.linalg.eigvals of the
 last monodromy; the previous response as the guess). long: -long_N beads, -long_run_in periods from rest, then
-Newton-Krylov shooting (GMRES on tangent-flow products) to 1e-9; time and peak memory per rank on 1 and 2 ranks.
+Newton-Krylov shooting (GMRES on tangent-flow products, preconditioned by the linear chain's monodromy) to 1e-9;
+time and peak memory per rank on 1 and 2 ranks.
 Each measurement in its own process (one BLAS thread per rank), best of -repeats; run on an idle machine.
 """
 import math
@@ -105,6 +106,16 @@ def petsc_sweep(req, petsc_args):
     comm = MPI.COMM_WORLD
     study = ResponseCurve(drive, "omega", grid[-1], PETSc.COMM_WORLD, None, tol=TOL, rtol=RTOL, grid=grid[1:],
                           run_in=req["run_in"], samples=0, max_steps=10 ** 6)
+    spent = dict(accurate=0.0, jacobian=0.0)
+    monodromy = study.problem.monodromy
+
+    def timed(x, p, accurate=True):                 # where the time goes: the two tangent flows
+        t = time.perf_counter()
+        try:
+            return monodromy(x, p, accurate)
+        finally:
+            spent["accurate" if accurate else "jacobian"] += time.perf_counter() - t
+    study.problem.monodromy = timed
     comm.Barrier()
     t0 = time.perf_counter()
     recs = list(study.run())
@@ -113,7 +124,8 @@ def petsc_sweep(req, petsc_args):
     c = study.problem.counters
     study.destroy()
     emit(comm, wall=wall, rho=[float(r["rho"]) for r in recs], iterations=int(sum(int(r["iterations"]) for r in recs)),
-         flows=c["tangent_flows"], state_flows=c["state_flows"], residual=max(float(r["residual"]) for r in recs))
+         flows=c["tangent_flows"], state_flows=c["state_flows"], residual=max(float(r["residual"]) for r in recs),
+         accurate_s=spent["accurate"], jacobian_s=spent["jacobian"])
 
 
 def petsc_long(req, petsc_args):
@@ -191,9 +203,12 @@ def main():
                   f"the periodic response and all {2 * N} Floquet multipliers at {points} frequencies from {omega0:g} "
                   f"to {omega1:g}; flows rtol {RTOL:g}, atol {ATOL:g}; shooting tolerance {TOL:g}. 'flows': flows of "
                   f"the state with {2 * N} tangent columns (hertzpetsc: plus 'state flows' without); max |d rho|: "
-                  "the largest difference of the spectral radius to the SciPy route's over the frequencies.\n",
+                  "the largest difference of the spectral radius to the SciPy route's over the frequencies; "
+                  "'multipliers' flows', 'Jacobians' flows': hertzpetsc's time in the fully resolved tangent flows "
+                  "(the multipliers at each response) and in the Newton Jacobians' (steps of the state's error).\n",
                   "| route | ranks | wall (s) | Newton iterations | flows with tangents | state flows | max residual | "
-                  "max \\|d rho\\| | peak MB/rank | SciPy / this |", "|---|---|---|---|---|---|---|---|---|---|"]
+                  "max \\|d rho\\| | peak MB/rank | SciPy / this | multipliers' flows (s) | Jacobians' flows (s) |",
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         sci = rec.measure("sweep scipy", lambda: best_of(1, me, "scipy", sweep, None, 7200))
         rows = [("SciPy (solve_ivp DOP853 + variational equations, numpy solve, eigvals)", 1, sci)]
         for ranks in (1, 2):
@@ -201,18 +216,21 @@ def main():
                          rec.measure(f"sweep petsc {ranks}", lambda: best_of(repeats, me, "sweep", sweep, ranks))))
         for name, ranks, res in rows:
             if res is None:
-                lines.append(f"| {name} | {ranks} | not finished | | | | | | | |")
+                lines.append(f"| {name} | {ranks} | not finished | | | | | | | | | |")
                 continue
             drho = max(abs(a - b) for a, b in zip(res["rho"], sci["rho"])) if sci else math.nan
             ratio = f"{sci['wall'] / res['wall']:.2f}" if sci else "n/a"
             lines.append(f"| {name} | {ranks} | {res['wall']:.1f} | {res['iterations']} | {res['flows']} | "
                          f"{res.get('state_flows', 'n/a')} | {res['residual']:.1e} | {drho:.1e} | "
-                         f"{max(res['rss_mb']):.0f} | {ratio} |")
+                         f"{max(res['rss_mb']):.0f} | {ratio} | "
+                         + " | ".join(f"{res[k]:.1f}" if k in res else "n/a" for k in ("accurate_s", "jacobian_s"))
+                         + " |")
         print("\n".join(lines[-3:]), flush=True)
     if "long" in workloads and long_N:
         lines += ["", f"Long chain: N = {long_N} beads, delta0 = {delta0:g}, gamma = {long_gamma:g}, a = 0.1, omega = "
                   f"1, wall; {long_run_in} periods from rest, then Newton-Krylov shooting (GMRES, one tangent-flow "
-                  "product per iteration) to 1e-9 relative.\n",
+                  "product per iteration, preconditioned by the linear chain's (R_lin - I)^-1: "
+                  "driven.LinearChainPreconditioner) to 1e-9 relative.\n",
                   "| ranks | wall (s) | run-in (s) | Newton-Krylov (s) | residual before Newton | Newton iterations | "
                   "tangent products | residual | peak MB/rank |", "|---|---|---|---|---|---|---|---|---|"]
         for ranks in (1, 2):

@@ -52,7 +52,8 @@ _EXPORTS = {
     "Drive": "driven", "HarmonicWave": "driven", "HalfSinePulses": "driven", "SampledWave": "driven",
     "ProfileWave": "driven", "PeriodicShooting": "driven", "Response": "driven", "switch_to_doubled": "driven",
     "ResponseCurve": "studies.driven", "LinearResonances": "studies.driven", "WaveEnds": "studies.driven",
-    "Generation": "studies.driven",
+    "Generation": "studies.driven", "ResponseParameters": "studies.driven", "ResonanceParameters": "studies.driven",
+    "WaveEndsParameters": "studies.driven", "GenerationParameters": "studies.driven",
     # conveniences (this package's api module)
     "compute_branch": "api", "wave_at": "api", "wave": "api", "orbit": "api", "refine": "api",
     "multipliers": "api", "plot_spectrum": "api",

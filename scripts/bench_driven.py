@@ -98,14 +98,14 @@ def petsc_sweep(req, petsc_args):
 
     from hertzpetsc.driven import Drive, HarmonicWave
     from hertzpetsc.model import LatticeModel
-    from hertzpetsc.studies.driven import ResponseCurve
+    from hertzpetsc.studies.driven import ResponseCurve, ResponseParameters
 
     grid = _grid(req)
     drive = Drive(LatticeModel.hertz(ALPHA, delta0=req["delta0"], gamma=req["gamma"]), req["N"], HarmonicWave(),
                   req["amplitude"], grid[0])
     comm = MPI.COMM_WORLD
-    study = ResponseCurve(drive, "omega", grid[-1], PETSc.COMM_WORLD, None, tol=TOL, rtol=RTOL, grid=grid[1:],
-                          run_in=req["run_in"], samples=0, max_steps=10 ** 6)
+    study = ResponseCurve(ResponseParameters(drive, "omega", grid[-1], tol=TOL, rtol=RTOL, grid=tuple(grid[1:]),
+                                             run_in=req["run_in"], samples=0, max_steps=10 ** 6), PETSc.COMM_WORLD)
     spent = dict(accurate=0.0, jacobian=0.0)
     monodromy = study.problem.monodromy
 

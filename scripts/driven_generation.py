@@ -27,10 +27,9 @@ from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.driven import WAVEFORMS, Generation  # noqa: E402
+from hertzpetsc.studies.driven import WAVEFORMS, Generation, GenerationParameters  # noqa: E402
 
-ROLES = {"drive_": ("Newton on P(X) - X and the state flow", ("snes", "ts")),
-         "floquet_": ("the tangent flow and SLEPc's eigensolver", ("ts", "eps"))}
+ROLES = Generation.ROLES
 
 
 def main():
@@ -60,14 +59,9 @@ def main():
     prepare_outputs(comm, table_path, figures=figures)
     branch = Branch.load(branch_path, comm)
     model = LatticeModel.hertz(alpha, (1.0,), delta0, 0.0, eta)
-    if abs(alpha - branch.alpha) > 1e-12:
-        from hertzpetsc.errors import ParameterError
-        raise ParameterError("-alpha", alpha, f"must be the branch's exponent {branch.alpha:g}")
-    if len(bulk) != 2:
-        from hertzpetsc.errors import ParameterError
-        raise ParameterError("-bulk", bulk, "two fractions lo,hi of the chain")
-    study = Generation(branch, model, N, signals, omegas, amps, gammas, comm, output, mode, run_in, tol, rtol,
-                       tuple(bulk), samples, width, branch_path)
+    study = Generation(GenerationParameters(branch, model, N, tuple(signals), tuple(omegas), tuple(amps),
+                                            tuple(gammas), run_in, tol, rtol, tuple(bulk), samples, width,
+                                            branch_path), comm, output, mode)
     opts.check_unused()
     study.open()
     print0(f"# {'signal':>9} {'omega':>6} {'a':>6} {'gamma':>6} {'ok':>3} {'rho':>8} {'q':>7} {'A/A_fam':>8} "

@@ -22,10 +22,9 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.driven import LinearResonances, drive_options  # noqa: E402
+from hertzpetsc.studies.driven import LinearResonances, ResonanceParameters, drive_options  # noqa: E402
 
-ROLES = {"drive_": ("Newton on P(X) - X and the state flow", ("snes", "ts")),
-         "floquet_": ("the tangent flow (Jacobian, multipliers)", ("ts",))}
+ROLES = LinearResonances.ROLES
 
 
 def main():
@@ -42,7 +41,7 @@ def main():
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)
-    study = LinearResonances(drive, comm, output, mode, modes or None, tol, rtol, golden)
+    study = LinearResonances(ResonanceParameters(drive, tuple(modes) or None, tol, rtol, golden), comm, output, mode)
     opts.check_unused()
     study.open()
     print0(f"# {'k':>3} {'omega_k':>12} {'peak linear':>12} {'peak shooting':>14} {'mu error':>9}")

@@ -18,10 +18,10 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.driven import EVENT_NAMES, ResponseCurve, corner_arclength, drive_options  # noqa: E402
+from hertzpetsc.studies.driven import (EVENT_NAMES, ResponseCurve, ResponseParameters,  # noqa: E402
+                                       corner_arclength, drive_options)
 
-ROLES = {"drive_": ("Newton on P(X) - X (bordered) and the state flow", ("snes", "ts")),
-         "floquet_": ("the tangent flow (Jacobian, multipliers) and SLEPc's eigensolver", ("ts", "eps"))}
+ROLES = ResponseCurve.ROLES
 
 
 def main():
@@ -57,8 +57,8 @@ def main():
     if mode == "grid":
         grid = [p0 + (p_end - p0) * k / (points - 1) for k in range(1, points)]
     algorithm = corner_arclength(ds, ds_max, max_corrector)
-    study = ResponseCurve(drive, parameter, p_end, comm, output, omode, periods, jacobian, floquet, nev, tol, rtol,
-                          algorithm, grid, run_in, samples, switch, max_steps)
+    study = ResponseCurve(ResponseParameters(drive, parameter, p_end, periods, jacobian, floquet, nev, tol, rtol,
+                                             algorithm, grid, run_in, samples, switch, max_steps), comm, output, omode)
     opts.check_unused()
     study.open()
     print0(f"# {drive.describe()}")

@@ -26,11 +26,10 @@ from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
-from hertzpetsc.studies.driven import WaveEnds  # noqa: E402
+from hertzpetsc.studies.driven import WaveEnds, WaveEndsParameters  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
-ROLES = {"drive_": ("Newton on P(X) - X and the state flow", ("snes", "ts")),
-         "floquet_": ("the tangent flows (Jacobian, multipliers, periodic chain)", ("ts",))}
+ROLES = WaveEnds.ROLES
 
 
 def main():
@@ -53,8 +52,9 @@ def main():
     prepare_outputs(comm, table_path, figures=figures)
     branch = Branch.load(branch_path, comm)
     refined = RefinedStates.load(refined_path, comm)
-    study = WaveEnds(branch, refined, [branch.point(q).q for q in qs], sizes, comm, output, mode, rtols, samples,
-                     branch_path=branch_path, refined_path=refined_path)
+    study = WaveEnds(WaveEndsParameters(branch, refined, tuple(branch.point(q).q for q in qs), tuple(sizes),
+                                        tuple(rtols), samples, branch_path=branch_path, refined_path=refined_path),
+                     comm, output, mode)
     opts.check_unused()
     study.open()
     print0(f"# {'q':>8} {'N':>4} {'rtol':>7} {'imposed':>9} {'residual':>9} {'rho':>12} {'rho periodic':>12}")

@@ -18,8 +18,10 @@ from hertzpetsc.driven import (Drive, HalfSinePulses, HarmonicWave, PeriodicShoo
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.floquet import DenseFloquet, dense_multipliers
 from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel
-from hertzpetsc.studies.driven import (EVENTS, LinearResonances, ResponseCurve, linear_chain, linear_multipliers,
-                                       linear_response, normal_modes)
+from hertzpetsc.studies.driven import (EVENTS, Generation, GenerationParameters, LinearResonances,
+                                       ResonanceParameters, ResponseCurve, ResponseParameters, WaveEnds,
+                                       WaveEndsParameters, linear_chain, linear_multipliers, linear_response,
+                                       normal_modes)
 from hertzpetsc.tangent import TangentFlow
 
 COMM = PETSc.COMM_WORLD
@@ -104,7 +106,7 @@ def test_normal_modes_closed_form_and_resonance_peaks():
     K = model.law.linear_stiffness
     closed = [2 * math.sqrt(K) * math.sin(k * math.pi / 8) for k in (1, 2, 3)]
     assert np.allclose(normal_modes(drive), closed, rtol=1e-13)
-    study = LinearResonances(drive, COMM, None, modes=[1], golden=30)
+    study = LinearResonances(ResonanceParameters(drive, modes=(1,), golden=30), COMM)
     try:
         rec = next(study.run())
     finally:
@@ -270,8 +272,9 @@ def test_period_doubling_is_located_confirmed_and_switched():
     located (|mu + 1| small), confirmed by the multipliers on both sides, and the branch switched onto has period
     2 T: P^2 X = X to the shooting tolerance while P X != X."""
     drive = Drive(LatticeModel.hertz(1.5, gamma=0.1), 2, HarmonicWave(), 1.0, 1.69)
-    study = ResponseCurve(drive, "omega", 1.665, COMM, None, algorithm=PseudoArclength(ds=0.01, ds_max=0.02, easy=5),
-                          run_in=100, samples=0, switch=2, max_steps=12)
+    study = ResponseCurve(ResponseParameters(drive, "omega", 1.665, algorithm=PseudoArclength(ds=0.01, ds_max=0.02,
+                                                                                            easy=5),
+                                             run_in=100, samples=0, switch=2, max_steps=12), COMM)
     try:
         records = list(study.run())
     finally:
@@ -301,6 +304,82 @@ def test_period_doubling_is_located_confirmed_and_switched():
 def test_bad_input_is_refused_naming_the_parameter(make, name):
     with pytest.raises(ParameterError, match=name):
         make()
+
+
+# --- the study protocol ----------------------------------------------------------------------------------------------
+def test_driven_studies_follow_the_study_protocol():
+    """Each driven study is a studies.base.Study: its record kind, fields and roles declared on the class, an
+    in-memory store without output, and the call of before the protocol (loose arguments) building the same
+    parameters and the same record file (constants and identity as the files written before hold them)."""
+    from hertzpetsc.studies.base import Study
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
+    for cls, kind in ((ResponseCurve, "response"), (LinearResonances, "resonances"), (WaveEnds, "wave-ends"),
+                      (Generation, "generation")):
+        assert issubclass(cls, Study) and cls.FORMAT == f"hertzpetsc-driven-{kind}-1"
+        assert set(cls.ROLES) == {"drive_", "floquet_"} and set(cls.DTYPES) <= set(cls.FIELDS)
+    new = ResponseCurve(ResponseParameters(drive, "omega", 0.75, run_in=5, max_steps=6, samples=16, nmult=100), COMM)
+    old = ResponseCurve(drive, "omega", 0.75, COMM, None, run_in=5, max_steps=6, samples=16, nmult=100)
+    try:
+        assert new.params == old.params and new.output is None and new.comm is COMM
+        assert new.identity() == new.constants() and new.constants()["nmult"] == 6      # at most 2N
+        assert new.open().arrays()["multipliers"].shape == (0, 6) and new.records == []
+        assert sorted(new.constants()) == ["N", "base_periods", "drive", "floquet", "jacobian", "mode", "nmult",
+                                           "p_end", "parameter", "rtol", "tol"]
+    finally:
+        new.destroy()
+        old.destroy()
+    res = LinearResonances(drive, COMM, None, "new", [2], golden=20)          # the call of before
+    try:
+        assert res.params == ResonanceParameters(drive, (2,), golden=20) and res.modes == [2]
+        assert res.identity() == dict(drive=res.constants()["drive"], modes=[2], tol=1e-10, rtol=1e-12)
+    finally:
+        res.destroy()
+
+
+@pytest.mark.parametrize("make,name", [
+    (lambda d: ResponseParameters(d, "eta", 1.0), "invalid parameter = 'eta'"),
+    (lambda d: ResponseParameters(d, "omega", 0.5), "invalid p_end = 0.5: must differ"),
+    (lambda d: ResponseParameters(d, "omega", 1.0, jacobian="full"), "invalid jacobian"),
+    (lambda d: ResponseParameters(d, "omega", 1.0, tol=2.0), "invalid tol = 2.0"),
+    (lambda d: ResponseParameters(d, "omega", 1.0, run_in=-1), "invalid run_in = -1: .* integer >= 0"),
+    (lambda d: ResponseParameters(d, "omega", 1.0, grid=()), "invalid grid"),
+    (lambda d: ResponseParameters("drive", "omega", 1.0), "invalid drive"),
+    (lambda d: ResonanceParameters(d, modes=(4,)), r"invalid modes = 4: a mode number in \[1, N\] = \[1, 3\]"),
+    (lambda d: ResonanceParameters(Drive(LatticeModel.hertz(1.5, gamma=0.1), 3, HarmonicWave(), 0.1, 0.5)),
+     "invalid delta0"),
+    (lambda d: ResonanceParameters(d, golden=0), "invalid golden"),
+])
+def test_driven_parameters_name_the_field_and_its_range(make, name):
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
+    with pytest.raises(ParameterError, match=name):
+        make(drive)
+
+
+def test_wave_ends_and_generation_parameters_are_checked():
+    """The file-based studies' parameters: sizes within the periodic chain, wavenumbers refined in the file, a
+    model of the branch's exponent, known signals, a bulk inside the chain."""
+    from hertzpetsc.branch import Branch
+    from hertzpetsc.studies.refinement import RefinedStates
+    branch = Branch.load(os.path.join(RESULTS, "branch_alpha1.5.npz"), COMM)
+    refined = RefinedStates.load(os.path.join(RESULTS, "refined_N100.npz"), COMM)
+    q = branch.point(2 * math.pi / 5).q
+    p = WaveEndsParameters(branch, refined, [q], [4, 10], [1e-12])
+    assert p.q == (q,) and p.sizes == (4, 10) and p.rtols == (1e-12,)
+    with pytest.raises(ParameterError, match=r"invalid sizes = 99: .* 1 <= N <= P - 2 = 98"):
+        WaveEndsParameters(branch, refined, [q], [99])
+    with pytest.raises(ParameterError, match="invalid q = 1.3: the refinement file has no refined wave"):
+        WaveEndsParameters(branch, refined, [1.3], [4])
+    model = LatticeModel.hertz(1.5)
+    g = GenerationParameters(branch, model, 8, ["half_sine"], [0.5], [0.1], [0.1], bulk=[0.2, 0.8])
+    assert g.signals == ("half_sine",) and g.bulk == (0.2, 0.8)
+    for kw, name in ((dict(model=LatticeModel.hertz(2.0)), "invalid alpha = 2.0: must be the branch's exponent"),
+                     (dict(signals=["square"]), "invalid signals = 'square'"),
+                     (dict(bulk=(0.5,)), "invalid bulk"), (dict(omegas=[0.0]), "invalid omegas = 0.0"),
+                     (dict(gammas=[-0.1]), "invalid gammas = -0.1")):
+        args = dict(branch=branch, model=model, N=8, signals=["harmonic"], omegas=[0.5], amplitudes=[0.1],
+                    gammas=[0.1])
+        with pytest.raises(ParameterError, match=name):
+            GenerationParameters(**dict(args, **kw))
 
 
 # --- the drivers -----------------------------------------------------------------------------------------------------

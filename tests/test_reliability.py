@@ -177,11 +177,11 @@ def test_a_documented_option_of_a_solver_the_run_does_not_create_is_accepted_and
 
 
 def _resumable_studies():
-    """Every study on the Study base, and the driven response curve, with a tiny parameter set: (name,
+    """Every study on the Study base (the driven response curve among them) with a tiny parameter set: (name,
     factory(output, mode))."""
     from hertzpetsc.driven import Drive, HarmonicWave
     from hertzpetsc.model import LatticeModel
-    from hertzpetsc.studies.driven import ResponseCurve
+    from hertzpetsc.studies.driven import ResponseCurve, ResponseParameters
     from hertzpetsc.studies.maps import MapParameters, StabilityMap
     from hertzpetsc.studies.precompression import (AmplitudeFamilies, AmplitudeParameters, DimerFamilies,
                                                    DimerParameters)
@@ -192,8 +192,8 @@ def _resumable_studies():
     driven = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 2, HarmonicWave(), 0.05, 0.5)
     return {
         # pseudo-arclength: the resumed run takes the step size the interrupted one had reached
-        "driven response": lambda out, mode: ResponseCurve(driven, "omega", 0.75, comm, out, mode, run_in=5,
-                                                           max_steps=6, samples=16),
+        "driven response": lambda out, mode: ResponseCurve(ResponseParameters(
+            driven, "omega", 0.75, run_in=5, max_steps=6, samples=16), comm, out, mode),
         "amplitude families": lambda out, mode: AmplitudeFamilies(AmplitudeParameters(
             pre, (3 * math.pi / 10, math.pi / 2), cells_per_pi=100, a_min=0.01, a_max=100, ds=0.5), comm, out, mode),
         "dimer families": lambda out, mode: DimerFamilies(DimerParameters(

@@ -2,6 +2,13 @@
 responses with their bifurcations, small-amplitude resonances against the linear chain's normal modes, the paper's
 exact boundary driving by a travelling wave, and the generation of travelling waves by simple signals.
 
+Each study follows the protocol of :mod:`hertzpetsc.studies.base`: ``Study(params, comm=None, output=None,
+mode="new")`` with its frozen, validated parameters (:class:`ResponseParameters`, :class:`ResonanceParameters`,
+:class:`WaveEndsParameters`, :class:`GenerationParameters`), its record kind, fields and solver roles (``drive_``,
+``floquet_``), and an in-memory store without ``output``. Their identities are the record kinds' as before the
+protocol (no solver options), so the files written before resume; the call of before (loose arguments) is still
+accepted (:meth:`DrivenStudy.legacy`).
+
 Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues):
 
 * ``hertzpetsc-driven-response-1`` (:class:`ResponseCurve`): constants ``drive`` (JSON of the drive at the start),
@@ -40,21 +47,23 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic
   (median (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
 """
+import inspect
 import json
 import math
-import time
+from dataclasses import dataclass
 
 import numpy as np
 from petsc4py import PETSc
 
 from ..continuation import Continuation, ContinuationError, Natural, PseudoArclength, golden_maximum
-from ..driven import (DRIVE_PREFIX, RESPONSE_TOLERANCES, TOL_MU, BranchFamily, HalfSinePulses, HarmonicWave,
-                      PeriodicShooting, configure_options, counts, crossing, local_wave, refined_profile,
+from ..driven import (FLOQUET_METHODS, JACOBIANS, PARAMETERS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
+                      HarmonicWave, PeriodicShooting, configure_options, crossing, local_wave, refined_profile,
                       switch_to_doubled, verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError
 from ..floquet import DenseFloquet
-from ..records import MemoryRecords, NpzRecords
+from ..model import LatticeModel
 from ..resources import MAX_DENSE_BEADS, check_chain_memory
+from .base import Study
 from .dealing import dealt
 
 GOLDEN = (math.sqrt(5) - 1) / 2     # the interval of a golden-section search shrinks by this per evaluation
@@ -94,14 +103,78 @@ def tolerances_of(rtol, scale=1.0):
     return IntegrationTolerances(rtol=rtol, atol=rtol * scale / 100)
 
 
+# --- the protocol of the driven studies --------------------------------------------------------------------------
+def _whole(name, value, minimum, what):
+    """An integer parameter >= minimum (a float with an integral value is taken), else ParameterError."""
+    if isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, bool) \
+            and math.isfinite(value) and value == int(value) and int(value) >= minimum:
+        return int(value)
+    raise ParameterError(name, value, f"{what} must be an integer >= {minimum}")
+
+
+def _real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
+    """A finite real parameter in the interval given (open ends by default), else ParameterError."""
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) \
+        and math.isfinite(value)
+    ok = ok and (lo is None or (value > lo if lo_open else value >= lo))
+    ok = ok and (hi is None or (value < hi if hi_open else value <= hi))
+    if not ok:
+        rng = " and ".join(x for x in ((f"{'>' if lo_open else '>='} {lo:g}" if lo is not None else ""),
+                                       (f"{'<' if hi_open else '<='} {hi:g}" if hi is not None else "")) if x)
+        raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else ""))
+    return float(value)
+
+
+def _reals(name, values, what, lo=None, hi=None, lo_open=True, hi_open=True):
+    """A non-empty tuple of reals, each checked as by :func:`_real`."""
+    out = tuple(_real(name, v, what, lo, hi, lo_open, hi_open) for v in np.atleast_1d(values).tolist())
+    if not out:
+        raise ParameterError(name, values, f"give at least one {what}")
+    return out
+
+
+def _drive(drive):
+    if not isinstance(drive, Drive):
+        raise ParameterError("drive", drive, "must be a hertzpetsc.driven.Drive")
+    return drive
+
+
+_CALL = inspect.Signature([inspect.Parameter("params", inspect.Parameter.POSITIONAL_OR_KEYWORD),
+                           *(inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=d)
+                             for n, d in (("comm", None), ("output", None), ("mode", "new")))])
+_DRIVE_ROLE = ("Newton on P(X) - X and the state flow", ("snes", "ts"))
+
+
+class DrivenStudy(Study):
+    """Common part of the driven studies (:class:`~hertzpetsc.studies.base.Study`): built as
+    ``Study(params, comm=None, output=None, mode="new")``; the call of before the protocol (the parameters as loose
+    arguments, ``comm`` and ``output`` among them) is still accepted, through :meth:`legacy`. The identity is the
+    record kind's as the files written before hold it (:meth:`identity`: no solver options), so they resume."""
+
+    def __init__(self, *args, **kwargs):
+        if (args and isinstance(args[0], self.Parameters)) or "params" in kwargs:
+            bound = _CALL.bind(*args, **kwargs)
+            bound.apply_defaults()
+            params, comm, output, mode = bound.arguments.values()
+        else:
+            params, comm, output, mode = self.legacy(*args, **kwargs)
+        super().__init__(params, comm, output, mode)
+
+    @classmethod
+    def legacy(cls, *args, **kwargs):
+        """(params, comm, output, mode) from the call of before the protocol."""
+        raise NotImplementedError
+
+    def identity(self):
+        """What a resumed file must agree with: the constants (the subclasses leave file names out)."""
+        return self.constants()
+
+    def configure(self):
+        """Nothing left to check: the options of ``drive_`` and ``floquet_`` are read when the study is built (its
+        shooting problem, or :func:`~hertzpetsc.driven.configure_options`)."""
+
+
 # --- frequency and amplitude responses --------------------------------------------------------------------------
-def _store(output, kind, constants, identity, fields, comm, mode, dtypes=None, shapes=None, what=None):
-    """The record file ``output``, or the records in memory when ``output`` is None (a notebook, a test)."""
-    if output is None:
-        return MemoryRecords(kind, constants, fields, comm, dtypes, shapes)
-    return NpzRecords(output, kind, constants, identity, fields, comm, mode, dtypes=dtypes, shapes=shapes, what=what)
-
-
 def corner_arclength(ds=0.02, ds_max=0.05, max_corrector=1.5):
     """The pseudo-arclength algorithm for response curves of Hertz chains: their contacts open and close, so the
     curves are only piecewise smooth (grazing points are corners, where the secant is not the tangent and Newton
@@ -110,46 +183,112 @@ def corner_arclength(ds=0.02, ds_max=0.05, max_corrector=1.5):
     grows after steps of at most 5."""
     return PseudoArclength(ds=ds, ds_max=max(ds, ds_max), easy=5, max_iterations=20, max_corrector=max_corrector,
                            max_halvings=10)
-class ResponseCurve:
-    """Responses of one :class:`~hertzpetsc.driven.Drive` continued in ``parameter`` from its value to ``p_end``.
 
-    ``mode`` 'arclength': the layer's pseudo-arclength (``algorithm``), through folds, with folds, period doublings
-    and Neimark-Sacker points located and each confirmed by the multipliers on both sides; 'grid': natural steps to
-    each of ``grid`` (every target recorded; events bracketed between grid points). The first response: Newton from
-    rest after ``run_in`` driving periods (0: from rest). ``switch``: steps taken on the period-doubled branch from
-    each confirmed period doubling (branch switching). ``samples``: samples per period for the diagnostics (0: none).
-    Solver prefixes: ``drive_`` (SNES and state flow), ``floquet_`` (tangent flow, EPS)."""
 
-    def __init__(self, drive, parameter, p_end, comm, output, mode="new", periods=1, jacobian="dense",
-                 floquet="dense", nev=8, tol=1e-10, rtol=1e-12, algorithm=None, grid=None, run_in=50,
-                 samples=64, switch=0, max_steps=400, nmult=64):
-        self.drive, self.parameter, self.comm = drive, parameter, comm
-        self.p_end = float(p_end)
-        p0 = drive.value(parameter)
-        if not self.p_end != p0:
-            raise ParameterError("p_end", p_end, f"must differ from the start {parameter} = {p0:g}")
-        self.grid = None if grid is None else [float(g) for g in grid]
-        self.algorithm = algorithm or corner_arclength()
-        self.run_in, self.samples, self.switch, self.max_steps = int(run_in), int(samples), int(switch), max_steps
-        self.nmult = min(int(nmult), 2 * drive.N)
-        self.kw = dict(parameter=parameter, periods=periods, jacobian=jacobian, floquet=floquet, nev=nev, tol=tol,
-                       tolerances=tolerances_of(rtol, drive.amplitude))
-        self.problem = PeriodicShooting(drive, comm, **self.kw)       # configures drive_ and floquet_ now
-        constants = dict(drive=json.dumps(drive.describe(), sort_keys=True, default=str), parameter=parameter,
-                         p_end=self.p_end, base_periods=periods, jacobian=jacobian, floquet=floquet, tol=tol, rtol=rtol,
-                         mode="grid" if grid is not None else "arclength", N=drive.N, nmult=self.nmult)
-        self._open = lambda: _store(output, RESPONSE_FORMAT, constants, constants, RESPONSE_FIELDS, comm, mode,
-                                        dtypes={"branch": np.int64, "periods": np.int64, "event": np.int64,
-                                                "confirmed": np.int64, "iterations": np.int64,
-                                                "outside": np.int64, "multipliers": complex},
-                                        shapes={"multipliers": (self.nmult,), "x": (drive.N, 2)},
-                                        what="driven-response file")
-        self.store = None
+@dataclass(frozen=True)
+class ResponseParameters:
+    """A response curve: the ``drive`` continued in ``parameter`` (omega, amplitude or gamma) from its value to
+    ``p_end``; the response's period in driving ``periods``; Newton's ``jacobian`` (dense, mf) and the multipliers'
+    route ``floquet`` (dense, slepc with ``nev``, none); the shooting tolerance ``tol`` and the flows' ``rtol``
+    (:func:`tolerances_of`); ``algorithm`` the pseudo-arclength (None: :func:`corner_arclength`), or ``grid`` the
+    parameter values of the grid mode; ``run_in`` driving periods from rest before the first Newton; ``samples``
+    per period for the diagnostics (0: none); ``switch`` steps on each period-doubled branch; ``max_steps``; the
+    ``nmult`` largest multipliers recorded (at most 2N)."""
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    drive: Drive
+    parameter: str
+    p_end: float
+    periods: int = 1
+    jacobian: str = "dense"
+    floquet: str = "dense"
+    nev: int = 8
+    tol: float = 1e-10
+    rtol: float = 1e-12
+    algorithm: object = None
+    grid: tuple = None
+    run_in: int = 50
+    samples: int = 64
+    switch: int = 0
+    max_steps: int = 400
+    nmult: int = 64
+
+    def __post_init__(self):
+        drive = _drive(self.drive)
+        if self.parameter not in PARAMETERS:
+            raise ParameterError("parameter", self.parameter, "the continuation parameter is one of "
+                                 + ", ".join(PARAMETERS))
+        p0 = drive.value(self.parameter)
+        p_end = _real("p_end", self.p_end, "the end value of the parameter")
+        if not p_end != p0:
+            raise ParameterError("p_end", self.p_end, f"must differ from the start {self.parameter} = {p0:g}")
+        object.__setattr__(self, "p_end", p_end)
+        object.__setattr__(self, "periods", _whole("periods", self.periods, 1, "the response period in driving "
+                                                   "periods"))
+        if self.jacobian not in JACOBIANS:
+            raise ParameterError("jacobian", self.jacobian, "must be one of " + ", ".join(JACOBIANS))
+        if self.floquet not in FLOQUET_METHODS:
+            raise ParameterError("floquet", self.floquet, "must be one of " + ", ".join(FLOQUET_METHODS))
+        object.__setattr__(self, "nev", _whole("nev", self.nev, 1, "the number of dominant multipliers"))
+        for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
+            _real(name, getattr(self, name), what, 0.0, 1.0)
+        if self.algorithm is not None and not isinstance(self.algorithm, (PseudoArclength, Natural)):
+            raise ParameterError("algorithm", self.algorithm, "a continuation.PseudoArclength (None: "
+                                 "corner_arclength())")
+        if self.grid is not None:
+            object.__setattr__(self, "grid", _reals("grid", self.grid, "parameter value of the grid"))
+        for name, lo, what in (("run_in", 0, "the run-in in driving periods"), ("samples", 0, "the samples per "
+                               "period"), ("switch", 0, "the steps on each doubled branch"),
+                               ("max_steps", 1, "the number of continuation steps"),
+                               ("nmult", 1, "the number of recorded multipliers")):
+            object.__setattr__(self, name, _whole(name, getattr(self, name), lo, what))
+
+
+class ResponseCurve(DrivenStudy):
+    """Responses of one :class:`~hertzpetsc.driven.Drive` continued in ``parameter`` from its value to ``p_end``
+    (:class:`ResponseParameters`).
+
+    Arclength (no ``grid``): the layer's pseudo-arclength (``algorithm``), through folds, with folds, period
+    doublings and Neimark-Sacker points located and each confirmed by the multipliers on both sides; grid: natural
+    steps to each value of ``grid`` (every target recorded; events bracketed between grid points). The first
+    response: Newton from rest after ``run_in`` driving periods (0: from rest). ``switch``: steps taken on the
+    period-doubled branch from each confirmed period doubling (branch switching). Solver prefixes: ``drive_`` (SNES
+    and state flow), ``floquet_`` (tangent flow, EPS). Records: module docstring."""
+
+    Parameters = ResponseParameters
+    FORMAT, FIELDS = RESPONSE_FORMAT, RESPONSE_FIELDS
+    DTYPES = {"branch": np.int64, "periods": np.int64, "event": np.int64, "confirmed": np.int64,
+              "iterations": np.int64, "outside": np.int64, "multipliers": complex}
+    ROLES = {"drive_": ("Newton on P(X) - X (bordered) and the state flow", ("snes", "ts")),
+             "floquet_": ("the tangent flow (Jacobian, multipliers) and SLEPc's eigensolver", ("ts", "eps"))}
+    WHAT = "driven-response file"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        p = self.params
+        self.drive, self.parameter, self.p_end = p.drive, p.parameter, p.p_end
+        self.grid = None if p.grid is None else list(p.grid)
+        self.algorithm = p.algorithm or corner_arclength()
+        self.run_in, self.samples, self.switch, self.max_steps = p.run_in, p.samples, p.switch, p.max_steps
+        self.nmult = min(p.nmult, 2 * p.drive.N)
+        self.SHAPES = {"multipliers": (self.nmult,), "x": (p.drive.N, 2)}
+        self.kw = dict(parameter=p.parameter, periods=p.periods, jacobian=p.jacobian, floquet=p.floquet, nev=p.nev,
+                       tol=p.tol, tolerances=tolerances_of(p.rtol, p.drive.amplitude))
+        self.problem = PeriodicShooting(p.drive, self.comm, **self.kw)       # configures drive_ and floquet_ now
+
+    @classmethod
+    def legacy(cls, drive, parameter, p_end, comm, output, mode="new", periods=1, jacobian="dense", floquet="dense",
+               nev=8, tol=1e-10, rtol=1e-12, algorithm=None, grid=None, run_in=50, samples=64, switch=0,
+               max_steps=400, nmult=64):
+        """The call of before the protocol: ``ResponseCurve(drive, parameter, p_end, comm, output, mode, ...)``."""
+        return (ResponseParameters(drive, parameter, p_end, periods, jacobian, floquet, nev, tol, rtol, algorithm,
+                                   grid, run_in, samples, switch, max_steps, nmult), comm, output, mode)
+
+    def constants(self):
+        """The constants of the files written before the protocol (their identity: all of them)."""
+        p = self.params
+        return dict(drive=json.dumps(p.drive.describe(), sort_keys=True, default=str), parameter=p.parameter,
+                    p_end=p.p_end, base_periods=p.periods, jacobian=p.jacobian, floquet=p.floquet, tol=p.tol,
+                    rtol=p.rtol, mode="grid" if p.grid is not None else "arclength", N=p.drive.N, nmult=self.nmult)
 
     # records
     def _record(self, problem, point, branch, event=None, confirmed=-1):
@@ -478,39 +617,72 @@ def _match(mu, ref):
     return worst
 
 
-class LinearResonances:
-    """Small-amplitude responses of a precompressed chain between an actuator a cos(omega t) and a wall: for each
-    normal mode k, the peak of the last bead's amplitude from shooting responses of the Hertz chain against the
-    damped linear chain's (closed form: complex solve) and against omega_k; the multipliers at the peak against
-    exp(T lambda) of the linear chain. Records per mode (module docstring)."""
+@dataclass(frozen=True)
+class ResonanceParameters:
+    """The linear resonances: the ``drive`` of a precompressed chain (delta0 > 0, at most
+    :data:`~hertzpetsc.resources.MAX_DENSE_BEADS` beads), the mode numbers ``modes`` in [1, N] (None: all), the
+    shooting tolerance ``tol`` and the flows' ``rtol``, ``golden`` golden-section steps per peak."""
 
-    def __init__(self, drive, comm, output, mode="new", modes=None, tol=1e-10, rtol=1e-12, golden=40):
+    drive: Drive
+    modes: tuple = None
+    tol: float = 1e-10
+    rtol: float = 1e-12
+    golden: int = 40
+
+    def __post_init__(self):
+        drive = _drive(self.drive)
         if not drive.model.delta0 > 0:
             raise ParameterError("delta0", drive.model.delta0, "the linear resonances need a precompressed chain "
                                  "(delta0 > 0)")
         if drive.N > MAX_DENSE_BEADS:
             raise ParameterError("N", drive.N, f"at most {MAX_DENSE_BEADS} beads (dense linear chain and multipliers)")
-        self.drive, self.comm = drive, comm
-        self.omega_k = normal_modes(drive)
-        self.modes = list(range(1, drive.N + 1)) if modes is None else [int(k) for k in modes]
-        for k in self.modes:
-            if not 1 <= k <= drive.N:
-                raise ParameterError("modes", k, f"a mode number in [1, N] = [1, {drive.N}]")
-        self.golden = int(golden)
-        self.problem = PeriodicShooting(drive, comm, parameter="omega", tol=tol,
-                                        tolerances=tolerances_of(rtol, drive.amplitude))
-        constants = dict(drive=json.dumps(drive.describe(), sort_keys=True, default=str), modes=self.modes, tol=tol,
-                         rtol=rtol)
-        self._open = lambda: _store(output, RESONANCE_FORMAT, constants, constants, RESONANCE_FIELDS, comm, mode,
-                                        dtypes={"k": np.int64, "evaluations": np.int64},
-                                        what="driven-resonances file")
-        self.store = None
+        if self.modes is not None:
+            modes = tuple(_whole("modes", k, 1, "a mode number") for k in np.atleast_1d(self.modes).tolist())
+            for k in modes:
+                if not 1 <= k <= drive.N:
+                    raise ParameterError("modes", k, f"a mode number in [1, N] = [1, {drive.N}]")
+            if not modes:
+                raise ParameterError("modes", self.modes, "give at least one mode number (None: all)")
+            object.__setattr__(self, "modes", modes)
+        for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
+            _real(name, getattr(self, name), what, 0.0, 1.0)
+        object.__setattr__(self, "golden", _whole("golden", self.golden, 1, "the golden-section steps per peak"))
+
+
+class LinearResonances(DrivenStudy):
+    """Small-amplitude responses of a precompressed chain between an actuator a cos(omega t) and a wall
+    (:class:`ResonanceParameters`): for each normal mode k, the peak of the last bead's amplitude from shooting
+    responses of the Hertz chain against the damped linear chain's (closed form: complex solve) and against
+    omega_k; the multipliers at the peak against exp(T lambda) of the linear chain. Records per mode (module
+    docstring)."""
+
+    Parameters = ResonanceParameters
+    FORMAT, FIELDS = RESONANCE_FORMAT, RESONANCE_FIELDS
+    DTYPES = {"k": np.int64, "evaluations": np.int64}
+    ROLES = {"drive_": _DRIVE_ROLE, "floquet_": ("the tangent flow (Jacobian, multipliers)", ("ts",))}
+    WHAT = "driven-resonances file"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        p = self.params
+        self.drive = p.drive
+        self.omega_k = normal_modes(p.drive)
+        self.modes = list(range(1, p.drive.N + 1)) if p.modes is None else list(p.modes)
+        self.golden = p.golden
+        self.problem = PeriodicShooting(p.drive, self.comm, parameter="omega", tol=p.tol,
+                                        tolerances=tolerances_of(p.rtol, p.drive.amplitude))
         self._x = None
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    @classmethod
+    def legacy(cls, drive, comm, output, mode="new", modes=None, tol=1e-10, rtol=1e-12, golden=40):
+        """The call of before the protocol: ``LinearResonances(drive, comm, output, mode, modes, ...)``."""
+        return ResonanceParameters(drive, modes, tol, rtol, golden), comm, output, mode
+
+    def constants(self):
+        """The constants of the files written before the protocol (their identity: all of them)."""
+        p = self.params
+        return dict(drive=json.dumps(p.drive.describe(), sort_keys=True, default=str), modes=self.modes, tol=p.tol,
+                    rtol=p.rtol)
 
     def window(self, k):
         w = self.omega_k
@@ -575,44 +747,86 @@ class LinearResonances:
 
 
 # --- the paper's exact boundary driving ------------------------------------------------------------------------------
-class WaveEnds:
-    """The refined travelling waves of a periodic chain of P beads (refinement file) imposed at both ends of finite
-    undamped chains of N beads (:func:`~hertzpetsc.driven.wave_ends_drive`, the end signals from the refined
-    wave's profile :func:`~hertzpetsc.driven.refined_profile`): the wave's residual in the driven chain, the
-    periodic response Newton finds from it, its multipliers over tau = 2 pi / omega, at each flow tolerance of
-    ``rtols``, against the periodic chain's rho(F_q)^(P/m) (dense Floquet modulo shift, same tolerance)."""
+@dataclass(frozen=True)
+class WaveEndsParameters:
+    """The exact boundary driving: the ``branch`` and the ``refined`` waves of its periodic chain of P beads
+    (:class:`~hertzpetsc.studies.refinement.RefinedStates`), the wavenumbers ``q`` (refined in it), the driven
+    chains' ``sizes`` N in [1, P - 2], the flow tolerances ``rtols``, at least ``samples`` points of the sampled
+    wave profile, the ``nmult`` largest multipliers recorded; ``branch_path`` and ``refined_path`` name the files
+    (recorded, not part of the identity)."""
 
-    def __init__(self, branch, refined, qs, sizes, comm, output, mode="new", rtols=(1e-12, 1e-14), samples=8192,
-                 nmult=12, branch_path="", refined_path=""):
-        self.branch, self.refined, self.comm = branch, refined, comm
-        self.qs, self.sizes = [float(q) for q in qs], [int(N) for N in sizes]
-        P = refined.N
-        for N in self.sizes:
+    branch: object
+    refined: object
+    q: tuple
+    sizes: tuple
+    rtols: tuple = (1e-12, 1e-14)
+    samples: int = 8192
+    nmult: int = 12
+    branch_path: str = ""
+    refined_path: str = ""
+
+    def __post_init__(self):
+        P = self.refined.N
+        sizes = tuple(_whole("sizes", N, 1, "the beads of a driven chain") for N in np.atleast_1d(self.sizes).tolist())
+        if not sizes:
+            raise ParameterError("sizes", self.sizes, "give at least one chain size")
+        for N in sizes:
             if not 1 <= N <= P - 2:
                 raise ParameterError("sizes", N, f"the driven chain must be a window of the periodic chain: "
                                      f"1 <= N <= P - 2 = {P - 2}")
-        for q in self.qs:
-            if not refined.has(q):
+        qs = _reals("q", self.q, "wavenumber", 0.0, math.pi, hi_open=False)
+        for q in qs:
+            if not self.refined.has(q):
                 raise ParameterError("q", q, f"the refinement file has no refined wave at q = {q:.12g}")
-        self.rtols = [float(r) for r in rtols]
-        self.samples, self.nmult = int(samples), int(nmult)
-        configure_options(comm)
-        constants = dict(alpha=branch.alpha, P=P, branch=branch_path, refined=refined_path, samples=self.samples,
-                         rtols=self.rtols)
-        self._open = lambda: _store(output, WAVE_ENDS_FORMAT, constants, dict(alpha=branch.alpha, P=P,
-                                                                                    samples=self.samples),
-                                        WAVE_ENDS_FIELDS, comm, mode, dtypes={"m": np.int64, "N": np.int64,
-                                                                              "iterations": np.int64,
-                                                                              "outside": np.int64,
-                                                                              "multipliers": complex},
-                                        shapes={"multipliers": (self.nmult,)}, what="driven wave-ends file")
-        self.store = None
+        object.__setattr__(self, "sizes", sizes)
+        object.__setattr__(self, "q", qs)
+        object.__setattr__(self, "rtols", _reals("rtols", self.rtols, "flow tolerance", 0.0, 1.0))
+        object.__setattr__(self, "samples", _whole("samples", self.samples, 1, "the points of the sampled profile"))
+        object.__setattr__(self, "nmult", _whole("nmult", self.nmult, 1, "the number of recorded multipliers"))
+
+
+class WaveEnds(DrivenStudy):
+    """The refined travelling waves of a periodic chain of P beads (refinement file) imposed at both ends of finite
+    undamped chains of N beads (:class:`WaveEndsParameters`; :func:`~hertzpetsc.driven.wave_ends_drive`, the end
+    signals from the refined wave's profile :func:`~hertzpetsc.driven.refined_profile`): the wave's residual in the
+    driven chain, the periodic response Newton finds from it, its multipliers over tau = 2 pi / omega, at each flow
+    tolerance of ``rtols``, against the periodic chain's rho(F_q)^(P/m) (dense Floquet modulo shift, same
+    tolerance)."""
+
+    Parameters = WaveEndsParameters
+    FORMAT, FIELDS = WAVE_ENDS_FORMAT, WAVE_ENDS_FIELDS
+    DTYPES = {"m": np.int64, "N": np.int64, "iterations": np.int64, "outside": np.int64, "multipliers": complex}
+    ROLES = {"drive_": _DRIVE_ROLE,
+             "floquet_": ("the tangent flows (Jacobian, multipliers, periodic chain)", ("ts",))}
+    WHAT = "driven wave-ends file"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        p = self.params
+        self.branch, self.refined = p.branch, p.refined
+        self.qs, self.sizes, self.rtols = list(p.q), list(p.sizes), list(p.rtols)
+        self.samples, self.nmult = p.samples, p.nmult
+        self.SHAPES = {"multipliers": (self.nmult,)}
+        configure_options(self.comm)
         self._rho_periodic = {}
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    @classmethod
+    def legacy(cls, branch, refined, qs, sizes, comm, output, mode="new", rtols=(1e-12, 1e-14), samples=8192,
+               nmult=12, branch_path="", refined_path=""):
+        """The call of before the protocol: ``WaveEnds(branch, refined, qs, sizes, comm, output, mode, ...)``."""
+        return (WaveEndsParameters(branch, refined, qs, sizes, rtols, samples, nmult, branch_path, refined_path),
+                comm, output, mode)
+
+    def constants(self):
+        p = self.params
+        return dict(alpha=p.branch.alpha, P=p.refined.N, branch=p.branch_path, refined=p.refined_path,
+                    samples=p.samples, rtols=list(p.rtols))
+
+    def identity(self):
+        """As in the files written before the protocol: alpha, P and samples (not the file names, nor rtols: a
+        resume may add tolerances)."""
+        p = self.params
+        return dict(alpha=p.branch.alpha, P=p.refined.N, samples=p.samples)
 
     def periodic_rho(self, orbit, rtol):
         key = (round(orbit.q, 12), rtol)
@@ -685,44 +899,101 @@ def make_waveform(name, width=0.5):
     raise ParameterError("waveform", name, "one of " + ", ".join(WAVEFORMS))
 
 
-class Generation:
-    """A long damped chain driven at one end (wall at the other) by simple signals: for each waveform, omega,
-    amplitude and gamma, the periodic response (run-in transient from rest, then Newton: dense for N <= 200,
-    Newton-Krylov above), its multipliers, and its bulk (beads in the fraction ``bulk`` of the chain) against the
-    branch's travelling-wave family (:class:`~hertzpetsc.driven.BranchFamily`): local wavenumber and amplitude,
-    the amplitude the family has at that (q, omega), the shape distance, their trends along the chain, and the
-    static and dynamic strains. The cases are dealt to the ranks (each on one rank)."""
+@dataclass(frozen=True)
+class GenerationParameters:
+    """Simple signals at one end: the ``branch`` (its travelling-wave family; ``branch_path`` names its file,
+    recorded, not part of the identity) and a ``model`` of the same exponent (its damping is replaced by each
+    gamma), N beads, the actuator's ``signals`` (of :data:`WAVEFORMS`; half_sine pulses of ``width`` periods), the
+    driving frequencies ``omegas`` > 0, ``amplitudes`` >= 0 and on-site damping ``gammas`` >= 0 (every
+    combination), ``run_in`` driving periods from rest, the shooting tolerance ``tol`` and the flows' ``rtol``, the
+    ``bulk`` fractions (lo, hi) of the chain, ``samples`` per period."""
 
-    def __init__(self, branch, model, N, waveforms, omegas, amplitudes, gammas, comm, output, mode="new", run_in=60,
-                 tol=1e-9, rtol=1e-12, bulk=(0.25, 0.75), samples=128, width=0.5, branch_path=""):
-        self.branch, self.model, self.N, self.comm = branch, model, int(N), comm
+    branch: object
+    model: LatticeModel
+    N: int
+    signals: tuple
+    omegas: tuple
+    amplitudes: tuple
+    gammas: tuple
+    run_in: int = 60
+    tol: float = 1e-9
+    rtol: float = 1e-12
+    bulk: tuple = (0.25, 0.75)
+    samples: int = 128
+    width: float = 0.5
+    branch_path: str = ""
+
+    def __post_init__(self):
+        if not isinstance(self.model, LatticeModel):
+            raise ParameterError("model", self.model, "must be a LatticeModel")
+        if abs(self.model.alpha - self.branch.alpha) > 1e-12:
+            raise ParameterError("alpha", self.model.alpha, f"must be the branch's exponent {self.branch.alpha:g}")
+        object.__setattr__(self, "N", _whole("N", self.N, 1, "the number of beads"))
+        signals = tuple(np.atleast_1d(self.signals).tolist())
+        if not signals:
+            raise ParameterError("signals", self.signals, "give at least one of " + ", ".join(WAVEFORMS))
+        for w in signals:
+            if w not in WAVEFORMS:
+                raise ParameterError("signals", w, "one of " + ", ".join(WAVEFORMS))
+            make_waveform(w, self.width)
+        object.__setattr__(self, "signals", signals)
+        object.__setattr__(self, "omegas", _reals("omegas", self.omegas, "driving frequency", 0.0))
+        object.__setattr__(self, "amplitudes", _reals("amplitudes", self.amplitudes, "actuator amplitude", 0.0,
+                                                      lo_open=False))
+        object.__setattr__(self, "gammas", _reals("gammas", self.gammas, "on-site damping", 0.0, lo_open=False))
+        object.__setattr__(self, "run_in", _whole("run_in", self.run_in, 0, "the run-in in driving periods"))
+        for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
+            _real(name, getattr(self, name), what, 0.0, 1.0)
+        bulk = tuple(np.atleast_1d(self.bulk).tolist())
+        if not (len(bulk) == 2 and all(isinstance(x, (int, float)) for x in bulk) and 0 <= bulk[0] < bulk[1] <= 1):
+            raise ParameterError("bulk", self.bulk, "two fractions lo, hi of the chain with 0 <= lo < hi <= 1")
+        object.__setattr__(self, "bulk", bulk)
+        object.__setattr__(self, "samples", _whole("samples", self.samples, 8, "the samples per period"))
+
+
+class Generation(DrivenStudy):
+    """A long damped chain driven at one end (wall at the other) by simple signals (:class:`GenerationParameters`):
+    for each waveform, omega, amplitude and gamma, the periodic response (run-in transient from rest, then Newton:
+    dense for N <= 200, Newton-Krylov above), its multipliers, and its bulk (beads in the fraction ``bulk`` of the
+    chain) against the branch's travelling-wave family (:class:`~hertzpetsc.driven.BranchFamily`): local wavenumber
+    and amplitude, the amplitude the family has at that (q, omega), the shape distance, their trends along the
+    chain, and the static and dynamic strains. The cases are dealt to the ranks (each on one rank)."""
+
+    Parameters = GenerationParameters
+    FORMAT, FIELDS = GENERATION_FORMAT, GENERATION_FIELDS
+    DTYPES = {"waveform": np.int64, "ok": np.int64, "iterations": np.int64}
+    ROLES = {"drive_": _DRIVE_ROLE, "floquet_": ("the tangent flow and SLEPc's eigensolver", ("ts", "eps"))}
+    WHAT = "driven-generation file"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        p = self.params
+        self.branch, self.model, self.N = p.branch, p.model, p.N
         # each case on one rank: the state flow and the Jacobian's tangent flow (2N columns up to 200 beads, else one)
         check_chain_memory(self.N, PETSc.COMM_SELF, columns=2 + 2 * self.N if self.N <= 200 else 3, name="N")
-        self.family = BranchFamily(branch)
-        self.cases = [(w, om, a, g) for w in waveforms for om in omegas for a in amplitudes for g in gammas]
-        for w in waveforms:
-            make_waveform(w, width)
-        self.width = width
-        self.run_in, self.tol, self.rtol, self.samples = int(run_in), tol, rtol, int(samples)
-        lo, hi = bulk
-        if not 0 <= lo < hi <= 1:
-            raise ParameterError("bulk", bulk, "a fraction (lo, hi) of the chain with 0 <= lo < hi <= 1")
-        self.bulk = (lo, hi)
+        self.family = BranchFamily(p.branch)
+        self.cases = [(w, om, a, g) for w in p.signals for om in p.omegas for a in p.amplitudes for g in p.gammas]
+        self.width, self.bulk = p.width, p.bulk
+        self.run_in, self.tol, self.rtol, self.samples = p.run_in, p.tol, p.rtol, p.samples
+        self.SHAPES = {"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)}
         configure_options(PETSc.COMM_SELF)
-        constants = dict(model=json.dumps(model.describe(), sort_keys=True), N=self.N, branch=branch_path,
-                         bulk=list(self.bulk), run_in=self.run_in, width=width)
-        identity = {k: v for k, v in constants.items() if k != "branch"}
-        self._open = lambda: _store(output, GENERATION_FORMAT, constants, identity,
-                                        GENERATION_FIELDS, comm, mode,
-                                        dtypes={"waveform": np.int64, "ok": np.int64, "iterations": np.int64},
-                                        shapes={"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)},
-                                        what="driven-generation file")
-        self.store = None
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    @classmethod
+    def legacy(cls, branch, model, N, waveforms, omegas, amplitudes, gammas, comm, output, mode="new", run_in=60,
+               tol=1e-9, rtol=1e-12, bulk=(0.25, 0.75), samples=128, width=0.5, branch_path=""):
+        """The call of before the protocol: ``Generation(branch, model, N, waveforms, omegas, amplitudes, gammas,
+        comm, output, mode, ...)``."""
+        return (GenerationParameters(branch, model, N, waveforms, omegas, amplitudes, gammas, run_in, tol, rtol, bulk,
+                                     samples, width, branch_path), comm, output, mode)
+
+    def constants(self):
+        p = self.params
+        return dict(model=json.dumps(p.model.describe(), sort_keys=True), N=p.N, branch=p.branch_path,
+                    bulk=list(p.bulk), run_in=p.run_in, width=p.width)
+
+    def identity(self):
+        """As in the files written before the protocol: the constants but the branch file's name."""
+        return {k: v for k, v in self.constants().items() if k != "branch"}
 
     def _key(self, w, om, a, g):
         return (WAVEFORMS.index(w), round(om, 12), round(a, 12), round(g, 12))

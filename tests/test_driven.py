@@ -307,6 +307,32 @@ def test_bad_input_is_refused_naming_the_parameter(make, name):
 
 
 # --- the study protocol ----------------------------------------------------------------------------------------------
+def test_a_response_curve_that_stops_early_says_where_and_keeps_its_points(monkeypatch, capfd):
+    """A continuation that cannot take a step ends the curve at the last converged response: the records up to it
+    are kept, and the study says so in one note naming the parameter and the end it did not reach (never a
+    silently shorter curve)."""
+    from hertzpetsc import continuation
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
+    run = continuation.Continuation.run
+
+    def stopping(self, until, max_steps=None):
+        for k, point in enumerate(run(self, until, max_steps)):
+            if k == 2:
+                raise continuation.ContinuationError("omega", point.parameter, point.parameter + 0.01, "test")
+            yield point
+    monkeypatch.setattr(continuation.Continuation, "run", stopping)
+    study = ResponseCurve(ResponseParameters(drive, "omega", 0.9, run_in=5, max_steps=20, samples=0), COMM)
+    try:
+        recs = list(study.run())
+    finally:
+        study.destroy()
+    assert len(recs) == 4 and float(recs[-1]["p"]) < 0.9            # the first two, and the two steps taken
+    assert "omega = 0.9" in study.ended and "last converged omega" in study.ended
+    if COMM.getRank() == 0:
+        err = capfd.readouterr().err
+        assert err.count("note: the continuation stopped before omega = 0.9") == 1
+
+
 def test_driven_studies_follow_the_study_protocol():
     """Each driven study is a studies.base.Study: its record kind, fields and roles declared on the class, an
     in-memory store without output, and the call of before the protocol (loose arguments) building the same

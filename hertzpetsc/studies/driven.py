@@ -50,6 +50,7 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
 import inspect
 import json
 import math
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -256,6 +257,7 @@ class ResponseCurve(DrivenStudy):
 
     Parameters = ResponseParameters
     FORMAT, FIELDS = RESPONSE_FORMAT, RESPONSE_FIELDS
+    ended = None                   # why the continuation stopped before p_end, when it did (also said in a note)
     DTYPES = {"branch": np.int64, "periods": np.int64, "event": np.int64, "confirmed": np.int64,
               "iterations": np.int64, "outside": np.int64, "multipliers": complex}
     ROLES = {"drive_": ("Newton on P(X) - X (bordered) and the state flow", ("snes", "ts")),
@@ -459,8 +461,11 @@ class ResponseCurve(DrivenStudy):
                 self._append(rec, cont)
                 yield rec
                 mu_prev, tests_prev, dp_prev = mu, point.tests or {}, point.dp_ds
-        except ContinuationError:
+        except ContinuationError as err:
             # everything up to the last point was recorded; the curve ends there (e.g. the response is lost)
+            self.ended = f"the continuation stopped before {self.parameter} = {self.p_end:g}: {err}"
+            if self.comm.getRank() == 0:
+                print(f"note: {self.ended}", file=sys.stderr, flush=True)
             return
 
     def _switched(self):

@@ -609,6 +609,11 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
         rho = np.array([float(r["rho"]) for r in regular])
         y = f if np.any(np.isfinite(f)) else np.array([float(r["amp_max"]) for r in regular])
         color = "k" if j == 0 else f"C{j}"
+        if not np.any(np.isfinite(rho)):           # no multipliers (floquet none): no verdict to draw
+            ax.plot(p, y, "-", color="0.4", lw=1.2, label=f"branch {j} (period {int(rs[0]['periods'])} T; "
+                    "multipliers not computed)")
+            bx.text(0.5, 0.5, "multipliers not computed", ha="center", va="center", transform=bx.transAxes)
+            continue
         stable = rho < 1
         ax.plot(p, y, ":", color=color, lw=0.9)
         bx.plot(p, rho, ":", color=color, lw=0.9)

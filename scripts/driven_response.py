@@ -16,6 +16,7 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
+from hertzpetsc.continuation import Natural  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.driven import (EVENT_NAMES, ResponseCurve, ResponseParameters,  # noqa: E402
@@ -41,6 +42,10 @@ def main():
     ds_max = opts.real("ds_max", 0.05, "largest arclength step")
     max_corrector = opts.real("max_corrector", 1.5, "largest corrector distance, in steps (corners of the curve)",
                               valid=(lambda x: x > 0, "> 0"))
+    grid_max_corrector = opts.real("grid_max_corrector", Natural.max_corrector, "grid mode: largest relative change "
+                                   "of the state by one corrector before the step is halved (a long chain, whose "
+                                   "response changes entirely between frequencies: large)",
+                                   valid=(lambda x: x > 0, "> 0"))
     run_in = opts.integer("run_in", 50, "driving periods of transient from rest before the first Newton", minimum=0)
     samples = opts.integer("samples_per_period", 64, "samples per period for forces and energy balance (0: none)",
                            minimum=0)
@@ -56,7 +61,8 @@ def main():
     grid = None
     if mode == "grid":
         grid = [p0 + (p_end - p0) * k / (points - 1) for k in range(1, points)]
-    algorithm = corner_arclength(ds, ds_max, max_corrector)
+    algorithm = corner_arclength(ds, ds_max, max_corrector) if mode == "arclength" else \
+        Natural(max_corrector=grid_max_corrector)
     study = ResponseCurve(ResponseParameters(drive, parameter, p_end, periods, jacobian, floquet, nev, tol, rtol,
                                              algorithm, grid, run_in, samples, switch, max_steps), comm, output, omode)
     opts.check_unused()

@@ -12,7 +12,7 @@ from petsc4py import PETSc
 from conftest import RESULTS, ROOT, one_error_line, run_script
 from hertzpetsc.assembly import gathered
 from hertzpetsc.chain import Chain, IntegrationTolerances
-from hertzpetsc.continuation import PseudoArclength
+from hertzpetsc.continuation import Natural, PseudoArclength
 from hertzpetsc.driven import (Drive, HalfSinePulses, HarmonicWave, PeriodicShooting, SampledWave, crossing,
                                damping_trace, refined_profile, wave_ends_drive)
 from hertzpetsc.errors import ParameterError
@@ -331,6 +331,22 @@ def test_a_response_curve_that_stops_early_says_where_and_keeps_its_points(monke
     if COMM.getRank() == 0:
         err = capfd.readouterr().err
         assert err.count("note: the continuation stopped before omega = 0.9") == 1
+
+
+def test_grid_mode_takes_the_natural_algorithm_it_is_given():
+    """In grid mode a continuation.Natural given as the algorithm is the one stepping (here a corrector limit no
+    step can meet: the curve stops after the first response, with its note), the default Natural otherwise."""
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
+    out = []
+    for algorithm in (Natural(max_corrector=1e-14, max_halvings=1), None):
+        study = ResponseCurve(ResponseParameters(drive, "omega", 0.6, grid=(0.55, 0.6), algorithm=algorithm,
+                                                 run_in=5, samples=0), COMM)
+        try:
+            out.append((len(list(study.run())), study.ended))
+        finally:
+            study.destroy()
+    assert out[0][0] == 1 and "omega = 0.6" in out[0][1]
+    assert out[1] == (3, None)
 
 
 def test_driven_studies_follow_the_study_protocol():

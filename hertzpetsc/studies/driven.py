@@ -192,7 +192,7 @@ class ResponseParameters:
     ``p_end``; the response's period in driving ``periods``; Newton's ``jacobian`` (dense, mf) and the multipliers'
     route ``floquet`` (dense, slepc with ``nev``, none); the shooting tolerance ``tol`` and the flows' ``rtol``
     (:func:`tolerances_of`); ``algorithm`` the pseudo-arclength (None: :func:`corner_arclength`), or ``grid`` the
-    parameter values of the grid mode; ``run_in`` driving periods from rest before the first Newton; ``samples``
+    parameter values of the grid mode (natural steps: ``algorithm`` if it is a continuation.Natural); ``run_in`` driving periods from rest before the first Newton; ``samples``
     per period for the diagnostics (0: none); ``switch`` steps on each period-doubled branch; ``max_steps``; the
     ``nmult`` largest multipliers recorded (at most 2N)."""
 
@@ -234,7 +234,7 @@ class ResponseParameters:
             _real(name, getattr(self, name), what, 0.0, 1.0)
         if self.algorithm is not None and not isinstance(self.algorithm, (PseudoArclength, Natural)):
             raise ParameterError("algorithm", self.algorithm, "a continuation.PseudoArclength (None: "
-                                 "corner_arclength())")
+                                 "corner_arclength()) or, with a grid, a continuation.Natural")
         if self.grid is not None:
             object.__setattr__(self, "grid", _reals("grid", self.grid, "parameter value of the grid"))
         for name, lo, what in (("run_in", 0, "the run-in in driving periods"), ("samples", 0, "the samples per "
@@ -380,7 +380,11 @@ class ResponseCurve(DrivenStudy):
                 return
         elif done and (len(done) >= self.max_steps or self._passed(float(done[-1]["p"]), p_start)):
             return
-        cont = Continuation(prob, self.grid is not None and Natural() or self.algorithm)
+        if self.grid is None:
+            algorithm = self.algorithm
+        else:                                      # natural steps: the algorithm given if natural, else the default
+            algorithm = self.algorithm if isinstance(self.algorithm, Natural) else Natural()
+        cont = Continuation(prob, algorithm)
         trailing = []
         try:
             if done:
@@ -407,7 +411,11 @@ class ResponseCurve(DrivenStudy):
         prob = self.problem
         mu_prev = previous["multipliers"]
         for p in targets:
-            point = cont.step_to(p)
+            try:
+                point = cont.step_to(p)
+            except ContinuationError as err:
+                self._stopped(err)
+                return
             rec = self._record(prob, point, 0)
             mu = point.report.get("multipliers", rec["multipliers"])
             kind = crossing(mu_prev, mu)
@@ -462,11 +470,15 @@ class ResponseCurve(DrivenStudy):
                 yield rec
                 mu_prev, tests_prev, dp_prev = mu, point.tests or {}, point.dp_ds
         except ContinuationError as err:
-            # everything up to the last point was recorded; the curve ends there (e.g. the response is lost)
-            self.ended = f"the continuation stopped before {self.parameter} = {self.p_end:g}: {err}"
-            if self.comm.getRank() == 0:
-                print(f"note: {self.ended}", file=sys.stderr, flush=True)
+            self._stopped(err)
             return
+
+    def _stopped(self, err):
+        """Everything up to the last point was recorded; the curve ends there (e.g. the response is lost): say so
+        once (:attr:`ended`, and a note on rank 0)."""
+        self.ended = f"the continuation stopped before {self.parameter} = {self.p_end:g}: {err}"
+        if self.comm.getRank() == 0:
+            print(f"note: {self.ended}", file=sys.stderr, flush=True)
 
     def _switched(self):
         """From each confirmed period doubling of branch 0 (in order), switch onto the doubled branch and take
@@ -550,9 +562,11 @@ class ResponseCurve(DrivenStudy):
         main = self.branch_records(0)
         if main:
             stable = sum(1 for r in main if float(r["rho"]) < 1 - TOL_MU)
+            verdicts = f"stable (rho < 1 - {TOL_MU:g}) at {stable}" \
+                if any(math.isfinite(float(r["rho"])) for r in main) else "multipliers not computed (floquet none)"
             lines.append("")
             lines.append(f"Branch 0: {len(main)} points, {self.parameter} from {float(main[0]['p']):.6g} to "
-                         f"{float(main[-1]['p']):.6g}; stable (rho < 1 - {TOL_MU:g}) at {stable}; max residual "
+                         f"{float(main[-1]['p']):.6g}; {verdicts}; max residual "
                          f"{max(float(r['residual']) for r in main):.1e}; max force_right "
                          f"{np.nanmax([float(r['force_right']) for r in main]):.4g}.")
         for j in sorted({int(r["branch"]) for r in recs} - {0}):

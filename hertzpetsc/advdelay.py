@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
-from .errors import ConvergenceError, ParameterError
+from .errors import ParameterError
 from .model import LatticeModel
 from .stencil import shift_stencil
 
@@ -370,14 +370,6 @@ class AdvanceDelayProblem(ContinuationProblem):
             if extended:
                 a[k] = parameter
         return V
-
-    def to_extended(self, X):
-        """Z = (X, current parameter)."""
-        Z = self.create_vec()
-        Z.getArray()[:len(X.getArray(readonly=True))] = X.getArray(readonly=True)
-        if self.last:
-            Z.getArray()[-1] = self.get_parameter(self.parameter)
-        return Z
 
     def _scalars(self, V):
         """The scalars after the profiles (on every rank): lam (bordered form) then the parameter (Z)."""

@@ -142,10 +142,6 @@ class ComovingWave:
               - np.conj(e) * (sp.diags(self.b) @ shift_csr(n, -self.sigma)))
         return [shift_csr(n, 1.0), ((self.h ** 2) * Kt - 2.0 * sp.identity(n)).tocsr(), shift_csr(n, -1.0)]
 
-    def band_lambda(self, theta):
-        """lambda_b = -i theta / q of the compacton band (mu = 1) in the theta problem."""
-        return -1j * theta / self.q
-
     def multiplier(self, lam, theta):
         """mu = exp(lambda q + i theta) of F_q."""
         return np.exp(np.asarray(lam) * self.q + 1j * theta)

@@ -188,14 +188,6 @@ def set_parameter(Z, value):
         Z.getArray()[-1] = value
 
 
-def unit_row(Z):
-    """e_p: 1 on the parameter entry, 0 elsewhere."""
-    e = Z.duplicate()
-    e.set(0.0)
-    set_parameter(e, 1.0)
-    return e
-
-
 @dataclass(frozen=True)
 class Natural:
     """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`~ContinuationProblem.predictor_ratio`), step

@@ -158,7 +158,6 @@ class ChainKernel:
 
     def __init__(self, chain, lib):
         self.lib = lib
-        law = chain.model.law
         n = chain.nloc
         self.work = np.zeros((3, n + 1))
         self.ghost = np.zeros(2 * chain.dof)

@@ -164,12 +164,6 @@ class LatticeModel:
         """m_n for bead indices n (any integers: the pattern repeats)."""
         return np.asarray(self.masses)[np.mod(np.asarray(n), self.cell)]
 
-    def require_uniform_masses(self, what):
-        """ParameterError unless every mass is 1 (for computations only written for the paper's chain)."""
-        if not self.uniform_masses:
-            raise ParameterError("masses", list(self.masses), f"{what} is written for the monatomic chain "
-                                 "(all masses 1)")
-
     def require_conservative(self, what):
         """ParameterError if the model is damped (for computations of the Hamiltonian chain: travelling waves)."""
         if self.damped:

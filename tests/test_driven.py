@@ -11,12 +11,12 @@ from petsc4py import PETSc
 
 from conftest import RESULTS, ROOT, one_error_line, run_script
 from hertzpetsc.assembly import gathered
-from hertzpetsc.chain import Chain, IntegrationTolerances
+from hertzpetsc.chain import IntegrationTolerances
 from hertzpetsc.continuation import Natural, PseudoArclength
 from hertzpetsc.driven import (Drive, HalfSinePulses, HarmonicWave, PeriodicShooting, SampledWave, crossing,
                                damping_trace, refined_profile, wave_ends_drive)
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.floquet import DenseFloquet, dense_multipliers
+from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel
 from hertzpetsc.studies.driven import (EVENTS, Generation, GenerationParameters, LinearResonances,
                                        ResonanceParameters, ResponseCurve, ResponseParameters, WaveEnds,

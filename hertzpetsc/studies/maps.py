@@ -465,9 +465,6 @@ class StabilityMap(Study):
     def table(self):
         return map_table(self.arrays())
 
-    def figure_data(self):
-        return self.arrays()
-
 
 def _records(z, q):
     mine = np.abs(np.asarray(z["q"], dtype=float) - q) <= 1e-12 * q

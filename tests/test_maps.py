@@ -203,8 +203,9 @@ def test_maps_before_issue_23_are_rendered_not_resumed_and_the_old_import_path_w
 
 def test_unstable_intervals_pair_the_located_edges():
     """Intervals from the located edges of a q (records as the study writes them): an onset opens, an offset closes;
-    unstable at the smallest amplitude opens from 0, an onset never closed runs to inf, two onsets in a row leave
-    an offset not located (nan); a chain without edges and stable points has none."""
+    unstable at the smallest amplitude opens from 0, an onset never closed runs to inf if the largest amplitude is
+    unstable (else its offset was not located: nan), two onsets in a row leave an offset not located (nan); a chain
+    without edges and stable points has none."""
     from hertzpetsc.studies.maps import KIND_EDGE, unstable_intervals
     nan = math.nan
     rows = [  # q, kind, A, rho, A_stable, A_unstable
@@ -220,3 +221,7 @@ def test_unstable_intervals_pair_the_located_edges():
     spans = unstable_intervals(z)[1.0]
     # onsets at 0.2 and 0.5 after the unstable first point: two offsets not located
     assert np.array_equal(spans, [(0.0, math.nan), (0.2, math.nan), (0.5, 0.8), (2.0, math.inf)], equal_nan=True)
+    # an onset never closed but the largest map amplitude stable: its offset was not located (not inf: the verdict
+    # at the map's last amplitude and beyond would be overreached)
+    z["rho"][7] = 1.0
+    assert np.array_equal(unstable_intervals(z)[1.0][-1], (2.0, math.nan), equal_nan=True)

@@ -545,8 +545,8 @@ def unstable_intervals(z, key="rho"):
     """{q: [(A_from, A_to), ...]} the intervals of A where the chain of ``key`` (``rho``: N beads, ``rho_inf``: the
     infinite chain) is unstable, between its located edges (the located points' A, the midpoints of their
     brackets): from 0 when the smallest map amplitude is unstable before the first edge, to inf when the verdict
-    stays unstable (then the uncompressed limit's verdict is unstable too unless a change beyond the largest map
-    amplitude was not located); nan where an edge between two located ones was not located (an onset after an
+    stays unstable up to the largest map amplitude (then the uncompressed limit's verdict is unstable too unless a
+    change beyond the largest map amplitude was not located); nan where an edge between two located ones was not located (an onset after an
     onset, or an offset after an offset: the family stepped into a window the map's amplitudes do not show)."""
     tol = float(z["tol_rho"])
     kind, q, A = np.asarray(z["kind"]), np.asarray(z["q"], float), np.asarray(z["A"], float)
@@ -568,8 +568,9 @@ def unstable_intervals(z, key="rho"):
             else:                              # stable before: nan, an onset between was not located
                 spans.append((math.nan if start is None else start, float(A[i])))
                 start = None
-        if start is not None:
-            spans.append((start, math.inf))
+        if start is not None:                  # up to the uncompressed limit only if the largest amplitude is unstable
+            last = pts[np.argmax(A[pts])]
+            spans.append((start, math.inf if rho[last] - 1 > tol or A[last] < start else math.nan))
         out[qq] = spans
     return out
 

@@ -3,13 +3,14 @@ both sides, instability bubbles narrower than the sampling found through Krein c
 the infinite chain's Bloch parameter), the trivial multipliers of a dimer deflated exactly, the driver on 1 and 2
 ranks."""
 import math
+import os
 import pathlib
 
 import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import one_error_line, run_script
+from conftest import RESULTS, one_error_line, run_script
 from hertzpetsc.bloch import BlochSectors, SymmetricFloquet
 from hertzpetsc.chain import IntegrationTolerances
 from hertzpetsc.errors import ParameterError
@@ -225,3 +226,26 @@ def test_unstable_intervals_pair_the_located_edges():
     # at the map's last amplitude and beyond would be overreached)
     z["rho"][7] = 1.0
     assert np.array_equal(unstable_intervals(z)[1.0][-1], (2.0, math.nan), equal_nan=True)
+
+
+def test_a_deflation_that_does_not_hold_gives_no_verdict(capfd):
+    """A record whose symmetry vectors are not eigenvectors of its sector maps (eigenvector residual above
+    maps.EIGVEC_MAX) keeps rho = nan with a note, and the table marks it '?', never '.' or 'U'."""
+    from types import SimpleNamespace
+    from hertzpetsc.studies import maps
+    study = maps.StabilityMap(maps.MapParameters(LatticeModel.hertz(1.5, delta0=1.0), (2 * math.pi * 20 / 100,),
+                                                 (0.1,)), SELF)
+    chain = dict(rho=1.4, outside=3, sector=0.0, cluster=1.3, raw=0.1, eigvec=0.42, decoupled=True)
+    probe = SimpleNamespace(chain=lambda entry: chain)
+    q = 2 * math.pi * 20 / 100
+    row = study._row(q, maps.KIND_LIMIT, math.inf, math.inf, 0.9, probe, {})
+    assert math.isnan(row["rho"]) and row["outside"] == -1 and row["eigvec"] == 0.42
+    assert "eigenvector residual 4.2e-01" in capfd.readouterr().err
+    chain["eigvec"] = 1e-9
+    assert study._row(q, maps.KIND_LIMIT, math.inf, math.inf, 0.9, probe, {})["rho"] == 1.4
+    z = maps.read_map(os.path.join(RESULTS, "stability_boundary_alpha2_N100.npz"))
+    z = {k: np.array(v) for k, v in z.items()}
+    lim = np.nonzero((z["kind"] == maps.KIND_LIMIT) & np.isclose(z["q"], q))[0]
+    z["rho"][lim] = math.nan
+    row = next(line for line in maps.map_table(z).splitlines() if line.startswith("| 2pi/5 |") and "`" in line)
+    assert "|?`" in row and "'?' no verdict" in maps.map_table(z)

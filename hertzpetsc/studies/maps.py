@@ -33,6 +33,7 @@ the four nearest 1, no located boundary) are read for their tables and figure (:
 """
 import math
 import os
+import sys
 import time
 from dataclasses import dataclass
 from fractions import Fraction
@@ -62,6 +63,9 @@ from .precompression import _check_delta0_positive, _check_qs, wave_orbit
 
 MAP_FORMAT = "hertzpetsc-precompression-map-2"
 MAP_FORMAT_V1 = "hertzpetsc-precompression-map-1"
+# largest eigenvector residual of the deflated symmetry vectors that leaves a verdict standing (the valid orbits of
+# the committed maps stay below 1e-6; a wrong orbit or symmetry group gives O(1))
+EIGVEC_MAX = 1e-4
 MAP_FIELDS = ("q", "m", "kind", "a", "A", "omega", "rho", "outside", "sector", "cluster", "raw_cluster", "eigvec",
               "decoupled", "rho_inf", "theta_inf", "cluster_inf", "a_stable", "a_unstable", "A_stable", "A_unstable",
               "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds")
@@ -310,6 +314,12 @@ class StabilityMap(Study):
                 c = probe.chain(entry)
                 row.update(rho=c["rho"], outside=c["outside"], sector=c["sector"], cluster=c["cluster"],
                            raw_cluster=c["raw"], eigvec=c["eigvec"], decoupled=int(c["decoupled"]))
+                if not c["eigvec"] <= EIGVEC_MAX:
+                    # the symmetry vectors are not eigenvectors of this orbit's sector maps: the deflated
+                    # spectrum is not the wave's, no verdict (rho nan), said once per record
+                    row.update(rho=nan, outside=-1)
+                    print(f"note: q = {q:.6g}, a = {a:g}: the deflation's eigenvector residual {c['eigvec']:.1e} "
+                          f"exceeds {EIGVEC_MAX:g}; no verdict recorded (rho = nan)", file=sys.stderr, flush=True)
             if self.twists:
                 i = probe.infinite(entry)
                 row.update(rho_inf=i["rho"], theta_inf=i["theta"], cluster_inf=i["cluster"],
@@ -650,10 +660,13 @@ def map_table(z):
                      + (shown(spans["rho"][q]) if q in spans["rho"] else "n/a") + " | "
                      + (shown(spans["rho_inf"].get(q)) if twists and q in spans["rho_inf"] else "n/a") + " |")
     amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), np.asarray(z["kind"])) if k == KIND_POINT))
+    kinds = np.asarray(z["kind"])
+    unresolved = bool(np.any(((kinds == KIND_POINT) | (kinds == KIND_LIMIT)) & ~np.isfinite(np.asarray(z["rho"], float))))
     lines += ["\n### Verdicts on the map\n",
               f"Amplitudes a (first sine coefficient) of the map: {', '.join(f'{a:.4g}' for a in amps)}. Per q, one "
-              "character per amplitude, increasing: '.' stable, 'U' unstable (rho - 1 > tol_rho), then the "
-              "uncompressed limit after '|'; A_gap: the located gap opening; largest deflated cluster |mu - 1| and "
+              "character per amplitude, increasing: '.' stable, 'U' unstable (rho - 1 > tol_rho)"
+              + (f", '?' no verdict (the deflation's eigenvector residual above {EIGVEC_MAX:g})" if unresolved else "")
+              + ", then the uncompressed limit after '|'; A_gap: the located gap opening; largest deflated cluster |mu - 1| and "
               "eigenvector residual over the row (what the deflation removed, and how exact it was).\n",
               "| q | A_gap | N beads | infinite chain | cluster (N) | eigenvector residual |",
               "|---|---|---|---|---|---|"]
@@ -664,9 +677,12 @@ def map_table(z):
         lim = np.nonzero(r["kind"] == KIND_LIMIT)[0]
         gap = np.nonzero(r["kind"] == KIND_GAP)[0]
 
+        def mark(x):                           # '?': no verdict (rho nan: the deflation did not hold)
+            return "?" if not math.isfinite(float(x)) else "U" if float(x) - 1 > tol else "."
+
         def verdicts(key):
-            v = "".join("U" if float(x) - 1 > tol else "." for x in r[key][pts])
-            return v + ("|" + ("U" if float(r[key][lim[0]]) - 1 > tol else ".") if len(lim) else "")
+            v = "".join(mark(x) for x in r[key][pts])
+            return v + ("|" + mark(r[key][lim[0]]) if len(lim) else "")
 
         lines.append(f"| {q_label(q)} | {float(r['A'][gap[0]]):.4f} | `{verdicts('rho')}` | "
                      + (f"`{verdicts('rho_inf')}`" if twists else "n/a") + f" | "

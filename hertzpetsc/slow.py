@@ -205,8 +205,8 @@ def known_vectors(model, orbit, P, theta, decoupled=None, zone_tol=ZONE_TOL):
     partners are computed, closed-form (eigenvector, partner) extras, the number of partners taken as the nearest 1
     after deflation (:func:`deflate`), the known columns' largest residual, v, the zone modes' residual, decoupled).
 
-    ``decoupled``: whether the zone translations are exact (None: always for a law without linear stiffness, else
-    decided from their residual against ``zone_tol``, where that is informative, i.e. the cell holds several zones or
+    ``decoupled``: whether the zone translations are exact (None: decided from their residual against ``zone_tol``,
+    where that is informative, i.e. the cell holds several zones or
     Theta != 0; with one zone at
     Theta = 0 the only symmetry modes are the wave's time shift and the uniform translation). Zones joined by a
     contact (a precompressed wave below its gap opening) leave at Theta = 0 the time shift f of the whole cell, and
@@ -219,8 +219,10 @@ def known_vectors(model, orbit, P, theta, decoupled=None, zone_tol=ZONE_TOL):
     Z, v, zone_res = zone_modes(P, f, t)
     informative = len(f) > 1 or abs(theta) > 1e-14
     if decoupled is None:
-        # without precompression no contact outlives a compression zone: the zones are always decoupled
-        decoupled = informative and (not model.law.linear_stiffness > 0 or bool(zone_res <= zone_tol))
+        # decoupled when the zone translations are eigenvectors (without precompression no contact of the paper's
+        # chain outlives a compression zone, but a mass pattern's light beads may carry one across the zones'
+        # boundaries: the residual decides for every law)
+        decoupled = informative and bool(zone_res <= zone_tol)
     I = np.eye(2 * M)
 
     def residual(vec):

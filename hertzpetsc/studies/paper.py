@@ -138,11 +138,12 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
               "results/stability_boundary_alpha1.5.npz", "-table", "results/stability_boundary_alpha1.5.md",
               "-figures", figures), record="results/stability_boundary_alpha1.5.npz"),
     ]
-    for eps in ("0.7", "0.4"):
+    for eps in ("0.9", "0.7", "0.5", "0.4"):
+        compare = ("-compare", f"results/precompression_map_dimer{eps}.npz") if eps in ("0.7", "0.4") else ()
         steps.append(Step(f"precompression_map_dimer{eps}", "issue 23", "precompression_map.py",
-                          ("-epsilon", eps, "-m", "10,14,15,20", "-a", "0.1,0.3,1,3,10,100", "-compare",
-                           f"results/precompression_map_dimer{eps}.npz", "-output",
-                           f"results/stability_map_dimer{eps}.npz", "-table", f"results/stability_map_dimer{eps}.md"),
+                          ("-epsilon", eps, "-m", "10,14,15,20", "-a", "0.1,0.3,1,3,10,100", "-twists", "512",
+                           "-locate", "chain,infinite", *compare, "-output", f"results/stability_map_dimer{eps}.npz",
+                           "-table", f"results/stability_map_dimer{eps}.md"),
                           record=f"results/stability_map_dimer{eps}.npz"))
     return steps
 

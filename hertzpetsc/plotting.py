@@ -588,6 +588,52 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
         plt.close(fig)
 
 
+
+def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
+    """The infinite chain's boundary located in q at fixed A (a ``hertzpetsc-boundary-q-1`` file's arrays ``z``) in
+    the (q, A) plane: each located edge as its bracket in q (red), the grid verdicts (open: stable, filled:
+    unstable); with ``zmap`` (a stability-map file with the infinite chain) that map's edges located in A at its q
+    (triangles) and A_gap(q) (dashed). A = inf is drawn at the top of the axis."""
+    plt = _pyplot()
+    tol = float(z["tol_rho"])
+    A, q, kind, grid = (np.asarray(z[k], float) for k in ("A", "q", "kind", "grid"))
+    rho = np.asarray(z["rho_inf"], float)
+    finite = A[np.isfinite(A)]
+    top = (finite.max() if len(finite) else 1.0) * 3
+    shown = np.where(np.isfinite(A), A, top)
+    fig, ax = plt.subplots(figsize=(6.5, 4.8))
+    pts = grid == 1
+    bad = pts & (rho - 1 > tol)
+    ax.scatter(q[pts & ~bad], shown[pts & ~bad], s=10, facecolors="none", edgecolors="0.5", lw=0.6,
+               label="stable (grid q)")
+    ax.scatter(q[bad], shown[bad], s=10, c="0.3", label="unstable (grid q)")
+    edge = kind == 2
+    qs, qu = np.asarray(z["q_stable"], float)[edge], np.asarray(z["q_unstable"], float)[edge]
+    ax.errorbar(q[edge], shown[edge], xerr=np.abs(qu - qs) / 2, fmt="|", color="r", ms=9, mew=1.2,
+                label="edge located in q")
+    for i, qc in enumerate(q[edge & ~np.isfinite(A)]):
+        ax.axvline(qc, color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed, located)" if i == 0 else None)
+    if zmap is not None and int(zmap["twists"]):
+        mk, mq, mA = np.asarray(zmap["kind"]), np.asarray(zmap["q"], float), np.asarray(zmap["A"], float)
+        ax.scatter(mq[mk == 2], mA[mk == 2], marker="^", s=18, c="orange", edgecolors="k", lw=0.4,
+                   label="edge located in A (map)", zorder=3)
+        gap = mk == 4
+        order = np.argsort(mq[gap])
+        ax.plot(mq[gap][order], mA[gap][order], "b--", lw=0.9, label=r"$A_{gap}(q)$")
+    ax.set_yscale("log")
+    if not np.all(np.isfinite(A)):
+        ax.axhline(top, color="0.8", lw=0.6)
+        ax.text(ax.get_xlim()[0], top, r" $A = \infty$", va="bottom", fontsize=7)
+    ax.set_xlabel("$q$")
+    ax.set_ylabel(r"$A = \|u\|_\infty$")
+    ax.set_title(rf"infinite chain, $\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$: "
+                 "boundary located in $q$", fontsize=10)
+    ax.legend(fontsize=7, loc="upper right")
+    try:
+        return save_figure(fig, os.path.join(directory, name))
+    finally:
+        plt.close(fig)
+
 # --- driven, damped chains (issue 22) ---------------------------------------------------------------------------------
 _EVENT_MARKERS = {1: ("o", "fold"), 2: ("s", "period doubling"), 3: ("D", "Neimark-Sacker")}
 

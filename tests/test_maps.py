@@ -249,3 +249,84 @@ def test_a_deflation_that_does_not_hold_gives_no_verdict(capfd):
     z["rho"][lim] = math.nan
     row = next(line for line in maps.map_table(z).splitlines() if line.startswith("| 2pi/5 |") and "`" in line)
     assert "|?`" in row and "'?' no verdict" in maps.map_table(z)
+
+
+def test_simplest_fraction_is_the_smallest_denominator_in_the_interval():
+    """Against a search over all denominators: the Stern-Brocot descent returns a member of the closed interval
+    whose denominator no member has a smaller one."""
+    from fractions import Fraction
+    from hertzpetsc.studies.maps import simplest_fraction
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        lo = Fraction(int(rng.integers(1, 10 ** 6)), 10 ** 6)
+        hi = lo + Fraction(int(rng.integers(1, 10 ** 4)), 10 ** 7)
+        x = simplest_fraction(lo, hi)
+        assert lo <= x <= hi
+        best = next(d for d in range(1, 10 ** 7) if math.floor(hi * d) >= math.ceil(lo * d))
+        assert x.denominator == best
+    assert simplest_fraction(Fraction(1, 3), Fraction(1, 2)) == Fraction(1, 2)
+
+
+def test_boundary_in_q_is_confirmed_on_both_sides_and_resumes(tmp_path):
+    """At A = 3 the infinite chain is unstable at 9pi/25 and stable at 2pi/5 (the map's located edges in A: 3.763
+    and 2.216): the edge in q between them is located to the requested bracket through cells of few beads; the
+    multipliers of its two ends are on both sides of the verdict's threshold; a second run of the file computes
+    nothing; bad parameters name themselves."""
+    from fractions import Fraction
+    from hertzpetsc.studies.maps import KIND_EDGE_INF, QBoundary, QBoundaryParameters
+    model = LatticeModel.hertz(1.5, (1.0,), 1.0)
+    params = QBoundaryParameters(model, (3.0,), (9 * math.pi / 25, 2 * math.pi / 5), cells_per_pi=K,
+                                 tolerances=TOL, twists=64, locate_tol=0.05)
+    path = str(tmp_path / "q.npz")
+    study = QBoundary(params, SELF, path)
+    try:
+        rows = list(study.run())
+    finally:
+        study.destroy()
+    edges = [r for r in rows if r["kind"] == KIND_EDGE_INF]
+    assert len(edges) == 1
+    e = edges[0]
+    assert e["rho_stable"] <= params.tol_rho < e["rho_unstable"]
+    assert 9 * math.pi / 25 < e["q_unstable"] < e["q_stable"] < 2 * math.pi / 5       # the tongue closes as q grows
+    assert abs(e["q_stable"] - e["q_unstable"]) <= 0.5 * params.locate_tol * min(e["q_stable"], e["q_unstable"])
+    samples = [r for r in rows if r["kind"] == 0]
+    assert len(samples) == 2 + e["evaluations"]
+    for r in samples:                                   # each sample on its wave's cell, q / 2 pi = m / M
+        x = Fraction(r["q"] / (2 * math.pi)).limit_denominator(2000)
+        assert x.denominator == r["M"] and abs(float(x) * 2 * math.pi - r["q"]) < 1e-12
+    again = QBoundary(params, SELF, path, mode="resume")
+    try:
+        assert list(again.run()) == []
+        assert "| 3 |" in again.table()
+    finally:
+        again.destroy()
+    with pytest.raises(ParameterError, match="masses"):
+        QBoundaryParameters(LatticeModel.hertz(1.5, (1.0, 0.5), 1.0), (3.0,), (Q,))
+    with pytest.raises(ParameterError, match="max_cell"):
+        QBoundaryParameters(model, (3.0,), (Q,), max_cell=10)             # 3pi/10 needs a cell of 20 beads
+    with pytest.raises(ParameterError, match="A"):
+        QBoundaryParameters(model, (-1.0,), (Q,))
+
+
+@pytest.mark.serial
+def test_boundary_in_q_driver_on_one_and_two_ranks(tmp_path):
+    """Two amplitudes dealt to two ranks give the records of one rank (each level on one rank); -render rewrites the
+    table from the file; a bad amplitude is one error line."""
+    args = ["-A", "3,3.5", "-m", "18,20", "-cells_per_pi", 100, "-rtol", "1e-10", "-twists", 64, "-locate_tol", 0.1]
+    r = run_script("boundary_in_q.py", *args, "-output", tmp_path / "two.npz", "-table", tmp_path / "two.md",
+                   "-figures", tmp_path, ranks=2)
+    assert r.returncode == 0, r.stderr
+    r = run_script("boundary_in_q.py", *args, "-output", tmp_path / "one.npz", "-table", tmp_path / "one.md")
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "two.npz") as two, np.load(tmp_path / "one.npz") as one:
+        assert str(two["format"]) == "hertzpetsc-boundary-q-1"
+        k2, k1 = np.lexsort((two["q"], two["kind"], two["A"])), np.lexsort((one["q"], one["kind"], one["A"]))
+        assert np.array_equal(two["kind"][k2], one["kind"][k1]) and np.array_equal(two["q"][k2], one["q"][k1])
+        assert np.allclose(two["rho_inf"][k2], one["rho_inf"][k1], rtol=1e-12, atol=1e-12)
+        assert np.sum(two["kind"] == 2) == 2                  # one edge per level, between 9pi/25 and 2pi/5
+    assert (tmp_path / "two.png").exists()
+    r = run_script("boundary_in_q.py", "-output", tmp_path / "two.npz", "-table", tmp_path / "again.md", "-render")
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "again.md").read_text() == (tmp_path / "two.md").read_text()
+    r = run_script("boundary_in_q.py", *args[2:], "-A", "0,3", "-output", tmp_path / "bad.npz")
+    assert "-A" in one_error_line(r)

@@ -45,7 +45,8 @@ from petsc4py import PETSc
 from ..chain import IntegrationTolerances
 from ..diagnostics import sup_norm
 from ..errors import ParameterError
-from ..families import PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_amplitude, uncompressed_limit
+from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_amplitude, uncompressed_limit,
+                        wave_at)
 from ..floquet import FLOQUET_PREFIX
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..qbranch import regrid_half_profile
@@ -150,11 +151,13 @@ class MapParameters:
 
 class RichardsonCompanion:
     """The wave on h = pi/(2K) at the amplitude of a wave of the h = pi/K family (Newton from its profiles
-    interpolated, prefix of the family), and their Richardson combination (second order: O(h^4) initial data)."""
+    interpolated, prefix of the family; ``measure``: the family's, what its a is), and their Richardson combination
+    (second order: O(h^4) initial data)."""
 
-    def __init__(self, model, q, K, comm, prefix=PRECOMP_PREFIX):
+    def __init__(self, model, q, K, comm, prefix=PRECOMP_PREFIX, measure="a1"):
         self.K = K
-        self.problem = FamilyProblem(model, ProfileGrid(2 * K, comm), q, amplitude=1.0, parameter="log_a")
+        self.problem = FamilyProblem(model, ProfileGrid(2 * K, comm), q, amplitude=1.0, measure=measure,
+                                     parameter="log_a")
         self.problem.prefix = prefix
         self.problem.solver(False, prefix)
 
@@ -181,10 +184,11 @@ class RichardsonCompanion:
 
 class MapProbe:
     """The test functions of one q's amplitude family (module docstring): per amplitude the Richardson wave, its
-    deflated spectrum on N beads and its twist scan on the infinite chain, each computed once, when first read."""
+    deflated spectrum on N beads and its twist scan on the infinite chain, each computed once, when first read;
+    ``measure``: what the family's a is (:class:`~hertzpetsc.families.AmplitudeFamily`)."""
 
-    def __init__(self, study, q, model=None):
-        self.study, self.q = study, q
+    def __init__(self, study, q, model=None, measure="a1"):
+        self.study, self.q, self.measure = study, q, measure
         self.model = study.model if model is None else model
         self._companion = None
         self.cache, self.hints, self.evaluations = {}, [], {name: 0 for name in TESTS}
@@ -192,7 +196,8 @@ class MapProbe:
     @property
     def companion(self):
         if self._companion is None:
-            self._companion = RichardsonCompanion(self.model, self.q, self.study.K, PETSc.COMM_SELF)
+            self._companion = RichardsonCompanion(self.model, self.q, self.study.K, PETSc.COMM_SELF,
+                                                  measure=self.measure)
         return self._companion
 
     def entry(self, point):
@@ -265,6 +270,33 @@ class MapProbe:
     def destroy(self):
         if self._companion is not None:
             self._companion.destroy()
+
+
+def limit_probe(study, q, grid, probe, point):
+    """(probe, entry) of the uncompressed limit (delta0 / A = 0) of ``study``'s model at q: the Richardson
+    combination of the limits on ``grid`` and on the companion's grid, reached from the family's ``point`` (a large
+    amplitude) and its companion wave; the probe is of the delta0 = 0 chain (the caller destroys it)."""
+    entry = probe.wave(probe.entry(point))
+    fine, lam2 = entry["fine"]
+    coarse = uncompressed_limit(study.model, q, grid, point)
+    fine = uncompressed_limit(study.model, q, probe.companion.problem.grid, SimpleNamespace(profiles=fine, lam=lam2))
+    w = [extrapolate(np.asarray(w1), np.asarray(w2)[::2]) for w1, w2 in zip(coarse["profiles"], fine["profiles"])]
+    lam = extrapolate(coarse["lam"], fine["lam"])
+    # the probe of the delta0 = 0 chain on this wave (a = inf: wave_orbit takes the wave as it is)
+    return MapProbe(study, q, study.model.with_delta0(0.0)), dict(point=SimpleNamespace(a=math.inf), w=w, lam=lam,
+                                                                    A=math.inf)
+
+
+def saved_as_dealt(study, jobs, costs, key, belongs):
+    """Run ``study.compute`` on each job, dealt to the ranks by cost; save each record the store does not hold yet
+    (``key``: its identity within the job; ``belongs(record, job)``: a stored record of that job: a job in progress
+    when a run stopped is recomputed, its records are the same) and yield it."""
+    for job, rows in dealt(jobs, costs, study.comm, study.compute):
+        have = {key(r) for r in study.store.records if belongs(r, job)}
+        for row in rows:
+            if key(row) not in have:
+                study.store.append(row)
+                yield row
 
 
 class StabilityMap(Study):
@@ -420,19 +452,8 @@ class StabilityMap(Study):
     def _limit(self, q, fam, probe, point):
         """The uncompressed limit (delta0 / A = 0) from the largest amplitude, on both grids, and its spectra."""
         t0 = time.perf_counter()
-        entry = probe.wave(probe.entry(point))
-        fine, lam2 = entry["fine"]
-        coarse = uncompressed_limit(self.model, q, fam.grid, point)
-        fine = uncompressed_limit(self.model, q, probe.companion.problem.grid,
-                                  SimpleNamespace(profiles=fine, lam=lam2))
-        w = [extrapolate(np.asarray(w1), np.asarray(w2)[::2]) for w1, w2 in zip(coarse["profiles"],
-                                                                               fine["profiles"])]
-        lam = extrapolate(coarse["lam"], fine["lam"])
-        bare = self.model.with_delta0(0.0)
-        limit = MapProbe(self, q, bare)
+        limit, entry = limit_probe(self, q, fam.grid, probe, point)
         try:
-            # the probe of the delta0 = 0 chain on this wave (a = inf: wave_orbit takes the wave as it is)
-            entry = dict(point=SimpleNamespace(a=math.inf), w=w, lam=lam, A=math.inf)
             row = self._row(q, KIND_LIMIT, math.inf, math.inf, math.nan, limit, entry)
         finally:
             limit.destroy()
@@ -457,14 +478,9 @@ class StabilityMap(Study):
         yields each new record after saving it."""
         self.open()
         todo = [q for q in self.qs if not self._complete(q)]
-        for q, rows in dealt(todo, [self.cost(q) for q in todo], self.comm, self.compute):
-            have = {(int(r["kind"]), round(float(r["a"]), 10)) for r in self.store.records
-                    if abs(float(r["q"]) - q) <= 1e-12 * q}
-            for row in rows:
-                if (row["kind"], round(row["a"], 10)) in have:
-                    continue
-                self.store.append(row)
-                yield row
+        yield from saved_as_dealt(self, todo, [self.cost(q) for q in todo],
+                                  lambda r: (int(r["kind"]), round(float(r["a"]), 10)),
+                                  lambda r, q: abs(float(r["q"]) - q) <= 1e-12 * q)
 
     def destroy(self):
         for route in self._routes.values():
@@ -475,6 +491,236 @@ class StabilityMap(Study):
     def table(self):
         return map_table(self.arrays())
 
+
+
+# --- the boundary located in q at fixed amplitude (the infinite chain) ----------------------------------------------
+QMAP_FORMAT = "hertzpetsc-boundary-q-1"
+QMAP_FIELDS = ("A", "q", "M", "kind", "grid", "omega", "rho_inf", "theta_inf", "cluster_inf", "q_stable",
+               "q_unstable", "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds")
+# the uncompressed limit of a level A = inf is reached from the family's wave at this amplitude (delta0 units)
+LIMIT_FROM_A = 1000.0
+# the largest cell of a bisection wavenumber by default: the twist scans' dense 2M x 2M sector maps grow as M^2 in
+# memory and M^3 in time (a cell of about 1600 beads took 13 GB); an edge next to a fraction of small denominator
+# b is then bracketed to about 1 / (b QB_MAX_CELL) in q / 2 pi, and the record says how far it got
+QB_MAX_CELL = 400
+
+
+def simplest_fraction(lo, hi):
+    """The fraction of smallest denominator in the closed interval [lo, hi] (Fractions, 0 <= lo <= hi): the
+    continued-fraction descent of the Stern-Brocot tree."""
+    fl = math.floor(lo)
+    if fl == lo:
+        return Fraction(fl)
+    if fl + 1 <= hi:
+        return Fraction(fl + 1)
+    return fl + 1 / simplest_fraction(1 / (hi - fl), 1 / (lo - fl))
+
+
+@dataclass(frozen=True)
+class QBoundaryParameters:
+    """The stability boundary on the infinite chain located in q at fixed amplitudes: the precompressed monatomic
+    ``model``, the amplitudes ``A`` = ||u||_inf (inf: the uncompressed limit), the grid of wavenumbers ``q`` (q / 2 pi
+    a fraction, the wave's cell at most ``max_cell`` beads) between which the verdict's changes are located, to a
+    relative bracket ``locate_tol`` in q, through wavenumbers whose cells have at most ``max_cell`` beads; the
+    Richardson grid K = ``cells_per_pi``, the flow's tolerances, tol_rho and the twists per pi as for the map."""
+
+    model: object
+    A: tuple
+    q: tuple
+    cells_per_pi: int = 1000
+    tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
+    tol_rho: float = MAP_TOL_RHO
+    twists: int = 512
+    locate_tol: float = 1e-3
+    max_cell: int = QB_MAX_CELL
+
+    def __post_init__(self):
+        _check_delta0_positive(self.model)
+        if self.model.cell != 1:
+            raise ParameterError("masses", list(self.model.masses), "the boundary in q is located for monatomic "
+                                 "chains (the dimers' infinite chains are unstable at every amplitude of their maps)")
+        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
+        if not (isinstance(self.max_cell, (int, np.integer)) and 2 <= self.max_cell <= MAX_MAP_BEADS):
+            raise ParameterError("max_cell", self.max_cell, f"must be an integer in [2, {MAX_MAP_BEADS}]")
+        qs = sorted(set(_check_qs(self.q, math.pi / self.cells_per_pi)))
+        for q in qs:
+            if wave_cell(q).M > self.max_cell:
+                raise ParameterError("q", q, f"q / 2 pi must be a fraction with a denominator of at most max_cell = "
+                                     f"{self.max_cell}")
+        object.__setattr__(self, "q", tuple(qs))
+        amps = []
+        for A in self.A:
+            A = math.inf if A == math.inf else check_amplitude(A, "A")
+            if A not in amps:
+                amps.append(A)
+        if not amps:
+            raise ParameterError("A", self.A, "give at least one amplitude")
+        object.__setattr__(self, "A", tuple(sorted(amps)))
+        if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
+            raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
+        if not (isinstance(self.twists, (int, np.integer)) and 1 <= self.twists <= 10 ** 6):
+            raise ParameterError("twists", self.twists, "must be an integer in [1, 1e6]")
+        if not (0 < self.locate_tol < 0.5):
+            raise ParameterError("locate_tol", self.locate_tol, "must lie in (0, 0.5)")
+
+
+class QBoundary(Study):
+    """The infinite chain's stability boundary located in q at fixed amplitudes A (issue 23): at each A the wave at
+    every grid q (:func:`~hertzpetsc.families.wave_at`, A a border row; Richardson pair h = pi/K, pi/(2K)) and its
+    twist scan (:meth:`MapProbe.infinite`); where the verdict changes between two grid q, bisection in q through the
+    simplest fraction q / 2 pi of the middle third of the bracket (its cell the fewest beads) until the bracket is at
+    most ``locate_tol`` / 2 relative. Each A on one rank (the levels are dealt); every evaluation a record (kind 0;
+    ``grid`` 1 for the grid q), each located edge a record of kind 2 with both sides. Prefixes as the map's."""
+
+    Parameters = QBoundaryParameters
+    FORMAT, FIELDS = QMAP_FORMAT, QMAP_FIELDS
+    DTYPES = {"M": np.int64, "kind": np.int64, "grid": np.int64, "evaluations": np.int64}
+    ROLES = StabilityMap.ROLES
+    WHAT = "boundary-in-q file"
+    locate, N = ("infinite",), 0
+    route = StabilityMap.route
+
+    def __init__(self, params, comm=None, output=None, mode="new"):
+        super().__init__(params, comm, output, mode)
+        p = params
+        self.model, self.K, self.tolerances, self.tol_rho, self.twists = (p.model, p.cells_per_pi, p.tolerances,
+                                                                          p.tol_rho, p.twists)
+        check_memory(2 * self.K, PETSc.COMM_SELF, tw_solver(PRECOMP_PREFIX), profiles=1)
+        self._routes = {}
+
+    def constants(self):
+        p = self.params
+        return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses),
+                    levels=list(p.A), grid_q=list(p.q), cells_per_pi=self.K, rtol=self.tolerances.rtol,
+                    tol_rho=self.tol_rho, twists=self.twists, locate_tol=p.locate_tol, max_cell=p.max_cell)
+
+    def evaluate(self, x, A):
+        """The record of the wave at q = 2 pi x (x a Fraction), amplitude A, on the infinite chain."""
+        t0 = time.perf_counter()
+        q = 2 * math.pi * float(x)
+        grid = ProfileGrid(self.K, PETSc.COMM_SELF)
+        probe = MapProbe(self, q, measure="sup")
+        limit = None
+        try:
+            point = wave_at(self.model, q, min(A, LIMIT_FROM_A * self.model.delta0), grid)
+            entry = probe.entry(point)
+            if math.isfinite(A):
+                scan = probe.infinite(entry)
+            else:
+                limit, entry = limit_probe(self, q, grid, probe, point)
+                scan = limit.infinite(entry)
+        finally:
+            probe.destroy()
+            if limit is not None:
+                limit.destroy()
+        nan = math.nan
+        return dict(A=A, q=q, M=scan["M"], kind=KIND_POINT, grid=0, omega=entry.get("omega", nan),
+                    rho_inf=scan["rho"], theta_inf=scan["theta"], cluster_inf=scan["cluster"], q_stable=nan,
+                    q_unstable=nan, rho_stable=nan, rho_unstable=nan, theta_unstable=nan, evaluations=1,
+                    seconds=time.perf_counter() - t0)
+
+    def unstable(self, row):
+        return row["rho_inf"] - 1 > self.tol_rho
+
+    def compute(self, A):
+        """Every record of the level A (on this rank): the grid q, then each located edge after its samples."""
+        p = self.params
+        xs = [Fraction(wave_cell(q).m, wave_cell(q).M) for q in p.q]
+        rows = []
+        for x in xs:
+            row = self.evaluate(x, A)
+            row["grid"] = 1
+            rows.append(row)
+        for (x1, r1), (x2, r2) in zip(list(zip(xs, rows)), list(zip(xs[1:], rows[1:]))):
+            if self.unstable(r1) == self.unstable(r2):
+                continue
+            (xs_, rs), (xu, ru) = ((x1, r1), (x2, r2)) if not self.unstable(r1) else ((x2, r2), (x1, r1))
+            n = 0
+            while abs(xu - xs_) > 0.5 * p.locate_tol * min(xu, xs_):
+                lo, hi = min(xs_, xu), max(xs_, xu)
+                third = (hi - lo) / 3
+                x = simplest_fraction(lo + third, hi - third)
+                if x.denominator > p.max_cell:
+                    print(f"note: A = {A:g}: the bracket q / 2 pi in [{lo}, {hi}] holds no cell of at most max_cell = "
+                          f"{p.max_cell} beads in its middle third; the edge is located to {float((hi - lo) / lo):.1e}",
+                          file=sys.stderr, flush=True)
+                    break
+                row = self.evaluate(x, A)
+                rows.append(row)
+                n += 1
+                if self.unstable(row):
+                    xu, ru = x, row
+                else:
+                    xs_, rs = x, row
+            edge = dict(ru)
+            edge.update(kind=KIND_EDGE_INF, grid=0, q=math.pi * float(xs_ + xu), M=0,
+                        q_stable=2 * math.pi * float(xs_), q_unstable=2 * math.pi * float(xu),
+                        rho_stable=rs["rho_inf"] - 1, rho_unstable=ru["rho_inf"] - 1,
+                        theta_unstable=ru["theta_inf"], evaluations=n, seconds=sum(
+                            r["seconds"] for r in rows[-n:]) if n else 0.0)
+            rows.append(edge)
+        return rows
+
+    def _complete(self, A):
+        mine = [r for r in self.store.records if float(r["A"]) == A]
+        grid = {round(float(r["q"]), 12): r for r in mine if int(r["grid"]) == 1}
+        if len(grid) < len(self.params.q):
+            return False
+        rows = [grid[round(q, 12)] for q in self.params.q if round(q, 12) in grid]
+        changes = sum(self.unstable(a) != self.unstable(b) for a, b in zip(rows, rows[1:]))
+        return sum(1 for r in mine if int(r["kind"]) == KIND_EDGE_INF) >= changes
+
+    def run(self):
+        """Compute every level A not complete in the file (a level in progress is recomputed: its records are the
+        same); yields each new record after saving it."""
+        self.open()
+        todo = [A for A in self.params.A if not self._complete(A)]
+        yield from saved_as_dealt(self, todo, [1.0 + math.log1p(min(A, LIMIT_FROM_A)) for A in todo],
+                                  lambda r: (int(r["kind"]), round(float(r["q"]), 12)),
+                                  lambda r, A: float(r["A"]) == A)
+
+    def destroy(self):
+        StabilityMap.destroy(self)
+
+    def table(self):
+        return q_boundary_table(self.arrays())
+
+
+def q_boundary_table(z):
+    """The Markdown table of a boundary-in-q file's arrays: the located edges per amplitude, then the grid's
+    verdicts."""
+    tol = float(z["tol_rho"])
+    A, q, kind, grid = (np.asarray(z[k], float) for k in ("A", "q", "kind", "grid"))
+    rho = np.asarray(z["rho_inf"], float)
+    lines = [f"schema: {QMAP_FORMAT}; alpha = {float(z['alpha']):g}, delta0 = {float(z['delta0']):g}; the infinite "
+             f"chain (cell twists, bead-level Bloch step <= pi/{int(z['twists'])}, maxima refined; symmetry multipliers "
+             f"deflated); waves at A = ||u||_inf (border row), Richardson of h = pi/{int(z['cells_per_pi'])} and "
+             f"pi/{2 * int(z['cells_per_pi'])}; flow rtol {float(z['rtol']):g}; unstable when rho - 1 > {tol:g}; "
+             f"edges located by bisection in q through the simplest q / 2 pi of the middle third (cells of at most "
+             f"{int(z['max_cell'])} beads) to a bracket of {float(z['locate_tol']) / 2:g} (relative).\n",
+             "### Located edges\n",
+             "Each row: at amplitude A, the wavenumber where the verdict changes, between q (stable side) and q "
+             "(unstable side), with rho - 1 on both sides (the multipliers' distance to the unit circle) and the cell "
+             "twist Theta of the unstable mode.\n",
+             "| A | q stable | q unstable | relative width | rho - 1 stable side | rho - 1 unstable side | Theta | "
+             "evaluations |", "|---|---|---|---|---|---|---|---|"]
+    edges = np.nonzero(kind == KIND_EDGE_INF)[0]
+    for i in edges[np.lexsort((q[edges], A[edges]))]:
+        qs, qu = float(z["q_stable"][i]), float(z["q_unstable"][i])
+        lines.append(f"| {A[i]:g} | {qs:.6f} | {qu:.6f} | {abs(qu - qs) / min(qs, qu):.1e} | "
+                     f"{float(z['rho_stable'][i]):.1e} | {float(z['rho_unstable'][i]):.1e} | "
+                     f"{float(z['theta_unstable'][i]):.4f} | {int(z['evaluations'][i])} |")
+    gq = sorted(set(q[grid == 1].tolist()))
+    lines += ["\n### Verdicts at the grid wavenumbers\n",
+              "rho - 1 on the infinite chain per amplitude (rows) and grid q (columns); U: unstable.\n",
+              "| A | " + " | ".join(q_label(x) for x in gq) + " |", "|---|" + "---|" * len(gq)]
+    for level in sorted(set(A.tolist())):
+        cells = []
+        for x in gq:
+            i = np.nonzero((A == level) & (grid == 1) & (q == x))[0]
+            cells.append("" if not len(i) else f"{rho[i[0]] - 1:.1e}" + (" U" if rho[i[0]] - 1 > tol else ""))
+        lines.append(f"| {level:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines) + "\n"
 
 def _records(z, q):
     mine = np.abs(np.asarray(z["q"], dtype=float) - q) <= 1e-12 * q

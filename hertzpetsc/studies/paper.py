@@ -137,6 +137,11 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
              ("-twists", "512", "-locate", "chain,infinite", "-compare", "results/precompression_map.npz", "-output",
               "results/stability_boundary_alpha1.5.npz", "-table", "results/stability_boundary_alpha1.5.md",
               "-figures", figures), record="results/stability_boundary_alpha1.5.npz"),
+        # the infinite chain's boundary located in q at fixed amplitudes, drawn on that map
+        Step("boundary_in_q", "issue 23", "boundary_in_q.py",
+             ("-map", "results/stability_boundary_alpha1.5.npz", "-output", "results/boundary_in_q_alpha1.5.npz",
+              "-table", "results/boundary_in_q_alpha1.5.md", "-figures", figures),
+             record="results/boundary_in_q_alpha1.5.npz"),
     ]
     for eps in ("0.9", "0.7", "0.5", "0.4"):
         compare = ("-compare", f"results/precompression_map_dimer{eps}.npz") if eps in ("0.7", "0.4") else ()

@@ -1,0 +1,115 @@
+#!/usr/bin/env python3
+"""The stability boundary of the precompressed travelling waves on the infinite chain, located in q at fixed
+amplitudes A = ||u||_inf (issue 23: the boundary in A at each q is precompression_map.py's).
+
+    mpiexec -n 2 python scripts/boundary_in_q.py [-alpha 1.5] [-delta0 1] [-A 0.1,0.3,1,1.5,2,3,5,10,30,100,inf]
+        [-N 100] [-m 10,12,14,15,16,18,20,22,24,25] [-q LIST] [-cells_per_pi 1000] [-rtol 1e-11] [-tol_rho 1e-6]
+        [-twists 512] [-locate_tol 1e-3] [-max_cell 400] [-map FILE] [-output results/boundary_in_q.npz]
+        [-table results/boundary_in_q.md] [-figures figures] [-resume | -force | -render]
+
+At each amplitude A (inf: the uncompressed limit) and each grid wavenumber (q = 2 pi m / N and -q): the wave with
+max |u| = A (a border row of eq. ad; Richardson combination of h = pi/K and pi/(2K), K = -cells_per_pi) and rho over
+every Bloch parameter of the infinite chain (the cell twists of its wave, bead-level step <= pi/-twists, maxima
+refined, symmetry multipliers deflated); unstable when rho - 1 > -tol_rho. Where the verdict changes between two
+grid q, the edge is located by bisection in q, each sample the q / 2 pi of fewest beads per cell in the middle third
+of the bracket (at most -max_cell), to a relative bracket -locate_tol / 2. The amplitudes are dealt to the ranks.
+Table: the located edges with rho - 1 on both sides, and the grid's verdicts; figure boundary_in_q.png (with -map, a
+map file of precompression_map.py, on the plane with that map's located edges). Solver prefixes: -precomp_ (the wave
+solves), -floquet_ (the flows of the cell maps). -render computes nothing: it rewrites -table and the figure from
+-output.
+"""
+import math
+import os
+import sys
+
+from hertzpetsc.start import init_petsc
+
+init_petsc(sys.argv)
+from petsc4py import PETSc  # noqa: E402
+
+from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
+from hertzpetsc.errors import RecordFileError  # noqa: E402
+from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.records import check_kind, load_npz, on_rank0, prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.maps import (MAX_MAP_BEADS, QB_MAX_CELL, QMAP_FORMAT, QBoundary,  # noqa: E402
+                                     QBoundaryParameters, q_boundary_table, read_map)
+
+ROLES = QBoundary.ROLES
+
+
+def main():
+    opts = AppOptions(__doc__, ROLES)
+    alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
+    delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
+    levels = opts.numbers("A", "0.1,0.3,1,1.5,2,3,5,10,30,100,inf", "amplitudes A = max |u| (inf: the uncompressed "
+                          "limit)", expr=False, valid=(lambda x: x > 0, "> 0"), distinct=True)
+    N = opts.integer("N", 100, "the grid wavenumbers are q = 2 pi m / N", minimum=2)
+    ms = opts.numbers("m", "10,12,14,15,16,18,20,22,24,25", "grid wavelengths on N beads (q = 2 pi m / N)", kind=int,
+                      valid=(lambda m: 1 <= m <= N // 2, "in [1, N/2]"), distinct=True, minimum_count=0)
+    extra_q = opts.numbers("q", "", "further grid wavenumbers (q / 2 pi a fraction; pi allowed)",
+                           valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"), distinct=True, minimum_count=0)
+    K = opts.integer("cells_per_pi", 1000, "coarser grid of the Richardson pair (h = pi/K and pi/2K)", minimum=4)
+    rtol = opts.real("rtol", 1e-11, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    tol_rho = opts.real("tol_rho", 1e-6, "unstable when rho - 1 > tol_rho", valid=(lambda x: x > 0, "> 0"))
+    twists = opts.integer("twists", 512, "bead-level Bloch parameters per pi", minimum=1, maximum=10 ** 6)
+    locate_tol = opts.real("locate_tol", 1e-3, "relative bracket of a located edge is at most half of it",
+                           valid=(lambda x: 0 < x < 0.5, "in (0, 0.5)"))
+    max_cell = opts.integer("max_cell", QB_MAX_CELL, "largest cell (beads) of a bisection wavenumber (time and "
+                            "memory grow as its cube and square)", minimum=2, maximum=MAX_MAP_BEADS)
+    map_path = opts.path("map", "", "a stability-map file (precompression_map.py) drawn with the edges (none if "
+                         "empty)")
+    output, mode, table_path, figures = opts.record_table_figures(
+        "results/boundary_in_q.npz", "boundary-in-q file", "results/boundary_in_q.md", "boundary_in_q.png")
+    render = opts.flag("render", "compute nothing: rewrite -table and the figure from the file -output")
+    opts.done()
+    comm = PETSc.COMM_WORLD
+    zmap = read_map(map_path, comm) if map_path else None
+    if render:
+        if mode != "new":
+            raise RecordFileError("-render reads -output and writes only -table and the figure: give it without "
+                                  "-resume or -force")
+        opts.check_unused()
+        z = on_rank0(comm, lambda: _read(output), what="boundary-in-q file")
+        prepare_outputs(comm, table_path, figures=figures)
+        write_figure_and_table(comm, z, zmap, table_path, figures)
+        return
+    if len(ms) + len(extra_q) < 2:
+        raise RecordFileError("-m and -q: give at least two grid wavenumbers between which to locate")
+    prepare_outputs(comm, table_path, figures=figures)
+    qs = [2 * math.pi * m / N for m in ms] + list(extra_q)
+    study = QBoundary(QBoundaryParameters(LatticeModel.hertz(alpha, delta0=delta0), tuple(levels), tuple(qs), K,
+                                          IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho, twists,
+                                          locate_tol, max_cell), comm, output, mode)
+    study.configure()
+    opts.check_unused()
+    study.open()
+    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, h = pi/{K} and pi/{2 * K}, rtol {rtol:g}, "
+           f"{len(study.params.A)} amplitudes, {len(study.params.q)} grid q, twists {twists}")
+    print0(f"# {'A':>8} {'kind':>4} {'q':>10} {'cell':>5} {'rho - 1':>10} {'Theta':>7} {'s':>6}")
+    for r in study.run():
+        print0(f"  {r['A']:8.4g} {r['kind']:4d} {r['q']:10.6f} {r['M']:5d} {r['rho_inf'] - 1:10.3e} "
+               f"{r['theta_inf']:7.4f} {r['seconds']:6.1f}")
+    z = study.arrays()
+    study.destroy()
+    write_figure_and_table(comm, z, zmap, table_path, figures)
+
+
+def _read(path):
+    z = load_npz(path, "boundary-in-q file")
+    check_kind(z, path, QMAP_FORMAT, "boundary-in-q file")
+    return z
+
+
+def write_figure_and_table(comm, z, zmap, table_path, figures):
+    text = q_boundary_table(z)
+    write_text(table_path, text, comm)
+    if figures and comm.getRank() == 0:
+        from hertzpetsc import plotting
+        name = os.path.splitext(os.path.basename(table_path))[0] + ".png"
+        print("wrote " + plotting.plot_q_boundary(z, figures, name, zmap), flush=True)
+    print0(text)
+
+
+if __name__ == "__main__":
+    guarded_main(main)

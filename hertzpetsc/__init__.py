@@ -41,7 +41,7 @@ _EXPORTS = {
     "SmallQParameters": "studies.branch", "AmplitudeFamilies": "studies.precompression",
     "AmplitudeParameters": "studies.precompression", "DimerFamilies": "studies.precompression",
     "DimerParameters": "studies.precompression", "StabilityMap": "studies.maps",
-    "MapParameters": "studies.maps",
+    "MapParameters": "studies.maps", "QBoundary": "studies.maps", "QBoundaryParameters": "studies.maps",
     # errors
     "ParameterError": "errors", "ConvergenceError": "errors", "RecordFileError": "errors",
     # refinement and Floquet spectra

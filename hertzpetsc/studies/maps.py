@@ -500,8 +500,8 @@ QMAP_FIELDS = ("A", "q", "M", "kind", "grid", "omega", "rho_inf", "theta_inf", "
 # the uncompressed limit of a level A = inf is reached from the family's wave at this amplitude (delta0 units)
 LIMIT_FROM_A = 1000.0
 # the largest cell of a bisection wavenumber by default: the twist scans' dense 2M x 2M sector maps grow as M^2 in
-# memory and M^3 in time (a cell of about 1600 beads took 13 GB); an edge next to a fraction of small denominator
-# b is then bracketed to about 1 / (b QB_MAX_CELL) in q / 2 pi, and the record says how far it got
+# memory and M^3 in time; an edge next to a fraction of small denominator b is then bracketed to about
+# 1 / (b QB_MAX_CELL) in q / 2 pi, and the edge's record says how far it got
 QB_MAX_CELL = 400
 
 
@@ -520,9 +520,10 @@ def simplest_fraction(lo, hi):
 class QBoundaryParameters:
     """The stability boundary on the infinite chain located in q at fixed amplitudes: the precompressed monatomic
     ``model``, the amplitudes ``A`` = ||u||_inf (inf: the uncompressed limit), the grid of wavenumbers ``q`` (q / 2 pi
-    a fraction, the wave's cell at most ``max_cell`` beads) between which the verdict's changes are located, to a
-    relative bracket ``locate_tol`` in q, through wavenumbers whose cells have at most ``max_cell`` beads; the
-    Richardson grid K = ``cells_per_pi``, the flow's tolerances, tol_rho and the twists per pi as for the map."""
+    a fraction, the wave's cell at most ``max_cell`` beads) between which the verdict's changes are located to
+    ``locate_tol`` (a bracket of at most locate_tol / 2 relative in q) through wavenumbers whose cells have at most
+    ``max_cell`` beads; the Richardson grid K = ``cells_per_pi``, the flow's tolerances, tol_rho and the twists per
+    pi as for the map."""
 
     model: object
     A: tuple

@@ -860,6 +860,13 @@ def compare_v1(z, old, tol=None):
     return "\n".join(lines) + "\n"
 
 
+def _largest(values):
+    """The largest finite value (nan when there is none: a q of the infinite chain only has no chain spectra)."""
+    finite = np.asarray(values, float)
+    finite = finite[np.isfinite(finite)]
+    return float(finite.max()) if len(finite) else math.nan
+
+
 def map_table(z):
     """The Markdown tables of a map file's arrays: for this kind the located boundary, then the verdicts; a ``-1``
     file's table as its driver wrote it."""
@@ -933,9 +940,9 @@ def map_table(z):
 
         lines.append(f"| {q_label(q)} | {float(r['A'][gap[0]]):.4f} | `{verdicts('rho')}` | "
                      + (f"`{verdicts('rho_inf')}`" if twists else "n/a") + f" | "
-                     f"{np.nanmax(r['cluster'][pts]):.1e} | {np.nanmax(r['eigvec'][pts]):.1e} |"
+                     f"{_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |"
                      if len(gap) else
                      f"| {q_label(q)} | n/a | `{verdicts('rho')}` | " + (f"`{verdicts('rho_inf')}`" if twists else
                                                                           "n/a")
-                     + f" | {np.nanmax(r['cluster'][pts]):.1e} | {np.nanmax(r['eigvec'][pts]):.1e} |")
+                     + f" | {_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |")
     return "\n".join(lines) + "\n"

@@ -492,7 +492,6 @@ class StabilityMap(Study):
         return map_table(self.arrays())
 
 
-
 # --- the boundary located in q at fixed amplitude (the infinite chain) ----------------------------------------------
 QMAP_FORMAT = "hertzpetsc-boundary-q-1"
 QMAP_FIELDS = ("A", "q", "M", "kind", "grid", "omega", "rho_inf", "theta_inf", "cluster_inf", "q_stable",
@@ -626,13 +625,14 @@ class QBoundary(Study):
     def compute(self, A):
         """Every record of the level A (on this rank): the grid q, then each located edge after its samples."""
         p = self.params
-        xs = [Fraction(wave_cell(q).m, wave_cell(q).M) for q in p.q]
-        rows = []
-        for x in xs:
+        grid = []
+        for cell in (wave_cell(q) for q in p.q):
+            x = Fraction(cell.m, cell.M)
             row = self.evaluate(x, A)
             row["grid"] = 1
-            rows.append(row)
-        for (x1, r1), (x2, r2) in zip(list(zip(xs, rows)), list(zip(xs[1:], rows[1:]))):
+            grid.append((x, row))
+        rows = [row for _, row in grid]
+        for (x1, r1), (x2, r2) in zip(grid, grid[1:]):
             if self.unstable(r1) == self.unstable(r2):
                 continue
             (xs_, rs), (xu, ru) = ((x1, r1), (x2, r2)) if not self.unstable(r1) else ((x2, r2), (x1, r1))

@@ -85,7 +85,8 @@ def zone_modes(P, f, t):
 class DeflatedSector:
     """One twist Theta of a wave's cell after deflation: the multipliers that are not symmetry multipliers
     (``values``), the deflated cluster (eigenvalues of U^H P U), the raw cluster (the 2r eigenvalues of P nearest
-    1, what an undeflated spectrum shows), the residuals of the known eigenvectors, of their partners and of the
+    1, what an undeflated spectrum shows; None, as P's eigenvalues ``all_values``, where the scan was told not to
+    compute them), the residuals of the known eigenvectors, of their partners and of the
     invariance of span U, the free-flight velocity and the size r of the known eigenspace."""
 
     theta: float
@@ -177,7 +178,7 @@ def krein_signatures(values, V, J, tol):
     """The Krein signature of each multiplier: the sign of Im(v^H J v) for the eigenvector v of a multiplier on the
     unit circle (| ln|mu| | <= ``tol``); 0 for one off the circle, or whose form is below 1e-8 of |v|^2 max(m)
     (isotropic: at a collision)."""
-    form = np.imag(np.einsum("ij,ik,kj->j", V.conj(), J, V))
+    form = np.imag(np.einsum("ij,ij->j", V.conj(), J @ V))
     size = np.sum(np.abs(V) ** 2, axis=0) * float(np.max(np.abs(J)))
     on = np.abs(np.log(np.abs(values))) <= tol
     return np.where(on & (np.abs(form) > 1e-8 * size), np.sign(form), 0).astype(int)
@@ -263,7 +264,7 @@ class DeflatedSectors(FloquetSolver):
         self.sectors = BlochSectors(model, comm, tolerances, prefix)
         self.sectors.configure()
 
-    def _deflated(self, orbit, P, theta, decoupled=None):
+    def _deflated(self, orbit, P, theta, decoupled=None, raw=True):
         t0 = time.perf_counter()
         known, partners, extra, nearest, eig_res, v, _, decoupled = known_vectors(self.model, orbit, P, theta,
                                                                                   decoupled, self.zone_tol)
@@ -271,13 +272,15 @@ class DeflatedSectors(FloquetSolver):
         values, cluster, partner_res, invariance, r = out[:5]
         signatures = None if self.krein is None else \
             krein_signatures(values, out[5], symplectic_form(self.model, len(P) // 2), self.krein)
-        if r:
+        if r and raw:
             lam = np.linalg.eigvals(P)
-            raw = lam[np.argsort(np.abs(lam - 1.0))[:r]]
+            nearest_one = lam[np.argsort(np.abs(lam - 1.0))[:r]]
+        elif r:
+            lam = nearest_one = None
         else:
-            lam, raw = values, np.zeros(0, dtype=complex)
-        return DeflatedSector(theta, len(P) // 2, r, values, cluster, raw, lam, eig_res, partner_res, invariance, v,
-                              time.perf_counter() - t0, decoupled, signatures)
+            lam, nearest_one = values, np.zeros(0, dtype=complex)
+        return DeflatedSector(theta, len(P) // 2, r, values, cluster, nearest_one, lam, eig_res, partner_res,
+                              invariance, v, time.perf_counter() - t0, decoupled, signatures)
 
     @PETSc.Log.EventDecorator("hz_deflated_sector")
     def sector(self, orbit, theta, decoupled=None):
@@ -288,10 +291,11 @@ class DeflatedSectors(FloquetSolver):
         return self._deflated(orbit, P, theta, decoupled)
 
     @PETSc.Log.EventDecorator("hz_deflated_scan")
-    def scan(self, orbit, thetas, propagate=None):
+    def scan(self, orbit, thetas, propagate=None, raw=True):
         """A function theta -> :class:`DeflatedSector` of ``orbit`` (every twist from the same cell maps: one
         propagator run when the response stays within a cell, :meth:`~hertzpetsc.bloch.BlochSectors.sector_maps`;
-        ``propagate`` None: when ``thetas`` holds two complex twists or more), the zones' decoupling decided once,
+        ``propagate`` None: when ``thetas`` holds two complex twists or more; ``raw``: also P's own eigenvalues, the raw
+        cluster), the zones' decoupling decided once,
         at the first informative twist of ``thetas`` (Theta = 0 if the cell holds several zones); and the sectors
         at ``thetas``."""
         sym = orbit.symmetry
@@ -306,7 +310,7 @@ class DeflatedSectors(FloquetSolver):
             P = np.linalg.matrix_power(G, sym.m_cell)
             if theta != 0.0:
                 P = np.exp(-1j * sym.j * theta) * P
-            s = self._deflated(orbit, P, theta, state["decoupled"])
+            s = self._deflated(orbit, P, theta, state["decoupled"], raw)
             if state["decoupled"] is None and (sym.m_cell > 1 or abs(theta) > 1e-14):
                 state["decoupled"] = s.decoupled
             return s
@@ -352,8 +356,8 @@ class TwistScan:
     the grid of ``n_grid`` + 1 twists, the hints, the bisections of Krein crossings and the refinements around the
     largest local maxima of rho (``thetas``, ``rho`` sorted by Theta); the worst twist and its rho, the crossings of
     multipliers of opposite Krein signatures seen between two stable grid twists (``crossings``) and those whose
-    bubble of instability was found (``bubbles``), the deflated cluster's largest |mu - 1| and the undeflated one's
-    |mu| - 1 over the scan, whether the zones were decoupled."""
+    bubble of instability was found (``bubbles``), the deflated cluster's largest |mu - 1| over the scan, whether
+    the zones were decoupled."""
 
     thetas: np.ndarray
     rho: np.ndarray
@@ -361,7 +365,6 @@ class TwistScan:
     rho_max: float
     n_grid: int
     cluster: float
-    raw_cluster: float
     eigenvector_residual: float
     decoupled: bool
     crossings: int = 0
@@ -398,7 +401,7 @@ def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution
     Twists in (0, pi / n_grid) are not searched: as Theta -> 0 the four long-wave multipliers tend to the deflated
     symmetry cluster, and below a few times its numerical splitting (sqrt of the orbit's error) their crossings are
     artefacts; a long-wave (modulational) instability shows at the first grid twist when its band reaches it."""
-    at, first = sectors.scan(orbit, [0.0], propagate=True)
+    at, first = sectors.scan(orbit, [0.0], propagate=True, raw=False)
     seen = {0.0: first[0]}
 
     def sector(theta):
@@ -446,6 +449,5 @@ def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution
     every = list(seen.values())
     return TwistScan(thetas=xs, rho=ys, theta=float(xs[k]), rho_max=float(ys[k]), n_grid=n_grid,
                      cluster=max((float(np.max(np.abs(s.cluster - 1))) for s in every if s.r), default=0.0),
-                     raw_cluster=max((float(np.max(np.abs(s.raw_cluster))) - 1 for s in every if s.r), default=0.0),
                      eigenvector_residual=max(s.eigenvector_residual for s in every),
                      decoupled=any(s.decoupled for s in every), crossings=crossings, bubbles=bubbles)

@@ -24,7 +24,6 @@ from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
 from .assembly import gathered
 from .branch import BranchPoint
 from .continuation import Continuation, ContinuationError, LazyTests, Natural, PseudoArclength
-from .diagnostics import sup_norm
 from .errors import ConvergenceError, ParameterError
 from .stencil import full_period, lagrange_periodic
 
@@ -198,7 +197,8 @@ class AmplitudeFamily:
 
 def uncompressed_limit(model, q, grid, start, prefix=PRECOMP_PREFIX):
     """The delta0 / a = 0 wave on ``grid`` from the AmplitudePoint ``start`` (a large-amplitude wave of the family):
-    Omega(q, 0) = ||u(.;q)||^((1-alpha)/2) of eq. dispers on the same grid."""
+    Omega(q, 0) = ||u(.;q)||^((1-alpha)/2) of eq. dispers on the same grid, with ||u|| = max_c ||u_c||_inf over a
+    mass pattern's profiles (the amplitude A of the family's points)."""
     problem = FamilyProblem(model, grid, q, amplitude=math.inf, parameter="q")
     problem.prefix = prefix
     try:
@@ -206,10 +206,10 @@ def uncompressed_limit(model, q, grid, start, prefix=PRECOMP_PREFIX):
         stats = problem.solve_state(X)
         lam = float(problem._scalars(X)[0])
         profiles = problem.half_profiles(X)
+        norm = max(profile_sup(w, problem.full) for w in profiles)
         X.destroy()
     finally:
         problem.destroy()
-    norm = sup_norm(profiles[0])
     return dict(Omega0=math.sqrt(lam) * norm ** (-(model.alpha - 1) / 2), lam=lam, norm=norm,
                 iterations=stats.iterations, profile=profiles[0], profiles=profiles)
 

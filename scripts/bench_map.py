@@ -24,7 +24,7 @@ compared with this checkout's.
 Each measurement runs in its own process (under mpiexec for 2 ranks), one BLAS thread per rank; wall times exclude
 imports and include the record file's writes. With -log_view the boundary route's PETSc log (events hz_* of the
 sector maps, twist scans, Floquet flows, and the SNES of the wave solves) is written beside the table
-(results/logview_map_boundary_np2.txt). Measure on an otherwise idle machine: two ranks share the two cores.
+(results/logview_map_boundary_np2.txt; -previous: also ..._previous_np2.txt). Measure on an otherwise idle machine: two ranks share the two cores.
 """
 import json
 import math
@@ -202,8 +202,10 @@ def main():
         rows.append((route, False))
         print(route, json.dumps({k: v for k, v in (results[route] or {}).items() if k != "rho"}), flush=True)
         if previous and route.startswith("boundary"):
+            # its own -log_view file beside this checkout's
+            prev_args = tuple(a.replace("_np2.txt", "_previous_np2.txt") for a in args)
             results[route, "previous"] = rec.measure(
-                f"{route} {ranks or 1} previous", lambda: best_of(repeats, me, route, req, ranks, 14400, args,
+                f"{route} {ranks or 1} previous", lambda: best_of(repeats, me, route, req, ranks, 14400, prev_args,
                                                                   package=previous))
             rows.append((route, True))
     labels = {"map": f"map: {len(ms)} q x {len(a_values)} a, all {2 * N} multipliers on N = {N} (deflated sectors)",

@@ -1,9 +1,14 @@
 #!/usr/bin/env python3
 """Travelling waves of the precompressed Hertz chain: omega(q, A) from the linear wave to the uncompressed limit.
 
-    mpiexec -n 2 python scripts/precompressed_branch.py [-alpha 1.5] [-delta0 1] [-q 3*pi/10,7*pi/25,pi/2,4*pi/5]
-        [-cells_per_pi 1000] [-a_min 1e-3] [-a_max 1e3] [-ds 0.1] [-output results/precompressed.npz]
-        [-table results/precompressed.md] [-figures figures] [-resume | -force]
+    mpiexec -n 2 python scripts/precompressed_branch.py [-alpha 1.5] [-delta0 1] [-masses 1]
+        [-branch acoustic|optical] [-q 3*pi/10,7*pi/25,pi/2,4*pi/5] [-cells_per_pi 1000] [-a_min 1e-3] [-a_max 1e3]
+        [-ds 0.1] [-output results/precompressed.npz] [-table results/precompressed.md] [-figures figures]
+        [-resume | -force]
+
+-masses: the repeating mass pattern (q is per bead; the family starts from the linear wave of -branch, the
+pattern's lowest or highest frequency at q; a is then the first sine coefficient of the normalised profile and
+A = max_c ||u_c||_inf). C(q) has its closed form for one mass only.
 
 At each q: continuation in s = log a (a: first sine coefficient of u; rescaled unknowns w = u / a and
 lam = omega^2 / a^(alpha-1)) from a_min to a_max by steps ds, the gap opening 2 u(q/2) = delta0 located on the
@@ -34,6 +39,9 @@ def main():
     opts = AppOptions(__doc__, ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
+    masses = opts.numbers("masses", "1", "the repeating mass pattern", valid=(lambda m: m > 0, "> 0"))
+    branch = opts.string("branch", "acoustic", "the linear branch the families start from",
+                         choices=("acoustic", "optical"))
     qs = opts.numbers("q", "3*pi/10,7*pi/25,pi/2,4*pi/5", "wavenumbers in (0, pi]",
                       valid=(lambda q: 0 < q <= math.pi * (1 + 1e-14), "in (0, pi]"), distinct=True)
     K = opts.integer("cells_per_pi", 1000, "grid h = pi / cells_per_pi", minimum=4)
@@ -46,13 +54,14 @@ def main():
     for q in qs:
         check_wavenumber(q, math.pi / K)
     comm = PETSc.COMM_WORLD
-    model = LatticeModel.hertz(alpha, delta0=check_delta0(delta0))
+    model = LatticeModel.hertz(alpha, tuple(masses), check_delta0(delta0))
     prepare_outputs(comm, table_path, figures=figures)
-    study = AmplitudeFamilies(AmplitudeParameters(model, qs, K, a_min, a_max, ds), comm, output, mode)
+    study = AmplitudeFamilies(AmplitudeParameters(model, qs, K, a_min, a_max, ds, branch), comm, output, mode)
     study.configure()
     opts.check_unused()
     study.open()
-    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, h = pi/{K}, a in [{a_min:g}, {a_max:g}], ds = {ds:g}")
+    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, masses {','.join(f'{m:g}' for m in masses)}, {branch}, "
+           f"h = pi/{K}, a in [{a_min:g}, {a_max:g}], ds = {ds:g}")
     print0(f"# {'q':>8} {'kind':>4} {'a':>10} {'A':>10} {'omega':>12} {'Omega':>10} {'its':>3}")
     for r in study.run():
         print0(f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.4g} {r['A']:10.4g} {r['omega']:12.8f} "

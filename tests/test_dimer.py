@@ -133,3 +133,34 @@ def test_dimer_driver(tmp_path):
     for k in ("epsilon", "omega", "norm_v", "arclength", "event"):
         assert np.array_equal(d[k], d2[k]), k
     assert "-epsilon_end" in one_error_line(run_script("dimer_branch.py", "-epsilon_end", "1.5", *common, *out(3)))
+
+
+@pytest.mark.parametrize("branch", ["acoustic", "optical"])
+def test_amplitude_families_of_a_mass_pattern(branch):
+    """AmplitudeFamilies takes a mass pattern and either linear branch: its first wave (a = 1e-5) has the branch's
+    Bloch frequency of the scheme (as test_small_amplitude_frequencies: O(a^2) = 1e-10 nonlinear shift, bound 1e-9),
+    omega_lin is the closed form of that branch, the file's identity names the pattern and the branch (a monatomic
+    file's does not), the table has no C(q) closed form for it, and the family tends to its uncompressed limit:
+    Omega - Omega0 ~ c1 delta0 / A with c1 the same at the two largest A (measured to 5e-5 relative: the O(delta0/A)
+    correction at A ~ 270 and 1200; an Omega0 normalised by the heavy bead's profile alone, where the light bead's
+    is larger, leaves Omega - Omega0 constant, c1 growing with A)."""
+    from hertzpetsc.studies.precompression import AmplitudeFamilies, AmplitudeParameters
+    model = dimer(0.4)
+    study = AmplitudeFamilies(AmplitudeParameters(model, (Q,), 100, 1e-5, 1000.0, 1.5, branch), COMM)
+    rows = list(study.run())
+    exact = model.linear_frequencies(Q)[0 if branch == "acoustic" else 1]
+    first = rows[0]
+    symbol = 4 * math.sin(math.pi / 200) ** 2 / (math.pi / 100) ** 2
+    assert first["omega_lin"] == exact
+    assert abs(first["omega"] * math.sqrt(symbol) / exact - 1) < 1e-9
+    assert [int(r["kind"]) for r in rows].count(2) == 1
+    summary = study.summary(Q)
+    assert abs(summary["c1"] / summary["c1_previous"] - 1) < 1e-3
+    assert study.constants()["masses"] == [1.0, 0.4] and study.constants()["branch"] == branch
+    assert "masses 1, 0.4 (repeated), " + branch in study.table() and "| n/a |" in study.table()
+    mono = AmplitudeFamilies(AmplitudeParameters(LatticeModel.hertz(1.5, delta0=1.0), (Q,), 100, 1e-3, 1.0, 1.0))
+    assert "masses" not in mono.constants() and "branch" not in mono.constants()
+    with pytest.raises(ParameterError, match="branch"):
+        AmplitudeParameters(LatticeModel.hertz(1.5, delta0=1.0), (Q,), 100, branch="optical")
+    with pytest.raises(ParameterError, match="branch"):
+        AmplitudeParameters(model, (Q,), 100, branch="upper")

@@ -190,7 +190,9 @@ def test_bad_input():
 
 @pytest.mark.serial
 @pytest.mark.parametrize("args, name", [(("-delta0", "-1"), "-delta0"), (("-a_min", "-0.5"), "-a_min"),
-                                        (("-precomp_snes_rtoll", "1"), "-precomp_snes_rtoll")])
+                                        (("-precomp_snes_rtoll", "1"), "-precomp_snes_rtoll"),
+                                        (("-branch", "optical"), "-branch"), (("-branch", "upper"), "-branch"),
+                                        (("-masses", "1,0"), "-masses")])
 def test_driver_bad_input_one_line(tmp_path, args, name):
     res = run_script("precompressed_branch.py", *args, "-output", tmp_path / "x.npz", "-table", tmp_path / "x.md")
     assert name in one_error_line(res)

@@ -4,10 +4,11 @@ the uncompressed limit, the gap opening, dimer families in the mass ratio; the w
 Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.records.NpzRecords`):
 
 * ``hertzpetsc-precompressed-1`` (:class:`AmplitudeFamilies`): constants alpha, delta0, cells_per_pi, a_min,
-  a_max, ds; per record: q, kind (0 = a point of the s = log a grid, 1 = the gap opening 2 u(q/2) = delta0,
-  2 = the uncompressed limit delta0 / A = 0, where a and A are inf), a (first sine coefficient of u), A
-  (||u||_inf), omega, omega_lin (closed form), Omega = omega A^(-(alpha-1)/2), lam, gap (2 u(q/2) - delta0),
-  iterations.
+  a_max, ds (and masses, branch for a mass pattern); per record: q, kind (0 = a point of the s = log a grid,
+  1 = the gap opening, where the longest bond reaches delta0, 2 = the uncompressed limit delta0 / A = 0, where a
+  and A are inf), a (first sine coefficient of the normalised profile), A (max_c ||u_c||_inf), omega, omega_lin
+  (the branch's linear frequency, closed form), Omega = omega A^(-(alpha-1)/2), lam, gap (the longest bond minus
+  delta0: 2 u(q/2) - delta0 for one mass), iterations.
 * ``hertzpetsc-dimer-2`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end, ds,
   ds_max; per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u,
   norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
@@ -81,8 +82,9 @@ def _check_qs(q, h=None, name="q"):
 
 @dataclass(frozen=True)
 class AmplitudeParameters:
-    """The amplitude families: the precompressed monatomic ``model``, wavenumbers ``q``, grid h = pi /
-    cells_per_pi, amplitudes a_min exp(k ds) up to a_max (at most :data:`MAX_AMPLITUDES`)."""
+    """The amplitude families: the precompressed ``model`` (any mass pattern), per-bead wavenumbers ``q``, grid
+    h = pi / cells_per_pi, amplitudes a_min exp(k ds) up to a_max (at most :data:`MAX_AMPLITUDES`), each family
+    from the linear wave of ``branch`` ('acoustic': the lowest frequency of the pattern; 'optical': the highest)."""
 
     model: LatticeModel
     q: tuple
@@ -90,20 +92,22 @@ class AmplitudeParameters:
     a_min: float = 1e-3
     a_max: float = 1e3
     ds: float = 0.1
+    branch: str = "acoustic"
 
     def __post_init__(self):
         _check_delta0_positive(self.model)
-        if self.model.cell != 1:
-            raise ParameterError("masses", list(self.model.masses), "the amplitude families are the monatomic "
-                                 "chain's (dimers: DimerFamilies)")
+        if self.branch not in ("acoustic", "optical"):
+            raise ParameterError("branch", self.branch, "must be 'acoustic' or 'optical'")
+        if self.branch == "optical" and self.model.cell == 1:
+            raise ParameterError("branch", self.branch, "a monatomic chain has the acoustic branch only")
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
         amplitude_grid(self.a_min, self.a_max, self.ds)
 
 
 class AmplitudeFamilies(Study):
-    """omega(q, A) of the precompressed monatomic chain: at each q, the continuation in s = log a from a_min to
-    a_max (:class:`~hertzpetsc.families.AmplitudeFamily`, prefix ``precomp_``), the gap opening
+    """omega(q, A) of the precompressed chain (any mass pattern): at each q, the continuation in s = log a from
+    a_min to a_max (:class:`~hertzpetsc.families.AmplitudeFamily`, prefix ``precomp_``), the gap opening
     located on the way, and the uncompressed limit on the same grid. Records per point (module docstring)."""
 
     Parameters = AmplitudeParameters
@@ -114,18 +118,23 @@ class AmplitudeFamilies(Study):
 
     def __init__(self, params, comm=None, output=None, mode="new"):
         super().__init__(params, comm, output, mode)
-        self.model, self.qs, self.K = params.model, list(params.q), params.cells_per_pi
+        self.model, self.qs, self.K, self.branch = params.model, list(params.q), params.cells_per_pi, params.branch
         self.amplitudes = amplitude_grid(params.a_min, params.a_max, params.ds)
         check_memory(self.K, self.comm, tw_solver("precomp_"))
 
     def constants(self):
         p = self.params
+        pattern = {} if self.model.cell == 1 and self.branch == "acoustic" else dict(
+            masses=list(self.model.masses), branch=self.branch)            # monatomic files keep their identity
         return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a_min=p.a_min,
-                    a_max=p.a_max, ds=p.ds)
+                    a_max=p.a_max, ds=p.ds, **pattern)
+
+    def omega_lin(self, q):
+        """The linear frequency of the family's branch at q (closed form, :meth:`LatticeModel.linear_frequencies`)."""
+        return float(self.model.linear_frequencies(q)[0 if self.branch == "acoustic" else -1])
 
     def _row(self, point, kind):
-        return dict(q=point.q, kind=kind, a=point.a, A=point.A, omega=point.omega,
-                    omega_lin=float(self.model.linear_frequencies(point.q)[0]),
+        return dict(q=point.q, kind=kind, a=point.a, A=point.A, omega=point.omega, omega_lin=self.omega_lin(point.q),
                     Omega=point.Omega, lam=point.lam, gap=point.gap, iterations=point.iterations)
 
     def _done(self, q):
@@ -140,7 +149,7 @@ class AmplitudeFamilies(Study):
             done = self._done(q)
             if any(k == KIND_LIMIT for k, _ in done):
                 continue
-            fam = AmplitudeFamily(self.model, q, grid)
+            fam = AmplitudeFamily(self.model, q, grid, branch=self.branch)
             try:
                 gap_found = any(k == KIND_GAP for k, _ in done)
                 for a in self.amplitudes:
@@ -158,8 +167,7 @@ class AmplitudeFamilies(Study):
                 limit = uncompressed_limit(self.model, q, grid, point)
             finally:
                 fam.destroy()
-            row = dict(q=q, kind=KIND_LIMIT, a=math.inf, A=math.inf, omega=math.inf,
-                       omega_lin=float(self.model.linear_frequencies(q)[0]),
+            row = dict(q=q, kind=KIND_LIMIT, a=math.inf, A=math.inf, omega=math.inf, omega_lin=self.omega_lin(q),
                        Omega=limit["Omega0"], lam=limit["lam"], gap=math.inf, iterations=limit["iterations"])
             self.store.append(row)
             yield row
@@ -178,7 +186,8 @@ class AmplitudeFamilies(Study):
         largest A, Omega0 and c1 = (Omega - Omega0) A / delta0 at the largest two A."""
         alpha, d0 = self.model.alpha, self.model.delta0
         grid, gap, limit = self.rows(q)
-        out = dict(q=q, C_theory=round(float(self.model.law.stokes_coefficient(q)), 15) + 0.0)
+        out = dict(q=q, C_theory=round(float(self.model.law.stokes_coefficient(q)), 15) + 0.0
+                   if self.model.cell == 1 else math.nan)           # the closed form is the monatomic chain's
         small = [r for r in grid if float(r["a"]) <= 0.05 * d0]
         if len(small) >= 3:
             a = np.array([float(r["a"]) for r in small])
@@ -207,7 +216,9 @@ class AmplitudeFamilies(Study):
 
     def table(self):
         alpha, d0 = self.model.alpha, self.model.delta0
-        lines = [f"schema: {PRECOMPRESSED_FORMAT}; precompressed monatomic chain, alpha = {alpha:g}, delta0 = {d0:g}, "
+        chain = "monatomic chain" if self.model.cell == 1 else (
+            f"chain of masses {', '.join(f'{m:g}' for m in self.model.masses)} (repeated), {self.branch} family")
+        lines = [f"schema: {PRECOMPRESSED_FORMAT}; precompressed {chain}, alpha = {alpha:g}, delta0 = {d0:g}, "
                  f"h = pi/{self.K}; amplitude continuation in s = log a (a: first sine coefficient of u), "
                  f"a from {self.amplitudes[0]:g} to {self.amplitudes[-1]:g}.\n",
                  "Columns: C(q) closed form (alpha-1)(alpha-1-sin^2(q/2))/(4 delta0^2) and the fit "
@@ -223,7 +234,8 @@ class AmplitudeFamilies(Study):
         for q in self.qs:
             s = self.summary(q)
             fmt = lambda k, f="{:.6f}": f.format(s[k]) if k in s else "n/a"   # noqa: E731
-            lines.append(f"| {q_label(q)} | {float(self.model.linear_frequencies(q)[0]):.6f} | {s['C_theory']:.6f} | "
+            theory = f"{s['C_theory']:.6f}" if math.isfinite(s["C_theory"]) else "n/a"
+            lines.append(f"| {q_label(q)} | {self.omega_lin(q):.6f} | {theory} | "
                          + (f"{s['C_fit']:.6f} ({s['offset_h']:.1e})" if "C_fit" in s else "n/a")
                          + f" | {fmt('A_gap')} | {fmt('omega_gap')} | {fmt('A_max', '{:.4g}')} | {fmt('Omega_max')} | "
                          f"{fmt('Omega0', '{:.8f}')} | {fmt('Omega0_fit', '{:.8f}')} | "

@@ -6,8 +6,9 @@
   sector route), nothing located, no infinite chain: target <= 10 min on 2 ranks for 40 q x 60 amplitudes;
 * ``boundary``: the same map with the boundary located on N beads and on the infinite chain (-twists Bloch parameters
   per pi, -locate chain,infinite): target <= 30 min on 2 ranks for one alpha;
-* ``boundary_q``: the boundary located in q on the infinite chain at the amplitudes A = max |u| of -levels (QBoundary, the
-  boundary_in_q.py driver's study) between the wavenumbers of -m: with ``boundary``, the whole boundary of one alpha;
+* ``boundary_q``: the boundary located in q on the infinite chain at the amplitudes A = max |u| of -levels
+  (QBoundary, the boundary_in_q.py driver's study) between the wavenumbers of -m: with ``boundary``, the whole
+  boundary of one alpha;
 * ``dense`` against ``subset``: the route the map had before issue 23 (Richardson waves of the amplitude families,
   then the dense monodromy S R(script-T; 0) of all 2N columns over script-T on N beads, LAPACK eigenvalues) and the
   new route on the same few wavenumbers (-subset_m) and amplitudes, one rank each: the gain at equal work.
@@ -24,7 +25,8 @@ compared with this checkout's.
 Each measurement runs in its own process (under mpiexec for 2 ranks), one BLAS thread per rank; wall times exclude
 imports and include the record file's writes. With -log_view the boundary route's PETSc log (events hz_* of the
 sector maps, twist scans, Floquet flows, and the SNES of the wave solves) is written beside the table
-(results/logview_map_boundary_np2.txt; -previous: also ..._previous_np2.txt). Measure on an otherwise idle machine: two ranks share the two cores.
+(results/logview_map_boundary_np2.txt; with -previous also logview_map_boundary_previous_np2.txt). Measure on an
+otherwise idle machine: two ranks share the two cores.
 """
 import json
 import math
@@ -42,61 +44,44 @@ DEFAULT_M = ",".join(str(m) for m in range(6, 46))
 DEFAULT_A = "0.1,0.3,0.5,0.7,1,1.5,2,3,5,10,20,30,50,100,1000"
 
 
-def study_worker(req, petsc_args):
+def study_worker(name, req, petsc_args):
+    """The map (StabilityMap, routes map and boundary) or the boundary in q (QBoundary at the levels req["A"],
+    route boundary_q) of the wavenumbers 2 pi m / N of req["m"], on PETSc.COMM_WORLD, its records in a scratch file."""
     import petsc4py
     petsc4py.init(sys.argv[:1] + petsc_args)
     from mpi4py import MPI
     from petsc4py import PETSc
 
     from hertzpetsc.model import LatticeModel
-    from hertzpetsc.studies.maps import KIND_EDGE, KIND_EDGE_INF, KIND_POINT, MapParameters, StabilityMap
+    from hertzpetsc.studies.maps import (KIND_EDGE, KIND_EDGE_INF, KIND_POINT, MapParameters, QBoundary,
+                                         QBoundaryParameters, StabilityMap)
     comm = PETSc.COMM_WORLD
     work = comm.tompi4py().bcast(tempfile.mkdtemp(prefix="bench_map_") if comm.getRank() == 0 else None)
     N = req["N"]
+    model, qs = LatticeModel.hertz(req["alpha"], (1.0,), 1.0), tuple(2 * math.pi * m / N for m in req["m"])
     comm.tompi4py().Barrier()
     t0 = time.perf_counter()
-    study = StabilityMap(MapParameters(LatticeModel.hertz(req["alpha"], (1.0,), 1.0),
-                                       tuple(2 * math.pi * m / N for m in req["m"]), tuple(req["a"]), N,
-                                       twists=req["twists"], locate=tuple(req["locate"]), limit=req["limit"]), comm,
-                                       f"{work}/map.npz",
-                         "force")
+    if name == "boundary_q":
+        study = QBoundary(QBoundaryParameters(model, tuple(math.inf if A == "inf" else float(A) for A in req["A"]), qs,
+                                              twists=req["twists"]), comm, f"{work}/boundary_q.npz", "force")
+    else:
+        study = StabilityMap(MapParameters(model, qs, tuple(req["a"]), N, twists=req["twists"],
+                                           locate=tuple(req["locate"]), limit=req["limit"]), comm, f"{work}/map.npz",
+                             "force")
     rows = list(study.run())
     study.destroy()
     comm.tompi4py().Barrier()
     wall = time.perf_counter() - t0
     kinds = [int(r["kind"]) for r in rows]
-    emit(MPI.COMM_WORLD, wall=wall, points=kinds.count(KIND_POINT), edges=kinds.count(KIND_EDGE),
-         edges_infinite=kinds.count(KIND_EDGE_INF),
-         rho={f"{float(r['q']):.12f} {float(r['a']):.12g}": float(r["rho"]) for r in rows
-              if int(r["kind"]) == KIND_POINT})
-
-
-def boundary_q_worker(req, petsc_args):
-    """QBoundary (boundary_in_q.py's study) at the levels req["A"] between the wavenumbers 2 pi m / N of req["m"]."""
-    import petsc4py
-    petsc4py.init(sys.argv[:1] + petsc_args)
-    from mpi4py import MPI
-    from petsc4py import PETSc
-
-    from hertzpetsc.model import LatticeModel
-    from hertzpetsc.studies.maps import KIND_EDGE_INF, QBoundary, QBoundaryParameters
-    comm = PETSc.COMM_WORLD
-    work = comm.tompi4py().bcast(tempfile.mkdtemp(prefix="bench_map_") if comm.getRank() == 0 else None)
-    N = req["N"]
-    comm.tompi4py().Barrier()
-    t0 = time.perf_counter()
-    study = QBoundary(QBoundaryParameters(LatticeModel.hertz(req["alpha"], (1.0,), 1.0),
-                                          tuple(math.inf if A == "inf" else float(A) for A in req["A"]),
-                                          tuple(2 * math.pi * m / N for m in req["m"]), twists=req["twists"]),
-                      comm, f"{work}/boundary_q.npz", "force")
-    rows = list(study.run())
-    study.destroy()
-    comm.tompi4py().Barrier()
-    wall = time.perf_counter() - t0
-    kinds = [int(r["kind"]) for r in rows]
-    emit(MPI.COMM_WORLD, wall=wall, points=len(rows) - kinds.count(KIND_EDGE_INF), edges=0,
-         edges_infinite=kinds.count(KIND_EDGE_INF),
-         rho={f"{float(r['q']):.12f} {float(r['A']):.12g} {int(r['kind'])}": float(r["rho_inf"]) for r in rows})
+    if name == "boundary_q":
+        emit(MPI.COMM_WORLD, wall=wall, points=len(rows) - kinds.count(KIND_EDGE_INF), edges=0,
+             edges_infinite=kinds.count(KIND_EDGE_INF),
+             rho={f"{float(r['q']):.12f} {float(r['A']):.12g} {int(r['kind'])}": float(r["rho_inf"]) for r in rows})
+    else:
+        emit(MPI.COMM_WORLD, wall=wall, points=kinds.count(KIND_POINT), edges=kinds.count(KIND_EDGE),
+             edges_infinite=kinds.count(KIND_EDGE_INF),
+             rho={f"{float(r['q']):.12f} {float(r['a']):.12g}": float(r["rho"]) for r in rows
+                  if int(r["kind"]) == KIND_POINT})
 
 
 def dense_worker(req, petsc_args):
@@ -137,10 +122,8 @@ def _number(text):
 def worker(name, req, petsc_args):
     if name == "dense":
         dense_worker(req, petsc_args)
-    elif name == "boundary_q":
-        boundary_q_worker(req, petsc_args)
     else:
-        study_worker(req, petsc_args)
+        study_worker(name, req, petsc_args)
 
 
 def main():

@@ -86,8 +86,8 @@ class DeflatedSector:
     """One twist Theta of a wave's cell after deflation: the multipliers that are not symmetry multipliers
     (``values``), the deflated cluster (eigenvalues of U^H P U), the raw cluster (the 2r eigenvalues of P nearest
     1, what an undeflated spectrum shows; None, as P's eigenvalues ``all_values``, where the scan was told not to
-    compute them), the residuals of the known eigenvectors, of their partners and of the
-    invariance of span U, the free-flight velocity and the size r of the known eigenspace."""
+    compute them), the residuals of the known eigenvectors, of their partners and of the invariance of span U, the
+    free-flight velocity and the size r of the known eigenspace."""
 
     theta: float
     M: int
@@ -294,10 +294,9 @@ class DeflatedSectors(FloquetSolver):
     def scan(self, orbit, thetas, propagate=None, raw=True):
         """A function theta -> :class:`DeflatedSector` of ``orbit`` (every twist from the same cell maps: one
         propagator run when the response stays within a cell, :meth:`~hertzpetsc.bloch.BlochSectors.sector_maps`;
-        ``propagate`` None: when ``thetas`` holds two complex twists or more; ``raw``: also P's own eigenvalues, the raw
-        cluster), the zones' decoupling decided once,
-        at the first informative twist of ``thetas`` (Theta = 0 if the cell holds several zones); and the sectors
-        at ``thetas``."""
+        ``propagate`` None: when ``thetas`` holds two complex twists or more; ``raw``: also P's own eigenvalues,
+        the raw cluster), the zones' decoupling decided once, at the first informative twist of ``thetas``
+        (Theta = 0 if the cell holds several zones); and the sectors at ``thetas``."""
         sym = orbit.symmetry
         if propagate is None:
             propagate = sum(1 for theta in thetas if not real_sector(theta)) >= 2

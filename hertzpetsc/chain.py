@@ -440,17 +440,18 @@ class ChainIntegrator:
         self.ts = ts
         self.steps = 0
 
-    def control_state_only(self):
-        """Measure the step's local error on the state x, x' alone, not on the tangent columns (vector tolerances:
-        rtol, atol on the state, zero on the tangents, which PETSc's weighted norm then leaves out). The columns are
-        the exact derivative of the steps taken (they move with the same Runge-Kutta formula) but the steps do not
-        resolve them to the flow's tolerance: a Newton Jacobian's accuracy in fewer steps, never the multipliers'."""
+    def control_components(self, state=None, tangents=(0.0, 0.0)):
+        """Per-component tolerances (rtol, atol): ``state`` on x, x' (None: the TS's own), ``tangents`` on the tangent
+        columns. Zeros leave the columns out of PETSc's weighted error norm: they are still the exact derivative of
+        the steps taken (they move with the same Runge-Kutta formula), resolved as far as the state's steps resolve
+        them: a Newton Jacobian's accuracy, never the multipliers'. Columns that start as unit vectors, given
+        atol = rtol, are resolved to rtol in norm, which bounds the multipliers' error (times their condition)."""
         ts = self.ts
-        rtol, atol = ts.getTolerances()
+        rtol, atol = ts.getTolerances() if state is None else state
         vr, va = self.chain.create_state(), self.chain.create_state()
         r = vr.getArray().reshape(self.chain.nloc, self.chain.dof)
         a = va.getArray().reshape(self.chain.nloc, self.chain.dof)
-        r[:], a[:] = 0.0, 0.0
+        r[:], a[:] = tangents
         r[:, :2], a[:, :2] = rtol, atol
         ts.setTolerances(rtol=vr, atol=va)
         vr.destroy()

@@ -20,7 +20,8 @@ solved by :class:`PeriodicShooting`, a :class:`~hertzpetsc.continuation.Continua
 Z = (X, p) (p = omega, amplitude or gamma, last entry on the last rank): Newton on SNES (prefix ``drive_``, the state
 flow is the TS of the same prefix) with the bordered Jacobian [R(kT; 0) - I, dG/dp; row], R the monodromy from the
 tangent flow (prefix ``floquet_``): assembled from 2N tangent columns (``jacobian='dense'``, small N; LU, MUMPS on
-several ranks; the steps controlled by the state's error alone, reused as a chord while Newton contracts) or
+several ranks; the steps controlled by the state's error alone, to JACOBIAN_RTOL, reused as a chord while Newton
+contracts; a failed corrector is repeated with the fully resolved flow's Jacobians) or
 matrix-free, one tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long
 chains). dG/dp is a forward difference with one state flow. So the continuation layer's natural and
 pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
@@ -62,6 +63,9 @@ PARAMETERS = ("omega", "amplitude", "gamma")
 # A chord step (the Jacobian of an earlier point) is kept while it reduces the residual at least this much: a fresh
 # Jacobian costs a flow with 2N tangent columns, a chord iteration one state flow.
 CHORD_CONTRACTION = 0.25
+# The Newton Jacobian's flow resolves the state to this rtol (or the flows' own, if looser): a Jacobian of relative
+# error e makes a Newton step contract by about e cond(R - I) besides its own convergence, far below the chord's.
+JACOBIAN_RTOL = 1e-8
 # Steps a state flow over one driving period may take before it counts as failed (-drive_ts_max_steps overrides).
 MAX_STEPS_PER_FLOW = 200000
 JACOBIANS = ("dense", "mf")
@@ -468,11 +472,16 @@ class PeriodicShooting(ContinuationProblem):
         self.X, self.Y = self.chain.create_state(), self.chain.create_state()
         ftol = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if "dense" in (jacobian, floquet) else None
+        if self.dense is not None:             # R's columns start as unit vectors: R to rtol in norm
+            rtol = self.dense.flow.integrator.ts.getTolerances()[0]
+            self.dense.flow.integrator.control_components(tangents=(rtol, rtol))
         # the Newton Jacobian's monodromy: the same 2N columns, steps controlled by the state's error alone
         self.jacobian_flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, floquet_prefix) \
             if jacobian == "dense" else None
         if self.jacobian_flow is not None:
-            self.jacobian_flow.integrator.control_state_only()
+            rtol, atol = self.jacobian_flow.integrator.ts.getTolerances()
+            loose = max(rtol, JACOBIAN_RTOL)
+            self.jacobian_flow.integrator.control_components(state=(loose, atol * loose / rtol))
         self.product = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, ftol, floquet_prefix, shift=0) \
             if jacobian == "mf" else None
         self.dominant = DominantFloquet(spec, comm, min(nev, 2 * spec.N), ftol, floquet_prefix, shift=0) \
@@ -485,6 +494,7 @@ class PeriodicShooting(ContinuationProblem):
         self._spectra = {}             # key of (x, p) -> multipliers
         self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
         self.reuse = self._reuse_now = reuse_jacobian
+        self._tight = False            # the corrector's retry: Jacobians from the fully resolved flow
         self._solves, self._assembled, self._mono_version = 0, None, 0
         self._residuals = {}
         self._snes = self._make_snes(prefix)
@@ -716,7 +726,7 @@ class PeriodicShooting(ContinuationProblem):
     def monodromy(self, x, p, accurate=True):
         """Dense R(kT; 0) at (x, p), on every rank (cached for the last point): ``accurate``, the tangents resolved
         to the Floquet flow's tolerance (multipliers, branch switching), else the Newton Jacobian's (the steps of
-        the state's error, :meth:`~hertzpetsc.chain.ChainIntegrator.control_state_only`)."""
+        the state's error to JACOBIAN_RTOL, :meth:`~hertzpetsc.chain.ChainIntegrator.control_components`)."""
         m = self._mono
         if m is not None and m[1] == p and (m[4] or not accurate) and np.array_equal(m[0], x):
             return m[2]
@@ -746,7 +756,7 @@ class PeriodicShooting(ContinuationProblem):
         contracting = (first and self._near(x, p)) or (not first and fnorm <= CHORD_CONTRACTION * self._last_fnorm)
         self._last_fnorm = fnorm
         if not (self._reuse_now and contracting and self._mono is not None):
-            self.monodromy(x, p, accurate=False)
+            self.monodromy(x, p, accurate=self._tight)
             self.counters["jacobians"] += 1
         key = (self._mono[3], self._solves)
         if key == self._assembled:
@@ -792,19 +802,24 @@ class PeriodicShooting(ContinuationProblem):
                                    **{self.parameter: p0}) from None
         if "atol" not in self._user_set:
             self._snes.setTolerances(atol=self.tol * self.scale(x0))
-        self._reuse_now = self.reuse
-        Z0 = Z.copy() if self.reuse else None
+        self._reuse_now, self._tight = self.reuse, False
+        retry = self.reuse or self.jacobian_flow is not None
+        Z0 = Z.copy() if retry else None
         try:
             self._snes.solve(None, Z)
             reason = int(self._snes.getConvergedReason())
             its = int(self._snes.getIterationNumber())
-            if reason <= 0 and self.reuse:          # a chord step that led nowhere: again with fresh Jacobians
+            if reason <= 0 and retry:
+                # a chord step that led nowhere, or a Jacobian too loose for R - I (multipliers near 1: an undamped
+                # chain amplifies JACOBIAN_RTOL by cond(R - I)): again with fresh, fully resolved Jacobians
                 Z0.copy(Z)
-                self._reuse_now, self._last_fnorm, self._solves = False, math.inf, self._solves + 1
+                self._reuse_now, self._tight = False, True
+                self._last_fnorm, self._solves = math.inf, self._solves + 1
                 self._snes.solve(None, Z)
                 reason = int(self._snes.getConvergedReason())
                 its += int(self._snes.getIterationNumber())
         finally:
+            self._tight = False
             if Z0 is not None:
                 Z0.destroy()
         p = _parameter(Z)

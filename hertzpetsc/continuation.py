@@ -192,17 +192,20 @@ def set_parameter(Z, value):
 class Natural:
     """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`~ContinuationProblem.predictor_ratio`), step
     halved on failure (or when the corrector moves X by more than ``max_corrector``, relative, sup norm) and doubled
-    after a success, up to the next target."""
+    after a success, up to the next target; no step longer than ``max_step`` in the parameter."""
 
     max_halvings: int = 8
     max_corrector: float = 0.25
     max_step_changes: int = 64
+    max_step: float = math.inf
 
     def __post_init__(self):
         _check_count("max_halvings", self.max_halvings, 0)
         _check_count("max_step_changes", self.max_step_changes, 1)
         if not self.max_corrector > 0:
             raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
+        if not self.max_step > 0:
+            raise ParameterError("max_step", self.max_step, "must be > 0")
 
 
 @dataclass(frozen=True)
@@ -358,7 +361,7 @@ class Continuation:
         """Natural continuation from the last point to ``p_target`` (intermediate steps are not reported)."""
         alg = self.natural
         p_last = self.parameter
-        dp = p_target - p_last
+        dp = math.copysign(min(abs(p_target - p_last), alg.max_step), p_target - p_last)
         total_its, halvings, substeps = 0, 0, 0
         while True:
             p = p_target if abs(p_last + dp - p_target) <= 1e-14 * max(1.0, abs(p_target)) else p_last + dp
@@ -399,6 +402,7 @@ class Continuation:
                 return point
             p_last = p
             dp = p_target - p_last if abs(2 * dp) >= abs(p_target - p_last) else 2 * dp
+            dp = math.copysign(min(abs(dp), alg.max_step), dp)
 
     def _corrector_size(self, Z, pred):
         """||X - X_pred||_inf / ||X||_inf (the parameter left out): both norms from the local arrays, in one

@@ -124,14 +124,25 @@ class FamilyProblem(AdvanceDelayProblem):
                               iterations=iterations, m1=float(self.masses[1]) if self.p > 1 else 1.0)
 
 
+# A mass pattern's family is guarded against natural steps that land on another branch (docs/beyond-the-paper.md,
+# dimers): steps of ln 3 and ln(10/3) did so, and so did a step of ln 1.5 across a dimer's gap opening, where its
+# corrector moved (w, lam) by 26 % (steps within the family: at most 19 % once the secant predictor has two points).
+PATTERN_MAX_STEP = math.log(1.5)
+PATTERN_MAX_CORRECTOR = 0.25
+
+
 class AmplitudeFamily:
     """Travelling waves of ``model`` at fixed q, continued in s = log a from the linear wave (module docstring):
     the layer's natural algorithm (secant predictor on (w, lam), step halving on failure, at most
     ``max_halvings``). One SNES under ``prefix``. ``branch``: the acoustic or optical linear wave to start from;
-    ``measure``: what a is ('a1': the first sine coefficient of the normalised profile; 'sup': A = max |u|)."""
+    ``measure``: what a is ('a1': the first sine coefficient of the normalised profile; 'sup': A = max |u|).
+    ``max_step``, ``max_corrector``: the layer's guards against a step landing on another branch, the longest
+    natural step in log a and the largest corrector (relative, on (w, lam)); None: PATTERN_MAX_STEP and
+    PATTERN_MAX_CORRECTOR for a mass pattern, none for the monatomic chain (every converged step taken, as when
+    its families were computed)."""
 
     def __init__(self, model, q, grid, prefix=PRECOMP_PREFIX, branch="acoustic", max_halvings=6, measure="a1",
-                 solver=None, tests=None, bisect=(), locate_step=None):
+                 solver=None, tests=None, bisect=(), locate_step=None, max_step=None, max_corrector=None):
         if not model.law.linear_stiffness > 0:
             raise ParameterError("delta0", model.delta0, "the amplitude family starts from the linear wave: it needs "
                                  "a precompression > 0")
@@ -141,8 +152,14 @@ class AmplitudeFamily:
         self.problem.solver(False, prefix, solver)
         self.q = self.problem.q
         self.problem.extra_tests = tests
-        self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=math.inf),
-                                         bisect=bisect, locate_step=locate_step)
+        pattern = len(model.masses) > 1
+        if max_step is None:
+            max_step = PATTERN_MAX_STEP if pattern else math.inf
+        if max_corrector is None:
+            max_corrector = PATTERN_MAX_CORRECTOR if pattern else math.inf
+        self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=max_corrector,
+                                                               max_step=max_step), bisect=bisect,
+                                         locate_step=locate_step)
 
     def solve_at(self, a):
         """The wave at amplitude a: the first from the linear wave, the next by a natural step."""

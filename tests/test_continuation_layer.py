@@ -130,6 +130,29 @@ def test_natural_continuation_stops_at_the_fold_with_a_bounded_number_of_solves(
         cont.destroy()
 
 
+def test_natural_steps_no_longer_than_max_step():
+    """step_to(1.0) from 0.1 with max_step = 0.2 corrects at ceil(0.9 / 0.2) = 5 parameters (each step as long as
+    allowed, the last shortened to land on the target), and lands where one long step lands (every converged
+    corrector taken: max_corrector = inf)."""
+    ends = {}
+    for max_step in (math.inf, 0.2):
+        prob = Bratu(19)
+        cont = Continuation(prob, Natural(max_corrector=math.inf, max_step=max_step))
+        Z = prob.create_vec()
+        Z.set(0.0)
+        Z.getArray()[-1] = 0.1
+        try:
+            cont.start(Z)
+            solves = prob.solves
+            cont.step_to(1.0)
+            ends[max_step] = (prob.solves - solves, cont.history[-1][0].getArray().copy())
+        finally:
+            Z.destroy()
+            cont.destroy()
+    assert ends[math.inf][0] == 1 and ends[0.2][0] == 5
+    assert np.max(np.abs(ends[0.2][1] - ends[math.inf][1])) < 1e-12
+
+
 def test_algorithm_parameters_are_validated():
     with pytest.raises(ParameterError):
         PseudoArclength(ds=0.0)
@@ -137,6 +160,8 @@ def test_algorithm_parameters_are_validated():
         PseudoArclength(ds=1.0, ds_max=0.5)
     with pytest.raises(ParameterError):
         Natural(max_halvings=-1)
+    with pytest.raises(ParameterError, match="max_step"):
+        Natural(max_step=0.0)
     with pytest.raises(ParameterError):
         Continuation(Bratu(5), algorithm="arclength")
 

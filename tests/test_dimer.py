@@ -135,6 +135,28 @@ def test_dimer_driver(tmp_path):
     assert "-epsilon_end" in one_error_line(run_script("dimer_branch.py", "-epsilon_end", "1.5", *common, *out(3)))
 
 
+def test_a_mass_patterns_amplitude_family_does_not_jump_branches():
+    """The six-amplitude dimer maps' steps (a = 0.1, 0.3, 1, 3; epsilon = 0.4, q = 7pi/25) landed on another branch
+    when every converged step as long as the grid's was taken (omega 0.79 at a = 3); with the pattern's guards
+    (PATTERN_MAX_STEP, PATTERN_MAX_CORRECTOR) the family reaches the wave a fine grid (40 steps of ln(30)/40)
+    reaches: the same discrete problem, so the same omega to the Newton tolerance (1e-9)."""
+    model = dimer(0.4)
+    q = 2 * math.pi * 14 / 100
+    omega = {}
+    for name, max_step, grid in (("guarded", None, (0.1, 0.3, 1, 3)), ("unguarded", math.inf, (0.1, 0.3, 1, 3)),
+                                 ("fine", math.inf, np.exp(np.linspace(math.log(0.1), math.log(3), 41)))):
+        fam = AmplitudeFamily(model, q, ProfileGrid(50, COMM), max_step=max_step,
+                              max_corrector=None if max_step is None else math.inf)
+        try:
+            for a in grid:
+                point = fam.step_to(a)
+            omega[name] = point.omega
+        finally:
+            fam.destroy()
+    assert abs(omega["guarded"] - omega["fine"]) < 1e-9 * omega["fine"]
+    assert abs(omega["unguarded"] - omega["fine"]) > 0.1 * omega["fine"]
+
+
 @pytest.mark.parametrize("branch", ["acoustic", "optical"])
 def test_amplitude_families_of_a_mass_pattern(branch):
     """AmplitudeFamilies takes a mass pattern and either linear branch: its first wave (a = 1e-5) has the branch's

@@ -205,8 +205,8 @@ def test_maps_before_issue_23_are_rendered_not_resumed_and_the_old_import_path_w
 def test_unstable_intervals_pair_the_located_edges():
     """Intervals from the located edges of a q (records as the study writes them): an onset opens, an offset closes;
     unstable at the smallest amplitude opens from 0, an onset never closed runs to inf if the largest amplitude is
-    unstable (else its offset was not located: nan), two onsets in a row leave an offset not located (nan); a chain
-    without edges and stable points has none."""
+    unstable (else its offset was not located: nan), two onsets in a row leave an offset not located (nan), and so
+    does a map amplitude whose verdict contradicts the last edge; a chain without edges and stable points has none."""
     from hertzpetsc.studies.maps import KIND_EDGE, unstable_intervals
     nan = math.nan
     rows = [  # q, kind, A, rho, A_stable, A_unstable
@@ -226,6 +226,13 @@ def test_unstable_intervals_pair_the_located_edges():
     # at the map's last amplitude and beyond would be overreached)
     z["rho"][7] = 1.0
     assert np.array_equal(unstable_intervals(z)[1.0][-1], (2.0, math.nan), equal_nan=True)
+    # an offset located, then unstable map amplitudes with no onset located (a dimer's infinite chain: rho - 1 dipped
+    # below tol_rho at one sample): unstable again from an unknown A (nan) to inf, not stable from the offset on
+    rows = [(3.0, KIND_POINT, 0.1, 1.0 + 3e-5, nan, nan), (3.0, KIND_EDGE, 0.15, nan, 0.1501, 0.1499),
+            (3.0, KIND_POINT, 0.3, 1.0 + 3e-3, nan, nan), (3.0, KIND_POINT, 3.0, 1.4, nan, nan)]
+    z = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("q", "kind", "A", "rho", "A_stable", "A_unstable"))}
+    z["tol_rho"] = 1e-6
+    assert np.array_equal(unstable_intervals(z)[3.0], [(0.0, 0.15), (math.nan, math.inf)], equal_nan=True)
 
 
 def test_a_deflation_that_does_not_hold_gives_no_verdict(capfd):

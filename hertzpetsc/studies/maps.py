@@ -801,10 +801,11 @@ def map_v1_table(z):
 def unstable_intervals(z, key="rho"):
     """{q: [(A_from, A_to), ...]} the intervals of A where the chain of ``key`` (``rho``: N beads, ``rho_inf``: the
     infinite chain) is unstable, between its located edges (the located points' A, the midpoints of their
-    brackets): from 0 when the smallest map amplitude is unstable before the first edge, to inf when the verdict
-    stays unstable up to the largest map amplitude (then the uncompressed limit's verdict is unstable too unless a
-    change beyond the largest map amplitude was not located); nan where an edge between two located ones was not located (an onset after an
-    onset, or an offset after an offset: the family stepped into a window the map's amplitudes do not show)."""
+    brackets), read together with the verdicts at the map's amplitudes: from 0 when the smallest map amplitude is
+    unstable before the first edge, to inf when the verdict stays unstable up to the largest map amplitude (then the
+    uncompressed limit's verdict is unstable too unless a change beyond the largest map amplitude was not located);
+    nan where an edge was not located (an onset after an onset, an offset after an offset, or a map amplitude whose
+    verdict contradicts the last located edge: the family stepped into a window the edges do not show)."""
     tol = float(z["tol_rho"])
     kind, q, A = np.asarray(z["kind"]), np.asarray(z["q"], float), np.asarray(z["A"], float)
     rho = np.asarray(z[key], float)
@@ -813,18 +814,26 @@ def unstable_intervals(z, key="rho"):
     out = {}
     for qq in sorted(set(q[(kind == KIND_POINT) & np.isfinite(rho)].tolist())):
         pts = np.nonzero((kind == KIND_POINT) & (q == qq) & np.isfinite(rho))[0]
-        first = pts[np.argmin(A[pts])]
         mine = np.nonzero((kind == edge) & (q == qq))[0]
-        start = 0.0 if rho[first] - 1 > tol else None
-        spans = []
-        for i in mine[np.argsort(A[mine])]:
-            if onset_of[i]:
-                if start is not None:          # unstable already: an offset between was not located
+        # the walk in A: points (their verdicts) and edges; at equal A the point comes first
+        walk = sorted([(float(A[i]), 0, i) for i in pts] + [(float(A[i]), 1, i) for i in mine])
+        start, spans, seen = None, [], False
+        for a, is_edge, i in walk:
+            if not is_edge:
+                unstable = rho[i] - 1 > tol
+                if unstable and start is None:
+                    start = 0.0 if not seen else math.nan      # an onset before it was not located
+                elif not unstable and start is not None:
+                    spans.append((start, math.nan))             # an offset before it was not located
+                    start = None
+                seen = True
+            elif onset_of[i]:
+                if start is not None:                           # unstable already: an offset between was not located
                     spans.append((start, math.nan))
-                start = float(A[i])
-            else:                              # stable before: nan, an onset between was not located
-                spans.append((math.nan if start is None else start, float(A[i])))
-                start = None
+                start, seen = a, True
+            else:                                               # stable before: nan, an onset between was not located
+                spans.append((math.nan if start is None else start, a))
+                start, seen = None, True
         if start is not None:                  # up to the uncompressed limit only if the largest amplitude is unstable
             last = pts[np.argmax(A[pts])]
             spans.append((start, math.inf if rho[last] - 1 > tol or A[last] < start else math.nan))

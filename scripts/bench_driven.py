@@ -14,9 +14,9 @@ the continuation layer, bordered Newton on SNES with the dense tangent-flow Jaco
 contracts, LAPACK multipliers of the monodromy at each response) on 1 and 2 ranks, and SciPy (solve_ivp DOP853 on
 the state and its 2N variational columns at each Newton iteration, numpy.linalg.solve, numpy.linalg.eigvals of the
 last monodromy; the previous response as the guess), once with atol 1e-14 on every component and once with the
-tangent columns' atol = rtol, as hertzpetsc's multipliers' flow. long: -long_N beads, -long_run_in periods from rest, then
-Newton-Krylov shooting (GMRES on tangent-flow products, preconditioned by the linear chain's monodromy) to 1e-9;
-time and peak memory per rank on 1 and 2 ranks.
+tangent columns' atol = rtol, as hertzpetsc's multipliers' flow. long: -long_N beads, -long_run_in periods from
+rest, then Newton-Krylov shooting (GMRES on tangent-flow products, preconditioned by the linear chain's monodromy)
+to 1e-9; time and peak memory per rank on 1 and 2 ranks.
 Each measurement in its own process (one BLAS thread per rank), best of -repeats; run on an idle machine.
 """
 import math
@@ -172,6 +172,7 @@ def worker(name, req, petsc_args):
 def main():
     from hertzpetsc.options import AppOptions
     opts = AppOptions(__doc__)
+    from hertzpetsc.driven import JACOBIAN_RTOL
     from hertzpetsc.resources import MAX_DENSE_BEADS, check_chain_memory
     N = opts.integer("N", 20, "beads of the swept chain (dense Jacobian and multipliers)", minimum=1,
                      maximum=MAX_DENSE_BEADS)
@@ -211,7 +212,8 @@ def main():
                   "(the multipliers at each response) and in the Newton Jacobians' (steps of the state's error). "
                   "hertzpetsc resolves the multipliers' tangent columns to atol = rtol (they start as unit vectors: "
                   "the monodromy to rtol in norm) and the Newton Jacobians' steps to the state's error at rtol "
-                  "1e-8 (driven.JACOBIAN_RTOL); the second SciPy row gives SciPy the same columns' tolerance.\n",
+                  f"{JACOBIAN_RTOL:g} (driven.JACOBIAN_RTOL); the second SciPy row gives SciPy the same columns' "
+                  "tolerance.\n",
                   "| route | ranks | wall (s) | Newton iterations | flows with tangents | state flows | max residual | "
                   "max \\|d rho\\| | peak MB/rank | SciPy / this | multipliers' flows (s) | Jacobians' flows (s) |",
                   "|---|---|---|---|---|---|---|---|---|---|---|---|"]

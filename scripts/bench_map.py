@@ -62,8 +62,8 @@ def study_worker(name, req, petsc_args):
     comm.tompi4py().Barrier()
     t0 = time.perf_counter()
     if name == "boundary_q":
-        study = QBoundary(QBoundaryParameters(model, tuple(math.inf if A == "inf" else float(A) for A in req["A"]), qs,
-                                              twists=req["twists"]), comm, f"{work}/boundary_q.npz", "force")
+        study = QBoundary(QBoundaryParameters(model, tuple(req["A"]), qs, twists=req["twists"]), comm,
+                          f"{work}/boundary_q.npz", "force")
     else:
         study = StabilityMap(MapParameters(model, qs, tuple(req["a"]), N, twists=req["twists"],
                                            locate=tuple(req["locate"]), limit=req["limit"]), comm, f"{work}/map.npz",
@@ -112,13 +112,6 @@ def dense_worker(req, petsc_args):
     emit(None, wall=time.perf_counter() - t0, points=len(rho), edges=0, edges_infinite=0, rho=rho)
 
 
-def _number(text):
-    try:
-        return float(text)
-    except ValueError:
-        return math.nan
-
-
 def worker(name, req, petsc_args):
     if name == "dense":
         dense_worker(req, petsc_args)
@@ -143,8 +136,9 @@ def main():
     ds = opts.real("ds", math.log(10) / 10, "step in log a of the geometric grid (0: none)",
                    valid=(lambda x: x >= 0, ">= 0"))
     twists = opts.integer("twists", 1024, "infinite chain of the boundary route: Bloch parameters per pi", minimum=1)
-    levels = opts.words("levels", DEFAULT_LEVELS, "amplitudes A = max |u| of the boundary in q (inf: the "
-                        "uncompressed limit; the options database does not tell -A from -a)")
+    levels = opts.numbers("levels", DEFAULT_LEVELS, "amplitudes A = max |u| of the boundary in q (inf: the "
+                          "uncompressed limit; the options database does not tell -A from -a)", expr=False,
+                          valid=(lambda x: x > 0, "> 0"), distinct=True)
     routes = opts.words("routes", ALL_ROUTES, "routes to run", choices=ROUTES)
     previous = opts.path("previous", "", "a checkout of another version: the boundary routes measured with it too, "
                          "side by side (none if empty)")
@@ -152,10 +146,6 @@ def main():
     output, repeats, records_path, mode = declare_common(opts, "results/bench_map.md", repeats=1)
     opts.done()
     opts.check_unused()
-    for A in levels:
-        if A != "inf" and not (_number(A) > 0):
-            from hertzpetsc.errors import ParameterError
-            raise ParameterError("-levels", A, "amplitudes must be numbers > 0 or inf")
     if previous and not os.path.isfile(os.path.join(previous, "hertzpetsc", "__init__.py")):
         from hertzpetsc.errors import ParameterError
         raise ParameterError("-previous", previous, "must be a checkout holding hertzpetsc/ (e.g. a git worktree)")

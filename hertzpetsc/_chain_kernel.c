@@ -51,6 +51,7 @@ typedef struct {
     int left, right;            /* what this rank's ghost rows are: END_* */
     double left_x, left_v, right_x, right_v;   /* actuator position and velocity at the evaluation time */
     double alpha, delta0, delta0_alpha;        /* Hertz law (eq. vhertz), delta0_alpha = delta0^alpha */
+    double delta0_base;         /* sqrt(delta0) for a half-whole alpha, else delta0 (compressed_force) */
     int force_k, force_half;    /* |r|^alpha by products and one sqrt (k products, half: sqrt) or pow: k < 0 */
     int stiff_k, stiff_half;    /* |r|^(alpha - 1) likewise */
     double gamma, eta;          /* damping: on-site, between neighbours */
@@ -79,13 +80,30 @@ static inline double abs_power(double a, double e, int k, int half)
 static inline double min0(double x) { return x > 0.0 ? 0.0 : x; }
 static inline double max0(double x) { return x < 0.0 ? 0.0 : x; }
 
-static inline double force(const ChainKernel *k, double r)
+/* delta0^alpha - (delta0 - r)_+^alpha as hertzpetsc.hertz.compressed_force: x times a sum of positive terms for
+ * whole and half-whole alpha, expm1(log1p) otherwise. */
+static inline double compressed_force(const ChainKernel *k, double r)
 {
-    if (k->delta0 > 0.0) {
+    if (k->force_k < 0) {
         double ratio = r / k->delta0;
         ratio = ratio > 1.0 ? 1.0 : ratio;
         return -k->delta0_alpha * expm1(k->alpha * log1p(-ratio));
     }
+    if (r >= k->delta0) return k->delta0_alpha;
+    double gap = max0(k->delta0 - r);
+    double s = k->delta0_base, t = k->force_half ? sqrt(gap) : gap;
+    int n = k->force_half ? 2 * k->force_k + 1 : k->force_k;
+    double p = 1.0, sp = 1.0;
+    for (int i = 1; i < n; i++) {
+        sp = sp * s;
+        p = p * t + sp;
+    }
+    return k->force_half ? r * p / (s + t) : r * p;
+}
+
+static inline double force(const ChainKernel *k, double r)
+{
+    if (k->delta0 > 0.0) return compressed_force(k, r);
     return -abs_power(-min0(r), k->alpha, k->force_k, k->force_half);
 }
 

@@ -23,7 +23,9 @@ tangent flow (prefix ``floquet_``): assembled from 2N tangent columns (``jacobia
 several ranks; the steps controlled by the state's error alone, to JACOBIAN_RTOL, reused as a chord while Newton
 contracts; a failed corrector is repeated with the fully resolved flow's Jacobians) or
 matrix-free, one tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long
-chains). dG/dp is a forward difference with one state flow. So the continuation layer's natural and
+chains). The residual of an iterate far from the response is evaluated inexactly, with the state flow at a
+tolerance that follows the residual (INEXACT_FRACTION), the converged one at the flow's own. dG/dp is a forward
+difference with one state flow. So the continuation layer's natural and
 pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
 
 Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by LAPACK on the dense monodromy
@@ -45,6 +47,7 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
+from mpi4py import MPI
 from petsc4py import PETSc
 
 from .assembly import gathered
@@ -66,6 +69,11 @@ CHORD_CONTRACTION = 0.25
 # The Newton Jacobian's flow resolves the state to this rtol (or the flows' own, if looser): a Jacobian of relative
 # error e makes a Newton step contract by about e cond(R - I) besides its own convergence, far below the chord's.
 JACOBIAN_RTOL = 1e-8
+# Inexact Newton: an iterate's residual G is evaluated with the state flow at rtol INEXACT_FRACTION f^2 (f: the last
+# relative residual of the corrector, a quadratic prediction of this one's), within [the flow's rtol, JACOBIAN_RTOL],
+# and again at the flow's own rtol when the tolerance used exceeds INEXACT_FRACTION times the residual it measured:
+# every accepted evaluation is resolved to a small fraction of its size, the converged one to the flow's tolerance.
+INEXACT_FRACTION = 1e-2
 # Steps a state flow over one driving period may take before it counts as failed (-drive_ts_max_steps overrides).
 MAX_STEPS_PER_FLOW = 200000
 JACOBIANS = ("dense", "mf")
@@ -436,11 +444,12 @@ class PeriodicShooting(ContinuationProblem):
     ``jacobian``: 'dense' (R from 2N tangent columns, LU) or 'mf' (tangent-flow products, GMRES); ``floquet``:
     multipliers for the test functions and reports, 'dense' (all 2N, the Jacobian's monodromy), 'slepc' (``nev``
     dominant ones) or 'none'. ``tol``: the shooting tolerance on ||G||_inf / max(||X||_inf, amplitude).
+    ``inexact``: the residuals of iterates far from the response from a looser state flow (:meth:`_evaluation_rtol`).
     """
 
     def __init__(self, drive, comm, parameter="omega", periods=1, jacobian="dense", floquet="dense", nev=8,
                  tol=1e-10, tolerances=RESPONSE_TOLERANCES, floquet_tolerances=None, prefix=DRIVE_PREFIX,
-                 floquet_prefix=FLOQUET_PREFIX, reuse_jacobian=True):
+                 floquet_prefix=FLOQUET_PREFIX, reuse_jacobian=True, inexact=True):
         if not isinstance(drive, Drive):
             raise ParameterError("drive", drive, "must be a Drive")
         _check_parameter(parameter)
@@ -497,6 +506,9 @@ class PeriodicShooting(ContinuationProblem):
         self._tight = False            # the corrector's retry: Jacobians from the fully resolved flow
         self._solves, self._assembled, self._mono_version = 0, None, 0
         self._residuals = {}
+        self._flow_tolerances = self.integrator.ts.getTolerances()
+        self._f_last = None            # the relative residual of the corrector's last evaluation (inexact Newton)
+        self.inexact = inexact
         self._snes = self._make_snes(prefix)
 
     # --- layout ---------------------------------------------------------------------------------------------------
@@ -692,20 +704,60 @@ class PeriodicShooting(ContinuationProblem):
             return R.DIVERGED_MAX_IT
         return R.ITERATING
 
+    def _evaluation_rtol(self):
+        """The state flow's rtol for the next residual evaluation of the corrector (inexact Newton): the flow's
+        own at the first evaluation of a bordered solve (dG/dp is differenced from it) and once the residual is
+        small, else INEXACT_FRACTION f^2 up to JACOBIAN_RTOL."""
+        rtol = self._flow_tolerances[0]
+        if not self.inexact or self._tight:
+            return rtol
+        if self._f_last is None:
+            return rtol if self._row is not None else max(rtol, JACOBIAN_RTOL)
+        return min(max(rtol, INEXACT_FRACTION * self._f_last ** 2), max(rtol, JACOBIAN_RTOL))
+
+    def _flow_at(self, X, z, rtol):
+        """X <- P(z) with the state flow at ``rtol`` (atol in the same ratio), the flow's tolerances restored."""
+        rtol0, atol0 = self._flow_tolerances
+        X.getArray()[:] = z[:self.nloc]
+        if rtol == rtol0:
+            self.flow(X)
+            return
+        ts = self.integrator.ts
+        ts.setTolerances(rtol=rtol, atol=atol0 * rtol / rtol0)
+        try:
+            self.flow(X)
+        finally:
+            ts.setTolerances(rtol=rtol0, atol=atol0)
+
+    def _relative(self, g, z):
+        """||g||_inf / max(||z||_inf, amplitude) over the state rows of every rank."""
+        local = np.array([np.max(np.abs(g), initial=0.0), np.max(np.abs(z), initial=0.0)])
+        self.mpi.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
+        s = max(self.drive.amplitude, local[1])
+        return local[0] / (s if s > 0 else 1.0)
+
     def formFunction(self, snes, Z, F):
         z = Z.getArray(readonly=True)
         p = _parameter(Z)
         try:
             self._at(p)
-            self.X.getArray()[:] = z[:self.nloc]
-            self.flow(self.X)
+            rtol = self._evaluation_rtol()
+            self._flow_at(self.X, z, rtol)
+            g = self.X.getArray(readonly=True) - z[:self.nloc]
+            f = self._relative(g, z[:self.nloc])
+            if rtol > self._flow_tolerances[0] and rtol > INEXACT_FRACTION * f:
+                # not resolved to a small fraction of itself: again at the flow's tolerance
+                self._flow_at(self.X, z, self._flow_tolerances[0])
+                g = self.X.getArray(readonly=True) - z[:self.nloc]
+                f = self._relative(g, z[:self.nloc])
         except (ParameterError, ConvergenceError):
             # outside the parameter's range (omega <= 0, a < 0) or a failed flow: NaN makes the line search
             # shorten the step, or SNES stop with a negative reason
             F.set(math.nan)
             return
+        self._f_last = f
         f = F.getArray()
-        f[:self.nloc] = self.X.getArray(readonly=True) - z[:self.nloc]
+        f[:self.nloc] = g
         g = (self._row.dot(Z) - self._value) if self._row is not None else 0.0
         if self._row is None and self.last_rank:
             g = z[-1] - self._p_fixed
@@ -792,6 +844,7 @@ class PeriodicShooting(ContinuationProblem):
         iterations (at least 1: a Z that is already a response counts as one); ConvergenceError naming p."""
         self._row, self._value = row, value
         self._dGdp, self._last_fnorm, self._solves = None, math.inf, self._solves + 1
+        self._f_last = None
         self._row_full = gathered(row) if row is not None and self.jacobian_kind == "dense" else None
         x0, p0 = self.state(Z)
         self._p_fixed = p0
@@ -814,7 +867,7 @@ class PeriodicShooting(ContinuationProblem):
                 # chain amplifies JACOBIAN_RTOL by cond(R - I)): again with fresh, fully resolved Jacobians
                 Z0.copy(Z)
                 self._reuse_now, self._tight = False, True
-                self._last_fnorm, self._solves = math.inf, self._solves + 1
+                self._last_fnorm, self._solves, self._f_last = math.inf, self._solves + 1, None
                 self._snes.solve(None, Z)
                 reason = int(self._snes.getConvergedReason())
                 its += int(self._snes.getIterationNumber())

@@ -38,14 +38,49 @@ def abs_power(a, e):
     """a^e for a >= 0. Exponents that are whole or half-whole numbers up to 4 (alpha = 3/2, 2, 5/2, ...) use
     products and one sqrt, several times faster than the general power, which dominates the chain's right-hand
     side; they agree with a ** e to a few ulp."""
-    n2 = 2.0 * e
-    if n2 == round(n2) and 0 <= n2 <= 8:
-        k, half = divmod(int(round(n2)), 2)
+    k, half = power_recipe(e)
+    if k >= 0:
         out = np.sqrt(a) if half else np.ones_like(a)
         for _ in range(k):
             out = out * a
         return out
     return a ** e
+
+
+def power_recipe(e):
+    """(k, half) of :func:`abs_power` for the exponent e: k products and a sqrt if half, or k = -1 for the general
+    power."""
+    n2 = 2.0 * e
+    if n2 == round(n2) and 0 <= n2 <= 8:
+        k, half = divmod(int(round(n2)), 2)
+        return k, half
+    return -1, 0
+
+
+def compressed_force(x, delta0, alpha):
+    """delta0^alpha - (delta0 - x)_+^alpha for delta0 > 0, to a few ulp relative also when |x| << delta0.
+
+    In contact (x < delta0), with c = delta0, d = delta0 - x: for whole alpha = n, c^n - d^n = x sum_j c^(n-1-j)
+    d^j; for half-whole alpha = n/2, with s = sqrt(c), t = sqrt(d), c^alpha - d^alpha = s^n - t^n = x sum_j
+    s^(n-1-j) t^j / (s + t): the difference c - d = x is exact, and the sum of positive terms is well conditioned.
+    Other exponents: -delta0^alpha expm1(alpha log1p(-x/delta0)). The compiled right-hand side
+    (``_chain_kernel.c``, ``force``) does the same operations in the same order."""
+    k, half = power_recipe(alpha)
+    if k < 0:
+        ratio = np.minimum(x / delta0, 1.0)
+        with np.errstate(divide="ignore"):          # log1p(-1) = -inf: out of contact, V' = delta0^alpha
+            return -delta0 ** alpha * np.expm1(alpha * np.log1p(-ratio))
+    gap = np.maximum(delta0 - x, 0.0)
+    if half:
+        s, t, n = math.sqrt(delta0), np.sqrt(gap), 2 * k + 1
+    else:
+        s, t, n = delta0, gap, k
+    p, sp = np.ones_like(gap), 1.0
+    for _ in range(n - 1):
+        sp = sp * s
+        p = p * t + sp
+    out = x * p / (s + t) if half else x * p
+    return np.where(x >= delta0, delta0 ** alpha, out)[()]
 
 
 @dataclass(frozen=True)
@@ -118,14 +153,9 @@ class HertzLaw(InteractionLaw):
 
     def dV(self, x):
         """V'(x) = -|x|^alpha H(-x): the contact force, non-positive; with precompression
-        delta0^alpha - (delta0 - x)_+^alpha, evaluated as -delta0^alpha expm1(alpha log1p(-x/delta0)) in contact
-        (no cancellation when |x| << delta0)."""
+        delta0^alpha - (delta0 - x)_+^alpha, without cancellation when |x| << delta0 (:func:`compressed_force`)."""
         if self.delta0 > 0.0:
-            d, a = self.delta0, self.alpha
-            x = np.asarray(x, dtype=float)
-            ratio = np.minimum(x / d, 1.0)
-            with np.errstate(divide="ignore"):          # log1p(-1) = -inf: out of contact, V' = delta0^alpha
-                return -d ** a * np.expm1(a * np.log1p(-ratio))
+            return compressed_force(np.asarray(x, dtype=float), self.delta0, self.alpha)
         return -abs_power(-np.minimum(x, 0.0), self.alpha)
 
     def d2V(self, x):

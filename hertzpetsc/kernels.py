@@ -23,6 +23,8 @@ import tempfile
 
 import numpy as np
 
+from .hertz import power_recipe
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 SOURCE = os.path.join(HERE, "_chain_kernel.c")
 LIBRARY = os.path.join(HERE, "_chain_kernel.so")
@@ -42,6 +44,7 @@ class KernelContext(ctypes.Structure):
                 ("left_x", ctypes.c_double), ("left_v", ctypes.c_double),
                 ("right_x", ctypes.c_double), ("right_v", ctypes.c_double),
                 ("alpha", ctypes.c_double), ("delta0", ctypes.c_double), ("delta0_alpha", ctypes.c_double),
+                ("delta0_base", ctypes.c_double),
                 ("force_k", ctypes.c_int), ("force_half", ctypes.c_int),
                 ("stiff_k", ctypes.c_int), ("stiff_half", ctypes.c_int),
                 ("gamma", ctypes.c_double), ("eta", ctypes.c_double),
@@ -53,16 +56,6 @@ class KernelContext(ctypes.Structure):
                 ("bond", ctypes.c_void_p), ("stiff", ctypes.c_void_p), ("dv", ctypes.c_void_p),
                 ("harmonic_left", ctypes.c_int), ("harmonic_right", ctypes.c_int),
                 ("harmonic", (ctypes.c_double * 4) * 2)]
-
-
-def power_recipe(e):
-    """(k, half) of :func:`hertzpetsc.hertz.abs_power` for the exponent e: k products and a sqrt if half, or
-    k = -1 for the general power."""
-    n2 = 2.0 * e
-    if n2 == round(n2) and 0 <= n2 <= 8:
-        k, half = divmod(int(round(n2)), 2)
-        return k, half
-    return -1, 0
 
 
 def petsc_library():
@@ -182,6 +175,7 @@ class ChainKernel:
         ctx.alpha, ctx.delta0 = law.alpha, law.delta0
         ctx.delta0_alpha = law.delta0 ** law.alpha
         ctx.force_k, ctx.force_half = power_recipe(law.alpha)
+        ctx.delta0_base = math.sqrt(law.delta0) if ctx.force_half else law.delta0
         ctx.stiff_k, ctx.stiff_half = power_recipe(law.alpha - 1.0)
         damping = chain.model.damping
         ctx.gamma, ctx.eta = damping.gamma, damping.eta

@@ -166,6 +166,30 @@ def test_newton_jacobians_resolve_the_state_and_the_multipliers_the_tangents():
         prob.destroy()
 
 
+def test_inexact_newton_evaluates_far_iterates_loosely_and_converges_to_the_same_response():
+    """The residuals of Newton iterates far from the response come from the state flow at INEXACT_FRACTION f^2 (up
+    to JACOBIAN_RTOL), f the last relative residual: fewer steps in all. The converged evaluation is at the flow's
+    own tolerance: the response's residual re-measured with it is below the shooting tolerance, and the response is
+    the exact-evaluation corrector's to within twice that tolerance times ||(R - I)^-1|| (both satisfy it)."""
+    N, omega = 8, 1.1
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.05), N, HarmonicWave(), 0.05, omega)
+    out = {}
+    for inexact in (False, True):
+        prob = PeriodicShooting(drive, COMM, inexact=inexact)
+        try:
+            x0 = prob.run_in(np.zeros((N, 2)), 5)
+            steps = prob.integrator.steps
+            r = prob.solve_response(x0)
+            out[inexact] = (r, prob.integrator.steps - steps, prob.monodromy(r.x, omega), prob.scale(r.x), prob.tol)
+        finally:
+            prob.destroy()
+    (exact, steps_exact, R, scale, tol), (loose, steps_loose, _, _, _) = out[False], out[True]
+    assert exact.residual <= tol and loose.residual <= tol
+    assert steps_loose < 0.8 * steps_exact
+    bound = 2 * tol * scale * np.linalg.norm(np.linalg.inv(R - np.eye(2 * N)), np.inf)
+    assert 0 < np.max(np.abs(loose.x - exact.x)) <= bound
+
+
 @pytest.mark.parametrize("right,eta", [("wall", 0.0), ("free", 0.03)])
 def test_linear_chain_preconditioner_is_the_inverse_of_the_linear_monodromy_minus_one(right, eta):
     """The preconditioner of Newton-Krylov shooting applies (R_lin - I)^-1 (sine modes, closed-form 2 x 2 monodromies)

@@ -32,6 +32,10 @@ CHAINS = [
     ("masses, damping, precompression", lambda: Chain(ChainSpec(H(1.5, (1.0, 0.6), 0.5, 0.05, 0.03), 12), COMM, 3)),
     ("walls, actuator, alpha 5/2", lambda: Chain(ChainSpec(H(2.5, (1.0, 0.6), gamma=0.05, eta=0.03), 12, "fixed",
                                                           left=Actuator(Harmonic(0.2, 1.3))), COMM, 2)),
+    ("precompression, alpha 2", lambda: Chain(ChainSpec(H(2.0, delta0=0.4), 12), COMM, 1)),
+    ("precompression, alpha 5/2, fixed ends", lambda: Chain(ChainSpec(H(2.5, delta0=0.4, gamma=0.05), 12, "fixed"),
+                                                           COMM, 1)),
+    ("precompression, alpha 1.7", lambda: Chain(ChainSpec(H(1.7, delta0=0.4), 12), COMM, 1)),
     ("free end, sampled actuator, alpha 1.7", lambda: Chain(ChainSpec(H(1.7, (1.0, 0.6), eta=0.03), 12, "free",
                                                                       right=Actuator(SAMPLED)), COMM, 2)),
     ("gap lattice", lambda: WindowChain(ChainSpec(H(1.5), 12, "free"), COMM, gap=0.37, n_tangent=2)),
@@ -52,8 +56,9 @@ def test_the_kernel_is_built():
 
 @pytest.mark.parametrize("label,make", CHAINS, ids=[c[0] for c in CHAINS])
 def test_kernel_equals_the_numpy_reference(label, make):
-    """The same operations in the same order: equal to the bit for the paper's law, to an ulp or two where libm's
-    pow / expm1 / log1p round differently from numpy's (alpha = 1.7, precompression); bound 8 eps of the largest
+    """The same operations in the same order: equal to the bit for whole and half-whole alpha (products, sqrt and
+    division are correctly rounded in both), to an ulp or two where libm's pow / expm1 / log1p round differently
+    from numpy's (alpha = 1.7, with and without precompression); bound 8 eps of the largest
     value. Several states and times (the actuators move), and the twist changed between evaluations."""
     ch = make()
     assert ch.kernel is not None

@@ -40,6 +40,28 @@ def test_law_is_the_shifted_hertz_law():
     assert np.allclose(HertzLaw(1.5, 1e3).dV(small) / small, 1.5 * 1e3 ** 0.5, rtol=1e-9)
 
 
+@pytest.mark.parametrize("alpha", [1.5, 2.0, 2.5, 3.0, 1.7])
+def test_compressed_force_is_accurate_to_a_few_ulp(alpha):
+    """delta^alpha - (delta - r)_+^alpha (hertz.compressed_force: sums of positive terms for whole and half-whole
+    alpha, expm1/log1p otherwise) against the binomial series for |r| <= 1e-4 delta (six terms: truncation
+    (1e-4)^6 / 1e-4 = 1e-20 relative) and against the direct difference where it does not cancel (r <= -3 delta:
+    the difference is at least 1 - 4^-alpha of the larger power); 8 ulp. Out of contact: delta^alpha exactly."""
+    eps = np.finfo(float).eps
+    delta = 0.7
+    law = HertzLaw(alpha, delta)
+    e = np.concatenate([-np.logspace(-12, -4, 60), np.logspace(-12, -4, 60)])
+    series, binom = np.zeros_like(e), 1.0
+    for j in range(1, 7):
+        binom *= (alpha - j + 1) / j
+        series -= binom * (-e) ** j
+    ref = delta ** alpha * series
+    assert np.max(np.abs(law.dV(delta * e) - ref) / np.abs(ref)) <= 8 * eps
+    far = -delta * np.linspace(3.0, 10.0, 50)
+    direct = delta ** alpha - (delta - far) ** alpha
+    assert np.max(np.abs(law.dV(far) - direct) / np.abs(direct)) <= 8 * eps
+    assert np.all(law.dV(np.array([delta, 2 * delta, 1e3])) == delta ** alpha)
+
+
 def test_delta0_zero_is_the_paper_chain_bit_for_bit():
     """delta0 = 0 and unit masses evaluate exactly the paper's expressions (same code path), and the record
     identity is unchanged."""

@@ -69,11 +69,12 @@ CHORD_CONTRACTION = 0.25
 # The Newton Jacobian's flow resolves the state to this rtol (or the flows' own, if looser): a Jacobian of relative
 # error e makes a Newton step contract by about e cond(R - I) besides its own convergence, far below the chord's.
 JACOBIAN_RTOL = 1e-8
-# Inexact Newton: an iterate's residual G is evaluated with the state flow at rtol INEXACT_FRACTION f^2 (f: the last
-# relative residual of the corrector, a quadratic prediction of this one's), within [the flow's rtol, JACOBIAN_RTOL],
-# and again at the flow's own rtol when the tolerance used exceeds INEXACT_FRACTION times the residual it measured:
-# every accepted evaluation is resolved to a small fraction of its size, the converged one to the flow's tolerance.
-INEXACT_FRACTION = 1e-2
+# Inexact Newton: the residual of an iterate is evaluated with the state flow at rtol INEXACT_FRACTION f^2 / (2 n)
+# (f: the corrector's last relative residual, f^2 a quadratic prediction of this one's; n: the last flow's steps),
+# within [the flow's rtol, JACOBIAN_RTOL], and again at the flow's own rtol when rtol n (the global error if every
+# step errs by rtol) exceeds INEXACT_FRACTION times the residual it measured: every accepted evaluation is resolved
+# to a fraction of its size, the converged one to the flow's tolerance.
+INEXACT_FRACTION = 1e-1
 # Steps a state flow over one driving period may take before it counts as failed (-drive_ts_max_steps overrides).
 MAX_STEPS_PER_FLOW = 200000
 JACOBIANS = ("dense", "mf")
@@ -566,9 +567,10 @@ class PeriodicShooting(ContinuationProblem):
 
     # --- the map ----------------------------------------------------------------------------------------------
     def flow(self, X):
-        """X <- P(X) (in place, the chain's layout) at the current drive."""
-        self.integrator.integrate(X, 0.0, self.T, dt=self.integrator.initial_step)
+        """X <- P(X) (in place, the chain's layout) at the current drive; returns the steps taken."""
+        steps = self.integrator.integrate(X, 0.0, self.T, dt=self.integrator.initial_step)
         self.counters["state_flows"] += 1
+        return steps
 
     def map(self, x):
         """P(x) as (N, 2) on every rank."""
@@ -707,25 +709,26 @@ class PeriodicShooting(ContinuationProblem):
     def _evaluation_rtol(self):
         """The state flow's rtol for the next residual evaluation of the corrector (inexact Newton): the flow's
         own at the first evaluation of a bordered solve (dG/dp is differenced from it) and once the residual is
-        small, else INEXACT_FRACTION f^2 up to JACOBIAN_RTOL."""
+        small, else INEXACT_FRACTION f^2 / (2 n) up to JACOBIAN_RTOL."""
         rtol = self._flow_tolerances[0]
         if not self.inexact or self._tight:
             return rtol
         if self._f_last is None:
             return rtol if self._row is not None else max(rtol, JACOBIAN_RTOL)
-        return min(max(rtol, INEXACT_FRACTION * self._f_last ** 2), max(rtol, JACOBIAN_RTOL))
+        wanted = INEXACT_FRACTION * self._f_last ** 2 / (2 * self._steps_last)
+        return min(max(rtol, wanted), max(rtol, JACOBIAN_RTOL))
 
     def _flow_at(self, X, z, rtol):
-        """X <- P(z) with the state flow at ``rtol`` (atol in the same ratio), the flow's tolerances restored."""
+        """X <- P(z) with the state flow at ``rtol`` (atol in the same ratio), the flow's tolerances restored;
+        returns the steps taken."""
         rtol0, atol0 = self._flow_tolerances
         X.getArray()[:] = z[:self.nloc]
         if rtol == rtol0:
-            self.flow(X)
-            return
+            return self.flow(X)
         ts = self.integrator.ts
         ts.setTolerances(rtol=rtol, atol=atol0 * rtol / rtol0)
         try:
-            self.flow(X)
+            return self.flow(X)
         finally:
             ts.setTolerances(rtol=rtol0, atol=atol0)
 
@@ -742,12 +745,13 @@ class PeriodicShooting(ContinuationProblem):
         try:
             self._at(p)
             rtol = self._evaluation_rtol()
-            self._flow_at(self.X, z, rtol)
+            steps = self._flow_at(self.X, z, rtol)
             g = self.X.getArray(readonly=True) - z[:self.nloc]
             f = self._relative(g, z[:self.nloc])
-            if rtol > self._flow_tolerances[0] and rtol > INEXACT_FRACTION * f:
-                # not resolved to a small fraction of itself: again at the flow's tolerance
-                self._flow_at(self.X, z, self._flow_tolerances[0])
+            if rtol > self._flow_tolerances[0] and rtol * steps > INEXACT_FRACTION * f:
+                # not resolved to a small fraction of itself (the global error: up to rtol per step): again at the
+                # flow's tolerance
+                steps = self._flow_at(self.X, z, self._flow_tolerances[0])
                 g = self.X.getArray(readonly=True) - z[:self.nloc]
                 f = self._relative(g, z[:self.nloc])
         except (ParameterError, ConvergenceError):
@@ -755,7 +759,7 @@ class PeriodicShooting(ContinuationProblem):
             # shorten the step, or SNES stop with a negative reason
             F.set(math.nan)
             return
-        self._f_last = f
+        self._f_last, self._steps_last = f, steps
         f = F.getArray()
         f[:self.nloc] = g
         g = (self._row.dot(Z) - self._value) if self._row is not None else 0.0

@@ -167,8 +167,8 @@ def test_newton_jacobians_resolve_the_state_and_the_multipliers_the_tangents():
 
 
 def test_inexact_newton_evaluates_far_iterates_loosely_and_converges_to_the_same_response():
-    """The residuals of Newton iterates far from the response come from the state flow at INEXACT_FRACTION f^2 (up
-    to JACOBIAN_RTOL), f the last relative residual: fewer steps in all. The converged evaluation is at the flow's
+    """The residuals of Newton iterates far from the response come from the state flow at INEXACT_FRACTION f^2 / (2 n)
+    (up to JACOBIAN_RTOL), f the last relative residual, n the last flow's steps: fewer steps in all. The converged evaluation is at the flow's
     own tolerance: the response's residual re-measured with it is below the shooting tolerance, and the response is
     the exact-evaluation corrector's to within twice that tolerance times ||(R - I)^-1|| (both satisfy it)."""
     N, omega = 8, 1.1

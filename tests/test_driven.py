@@ -20,7 +20,7 @@ from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel
 from hertzpetsc.studies.driven import (EVENTS, Generation, GenerationParameters, LinearResonances,
                                        ResonanceParameters, ResponseCurve, ResponseParameters, WaveEnds,
-                                       WaveEndsParameters, linear_chain, linear_multipliers, linear_response,
+                                       WaveEndsParameters, _Point, linear_chain, linear_multipliers, linear_response,
                                        normal_modes)
 from hertzpetsc.tangent import TangentFlow
 
@@ -304,20 +304,49 @@ def test_period_doubling_is_located_confirmed_and_switched():
                                              run_in=100, samples=0, switch=2, max_steps=12), COMM)
     try:
         records = list(study.run())
+        pd = [r for r in records if r["event"] == EVENTS["period_doubling"] and r["branch"] == 0]
+        assert len(pd) == 1 and pd[0]["confirmed"] == 1
+        assert abs(pd[0]["p"] - 1.6752) < 1e-3
+        assert np.min(np.abs(pd[0]["multipliers"] + 1)) < 1e-6
+        regular = [r for r in records if r["branch"] == 0 and r["event"] == 0]
+        before = [r for r in regular if r["p"] > pd[0]["p"]][-1]
+        after = [r for r in regular if r["p"] < pd[0]["p"]][0]
+        assert crossing(before["multipliers"], after["multipliers"]) == "period_doubling"
+        # the check on two responses close to the event (for neighbours that differ by several crossings) says
+        # the same, and does not confirm a crossing of another kind there
+        for kind, expected in (("period_doubling", True), ("neimark_sacker", False)):
+            event = _Point(pd[0]["p"], pd[0]["s"], math.nan, 1, dict(x=pd[0]["x"]), {}, event=kind)
+            assert study._confirmed_nearby(event, before, after) is expected
     finally:
         study.destroy()
-    pd = [r for r in records if r["event"] == EVENTS["period_doubling"] and r["branch"] == 0]
-    assert len(pd) == 1 and pd[0]["confirmed"] == 1
-    assert abs(pd[0]["p"] - 1.6752) < 1e-3
-    assert np.min(np.abs(pd[0]["multipliers"] + 1)) < 1e-6
-    regular = [r for r in records if r["branch"] == 0 and r["event"] == 0]
-    before = [r for r in regular if r["p"] > pd[0]["p"]][-1]
-    after = [r for r in regular if r["p"] < pd[0]["p"]][0]
-    assert crossing(before["multipliers"], after["multipliers"]) == "period_doubling"
     doubled = [r for r in records if r["branch"] == 1]
     assert len(doubled) >= 2 and all(r["periods"] == 2 for r in doubled)
     for r in doubled:
         assert r["residual"] < 1e-9 and r["half_residual"] > 1e-4
+
+
+def test_folds_of_a_driven_oscillator_are_located_and_confirmed_on_both_sides_of_the_turning_point():
+    """One precompressed bead between an actuator (a = 0.3) and a wall, gamma = 0.05: the softening resonance near
+    omega = 1.57 folds twice (hysteresis). Each fold is located (a multiplier at +1: R - I singular) and confirmed;
+    the check on two responses along the neighbours' chord, one on each side of the turning point, finds a real
+    multiplier through +1 there too, and no multiplier through -1."""
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.05), 1, HarmonicWave(), 0.3, 1.45)
+    study = ResponseCurve(ResponseParameters(drive, "omega", 1.7, algorithm=PseudoArclength(ds=0.02, ds_max=0.05),
+                                             run_in=50, samples=0, max_steps=90), COMM)
+    try:
+        records = list(study.run())
+        folds = [i for i, r in enumerate(records) if r["event"] == EVENTS["fold"]]
+        assert len(folds) == 2 and all(records[i]["confirmed"] == 1 for i in folds)
+        assert 1.56 < records[folds[1]]["p"] < records[folds[0]]["p"] < 1.59
+        for i in folds:
+            assert np.min(np.abs(records[i]["multipliers"] - 1)) < 1e-5
+            before = [r for r in records[:i] if r["event"] == 0][-1]
+            after = [r for r in records[i:] if r["event"] == 0][0]
+            for kind, expected in (("fold", True), ("period_doubling", False)):
+                event = _Point(records[i]["p"], records[i]["s"], math.nan, 1, dict(x=records[i]["x"]), {}, event=kind)
+                assert study._confirmed_nearby(event, before, after) is expected
+    finally:
+        study.destroy()
 
 
 @pytest.mark.parametrize("make,name", [

@@ -18,8 +18,8 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   distance), dp_ds (nan on the grid), event (0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by
   the layer; on a regular point (dp_ds finite, on the grid always): a crossing bracketed between this point and the
   previous one, which the layer could not locate), confirmed (1: the multipliers of the
-  regular points on both sides differ as the event says; 0: they do not (e.g. a neutral saddle for tau_NS); -1:
-  regular point), iterations, residual (||P^k(X) - X||_inf / scale: from Newton's last evaluation, or measured
+  regular points on both sides, or of two responses close to a located event on either side of it, differ as the
+  event says; 0: they do not (e.g. a neutral saddle for tau_NS); -1: regular point), iterations, residual (||P^k(X) - X||_inf / scale: from Newton's last evaluation, or measured
   again), rho, outside (|mu| > 1 + 1e-6),
   tau_pd, tau_ns (the test functions), force_right, force_left (largest compressive force of the end bonds over the
   period: the force transmitted to the wall; nan without samples), amp_first, amp_last, amp_max (bead amplitudes
@@ -74,6 +74,9 @@ RESPONSE_FIELDS = ("branch", "periods", "p", "omega", "amplitude", "s", "dp_ds",
                    "residual", "rho", "outside", "tau_pd", "tau_ns", "force_right", "force_left", "amp_first",
                    "amp_last", "amp_max", "power_in", "dissipation", "half_residual", "multipliers", "x")
 EVENTS = {None: 0, "fold": 1, "period_doubling": 2, "neimark_sacker": 3}
+# An event the neighbouring points do not confirm is checked on responses this fraction of its distance to the
+# nearer neighbour away from it, on either side.
+CONFIRM_DISTANCE = 0.05
 EVENT_NAMES = {v: k for k, v in EVENTS.items()}
 RESONANCE_FORMAT = "hertzpetsc-driven-resonances-1"
 RESONANCE_FIELDS = ("k", "omega_k", "peak_linear", "peak_shooting", "amp_linear", "amp_shooting", "mu_error",
@@ -452,7 +455,8 @@ class ResponseCurve(DrivenStudy):
                     if trailing and self._same_event(trailing[0], ev, EVENTS[ev.event]):
                         trailing.pop(0)            # recorded before the run was stopped
                         continue
-                    er = self._record(prob, ev, 0, ev.event, int(what == ev.event))
+                    confirmed = what == ev.event or self._confirmed_nearby(ev, previous, rec)
+                    er = self._record(prob, ev, 0, ev.event, int(confirmed))
                     self._append(er, cont)
                     yield er
                 # a sign change (or a fold) the layer could not locate (its corrector failed on the chord: a corner
@@ -468,10 +472,58 @@ class ResponseCurve(DrivenStudy):
                 pending = []
                 self._append(rec, cont)
                 yield rec
-                mu_prev, tests_prev, dp_prev = mu, point.tests or {}, point.dp_ds
+                mu_prev, tests_prev, dp_prev, previous = mu, point.tests or {}, point.dp_ds, rec
         except ContinuationError as err:
             self._stopped(err)
             return
+
+    def _confirmed_nearby(self, ev, before, after, problem=None):
+        """Whether two responses close to a located event, on either side of it, have multipliers that differ by
+        the crossing it names (the curve's neighbouring points ``before``, ``after`` may differ by several). The two
+        responses lie CONFIRM_DISTANCE of the event's distance to the nearer neighbour away from it: for a period
+        doubling or Neimark-Sacker point at parameters on either side (Newton at fixed parameter from the event's
+        state), for a fold on either side along the neighbours' chord (Newton on the hyperplane normal to it: both
+        at about the fold's parameter, one on each side of the turning point)."""
+        prob, p = problem or self.problem, ev.parameter
+        p_before, p_after = float(before["p"]), float(after["p"])
+        Z = [prob.pack(r, q) for r, q in ((before["x"], p_before), (ev.report["x"], p), (after["x"], p_after))]
+        chord = Z[2].copy()
+        chord.axpy(-1.0, Z[0])
+        spectra = []
+        kept = prob._mono, prob._residuals       # the continuation goes on as if these solves had not been made
+        try:
+            if ev.event == "fold":
+                length = chord.norm()
+                if not length > 0:
+                    return False
+                chord.scale(1.0 / length)
+                near = min((Z[1] - Z[0]).norm(), (Z[2] - Z[1]).norm())
+                for side in (-1.0, 1.0):
+                    W = Z[1].copy()
+                    W.axpy(side * CONFIRM_DISTANCE * near, chord)
+                    try:
+                        prob.solve(W, row=chord, value=chord.dot(W))
+                        x, q = prob.state(W)
+                        spectra.append(prob.multipliers(x=x, p=q))
+                    finally:
+                        W.destroy()
+            else:
+                direction = ev.dp_ds if math.isfinite(ev.dp_ds) and ev.dp_ds != 0.0 else p_after - p_before
+                delta = CONFIRM_DISTANCE * min(abs(p - p_before), abs(p_after - p))
+                if not (delta > 0 and direction != 0.0):
+                    return False
+                for side in (-1.0, 1.0):
+                    q = p + side * math.copysign(delta, direction)
+                    r = prob.solve_response(ev.report["x"], q)
+                    spectra.append(prob.multipliers(x=r.x, p=q))
+        except (ConvergenceError, ParameterError):
+            return False
+        finally:
+            for V in Z + [chord]:
+                V.destroy()
+            prob.set_drive(prob.drive.with_parameter(prob.parameter, p))
+            prob._mono, prob._residuals = kept
+        return crossing(*spectra) == ev.event
 
     def _stopped(self, err):
         """Everything up to the last point was recorded; the curve ends there (e.g. the response is lost): say so
@@ -508,16 +560,29 @@ class ResponseCurve(DrivenStudy):
                         rec = self._record(double, first, j)
                         self._append(rec, cont)
                         yield rec
+                previous, pending = self.branch_records(j)[-1] if self.branch_records(j) else None, []
                 try:
                     steps = self.switch - max(len(done) - len(trailing) - 1, 0)
                     for point in cont.run(max_steps=steps):
-                        if trailing and point.event is not None and \
-                                self._same_event(trailing[0], point, EVENTS[point.event]):
-                            trailing.pop(0)
+                        if point.event is not None:
+                            if not (trailing and self._same_event(trailing[0], point, EVENTS[point.event])):
+                                pending.append(point)
+                            else:
+                                trailing.pop(0)
                             continue
-                        rec = self._record(double, point, j, point.event, -1 if point.event is None else 0)
+                        rec = self._record(double, point, j)
+                        mu = point.report.get("multipliers", rec["multipliers"])
+                        for ev in pending:
+                            confirmed = previous is not None and (
+                                crossing(previous["multipliers"], mu) == ev.event
+                                or self._confirmed_nearby(ev, previous, rec, double))
+                            er = self._record(double, ev, j, ev.event, int(confirmed))
+                            self._append(er, cont)
+                            yield er
+                        pending = []
                         self._append(rec, cont)
                         yield rec
+                        previous = dict(rec, multipliers=mu)
                 except ContinuationError:
                     pass
             finally:
@@ -542,8 +607,9 @@ class ResponseCurve(DrivenStudy):
                  f"{len(recs)} records.\n",
                  "Events (fold, period doubling, Neimark-Sacker) located by the continuation layer, or 'bracketed' "
                  "between the listed point and the previous one where the layer's location failed (a corner of the "
-                 "curve) or on a grid; 'confirmed': the multipliers of the regular points on both sides differ by the "
-                 "crossing the event names (1), or not (0: e.g. two crossings at once, a neutral saddle).\n",
+                 "curve) or on a grid; 'confirmed': the multipliers of the regular points on both sides, or of two "
+                 "responses close to a located event on either side of it, differ by the crossing the event names (1), "
+                 "or not (0: e.g. a neutral saddle).\n",
                  "| branch | periods | event | " + self.parameter + " | confirmed | rho | residual | force_right | "
                  "amp_max |", "|---|---|---|---|---|---|---|---|---|"]
         arclength = str(self.store.constants.get("mode", "arclength")) == "arclength"

@@ -497,7 +497,12 @@ class ResponseCurve(DrivenStudy):
                 if not length > 0:
                     return False
                 chord.scale(1.0 / length)
-                near = min((Z[1] - Z[0]).norm(), (Z[2] - Z[1]).norm())
+                near = math.inf
+                for U, V in ((Z[1], Z[0]), (Z[2], Z[1])):
+                    D = U.copy()
+                    D.axpy(-1.0, V)
+                    near = min(near, D.norm())
+                    D.destroy()
                 for side in (-1.0, 1.0):
                     W = Z[1].copy()
                     W.axpy(side * CONFIRM_DISTANCE * near, chord)

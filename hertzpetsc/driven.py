@@ -44,6 +44,7 @@ are the layer's (dp/ds changes sign). :func:`crossing` compares the multipliers 
 crossed where).
 """
 import math
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -509,6 +510,7 @@ class PeriodicShooting(ContinuationProblem):
         self._residuals = {}
         self._flow_tolerances = self.integrator.ts.getTolerances()
         self._f_last = None            # the relative residual of the corrector's last evaluation (inexact Newton)
+        self._steps_last = 0           # and the steps of its flow
         self.inexact = inexact
         self._snes = self._make_snes(prefix)
 
@@ -747,19 +749,19 @@ class PeriodicShooting(ContinuationProblem):
             rtol = self._evaluation_rtol()
             steps = self._flow_at(self.X, z, rtol)
             g = self.X.getArray(readonly=True) - z[:self.nloc]
-            f = self._relative(g, z[:self.nloc])
-            if rtol > self._flow_tolerances[0] and rtol * steps > INEXACT_FRACTION * f:
+            rel = self._relative(g, z[:self.nloc])
+            if rtol > self._flow_tolerances[0] and rtol * steps > INEXACT_FRACTION * rel:
                 # not resolved to a small fraction of itself (the global error: up to rtol per step): again at the
                 # flow's tolerance
                 steps = self._flow_at(self.X, z, self._flow_tolerances[0])
                 g = self.X.getArray(readonly=True) - z[:self.nloc]
-                f = self._relative(g, z[:self.nloc])
+                rel = self._relative(g, z[:self.nloc])
         except (ParameterError, ConvergenceError):
             # outside the parameter's range (omega <= 0, a < 0) or a failed flow: NaN makes the line search
             # shorten the step, or SNES stop with a negative reason
             F.set(math.nan)
             return
-        self._f_last, self._steps_last = f, steps
+        self._f_last, self._steps_last = rel, steps
         f = F.getArray()
         f[:self.nloc] = g
         g = (self._row.dot(Z) - self._value) if self._row is not None else 0.0
@@ -890,6 +892,17 @@ class PeriodicShooting(ContinuationProblem):
         g = self.Y.norm(PETSc.NormType.NORM_INFINITY)
         self._residuals = {(float(p), hash(x.tobytes())): g / self.scale(x)}
         return max(its, 1)
+
+    @contextmanager
+    def detour(self):
+        """Solves made inside (e.g. checking an event on nearby responses) leave the problem as it was: the drive, the
+        cached monodromy a chord step may reuse and the last converged residual are restored on exit."""
+        kept = self.drive, self._mono, self._residuals
+        try:
+            yield self
+        finally:
+            self.set_drive(kept[0])
+            self._mono, self._residuals = kept[1], kept[2]
 
     def known_residual(self, x, p):
         """The relative residual of the last converged point if (x, p) is it, else None."""

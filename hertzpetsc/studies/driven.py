@@ -17,10 +17,10 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   doubling, period 2 k), periods, p (the parameter), omega, amplitude, s (arclength; the grid mode: the parameter
   distance), dp_ds (nan on the grid), event (0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by
   the layer; on a regular point (dp_ds finite, on the grid always): a crossing bracketed between this point and the
-  previous one, which the layer could not locate), confirmed (1: the multipliers of the
-  regular points on both sides, or of two responses close to a located event on either side of it, differ as the
-  event says; 0: they do not (e.g. a neutral saddle for tau_NS); -1: regular point), iterations, residual (||P^k(X) - X||_inf / scale: from Newton's last evaluation, or measured
-  again), rho, outside (|mu| > 1 + 1e-6),
+  previous one, which the layer could not locate), confirmed (1: the multipliers of the regular points on both
+  sides, or of two responses close to a located event on either side of it, differ as the event says; 0: they do
+  not (e.g. a neutral saddle for tau_NS); -1: regular point), iterations, residual (||P^k(X) - X||_inf / scale:
+  from Newton's last evaluation, or measured again), rho, outside (|mu| > 1 + 1e-6),
   tau_pd, tau_ns (the test functions), force_right, force_left (largest compressive force of the end bonds over the
   period: the force transmitted to the wall; nan without samples), amp_first, amp_last, amp_max (bead amplitudes
   (max - min)/2), power_in, dissipation (means over the period), half_residual (even k: ||P^(k/2)(X) - X||_inf /
@@ -490,44 +490,42 @@ class ResponseCurve(DrivenStudy):
         chord = Z[2].copy()
         chord.axpy(-1.0, Z[0])
         spectra = []
-        kept = prob._mono, prob._residuals       # the continuation goes on as if these solves had not been made
         try:
-            if ev.event == "fold":
-                length = chord.norm()
-                if not length > 0:
-                    return False
-                chord.scale(1.0 / length)
-                near = math.inf
-                for U, V in ((Z[1], Z[0]), (Z[2], Z[1])):
-                    D = U.copy()
-                    D.axpy(-1.0, V)
-                    near = min(near, D.norm())
-                    D.destroy()
-                for side in (-1.0, 1.0):
-                    W = Z[1].copy()
-                    W.axpy(side * CONFIRM_DISTANCE * near, chord)
-                    try:
-                        prob.solve(W, row=chord, value=chord.dot(W))
-                        x, q = prob.state(W)
-                        spectra.append(prob.multipliers(x=x, p=q))
-                    finally:
-                        W.destroy()
-            else:
-                direction = ev.dp_ds if math.isfinite(ev.dp_ds) and ev.dp_ds != 0.0 else p_after - p_before
-                delta = CONFIRM_DISTANCE * min(abs(p - p_before), abs(p_after - p))
-                if not (delta > 0 and direction != 0.0):
-                    return False
-                for side in (-1.0, 1.0):
-                    q = p + side * math.copysign(delta, direction)
-                    r = prob.solve_response(ev.report["x"], q)
-                    spectra.append(prob.multipliers(x=r.x, p=q))
+            with prob.detour():      # the continuation goes on as if these solves had not been made
+                if ev.event == "fold":
+                    length = chord.norm()
+                    if not length > 0:
+                        return False
+                    chord.scale(1.0 / length)
+                    near = math.inf
+                    for U, V in ((Z[1], Z[0]), (Z[2], Z[1])):
+                        D = U.copy()
+                        D.axpy(-1.0, V)
+                        near = min(near, D.norm())
+                        D.destroy()
+                    for side in (-1.0, 1.0):
+                        W = Z[1].copy()
+                        W.axpy(side * CONFIRM_DISTANCE * near, chord)
+                        try:
+                            prob.solve(W, row=chord, value=chord.dot(W))
+                            x, q = prob.state(W)
+                            spectra.append(prob.multipliers(x=x, p=q))
+                        finally:
+                            W.destroy()
+                else:
+                    direction = ev.dp_ds if math.isfinite(ev.dp_ds) and ev.dp_ds != 0.0 else p_after - p_before
+                    delta = CONFIRM_DISTANCE * min(abs(p - p_before), abs(p_after - p))
+                    if not (delta > 0 and direction != 0.0):
+                        return False
+                    for side in (-1.0, 1.0):
+                        q = p + side * math.copysign(delta, direction)
+                        r = prob.solve_response(ev.report["x"], q)
+                        spectra.append(prob.multipliers(x=r.x, p=q))
         except (ConvergenceError, ParameterError):
             return False
         finally:
             for V in Z + [chord]:
                 V.destroy()
-            prob.set_drive(prob.drive.with_parameter(prob.parameter, p))
-            prob._mono, prob._residuals = kept
         return crossing(*spectra) == ev.event
 
     def _stopped(self, err):

@@ -418,6 +418,19 @@ def test_functions(mu):
     return {"period_doubling": _signed_min(1.0 + mu), "neimark_sacker": _signed_min(mu[i] * mu[j] - 1.0)}
 
 
+def neutral_saddle(mu):
+    """Whether the factor of tau_NS nearest zero, mu_i mu_j - 1, is that of two real multipliers (a neutral saddle:
+    mu and 1/mu, nothing on the unit circle) rather than of a complex pair (|mu|^2 = 1: Neimark-Sacker)."""
+    mu = np.asarray(mu, dtype=complex)
+    mu = mu[mu != 0]                       # zero padding of stored spectra
+    if len(mu) < 2:
+        return False
+    i, j = np.triu_indices(len(mu), 1)
+    k = int(np.argmin(np.abs(mu[i] * mu[j] - 1.0)))
+    real = np.abs(mu.imag) <= 1e-9 * np.maximum(1.0, np.abs(mu))
+    return bool(real[i[k]] and real[j[k]])
+
+
 def counts(mu, tol=TOL_MU):
     """Multipliers outside the unit circle by kind: real > 1, real < -1, complex (counted singly)."""
     mu = np.asarray(mu, dtype=complex)

@@ -14,7 +14,8 @@ from hertzpetsc.assembly import gathered
 from hertzpetsc.chain import IntegrationTolerances
 from hertzpetsc.continuation import Natural, PseudoArclength
 from hertzpetsc.driven import (CHORD_CONTRACTION, Drive, HalfSinePulses, HarmonicWave, PeriodicShooting, SampledWave,
-                               crossing, damping_trace, refined_profile, wave_ends_drive)
+                               crossing, damping_trace, neutral_saddle, refined_profile, test_functions,
+                               wave_ends_drive)
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel
@@ -323,6 +324,19 @@ def test_period_doubling_is_located_confirmed_and_switched():
     assert len(doubled) >= 2 and all(r["periods"] == 2 for r in doubled)
     for r in doubled:
         assert r["residual"] < 1e-9 and r["half_residual"] > 1e-4
+
+
+def test_a_neutral_saddle_is_told_from_a_neimark_sacker_point():
+    """tau_NS = prod (mu_i mu_j - 1) vanishes for a real pair mu, 1/mu (a neutral saddle: nothing on the unit circle)
+    and for a complex pair on the circle (Neimark-Sacker): neutral_saddle names the first, also with the zero
+    padding of stored spectra; crossing sees nothing cross in the first."""
+    e = np.exp(0.7j) * (1 + 1e-9)
+    saddle = np.array([-2.5, -0.4 * (1 + 1e-9), 0.3 + 0.2j, 0.3 - 0.2j, 0.0, 0.0])
+    ns = np.array([e, np.conj(e), -0.5, 0.2, 0.0])
+    assert neutral_saddle(saddle) and not neutral_saddle(ns)
+    for mu in (saddle[:4], ns[:4]):
+        assert abs(test_functions(mu)["neimark_sacker"]) < 1e-8
+    assert crossing(saddle[:4], saddle[:4] * np.array([1.01, 1 / 1.01, 1, 1])) is None
 
 
 def test_folds_of_a_driven_chain_are_located_and_confirmed_on_both_sides_of_the_turning_point():

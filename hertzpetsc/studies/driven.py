@@ -58,8 +58,8 @@ from petsc4py import PETSc
 
 from ..continuation import Continuation, ContinuationError, Natural, PseudoArclength, golden_maximum
 from ..driven import (FLOQUET_METHODS, JACOBIANS, PARAMETERS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
-                      HarmonicWave, PeriodicShooting, configure_options, crossing, local_wave, refined_profile,
-                      switch_to_doubled, verdict, wave_ends_drive)
+                      HarmonicWave, PeriodicShooting, configure_options, crossing, local_wave, neutral_saddle,
+                      refined_profile, switch_to_doubled, verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError
 from ..floquet import DenseFloquet
 from ..model import LatticeModel
@@ -612,7 +612,8 @@ class ResponseCurve(DrivenStudy):
                  "between the listed point and the previous one where the layer's location failed (a corner of the "
                  "curve) or on a grid; 'confirmed': the multipliers of the regular points on both sides, or of two "
                  "responses close to a located event on either side of it, differ by the crossing the event names (1), "
-                 "or not (0: e.g. a neutral saddle).\n",
+                 "or not (0: e.g. a neutral saddle, marked where the stored multipliers show it: the factor of tau_NS "
+                 "nearest zero is that of a real pair mu, 1/mu).\n",
                  "| branch | periods | event | " + self.parameter + " | confirmed | rho | residual | force_right | "
                  "amp_max |", "|---|---|---|---|---|---|---|---|---|"]
         arclength = str(self.store.constants.get("mode", "arclength")) == "arclength"
@@ -622,6 +623,9 @@ class ResponseCurve(DrivenStudy):
             if int(r["branch"]) > 0 and int(r["event"]) == 0 and r is not self.branch_records(int(r["branch"]))[0]:
                 continue
             name = EVENT_NAMES[int(r["event"])] or "first point"
+            if int(r["event"]) == EVENTS["neimark_sacker"] and int(r["confirmed"]) == 0 and \
+                    neutral_saddle(r["multipliers"]):
+                name += " (neutral saddle)"
             dp = float(r["dp_ds"])
             if int(r["event"]) and (not arclength or (math.isfinite(dp) and dp != 0.0)):
                 name += " (bracketed)"

@@ -455,8 +455,7 @@ class ResponseCurve(DrivenStudy):
                     if trailing and self._same_event(trailing[0], ev, EVENTS[ev.event]):
                         trailing.pop(0)            # recorded before the run was stopped
                         continue
-                    confirmed = what == ev.event or self._confirmed_nearby(ev, previous, rec)
-                    er = self._record(prob, ev, 0, ev.event, int(confirmed))
+                    er = self._record(prob, ev, 0, ev.event, int(self._confirmed(ev, previous, mu_prev, rec, mu, prob)))
                     self._append(er, cont)
                     yield er
                 # a sign change (or a fold) the layer could not locate (its corrector failed on the chord: a corner
@@ -476,6 +475,11 @@ class ResponseCurve(DrivenStudy):
         except ContinuationError as err:
             self._stopped(err)
             return
+
+    def _confirmed(self, ev, before, mu_before, after, mu_after, problem):
+        """Whether the event ``ev`` between the records ``before`` and ``after`` (spectra ``mu_before``,
+        ``mu_after``) is the crossing it names: by the two spectra, else by two responses close to it."""
+        return crossing(mu_before, mu_after) == ev.event or self._confirmed_nearby(ev, before, after, problem)
 
     def _confirmed_nearby(self, ev, before, after, problem=None):
         """Whether two responses close to a located event, on either side of it, have multipliers that differ by
@@ -576,9 +580,8 @@ class ResponseCurve(DrivenStudy):
                         rec = self._record(double, point, j)
                         mu = point.report.get("multipliers", rec["multipliers"])
                         for ev in pending:
-                            confirmed = previous is not None and (
-                                crossing(previous["multipliers"], mu) == ev.event
-                                or self._confirmed_nearby(ev, previous, rec, double))
+                            confirmed = previous is not None and \
+                                self._confirmed(ev, previous, previous["multipliers"], rec, mu, double)
                             er = self._record(double, ev, j, ev.event, int(confirmed))
                             self._append(er, cont)
                             yield er

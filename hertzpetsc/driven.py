@@ -493,7 +493,7 @@ class PeriodicShooting(ContinuationProblem):
         if not PETSc.Options().hasName(prefix + "ts_max_steps"):
             # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
             self.integrator.ts.setMaxSteps(MAX_STEPS_PER_FLOW * self.periods)
-        self.X, self.Y = self.chain.create_state(), self.chain.create_state()
+        self.X = self.chain.create_state()
         ftol = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if "dense" in (jacobian, floquet) else None
         if self.dense is not None:             # R's columns start as unit vectors: R to rtol in norm
@@ -573,7 +573,11 @@ class PeriodicShooting(ContinuationProblem):
 
     def scale(self, x=None):
         """The size the residual is measured against: max(||X||_inf, amplitude), 1 if both vanish."""
-        s = max(self.drive.amplitude, float(np.max(np.abs(x))) if x is not None else 0.0)
+        return self._scale(float(np.max(np.abs(x))) if x is not None else 0.0)
+
+    def _scale(self, norm):
+        """:meth:`scale` of a state whose sup norm is ``norm``."""
+        s = max(self.drive.amplitude, norm)
         return s if s > 0 else 1.0
 
     @property
@@ -751,8 +755,7 @@ class PeriodicShooting(ContinuationProblem):
         """||g||_inf / max(||z||_inf, amplitude) over the state rows of every rank."""
         local = np.array([np.max(np.abs(g), initial=0.0), np.max(np.abs(z), initial=0.0)])
         self.mpi.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
-        s = max(self.drive.amplitude, local[1])
-        return local[0] / (s if s > 0 else 1.0)
+        return local[0] / self._scale(local[1])
 
     def formFunction(self, snes, Z, F):
         z = Z.getArray(readonly=True)
@@ -899,11 +902,10 @@ class PeriodicShooting(ContinuationProblem):
             raise ConvergenceError(f"periodic-response Newton (prefix -{self._snes.getOptionsPrefix()})", reason,
                                    **{self.parameter: p})
         self._at(p)
-        # the residual of the converged point, from the last function evaluation (the flow from this very state)
+        # the relative residual of the converged point, from the last function evaluation (the flow from this very
+        # state, at the flow's own tolerance)
         x, _ = self.state(Z)
-        self.Y.getArray()[:] = self.F.getArray(readonly=True)[:self.nloc]
-        g = self.Y.norm(PETSc.NormType.NORM_INFINITY)
-        self._residuals = {(float(p), hash(x.tobytes())): g / self.scale(x)}
+        self._residuals = {(float(p), hash(x.tobytes())): self._f_last}
         return max(its, 1)
 
     @contextmanager
@@ -982,8 +984,7 @@ class PeriodicShooting(ContinuationProblem):
         self._snes.destroy()
         self.J.destroy()
         self.F.destroy()
-        for v in (self.X, self.Y):
-            v.destroy()
+        self.X.destroy()
         self.integrator.destroy()
         self.chain.destroy()
         if self.dense is not None:

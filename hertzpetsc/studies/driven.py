@@ -490,32 +490,11 @@ class ResponseCurve(DrivenStudy):
         at about the fold's parameter, one on each side of the turning point)."""
         prob, p = problem or self.problem, ev.parameter
         p_before, p_after = float(before["p"]), float(after["p"])
-        Z = [prob.pack(r, q) for r, q in ((before["x"], p_before), (ev.report["x"], p), (after["x"], p_after))]
-        chord = Z[2].copy()
-        chord.axpy(-1.0, Z[0])
         spectra = []
         try:
             with prob.detour():      # the continuation goes on as if these solves had not been made
                 if ev.event == "fold":
-                    length = chord.norm()
-                    if not length > 0:
-                        return False
-                    chord.scale(1.0 / length)
-                    near = math.inf
-                    for U, V in ((Z[1], Z[0]), (Z[2], Z[1])):
-                        D = U.copy()
-                        D.axpy(-1.0, V)
-                        near = min(near, D.norm())
-                        D.destroy()
-                    for side in (-1.0, 1.0):
-                        W = Z[1].copy()
-                        W.axpy(side * CONFIRM_DISTANCE * near, chord)
-                        try:
-                            prob.solve(W, row=chord, value=chord.dot(W))
-                            x, q = prob.state(W)
-                            spectra.append(prob.multipliers(x=x, p=q))
-                        finally:
-                            W.destroy()
+                    spectra = self._fold_sides(prob, ev, before, after)
                 else:
                     direction = ev.dp_ds if math.isfinite(ev.dp_ds) and ev.dp_ds != 0.0 else p_after - p_before
                     delta = CONFIRM_DISTANCE * min(abs(p - p_before), abs(p_after - p))
@@ -527,10 +506,43 @@ class ResponseCurve(DrivenStudy):
                         spectra.append(prob.multipliers(x=r.x, p=q))
         except (ConvergenceError, ParameterError):
             return False
+        return len(spectra) == 2 and crossing(*spectra) == ev.event
+
+    @staticmethod
+    def _fold_sides(prob, ev, before, after):
+        """The multipliers of two responses on either side of a located fold, along the chord of its neighbouring
+        records (Newton on the hyperplane normal to the chord), CONFIRM_DISTANCE of the nearer neighbour's
+        distance away; [] if the neighbours coincide."""
+        Z = [prob.pack(r["x"], float(r["p"])) for r in (before, after)]
+        Z.insert(1, prob.pack(ev.report["x"], ev.parameter))
+        chord = Z[2].copy()
+        chord.axpy(-1.0, Z[0])
+        spectra = []
+        try:
+            length = chord.norm()
+            if not length > 0:
+                return []
+            chord.scale(1.0 / length)
+            near = math.inf
+            for U, V in ((Z[1], Z[0]), (Z[2], Z[1])):
+                D = U.copy()
+                D.axpy(-1.0, V)
+                near = min(near, D.norm())
+                D.destroy()
+            for side in (-1.0, 1.0):
+                W = Z[1].copy()
+                W.axpy(side * CONFIRM_DISTANCE * near, chord)
+                try:
+                    prob.solve(W, row=chord, value=chord.dot(W))
+                    x, q = prob.state(W)
+                    spectra.append(prob.multipliers(x=x, p=q))
+                finally:
+                    W.destroy()
         finally:
             for V in Z + [chord]:
                 V.destroy()
-        return crossing(*spectra) == ev.event
+        return spectra
+
 
     def _stopped(self, err):
         """Everything up to the last point was recorded; the curve ends there (e.g. the response is lost): say so

@@ -110,10 +110,6 @@ class ShiftStencils:
     def coef(self):
         return self.gather.coef
 
-    @property
-    def integer_shift(self):
-        return len(self.coef["plus"][0]) == 1 if self.grid.rend > self.grid.rstart else True
-
     def stacked(self, X):
         """w = T X = (D2 X, tau_q X, tau_{-q} X) on the owned rows (one scatter and one MatMult)."""
         if self.parallel:

@@ -57,7 +57,7 @@ from .continuation import ContinuationProblem, _parameter, golden_maximum, set_p
 from .errors import ConvergenceError, ParameterError
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
-from .model import Actuator, ChainSpec, FunctionSignal, Harmonic, LatticeModel, SampledSignal, Signal
+from .model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal, Signal
 from .tangent import MonodromyModShift, TangentFlow
 
 DRIVE_PREFIX = "drive_"
@@ -258,24 +258,12 @@ class ProfileWave(Waveform):
         idx = (np.arange(len(u))[:, None] + _NODES[None, :]) % len(u)
         self.coefficients = u[idx] @ _VINV.T
 
-    @classmethod
-    def from_branch_point(cls, point):
-        """The profile u of a branch point (the whole period, from its odd half), unnormalised: the chain's wave is
-        x_n = a u(q n - omega t) with a = 1 / ||u||_inf and omega = a^((alpha-1)/2) (as :func:`orbit_on_chain`)."""
-        return cls(point.u_full, label=f"branch q = {point.q:.12g}")
-
     def signal(self, amplitude, omega, phase=0.0):
         return ProfileSignal(self.coefficients, self.h, _finite("amplitude", amplitude, "the actuator amplitude", 0.0),
                              _finite("omega", omega, "the driving frequency", 0.0, strict=True), float(phase))
 
     def describe(self):
         return dict(waveform=self.name, label=self.label, cells=len(self.values))
-
-
-def wave_amplitude_frequency(point):
-    """(a, omega) of a branch point's wave on the chain: a = 1/||u||_inf, omega = a^((alpha-1)/2) (section 3.4)."""
-    a = 1.0 / point.diagnostics.norm_inf
-    return a, a ** ((point.model.alpha - 1) / 2)
 
 
 # --- the driven chain -------------------------------------------------------------------------------------------

@@ -56,10 +56,6 @@ class ProfileGrid:
         self._template = PETSc.Vec().createMPI(self.size, comm=self.comm)
         self.rstart, self.rend = self._template.getOwnershipRange()
 
-    @property
-    def n_points(self):
-        return 2 * self.K
-
     def xi_half(self):
         """Points xi_j = j h, j = 0..K (the half period [0, pi] on which profiles are stored); the whole period
         (j = 0 .. 2K-1) when the profiles have no symmetry."""

@@ -39,8 +39,7 @@ def branch_k_alpha(branch):
 
 def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50)):
     """Fig. profiles: u(xi; q) on a period for the branch points nearest to ``qs``."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(len(qs), 1, figsize=(6, 2.2 * len(qs)))
+    fig, axes = _pyplot().subplots(len(qs), 1, figsize=(6, 2.2 * len(qs)))
     xi = branch.xi
     xfull = np.concatenate([xi[:-1], 2 * math.pi - xi[:0:-1]])
     for ax, q in zip(np.atleast_1d(axes), qs):
@@ -55,12 +54,11 @@ def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50
 
 def _plot_power_law(branch, directory, name, field, factor, k_alpha, ylabel, data_label, line_label):
     """Branch values of ``field`` vs q (log scale) with the line factor k_alpha q^(2/(1-alpha))."""
-    plt = _pyplot()
     a = branch.alpha
     k = branch_k_alpha(branch) if k_alpha is None else k_alpha
     q = branch.q
     qq = np.linspace(q.min(), math.pi, 200)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.semilogy(q, branch.column(field), "ko", ms=3, label=data_label)
     ax.semilogy(qq, factor * k * qq ** (2 / (1 - a)), "b-", lw=1,
                 label=line_label + f", $k_\\alpha$ = {k:.4f}" + (" (branch, min q)" if k_alpha is None else ""))
@@ -84,8 +82,7 @@ def plot_slopes(branch, directory, k_alpha=None):
 
 def plot_number(branch, directory):
     """Fig. number: N(q), the mean number of adjacent interacting beads."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.plot(branch.q, branch.column("N"), "k.-", ms=4, lw=0.8)
     ax.set_xlabel("$q$")
     ax.set_ylabel("$N(q)$")
@@ -95,10 +92,9 @@ def plot_number(branch, directory):
 
 def plot_free_flight(branch, directory):
     """Fig. lsq: F(q) = 2 ell(q) / q, with F = 1 and q_k marked."""
-    plt = _pyplot()
     qk = branch.q_k()
     F = branch.column("F")
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     pos = F > 0  # F(pi) = 0: no free flight for the binary oscillation
     ax.semilogy(branch.q[pos], F[pos], "k.-", ms=4, lw=0.8)
     ax.axhline(1.0, color="gray", lw=0.6)
@@ -112,13 +108,12 @@ def plot_free_flight(branch, directory):
 
 def plot_dispersion(branch, directory, k_alpha=None):
     """Fig. dispersplot: omega(q, A0) (eq. dispers) and its linear approximation at q = 0 (eq. disperseq)."""
-    plt = _pyplot()
     law = LatticeModel.hertz(branch.alpha).law
     A0 = float(law.amplitude(law.p0))
     k = branch_k_alpha(branch) if k_alpha is None else k_alpha
     q, norm = branch.q, branch.column("norm_inf")
     qq = np.linspace(0, math.pi, 200)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.plot(q, dispersion(norm, A0, law.alpha), "k.-", ms=4, lw=0.8, label=r"$\omega(q, A_0)$")
     ax.plot(qq, dispersion_long_wave(qq, A0, law.alpha, k), "b--", lw=0.8, label="linear approximation")
     ax.set_xlabel("$q$")
@@ -139,10 +134,9 @@ def plot_branch_figures(branch, directory, k_alpha=None):
 def plot_errors(refined, directory):
     """Fig. errors: E(q) before (dotted) and after (full) refinement, and r(q) (dash-dot), semi-log, from a
     :class:`~hertzpetsc.studies.refinement.RefinedStates`."""
-    plt = _pyplot()
     order = np.argsort(refined.q)
     q = refined.q[order]
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.semilogy(q, refined.column("E_before_paper_flow")[order], "k:", label="E(q), branch wave (rtol 1e-12 flow)")
     ax.semilogy(q, refined.column("E_after")[order], "k-", label="E(q), refined (rtol 1e-14 flow)")
     ax.semilogy(q, refined.column("r")[order], "k-.", lw=0.8, label="r(q), last Gauss-Newton step")
@@ -161,8 +155,7 @@ def bond_forces(states, boundary="periodic"):
 
 def plot_snapshot(x0, xt, t, directory, name, title=""):
     """Bead displacements at time t (line) against the initial state (dots), as in figs. stabletw, shockbis."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 3))
+    fig, ax = _pyplot().subplots(figsize=(6, 3))
     n = np.arange(1, len(x0) + 1)
     ax.plot(n, xt, "k-", lw=1, label=f"$t = {t:.1f}$")
     ax.plot(n, x0, "b.", ms=3, label="$t = 0$")
@@ -175,9 +168,8 @@ def plot_snapshot(x0, xt, t, directory, name, title=""):
 
 def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
     """Interaction forces V'(x_{n+1} - x_n) in grey levels over (n, t) (figs. stabletw ... structures)."""
-    plt = _pyplot()
     f = -np.abs(bond_forces(states)) ** alpha
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     im = ax.imshow(f, aspect="auto", origin="lower", cmap="gray",
                    extent=(0.5, states.shape[1] + 0.5, times[0], times[-1]))
     fig.colorbar(im, ax=ax, label=r"$V'(x_{n+1}-x_n)$")
@@ -189,8 +181,7 @@ def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
 
 def plot_deviation(runs, directory, name="deviation.png"):
     """D(t) = ||S^k X(k T) - X(0)|| / ||X(0)|| for several runs (dict label -> (t, D)), log scale."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     for label, (t, D) in runs.items():
         ax.semilogy(t, np.maximum(D, 1e-16), lw=0.8, label=label)
     ax.set_xlabel("$t$")
@@ -202,9 +193,8 @@ def plot_deviation(runs, directory, name="deviation.png"):
 # --- section 3.5: Floquet multipliers ---------------------------------------------------------------------------
 def plot_floquet_radius(q, rho, tol_rho, directory):
     """Fig. floquet: spectral radius of the monodromy matrix modulo shifts vs q."""
-    plt = _pyplot()
     order = np.argsort(q)
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.plot(np.asarray(q)[order], np.asarray(rho)[order], "k.-", ms=4, lw=0.8)
     ax.axhline(1 + tol_rho, color="gray", lw=0.6, ls="--", label=rf"$1 + {tol_rho:g}$")
     ax.set_xlabel("$q$")
@@ -228,8 +218,7 @@ def draw_multipliers(ax, lam, title=None):
 
 def plot_multipliers(panels, directory):
     """Fig. eigen: multipliers in the complex plane with the unit circle; ``panels`` = [(label, multipliers)]."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(2, 2, figsize=(8, 8))
+    fig, axes = _pyplot().subplots(2, 2, figsize=(8, 8))
     for ax, (label, lam) in zip(axes.ravel(), panels):
         draw_multipliers(ax, lam, f"q = {label}")
     return _save(fig, directory, "eigen.png")
@@ -238,11 +227,10 @@ def plot_multipliers(panels, directory):
 # --- appendix: the solitary wave -------------------------------------------------------------------------------
 def plot_solitary(wave, directory):
     """Fig. ondesol: r(s) (top) and the displacement y(s) (bottom) of the unit-velocity solitary wave."""
-    plt = _pyplot()
     s = np.concatenate([-wave.s[:0:-1], wave.s])
     r = np.concatenate([wave.r[:0:-1], wave.r])
     y = np.concatenate([-wave.y[:0:-1], wave.y])
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(6, 5))
+    fig, (a1, a2) = _pyplot().subplots(2, 1, figsize=(6, 5))
     a1.plot(s, r, "k-", lw=1)
     a1.set_ylabel("$r(s)$")
     a2.plot(s, y, "k-", lw=1)
@@ -284,8 +272,7 @@ def plot_long_wave(wave, point, directory, zoom=0.3):
 def plot_compacton_profiles(single, double, directory):
     """Fig. graphulin: U_q (eq. extens, top) and U^(2)_{q, theta} (eq. extens2, bottom), with the compression
     regions (ell, 2 pi - ell) + s_j shaded."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(2, 1, figsize=(6, 6))
+    fig, axes = _pyplot().subplots(2, 1, figsize=(6, 6))
     for ax, train in zip(axes, (single, double)):
         xi = np.linspace(-2 * math.pi, train.offsets[-1] + 4 * math.pi, 2000)
         ax.plot(xi, train(xi), "k-", lw=1)
@@ -300,9 +287,8 @@ def plot_compacton_profiles(single, double, directory):
 
 def plot_spacetime_velocities(times, states, directory, name, title=""):
     """Bead velocities xdot_n over (n, t): compactons travel through beads at rest (white = exactly 0)."""
-    plt = _pyplot()
     v = states[..., 1]
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     im = ax.imshow(v, aspect="auto", origin="lower", cmap="gray_r",
                    extent=(-0.5, states.shape[1] - 0.5, times[0], times[-1]))
     fig.colorbar(im, ax=ax, label=r"$\dot x_n$")
@@ -316,8 +302,7 @@ def plot_spacetime_velocities(times, states, directory, name, title=""):
 def plot_small_q(q, levels, extrapolated, k_alpha, directory):
     """||u||_inf q^(2/(alpha-1)) against q on each grid level and extrapolated in h, with k_alpha (eq.
     normscaling): the long-wave limit beyond the paper's q = pi/50."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     for lev, values in enumerate(levels):
         ax.semilogx(q, values, ".-", lw=0.6, ms=3, color=str(0.7 - 0.25 * lev), label=f"level {lev}")
     ax.semilogx(q, extrapolated, "k.-", lw=1.2, label="extrapolated in $h$")
@@ -332,8 +317,7 @@ def plot_small_q(q, levels, extrapolated, k_alpha, directory):
 def plot_compacton_max_multiplier(rows, directory):
     """Largest nontrivial |mu| of the compacton window map against q (log q), one curve per alpha; the solitary
     wave (q = 0) as a dashed level."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     for k, a in enumerate(sorted({float(r["alpha"]) for r in rows})):
         rs = [r for r in rows if float(r["alpha"]) == a]
         q = np.array([float(r["q"]) for r in rs])
@@ -355,8 +339,7 @@ def plot_compacton_max_multiplier(rows, directory):
 def plot_compacton_spectra(rows, eta, directory):
     """All window multipliers of the given records in the complex plane, with the unit circle and the circle
     exp(-eta) below which the transport part lies in the weighted space."""
-    plt = _pyplot()
-    fig, axes = plt.subplots(1, len(rows), figsize=(4 * len(rows), 4))
+    fig, axes = _pyplot().subplots(1, len(rows), figsize=(4 * len(rows), 4))
     th = np.linspace(0, 2 * math.pi, 400)
     for ax, r in zip(np.atleast_1d(axes), rows):
         lam = np.asarray(r["multipliers"])
@@ -372,8 +355,7 @@ def plot_solitary_stability(rows, directory):
     """Left: the energy slope d ln H / d ln c at fixed lattice against the Mach number c / c0 (Jordan vectors: lines,
     finite differences along the family: circles), the uncompressed value 2(alpha+1)/(alpha-1) dashed; right: the
     largest nontrivial |mu| of the window map and the weighted essential-spectrum radius against c0."""
-    plt = _pyplot()
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (ax, bx) = _pyplot().subplots(1, 2, figsize=(10, 4))
     for a in sorted({float(r["alpha"]) for r in rows}):
         rs = sorted((r for r in rows if float(r["alpha"]) == a), key=lambda r: float(r["c0"]))
         c0 = np.array([float(r["c0"]) for r in rs])
@@ -407,8 +389,7 @@ def plot_solitary_stability(rows, directory):
 def plot_compacton_dynamics(records, directory):
     """Left: |rest| (deviation from the Jordan block at 1) against the beads travelled, with |mu_3|^k; right: the
     first record's deviation per window bead (space-time, log10)."""
-    plt = _pyplot()
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(11, 4))
+    fig, (ax, bx) = _pyplot().subplots(1, 2, figsize=(11, 4))
     for r in records:
         rest = np.asarray(r["rest"])
         k = np.arange(len(rest))
@@ -439,13 +420,12 @@ def plot_slow_instabilities(records, target, alpha, directory, name="slow_instab
     """gamma(q) on a log scale from the slow-instability records: the co-moving route on each grid and the
     deflated monodromy route (|gamma|: both are rounding-level where stable), the undeflated symmetry cluster
     (ln(1 + raw |mu| - 1) / script-T, what an undeflated spectrum shows) and the target resolution."""
-    plt = _pyplot()
     rows = sorted(records, key=lambda r: float(r["q"]))
     q = np.array([float(r["q"]) for r in rows])
     T = np.array([float(r["T"]) for r in rows])
     g = np.array([np.abs(np.asarray(r["gamma_cm"], dtype=float)) for r in rows])
     floor = 1e-17
-    fig, ax = plt.subplots(figsize=(7, 4.2))
+    fig, ax = _pyplot().subplots(figsize=(7, 4.2))
     for k in range(g.shape[1]):
         ax.semilogy(q, np.maximum(g[:, k], floor), "o-" if k == g.shape[1] - 1 else ".",
                     ms=3 + k, lw=0.6, color=str(0.6 - 0.3 * k / max(1, g.shape[1] - 1)),
@@ -474,8 +454,7 @@ def plot_precompressed_omega(curves, alpha, delta0, directory):
     """omega(q, A) of the precompressed chain against the acoustic omega_lin(q) (left) and, rescaled as
     omega A^(-(alpha-1)/2), against its uncompressed limit (right); open circles: the gap opening A_gap(q).
     ``curves``: {q: (A, omega, omega_lin, Omega0, (A_gap, omega_gap))}."""
-    plt = _pyplot()
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (ax1, ax2) = _pyplot().subplots(1, 2, figsize=(10, 4))
     e = (alpha - 1) / 2
     for i, (q, (A, omega, omega_lin, Omega0, (A_gap, omega_gap))) in enumerate(sorted(curves.items())):
         color = f"C{i}"
@@ -499,8 +478,7 @@ def plot_precompressed_omega(curves, alpha, delta0, directory):
 def plot_dimer_epsilon(curves, directory):
     """Dimer waves continued in the mass ratio epsilon: omega (solid) and the linear acoustic frequency (dashed),
     and ||v||_inf of the light bead, against epsilon. ``curves``: {q: (epsilon, omega, omega_acoustic, norm_v)}."""
-    plt = _pyplot()
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10, 4))
+    fig, (ax1, ax2) = _pyplot().subplots(1, 2, figsize=(10, 4))
     for i, (q, (eps, omega, omega_ac, norm_v)) in enumerate(sorted(curves.items())):
         color = f"C{i}"
         ax1.plot(eps, omega, ".-", color=color, ms=2, lw=0.8, label=f"q = {q / math.pi:.3g}$\\pi$")
@@ -642,8 +620,7 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
     """A response curve: the largest force transmitted to the right end (Pozharskiy et al. 2015's observable) and
     the largest Floquet multiplier modulus against the parameter; stable points solid, unstable dotted; events
     marked; switched (period-doubled) branches in colour."""
-    plt = _pyplot()
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6.5, 6), sharex=True)
+    fig, (ax, bx) = _pyplot().subplots(2, 1, figsize=(6.5, 6), sharex=True)
     branches = sorted({int(r["branch"]) for r in records})
     for j in branches:
         rs = [r for r in records if int(r["branch"]) == j]
@@ -689,8 +666,7 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
 def plot_driven_resonances(records, directory, name="driven_resonances.png"):
     """Small-amplitude resonances: peak frequencies from shooting and from the damped linear chain against the
     normal modes omega_k, and their differences."""
-    plt = _pyplot()
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6, 5.5), sharex=True)
+    fig, (ax, bx) = _pyplot().subplots(2, 1, figsize=(6, 5.5), sharex=True)
     recs = sorted(records, key=lambda r: int(r["k"]))
     k = np.array([int(r["k"]) for r in recs])
     wk = np.array([float(r["omega_k"]) for r in recs])
@@ -711,8 +687,7 @@ def plot_driven_resonances(records, directory, name="driven_resonances.png"):
 def plot_driven_wave_ends(records, directory, name="driven_wave_ends.png"):
     """rho of the travelling wave with driven ends (finite chain, tightest tolerance) against the periodic chain's
     rho(F_q)^(P/m), against q, one curve per chain length."""
-    plt = _pyplot()
-    fig, ax = plt.subplots(figsize=(6.5, 4.2))
+    fig, ax = _pyplot().subplots(figsize=(6.5, 4.2))
     rt = min(float(r["rtol"]) for r in records)
     recs = [r for r in records if float(r["rtol"]) == rt]
     qs = sorted({float(r["q"]) for r in recs})
@@ -731,8 +706,7 @@ def plot_driven_wave_ends(records, directory, name="driven_wave_ends.png"):
 def plot_driven_generation(records, directory, name="driven_generation.png"):
     """The generation map: per case the shape distance D of the bulk to the branch's wave against omega (one
     curve per signal, amplitude and damping), and the bead amplitudes A_n along the chain for each case."""
-    plt = _pyplot()
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6.5, 7))
+    fig, (ax, bx) = _pyplot().subplots(2, 1, figsize=(6.5, 7))
     ok = [r for r in records if int(r["ok"])]
     groups = sorted({(int(r["waveform"]), float(r["amplitude"]), float(r["gamma"])) for r in ok})
     names = ("harmonic", "half-sine")

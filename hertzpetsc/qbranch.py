@@ -19,7 +19,6 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
-from petsc4py import PETSc
 
 from .advdelay import AdvanceDelayProblem, check_wavenumber
 from .binary import binary_oscillation

@@ -382,7 +382,7 @@ def crossing_search(evaluate, unstable, pattern, a, b, pa, pb, min_width):
             return c, value, a, b
         pc = pattern(value)
         if pc != pa:
-            b, pb = c, pc
+            b = c
         else:
             a, pa = c, pc
     return None

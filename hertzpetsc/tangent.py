@@ -16,7 +16,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
-from .errors import HertzPetscError
+from .errors import HertzPetscError, ParameterError
 from .model import ChainSpec
 
 

@@ -37,7 +37,7 @@ from hertzpetsc.studies.compacton_dynamics import CompactonDynamics  # noqa: E40
 from hertzpetsc.studies.compacton_pairs import CompactonPairs  # noqa: E402
 from hertzpetsc.studies.compacton_stability import STABILITY_FORMAT  # noqa: E402
 
-ROLES = {"cdyn_": ("the long free chain's TS", ("ts",)), "cwin_": ("the window flows", ("ts",))}
+ROLES = CompactonDynamics.ROLES
 
 
 def stability_records(path, alpha, qs, comm):

@@ -40,10 +40,8 @@ from hertzpetsc.studies.compacton_stability import (DEFAULT_QS, TOL_UNSTABLE, Co
                                                     ring_spectrum)
 
 PI_50 = 0.06283185307179587        # the figure's second spectrum: the q nearest pi/50
-ROLES = {"cwin_": ("the window map's flows (state and tangents)", ("ts",)),
-         "ccheck_": ("the independent flow of the residual check", ("ts",)),
-         "cstab_": ("the window map's dominant multipliers (Krylov-Schur on the weighted shell)", ("eps",)),
-         "floquet_": ("the ring check: the dense monodromy of the same compacton on N = 2 pi / q beads", ("ts",))}
+ROLES = dict(CompactonStabilityScan.ROLES, floquet_=("the ring check: the dense monodromy of the same compacton on "
+                                                     "N = 2 pi / q beads", ("ts",)))
 
 
 def main():

@@ -34,12 +34,9 @@ from hertzpetsc.records import on_rank0, prepare_output, write_text  # noqa: E40
 from hertzpetsc.studies.floquet import BlochScan, floquet_reference, q_label  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
-ROLES = {"floquet_": ("Bloch sectors and full-chain checks: the variational flow, the seeded eigensolver",
-                      ("ts", "eps"))}
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, BlochScan.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     refined_path = opts.path("refined", "results/refined_N100.npz", "refinement file of the cell")
     sizes = opts.numbers("sizes", "1000,10000", "chain lengths N (multiples of the cell)", expr=False, kind=int,

@@ -39,11 +39,10 @@ from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
 EIGEN_Q = (("3pi/10", 3 * math.pi / 10), ("7pi/25", 7 * math.pi / 25), ("9pi/50", 9 * math.pi / 50),
            ("pi/50", math.pi / 50))
-ROLES = {"floquet_": ("Floquet spectra: the variational flow and the eigensolver", ("ts", "eps"))}
 
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, FloquetScan.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     N = opts.integer("N", 100, "beads of the periodic chain", minimum=3, maximum=MAX_DENSE_BEADS)
     refined_path = opts.path("refined", f"results/refined_N{N}.npz", "refinement file, or 'none' for the "

@@ -29,13 +29,9 @@ from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates, RefinementScan  # noqa: E402
 
-ROLES = {"shoot_": ("refinement: its flows and Gauss-Newton (-shoot_gn_max_it 20)", ("ts",)),
-         "shoot_jac_": ("the flow of the refinement's Jacobian (rtol 1e-10)", ("ts",)),
-         "chain_": ("the paper's flow (rtol 1e-12) for E before and after", ("ts",))}
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, RefinementScan.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     N = opts.integer("N", 100, "beads of the periodic chain", minimum=3, maximum=MAX_DENSE_BEADS)
     tol = opts.real("tol", 1e-10, "target E(q) of the refinement", valid=(lambda x: x > 0, "> 0"))

@@ -44,14 +44,9 @@ from hertzpetsc.studies.floquet import floquet_reference  # noqa: E402
 from hertzpetsc.studies.slow import (TARGET, SlowInstabilityScan, comoving_validation,  # noqa: E402
                                      convergence_table, orbit_convergence, validation_table)
 
-ROLES = {"cm_": ("the co-moving quadratic eigenproblem", ("pep",)),
-         "tw_": ("the travelling-wave SNES (profiles on the finer grids)", ("snes",)),
-         "shoot_": ("the refinement's flow", ("ts",)), "shoot_jac_": ("the refinement Jacobian's flow", ("ts",)),
-         "floquet_": ("the flow of the cell's sector maps", ("ts",))}
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, SlowInstabilityScan.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     N = opts.integer("N", 100, "beads of the periodic chain of the monodromy route", minimum=3,
                      maximum=MAX_DENSE_BEADS)

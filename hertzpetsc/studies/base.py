@@ -35,6 +35,8 @@ class Study:
     SHAPES = {}
     ROLES = {}
     WHAT = "record file"
+    LABELS = ()                # constants that are not part of the identity (file names, notes)
+    store = None
 
     def __init__(self, params, comm=None, output=None, mode="new"):
         if self.Parameters is not None and not isinstance(params, self.Parameters):
@@ -42,7 +44,6 @@ class Study:
         self.params = params
         self.comm = comm if comm is not None else PETSc.COMM_WORLD
         self.output, self.mode = output, mode
-        self.store = None
 
     # --- what identifies the records -------------------------------------------------------------------------
     def constants(self):
@@ -55,24 +56,26 @@ class Study:
         return {}
 
     def identity(self):
-        """What a resumed file must agree with (a difference is named): by default the constants, the options
-        given under the study's solver roles that change numbers, and the content hashes of the input files."""
-        out = dict(self.constants(), solver_options=solver_options(self.ROLES))
-        for name, path in self.inputs().items():
-            out[f"{name}_sha256"] = file_digest(path, self.comm)
+        """What a resumed file must agree with (a difference is named): by default the constants but the
+        ``LABELS``, the options given under the study's solver roles that change numbers, and the content hashes of
+        the input files."""
+        out = {k: v for k, v in self.constants().items() if k not in self.LABELS}
+        out.update(provenance(self.comm, **self.inputs()), solver_options=solver_options(self.ROLES))
         return out
 
     def open(self):
-        """Open the record store (collective): the file of ``output`` in ``mode``, or memory."""
+        """Open the record store once (collective)."""
         if self.store is None:
-            if self.output is None:
-                self.store = MemoryRecords(self.FORMAT, self.constants(), self.FIELDS, self.comm, self.DTYPES,
-                                           self.SHAPES)
-            else:
-                identity = self.identity()
-                self.store = NpzRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity,
-                                        self.FIELDS, self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT)
+            self.store = self._open()
         return self
+
+    def _open(self):
+        """The record store: the file of ``output`` in ``mode`` (constants and identity), or memory."""
+        if self.output is None:
+            return MemoryRecords(self.FORMAT, self.constants(), self.FIELDS, self.comm, self.DTYPES, self.SHAPES)
+        identity = self.identity()
+        return NpzRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity, self.FIELDS,
+                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT)
 
     @property
     def records(self):

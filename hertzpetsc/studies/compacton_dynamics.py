@@ -17,7 +17,7 @@ from ..compacton_spectrum import jordan_check, sorted_eig, split_jordan_pair
 from ..compacton_window import CompactonWindow, WindowChain, chain_from_window
 from ..errors import ParameterError
 from ..model import ChainSpec
-from ..records import NpzRecords
+from .base import Study
 from .compacton_stability import exact_compacton, fmt_multiplier, q_text
 
 DYNAMICS_FORMAT = "hertzpetsc-compacton-dynamics-1"
@@ -46,7 +46,7 @@ DYN_FIELDS = ("q", "kind", "mu3", "rate", "rate_first", "rate_last",
               "seconds", "steps")
 
 
-class CompactonDynamics:
+class CompactonDynamics(Study):
     """Exact compactons (stability records, one alpha) on a free chain of N beads in gap-lattice coordinates
     (:class:`WindowChain`, TS prefix ``cdyn_``), perturbed by ``amplitude`` times the least-stable mode ('mode')
     or Gaussian noise ('noise') on the window (relative to D for positions and v_peak for velocities); after each
@@ -54,8 +54,13 @@ class CompactonDynamics:
     delta = a v1 + b v2 + rest (Jordan vectors). Linear prediction: b constant, a_k = a_0 + k b, and
     |rest| ~ |mu_3|^k down to the flow's floor. Records keyed by (q, kind)."""
 
-    def __init__(self, records, model, comm, output, mode="new", N=2100, n0=50, travel=1000, amplitude=1e-8,
-                 kinds=("mode", "noise"), seed=12345, tolerances=DYNAMICS_TOLERANCES):
+    FORMAT, FIELDS = DYNAMICS_FORMAT, DYN_FIELDS + ("rest", "a", "b", "dist", "deviation")
+    DTYPES = {"kind": str, "steps": np.int64, "mu3": complex}
+    ROLES = {"cdyn_": ("the long free chain's TS", ("ts",)), "cwin_": ("the window flows", ("ts",))}
+    WHAT = "compacton dynamics file"
+
+    def __init__(self, records, model, comm=None, output=None, mode="new", N=2100, n0=50, travel=1000,
+                 amplitude=1e-8, kinds=("mode", "noise"), seed=12345, tolerances=DYNAMICS_TOLERANCES):
         if not records:
             raise ParameterError("-q", "", "no compacton to run")
         self.cases = [exact_compacton(r) for r in records]
@@ -67,24 +72,17 @@ class CompactonDynamics:
         for kind in kinds:
             if kind not in ("mode", "noise"):
                 raise ParameterError("-kinds", kind, "each must be mode or noise")
-        self.model, self.comm, self.N, self.n0, self.travel = model, comm, int(N), int(n0), int(travel)
+        super().__init__(None, comm, output, mode)
+        self.model, self.N, self.n0, self.travel = model, int(N), int(n0), int(travel)
         self.amplitude, self.kinds, self.seed, self.tolerances = float(amplitude), list(kinds), seed, tolerances
         self.window = CompactonWindow(model, M, PETSc.COMM_SELF)
-        chain = WindowChain(ChainSpec(model, self.N, "free"), comm, 0.0)
+        chain = WindowChain(ChainSpec(model, self.N, "free"), self.comm, 0.0)
         self.chain, self.integ = chain, dynamics_integrator(chain, tolerances)
-        ident = dict(alpha=self.alpha, N=self.N, n0=self.n0, travel=self.travel, amplitude=self.amplitude,
-                     rtol=tolerances.rtol, M=M)
-        self._open = lambda: NpzRecords(output, DYNAMICS_FORMAT, ident, ident,
-                                        DYN_FIELDS + ("rest", "a", "b", "dist", "deviation"), comm, mode,
-                                        dtypes={"kind": str, "steps": np.int64, "mu3": complex},
-                                        shapes={**{k: (self.travel + 1,) for k in ("rest", "a", "b", "dist")},
-                                                "deviation": (self.travel + 1, M)}, what="compacton dynamics file")
-        self.store = None
+        self.SHAPES = dict({k: (self.travel + 1,) for k in ("rest", "a", "b", "dist")}, deviation=(self.travel + 1, M))
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def constants(self):
+        return dict(alpha=self.alpha, N=self.N, n0=self.n0, travel=self.travel, amplitude=self.amplitude,
+                    rtol=self.tolerances.rtol, M=self.cases[0].M)
 
     def perturbation(self, kind, scale, V):
         M = len(scale) // 2

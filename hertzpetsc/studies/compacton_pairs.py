@@ -10,7 +10,7 @@ from petsc4py import PETSc
 from ..compacton_window import DEFAULT_REAR, CompactonRefiner, CompactonWindow, WindowChain, guess_from_branch
 from ..errors import ParameterError
 from ..model import ChainSpec
-from ..records import NpzRecords
+from .base import Study
 from .compacton_dynamics import DYNAMICS_TOLERANCES, dynamics_integrator
 from .compacton_stability import q_text
 
@@ -20,16 +20,21 @@ PAIR_CASES = (("single", "", "unrefined"), ("single", "", "refined"), ("two", "u
               ("two", "refined", "refined"), ("two", "unrefined", "refined"), ("two", "refined", "unrefined"))
 
 
-class CompactonPairs:
+class CompactonPairs(Study):
     """The compacton of a branch point at c = 1, unrefined (the branch profile, eqs. extens, compacton) or refined
     at the same gap (window map, Delta fixed), alone or with a second one ``spacing`` beads behind (eq. extens2),
     on a free chain in gap-lattice coordinates (TS ``cdyn_``), run until the rear one has passed ``travel`` beads
     beyond the front one's start. Errors against the exactly translated initial chain (x relative to D, v to
     v_peak) and the debris left behind the rear compacton (max |v| / v_peak)."""
 
-    def __init__(self, branch, q, comm, output, mode="new", spacing=132, travel=100, M=18, rear=DEFAULT_REAR,
-                 margin=10, tolerances=DYNAMICS_TOLERANCES):
-        self.branch, self.q, self.comm = branch, float(q), comm
+    FORMAT, FIELDS, DTYPES = PAIRS_FORMAT, PAIR_FIELDS, {"case": str, "rear": str, "front": str}
+    ROLES = {"cdyn_": ("the long free chain's TS", ("ts",)), "cwin_": ("the window flows", ("ts",))}
+    WHAT, LABELS = "compacton pairs file", ("N", "gap")
+
+    def __init__(self, branch, q, comm=None, output=None, mode="new", spacing=132, travel=100, M=18,
+                 rear=DEFAULT_REAR, margin=10, tolerances=DYNAMICS_TOLERANCES):
+        super().__init__(None, comm, output, mode)
+        self.branch, self.q = branch, float(q)
         self.spacing, self.travel, self.M, self.rear, self.margin = int(spacing), int(travel), int(M), int(rear), \
             int(margin)
         Yu, gap = guess_from_branch(branch.point(q), self.M, self.rear, branch.q_k())
@@ -40,20 +45,12 @@ class CompactonPairs:
         self.T = self.spacing + self.travel
         self.N = self.margin + self.spacing + self.M + self.T + self.margin
         self.model = branch.model
-        self._open = lambda: NpzRecords(output, PAIRS_FORMAT,
-                                        dict(alpha=branch.alpha, q=self.q, h=branch.h, spacing=self.spacing,
-                                             travel=self.travel, M=self.M, N=self.N, gap=gap),
-                                        dict(alpha=branch.alpha, q=self.q, h=branch.h, spacing=self.spacing,
-                                             travel=self.travel, M=self.M), PAIR_FIELDS, comm, mode,
-                                        dtypes={"case": str, "rear": str, "front": str}, what="compacton pairs file")
-        self.chain = WindowChain(ChainSpec(self.model, self.N, "free"), comm, gap)
+        self.chain = WindowChain(ChainSpec(self.model, self.N, "free"), self.comm, gap)
         self.integ = dynamics_integrator(self.chain, tolerances)
-        self.store = None
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def constants(self):
+        return dict(alpha=self.branch.alpha, q=self.q, h=self.branch.h, spacing=self.spacing, travel=self.travel,
+                    M=self.M, N=self.N, gap=self.gap)
 
     def refined(self):
         if "refined" not in self.states:

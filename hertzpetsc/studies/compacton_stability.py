@@ -28,9 +28,8 @@ from ..compacton_window import (DEFAULT_REAR, WINDOW_PREFIX, WINDOW_TOLERANCES, 
 from ..continuation import Continuation, Natural
 from ..errors import ParameterError
 from ..model import ChainSpec
-from ..records import NpzRecords
 from ..richardson import richardson
-from .base import provenance
+from .base import Study
 from .dealing import dealt
 
 STABILITY_FORMAT = "hertzpetsc-compacton-stability-1"
@@ -71,22 +70,32 @@ def _key(alpha, q):
     return (round(float(alpha), 10), round(float(q), 12))
 
 
-class CompactonStabilityScan:
+class CompactonStabilityScan(Study):
     """Exact compactons and their window spectra against q for each branch (alpha) (module docstring).
 
     Each (alpha, q) is computed on one rank (COMM_SELF), the alphas of a continuation step dealt to the ranks, so
     the records do not depend on the number of ranks. Prefixes: ``cwin_`` (the window flows), ``ccheck_`` (the
     independent residual flow), ``cstab_`` (the EPS: ``-cstab_eps_*``)."""
 
-    def __init__(self, branches, qs, comm, output, mode="new", M=18, rear=DEFAULT_REAR, nev=3, eta=DEFAULT_ETA,
-                 solitary=True, tol_unstable=TOL_UNSTABLE, tolerances=WINDOW_TOLERANCES):
+    FORMAT, FIELDS = STABILITY_FORMAT, FIELDS + ("multipliers", "dominant", "state")
+    DTYPES = {"multipliers": complex, "dominant": complex, "iterations": np.int64, "unstable": np.int64,
+              "slepc_products": np.int64, "slepc_nev": np.int64, "core_first": np.int64, "core_last": np.int64}
+    ROLES = {"cwin_": ("the window map's flows (state and tangents)", ("ts",)),
+             "ccheck_": ("the independent flow of the residual check", ("ts",)),
+             "cstab_": ("the window map's dominant multipliers (Krylov-Schur on the weighted shell)", ("eps",))}
+    WHAT, LABELS = "compacton stability file", ("nev",)
+
+    def __init__(self, branches, qs, comm=None, output=None, mode="new", M=18, rear=DEFAULT_REAR, nev=3,
+                 eta=DEFAULT_ETA, solitary=True, tol_unstable=TOL_UNSTABLE, tolerances=WINDOW_TOLERANCES):
         if not branches:
             raise ParameterError("-branches", "", "give at least one branch file")
         self.branches = {round(b.alpha, 10): b for b in branches}
         if len(self.branches) != len(branches):
             raise ParameterError("-branches", [b.alpha for b in branches], "one branch per alpha")
         self.sequences = {a: scan_sequence(b, qs, solitary) for a, b in self.branches.items()}
-        self.comm, self.M, self.rear, self.nev, self.eta = comm, int(M), int(rear), int(nev), float(eta)
+        super().__init__(None, comm, output, mode)
+        self.M, self.rear, self.nev, self.eta = int(M), int(rear), int(nev), float(eta)
+        self.SHAPES = {"multipliers": (2 * self.M,), "dominant": (NDOM,), "state": (self.M, 2)}
         self.tol_unstable, self.tolerances = tol_unstable, tolerances
         # configure every solver now (bad options and bad sizes fail before any computation)
         for a, b in self.branches.items():
@@ -98,29 +107,14 @@ class CompactonStabilityScan:
             WindowStability(probe, self.nev, self.eta).destroy()
         finally:
             probe.destroy()
-
-        def store():
-            extra = provenance(comm, ("cwin_", "ccheck_", "cstab_"), **{
-                f"branch_alpha{a:g}": getattr(b, "path", "") for a, b in self.branches.items()})
-            return NpzRecords(output, STABILITY_FORMAT,
-                              dict(M=self.M, rear=self.rear, eta=self.eta, nev=self.nev, tol_unstable=tol_unstable,
-                                   rtol=tolerances.rtol, **extra),
-                              dict(M=self.M, rear=self.rear, eta=self.eta, rtol=tolerances.rtol,
-                                   tol_unstable=tol_unstable, **extra),
-                              FIELDS + ("multipliers", "dominant", "state"), comm, mode,
-                              dtypes={"multipliers": complex, "dominant": complex, "iterations": np.int64,
-                                      "unstable": np.int64, "slepc_products": np.int64, "slepc_nev": np.int64,
-                                      "core_first": np.int64, "core_last": np.int64},
-                              shapes={"multipliers": (2 * self.M,), "dominant": (NDOM,), "state": (self.M, 2)},
-                              what="compacton stability file")
-        self._open = store
-        self.store = None
         self._tools = {}
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def constants(self):
+        return dict(M=self.M, rear=self.rear, eta=self.eta, nev=self.nev, tol_unstable=self.tol_unstable,
+                    rtol=self.tolerances.rtol)
+
+    def inputs(self):
+        return {f"branch_alpha{a:g}": getattr(b, "path", "") for a, b in self.branches.items()}
 
     # --- per-rank solvers (COMM_SELF), one set per alpha ---------------------------------------------------------
     def _solvers(self, alpha):

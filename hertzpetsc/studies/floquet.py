@@ -23,9 +23,9 @@ from ..bloch import SymmetricFloquet, bloch_residuals, real_pairs, seeded_domina
 from ..errors import ParameterError, RecordFileError
 from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
-from ..records import NpzRecords, check_kind, load_npz
+from ..records import check_kind, load_npz
 from ..waves import orbit_on_chain
-from .base import provenance
+from .base import Study
 from .dealing import dealt
 from .refinement import scan_wavenumbers
 
@@ -43,6 +43,11 @@ def q_label(q):
     if abs(float(f) * math.pi - q) > 1e-12 * max(q, 1.0):
         return f"{q:.6g}"
     return f"{f.numerator if f.numerator != 1 else ''}pi/{f.denominator}" if f.denominator != 1 else f"{f.numerator}pi"
+
+
+def _path(source):
+    """The file a branch or refinement came from ('' for none or one computed in memory)."""
+    return getattr(source, "path", "") or ""
 
 
 def critical_wavenumbers(q, rho, tol_rho):
@@ -80,47 +85,44 @@ def _select_wavenumbers(branch, N, qs, refined):
     return kept, "refined waves"
 
 
-class FloquetScan:
+class FloquetScan(Study):
     """rho(F_q) along the branch on N beads around the refined waves (section 3.5, figs. floquet, eigen).
 
     ``method``: 'symmetric' (all 2N multipliers from the wave's cell over its shortest time symmetry,
     :mod:`hertzpetsc.symmetry`; each q on one rank, the q dealt to the ranks), 'dense' (all 2N, LAPACK on the
     assembled F_q, as the paper: the reference route) or 'slepc' (the ``nev`` dominant ones, Krylov-Schur on the
     matrix-free operator, warm-started from the previous q). Prefix ``floquet_`` (its flow ``-floquet_ts_*`` and
-    eigensolver ``-floquet_eps_*``).
+    eigensolver ``-floquet_eps_*``). ``output`` None: the records are kept in memory.
     """
 
-    def __init__(self, branch, N, comm, output, mode="new", refined=None, qs=None, method="symmetric", nev=10,
-                 tol_rho=TOL_RHO, tolerances=FLOQUET_TOLERANCES):
+    FORMAT, FIELDS = FLOQUET_FORMAT, FLOQUET_FIELDS + ("multipliers",)
+    DTYPES = {"outside": np.int64, "refined": np.int64, "multipliers": complex}
+    ROLES = {"floquet_": ("Floquet spectra: the variational flow and the eigensolver", ("ts", "eps"))}
+    WHAT = "Floquet file"
+
+    def __init__(self, branch, N, comm=None, output=None, mode="new", refined=None, qs=None, method="symmetric",
+                 nev=10, tol_rho=TOL_RHO, tolerances=FLOQUET_TOLERANCES):
         if method not in METHODS:
             raise ParameterError("-method", method, "must be one of " + ", ".join(METHODS))
-        self.branch, self.N, self.comm, self.method, self.nev = branch, N, comm, method, nev
+        super().__init__(None, comm, output, mode)
+        self.branch, self.N, self.method, self.nev = branch, N, method, nev
         self.tol_rho, self.tolerances, self.refined = tol_rho, tolerances, refined
         self.spec = ChainSpec(branch.model, N)
         self.qs, self.restriction = _select_wavenumbers(branch, N, qs, refined)
-        path = refined.path if refined is not None else ""
-
-        def store():
-            extra = provenance(comm, ("floquet_",), branch=getattr(branch, "path", ""), refined=path)
-            return NpzRecords(output, FLOQUET_FORMAT,
-                              dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path,
-                                   note=self.restriction, **extra),
-                              dict(N=N, alpha=branch.alpha, tol_rho=tol_rho, method=method, refined_file=path, **extra),
-                              FLOQUET_FIELDS + ("multipliers",), comm, mode,
-                              dtypes={"outside": np.int64, "refined": np.int64, "multipliers": complex},
-                              shapes={"multipliers": (2 * N,)}, what="Floquet file")
-        self._open = store
-        self.store = None
+        self.SHAPES = {"multipliers": (2 * N,)}
         self.spectra = {}
         self.solver = (SymmetricFloquet(branch.model, PETSc.COMM_SELF, tolerances) if method == "symmetric" else
-                       DenseFloquet(self.spec, comm, tolerances) if method == "dense" else
-                       DominantFloquet(self.spec, comm, nev, tolerances, warm=True))
+                       DenseFloquet(self.spec, self.comm, tolerances) if method == "dense" else
+                       DominantFloquet(self.spec, self.comm, nev, tolerances, warm=True))
 
-    def open(self):
-        """Open the Floquet file (collective)."""
-        if self.store is None:
-            self.store = self._open()
-        return self
+    LABELS = ("note",)
+
+    def constants(self):
+        return dict(N=self.N, alpha=self.branch.alpha, tol_rho=self.tol_rho, method=self.method,
+                    refined_file=_path(self.refined), note=self.restriction)
+
+    def inputs(self):
+        return dict(branch=_path(self.branch), refined=_path(self.refined))
 
     def orbit(self, q):
         point = self.branch.point(q)
@@ -224,13 +226,20 @@ def floquet_reference(path):
     return {round(float(a), 12): float(b) for a, b in zip(data["q"], data["rho"])}
 
 
-class BlochScan:
+class BlochScan(Study):
     """All 2N multipliers of F_q on N = L M beads from Bloch sectors of the refined M-bead wave, the residuals of
     the dominant modes on the full chain (matrix-free) and, for N in ``slepc_sizes``, seeded SLEPc (sec. 3.5)."""
 
-    def __init__(self, branch, refined, sizes, qs, comm, output, mode="new", nev=10, tol_rho=TOL_RHO,
+    FORMAT, FIELDS = BLOCH_FORMAT, BLOCH_FIELDS + ("dominant", "dominant_theta")
+    DTYPES = {"N": np.int64, "outside": np.int64, "slepc_products": np.int64, "dominant": complex}
+    ROLES = {"floquet_": ("Bloch sectors and full-chain checks: the variational flow, the seeded eigensolver",
+                          ("ts", "eps"))}
+    WHAT, LABELS = "Bloch file", ("split", "refined_file")
+
+    def __init__(self, branch, refined, sizes, qs, comm=None, output=None, mode="new", nev=10, tol_rho=TOL_RHO,
                  slepc_sizes=(), split="sectors", tolerances=FLOQUET_TOLERANCES, reference=None):
-        self.branch, self.refined, self.comm = branch, refined, comm
+        super().__init__(None, comm, output, mode)
+        self.branch, self.refined = branch, refined
         self.M = refined.N
         self.cell = ChainSpec(branch.model, self.M)
         for N in sizes:
@@ -239,30 +248,19 @@ class BlochScan:
                                      f"{self.M} beads (it is tiled)")
         if split not in ("sectors", "beads"):
             raise ParameterError("-split", split, "must be sectors or beads")
-        self.solver = SymmetricFloquet(branch.model, comm, tolerances, split=split, n_modes=nev)
+        self.solver = SymmetricFloquet(branch.model, self.comm, tolerances, split=split, n_modes=nev)
         self.sizes, self.nev, self.tol_rho, self.split = list(sizes), nev, tol_rho, split
         self.slepc_sizes, self.tolerances, self.reference = set(slepc_sizes), tolerances, reference or {}
         self.orbits = [refined.orbit(branch.point(q), self.cell) for q in qs]
-        def store():
-            extra = provenance(comm, ("floquet_",), branch=getattr(branch, "path", ""), refined=refined.path)
-            return NpzRecords(output, BLOCH_FORMAT,
-                              dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, split=split,
-                                   rtol=tolerances.rtol, refined_file=refined.path, **extra),
-                              dict(alpha=branch.alpha, M=self.M, nev=nev, tol_rho=tol_rho, rtol=tolerances.rtol,
-                                   **extra),
-                              BLOCH_FIELDS + ("dominant", "dominant_theta"), comm, mode,
-                              dtypes={"N": np.int64, "outside": np.int64, "slepc_products": np.int64,
-                                      "dominant": complex}, shapes={"dominant": (nev,), "dominant_theta": (nev,)},
-                              what="Bloch file")
-        self._open = store
-        self.store = None
+        self.SHAPES = {"dominant": (nev,), "dominant_theta": (nev,)}
         self.extra = {}
 
-    def open(self):
-        """Open the Bloch file (collective)."""
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def constants(self):
+        return dict(alpha=self.branch.alpha, M=self.M, nev=self.nev, tol_rho=self.tol_rho, split=self.split,
+                    rtol=self.tolerances.rtol, refined_file=_path(self.refined))
+
+    def inputs(self):
+        return dict(branch=_path(self.branch), refined=_path(self.refined))
 
     def run(self):
         self.open()

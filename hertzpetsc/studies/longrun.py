@@ -16,6 +16,7 @@ from ..chain import CHAIN_PREFIX, Chain, ChainIntegrator
 from ..records import write_json
 from ..simulation import (check_times, decode, first_crossing, snapshot_record, snapshot_store, state_digest,
                           wave_deviation)
+from .base import Study
 
 DESTRUCTION_LEVEL = 0.1
 
@@ -46,17 +47,21 @@ class LongRunSummary:
         return asdict(self)
 
 
-class LongRun:
+class LongRun(Study):
     """The orbit integrated to ``t_final`` with ``snapshots_per_T`` snapshots per script-T into the run directory
     ``output`` (TS prefix ``chain_``; default RK 8(7), rtol 1e-12, atol 1e-14 as the paper). ``mode='resume'``
     continues a killed run from its last snapshot, with the integrator's step, to the same trajectory."""
 
-    def __init__(self, orbit, t_final, snapshots_per_T, output, comm, mode="new", prefix=CHAIN_PREFIX):
-        self.orbit, self.output, self.comm = orbit, output, comm
+    ROLES = {CHAIN_PREFIX: ("the chain's integrator", ("ts",))}
+    WHAT = "run directory"
+
+    def __init__(self, orbit, t_final, snapshots_per_T, output, comm=None, mode="new", prefix=CHAIN_PREFIX):
+        super().__init__(None, comm, output, mode)
+        self.orbit = orbit
         self.dt_snap = orbit.T / snapshots_per_T
         check_times(t_final, self.dt_snap)
         self.t_final, self.snapshots_per_T = t_final, snapshots_per_T
-        self.chain = Chain(orbit.spec, comm)
+        self.chain = Chain(orbit.spec, self.comm)
         self.integrator = ChainIntegrator(self.chain, prefix=prefix)
         ts = self.integrator.ts
         rtol, atol = ts.getTolerances()
@@ -64,14 +69,11 @@ class LongRun:
                            initial_state=orbit.source, initial_state_sha256=state_digest(orbit.x),
                            snapshot_dt=self.dt_snap, rtol=rtol, atol=atol, ts=f"{ts.getType()} {ts.getRKType()}",
                            masses=list(orbit.spec.model.masses))
-        self.mode, self.store = mode, None
         self.steps, self.wall = 0, 0.0
 
-    def open(self):
-        """Open the run directory (collective): a new one, or the snapshots of the run to resume."""
-        if self.store is None:
-            self.store = snapshot_store(self.output, self.header, self.comm, self.mode)
-        return self
+    def _open(self):
+        """The run directory (collective): a new one, or the snapshots of the run to resume."""
+        return snapshot_store(self.output, self.header, self.comm, self.mode)
 
     @property
     def resumed_at(self):

@@ -184,7 +184,7 @@ class AmplitudeFamilies(Study):
         """Per q: the small-amplitude coefficient (fit of omega/omega_lin - 1 on the smallest amplitudes, on this
         grid against the closed form's omega_lin: includes the O(h^2) offset of the scheme), A_gap, Omega at the
         largest A, Omega0 and c1 = (Omega - Omega0) A / delta0 at the largest two A."""
-        alpha, d0 = self.model.alpha, self.model.delta0
+        d0 = self.model.delta0
         grid, gap, limit = self.rows(q)
         out = dict(q=q, C_theory=round(float(self.model.law.stokes_coefficient(q)), 15) + 0.0
                    if self.model.cell == 1 else math.nan)           # the closed form is the monatomic chain's

@@ -29,11 +29,11 @@ from petsc4py import PETSc
 from ..chain import CHAIN_PREFIX
 from ..errors import ParameterError, RecordFileError
 from ..model import ChainSpec
-from ..records import NpzRecords, check_kind, load_npz, on_rank0
+from ..records import check_kind, load_npz, on_rank0
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
 from ..symmetry import WaveSymmetry
 from ..waves import chain_wavenumbers, check_chain_wavenumber, orbit_on_chain
-from .base import provenance
+from .base import Study
 from .dealing import dealt
 
 REFINED_FORMAT = "hertzpetsc-refined-1"
@@ -99,35 +99,37 @@ def scan_wavenumbers(branch, N, qs=None):
     return fitting
 
 
-class RefinementScan:
+class RefinementScan(Study):
     """E(q) before and after Gauss-Newton refinement for the branch waves at ``qs`` on N beads (section 3.4).
 
     ``symmetric``: refine on each wave's cell with its shortest time symmetry (:mod:`hertzpetsc.shooting`); else
     the paper's map over script-T on the N beads. Each q is refined on one rank, the q dealt to the ranks (the
     results do not depend on their number). The refinement's flows and Gauss-Newton use the prefix ``shoot_`` (tight
     flow, rtol 1e-14); E with the paper's flow uses ``chain_``. Each refined state is appended to the refinement
-    file ``output`` as soon as its round is done.
+    file ``output`` as soon as its round is done (kept in memory when ``output`` is None).
     """
 
-    def __init__(self, branch, branch_path, N, comm, output, mode="new", qs=None, tol=1e-10, symmetric=True):
-        self.branch, self.N, self.comm = branch, N, comm
+    FORMAT, FIELDS = REFINED_FORMAT, REFINED_FIELDS + ("x",)
+    ROLES = {"shoot_": ("refinement: its flows and Gauss-Newton (-shoot_gn_max_it 20)", ("ts",)),
+             "shoot_jac_": ("the flow of the refinement's Jacobian (rtol 1e-10)", ("ts",)),
+             "chain_": ("the paper's flow (rtol 1e-12) for E before and after", ("ts",))}
+    WHAT, LABELS = "refinement file", ("branch",)
+
+    def __init__(self, branch, branch_path, N, comm=None, output=None, mode="new", qs=None, tol=1e-10,
+                 symmetric=True):
+        super().__init__(None, comm, output, mode)
+        self.branch, self.branch_path, self.N, self.tol = branch, branch_path, N, tol
         self.spec = ChainSpec(branch.model, N)
+        self.SHAPES = {"x": (N, 2)}
         self.qs = scan_wavenumbers(branch, N, qs)
         self.refiner = Refiner(self.spec, PETSc.COMM_SELF, tol, prefix=SHOOT_PREFIX, symmetric=symmetric)
         self.paper_flow = ShiftMap(self.spec, PETSc.COMM_SELF, PAPER_TOLERANCES, CHAIN_PREFIX)
-        def store():
-            extra = provenance(comm, ("shoot_", "chain_"), branch=branch_path)
-            return NpzRecords(output, REFINED_FORMAT, dict(alpha=branch.alpha, N=N, branch=branch_path, tol=tol,
-                                                           **extra), dict(alpha=branch.alpha, N=N, tol=tol, **extra),
-                              REFINED_FIELDS + ("x",), comm, mode, shapes={"x": (N, 2)}, what="refinement file")
-        self._open = store
-        self.store = None
 
-    def open(self):
-        """Open the refinement file (collective)."""
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def constants(self):
+        return dict(alpha=self.branch.alpha, N=self.N, branch=self.branch_path, tol=self.tol)
+
+    def inputs(self):
+        return dict(branch=self.branch_path)
 
     def _refine(self, q):
         orbit = orbit_on_chain(self.branch.point(q), self.spec)

@@ -57,13 +57,12 @@ from ..comoving_window import sector_window, theta_scan, tracked_exponent
 from ..errors import ConvergenceError, ParameterError
 from ..chain import IntegrationTolerances
 from ..model import ChainSpec
-from ..records import NpzRecords
 from ..richardson import richardson
 from ..shooting import SHOOT_PREFIX, Refiner, relative_residual
 from ..slow import DeflatedSectors
 from ..symmetry import WaveSymmetry
 from ..waves import fits_chain, orbit_on_chain
-from .base import provenance
+from .base import Study
 from .dealing import dealt
 from .floquet import q_label
 
@@ -129,7 +128,7 @@ def monodromy_fields(sectors, refiner, orbit, E):
 CELLS_PER_Q = 20
 
 
-class SlowInstabilityScan:
+class SlowInstabilityScan(Study):
     """gamma(q) above q_c by the co-moving and the monodromy routes (module docstring), written as it goes.
 
     ``qs``: branch wavenumbers; those fitting N beads (q = 2 pi m / N) get the monodromy route too (refined from the
@@ -137,10 +136,18 @@ class SlowInstabilityScan:
     doubling); ``n_theta``: Bloch parameters of the co-moving scan in [0, pi]; ``n_twist``: cell twists of the
     monodromy route in [0, pi] (0 disables it). Prefixes: ``cm_`` (the PEP), ``tw_`` (profiles on the finer grids),
     ``shoot_`` / ``shoot_jac_`` (the refinement), ``floquet_`` (the sector maps). Each q is computed on one rank,
-    the q dealt to the ranks.
+    the q dealt to the ranks. ``output`` None: the records are kept in memory.
     """
 
-    def __init__(self, branch, branch_path, N, comm, output, mode="new", qs=None, refined=None,
+    FORMAT, FIELDS = SLOW_FORMAT, SLOW_FIELDS
+    DTYPES = {"m": np.int64, "verdict": np.int64}
+    ROLES = {"cm_": ("the co-moving quadratic eigenproblem", ("pep",)),
+             "tw_": ("the travelling-wave SNES (profiles on the finer grids)", ("snes",)),
+             "shoot_": ("the refinement's flow", ("ts",)), "shoot_jac_": ("the refinement Jacobian's flow", ("ts",)),
+             "floquet_": ("the flow of the cell's sector maps", ("ts",))}
+    WHAT, LABELS = "slow-instability file", ("branch",)
+
+    def __init__(self, branch, branch_path, N, comm=None, output=None, mode="new", qs=None, refined=None,
                  grids=(1000, 2000, 4000), n_theta=41, n_twist=3, refine_tol=1e-12, tolerances=SLOW_TOLERANCES,
                  target=TARGET, theta_longwave=0.05):
         if len(grids) < 3 or any(b != 2 * a for a, b in zip(grids, grids[1:])):
@@ -152,7 +159,8 @@ class SlowInstabilityScan:
             raise ParameterError("-n_twist", n_twist, "must be an integer >= 0 (0: no monodromy route)")
         if not 0 < theta_longwave < 0.5:
             raise ParameterError("-theta_longwave", theta_longwave, "must lie in (0, 0.5)")
-        self.branch, self.N, self.comm, self.refined = branch, N, comm, refined
+        super().__init__(None, comm, output, mode)
+        self.branch, self.branch_path, self.N, self.refined = branch, branch_path, N, refined
         self.grids, self.n_theta, self.n_twist = list(grids), n_theta, n_twist
         self.refine_tol, self.tolerances, self.target = refine_tol, tolerances, target
         self.theta_longwave = theta_longwave
@@ -160,8 +168,8 @@ class SlowInstabilityScan:
         coarse = [q for q in self.qs if q * grids[0] / math.pi < CELLS_PER_Q * (1 - 1e-12)]
         if coarse:
             q0 = coarse[0]
-            raise ParameterError("-grids", ",".join(map(str, grids)), f"the coarsest grid has {q0 * grids[0] / math.pi:.3g}"
-                                 f" cells per q at q = {q0:.6g}: at least {CELLS_PER_Q} are needed (K >= "
+            raise ParameterError("-grids", ",".join(map(str, grids)), "the coarsest grid has "
+                                 f"{q0 * grids[0] / math.pi:.3g} cells per q at q = {q0:.6g}: at least {CELLS_PER_Q} are needed (K >= "
                                  f"{math.ceil(CELLS_PER_Q * math.pi / q0)}) to resolve the compression zone")
         self.spec = ChainSpec(branch.model, N)
         self.pep = ComovingPEP(PETSc.COMM_SELF)
@@ -169,29 +177,15 @@ class SlowInstabilityScan:
                                         twists=np.linspace(0.0, math.pi, n_twist)) if n_twist else None)
         self.refiner = (Refiner(self.spec, PETSc.COMM_SELF, refine_tol, tolerances=tolerances, prefix=SHOOT_PREFIX,
                                 symmetric=True) if n_twist else None)
-        refined_path = getattr(refined, "path", "") if refined is not None else ""
-        self._open = lambda: NpzRecords(
-            output, SLOW_FORMAT,
-            dict(alpha=branch.alpha, N=N, branch=branch_path, grids=np.array(grids), n_theta=n_theta,
-                 n_twist=n_twist, refine_tol=refine_tol, rtol=tolerances.rtol, target=target,
-                 theta_longwave=theta_longwave, **self._provenance(branch_path, refined_path)),
-            dict(alpha=branch.alpha, N=N, grids=list(grids), n_theta=n_theta, n_twist=n_twist,
-                 refine_tol=refine_tol, rtol=tolerances.rtol, target=target, theta_longwave=theta_longwave,
-                 **self._provenance(branch_path, refined_path)),
-            SLOW_FIELDS, comm, mode, dtypes={"m": np.int64, "verdict": np.int64},
-            shapes={"gamma_cm": (len(grids),)}, what="slow-instability file")
-        self.store = None
+        self.SHAPES = {"gamma_cm": (len(grids),)}
 
-    def _provenance(self, branch_path, refined_path):
-        if not hasattr(self, "_prov"):
-            self._prov = provenance(self.comm, ("cm_", "floquet_", "shoot_", "tw_"), branch=branch_path,
-                                    refined=refined_path)
-        return self._prov
+    def constants(self):
+        return dict(alpha=self.branch.alpha, N=self.N, branch=self.branch_path, grids=list(self.grids),
+                    n_theta=self.n_theta, n_twist=self.n_twist, refine_tol=self.refine_tol,
+                    rtol=self.tolerances.rtol, target=self.target, theta_longwave=self.theta_longwave)
 
-    def open(self):
-        if self.store is None:
-            self.store = self._open()
-        return self
+    def inputs(self):
+        return dict(branch=self.branch_path, refined=getattr(self.refined, "path", "") or "")
 
     # --- the two routes ---------------------------------------------------------------------------------------
     def comoving(self, point):

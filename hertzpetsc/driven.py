@@ -55,7 +55,7 @@ from .assembly import gathered
 from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .continuation import ContinuationProblem, _parameter, golden_maximum, set_parameter
 from .errors import ConvergenceError, ParameterError
-from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, Spectrum, dense_multipliers
+from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal, Signal
 from .tangent import MonodromyModShift, TangentFlow
@@ -85,15 +85,30 @@ FLOQUET_METHODS = ("dense", "slepc", "none")
 TOL_MU = 1e-6
 
 
-def _finite(name, value, what, minimum=None, strict=False):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, f"{what} must be a real number") from None
-    if not math.isfinite(v) or (minimum is not None and (v <= minimum if strict else v < minimum)):
-        rng = "" if minimum is None else (f" > {minimum:g}" if strict else f" >= {minimum:g}")
-        raise ParameterError(name, value, f"{what} must be a finite number{rng}")
-    return v
+def _whole(name, value, minimum, what):
+    """An integer parameter >= minimum (a float with an integral value is taken), else ParameterError."""
+    if isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, bool) \
+            and math.isfinite(value) and value == int(value) and int(value) >= minimum:
+        return int(value)
+    raise ParameterError(name, value, f"{what} must be an integer >= {minimum}")
+
+
+def _real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
+    """A finite real parameter in the interval given (open ends by default), else ParameterError."""
+    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) \
+        and math.isfinite(value)
+    ok = ok and (lo is None or (value > lo if lo_open else value >= lo))
+    ok = ok and (hi is None or (value < hi if hi_open else value <= hi))
+    if not ok:
+        rng = " and ".join(x for x in ((f"{'>' if lo_open else '>='} {lo:g}" if lo is not None else ""),
+                                       (f"{'<' if hi_open else '<='} {hi:g}" if hi is not None else "")) if x)
+        raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else ""))
+    return float(value)
+
+
+def _one_of(name, value, choices, what="must be one of"):
+    if value not in choices:
+        raise ParameterError(name, value, f"{what} " + ", ".join(choices))
 
 
 # --- waveforms: the actuator's motion as a shape of period 2 pi ---------------------------------------------------
@@ -154,15 +169,11 @@ class HalfSinePulses(Waveform):
     name = "half_sine"
 
     def __post_init__(self):
-        w = _finite("width", self.width, "the pulse width (a fraction of the period)", 0.0, strict=True)
-        if w > 1.0:
-            raise ParameterError("width", self.width, "the pulse width must lie in (0, 1] periods (wider pulses "
-                                 "overlap: the signal would not be periodic with its period)")
-        object.__setattr__(self, "width", w)
+        object.__setattr__(self, "width", _real("width", self.width, "the pulse width (a fraction of the period)",
+                                                0.0, 1.0, hi_open=False))
 
     def signal(self, amplitude, omega, phase=0.0):
-        return HalfSineSignal(_finite("amplitude", amplitude, "the actuator amplitude", 0.0),
-                              _finite("omega", omega, "the driving frequency", 0.0, strict=True), self.width, phase)
+        return HalfSineSignal(amplitude, omega, self.width, phase)
 
     def describe(self):
         return dict(waveform=self.name, width=self.width)
@@ -193,9 +204,7 @@ class SampledWave(Waveform):
     def signal(self, amplitude, omega, phase=0.0):
         if phase != 0.0:
             raise ParameterError("phase", phase, "a sampled waveform starts at its first sample (phase 0)")
-        a = _finite("amplitude", amplitude, "the actuator amplitude", 0.0)
-        omega = _finite("omega", omega, "the driving frequency", 0.0, strict=True)
-        return SampledSignal(tuple(a * v for v in self.samples[:-1]), 2 * math.pi / omega)
+        return SampledSignal(tuple(amplitude * v for v in self.samples[:-1]), 2 * math.pi / omega)
 
     def describe(self):
         return dict(waveform=self.name, samples=list(self.samples))
@@ -259,8 +268,7 @@ class ProfileWave(Waveform):
         self.coefficients = u[idx] @ _VINV.T
 
     def signal(self, amplitude, omega, phase=0.0):
-        return ProfileSignal(self.coefficients, self.h, _finite("amplitude", amplitude, "the actuator amplitude", 0.0),
-                             _finite("omega", omega, "the driving frequency", 0.0, strict=True), float(phase))
+        return ProfileSignal(self.coefficients, self.h, amplitude, omega, float(phase))
 
     def describe(self):
         return dict(waveform=self.name, label=self.label, cells=len(self.values))
@@ -284,13 +292,13 @@ class Drive:
     def __post_init__(self):
         if not isinstance(self.model, LatticeModel):
             raise ParameterError("model", self.model, "must be a LatticeModel")
-        if not (isinstance(self.N, (int, np.integer)) and not isinstance(self.N, bool) and self.N >= 1):
-            raise ParameterError("N", self.N, "the number of beads must be an integer >= 1")
+        object.__setattr__(self, "N", _whole("N", self.N, 1, "the number of beads"))
         if not isinstance(self.waveform, Waveform):
             raise ParameterError("waveform", self.waveform, "must be a Waveform (harmonic, half_sine, samples, "
                                  "profile)")
-        object.__setattr__(self, "amplitude", _finite("amplitude", self.amplitude, "the actuator amplitude", 0.0))
-        object.__setattr__(self, "omega", _finite("omega", self.omega, "the driving frequency", 0.0, strict=True))
+        object.__setattr__(self, "amplitude", _real("amplitude", self.amplitude, "the actuator amplitude", 0.0,
+                                                    lo_open=False))
+        object.__setattr__(self, "omega", _real("omega", self.omega, "the driving frequency", 0.0))
         if not (self.right in ("wall", "free") or isinstance(self.right, Waveform)):
             raise ParameterError("right", self.right, "the far end is 'wall', 'free' or a Waveform (second actuator)")
 
@@ -330,24 +338,17 @@ class Drive:
 
 
 def _check_parameter(name):
-    if name not in PARAMETERS:
-        raise ParameterError("parameter", name, "the continuation parameter is one of " + ", ".join(PARAMETERS))
+    _one_of("parameter", name, PARAMETERS, "the continuation parameter is one of")
 
 
 def damping_trace(spec):
     """tr(M^-1 C) of the chain's damping matrix: sum_n (gamma + eta d_n) / m_n, d_n the dashpots at bead n (2
     inside, 1 next to a free end): d/dt log det R = -tr(M^-1 C) (Liouville), so det R(T; 0) = exp(-T tr)."""
-    m = spec.model
-    N = spec.N
-    deg = np.full(N, 2.0)
-    if spec.boundary == "periodic":
-        pass
-    else:
-        if spec.left == "free":
-            deg[0] -= 1
-        if spec.right == "free":
-            deg[-1] -= 1
-    return float(np.sum((m.damping.gamma + m.damping.eta * deg) / m.mass(np.arange(N))))
+    m, deg = spec.model, np.full(spec.N, 2.0)
+    if spec.boundary != "periodic":
+        deg[0] -= spec.left == "free"
+        deg[-1] -= spec.right == "free"
+    return float(np.sum((m.damping.gamma + m.damping.eta * deg) / m.mass(np.arange(spec.N))))
 
 
 # --- the response and its multipliers ---------------------------------------------------------------------------
@@ -452,18 +453,15 @@ class PeriodicShooting(ContinuationProblem):
 
     def __init__(self, drive, comm, parameter="omega", periods=1, jacobian="dense", floquet="dense", nev=8,
                  tol=1e-10, tolerances=RESPONSE_TOLERANCES, floquet_tolerances=None, prefix=DRIVE_PREFIX,
-                 floquet_prefix=FLOQUET_PREFIX, reuse_jacobian=True, inexact=True):
+                 floquet_prefix=FLOQUET_PREFIX, inexact=True):
         if not isinstance(drive, Drive):
             raise ParameterError("drive", drive, "must be a Drive")
         _check_parameter(parameter)
-        if not (isinstance(periods, (int, np.integer)) and periods >= 1):
-            raise ParameterError("periods", periods, "the response period in driving periods must be an integer >= 1")
-        if jacobian not in JACOBIANS:
-            raise ParameterError("jacobian", jacobian, "must be one of " + ", ".join(JACOBIANS))
-        if floquet not in FLOQUET_METHODS:
-            raise ParameterError("floquet", floquet, "must be one of " + ", ".join(FLOQUET_METHODS))
-        self.tol = _finite("tol", tol, "the shooting tolerance", 0.0, strict=True)
-        self.parameter, self.periods, self.comm = parameter, int(periods), comm
+        _one_of("jacobian", jacobian, JACOBIANS)
+        _one_of("floquet", floquet, FLOQUET_METHODS)
+        self.tol = _real("tol", tol, "the shooting tolerance", 0.0)
+        self.periods = _whole("periods", periods, 1, "the response period in driving periods")
+        self.parameter, self.comm = parameter, comm
         self.jacobian_kind, self.floquet_kind = jacobian, floquet
         self.drive = drive
         spec = drive.spec()
@@ -505,7 +503,6 @@ class PeriodicShooting(ContinuationProblem):
         self._mono = None              # (x, p, R, version, accurate) of the last dense monodromy
         self._spectra = {}             # key of (x, p) -> multipliers
         self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
-        self.reuse = self._reuse_now = reuse_jacobian
         self._tight = False            # the corrector's retry: Jacobians from the fully resolved flow
         self._solves, self._assembled, self._mono_version = 0, None, 0
         self._residuals = {}
@@ -548,12 +545,12 @@ class PeriodicShooting(ContinuationProblem):
             return
         spec = drive.spec()
         self.chain.set_spec(spec)
-        for engine in (self.dense, self.dominant, self.jacobian_flow):
-            if engine is not None:
-                engine.set_spec(spec)
-        if self.product is not None:
-            self.product.flow.set_spec(spec)
+        for engine in self._engines():
+            engine.set_spec(spec)
         self.drive = drive
+
+    def _engines(self):
+        return [e for e in (self.dense, self.dominant, self.jacobian_flow, self.product) if e is not None]
 
     def _at(self, p):
         if p != self.drive.value(self.parameter):
@@ -768,9 +765,7 @@ class PeriodicShooting(ContinuationProblem):
         self._f_last, self._steps_last = rel, steps
         f = F.getArray()
         f[:self.nloc] = g
-        g = (self._row.dot(Z) - self._value) if self._row is not None else 0.0
-        if self._row is None and self.last_rank:
-            g = z[-1] - self._p_fixed
+        g = self._row.dot(Z) - self._value if self._row is not None else z[-1] - self._p_fixed
         if self.last_rank:
             f[-1] = g
 
@@ -817,7 +812,7 @@ class PeriodicShooting(ContinuationProblem):
         first = snes.getIterationNumber() == 0
         contracting = (first and self._near(x, p)) or (not first and fnorm <= CHORD_CONTRACTION * self._last_fnorm)
         self._last_fnorm = fnorm
-        if not (self._reuse_now and contracting and self._mono is not None):
+        if self._tight or not contracting or self._mono is None:
             self.monodromy(x, p, accurate=self._tight)
             self.counters["jacobians"] += 1
         key = (self._mono[3], self._solves)
@@ -865,26 +860,23 @@ class PeriodicShooting(ContinuationProblem):
                                    **{self.parameter: p0}) from None
         if "atol" not in self._user_set:
             self._snes.setTolerances(atol=self.tol * self.scale(x0))
-        self._reuse_now, self._tight = self.reuse, False
-        retry = self.reuse or self.jacobian_flow is not None
-        Z0 = Z.copy() if retry else None
+        self._tight, Z0 = False, Z.copy()
         try:
             self._snes.solve(None, Z)
             reason = int(self._snes.getConvergedReason())
             its = int(self._snes.getIterationNumber())
-            if reason <= 0 and retry:
+            if reason <= 0:
                 # a chord step that led nowhere, or a Jacobian too loose for R - I (multipliers near 1: an undamped
                 # chain amplifies JACOBIAN_RTOL by cond(R - I)): again with fresh, fully resolved Jacobians
                 Z0.copy(Z)
-                self._reuse_now, self._tight = False, True
+                self._tight = True
                 self._last_fnorm, self._solves, self._f_last = math.inf, self._solves + 1, None
                 self._snes.solve(None, Z)
                 reason = int(self._snes.getConvergedReason())
                 its += int(self._snes.getIterationNumber())
         finally:
             self._tight = False
-            if Z0 is not None:
-                Z0.destroy()
+            Z0.destroy()
         p = _parameter(Z)
         if reason <= 0:
             raise ConvergenceError(f"periodic-response Newton (prefix -{self._snes.getOptionsPrefix()})", reason,
@@ -911,23 +903,16 @@ class PeriodicShooting(ContinuationProblem):
         """The relative residual of the last converged point if (x, p) is it, else None."""
         return self._residuals.get((float(p), hash(np.asarray(x).tobytes())))
 
-    def response(self, Z, check=True):
-        """The :class:`Response` at Z (its residual re-measured with one state flow when ``check``)."""
-        x, p = self.state(Z)
-        self._at(p)
-        res = self.residual(x) if check else math.nan
-        return Response(self.drive, self.periods, x, res, int(self._snes.getIterationNumber()))
-
     def solve_response(self, x, p=None):
-        """Newton at fixed parameter from the state ``x``: the converged :class:`Response`."""
+        """Newton at fixed parameter from the state ``x``: the converged :class:`Response` (its residual measured
+        again with one state flow)."""
         Z = self.pack(x, p)
         try:
             its = self.solve(Z)
-            r = self.response(Z)
-            r.iterations = its
-            return r
+            x, _ = self.state(Z)
         finally:
             Z.destroy()
+        return Response(self.drive, self.periods, x, self.residual(x), its)
 
     # --- multipliers, test functions, report -----------------------------------------------------------------------
     def multipliers(self, Z=None, x=None, p=None):
@@ -950,10 +935,6 @@ class PeriodicShooting(ContinuationProblem):
         self._spectra = {key: mu}
         return mu
 
-    def spectrum(self, mu, tol=TOL_MU):
-        """A :class:`~hertzpetsc.floquet.Spectrum` (no symmetry multipliers) of the multipliers ``mu``."""
-        return Spectrum(np.asarray(mu), self.floquet_kind == "dense", tol, n_trivial=0)
-
     def test_functions(self, Z):
         if self.floquet_kind == "none":
             return {}
@@ -969,20 +950,8 @@ class PeriodicShooting(ContinuationProblem):
         return out
 
     def destroy(self):
-        self._snes.destroy()
-        self.J.destroy()
-        self.F.destroy()
-        self.X.destroy()
-        self.integrator.destroy()
-        self.chain.destroy()
-        if self.dense is not None:
-            self.dense.destroy()
-        if self.jacobian_flow is not None:
-            self.jacobian_flow.destroy()
-        if self.product is not None:
-            self.product.destroy()
-        if self.dominant is not None:
-            self.dominant.destroy()
+        for obj in (self._snes, self.J, self.F, self.X, self.integrator, self.chain, *self._engines()):
+            obj.destroy()
 
 
 class LinearChainPreconditioner:
@@ -1080,10 +1049,7 @@ class _BorderedProduct:
         prob.counters["products"] += 1
         out = y.getArray()
         out[:n] = self.RvX.getArray(readonly=True) - a[:n] + vp * self.dGdp
-        if prob._row is not None:
-            g = prob._row.dot(v)
-        else:
-            g = vp
+        g = prob._row.dot(v) if prob._row is not None else vp
         if prob.last_rank:
             out[-1] = g
 
@@ -1095,19 +1061,6 @@ class _BorderedProduct:
 
 
 # --- branch switching at a period doubling ---------------------------------------------------------------------
-def doubling_direction(problem, x, p):
-    """(v as (N, 2) with ||v||_inf = 1, mu) for the real multiplier mu of R(kT; 0) closest to -1 at the response
-    (x, p) of ``problem`` (dense monodromy): the direction in which the period-doubled branch leaves."""
-    problem._at(p)
-    R = problem.monodromy(x, p) if problem.dense is not None else None
-    if R is None:
-        raise ParameterError("floquet", problem.floquet_kind, "branch switching needs the dense monodromy")
-    lam, V = np.linalg.eig(R)
-    i = int(np.argmin(np.abs(lam + 1.0)))
-    v = V[:, i].real
-    return (v / np.max(np.abs(v))).reshape(problem.N, 2), complex(lam[i])
-
-
 def switch_to_doubled(single, double, x, p, step=None):
     """(Z0, Z1) to start the period-doubled branch at the period doubling (x, p) of ``single`` (period k T), on
     ``double`` (period 2 k T, the same drive and parameter): Z0 is the doubling point itself (a fixed point of P^2
@@ -1117,7 +1070,12 @@ def switch_to_doubled(single, double, x, p, step=None):
     O(step^2). The layer continues from the two (:meth:`~hertzpetsc.continuation.Continuation.seed`)."""
     if double.periods != 2 * single.periods:
         raise ParameterError("periods", double.periods, f"the doubled problem's period must be 2 x {single.periods}")
-    v, mu = doubling_direction(single, x, p)
+    if single.dense is None:
+        raise ParameterError("floquet", single.floquet_kind, "branch switching needs the dense monodromy")
+    single._at(p)
+    lam, V = np.linalg.eig(single.monodromy(x, p))
+    v = V[:, int(np.argmin(np.abs(lam + 1.0)))].real
+    v = v / np.max(np.abs(v))
     Z0 = double.pack(x, p)
     t = double.pack(v, 0.0)
     W = double.weights()
@@ -1148,7 +1106,6 @@ def refined_profile(orbit, comm, samples=8192, tolerances=None):
     [0, 2 pi): the chain integrated over script-T with J stops gives U(q (n - j / J)) for every bead n and stop j,
     i.e. the grid 2 pi k / L, L = P J / gcd(m, P J), k = (m / gcd) (n J - j) mod L. Returns a :class:`ProfileWave`
     (U includes the wave's amplitude: drive it with amplitude 1 and the orbit's omega)."""
-    from .chain import Chain, ChainIntegrator
     from .shooting import MEASURE_TOLERANCES
     P, m = orbit.N, orbit.m
     J = 1

@@ -47,19 +47,20 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic
   (median (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
 """
-import inspect
 import json
 import math
 import sys
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass, fields
 
 import numpy as np
 from petsc4py import PETSc
 
-from ..continuation import Continuation, ContinuationError, Natural, PseudoArclength, golden_maximum
-from ..driven import (FLOQUET_METHODS, JACOBIANS, PARAMETERS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
-                      HarmonicWave, PeriodicShooting, configure_options, crossing, local_wave, neutral_saddle,
-                      refined_profile, switch_to_doubled, verdict, wave_ends_drive)
+from ..continuation import (Continuation, ContinuationError, ContinuationPoint, Natural, PseudoArclength,
+                             golden_maximum)
+from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
+                      HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of, _real, _whole,
+                      configure_options, crossing, local_wave, neutral_saddle, refined_profile, switch_to_doubled,
+                      verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError
 from ..floquet import DenseFloquet
 from ..model import LatticeModel
@@ -108,27 +109,6 @@ def tolerances_of(rtol, scale=1.0):
 
 
 # --- the protocol of the driven studies --------------------------------------------------------------------------
-def _whole(name, value, minimum, what):
-    """An integer parameter >= minimum (a float with an integral value is taken), else ParameterError."""
-    if isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, bool) \
-            and math.isfinite(value) and value == int(value) and int(value) >= minimum:
-        return int(value)
-    raise ParameterError(name, value, f"{what} must be an integer >= {minimum}")
-
-
-def _real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
-    """A finite real parameter in the interval given (open ends by default), else ParameterError."""
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) \
-        and math.isfinite(value)
-    ok = ok and (lo is None or (value > lo if lo_open else value >= lo))
-    ok = ok and (hi is None or (value < hi if hi_open else value <= hi))
-    if not ok:
-        rng = " and ".join(x for x in ((f"{'>' if lo_open else '>='} {lo:g}" if lo is not None else ""),
-                                       (f"{'<' if hi_open else '<='} {hi:g}" if hi is not None else "")) if x)
-        raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else ""))
-    return float(value)
-
-
 def _reals(name, values, what, lo=None, hi=None, lo_open=True, hi_open=True):
     """A non-empty tuple of reals, each checked as by :func:`_real`."""
     out = tuple(_real(name, v, what, lo, hi, lo_open, hi_open) for v in np.atleast_1d(values).tolist())
@@ -143,9 +123,6 @@ def _drive(drive):
     return drive
 
 
-_CALL = inspect.Signature([inspect.Parameter("params", inspect.Parameter.POSITIONAL_OR_KEYWORD),
-                           *(inspect.Parameter(n, inspect.Parameter.POSITIONAL_OR_KEYWORD, default=d)
-                             for n, d in (("comm", None), ("output", None), ("mode", "new")))])
 _DRIVE_ROLE = ("Newton on P(X) - X and the state flow", ("snes", "ts"))
 
 
@@ -156,18 +133,22 @@ class DrivenStudy(Study):
     record kind's as the files written before hold it (:meth:`identity`: no solver options), so they resume."""
 
     def __init__(self, *args, **kwargs):
-        if (args and isinstance(args[0], self.Parameters)) or "params" in kwargs:
-            bound = _CALL.bind(*args, **kwargs)
-            bound.apply_defaults()
-            params, comm, output, mode = bound.arguments.values()
-        else:
-            params, comm, output, mode = self.legacy(*args, **kwargs)
-        super().__init__(params, comm, output, mode)
+        if not ((args and isinstance(args[0], self.Parameters)) or "params" in kwargs):
+            args, kwargs = self.legacy(*args, **kwargs), {}
+        super().__init__(*args, **kwargs)
 
     @classmethod
     def legacy(cls, *args, **kwargs):
-        """(params, comm, output, mode) from the call of before the protocol."""
-        raise NotImplementedError
+        """(params, comm, output, mode) from the call of before the protocol: the parameters without a default,
+        comm, output, mode ("new"), then the others, by position or by name (the names of before in ``RENAMED``)."""
+        fs = fields(cls.Parameters)
+        k = sum(f.default is MISSING for f in fs)
+        names = [f.name for f in fs[:k]] + ["comm", "output", "mode"] + [f.name for f in fs[k:]]
+        kw = dict(zip(names, args), **{cls.RENAMED.get(n, n): v for n, v in kwargs.items()})
+        params = cls.Parameters(**{f.name: kw[f.name] for f in fs if f.name in kw})
+        return params, kw.get("comm"), kw.get("output"), kw.get("mode", "new")
+
+    RENAMED = {}
 
     def identity(self):
         """What a resumed file must agree with: the constants (the subclasses leave file names out)."""
@@ -218,9 +199,7 @@ class ResponseParameters:
 
     def __post_init__(self):
         drive = _drive(self.drive)
-        if self.parameter not in PARAMETERS:
-            raise ParameterError("parameter", self.parameter, "the continuation parameter is one of "
-                                 + ", ".join(PARAMETERS))
+        _check_parameter(self.parameter)
         p0 = drive.value(self.parameter)
         p_end = _real("p_end", self.p_end, "the end value of the parameter")
         if not p_end != p0:
@@ -228,10 +207,8 @@ class ResponseParameters:
         object.__setattr__(self, "p_end", p_end)
         object.__setattr__(self, "periods", _whole("periods", self.periods, 1, "the response period in driving "
                                                    "periods"))
-        if self.jacobian not in JACOBIANS:
-            raise ParameterError("jacobian", self.jacobian, "must be one of " + ", ".join(JACOBIANS))
-        if self.floquet not in FLOQUET_METHODS:
-            raise ParameterError("floquet", self.floquet, "must be one of " + ", ".join(FLOQUET_METHODS))
+        _one_of("jacobian", self.jacobian, JACOBIANS)
+        _one_of("floquet", self.floquet, FLOQUET_METHODS)
         object.__setattr__(self, "nev", _whole("nev", self.nev, 1, "the number of dominant multipliers"))
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
             _real(name, getattr(self, name), what, 0.0, 1.0)
@@ -279,14 +256,6 @@ class ResponseCurve(DrivenStudy):
         self.kw = dict(parameter=p.parameter, periods=p.periods, jacobian=p.jacobian, floquet=p.floquet, nev=p.nev,
                        tol=p.tol, tolerances=tolerances_of(p.rtol, p.drive.amplitude))
         self.problem = PeriodicShooting(p.drive, self.comm, **self.kw)       # configures drive_ and floquet_ now
-
-    @classmethod
-    def legacy(cls, drive, parameter, p_end, comm, output, mode="new", periods=1, jacobian="dense", floquet="dense",
-               nev=8, tol=1e-10, rtol=1e-12, algorithm=None, grid=None, run_in=50, samples=64, switch=0,
-               max_steps=400, nmult=64):
-        """The call of before the protocol: ``ResponseCurve(drive, parameter, p_end, comm, output, mode, ...)``."""
-        return (ResponseParameters(drive, parameter, p_end, periods, jacobian, floquet, nev, tol, rtol, algorithm,
-                                   grid, run_in, samples, switch, max_steps, nmult), comm, output, mode)
 
     def constants(self):
         """The constants of the files written before the protocol (their identity: all of them)."""
@@ -362,9 +331,6 @@ class ResponseCurve(DrivenStudy):
     def _same_event(rec, point, code):
         return int(rec["event"]) == code and abs(float(rec["s"]) - point.s) <= 1e-12 * max(1.0, abs(point.s))
 
-    def _passed(self, p, p_start):
-        return (p - self.p_end) * (p_start - self.p_end) <= 0
-
     def run(self):
         """Compute what the file lacks: the main branch, then the period-doubled branches. Yields each record."""
         self.open()
@@ -381,13 +347,12 @@ class ResponseCurve(DrivenStudy):
                                                        for r in done)]
             if not targets:
                 return
-        elif done and (len(done) >= self.max_steps or self._passed(float(done[-1]["p"]), p_start)):
+        elif done and (len(done) >= self.max_steps
+                       or (float(done[-1]["p"]) - self.p_end) * (p_start - self.p_end) <= 0):
             return
-        if self.grid is None:
-            algorithm = self.algorithm
-        else:                                      # natural steps: the algorithm given if natural, else the default
-            algorithm = self.algorithm if isinstance(self.algorithm, Natural) else Natural()
-        cont = Continuation(prob, algorithm)
+        # grid: natural steps, the algorithm given if natural, else the default
+        cont = Continuation(prob, self.algorithm if self.grid is None or isinstance(self.algorithm, Natural)
+                            else Natural())
         trailing = []
         try:
             if done:
@@ -430,7 +395,6 @@ class ResponseCurve(DrivenStudy):
 
     def _arclength(self, cont, previous, p_start, count, trailing=()):
         prob = self.problem
-        trailing = list(trailing)
         if len(cont.history) < 2:
             direction = math.copysign(1.0, self.p_end - p_start)
             step = getattr(self.algorithm, "ds", 0.02) * direction
@@ -439,27 +403,35 @@ class ResponseCurve(DrivenStudy):
             self._append(previous, cont)
             yield previous
             count += 1
-        pending = []
+        try:
+            yield from self._steps(cont, prob, 0, previous, trailing, self.max_steps - count, self.p_end)
+        except ContinuationError as err:
+            self._stopped(err)
+
+    def _steps(self, cont, prob, branch, previous, trailing, steps, until=None):
+        """The records of up to ``steps`` steps of ``cont`` on ``branch`` after the record ``previous``: each located
+        event (confirmed; those of ``trailing`` were recorded before a resume) before the point that follows it; on
+        branch 0 a sign change (or a fold) the layer could not locate (its corrector failed on the chord: a corner of
+        the curve) is recorded on this point, bracketed between it and the previous one."""
+        trailing, pending = list(trailing), []
         mu_prev = previous["multipliers"]          # the full spectra confirm the events (records keep nmult)
         tests_prev = dict(period_doubling=float(previous["tau_pd"]), neimark_sacker=float(previous["tau_ns"]))
         dp_prev = float(previous["dp_ds"])
-        try:
-            for point in cont.run(until=self.p_end, max_steps=self.max_steps - count):
-                if point.event is not None:
-                    pending.append(point)
+        for point in cont.run(until=until, max_steps=steps):
+            if point.event is not None:
+                pending.append(point)
+                continue
+            rec = self._record(prob, point, branch)
+            mu = point.report.get("multipliers", rec["multipliers"])
+            for ev in pending:
+                if trailing and self._same_event(trailing[0], ev, EVENTS[ev.event]):
+                    trailing.pop(0)            # recorded before the run was stopped
                     continue
-                rec = self._record(prob, point, 0)
-                mu = point.report.get("multipliers", rec["multipliers"])
-                what = crossing(mu_prev, mu)
-                for ev in pending:
-                    if trailing and self._same_event(trailing[0], ev, EVENTS[ev.event]):
-                        trailing.pop(0)            # recorded before the run was stopped
-                        continue
-                    er = self._record(prob, ev, 0, ev.event, int(self._confirmed(ev, previous, mu_prev, rec, mu, prob)))
-                    self._append(er, cont)
-                    yield er
-                # a sign change (or a fold) the layer could not locate (its corrector failed on the chord: a corner
-                # of the curve) is recorded on this point, bracketed between it and the previous one
+                er = self._record(prob, ev, branch, ev.event,
+                                  int(self._confirmed(ev, previous, mu_prev, rec, mu, prob)))
+                self._append(er, cont)
+                yield er
+            if branch == 0:
                 located = {ev.event for ev in pending}
                 changed = [name for name, v in (point.tests or {}).items()
                            if name in tests_prev and v * tests_prev[name] < 0]
@@ -467,14 +439,11 @@ class ResponseCurve(DrivenStudy):
                     changed.append("fold")
                 missed = [name for name in changed if name not in located]
                 if missed:
-                    rec["event"], rec["confirmed"] = EVENTS[missed[0]], int(what == missed[0])
-                pending = []
-                self._append(rec, cont)
-                yield rec
-                mu_prev, tests_prev, dp_prev, previous = mu, point.tests or {}, point.dp_ds, rec
-        except ContinuationError as err:
-            self._stopped(err)
-            return
+                    rec["event"], rec["confirmed"] = EVENTS[missed[0]], int(crossing(mu_prev, mu) == missed[0])
+            pending = []
+            self._append(rec, cont)
+            yield rec
+            mu_prev, tests_prev, dp_prev, previous = mu, point.tests or {}, point.dp_ds, rec
 
     def _confirmed(self, ev, before, mu_before, after, mu_after, problem):
         """Whether the event ``ev`` between the records ``before`` and ``after`` (spectra ``mu_before``,
@@ -513,25 +482,19 @@ class ResponseCurve(DrivenStudy):
         """The multipliers of two responses on either side of a located fold, along the chord of its neighbouring
         records (Newton on the hyperplane normal to the chord), CONFIRM_DISTANCE of the nearer neighbour's
         distance away; [] if the neighbours coincide."""
-        Z = [prob.pack(r["x"], float(r["p"])) for r in (before, after)]
-        Z.insert(1, prob.pack(ev.report["x"], ev.parameter))
-        chord = Z[2].copy()
-        chord.axpy(-1.0, Z[0])
-        spectra = []
+        z = [np.append(np.ravel(x), float(p)) for x, p in ((before["x"], before["p"]), (ev.report["x"], ev.parameter),
+                                                           (after["x"], after["p"]))]
+        d = z[2] - z[0]
+        length = np.linalg.norm(d)
+        if not length > 0:
+            return []
+        d /= length
+        near = CONFIRM_DISTANCE * min(np.linalg.norm(z[1] - z[0]), np.linalg.norm(z[2] - z[1]))
+        chord, spectra = prob.pack(d[:-1], d[-1]), []
         try:
-            length = chord.norm()
-            if not length > 0:
-                return []
-            chord.scale(1.0 / length)
-            near = math.inf
-            for U, V in ((Z[1], Z[0]), (Z[2], Z[1])):
-                D = U.copy()
-                D.axpy(-1.0, V)
-                near = min(near, D.norm())
-                D.destroy()
             for side in (-1.0, 1.0):
-                W = Z[1].copy()
-                W.axpy(side * CONFIRM_DISTANCE * near, chord)
+                w = z[1] + side * near * d
+                W = prob.pack(w[:-1], w[-1])
                 try:
                     prob.solve(W, row=chord, value=chord.dot(W))
                     x, q = prob.state(W)
@@ -539,10 +502,8 @@ class ResponseCurve(DrivenStudy):
                 finally:
                     W.destroy()
         finally:
-            for V in Z + [chord]:
-                V.destroy()
+            chord.destroy()
         return spectra
-
 
     def _stopped(self, err):
         """Everything up to the last point was recorded; the curve ends there (e.g. the response is lost): say so
@@ -569,50 +530,27 @@ class ResponseCurve(DrivenStudy):
                     _, trailing = self._seed_from(cont, double, done, j)
                 else:
                     try:
-                        self._seed_two(cont, double, ev)
+                        Zs = switch_to_doubled(self.problem, double, np.asarray(ev["x"]), float(ev["p"]))
                     except ConvergenceError:
                         continue        # no doubled response found from this doubling (table: no branch j)
+                    cont.seed(Zs, [0.0, 0.0])
+                    for Z in Zs:
+                        Z.destroy()
                     if not done:
-                        x1, p1 = double.state(cont.history[-1][0])
-                        first = _Point(p1, 0.0, math.nan, 1, double.report(cont.history[-1][0]),
-                                       double.test_functions(cont.history[-1][0]))
+                        Z, _, tests = cont.history[-1]
+                        first = ContinuationPoint(cont.parameter, 0.0, math.nan, 1, report=double.report(Z),
+                                                  tests=tests)
                         rec = self._record(double, first, j)
                         self._append(rec, cont)
                         yield rec
-                previous, pending = self.branch_records(j)[-1] if self.branch_records(j) else None, []
                 try:
-                    steps = self.switch - max(len(done) - len(trailing) - 1, 0)
-                    for point in cont.run(max_steps=steps):
-                        if point.event is not None:
-                            if not (trailing and self._same_event(trailing[0], point, EVENTS[point.event])):
-                                pending.append(point)
-                            else:
-                                trailing.pop(0)
-                            continue
-                        rec = self._record(double, point, j)
-                        mu = point.report.get("multipliers", rec["multipliers"])
-                        for ev in pending:
-                            confirmed = previous is not None and \
-                                self._confirmed(ev, previous, previous["multipliers"], rec, mu, double)
-                            er = self._record(double, ev, j, ev.event, int(confirmed))
-                            self._append(er, cont)
-                            yield er
-                        pending = []
-                        self._append(rec, cont)
-                        yield rec
-                        previous = dict(rec, multipliers=mu)
+                    yield from self._steps(cont, double, j, self.branch_records(j)[-1], trailing,
+                                           self.switch - max(len(done) - len(trailing) - 1, 0))
                 except ContinuationError:
                     pass
             finally:
                 cont.destroy()
                 double.destroy()
-
-    def _seed_two(self, cont, double, ev):
-        """The two points onto the doubled branch from the period doubling ``ev`` (:func:`switch_to_doubled`)."""
-        Z0, Z1 = switch_to_doubled(self.problem, double, np.asarray(ev["x"]), float(ev["p"]))
-        cont.seed([Z0, Z1], [0.0, 0.0])
-        Z0.destroy()
-        Z1.destroy()
 
     def destroy(self):
         self.problem.destroy()
@@ -665,12 +603,9 @@ class ResponseCurve(DrivenStudy):
         return "\n".join(lines) + "\n"
 
 
-class _Point:
-    """A ContinuationPoint-like record of a seeded point (branch switching)."""
-
-    def __init__(self, parameter, s, dp_ds, iterations, report, tests, event=None):
-        self.parameter, self.s, self.dp_ds, self.iterations = parameter, s, dp_ds, iterations
-        self.report, self.tests, self.event = report, tests, event
+def _Point(parameter, s, dp_ds, iterations, report, tests, event=None):
+    """A ContinuationPoint in the argument order of before."""
+    return ContinuationPoint(parameter, s, dp_ds, iterations, event, report, tests)
 
 
 # --- small-amplitude resonances of the precompressed chain ---------------------------------------------------------
@@ -779,11 +714,6 @@ class LinearResonances(DrivenStudy):
         self.problem = PeriodicShooting(p.drive, self.comm, parameter="omega", tol=p.tol,
                                         tolerances=tolerances_of(p.rtol, p.drive.amplitude))
         self._x = None
-
-    @classmethod
-    def legacy(cls, drive, comm, output, mode="new", modes=None, tol=1e-10, rtol=1e-12, golden=40):
-        """The call of before the protocol: ``LinearResonances(drive, comm, output, mode, modes, ...)``."""
-        return ResonanceParameters(drive, modes, tol, rtol, golden), comm, output, mode
 
     def constants(self):
         """The constants of the files written before the protocol (their identity: all of them)."""
@@ -905,7 +835,7 @@ class WaveEnds(DrivenStudy):
     DTYPES = {"m": np.int64, "N": np.int64, "iterations": np.int64, "outside": np.int64, "multipliers": complex}
     ROLES = {"drive_": _DRIVE_ROLE,
              "floquet_": ("the tangent flows (Jacobian, multipliers, periodic chain)", ("ts",))}
-    WHAT = "driven wave-ends file"
+    WHAT, RENAMED = "driven wave-ends file", {"qs": "q"}
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -916,13 +846,6 @@ class WaveEnds(DrivenStudy):
         self.SHAPES = {"multipliers": (self.nmult,)}
         configure_options(self.comm)
         self._rho_periodic = {}
-
-    @classmethod
-    def legacy(cls, branch, refined, qs, sizes, comm, output, mode="new", rtols=(1e-12, 1e-14), samples=8192,
-               nmult=12, branch_path="", refined_path=""):
-        """The call of before the protocol: ``WaveEnds(branch, refined, qs, sizes, comm, output, mode, ...)``."""
-        return (WaveEndsParameters(branch, refined, qs, sizes, rtols, samples, nmult, branch_path, refined_path),
-                comm, output, mode)
 
     def constants(self):
         p = self.params
@@ -938,12 +861,8 @@ class WaveEnds(DrivenStudy):
     def periodic_rho(self, orbit, rtol):
         key = (round(orbit.q, 12), rtol)
         if key not in self._rho_periodic:
-            dense = DenseFloquet(orbit.spec, self.comm, tolerances_of(rtol))
-            try:
-                sp = dense.spectrum(orbit)
-            finally:
-                dense.destroy()
-            self._rho_periodic[key] = sp.rho ** (orbit.N / orbit.m)
+            with DenseFloquet(orbit.spec, self.comm, tolerances_of(rtol)) as dense:
+                self._rho_periodic[key] = dense.spectrum(orbit).rho ** (orbit.N / orbit.m)
         return self._rho_periodic[key]
 
     def _done(self):
@@ -999,11 +918,8 @@ class WaveEnds(DrivenStudy):
 
 # --- generation of travelling waves by simple signals -----------------------------------------------------------------
 def make_waveform(name, width=0.5):
-    if name == "harmonic":
-        return HarmonicWave()
-    if name == "half_sine":
-        return HalfSinePulses(width)
-    raise ParameterError("waveform", name, "one of " + ", ".join(WAVEFORMS))
+    _one_of("waveform", name, WAVEFORMS, "one of")
+    return HarmonicWave() if name == "harmonic" else HalfSinePulses(width)
 
 
 @dataclass(frozen=True)
@@ -1040,8 +956,7 @@ class GenerationParameters:
         if not signals:
             raise ParameterError("signals", self.signals, "give at least one of " + ", ".join(WAVEFORMS))
         for w in signals:
-            if w not in WAVEFORMS:
-                raise ParameterError("signals", w, "one of " + ", ".join(WAVEFORMS))
+            _one_of("signals", w, WAVEFORMS, "one of")
             make_waveform(w, self.width)
         object.__setattr__(self, "signals", signals)
         object.__setattr__(self, "omegas", _reals("omegas", self.omegas, "driving frequency", 0.0))
@@ -1070,7 +985,7 @@ class Generation(DrivenStudy):
     FORMAT, FIELDS = GENERATION_FORMAT, GENERATION_FIELDS
     DTYPES = {"waveform": np.int64, "ok": np.int64, "iterations": np.int64}
     ROLES = {"drive_": _DRIVE_ROLE, "floquet_": ("the tangent flow and SLEPc's eigensolver", ("ts", "eps"))}
-    WHAT = "driven-generation file"
+    WHAT, RENAMED = "driven-generation file", {"waveforms": "signals"}
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -1084,14 +999,6 @@ class Generation(DrivenStudy):
         self.run_in, self.tol, self.rtol, self.samples = p.run_in, p.tol, p.rtol, p.samples
         self.SHAPES = {"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)}
         configure_options(PETSc.COMM_SELF)
-
-    @classmethod
-    def legacy(cls, branch, model, N, waveforms, omegas, amplitudes, gammas, comm, output, mode="new", run_in=60,
-               tol=1e-9, rtol=1e-12, bulk=(0.25, 0.75), samples=128, width=0.5, branch_path=""):
-        """The call of before the protocol: ``Generation(branch, model, N, waveforms, omegas, amplitudes, gammas,
-        comm, output, mode, ...)``."""
-        return (GenerationParameters(branch, model, N, waveforms, omegas, amplitudes, gammas, run_in, tol, rtol, bulk,
-                                     samples, width, branch_path), comm, output, mode)
 
     def constants(self):
         p = self.params
@@ -1107,13 +1014,10 @@ class Generation(DrivenStudy):
 
     def case(self, w, om, a, g):
         """One case on this rank (COMM_SELF): the record."""
-        from ..driven import Drive
         drive = Drive(self.model.with_damping(g, self.model.damping.eta), self.N, make_waveform(w, self.width), a, om)
         rec = dict(waveform=WAVEFORMS.index(w), omega=om, amplitude=a, gamma=g)
-        nan = dict(ok=0, runin_residual=math.nan, residual=math.nan, iterations=0, rho=math.nan, verdict=math.nan, amp_first=math.nan,
-                   decay=math.nan, q_bulk=math.nan, q_spread=math.nan, amp_bulk=math.nan, family_ratio=math.nan,
-                   distance=math.nan, distance_slope=math.nan, strain_static=math.nan, strain_dynamic=math.nan,
-                   A_n=np.full(self.N, np.nan), q_n=np.full(self.N, np.nan), D_n=np.full(self.N, np.nan))
+        nan = dict(dict.fromkeys(GENERATION_FIELDS[5:-3], math.nan), ok=0, iterations=0,
+                   **{k: np.full(self.N, np.nan) for k in GENERATION_FIELDS[-3:]})
         jac = "dense" if self.N <= 200 else "mf"
         prob = PeriodicShooting(drive, PETSc.COMM_SELF, jacobian=jac, floquet="dense" if jac == "dense" else "slepc",
                                 tol=self.tol, tolerances=tolerances_of(self.rtol, a))
@@ -1212,8 +1116,6 @@ def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, 
     -amplitude, -omega and the far end -right (wall, free). Returns the :class:`~hertzpetsc.driven.Drive`
     (ParameterError naming the parameter for a value out of range: negative damping, amplitude < 0, omega <= 0,
     a sampled signal that is not periodic)."""
-    from ..driven import Drive, SampledWave
-    from ..model import LatticeModel
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     d0 = opts.real("delta0", delta0, "precompression (static overlap; 0: the sonic vacuum)")
     n = opts.integer("N", N, "beads between the actuator and the far end", minimum=1)

@@ -42,11 +42,6 @@ def mpi_comm(comm):
     return comm if comm.Get_size() > 1 else None
 
 
-def is_rank0(comm):
-    mpi = mpi_comm(comm)
-    return mpi is None or mpi.Get_rank() == 0
-
-
 def _rebuild(kind, message):
     err = kind.__new__(kind)
     err.args = (message,)
@@ -196,7 +191,7 @@ def load_npz(path, what, error=RecordFileError):
 
 def check_kind(data, path, kind, what):
     """The ``format`` entry of a loaded archive must be ``kind`` (a file of another kind names both)."""
-    stored = str(data.get("format", "")) if "format" in data else ""
+    stored = str(data.get("format", ""))
     if stored != kind:
         found = f"a {stored!r} file" if stored else "not a hertzpetsc record file"
         raise RecordFileError(f"{path!r} is {found}, but a {what} ({kind!r}) is expected here")
@@ -232,17 +227,11 @@ class RecordStore:
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}")
         self.path, self.kind, self.identity, self.comm, self.mode = path, kind, dict(identity), comm, mode
-        self.rank0 = is_rank0(comm)
-        self.records, extra = on_rank0(comm, self._open, what=f"cannot open {self.what} {path!r}")
-        self._received(extra)
-
-    def _received(self, extra):
-        """What the layout loaded besides the records (on every rank)."""
-
-    def _extra(self):
-        return None
+        self.state = {}            # arrays that are replaced, not stacked (e.g. the profiles a resume starts from)
+        self.records, self.state = on_rank0(comm, self._open, what=f"cannot open {self.what} {path!r}")
 
     def _open(self):
+        """Load or start the store on rank 0: (records, state)."""
         exists = self._exists()
         if self.mode == "resume":
             if not exists:
@@ -257,12 +246,13 @@ class RecordStore:
         self._prepare()
         self.records = records
         self._start(records)
-        return records, self._extra()
+        return records, self.state
 
     def append(self, record):
-        """Add one record and write it (collective: rank 0 writes, every rank raises if that failed)."""
+        """Add one record and write it (collective: rank 0 writes, every rank raises if that failed); returns it."""
         self.records.append(record)
         on_rank0(self.comm, self._write_last, what=f"cannot write {self.what} {self.path!r}")
+        return record
 
     # layout hooks
     def _exists(self):
@@ -296,20 +286,13 @@ class NpzRecords(RecordStore):
         self.constants, self.fields = dict(constants), tuple(fields)
         self.dtypes, self.shapes = dict(dtypes or {}), dict(shapes or {})
         self.what = what
-        self.state = {}            # arrays that are replaced, not stacked (e.g. the profiles a resume starts from)
         super().__init__(path, kind, identity, comm, mode)
 
-    def _extra(self):
-        return self.state
-
-    def _received(self, extra):
-        self.state = dict(extra or {})
-
     def append(self, record, state=None):
-        """Add one record (and replace the given ``state`` arrays), then write (collective)."""
+        """Add one record (and replace the given ``state`` arrays), then write (collective); returns it."""
         if state:
             self.state.update(state)
-        super().append(record)
+        return super().append(record)
 
     def _load(self):
         data = load_npz(self.path, self.what)
@@ -326,8 +309,7 @@ class NpzRecords(RecordStore):
         return [{f: data[f][i] for f in self.fields} for i in range(P)]
 
     def _start(self, records):
-        if self.rank0:
-            self._write_last()
+        self._write_last()
 
     def arrays(self):
         """The archive's content as it is written: constants, ``format``, the stacked fields and the state."""
@@ -369,9 +351,6 @@ class MemoryRecords(NpzRecords):
         return False
 
     def _prepare(self):
-        pass
-
-    def _start(self, records):
         pass
 
     def _write_last(self):
@@ -467,7 +446,6 @@ class AppendRecords(RecordStore):
         if "format" in header and header["format"] != self.kind:
             raise RecordFileError(f"{self.directory!r} holds a {header['format']!r} run, not a {self.kind!r} one")
         check_identity(header, self.identity, self.directory)
-        self.stored_header = header
         size = os.path.getsize(self.data_path) if os.path.exists(self.data_path) else 0
         whole = size // (8 * self.record_length) * 8 * self.record_length
         if whole != size:                       # a record in flight when the run was killed
@@ -477,8 +455,6 @@ class AppendRecords(RecordStore):
         return list(raw.reshape(-1, self.record_length))
 
     def _start(self, records):
-        if not self.rank0:
-            return
         if self.mode != "resume":
             _replace_atomically(self.header_path, lambda f: f.write(json.dumps(self.header, indent=1).encode()))
             open(self.data_path, "wb").close()
@@ -487,7 +463,7 @@ class AppendRecords(RecordStore):
         record = np.asarray(record, dtype=np.float64).ravel()
         if record.size != self.record_length:
             raise ValueError(f"a record has {self.record_length} numbers, not {record.size}")
-        super().append(record)
+        return super().append(record)
 
     def _write_last(self):
         with open(self.data_path, "ab") as f:

@@ -136,8 +136,7 @@ class CompactonDynamics(Study):
                 X.destroy()
             row = dict(q=ex.q, kind=kind, mu3=mu3, behind_v=behind, seconds=time.perf_counter() - t0,
                        steps=steps, deviation=deviation, **series, **self.fit(series))
-            self.store.append(row)
-            yield row
+            yield self.store.append(row)
 
     def fit(self, s):
         """Decay rate of |rest| over k >= 1 while it stays above 30 x its floor (median over k in [T/2, T]), at most

@@ -109,8 +109,7 @@ class CompactonPairs(Study):
             row = dict(case=kind, rear=rear, front=front, error_x=float(np.max(err[:, 0])) / D,
                        error_v=float(np.max(err[:, 1])) / v_peak,
                        debris_v=float(np.max(np.abs(XT[behind, 1]))) / v_peak, seconds=time.perf_counter() - t0)
-            self.store.append(row)
-            yield row
+            yield self.store.append(row)
 
     def table(self):
         lines = [f"alpha = {self.branch.alpha:g}, q = {q_text(self.q)}, branch h = "

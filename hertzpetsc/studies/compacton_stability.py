@@ -192,8 +192,7 @@ class CompactonStabilityScan(Study):
                 continue
             costs = [1.0 + 4.0 * (self.sequences[a][i] == 0) for a, _ in items]
             for _, row in dealt(items, costs, self.comm, self.compute):
-                self.store.append(row)
-                yield row
+                yield self.store.append(row)
 
     def destroy(self):
         for tools in self._tools.values():

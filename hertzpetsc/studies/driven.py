@@ -389,8 +389,7 @@ class ResponseCurve(DrivenStudy):
             kind = crossing(mu_prev, mu)
             if kind in EVENTS and kind is not None:
                 rec["event"], rec["confirmed"] = EVENTS[kind], 1
-            self.store.append(rec)
-            yield rec
+            yield self.store.append(rec)
             mu_prev = mu
 
     def _arclength(self, cont, previous, p_start, count, trailing=()):
@@ -756,8 +755,7 @@ class LinearResonances(DrivenStudy):
             rec = dict(k=k, omega_k=float(self.omega_k[k - 1]), peak_linear=peak_lin, peak_shooting=peak,
                        amp_linear=lin(peak_lin), amp_shooting=amp, mu_error=_match(mu, ref),
                        evaluations=self._evals)
-            self.store.append(rec)
-            yield rec
+            yield self.store.append(rec)
 
     def table(self):
         d = self.drive
@@ -893,8 +891,7 @@ class WaveEnds(DrivenStudy):
                                moved=float(np.max(np.abs(r.x - x0)) / np.max(np.abs(x0))), iterations=r.iterations,
                                rho=float(np.max(np.abs(mu))), outside=int(np.sum(np.abs(mu) > 1 + TOL_MU)),
                                rho_periodic=self.periodic_rho(orbit, rtol), multipliers=_padded(mu, self.nmult))
-                    self.store.append(rec)
-                    yield rec
+                    yield self.store.append(rec)
 
     def table(self):
         from .floquet import q_label
@@ -1068,8 +1065,7 @@ class Generation(DrivenStudy):
         todo = [c for c in self.cases if self._key(*c) not in done]
         costs = [self.run_in / c[1] for c in todo]
         for _, rec in dealt(todo, costs, self.comm, lambda c: self.case(*c)):
-            self.store.append(rec)
-            yield rec
+            yield self.store.append(rec)
 
     def linear_wavenumber(self, omega, strain):
         """q of the linear wave at omega of the chain compressed by the static strain (nan above the band edge)."""

@@ -152,8 +152,7 @@ class FloquetScan(Study):
         rows = (dealt(todo, [self.orbit(q).symmetry.cost() for q in todo], self.comm, self._spectrum)
                 if self.method == "symmetric" else ((q, self._spectrum(q)) for q in todo))
         for _, row in rows:
-            self.store.append(row)
-            yield row
+            yield self.store.append(row)
 
     def destroy(self):
         self.solver.destroy()

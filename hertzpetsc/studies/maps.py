@@ -295,8 +295,7 @@ def saved_as_dealt(study, jobs, costs, key, belongs):
         have = {key(r) for r in study.store.records if belongs(r, job)}
         for row in rows:
             if key(row) not in have:
-                study.store.append(row)
-                yield row
+                yield study.store.append(row)
 
 
 class StabilityMap(Study):

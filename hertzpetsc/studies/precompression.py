@@ -157,20 +157,15 @@ class AmplitudeFamilies(Study):
                     for gap in fam.events():
                         if not gap_found:
                             gap_found = True
-                            row = self._row(gap, KIND_GAP)
-                            self.store.append(row)
-                            yield row
+                            yield self.store.append(self._row(gap, KIND_GAP))
                     if (KIND_GRID, round(a, 10)) not in done:
-                        row = self._row(point, KIND_GRID)
-                        self.store.append(row)
-                        yield row
+                        yield self.store.append(self._row(point, KIND_GRID))
                 limit = uncompressed_limit(self.model, q, grid, point)
             finally:
                 fam.destroy()
             row = dict(q=q, kind=KIND_LIMIT, a=math.inf, A=math.inf, omega=math.inf, omega_lin=self.omega_lin(q),
                        Omega=limit["Omega0"], lam=limit["lam"], gap=math.inf, iterations=limit["iterations"])
-            self.store.append(row)
-            yield row
+            yield self.store.append(row)
 
     def rows(self, q):
         """(grid points sorted by a, gap record or None, limit record or None) at q."""
@@ -370,8 +365,7 @@ class DimerFamilies(Study):
                         if i < saved:
                             continue
                         row = self._row(q, p)
-                        self.store.append(row, state=dict(q=q, **mc.snapshot()) if i == len(points) - 1 else None)
-                        yield row
+                        yield self.store.append(row, state=dict(q=q, **mc.snapshot()) if i == len(points) - 1 else None)
                     saved = len(points)
                 try:
                     for p in mc.run(self.epsilon_end, self.max_steps - (saved - 2)):

@@ -150,8 +150,7 @@ class RefinementScan(Study):
         costs = [WaveSymmetry(self.N, check_chain_wavenumber(q, self.N)).cost() for q in todo]
         try:
             for q, row in dealt(todo, costs, self.comm, self._refine):
-                self.store.append(row)
-                yield row
+                yield self.store.append(row)
         finally:
             self.refiner.destroy()
             self.paper_flow.destroy()

@@ -275,8 +275,7 @@ class SlowInstabilityScan(Study):
         costs = [1.0 + (WaveSymmetry(self.N, int(round(q * self.N / (2 * math.pi)))).cost() * 50
                         if self.n_twist and fits_chain(q, self.N) else 0.0) for q in todo]
         for q, row in dealt(todo, costs, self.comm, self.point):
-            self.store.append(row)
-            yield row
+            yield self.store.append(row)
 
     def destroy(self):
         if self.sectors is not None:

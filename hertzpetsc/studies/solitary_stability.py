@@ -208,8 +208,7 @@ class SolitaryStabilityScan(Study):
         for i, c0 in enumerate(self.params.c0):
             items = [(a, i) for a in self.params.alphas if _key(a, c0) not in done]
             for _, row in dealt(items, [1.0] * len(items), self.comm, self.compute):
-                self.store.append(row)
-                yield row
+                yield self.store.append(row)
 
     def destroy(self):
         for tools in self._tools.values():

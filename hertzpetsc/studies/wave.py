@@ -136,9 +136,7 @@ class WaveStudy(Study):
         for q in self.params.q:
             if round(q, 12) in done:
                 continue
-            row = self.compute(q)
-            self.store.append(row)
-            yield row
+            yield self.store.append(self.compute(q))
 
     def table(self):
         p = self.params

@@ -71,14 +71,15 @@ def petsc_message(err):
             else f"PETSc error {err.ierr}: {generic}")
 
 
-def _make_object(kind, prefix):
+def make_solver_object(kind, prefix, comm=PETSc.COMM_SELF):
+    """A bare solver of ``kind`` (snes, ts, eps, pep) under ``prefix``."""
     if kind == "snes":
-        obj = PETSc.SNES().create(comm=PETSc.COMM_SELF)
+        obj = PETSc.SNES().create(comm=comm)
     elif kind == "ts":
-        obj = PETSc.TS().create(comm=PETSc.COMM_SELF)
+        obj = PETSc.TS().create(comm=comm)
     else:
         from slepc4py import SLEPc
-        obj = (SLEPc.EPS() if kind == "eps" else SLEPc.PEP()).create(comm=PETSc.COMM_SELF)
+        obj = (SLEPc.EPS() if kind == "eps" else SLEPc.PEP()).create(comm=comm)
     obj.setOptionsPrefix(prefix)
     return obj
 
@@ -87,7 +88,7 @@ def print_solver_help(roles):
     """PETSc's own -help text for the objects of each role (only meaningful while -help is in the database)."""
     for prefix, kinds in roles.items():
         for kind in kinds:
-            obj = _make_object(kind, prefix)
+            obj = make_solver_object(kind, prefix)
             try:
                 obj.setFromOptions()
             except PETSc.Error:
@@ -143,15 +144,14 @@ class AppOptions:
         self.help = self.db.hasName("help")
 
     # --- declaration helpers ---------------------------------------------------------------------------------
-    def _declare(self, name, default, valid, help):
+    def _raw(self, name, default, valid, help, old=()):
+        """Declare the option; the value given for ``name`` (or one of its old spellings ``old``), None if absent
+        or under -help."""
         self.declared.append((name, default, valid, help))
-
-    def _raw(self, name, old=()):
-        """The value given for ``name`` (or one of its old spellings ``old``), None if absent."""
         self.aliases.update({o: name for o in old})
         for key in (name, *old):
             if self.db.hasName(key):
-                return self.db.getString(key, "")
+                return None if self.help else self.db.getString(key, "")
         return None
 
     @staticmethod
@@ -165,9 +165,8 @@ class AppOptions:
 
     def real(self, name, default, help="", valid=None, expr=False, old=()):
         """A real option; ``valid`` = (predicate, text); with ``expr``, values like ``pi/50`` are accepted."""
-        self._declare(name, default, valid[1] if valid else ("real" + (", pi allowed" if expr else "")), help)
-        raw = self._raw(name, old)
-        if raw is None or self.help:
+        raw = self._raw(name, default, valid[1] if valid else ("real" + (", pi allowed" if expr else "")), help, old)
+        if raw is None:
             return default
         try:
             value = self._number(raw, expr)
@@ -180,12 +179,9 @@ class AppOptions:
         return value
 
     def integer(self, name, default, help="", minimum=None, maximum=None, old=()):
-        rng = (f">= {minimum}" if minimum is not None else "") + \
-              (" and " if minimum is not None and maximum is not None else "") + \
-              (f"<= {maximum}" if maximum is not None else "")
-        self._declare(name, default, f"integer {rng}".strip(), help)
-        raw = self._raw(name, old)
-        if raw is None or self.help:
+        rng = " and ".join(f"{op} {v}" for op, v in ((">=", minimum), ("<=", maximum)) if v is not None)
+        raw = self._raw(name, default, f"integer {rng}".strip(), help, old)
+        if raw is None:
             return default
         try:
             value = int(raw)
@@ -196,9 +192,8 @@ class AppOptions:
         return value
 
     def string(self, name, default, help="", choices=None, old=()):
-        self._declare(name, default, "one of " + ", ".join(choices) if choices else "text", help)
-        raw = self._raw(name, old)
-        if raw is None or self.help:
+        raw = self._raw(name, default, "one of " + ", ".join(choices) if choices else "text", help, old)
+        if raw is None:
             return default
         if choices is not None and raw not in choices:
             raise ParameterError(f"-{name}", raw, "must be one of " + ", ".join(choices))
@@ -206,9 +201,8 @@ class AppOptions:
 
     def path(self, name, default, help="", old=()):
         """A file or directory name; empty only where the default is empty (none: an empty value says so too)."""
-        self._declare(name, default, "a path" + (", or empty for none" if default == "" else ""), help)
-        raw = self._raw(name, old)
-        if raw is None or self.help:
+        raw = self._raw(name, default, "a path" + (", or empty for none" if default == "" else ""), help, old)
+        if raw is None:
             return default
         if not raw.strip():
             if default == "":
@@ -217,9 +211,8 @@ class AppOptions:
         return raw
 
     def flag(self, name, help="", old=()):
-        self._declare(name, "off", "flag", help)
-        raw = self._raw(name, old)
-        if raw is None or self.help:
+        raw = self._raw(name, "off", "flag", help, old)
+        if raw is None:
             return False
         if raw.lower() in ("", "1", "true", "yes", "on"):
             return True
@@ -235,11 +228,10 @@ class AppOptions:
         rule = (f"a comma-separated list of at least {minimum_count} {what}" if minimum_count else
                 f"an optional comma-separated list of {what}") + \
                (f", each {valid[1]}" if valid else "") + (", all different" if distinct else "")
-        self._declare(name, default, rule, help)
-        raw = self._raw(name, old)
-        text = default if raw is None or self.help else raw
+        raw = self._raw(name, default, rule, help, old)
         if self.help:
             return []
+        text = default if raw is None else raw
         if raw is not None and not raw.strip():
             if minimum_count == 0:
                 return []                             # an optional list given empty: none, as its help says
@@ -269,9 +261,8 @@ class AppOptions:
     def words(self, name, default, help="", choices=None, old=()):
         """A comma-separated list of names (``default`` is the list's text), each one of ``choices``."""
         rule = "a comma-separated list" + (" of " + ", ".join(choices) if choices else " of names")
-        self._declare(name, default, rule, help)
-        raw = self._raw(name, old)
-        text = default if raw is None or self.help else raw
+        raw = self._raw(name, default, rule, help, old)
+        text = default if raw is None else raw
         values = [v.strip() for v in text.split(",")] if text.strip() else []
         if not values or "" in values or (choices is not None and any(v not in choices for v in values)):
             raise ParameterError(f"-{name}", text, f"must be {rule}")

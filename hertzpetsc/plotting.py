@@ -20,8 +20,9 @@ def _pyplot():
     return plt
 
 
-def _save(fig, directory, name):
-    fig.tight_layout()
+def _save(fig, directory, name, tight=True):
+    if tight:
+        fig.tight_layout()
     try:
         return save_figure(fig, os.path.join(directory, name))
     finally:
@@ -45,8 +46,7 @@ def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50
     for ax, q in zip(np.atleast_1d(axes), qs):
         point = branch.points[_nearest(branch, q)]
         ax.plot(xfull, point.u_full, "k-", lw=1)
-        ax.set_xlim(0, 2 * math.pi)
-        ax.set_ylabel(r"$u(\xi)$")
+        ax.set(xlim=(0, 2 * math.pi), ylabel=r"$u(\xi)$")
         ax.set_title(rf"$q = {point.q:.4f}$", fontsize=10)
     np.atleast_1d(axes)[-1].set_xlabel(r"$\xi$")
     return _save(fig, directory, "profiles.png")
@@ -62,8 +62,7 @@ def _plot_power_law(branch, directory, name, field, factor, k_alpha, ylabel, dat
     ax.semilogy(q, branch.column(field), "ko", ms=3, label=data_label)
     ax.semilogy(qq, factor * k * qq ** (2 / (1 - a)), "b-", lw=1,
                 label=line_label + f", $k_\\alpha$ = {k:.4f}" + (" (branch, min q)" if k_alpha is None else ""))
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(ylabel)
+    ax.set(xlabel="$q$", ylabel=ylabel)
     ax.legend()
     return _save(fig, directory, name)
 
@@ -84,8 +83,7 @@ def plot_number(branch, directory):
     """Fig. number: N(q), the mean number of adjacent interacting beads."""
     fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.plot(branch.q, branch.column("N"), "k.-", ms=4, lw=0.8)
-    ax.set_xlabel("$q$")
-    ax.set_ylabel("$N(q)$")
+    ax.set(xlabel="$q$", ylabel="$N(q)$")
     ax.grid(alpha=0.3)
     return _save(fig, directory, "number.png")
 
@@ -101,8 +99,7 @@ def plot_free_flight(branch, directory):
     if np.isfinite(qk):
         ax.axvline(qk, color="b", lw=0.6, ls="--", label=rf"$q_k = {qk:.3f}$")
         ax.legend()
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$F(q) = 2\ell(q)/q$")
+    ax.set(xlabel="$q$", ylabel=r"$F(q) = 2\ell(q)/q$")
     return _save(fig, directory, "lsq.png")
 
 
@@ -116,9 +113,7 @@ def plot_dispersion(branch, directory, k_alpha=None):
     fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.plot(q, dispersion(norm, A0, law.alpha), "k.-", ms=4, lw=0.8, label=r"$\omega(q, A_0)$")
     ax.plot(qq, dispersion_long_wave(qq, A0, law.alpha, k), "b--", lw=0.8, label="linear approximation")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$\omega$")
-    ax.set_ylim(0, 1.1 * max(1.0, float(np.max(dispersion(norm, A0, law.alpha)))))
+    ax.set(xlabel="$q$", ylabel=r"$\omega$", ylim=(0, 1.1 * max(1.0, float(np.max(dispersion(norm, A0, law.alpha))))))
     ax.legend()
     return _save(fig, directory, "dispersplot.png")
 
@@ -140,8 +135,7 @@ def plot_errors(refined, directory):
     ax.semilogy(q, refined.column("E_before_paper_flow")[order], "k:", label="E(q), branch wave (rtol 1e-12 flow)")
     ax.semilogy(q, refined.column("E_after")[order], "k-", label="E(q), refined (rtol 1e-14 flow)")
     ax.semilogy(q, refined.column("r")[order], "k-.", lw=0.8, label="r(q), last Gauss-Newton step")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel("errors")
+    ax.set(xlabel="$q$", ylabel="errors")
     ax.legend(fontsize=8)
     return _save(fig, directory, "errors.png")
 
@@ -159,8 +153,7 @@ def plot_snapshot(x0, xt, t, directory, name, title=""):
     n = np.arange(1, len(x0) + 1)
     ax.plot(n, xt, "k-", lw=1, label=f"$t = {t:.1f}$")
     ax.plot(n, x0, "b.", ms=3, label="$t = 0$")
-    ax.set_xlabel("$n$")
-    ax.set_ylabel("$x_n$")
+    ax.set(xlabel="$n$", ylabel="$x_n$")
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8)
     return _save(fig, directory, name)
@@ -173,8 +166,7 @@ def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
     im = ax.imshow(f, aspect="auto", origin="lower", cmap="gray",
                    extent=(0.5, states.shape[1] + 0.5, times[0], times[-1]))
     fig.colorbar(im, ax=ax, label=r"$V'(x_{n+1}-x_n)$")
-    ax.set_xlabel("$n$")
-    ax.set_ylabel("$t$")
+    ax.set(xlabel="$n$", ylabel="$t$")
     ax.set_title(title, fontsize=9)
     return _save(fig, directory, name)
 
@@ -184,8 +176,7 @@ def plot_deviation(runs, directory, name="deviation.png"):
     fig, ax = _pyplot().subplots(figsize=(6, 4))
     for label, (t, D) in runs.items():
         ax.semilogy(t, np.maximum(D, 1e-16), lw=0.8, label=label)
-    ax.set_xlabel("$t$")
-    ax.set_ylabel("deviation from the travelling wave")
+    ax.set(xlabel="$t$", ylabel="deviation from the travelling wave")
     ax.legend(fontsize=8)
     return _save(fig, directory, name)
 
@@ -197,8 +188,7 @@ def plot_floquet_radius(q, rho, tol_rho, directory):
     fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.plot(np.asarray(q)[order], np.asarray(rho)[order], "k.-", ms=4, lw=0.8)
     ax.axhline(1 + tol_rho, color="gray", lw=0.6, ls="--", label=rf"$1 + {tol_rho:g}$")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$\rho(\mathcal{F}_q)$")
+    ax.set(xlabel="$q$", ylabel=r"$\rho(\mathcal{F}_q)$")
     ax.legend(fontsize=8)
     return _save(fig, directory, "floquet.png")
 
@@ -236,8 +226,7 @@ def plot_solitary(wave, directory):
     a2.plot(s, y, "k-", lw=1)
     a2.axhline(wave.k_alpha, color="gray", lw=0.5, ls="--")
     a2.axhline(-wave.k_alpha, color="gray", lw=0.5, ls="--")
-    a2.set_ylabel("$y(s)$")
-    a2.set_xlabel("$s$")
+    a2.set(ylabel="$y(s)$", xlabel="$s$")
     a1.set_title(rf"$\alpha = {wave.params.alpha}$, $k_\alpha = {wave.k_alpha:.5f}$", fontsize=10)
     return _save(fig, directory, "ondesol.png")
 
@@ -246,24 +235,21 @@ def plot_long_wave(wave, point, directory, zoom=0.3):
     """Figs. approxz (the rescaled profile of a branch point near pi against the inner solution) and approx
     (against the composite approximation of eq. solapprox over the period)."""
     from .longwave import composite_profile, inner_solution
-    plt = _pyplot()
     u_half, q = point.u_half, point.q
     K = len(u_half) - 1
     xi = np.arange(2 * K + 1) * math.pi / K
     ut = q ** point.model.law.rescaling_exponent * np.concatenate([u_half, -u_half[-2::-1]])
     near = np.abs(xi - math.pi) <= zoom
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.plot(xi[near], ut[near], "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")
     ax.plot(xi[near], inner_solution(wave, (xi[near] - math.pi) / q), "b-", lw=0.8, label="inner solution (eq. inner)")
-    ax.set_xlabel(r"$\xi$")
-    ax.set_ylabel(r"$\tilde u(\xi)$")
+    ax.set(xlabel=r"$\xi$", ylabel=r"$\tilde u(\xi)$")
     ax.legend(fontsize=8)
     first = _save(fig, directory, "approxz.png")
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = _pyplot().subplots(figsize=(6, 4))
     ax.plot(xi, ut, "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")
     ax.plot(xi, composite_profile(wave, q, xi), "b-", lw=0.8, label="composite (eq. solapprox)")
-    ax.set_xlabel(r"$\xi$")
-    ax.set_ylabel(r"$\tilde u(\xi)$")
+    ax.set(xlabel=r"$\xi$", ylabel=r"$\tilde u(\xi)$")
     ax.legend(fontsize=8)
     return [first, _save(fig, directory, "approx.png")]
 
@@ -292,8 +278,7 @@ def plot_spacetime_velocities(times, states, directory, name, title=""):
     im = ax.imshow(v, aspect="auto", origin="lower", cmap="gray_r",
                    extent=(-0.5, states.shape[1] - 0.5, times[0], times[-1]))
     fig.colorbar(im, ax=ax, label=r"$\dot x_n$")
-    ax.set_xlabel("$n$")
-    ax.set_ylabel("$t$")
+    ax.set(xlabel="$n$", ylabel="$t$")
     ax.set_title(title, fontsize=9)
     return _save(fig, directory, name)
 
@@ -307,8 +292,7 @@ def plot_small_q(q, levels, extrapolated, k_alpha, directory):
         ax.semilogx(q, values, ".-", lw=0.6, ms=3, color=str(0.7 - 0.25 * lev), label=f"level {lev}")
     ax.semilogx(q, extrapolated, "k.-", lw=1.2, label="extrapolated in $h$")
     ax.axhline(k_alpha, color="b", lw=0.8, ls="--", label=rf"$k_\alpha = {k_alpha:.5f}$")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$\|u\|_\infty\, q^{2/(\alpha-1)}$")
+    ax.set(xlabel="$q$", ylabel=r"$\|u\|_\infty\, q^{2/(\alpha-1)}$")
     ax.legend(fontsize=8)
     return _save(fig, directory, "smallq.png")
 
@@ -328,8 +312,7 @@ def plot_compacton_max_multiplier(rows, directory):
         if (~pos).any():
             ax.axhline(mu[~pos][0], color=line.get_color(), lw=0.6, ls="--")
     ax.axhline(1.0, color="k", lw=0.6)
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"max nontrivial $|\mu|$ (window map)")
+    ax.set(xlabel="$q$", ylabel=r"max nontrivial $|\mu|$ (window map)")
     ax.set_title("isolated compactons; dashed: solitary wave ($q \\to 0$)", fontsize=9)
     ax.set_ylim(0, 1.05)
     ax.legend(fontsize=8)
@@ -374,13 +357,10 @@ def plot_solitary_stability(rows, directory):
     ax.set_xticks([1.1, 1.25, 1.5, 2, 3, 5])
     ax.set_xticklabels(["1.1", "1.25", "1.5", "2", "3", "5"])
     ax.minorticks_off()
-    ax.set_xlabel("Mach number $c / c_0$")
-    ax.set_ylabel(r"$d \ln H / d \ln c$ (fixed lattice)")
+    ax.set(xlabel="Mach number $c / c_0$", ylabel=r"$d \ln H / d \ln c$ (fixed lattice)")
     ax.set_title("energy criterion: no change of sign", fontsize=9)
     ax.legend(fontsize=8)
-    bx.set_xlabel("$c_0 / c$")
-    bx.set_ylabel(r"window multipliers")
-    bx.set_ylim(0, 1.05)
+    bx.set(xlabel="$c_0 / c$", ylabel=r"window multipliers", ylim=(0, 1.05))
     bx.set_title("spectral route: largest nontrivial multiplier", fontsize=9)
     bx.legend(fontsize=7)
     return _save(fig, directory, "solitary_stability.png")
@@ -399,8 +379,7 @@ def plot_compacton_dynamics(records, directory):
             keep = pred > 1e-16
             ax.semilogy(k[keep], pred[keep], ls="--", lw=0.7, color=line.get_color())
     ax.set_xscale("symlog", linthresh=50)
-    ax.set_xlabel("beads travelled $k$ (= time)")
-    ax.set_ylabel(r"$|\delta_k - a v_1 - b v_2|$ (relative)")
+    ax.set(xlabel="beads travelled $k$ (= time)", ylabel=r"$|\delta_k - a v_1 - b v_2|$ (relative)")
     ax.set_title(r"dashed: $|\mu_3|^k$", fontsize=9)
     ax.legend(fontsize=7)
     r = records[0]
@@ -466,11 +445,8 @@ def plot_precompressed_omega(curves, alpha, delta0, directory):
         if np.isfinite(A_gap):
             ax1.semilogx([A_gap], [omega_gap / omega_lin], "o", mfc="none", color=color)
             ax2.semilogx([A_gap], [omega_gap * A_gap ** (-e)], "o", mfc="none", color=color)
-    ax1.set_xlabel(r"$A = \|u\|_\infty$" + f" ($\\delta_0$ = {delta0:g})")
-    ax1.set_ylabel(r"$\omega / \omega_{lin}(q)$")
-    ax2.set_xlabel(r"$A$")
-    ax2.set_ylabel(r"$\omega A^{-(\alpha-1)/2}$ (dashed: uncompressed limit)")
-    ax2.set_yscale("log")
+    ax1.set(xlabel=r"$A = \|u\|_\infty$" + f" ($\\delta_0$ = {delta0:g})", ylabel=r"$\omega / \omega_{lin}(q)$")
+    ax2.set(xlabel=r"$A$", ylabel=r"$\omega A^{-(\alpha-1)/2}$ (dashed: uncompressed limit)", yscale="log")
     ax1.legend(fontsize=8)
     return _save(fig, directory, "precompressed_omega.png")
 
@@ -484,10 +460,8 @@ def plot_dimer_epsilon(curves, directory):
         ax1.plot(eps, omega, ".-", color=color, ms=2, lw=0.8, label=f"q = {q / math.pi:.3g}$\\pi$")
         ax1.plot(eps, omega_ac, "--", color=color, lw=0.7)
         ax2.plot(eps, norm_v, ".-", color=color, ms=2, lw=0.8)
-    ax1.set_xlabel(r"$\epsilon$ ($m_2 / m_1$)")
-    ax1.set_ylabel(r"$\omega$ (dashed: linear acoustic branch)")
-    ax2.set_xlabel(r"$\epsilon$")
-    ax2.set_ylabel(r"$\|v\|_\infty$ (light bead)")
+    ax1.set(xlabel=r"$\epsilon$ ($m_2 / m_1$)", ylabel=r"$\omega$ (dashed: linear acoustic branch)")
+    ax2.set(xlabel=r"$\epsilon$", ylabel=r"$\|v\|_\infty$ (light bead)")
     ax1.legend(fontsize=8)
     return _save(fig, directory, "dimer_epsilon.png")
 
@@ -499,14 +473,13 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
     intervals between them (red bars), the uppermost located edge of each q joined along q, the gap opening A_gap(q)
     (dashed) and q_c of the uncompressed limit (shaded: between the largest q unstable at A = infinity and the next
     stable q of the map)."""
-    plt = _pyplot()
     tol = float(z["tol_rho"])
     kind = np.asarray(z["kind"])
     q, A = np.asarray(z["q"], float), np.asarray(z["A"], float)
     panels = [("rho", 1, f"N = {int(z['N'])}")]
     if int(z["twists"]):
         panels.append(("rho_inf", 2, "infinite chain"))
-    fig, axes = plt.subplots(1, len(panels), figsize=(6 * len(panels), 4.8), squeeze=False)
+    fig, axes = _pyplot().subplots(1, len(panels), figsize=(6 * len(panels), 4.8), squeeze=False)
     rho_all = np.concatenate([np.asarray(z[key], float) for key, _, _ in panels])
     bad_all = rho_all[np.isfinite(rho_all) & (rho_all - 1 > tol)]
     vmin, vmax = (np.log10(tol), max(np.log10(tol) + 1, float(np.log10(bad_all.max() - 1)))) if len(bad_all) else \
@@ -552,18 +525,14 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
                 ax.axvspan(q_lo, stable_above.min(), color="0.85", zorder=0, label=r"$q_c$ (uncompressed) in here")
             else:
                 ax.axvline(q_lo, color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed) above")
-        ax.set_yscale("log")
-        ax.set_xlabel("$q$")
+        ax.set(yscale="log", xlabel="$q$")
         ax.set_ylabel(r"$A = \|u\|_\infty$")
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=7, loc="upper right")
     fig.colorbar(sc, ax=list(axes[0]), label=r"$\log_{10}(\rho - 1)$")
     fig.suptitle(rf"$\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$, masses "
                  + ", ".join(f"{m:g}" for m in np.asarray(z["masses"], float)), fontsize=10)
-    try:
-        return save_figure(fig, os.path.join(directory, name))
-    finally:
-        plt.close(fig)
+    return _save(fig, directory, name, tight=False)
 
 
 
@@ -572,14 +541,13 @@ def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
     the (q, A) plane: each located edge as its bracket in q (red), the grid verdicts (open: stable, filled:
     unstable); with ``zmap`` (a stability-map file with the infinite chain) that map's edges located in A at its q
     (triangles) and A_gap(q) (dashed). A = inf is drawn at the top of the axis."""
-    plt = _pyplot()
     tol = float(z["tol_rho"])
     A, q, kind, grid = (np.asarray(z[k], float) for k in ("A", "q", "kind", "grid"))
     rho = np.asarray(z["rho_inf"], float)
     finite = A[np.isfinite(A)]
     top = (finite.max() if len(finite) else 1.0) * 3
     shown = np.where(np.isfinite(A), A, top)
-    fig, ax = plt.subplots(figsize=(6.5, 4.8))
+    fig, ax = _pyplot().subplots(figsize=(6.5, 4.8))
     pts = grid == 1
     bad = pts & (rho - 1 > tol)
     ax.scatter(q[pts & ~bad], shown[pts & ~bad], s=10, facecolors="none", edgecolors="0.5", lw=0.6,
@@ -607,10 +575,7 @@ def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
     ax.set_title(rf"infinite chain, $\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$: "
                  "boundary located in $q$", fontsize=10)
     ax.legend(fontsize=7, loc="upper right")
-    try:
-        return save_figure(fig, os.path.join(directory, name))
-    finally:
-        plt.close(fig)
+    return _save(fig, directory, name, tight=False)
 
 # --- driven, damped chains (issue 22) ---------------------------------------------------------------------------------
 _EVENT_MARKERS = {1: ("o", "fold"), 2: ("s", "period doubling"), 3: ("D", "Neimark-Sacker")}
@@ -658,8 +623,8 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
     if title:
         ax.set_title(title, fontsize=9)
     bx.axhline(1.0, color="0.6", lw=0.8)
-    bx.set_ylabel(r"$\max |\mu|$")
-    bx.set_xlabel({"omega": r"$\omega$", "amplitude": "$a$", "gamma": r"$\gamma$"}.get(parameter, parameter))
+    bx.set(ylabel=r"$\max |\mu|$",
+           xlabel={"omega": r"$\omega$", "amplitude": "$a$", "gamma": r"$\gamma$"}.get(parameter, parameter))
     return _save(fig, directory, name)
 
 
@@ -719,9 +684,7 @@ def plot_driven_generation(records, directory, name="driven_generation.png"):
         for r in rs:
             bx.semilogy(np.arange(1, len(r["A_n"]) + 1), r["A_n"], "-" if w == 0 else "--", lw=0.8,
                         color=f"C{i % 10}")
-    ax.set_xlabel(r"$\omega$")
-    ax.set_ylabel("shape distance $D$ to the branch's wave")
+    ax.set(xlabel=r"$\omega$", ylabel="shape distance $D$ to the branch's wave")
     ax.legend(fontsize=7)
-    bx.set_xlabel("bead $n$")
-    bx.set_ylabel("amplitude $A_n$")
+    bx.set(xlabel="bead $n$", ylabel="amplitude $A_n$")
     return _save(fig, directory, name)

@@ -111,6 +111,7 @@ def configure_roles(roles, comm):
     roles SLEPc's solvers."""
     from ..chain import configure_options as configure_ts
     from ..model import ChainSpec, LatticeModel
+    from ..options import make_solver_object
     from ..twsolver import configure_options as configure_snes
     for prefix, (_, kinds) in roles.items():
         for kind in kinds:
@@ -119,9 +120,7 @@ def configure_roles(roles, comm):
             elif kind == "ts":
                 configure_ts(ChainSpec(LatticeModel(), 3, "free"), comm, prefix)
             else:
-                from slepc4py import SLEPc
-                obj = (SLEPc.EPS() if kind == "eps" else SLEPc.PEP()).create(comm=comm)
-                obj.setOptionsPrefix(prefix)
+                obj = make_solver_object(kind, prefix, comm)
                 try:
                     obj.setFromOptions()
                 finally:

@@ -11,7 +11,7 @@ from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid,
                             paper_targets)
 from ..errors import ParameterError, RecordFileError
 from ..model import LatticeModel
-from ..records import MemoryRecords, NpzRecords, load_npz, npz_arrays, on_rank0, write_npz
+from ..records import MemoryRecords, load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
 from ..richardson import richardson
 from ..twsolver import TW_PREFIX
@@ -40,20 +40,16 @@ class BranchStudy(Study):
         self.continuation = BranchContinuation(params, self.comm, prefix, solver)
         self.resumed = 0
 
-    def open(self):
-        """Open the branch file (collective); the resumed points seed the continuation."""
-        if self.store is None:
-            if self.output is None:
-                self.store = MemoryRecords(BRANCH_FORMAT, self.branch.constants(), self.FIELDS, self.comm,
-                                           {k: np.int64 for k in INT_FIELDS}, {"u": (self.params.cells_per_pi + 1,)})
-            else:
-                self.store = branch_store(self.output, self.branch, self.comm, self.mode)
-            self.branch.points = points_from_store(self.store, self.branch)
-            self.resumed = len(self.branch.points)       # points found in the file
-            if self.branch.points:
-                pts = self.branch.points
-                self.continuation.resume_from([p.q for p in pts], [p.u_half for p in pts])
-        return self
+    def _open(self):
+        """The branch file (or memory); the resumed points seed the continuation."""
+        store = (MemoryRecords(BRANCH_FORMAT, self.branch.constants(), self.FIELDS, self.comm,
+                               {k: np.int64 for k in INT_FIELDS}, {"u": (self.params.cells_per_pi + 1,)})
+                 if self.output is None else branch_store(self.output, self.branch, self.comm, self.mode))
+        pts = self.branch.points = points_from_store(store, self.branch)
+        self.resumed = len(pts)          # points found in the file
+        if pts:
+            self.continuation.resume_from([p.q for p in pts], [p.u_half for p in pts])
+        return store
 
     def run(self):
         self.open()
@@ -222,18 +218,14 @@ class SmallQStudy(Study):
     def constants(self):
         return self.params.identity()
 
-    def open(self):
-        """Open the progress file (collective; one of the first format is converted when resumed)."""
-        if self.store is None and self.progress is None:
-            super().open()
-        if self.store is None:
-            if self.mode == "resume":
-                on_rank0(self.comm, _legacy_smallq_progress, self.progress, self.params,
-                         what=f"cannot read progress file {self.progress!r}")
-            self.store = NpzRecords(self.progress, SMALLQ_FORMAT, self.params.identity(), self.params.identity(),
-                                    ("level", "q", "K") + SMALLQ_FIELDS, self.comm, self.mode,
-                                    dtypes={"level": np.int64, "K": np.int64}, what="progress file")
-        return self
+    identity = constants             # the progress files hold no solver options
+
+    def _open(self):
+        """The progress file (one of the first format converted when resumed), or memory."""
+        if self.progress is not None and self.mode == "resume":
+            on_rank0(self.comm, _legacy_smallq_progress, self.progress, self.params,
+                     what=f"cannot read progress file {self.progress!r}")
+        return super()._open()
 
     def rows(self, level):
         return [r for r in self.store.records if int(r["level"]) == level]

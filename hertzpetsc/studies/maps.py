@@ -679,8 +679,7 @@ class QBoundary(Study):
                                   lambda r: (int(r["kind"]), round(float(r["q"]), 12)),
                                   lambda r, A: float(r["A"]) == A)
 
-    def destroy(self):
-        StabilityMap.destroy(self)
+    destroy = StabilityMap.destroy
 
     def table(self):
         return q_boundary_table(self.arrays())
@@ -732,9 +731,8 @@ def read_map(path, comm=None):
     read on rank 0 and given to every rank; :class:`~hertzpetsc.errors.RecordFileError` for any other file."""
     def load():
         z = load_npz(path, "stability-map file")
-        if str(z.get("format", "")) == MAP_FORMAT_V1:
-            return z
-        check_kind(z, path, MAP_FORMAT, "stability-map file")
+        if str(z.get("format", "")) != MAP_FORMAT_V1:
+            check_kind(z, path, MAP_FORMAT, "stability-map file")
         return z
     return on_rank0(comm, load, what="stability-map file")
 
@@ -921,8 +919,7 @@ def map_table(z):
         lines.append(f"| {q_label(q)} | " + (f"{float(np.asarray(z['A'])[g[0]]):.4f}" if len(g) else "n/a") + " | "
                      + (shown(spans["rho"][q]) if q in spans["rho"] else "n/a") + " | "
                      + (shown(spans["rho_inf"].get(q)) if twists and q in spans["rho_inf"] else "n/a") + " |")
-    amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), np.asarray(z["kind"])) if k == KIND_POINT))
-    kinds = np.asarray(z["kind"])
+    amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), kinds) if k == KIND_POINT))
     unresolved = bool(np.any(((kinds == KIND_POINT) | (kinds == KIND_LIMIT)) & ~np.isfinite(np.asarray(z["rho"], float))))
     lines += ["\n### Verdicts on the map\n",
               f"Amplitudes a (first sine coefficient) of the map: {', '.join(f'{a:.4g}' for a in amps)}. Per q, one "
@@ -946,11 +943,8 @@ def map_table(z):
             v = "".join(mark(x) for x in r[key][pts])
             return v + ("|" + mark(r[key][lim[0]]) if len(lim) else "")
 
-        lines.append(f"| {q_label(q)} | {float(r['A'][gap[0]]):.4f} | `{verdicts('rho')}` | "
-                     + (f"`{verdicts('rho_inf')}`" if twists else "n/a") + f" | "
-                     f"{_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |"
-                     if len(gap) else
-                     f"| {q_label(q)} | n/a | `{verdicts('rho')}` | " + (f"`{verdicts('rho_inf')}`" if twists else
-                                                                          "n/a")
+        gap_A = f"{float(r['A'][gap[0]]):.4f}" if len(gap) else "n/a"
+        lines.append(f"| {q_label(q)} | {gap_A} | `{verdicts('rho')}` | "
+                     + (f"`{verdicts('rho_inf')}`" if twists else "n/a")
                      + f" | {_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |")
     return "\n".join(lines) + "\n"

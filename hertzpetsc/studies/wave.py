@@ -16,7 +16,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..advdelay import check_wavenumber
 from ..bloch import SymmetricFloquet
 from ..errors import ParameterError
 from ..families import check_amplitude, wave_of_amplitude
@@ -28,6 +27,7 @@ from ..shooting import Refiner
 from ..twsolver import tw_solver
 from ..waves import check_chain_wavenumber, orbit_on_chain
 from .base import Study
+from .precompression import _check_qs
 
 WAVE_FORMAT = "hertzpetsc-wave-1"
 WAVE_FIELDS = ("q", "m", "omega", "E_profile", "E_refined", "iterations", "rho", "outside", "spread", "unstable",
@@ -63,9 +63,7 @@ class WaveParameters:
         if not (isinstance(self.N, (int, np.integer)) and 2 <= self.N <= MAX_BEADS and self.N % m.cell == 0):
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {m.cell} in "
                                  f"[2, {MAX_BEADS}]")
-        qs = tuple(check_wavenumber(q, math.pi / self.cells_per_pi) for q in self.q)
-        if not qs:
-            raise ParameterError("q", self.q, "give at least one wavenumber")
+        qs = _check_qs(self.q, math.pi / self.cells_per_pi)
         for q in qs:
             check_chain_wavenumber(q, self.N)
         object.__setattr__(self, "q", qs)
@@ -100,23 +98,17 @@ class WaveStudy(Study):
         super().__init__(params, comm, output, mode)
         self.SHAPES = {"rho_sizes": (len(params.sizes),)}
         check_memory(params.cells_per_pi, self.comm, tw_solver("precomp_"), profiles=params.model.cell)
-        self.waves = {}
 
     def constants(self):
         p = self.params
         return dict(p.model.describe(), A=p.A, cells_per_pi=p.cells_per_pi, N=p.N, sizes=list(p.sizes), tol=p.tol,
                     tol_rho=p.tol_rho)
 
-    def wave(self, q):
-        """The wave at q as a :class:`~hertzpetsc.branch.BranchPoint` and the scale of its orbit
-        (:func:`~hertzpetsc.families.wave_of_amplitude`)."""
-        p = self.params
-        return wave_of_amplitude(p.model, q, p.A, ProfileGrid(p.cells_per_pi, self.comm))
-
     def compute(self, q):
+        """The wave at q (:func:`~hertzpetsc.families.wave_of_amplitude`) refined on N beads, its spectra."""
         p = self.params
         t0 = time.perf_counter()
-        point, scale = self.wave(q)
+        point, scale = wave_of_amplitude(p.model, q, p.A, ProfileGrid(p.cells_per_pi, self.comm))
         spec = ChainSpec(p.model, p.N)
         orbit = orbit_on_chain(point, spec, scale=scale)
         with Refiner(spec, self.comm, p.tol) as refiner:

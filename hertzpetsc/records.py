@@ -376,19 +376,13 @@ def _h5py():
 
 def _write_h5(path, arrays):
     h5py = _h5py()
-    tmp = path + ".tmp"
-    with h5py.File(tmp, "w") as f:
-        for name, value in arrays.items():
-            value = np.asarray(value)
-            if value.dtype.kind == "U":
-                value = np.char.encode(value, "utf-8")
-            f.create_dataset(name, data=value)
-    fd = os.open(tmp, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-    os.replace(tmp, path)
+
+    def write(f):
+        with h5py.File(f, "w") as h5:
+            for name, value in arrays.items():
+                value = np.asarray(value)
+                h5.create_dataset(name, data=np.char.encode(value, "utf-8") if value.dtype.kind == "U" else value)
+    _replace_atomically(path, write)
 
 
 def _load_h5(path, what, error):

@@ -163,10 +163,7 @@ def profile_on_grid(point, K, comm, prefix="tw_", q=None):
     problem = AdvanceDelayProblem(point.model, grid, point.q if q is None else q)
     tws = TravellingWaveSolver(grid, prefix)
     try:
-        # on fine grids the interpolated profile can pass the round-off atol with its O(h^2) regridding error:
-        # at least one Newton step (quadratic convergence takes that error to round-off)
-        tws.snes.setForceIteration(True)
-        tws.solve(problem, u)
+        tws.solve(problem, u)       # at least one Newton step (TravellingWaveSolver): the regridding error is O(h^2)
         return grid.half_profile(u)
     finally:
         tws.destroy()

@@ -6,14 +6,15 @@ The matrices are AIJ with rows distributed over the communicator. PETSc is real 
 pi the pencil is the real one of twice the size [[Re, -Im], [Im, Re]], whose spectrum is that of theta and -theta;
 the eigenvector (x1, x2) tells which (x1 + i x2 lies in the theta problem).
 """
-import time
 from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
+from .assembly import gathered
 from .errors import ConvergenceError
+from .options import inserted_options
 
 COMOVING_PREFIX = "cm_"
 
@@ -47,9 +48,6 @@ class PencilEigenpairs:
 
     z: np.ndarray
     vectors: list
-    errors: np.ndarray
-    iterations: int
-    seconds: float
 
 
 class ComovingPEP:
@@ -68,7 +66,6 @@ class ComovingPEP:
         probe = self._create()
         self.nev = probe.getDimensions()[0]          # -cm_pep_nev overrides the starting nev
         probe.destroy()
-        self.solves = 0
 
     def _create(self):
         from slepc4py import SLEPc
@@ -93,46 +90,29 @@ class ComovingPEP:
     def solve(self, mats, target, nev, want_vectors=False):
         """Eigenpairs of the real pencil sum z^i mats[i] (scipy CSR) nearest the real ``target``; at least ``nev``
         must converge (ConvergenceError otherwise). Vectors, when asked, come complete on every rank."""
-        from slepc4py import SLEPc
-        t0 = time.perf_counter()
         As = [aij(A, self.comm) for A in mats]
-        opts = PETSc.Options()
-        inserted = [k for k in self.MUMPS_DEFAULTS if not opts.hasName(self.prefix + k)]
-        for k in inserted:
-            opts.setValue(self.prefix + k, self.MUMPS_DEFAULTS[k])
-        pep = self._create()
-        try:
-            pep.setOperators(As)
-            pep.setTarget(float(target))
-            if nev > self.nev:
-                pep.setDimensions(nev=nev, ncv=max(2 * nev + 10, 40))
-            pep.solve()
-            nconv = pep.getConverged()
-            if nconv < min(nev, self.nev):
-                raise ConvergenceError("co-moving PEP (prefix -%s)" % self.prefix,
-                                       f"{nconv} of {nev} eigenpairs converged (reason {pep.getConvergedReason()})",
-                                       target=target)
-            vr, vi = As[0].createVecs()
-            scatter, full = PETSc.Scatter.toAll(vr)
-            z, vecs, errs = [], [], []
-            for i in range(nconv):
-                z.append(complex(pep.getEigenpair(i, vr, vi)))
-                errs.append(pep.computeError(i, SLEPc.PEP.ErrorType.BACKWARD))
-                if want_vectors:
-                    parts = []
-                    for v in (vr, vi):
-                        scatter.scatter(v, full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-                        parts.append(full.getArray(readonly=True).copy())
-                    vecs.append(parts[0] + 1j * parts[1])
-            its = pep.getIterationNumber()
-            for v in (vr, vi, full):
-                v.destroy()
-            scatter.destroy()
-        finally:
-            pep.destroy()
-            for A in As:
-                A.destroy()
-            for k in inserted:
-                opts.delValue(self.prefix + k)
-        self.solves += 1
-        return PencilEigenpairs(np.array(z), vecs, np.array(errs), its, time.perf_counter() - t0)
+        with inserted_options(self.prefix, self.MUMPS_DEFAULTS):
+            pep = self._create()
+            try:
+                pep.setOperators(As)
+                pep.setTarget(float(target))
+                if nev > self.nev:
+                    pep.setDimensions(nev=nev, ncv=max(2 * nev + 10, 40))
+                pep.solve()
+                nconv = pep.getConverged()
+                if nconv < min(nev, self.nev):
+                    raise ConvergenceError("co-moving PEP (prefix -%s)" % self.prefix, f"{nconv} of {nev} eigenpairs "
+                                           f"converged (reason {pep.getConvergedReason()})", target=target)
+                vr, vi = As[0].createVecs()
+                z, vecs = [], []
+                for i in range(nconv):
+                    z.append(complex(pep.getEigenpair(i, vr, vi)))
+                    if want_vectors:
+                        vecs.append(gathered(vr) + 1j * gathered(vi))
+                vr.destroy()
+                vi.destroy()
+            finally:
+                pep.destroy()
+                for A in As:
+                    A.destroy()
+        return PencilEigenpairs(np.array(z), vecs)

@@ -51,7 +51,7 @@ class SectorWindow:
     """The eigenvalues lambda with Re lambda in the box and |Im lambda| <= 1/2 at Bloch parameter theta (each with
     its side: +1 the theta problem, -1 the -theta problem; real theta: +1), which of them are the compacton band
     (``band``), the band's spread max |lambda - lambda_b| and the distance from lambda_b to the nearest other
-    eigenvalue (``separation``), the radius around the target within which every eigenvalue was found, and the work."""
+    eigenvalue (``separation``), the radius around the target within which every eigenvalue was found, and nev."""
 
     theta: float
     K: int
@@ -62,7 +62,6 @@ class SectorWindow:
     separation: float
     radius: float
     nev: int
-    seconds: float
 
     def dominant(self):
         """(lambda, theta of its problem) of the largest Re lambda outside the band, or (nan, theta)."""
@@ -106,10 +105,9 @@ def sector_window(wave, theta, solver, box=DEFAULT_BOX, max_nev=192):
     centre = 0.5 * (box[0] + box[1]) + TARGET_OFFSET
     need = 1.05 * math.hypot(0.5 * (box[1] - box[0]) + TARGET_OFFSET, WINDOW_IM)
     mats, n, real = real_pencil(wave, theta)
-    nev, seconds = solver.nev * (1 if real else 2), 0.0
+    nev = solver.nev * (1 if real else 2)
     while True:
         res = solver.solve(mats, math.exp(centre * wave.h), nev, want_vectors=not real)
-        seconds += res.seconds
         lam = np.log(res.z.astype(complex)) / wave.h
         dist = np.sort(np.abs(lam - centre))
         radius = float(dist[min(nev, len(dist)) - 1]) if len(dist) else 0.0
@@ -121,44 +119,35 @@ def sector_window(wave, theta, solver, box=DEFAULT_BOX, max_nev=192):
            (np.abs(lam - centre) <= radius)
     lam, side = lam[keep], side[keep]
     band, spread, separation = band_members(lam, side, theta, wave.q, 0.1)
-    return SectorWindow(theta, wave.K, lam, side, band, spread, separation, radius, nev, seconds)
+    return SectorWindow(theta, wave.K, lam, side, band, spread, separation, radius, nev)
 
 
 @dataclass
 class ThetaScan:
-    """The worst non-band mode over a theta grid on one profile grid: gamma = q Re lambda / script-T, its theta,
-    lambda and mu, the largest band spread (as |mu| - 1 = q spread, the O(h) artefact) and the work."""
+    """The worst non-band mode over a theta grid on one profile grid: gamma = q Re lambda / script-T, its theta and
+    lambda, the largest band spread (as |mu| - 1 = q spread, the O(h) artefact) and the smallest separation."""
 
-    K: int
-    thetas: np.ndarray
-    growth: np.ndarray          # per theta: the largest non-band gamma
     lam: complex
     theta: float
     gamma: float
     band_mu: float
     min_separation: float
-    solves: int
-    seconds: float
 
 
 def theta_scan(wave, thetas, solver, box=DEFAULT_BOX):
     """:func:`sector_window` at every theta of ``thetas`` (in [0, pi])."""
-    growth, best, band_mu, sep, solves, secs = [], None, 0.0, math.inf, 0, 0.0
+    best, band_mu, sep = None, 0.0, math.inf
     for th in thetas:
         if not (-1e-14 <= th <= math.pi + 1e-14):
             raise ParameterError("theta", th, "the Bloch parameters must lie in [0, pi]")
         w = sector_window(wave, th, solver, box)
         lam, th_eff = w.dominant()
         g = float(wave.growth(lam)) if lam == lam else -math.inf
-        growth.append(g)
         if best is None or g > best[0]:
             best = (g, lam, abs(th_eff))
         band_mu = max(band_mu, wave.q * w.band_spread)
         sep = min(sep, w.separation)
-        secs += w.seconds
-        solves += 1
-    return ThetaScan(wave.K, np.asarray(thetas, dtype=float), np.array(growth), best[1], best[2], best[0], band_mu,
-                     sep, solves, secs)
+    return ThetaScan(best[1], best[2], best[0], band_mu, sep)
 
 
 def tracked_exponent(wave, theta, guess, solver, nev=12):

@@ -36,7 +36,6 @@ class CompactonTrain:
     h: float
     p: float              # free-flight slope p(q) = u'(0)
     ell: float            # free-flight half-length ell(q)
-    norm_inf: float       # ||u(.; q)||_inf
     u_full: np.ndarray    # branch profile on the grid j h of [0, 2 pi)
     offsets: tuple        # s_j, the start of each compacton's period
 
@@ -74,15 +73,6 @@ class CompactonTrain:
         """U'(xi) on the whole line (exactly p outside the compression regions)."""
         xi = np.asarray(xi, dtype=float)
         return self.p + sum(self.bump(xi - s, derivative=True) for s in self.offsets)
-
-    def compressed(self, xi):
-        """Index of the compacton whose compression region (ell, 2 pi - ell) contains xi, or -1."""
-        xi = np.asarray(xi, dtype=float)
-        which = np.full(xi.shape, -1)
-        for j, s in enumerate(self.offsets):
-            z = xi - s
-            which[(z > self.ell) & (z < 2 * math.pi - self.ell)] = j
-        return which
 
     # --- on the grid: eq. ad on the extended domain ----------------------------------------------------------------
     def grid_values(self, j):
@@ -169,8 +159,8 @@ def compacton_train(point, spacings=(), q_k=None):
     for dj in d:
         offsets.append(offsets[-1] + 2 * math.pi + q * dj)
     d = point.diagnostics
-    return CompactonTrain(model=point.model, q=q, h=point.h, p=d.slope, ell=d.ell, norm_inf=d.norm_inf,
-                          u_full=point.u_full, offsets=tuple(offsets))
+    return CompactonTrain(model=point.model, q=q, h=point.h, p=d.slope, ell=d.ell, u_full=point.u_full,
+                          offsets=tuple(offsets))
 
 
 # --- on the chain ---------------------------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
+from .assembly import gathered
 from .errors import ConvergenceError, ParameterError
 from .floquet import Spectrum, largest_magnitude
 
@@ -83,23 +84,12 @@ class WeightedWindowOperator:
     def __init__(self, window, Y, gap, weight):
         self.window, self.Y, self.gap, self.w = window, np.asarray(Y, float), float(gap), np.asarray(weight)
         self.products = 0
-        self._gather = None
 
     def mult(self, mat, x, y):
-        if self._gather is None:
-            self._gather, self._full = PETSc.Scatter.toAll(x)
-        self._gather.scatter(x, self._full, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-        xs = self._full.getArray(readonly=True)
-        out = self.w * self.window.apply(self.Y, self.gap, xs / self.w)
+        out = self.w * self.window.apply(self.Y, self.gap, gathered(x) / self.w)
         lo, hi = y.getOwnershipRange()
         y.getArray()[:] = out[lo:hi]
         self.products += 1
-
-    def destroy(self, mat=None):
-        if self._gather is not None:
-            self._gather.destroy()
-            self._full.destroy()
-            self._gather = None
 
 
 class WindowStability:
@@ -137,7 +127,6 @@ class WindowStability:
             errs = np.array([self.eps.computeError(i) for i in range(nconv)])
         finally:
             A.destroy()
-            ctx.destroy()
         order = np.argsort(-np.abs(vals), kind="stable")
         return Spectrum(vals[order], False, work=dict(errors=errs[order], products=ctx.products, eta=self.eta,
                                                       iterations=self.eps.getIterationNumber(),

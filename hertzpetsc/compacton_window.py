@@ -4,7 +4,7 @@ Paper: section 3.3 (eqs. extens, twlin, compacton, defvit) and the Discussion's 
 stability of isolated compactons. We fix the velocity to c = 1 bead per unit time (a = q^(2/(alpha-1)), so
 script-T = 1; any other c follows by scaling). Ahead of the compacton the beads rest on the gap lattice
 x_n = Delta n, Delta = a p q (eq. defvit); behind it they rest on x_n = Delta n + D, D = 2 pi a p. In the
-gap-lattice coordinates y_n = x_n - Delta n a bond is r_n = Delta + y_{n+1} - y_n (:class:`WindowChain`).
+gap-lattice coordinates y_n = x_n - Delta n a bond is r_n = Delta + y_{n+1} - y_n (:func:`WindowChain`).
 
 A window of M beads (j = 0 the rearmost, free ends) and the one-bead shift define
 
@@ -20,8 +20,7 @@ Flows use the TS prefix ``cwin_`` (``-cwin_ts_*``). States are (M, 2) arrays (y_
 bead-major (index 2 j + component) for matrices.
 """
 import math
-import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from petsc4py import PETSc
@@ -39,20 +38,15 @@ WINDOW_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
 DEFAULT_REAR = 6
 
 
-class WindowChain(Chain):
-    """The chain (eq. nc) in gap-lattice coordinates: bead n's position is y_n, its bonds r = gap + y_{n+1} - y_n.
-
-    Implemented by adding gap * (local bead index) to the ghosted positions, so every consumer of positions in
-    :class:`~hertzpetsc.chain.Chain` (right-hand side, tangents, Jacobian, energy) sees the lab-frame bonds; the
-    offset is relative to the first owned bead, so its round-off is eps * gap * (beads per rank). ``gap`` is an
-    attribute that may change between integrations.
-    """
-
-    def __init__(self, spec, comm, gap=0.0, n_tangent=0):
-        if spec.boundary != "free":
-            raise ParameterError("boundary", spec.boundary, "the compacton window is a free-ended chain")
-        super().__init__(spec, comm, n_tangent)
-        self.gap = float(gap)
+def WindowChain(spec, comm, gap=0.0, n_tangent=0):
+    """The free chain (eq. nc) in gap-lattice coordinates: a :class:`~hertzpetsc.chain.Chain` with
+    :attr:`~hertzpetsc.chain.Chain.gap` set (bead n's position is y_n, its bonds r = gap + y_{n+1} - y_n; gap may
+    change between integrations)."""
+    if spec.boundary != "free":
+        raise ParameterError("boundary", spec.boundary, "the compacton window is a free-ended chain")
+    chain = Chain(spec, comm, n_tangent)
+    chain.gap = gap
+    return chain
 
 
 # the rearmost bond compressed by at least this fraction of the deepest compression closes the rear part
@@ -99,8 +93,7 @@ class CompactonWindow:
 
     def _flow(self, k):
         if k not in self._flows:
-            self._flows[k] = TangentFlow(self.spec, k, self.comm, self.tolerances, self.prefix, WindowChain,
-                                         self.rk_type)
+            self._flows[k] = TangentFlow(self.spec, k, self.comm, self.tolerances, self.prefix, rk_type=self.rk_type)
         return self._flows[k]
 
     def run(self, Y, gap, tangents=None, T=1.0, monitor=None):
@@ -160,24 +153,14 @@ class CompactonWindow:
             acc /= self.model.mass(np.arange(self.M))
         return np.stack([Y[:, 1], acc], axis=1).ravel()
 
-    def closed_bonds(self, Y, gap, relative=1e-13):
-        """Bonds j (beads j, j+1) closed at t = 0 or at a time step of the period: r_j < -relative x the largest
-        compression (a compacton's other bonds are exactly open; the solitary wave's doubly exponential tails
-        are counted only above that level)."""
-        r_min = np.full(self.M - 1, np.inf)
-
-        def watch(chain, X):
-            np.minimum(r_min, chain.bonds(chain.gather(X)), out=r_min)
-        Y = np.asarray(Y, float).reshape(self.M, 2)
-        watch_start = gap + np.diff(Y[:, 0])
-        np.minimum(r_min, watch_start, out=r_min)
-        self.run(Y, gap, monitor=watch)
-        deepest = max(0.0, -float(r_min.min()))
-        return np.nonzero(r_min < -relative * deepest)[0]
-
     def core(self, Y, gap):
-        """Bead indices of the core: beads of the closed bonds, and the bead that enters them by the shift."""
-        b = self.closed_bonds(Y, gap)
+        """Bead indices of the core: beads of the bonds closed at t = 0 or at a time step of the period (r_j <
+        -1e-13 x the largest compression: a compacton's other bonds are exactly open; the solitary wave's doubly
+        exponential tails are counted only above that level), and the bead that enters them by the shift."""
+        Y = np.asarray(Y, float).reshape(self.M, 2)
+        r_min = gap + np.diff(Y[:, 0])
+        self.run(Y, gap, monitor=lambda chain, X: np.minimum(r_min, chain.bonds(chain.gather(X)), out=r_min))
+        b = np.nonzero(r_min < -1e-13 * max(0.0, -float(r_min.min())))[0]
         if not len(b):
             raise ParameterError("Y", "no closed bond", "the window holds no compression zone")
         return np.arange(max(b.min() - 1, 0), min(b.max() + 1, self.M - 1) + 1)
@@ -189,30 +172,19 @@ class CompactonWindow:
 
 
 # --- initial guesses and window sizes -------------------------------------------------------------------------------
-def window_length(width, rear=DEFAULT_REAR, front=4):
-    """Beads of a window for a compacton N(q) = ``width`` beads wide: ``rear`` at rest behind, the compression
-    zone plus the bead it advances by, and ``front`` ahead."""
-    return rear + int(math.ceil(width)) + 2 + front
-
-
-def check_window(M, width, rear, q=None):
-    """ParameterError unless the window leaves at least 2 resting beads behind and 3 ahead of the zone."""
-    if rear < 2:
-        raise ParameterError("-rear", rear, "at least 2 resting beads behind the compression zone")
-    need = window_length(width, rear, 3)
-    if M < need:
-        at = f" at q = {q:.6g}" if q is not None else ""
-        raise ParameterError("-M", M, f"the window is too short for the compression zone{at}: it is "
-                                      f"{width:.2f} beads wide, so M >= {need} with {rear} beads behind")
-
-
 def guess_from_branch(point, M, rear=DEFAULT_REAR, q_k=None):
     """The unrefined compacton of a branch point at c = 1 in the window (eqs. extens, twlin, compacton, defvit),
     from :func:`hertzpetsc.compacton.compacton_train`: (Y (M, 2) in gap-lattice coordinates, y = 0 ahead, gap).
-    ParameterError when q > q_k (F(q) < 1) or the window is too short."""
+    ParameterError when q > q_k (F(q) < 1) or the window leaves fewer than 2 resting beads behind the zone (and the
+    bead it advances by) or 3 ahead."""
     from .compacton import CompactonScales, chain_state, compacton_train, placement
     train = compacton_train(point, (), q_k)
-    check_window(M, train.width, rear, point.q)
+    if rear < 2:
+        raise ParameterError("-rear", rear, "at least 2 resting beads behind the compression zone")
+    need = rear + int(math.ceil(train.width)) + 2 + 3
+    if M < need:
+        raise ParameterError("-M", M, f"the window is too short for the compression zone at q = {point.q:.6g}: it is "
+                                      f"{train.width:.2f} beads wide, so M >= {need} with {rear} beads behind")
     sc = CompactonScales.for_velocity(train, 1.0)
     X = chain_state(train, sc, M, placement(train, rear))
     y = X[:, 0] - sc.gap * np.arange(M)
@@ -239,8 +211,6 @@ class ExactCompacton:
     Y: np.ndarray
     residual: float
     iterations: int
-    history: list = field(default_factory=list)
-    seconds: float = 0.0
 
     @property
     def M(self):
@@ -303,7 +273,6 @@ class CompactonRefiner(ContinuationProblem):
 
     def refine(self, Y0, gap0, q, fix_gap=False):
         """The :class:`ExactCompacton` at ``q`` from the window state ``Y0`` (M, 2) and gap ``gap0``."""
-        t0 = time.perf_counter()
         Y0 = np.asarray(Y0, float).reshape(self.window.M, 2)
         problem = WindowFixedPoint(self.window, Y0, gap0, q, fix_gap or q == 0)
         z0 = Y0.ravel() if problem.fix_gap else np.append(Y0.ravel(), gap0)
@@ -312,8 +281,7 @@ class CompactonRefiner(ContinuationProblem):
         residual = float(np.max(np.abs(res.rows[:problem.n])))
         if not residual <= self.residual_tol:
             raise ConvergenceError("compacton Gauss-Newton (window map)", f"residual {residual:.2e}", q=float(q))
-        return ExactCompacton(q=float(q), gap=gap, Y=Y.copy(), residual=residual, iterations=res.iterations,
-                              history=res.history, seconds=time.perf_counter() - t0)
+        return ExactCompacton(q=float(q), gap=gap, Y=Y.copy(), residual=residual, iterations=res.iterations)
 
     # --- the continuation problem in q --------------------------------------------------------------------------
     def create_vec(self):
@@ -339,13 +307,3 @@ class CompactonRefiner(ContinuationProblem):
     def report(self, Z):
         return dict(compacton=self.last)
 
-
-# --- the window state on a long chain ---------------------------------------------------------------------------
-def chain_from_window(Y, N, n0):
-    """(N, 2) gap-lattice state of a free chain with the window state at beads n0..n0+M-1: at rest behind (y = D)
-    and ahead (y = 0)."""
-    Y = np.asarray(Y, float)
-    X = np.zeros((N, 2))
-    X[:n0, 0] = Y[0, 0]
-    X[n0:n0 + len(Y)] = Y
-    return X

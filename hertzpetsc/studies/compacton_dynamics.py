@@ -14,9 +14,10 @@ from petsc4py import PETSc
 
 from ..chain import ChainIntegrator, IntegrationTolerances
 from ..compacton_spectrum import jordan_check, sorted_eig, split_jordan_pair
-from ..compacton_window import CompactonWindow, WindowChain, chain_from_window
+from ..compacton_window import CompactonWindow, WindowChain, embed
 from ..errors import ParameterError
 from ..model import ChainSpec
+from ..options import inserted_options
 from .base import Study
 from .compacton_stability import exact_compacton, fmt_multiplier, q_text
 
@@ -29,16 +30,8 @@ def dynamics_integrator(chain, tolerances=DYNAMICS_TOLERANCES, prefix=DYNAMICS_P
     """The chain TS under ``prefix`` with the adaptor's error norm defaulting to the max norm
     (``-<prefix>ts_adapt_wnormtype infinity``): the RMS norm of a mostly resting long chain lets local errors of
     the few moving beads through. The default is inserted for this set-up only (a given value wins)."""
-    opts = PETSc.Options()
-    name = prefix + "ts_adapt_wnormtype"
-    inserted = not opts.hasName(name)
-    if inserted:
-        opts.setValue(name, "INFINITY")
-    try:
+    with inserted_options(prefix, {"ts_adapt_wnormtype": "INFINITY"}):
         return ChainIntegrator(chain, tolerances, prefix)
-    finally:
-        if inserted:
-            opts.delValue(name)
 
 
 DYN_FIELDS = ("q", "kind", "mu3", "rate", "rate_first", "rate_last",
@@ -48,7 +41,7 @@ DYN_FIELDS = ("q", "kind", "mu3", "rate", "rate_first", "rate_last",
 
 class CompactonDynamics(Study):
     """Exact compactons (stability records, one alpha) on a free chain of N beads in gap-lattice coordinates
-    (:class:`WindowChain`, TS prefix ``cdyn_``), perturbed by ``amplitude`` times the least-stable mode ('mode')
+    (:func:`WindowChain`, TS prefix ``cdyn_``), perturbed by ``amplitude`` times the least-stable mode ('mode')
     or Gaussian noise ('noise') on the window (relative to D for positions and v_peak for velocities); after each
     unit of time (one bead of travel) the window W_k at beads n0 + k.. is compared with Y*:
     delta = a v1 + b v2 + rest (Jordan vectors). Linear prediction: b constant, a_k = a_0 + k b, and
@@ -113,8 +106,7 @@ class CompactonDynamics(Study):
         mu3 = self.mu3[round(ex.q, 12)]
         for kind in kinds:
             X = self.chain.create_state()
-            self.chain.set_from_array(X, chain_from_window(ex.Y + self.perturbation(kind, scale, V[:, i3]),
-                                                           self.N, self.n0))
+            self.chain.set_from_array(X, embed(ex.Y + self.perturbation(kind, scale, V[:, i3]), self.N, self.n0))
             series = {k: np.zeros(self.travel + 1) for k in ("rest", "a", "b", "dist")}
             deviation = np.zeros((self.travel + 1, M))
             t0 = time.perf_counter()

@@ -7,7 +7,7 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from ..compacton_window import DEFAULT_REAR, CompactonRefiner, CompactonWindow, WindowChain, guess_from_branch
+from ..compacton_window import DEFAULT_REAR, CompactonRefiner, CompactonWindow, WindowChain, embed, guess_from_branch
 from ..errors import ParameterError
 from ..model import ChainSpec
 from .base import Study
@@ -52,36 +52,21 @@ class CompactonPairs(Study):
         return dict(alpha=self.branch.alpha, q=self.q, h=self.branch.h, spacing=self.spacing, travel=self.travel,
                     M=self.M, N=self.N, gap=self.gap)
 
-    def refined(self):
-        if "refined" not in self.states:
-            w = CompactonWindow(self.model, self.M, PETSc.COMM_SELF)
-            try:
-                ex = CompactonRefiner(w).refine(self.states["unrefined"], self.gap, self.q, fix_gap=True)
-            finally:
-                w.destroy()
-            self.states["refined"], self.refined_residual = ex.Y, ex.residual
-            self.unrefined_residual = None
-        return self.states["refined"]
-
     def initial(self, rear, front):
         """(N, 2) gap-lattice chain: the front window at bead margin + spacing, the rear one spacing beads behind."""
-        X = np.zeros((self.N, 2))
         nf = self.margin + self.spacing
-        Yf = self.states[front]
-        X[:nf, 0] = Yf[0, 0]
-        X[nf:nf + self.M] = Yf
+        X = embed(self.states[front], self.N, nf)
         if rear:
-            Yr = self.states[rear]
-            nr = nf - self.spacing
-            X[:nr, 0] += Yr[0, 0]
-            X[nr:nr + self.M] = Yr + np.array([Yf[0, 0], 0.0])
+            X[:nf] += embed(self.states[rear], nf, self.margin)
         return X
 
     def run(self):
         self.open()
-        self.refined()
         w = CompactonWindow(self.model, self.M, PETSc.COMM_SELF)
         try:
+            if "refined" not in self.states:
+                ex = CompactonRefiner(w).refine(self.states["unrefined"], self.gap, self.q, fix_gap=True)
+                self.states["refined"], self.refined_residual = ex.Y, ex.residual
             self.unrefined_residual = w.residual(self.states["unrefined"], self.gap)
         finally:
             w.destroy()

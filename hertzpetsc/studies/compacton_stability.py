@@ -142,7 +142,7 @@ class CompactonStabilityScan(Study):
             Y, gap = guess_from_branch(branch.point(q), self.M, self.rear, branch.q_k())
             exact = refiner.refine(Y, gap, q)
         else:
-            exact = continue_compacton(refiner, self._previous(alpha, i), q)
+            exact = continue_to(refiner, [refiner.pack(e) for e in self._previous(alpha, i)], q)["compacton"]
         Y, gap = exact.Y, exact.gap
         core = w.core(Y, gap)
         # a compacton's zone must leave resting beads on both sides; the solitary wave's doubly exponential tails
@@ -282,7 +282,7 @@ class CompactonStabilityScan(Study):
                 values = [get(r) for r in small]
                 order, limit = richardson(values, order=1.0, steps=qs)
                 exact = get(sol[0])
-                lines.append(f"| {a:g} | {name} | " + ", ".join(f"{v:.6f}" for v in values) + f" (q = "
+                lines.append(f"| {a:g} | {name} | " + ", ".join(f"{v:.6f}" for v in values) + " (q = "
                              + ", ".join(q_text(q).split(" ")[0] for q in qs) + f") | {order:.3f} | {limit:.7f} | "
                              f"{exact:.7f} | {limit - exact:+.1e} | {values[-1] - exact:+.1e} |")
         return "\n".join(lines) + "\n"
@@ -300,14 +300,14 @@ def q_text(q):
     return f"pi/{k:.0f} ({q:.5f})" if abs(k - round(k)) < 1e-9 else f"{q:.5f}"
 
 
-def continue_compacton(refiner, previous, q):
-    """The exact compacton at q by natural continuation (:mod:`hertzpetsc.continuation`) from the last two
-    ExactCompactons ``previous`` (or one); pinned by the phase condition, so the corrector may move far."""
-    cont = Continuation(refiner, Natural(max_corrector=math.inf))
-    seeds = [refiner.pack(e) for e in previous[-2:]]
+def continue_to(problem, seeds, value):
+    """The report of the point at ``value`` by natural continuation (:mod:`hertzpetsc.continuation`) of ``problem``
+    from the ``seeds`` (one or two packed points, destroyed here); pinned by the phase condition, so the corrector
+    may move far."""
+    cont = Continuation(problem, Natural(max_corrector=math.inf))
     try:
         cont.seed(seeds)
-        return cont.step_to(q).report["compacton"]
+        return cont.step_to(value).report
     finally:
         for Z in seeds:
             Z.destroy()

@@ -88,7 +88,8 @@ class LongRun(Study):
         X = chain.create_state()
         try:
             if self.store.records:
-                t, E, dt, x = self._decode(self.store.records[-1])
+                times, _, steps, states = decode(np.asarray(self.store.records[-1])[None, :], self.orbit.N)
+                t, dt, x = float(times[0]), float(steps[0]), states[0]
                 E0 = float(self.store.records[0][1])
             else:
                 x, t = self.orbit.x, 0.0
@@ -112,16 +113,8 @@ class LongRun(Study):
         finally:
             X.destroy()
 
-    def _decode(self, record):
-        times, energies, steps, states = decode(np.asarray(record)[None, :], self.orbit.N)
-        return float(times[0]), float(energies[0]), float(steps[0]), states[0]
-
-    def snapshots(self):
-        """(times, energies, steps, states) of every record."""
-        return decode(np.array(self.store.records), self.orbit.N)
-
     def summary(self):
-        times, energies, _, states = self.snapshots()
+        times, energies, _, states = decode(np.array(self.store.records), self.orbit.N)
         tD, D = wave_deviation(times, states, states[0], self.orbit.T)
         h = self.header
         return LongRunSummary(q=self.orbit.q, N=self.orbit.N, T=self.orbit.T, initial_state=h["initial_state"],

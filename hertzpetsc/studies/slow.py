@@ -190,49 +190,39 @@ class SlowInstabilityScan(Study):
     # --- the two routes ---------------------------------------------------------------------------------------
     def comoving(self, point):
         """The co-moving route at one branch point: dict of the cm fields."""
-        thetas = np.linspace(0.0, math.pi, self.n_theta)
         wave = ComovingWave.from_point(point, self.grids[0], PETSc.COMM_SELF)
-        scan = theta_scan(wave, thetas, self.pep)
-        gammas, lam, mus = [scan.gamma], scan.lam, [abs(wave.multiplier(scan.lam, scan.theta))]
-        fine = []
+        scan = theta_scan(wave, np.linspace(0.0, math.pi, self.n_theta), self.pep)
+        gammas, lam, w1 = [scan.gamma], scan.lam, None
         for K in self.grids[1:]:
             w = ComovingWave.from_point(point, K, PETSc.COMM_SELF)
             lam = tracked_exponent(w, scan.theta, lam, self.pep)
             gammas.append(float(w.growth(lam)))
-            fine.append(w)
-        order, extrapolated = richardson(gammas, 2.0, 2)
-        w1 = fine[0]
+            w1 = w if w1 is None else w1
         lw = sector_window(w1, self.theta_longwave, self.pep, box=(-0.05, 0.05))
         near = (np.abs(lw.lam) <= 1.5 * self.theta_longwave / point.q) & ~lw.band
         slope = float(np.max(lw.lam.real[near]) / self.theta_longwave) if near.any() else math.nan
-        return dict(T=wave.T, theta_cm=scan.theta, gamma_cm=np.array(gammas), gamma_cm_extrapolated=extrapolated,
-                    order_cm=richardson(gammas, 2.0)[0], band_cm=scan.band_mu, separation_cm=scan.min_separation,
-                    slope_cm=slope)
+        return dict(T=wave.T, theta_cm=scan.theta, gamma_cm=np.array(gammas),
+                    gamma_cm_extrapolated=richardson(gammas, 2.0, 2)[1], order_cm=richardson(gammas, 2.0)[0],
+                    band_cm=scan.band_mu, separation_cm=scan.min_separation, slope_cm=slope)
 
     def refine(self, point):
         """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T). Starts from the
-        refinement file's state when it has this q."""
+        refinement file's state when it has this q. E stalls above refine_tol at the flow's floor (e.g. long
+        cells): then within 10 refine_tol, else the starting state as it is (E_orbit and E_short say what the
+        deflation worked with)."""
         orbit = orbit_on_chain(point, self.spec)
         if self.refined is not None and self.refined.has(point.q):
             orbit = self.refined.orbit(point, self.spec)
-        try:
-            refined, E = self._refined(orbit, self.refine_tol)
-        except ConvergenceError:
-            # E stalls above refine_tol (the flow's floor at this q, e.g. long cells): within 10 refine_tol, else
-            # the starting state as it is; the record's E_orbit and E_short say what the deflation worked with
+        for tol in (self.refine_tol, 10 * self.refine_tol):
+            self.refiner.tol = tol
             try:
-                refined, E = self._refined(orbit, 10 * self.refine_tol)
+                res = self.refiner.refine(orbit)
+                return res.orbit, res.E
             except ConvergenceError:
-                refined, E = orbit, self.refiner.residual(orbit)
-        return refined, E
-
-    def _refined(self, orbit, tol):
-        self.refiner.tol = tol
-        try:
-            res = self.refiner.refine(orbit)
-        finally:
-            self.refiner.tol = self.refine_tol
-        return res.orbit, res.E
+                pass
+            finally:
+                self.refiner.tol = self.refine_tol
+        return orbit, self.refiner.residual(orbit)
 
     def monodromy(self, point):
         """The monodromy route at a chain wavenumber: dict of the mono fields."""
@@ -333,20 +323,15 @@ def comoving_validation(branch, qs, N, reference, comm=PETSc.COMM_SELF):
         point = branch.point(q)
         grids = validation_grids(point.q)
         wave = ComovingWave.from_point(point, grids[0], comm)
-        best = None
-        for j in range(N // 2 + 1):
-            theta = 2 * math.pi * j / N
-            lam, _ = sector_window(wave, theta, pep).dominant()
-            if lam == lam and (best is None or abs(wave.multiplier(lam, theta)) > best[0]):
-                best = (abs(wave.multiplier(lam, theta)), theta, lam)
-        if best is None:
+        scan = theta_scan(wave, [2 * math.pi * j / N for j in range(N // 2 + 1)], pep)
+        if scan.lam != scan.lam:
             raise ParameterError("-validate", q, "has no mode outside the compacton band: validate at unstable q")
-        mus, lam, theta = [best[0]], best[2], best[1]
+        mus, lam, theta = [abs(wave.multiplier(scan.lam, scan.theta))], scan.lam, scan.theta
         for K in grids[1:]:
             w = ComovingWave.from_point(point, K, comm)
             lam = tracked_exponent(w, theta, lam, pep)
             mus.append(abs(w.multiplier(lam, theta)))
-        order, mu = richardson(mus, 2.0, 2)
+        mu = richardson(mus, 2.0, 2)[1]
         ref = reference.get(round(point.q, 12), math.nan)
         rows.append(dict(q=point.q, theta=theta, grids=grids, mus=mus, order=richardson(mus, 2.0)[0], mu=mu,
                          reference=ref, difference=mu - ref))

@@ -28,7 +28,6 @@ from petsc4py import PETSc
 
 from ..compacton_spectrum import jordan_check, split_jordan_pair
 from ..compacton_window import WINDOW_PREFIX, WINDOW_TOLERANCES, embed
-from ..continuation import Continuation, Natural
 from ..errors import ParameterError
 from ..hertz import check_alpha
 from ..model import LatticeModel
@@ -38,12 +37,10 @@ from ..solitary_family import (PrecompressionContinuation, check_sound_speed, es
                                precompression_at_unit_speed, symplectic_product, tail_rate, unit_lattice,
                                weighted_multipliers, window_beads, window_energy)
 from .base import Study
-from .compacton_stability import CHECK_PREFIX, CHECK_TOLERANCES, fmt_multiplier
+from .compacton_stability import CHECK_PREFIX, CHECK_TOLERANCES, NDOM, TOL_UNSTABLE, _key, continue_to, fmt_multiplier
 from .dealing import dealt
 
 FORMAT = "hertzpetsc-solitary-stability-1"
-NDOM = 6
-TOL_UNSTABLE = 1e-8
 FD_STEP = 1e-4                  # relative step in delta0 of the finite-difference slope (error ~ step^2 ~ 1e-8)
 POINT_MARGIN = 1.001            # multipliers above this times the essential radius are compared in the 2M window
                                 # (a finite window's transport multipliers lie just below it)
@@ -94,10 +91,6 @@ class SolitaryStabilityParameters:
             raise ParameterError("tol_unstable", self.tol_unstable, "must be > 0")
 
 
-def _key(alpha, c0):
-    return (round(float(alpha), 10), round(float(c0), 12))
-
-
 class SolitaryStabilityScan(Study):
     """Solitary waves (module docstring): each alpha on one rank (COMM_SELF), the alphas of a continuation step
     dealt to the ranks, so the records do not depend on the number of ranks. Prefixes: ``cwin_`` (window flows),
@@ -142,15 +135,8 @@ class SolitaryStabilityScan(Study):
             return cont_problem.refine(guess_from_solitary(wave, M, M // 2), 0.0)
         byc = {_key(r["alpha"], r["c0"]): r for r in self.store.records}
         prev = [byc[_key(alpha, c)] for c in self.params.c0[max(0, i - 2):i]]
-        cont = Continuation(cont_problem, Natural(max_corrector=math.inf))
         seeds = [cont_problem.pack(r["state"], float(r["delta0"])) for r in prev]
-        try:
-            cont.seed(seeds)
-            return cont.step_to(precompression_at_unit_speed(alpha, self.params.c0[i])).report["wave"]
-        finally:
-            for Z in seeds:
-                Z.destroy()
-            cont.destroy()
+        return continue_to(cont_problem, seeds, precompression_at_unit_speed(alpha, self.params.c0[i]))["wave"]
 
     def compute(self, item):
         """The record of (alpha, index in the sound speeds)."""

@@ -175,3 +175,17 @@ def solve_solitary_wave(params, comm, prefix=SOL_PREFIX):
     y, k_alpha = displacement_profile(r, params.cells_per_unit)
     return SolitaryWave(params=params, s=s, r=r, y=y, k_alpha=k_alpha, iterations=its, residual_norm=float(fnorm),
                         tail=tail, wall_time=time.perf_counter() - t0)
+
+
+def configure_options(comm, prefix=SOL_PREFIX):
+    """Read and check the options under ``prefix`` by configuring the SNES of a small solitary-wave problem, for
+    studies that solve later (a bad value fails here, before any computation)."""
+    prob = SolitaryWaveProblem(SolitaryParameters(1.5, 2, 3.0), comm)
+    X = prob.grid.vec_from_half_profile(continuum_compacton(1.5, np.arange(prob.params.K + 1) / 2))
+    J = prob.assembler.create(prob._blocks(X))
+    try:
+        create_snes(prob, J, prefix).destroy()
+    finally:
+        J.destroy()
+        X.destroy()
+        prob.destroy()

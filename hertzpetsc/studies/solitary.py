@@ -3,8 +3,7 @@ from petsc4py import PETSc
 
 from ..errors import ParameterError
 from ..richardson import richardson
-from ..solitary import SOL_PREFIX, SolitaryParameters, solve_solitary_wave
-from ..twsolver import configure_options
+from ..solitary import SolitaryParameters, configure_options, solve_solitary_wave
 
 
 def k_alpha_extrapolated(alpha, cells=(80, 160, 320), half_length=8.0):
@@ -26,7 +25,7 @@ class SolitaryStudy:
         self.alphas, self.cells, self.lengths, self.comm = list(alphas), cells, sorted(lengths), comm
         self.results = {}
         self.finest = {}
-        configure_options(comm, SOL_PREFIX)
+        configure_options(comm)
 
     def run(self):
         """Solve for every alpha; yields alpha after each."""

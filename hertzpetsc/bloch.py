@@ -44,7 +44,6 @@ class TwistedChain(Chain):
             raise ParameterError("boundary", spec.boundary, "Bloch sectors need a periodic cell")
         super().__init__(spec, comm, n_tangent=int(n_tangent))
         self.complex_modes = complex_modes
-        self.n_modes = int(n_tangent) // 2 if complex_modes else int(n_tangent)
         self.theta = float(theta)
 
 

@@ -48,10 +48,7 @@ def trivial_multipliers(lam, n=N_TRIVIAL):
 
 def spectral_radius(lam, exclude_trivial=True):
     """rho over the multipliers, leaving out the trivial ones (whose splitting is numerical, not dynamical)."""
-    lam = np.asarray(lam)
-    if exclude_trivial and len(lam) > N_TRIVIAL:
-        lam = np.delete(lam, trivial_multipliers(lam))
-    return float(np.max(np.abs(lam)))
+    return Spectrum(lam, exclude_trivial).rho
 
 
 @dataclass

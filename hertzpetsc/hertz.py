@@ -101,10 +101,6 @@ class HertzLaw(InteractionLaw):
         object.__setattr__(self, "delta0", check_delta0(self.delta0))
 
     @property
-    def precompressed(self):
-        return self.delta0 > 0.0
-
-    @property
     def degree(self):
         """V'_delta0(a r) = a^alpha V'_(delta0/a)(r): homogeneous of degree alpha up to the precompression."""
         return self.alpha

@@ -67,10 +67,6 @@ class Damping:
         object.__setattr__(self, "gamma", _nonnegative("gamma", self.gamma, "the on-site damping"))
         object.__setattr__(self, "eta", _nonnegative("eta", self.eta, "the damping between neighbours"))
 
-    @property
-    def active(self):
-        return self.gamma > 0.0 or self.eta > 0.0
-
 
 @dataclass(frozen=True)
 class LatticeModel:
@@ -141,7 +137,7 @@ class LatticeModel:
 
     @property
     def damped(self):
-        return self.damping.active
+        return self.damping.gamma > 0.0 or self.damping.eta > 0.0
 
     # --- the forces, as every solver evaluates them ------------------------------------------------------------
     def force(self, r):
@@ -376,14 +372,6 @@ class ChainSpec:
         """N beads of the Hertzian chain with exponent alpha (the paper's, with unit masses and no
         precompression, by default)."""
         return cls(LatticeModel.hertz(alpha, masses, delta0), N, boundary, **ends)
-
-    @property
-    def alpha(self):
-        return self.model.alpha
-
-    @property
-    def periodic(self):
-        return self.boundary == "periodic"
 
     @property
     def driven(self):

@@ -20,20 +20,6 @@ from .errors import HertzPetscError, ParameterError
 from .model import ChainSpec
 
 
-def stack_tangents(x, Y):
-    """The chain's augmented state (n, 2 + 2k) from the state ``x`` (n, 2) and k tangent columns ``Y`` (n, 2, k)."""
-    x = np.asarray(x, float)
-    n, k = len(x), np.shape(Y)[2]
-    return np.concatenate([x.reshape(n, 2), np.asarray(Y, float).reshape(n, 2, k).transpose(0, 2, 1).reshape(n, 2 * k)],
-                          axis=1)
-
-
-def split_tangents(z, k):
-    """(state (n, 2), tangent columns (n, 2, k)) from an augmented state ``z`` (n, 2 + 2k)."""
-    n = len(z)
-    return z[:, :2].copy(), z[:, 2:].reshape(n, k, 2).transpose(0, 2, 1).copy()
-
-
 class TangentFlow:
     """Flow and tangent-linear flow of a chain over [0, T], with k >= 0 tangent vectors at a time; its TS has the
     options prefix of the role it serves (``shoot_`` for the refinement, ``floquet_`` for the spectra, ``cwin_`` for
@@ -61,8 +47,10 @@ class TangentFlow:
         Returns (X(T) as (N, 2), R(T; 0) Y0 as (N, 2, k)) on every rank.
         """
         N, k, ts = self.spec.N, self.k, self.integrator.ts
-        self.aug.set_from_array(self.Z, stack_tangents(np.asarray(x0, float).reshape(N, 2),
-                                                       np.asarray(Y0, float).reshape(N, 2, k)))
+        z = np.empty((N, 2 + 2 * k))                  # bead-major: x, xdot, then (y, ydot) of each column
+        z[:, :2] = np.asarray(x0, float).reshape(N, 2)
+        z[:, 2:] = np.asarray(Y0, float).reshape(N, 2, k).transpose(0, 2, 1).reshape(N, 2 * k)
+        self.aug.set_from_array(self.Z, z)
         if monitor is not None:
             ts.setMonitor(lambda ts, i, t, X: monitor(self.aug, X))
         try:
@@ -70,7 +58,8 @@ class TangentFlow:
         finally:
             if monitor is not None:
                 ts.cancelMonitor()
-        return split_tangents(self.aug.gather(self.Z), k)
+        z = self.aug.gather(self.Z)
+        return z[:, :2].copy(), z[:, 2:].reshape(N, k, 2).transpose(0, 2, 1).copy()
 
     def resolvent(self, x0, T):
         """Dense R(T; 0) (2N x 2N, index 2n + c for bead n, component c) and X(T), on every rank.

@@ -32,16 +32,6 @@ from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, FloquetSolver, Spectrum
 from .symmetry import real_sector
 
 
-def cell_map(sectors, orbit, theta):
-    """P_Theta = e^{-i j Theta} G_Theta^{m'} (2M x 2M, index 2n + c) of ``orbit`` (an N-bead wave), and its cell."""
-    sym = orbit.symmetry
-    G = sectors.monodromy(orbit.x[:sym.M], sym.delta(orbit.T), theta, sym.k)
-    P = np.linalg.matrix_power(G, sym.m_cell)
-    if theta != 0.0:
-        P = np.exp(-1j * sym.j * theta) * P
-    return P, sym
-
-
 def zone_directions(model, x0, q):
     """Per zone k of the M-bead cell state ``x0`` (M, 2): the restriction to the zone's beads of the time-shift
     direction f = (xdot, xddot) and of the translation t = (1, 0) of its beads of each type c of the mass pattern,
@@ -261,12 +251,10 @@ class DeflatedSectors(FloquetSolver):
                               invariance, v, time.perf_counter() - t0, decoupled, signatures)
 
     @PETSc.Log.EventDecorator("hz_deflated_sector")
-    def sector(self, orbit, theta, decoupled=None):
+    def sector(self, orbit, theta):
         """The :class:`DeflatedSector` of ``orbit`` (a wave on N beads) at twist ``theta`` in [0, pi] per cell of
-        M = N / gcd(m, N) beads (``decoupled``: see :func:`known_vectors`)."""
-        _check_twist(theta)
-        P, _ = cell_map(self.sectors, orbit, theta)
-        return self._deflated(orbit, P, theta, decoupled)
+        M = N / gcd(m, N) beads (one twisted run)."""
+        return self.scan(orbit, [theta], propagate=False)[1][0]
 
     @PETSc.Log.EventDecorator("hz_deflated_scan")
     def scan(self, orbit, thetas, propagate=None, raw=True):

@@ -264,7 +264,7 @@ def seeded_dominant_multipliers(orbit, bloch, nev=10, comm=None, tolerances=FLOQ
     seed = solver.A.createVecRight()
     try:
         s = sum((Y.real + Y.imag) / np.linalg.norm(Y.real + Y.imag) for _, Y in real_pairs(bloch.modes[:nev], bloch.L))
-        solver.op.flow.base.set_from_array(seed, s)
+        solver.op.base.set_from_array(seed, s)
         solver.start_from([seed])
         return solver.spectrum(orbit)
     finally:

@@ -177,7 +177,7 @@ class DominantFloquet(FloquetSolver):
         self.prefix, self.dim, self.warm, self.start, self.previous = prefix, dim, warm, [], []
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
-        self.eps = largest_magnitude(self.op.flow.base.comm, prefix, nev,
+        self.eps = largest_magnitude(self.op.base.comm, prefix, nev,
                                      min(dim, max(2 * nev + 20, 60) if ncv is None else ncv), tol)
         self.nev = self.eps.getDimensions()[0]
         if self.nev > dim:

@@ -29,15 +29,13 @@ class TangentFlow:
         self.spec = spec
         self.k = int(n_tangent)
         self.aug = chain(spec, comm, n_tangent=self.k)
-        self.base = Chain(spec, comm)                  # same N and comm: same ownership ranges
         self.integrator = ChainIntegrator(self.aug, tolerances, prefix, rk_type)
         self.Z = self.aug.create_state()
 
     def set_spec(self, spec):
-        """Move both chains to another chain of the same layout (:meth:`~hertzpetsc.chain.Chain.set_spec`: e.g. an
+        """Move the flow to another chain of the same layout (:meth:`~hertzpetsc.chain.Chain.set_spec`: e.g. an
         actuator's signal at another driving frequency)."""
         self.aug.set_spec(spec)
-        self.base.set_spec(spec)
         self.spec = spec
 
     def run(self, x0, T, Y0, monitor=None):
@@ -83,7 +81,6 @@ class TangentFlow:
         self.Z.destroy()
         self.integrator.destroy()
         self.aug.destroy()
-        self.base.destroy()
 
 
 class MonodromyModShift:
@@ -101,21 +98,24 @@ class MonodromyModShift:
             raise ParameterError("shift", shift, "must be 1 (F = S R, a travelling wave) or 0 (R, a driven chain)")
         self.shift = int(shift)
         self.flow = TangentFlow(spec, 1, comm, tolerances, prefix)
+        # the chain of one vector: same N and comm, same ownership ranges (also flow.base, its former place)
+        self.base = self.flow.base = Chain(spec, comm)
         self.products = self.integrations = 0
-        self._RY = self.flow.base.create_state()
+        self._RY = self.base.create_state()
         self._blocks = {}
         self.set_orbit(x0, T)
 
     def set_spec(self, spec):
         """Move the operator to another chain of the same layout (:meth:`TangentFlow.set_spec`)."""
         self.spec = spec
+        self.base.set_spec(spec)
         self.flow.set_spec(spec)
         for flow in self._blocks.values():
             flow.set_spec(spec)
 
     def set_orbit(self, x0, T):
         """Move the operator to another orbit of the same chain (the next wavenumber of a scan)."""
-        base = self.flow.base
+        base = self.base
         self.x0 = np.asarray(x0, dtype=float).reshape(self.spec.N, 2).copy()
         self.x0_local = self.x0[base.xs:base.xe].copy()
         self.T = float(T)
@@ -160,7 +160,7 @@ class MonodromyModShift:
 
     def mult(self, mat, x, y):
         """y = S^shift R(T; 0) x, all in the chain's distributed layout (no gathering)."""
-        flow, base = self.flow, self.flow.base
+        flow, base = self.flow, self.base
         z = flow.Z.getArray().reshape(base.nloc, 4)
         z[:, :2] = self.x0_local
         z[:, 2:] = x.getArray(readonly=True).reshape(base.nloc, 2)
@@ -175,7 +175,7 @@ class MonodromyModShift:
 
     def create_mat(self):
         """The PETSc shell matrix (2N x 2N, the chain's layout)."""
-        base = self.flow.base
+        base = self.base
         n_local = 2 * base.nloc
         N2 = 2 * self.flow.spec.N
         mat = PETSc.Mat().createPython(((n_local, N2), (n_local, N2)), context=self, comm=base.comm)
@@ -186,6 +186,7 @@ class MonodromyModShift:
         """Free the flow; also called by petsc4py (with the matrix) when the shell matrix is destroyed."""
         if self.flow is not None:
             self._RY.destroy()
+            self.base.destroy()
             self.flow.destroy()
             self.flow = None
             for flow in self._blocks.values():

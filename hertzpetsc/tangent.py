@@ -16,7 +16,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
-from .errors import HertzPetscError, ParameterError
+from .errors import ParameterError
 from .model import ChainSpec
 
 
@@ -133,20 +133,10 @@ class MonodromyModShift:
         self.integrations += 1
         if size == 1 or k < size:
             return self._integrate(Y, self.comm)
-        rank = self.comm.getRank()
-        mine = list(range(rank, k, size))
-        try:
-            share, failure = self._integrate(Y[:, :, mine], PETSc.COMM_SELF), None
-        except HertzPetscError as err:
-            share, failure = None, (type(err), err.args)
-        parts = self.comm.tompi4py().allgather((mine, share, failure))
-        for _, _, failed in parts:
-            if failed is not None:
-                err = failed[0].__new__(failed[0])
-                err.args = failed[1]
-                raise err
+        from .studies.dealing import dealt
         FY = np.empty_like(Y)
-        for cols, part, _ in parts:
+        shares = [list(range(r, k, size)) for r in range(size)]             # equal costs: share r on rank r
+        for cols, part in dealt(shares, [1] * size, self.comm, lambda c: self._integrate(Y[:, :, c], PETSc.COMM_SELF)):
             FY[:, :, cols] = part
         return FY
 

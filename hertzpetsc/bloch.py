@@ -26,12 +26,12 @@ import math
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import Chain, ChainIntegrator
+from .chain import Chain
 from .errors import ParameterError
 from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, DominantFloquet, FloquetSolver, Spectrum
 from .model import ChainSpec
 from .symmetry import real_sector
-from .tangent import LOCAL_RESPONSE, CellPropagator, MonodromyModShift, twisted_resolvent
+from .tangent import LOCAL_RESPONSE, CellPropagator, MonodromyModShift, TangentFlow, twisted_resolvent
 
 
 class TwistedChain(Chain):
@@ -44,7 +44,6 @@ class TwistedChain(Chain):
             raise ParameterError("boundary", spec.boundary, "Bloch sectors need a periodic cell")
         super().__init__(spec, comm, n_tangent=int(n_tangent))
         self.complex_modes = complex_modes
-        self.n_modes = int(n_tangent) // 2 if complex_modes else int(n_tangent)
         self.theta = float(theta)
 
 
@@ -65,11 +64,12 @@ class BlochSectors:
         self._solver(p * -(-(2 * self.comm.getSize() + 1) // p), False)
 
     def _solver(self, M, complex_modes):
+        """The tangent flow of the twisted M-bead cell with 2M real or complex columns (built once)."""
         key = (M, complex_modes)
         if key not in self._solvers:
-            chain = TwistedChain(ChainSpec(self.model, M), (4 if complex_modes else 2) * M, self.comm, complex_modes)
-            integrator = ChainIntegrator(chain, self.tolerances, self.prefix)
-            self._solvers[key] = (chain, integrator, chain.create_state())
+            self._solvers[key] = TangentFlow(ChainSpec(self.model, M), (4 if complex_modes else 2) * M, self.comm,
+                                             self.tolerances, self.prefix, lambda spec, comm, n_tangent:
+                                             TwistedChain(spec, n_tangent, comm, complex_modes))
         return self._solvers[key]
 
     @PETSc.Log.EventDecorator("hz_bloch_sector")
@@ -79,25 +79,14 @@ class BlochSectors:
         x0 = np.asarray(x0, dtype=float)
         M = len(x0)
         complex_modes = not real_sector(theta)
-        ch, integrator, Z = self._solver(M, complex_modes)
-        ch.theta = float(theta)
-        z = np.zeros((M, ch.dof))
-        z[:, :2] = x0
-        k = np.arange(2 * M)
+        flow = self._solver(M, complex_modes)
+        flow.aug.theta = float(theta)
+        Y = np.eye(2 * M).reshape(M, 2, 2 * M)
+        if complex_modes:                                         # columns (u, w) = (e_k, 0) of complex mode k
+            Y = np.stack([Y, np.zeros_like(Y)], axis=3).reshape(M, 2, 4 * M)
+        R = flow.run(x0, T, Y)[1].reshape(2 * M, -1)
         if complex_modes:
-            cols = z[:, 2:].reshape(M, 2 * M, 2, 2)              # bead, column, (u, w), (y, ydot)
-            cols[k // 2, k, 0, k % 2] = 1.0                       # u = e_k, w = 0
-        else:
-            cols = z[:, 2:].reshape(M, 2 * M, 2)                  # bead, column, (y, ydot)
-            cols[k // 2, k, k % 2] = 1.0
-        ch.set_from_array(Z, z)
-        integrator.integrate(Z, 0.0, T, dt=integrator.initial_step)   # the same first step whatever ran before
-        out = ch.gather(Z)[:, 2:]
-        if complex_modes:
-            out = out.reshape(M, 2 * M, 2, 2)
-            R = (out[:, :, 0, :] + 1j * out[:, :, 1, :]).transpose(0, 2, 1).reshape(2 * M, 2 * M)
-        else:
-            R = out.reshape(M, 2 * M, 2).transpose(0, 2, 1).reshape(2 * M, 2 * M)
+            R = R[:, 0::2] + 1j * R[:, 1::2]
         self.runs += 1
         return self._twisted_shift(R, theta, shift)
 
@@ -118,15 +107,9 @@ class BlochSectors:
         deals them to ranks, so that every rank takes the same route: two complex sectors or more) and the orbit's
         response stays within a cell (checked first on the edge beads' 4 columns); else :meth:`monodromy` for
         each."""
-        x0 = np.asarray(x0, dtype=float)
-        M = len(x0)
-        prop = None
         among = thetas if among is None else among
-        if thetas and sum(1 for theta in among if not real_sector(theta)) >= 2 and M >= 4:
-            prop = self._propagate(x0, T)
-        for theta in thetas:
-            yield self._twisted_shift(prop.twisted(theta), theta, shift) if prop else \
-                self.monodromy(x0, T, theta, shift)
+        maps = self.sector_maps(x0, T, shift, bool(thetas) and sum(not real_sector(theta) for theta in among) >= 2)
+        return (maps(theta) for theta in thetas)
 
     def sector_maps(self, x0, T, shift=1, propagate=True):
         """The function theta -> G_theta around one orbit (any number of twists, e.g. a scan of the infinite chain's
@@ -155,13 +138,7 @@ class BlochSectors:
 
     def destroy(self):
         for solver in self._solvers.values():
-            if isinstance(solver, CellPropagator):
-                solver.destroy()
-                continue
-            chain, integrator, Z = solver
-            Z.destroy()
-            integrator.destroy()
-            chain.destroy()
+            solver.destroy()
         self._solvers = {}
 
 
@@ -287,7 +264,7 @@ def seeded_dominant_multipliers(orbit, bloch, nev=10, comm=None, tolerances=FLOQ
     seed = solver.A.createVecRight()
     try:
         s = sum((Y.real + Y.imag) / np.linalg.norm(Y.real + Y.imag) for _, Y in real_pairs(bloch.modes[:nev], bloch.L))
-        solver.op.flow.base.set_from_array(seed, s)
+        solver.op.base.set_from_array(seed, s)
         solver.start_from([seed])
         return solver.spectrum(orbit)
     finally:

@@ -88,10 +88,9 @@ class Chain:
         self._sync()
 
     def _take(self, spec):
-        """The physics of ``spec`` on this layout: model, damping, masses and the ends this rank touches."""
+        """The physics of ``spec`` on this layout: model, masses and the ends this rank touches."""
         self.spec = spec
         self.model = spec.model
-        self.damping = self.model.damping if self.model.damped else None
         # the ends this rank touches: ('free' | 'wall' | Actuator) or None inside the chain / periodic
         self.left_end = spec.left if self.first else None
         self.right_end = spec.right if self.last else None
@@ -109,9 +108,9 @@ class Chain:
         if spec.N != self.spec.N or spec.boundary != self.spec.boundary:
             raise ParameterError("spec", (spec.N, spec.boundary), f"must keep N = {self.spec.N} and boundary "
                                  f"{self.spec.boundary!r} (the layout of this chain)")
-        def kind(end):
-            return "actuator" if isinstance(end, Actuator) else end
-        if (kind(spec.left), kind(spec.right)) != (kind(self.spec.left), kind(self.spec.right)) or type(spec.model.law) is not type(self.model.law):
+        kind = kernels.end_kind
+        if (kind(spec.left), kind(spec.right)) != (kind(self.spec.left), kind(self.spec.right)) \
+                or type(spec.model.law) is not type(self.model.law):
             raise ParameterError("spec", spec, "must keep the kinds of the ends (free, wall, actuator) and of the "
                                  f"law ({type(self.model.law).__name__}) of this chain")
         self._take(spec)
@@ -246,8 +245,7 @@ class Chain:
         if self.kernel is None:
             self.rhs_reference(ts, t, X, F)
             return
-        if self.kernel.python_signals:
-            self.kernel.set_time(t)
+        self.kernel.set_time(t)                       # the actuators whose signals are evaluated in Python
         self.kernel(X, F, t)
 
     def rhs_reference(self, ts, t, X, F):
@@ -267,26 +265,15 @@ class Chain:
             dy = y[1:] - y[:-1]
             out[:, 2::2] = a[1:-1, 3::2]
             out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1]
-        if self.damping is not None:                 # the state's and the tangents' velocities alike
+        if self.model.damped:                        # the state's and the tangents' velocities alike
             out[:, 1::2] += self._damping_forces(a[:, 1::2], mask)
         if self.inverse_mass is not None:
             out[:, 1::2] *= self.inverse_mass[:, None]
 
-    def install_rhs(self, ts, F, compiled=True):
-        """Make this chain's right-hand side that of ``ts`` (residual vector F): the compiled function called by the
-        TS itself unless an actuator's signal needs Python (any signal but :class:`~hertzpetsc.model.Harmonic`),
-        else :meth:`rhs` (``compiled=False``: :meth:`rhs_reference`)."""
-        if not compiled or self.kernel is None:
-            ts.setRHSFunction(self.rhs_reference, F)
-        elif self.kernel.python_signals:
-            ts.setRHSFunction(self.rhs, F)
-        else:
-            self.kernel.install(ts, F)
-
     def _damping_forces(self, v, mask):
         """-gamma v_n + eta (dv_n - dv_{n-1}), dv the bonds' velocity differences (v: (nloc + 2, columns) ghosted
         velocities of the state and of the tangents, which obey the same linear terms)."""
-        gamma, eta = self.damping.gamma, self.damping.eta
+        gamma, eta = self.model.damping.gamma, self.model.damping.eta
         out = -gamma * v[1:-1]
         if eta > 0.0:
             dv = (v[1:] - v[:-1]) * mask[:, None]
@@ -301,7 +288,7 @@ class Chain:
         mask = self._bond_mask()
         s = self.model.stiffness(r) * mask                # bond stiffness V''(x_{n+1} - x_n)
         inv = self.inverse_mass if self.inverse_mass is not None else np.ones(self.nloc)
-        gamma, eta = (self.damping.gamma, self.damping.eta) if self.damping is not None else (0.0, 0.0)
+        gamma, eta = self.model.damping.gamma, self.model.damping.eta
         N = self.spec.N
         n = np.arange(self.xs, self.xe)
         rows_x = 2 * n
@@ -355,8 +342,7 @@ class Chain:
         mask = self._bond_mask()
         v = a[:, 1]
         dv = (v[1:] - v[:-1]) * mask
-        eta = self.damping.eta if self.damping is not None else 0.0
-        gamma = self.damping.gamma if self.damping is not None else 0.0
+        gamma, eta = self.model.damping.gamma, self.model.damping.eta
         f = self.model.force(r) * mask + eta * dv
         dissipation = gamma * np.sum(v[1:-1] ** 2) + eta * np.sum(dv[1:] ** 2)
         if self.first:
@@ -419,8 +405,14 @@ class ChainIntegrator:
         ts.setType(PETSc.TS.Type.RK)
         ts.setRKType(rk_type)
         self._F = chain.create_state()
-        compiled = PETSc.Options(prefix).getBool("rhs_compiled", True)
-        chain.install_rhs(ts, self._F, compiled)
+        # the compiled function, called by the TS itself unless an actuator's signal (any but Harmonic) needs Python:
+        # then Chain.rhs; no kernel or -<prefix>rhs_compiled 0: Chain.rhs_reference
+        if not PETSc.Options(prefix).getBool("rhs_compiled", True) or chain.kernel is None:
+            ts.setRHSFunction(chain.rhs_reference, self._F)
+        elif chain.kernel.python_signals:
+            ts.setRHSFunction(chain.rhs, self._F)
+        else:
+            chain.kernel.install(ts, self._F)
         if chain.n_tangent == 0:
             self._J = chain.create_jacobian()
             ts.setRHSJacobian(chain.rhs_jacobian, self._J, self._J)

@@ -51,11 +51,6 @@ def sup_norm(u_half):
     return float(b - (a - c) ** 2 / (8 * curv)) if curv < 0 else float(b)
 
 
-def slope_at_origin(u_half, h):
-    """p(q) = u'(0) by the centred difference (u_1 - u_{-1}) / 2h = u_1 / h (u odd); exact on the free flight."""
-    return float(u_half[1] / h)
-
-
 def free_flight_half_length(u_half, q, h):
     """ell(q): both shift differences d+ = u(xi+q) - u(xi) and d- = u(xi) - u(xi-q) are >= 0 on [-ell, ell].
 
@@ -103,7 +98,7 @@ def point_diagnostics(u_half, q, h, alpha):
     A0 = float(law.amplitude(law.p0))  # ||u0||_inf, so that omega(pi, A0) = 1 (fig. dispersplot)
     return WaveDiagnostics(
         norm_inf=norm,
-        slope=slope_at_origin(u_half, h),
+        slope=float(u_half[1] / h),                   # p(q) = u'(0) = (u_1 - u_{-1}) / 2h (u odd): exact in free flight
         ell=ell,
         N=2 * (math.pi - ell) / q,                    # eq. defnq: mean number of adjacent interacting beads
         F=2 * ell / q,                                # mean number of adjacent beads in free flight
@@ -138,8 +133,3 @@ def crossing(q, values, level):
         if v[i] * v[i + 1] < 0:
             return float(q[i] + (q[i + 1] - q[i]) * v[i] / (v[i] - v[i + 1]))
     return float(q[-1]) if len(v) and v[-1] == 0 else math.nan
-
-
-def q_k(q, F):
-    """q_k where F(q_k) = 1 (paper: q_k ~ 1.8): below it, compression packets are separated by free flight."""
-    return crossing(q, F, 1.0)

@@ -16,6 +16,7 @@ status   class
 Errors are raised on every rank at once: parameters and input files are checked on all ranks (or on rank 0 and
 the verdict broadcast), and solver verdicts are collective, so a driver can print on rank 0 and exit on all.
 """
+import math
 
 
 class HertzPetscError(Exception):
@@ -40,6 +41,19 @@ class ParameterError(HertzPetscError, ValueError):
         if isinstance(name, str) and not name.startswith("-") and name in options:
             return ParameterError(f"-{name}", self.value, self.valid)
         return self
+
+
+def check_number(name, value, what, minimum=None, strict=False):
+    """``value`` as a float if it is a finite real number >= ``minimum`` (> if ``strict``; any if None), else a
+    :class:`ParameterError` naming the parameter ``name`` (``what`` it is) and its valid range."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        v = math.nan
+    if not (math.isfinite(v) and (minimum is None or (v > minimum if strict else v >= minimum))):
+        bound = "" if minimum is None else f" {'>' if strict else '>='} {minimum:g}"
+        raise ParameterError(name, value, f"{what} must be a finite real number{bound}")
+    return v
 
 
 class OptionError(ParameterError):

@@ -48,10 +48,7 @@ def trivial_multipliers(lam, n=N_TRIVIAL):
 
 def spectral_radius(lam, exclude_trivial=True):
     """rho over the multipliers, leaving out the trivial ones (whose splitting is numerical, not dynamical)."""
-    lam = np.asarray(lam)
-    if exclude_trivial and len(lam) > N_TRIVIAL:
-        lam = np.delete(lam, trivial_multipliers(lam))
-    return float(np.max(np.abs(lam)))
+    return Spectrum(lam, exclude_trivial).rho
 
 
 @dataclass
@@ -180,7 +177,7 @@ class DominantFloquet(FloquetSolver):
         self.prefix, self.dim, self.warm, self.start, self.previous = prefix, dim, warm, [], []
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
-        self.eps = largest_magnitude(self.op.flow.base.comm, prefix, nev,
+        self.eps = largest_magnitude(self.op.base.comm, prefix, nev,
                                      min(dim, max(2 * nev + 20, 60) if ncv is None else ncv), tol)
         self.nev = self.eps.getDimensions()[0]
         if self.nev > dim:

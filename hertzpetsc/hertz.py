@@ -8,30 +8,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, check_number
 from .law import InteractionLaw, check_scale
 
 
 def check_alpha(alpha):
     """Return ``alpha`` as a float, or raise :class:`ParameterError` unless alpha > 1 (eq. vhertz)."""
-    try:
-        a = float(alpha)
-    except (TypeError, ValueError):
-        raise ParameterError("alpha", alpha, "must be a real number > 1") from None
-    if not (a > 1.0 and math.isfinite(a)):
-        raise ParameterError("alpha", alpha, "the Hertz exponent must be a finite real number > 1")
-    return a
+    return check_number("alpha", alpha, "the Hertz exponent", 1.0, strict=True)
 
 
 def check_delta0(delta0):
     """Return the precompression ``delta0`` as a float, or raise :class:`ParameterError` unless delta0 >= 0."""
-    try:
-        d = float(delta0)
-    except (TypeError, ValueError):
-        raise ParameterError("delta0", delta0, "must be a real number >= 0") from None
-    if not (d >= 0.0 and math.isfinite(d)):
-        raise ParameterError("delta0", delta0, "the precompression (static overlap) must be a finite number >= 0")
-    return d
+    return check_number("delta0", delta0, "the precompression (static overlap)", 0.0)
 
 
 def abs_power(a, e):
@@ -99,10 +87,6 @@ class HertzLaw(InteractionLaw):
     def __post_init__(self):
         object.__setattr__(self, "alpha", check_alpha(self.alpha))
         object.__setattr__(self, "delta0", check_delta0(self.delta0))
-
-    @property
-    def precompressed(self):
-        return self.delta0 > 0.0
 
     @property
     def degree(self):

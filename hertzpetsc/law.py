@@ -16,11 +16,9 @@ Closed forms a law may provide (the defaults say what they cost when it does not
 * :meth:`contact`: where V'' may be non-zero (the rest of the bonds carry no force: the solvers skip them).
 * ``linear_stiffness``: V''(0), the stiffness of small oscillations about the equilibrium (0 in a sonic vacuum).
 """
-import math
-
 import numpy as np
 
-from .errors import ParameterError
+from .errors import check_number
 
 
 class InteractionLaw:
@@ -67,13 +65,7 @@ class InteractionLaw:
 
 def check_scale(a, name="a"):
     """a must be a finite number > 0 (an amplitude or a scale)."""
-    try:
-        x = float(a)
-    except (TypeError, ValueError):
-        raise ParameterError(name, a, "must be a real number > 0") from None
-    if not (x > 0 and math.isfinite(x)):
-        raise ParameterError(name, a, "must be a finite number > 0")
-    return x
+    return check_number(name, a, "the scale", 0.0, strict=True)
 
 
 class RescaledLaw(InteractionLaw):
@@ -101,9 +93,3 @@ class RescaledLaw(InteractionLaw):
     def describe(self):
         return dict(self.base.describe(), scale=self.a)
 
-
-def check_law(law):
-    """``law`` must implement :class:`InteractionLaw`."""
-    if not isinstance(law, InteractionLaw):
-        raise ParameterError("law", law, "must be an InteractionLaw (V, V', V'' of a bond); e.g. HertzLaw(alpha)")
-    return law

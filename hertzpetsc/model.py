@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, check_number
 from .hertz import HertzLaw
-from .law import check_law
+from .law import InteractionLaw
 
 BOUNDARIES = ("periodic", "free", "fixed")
 END_KINDS = ("free", "wall")
@@ -37,23 +37,6 @@ def _check_masses(masses):
     return m
 
 
-def _nonnegative(name, value, what):
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ParameterError(name, value, f"{what} must be a real number >= 0") from None
-    if not (v >= 0.0 and math.isfinite(v)):
-        raise ParameterError(name, value, f"{what} must be a finite number >= 0")
-    return v
-
-
-def _positive(name, value, what):
-    v = _nonnegative(name, value, what)
-    if not v > 0.0:
-        raise ParameterError(name, value, f"{what} must be a finite number > 0")
-    return v
-
-
 @dataclass(frozen=True)
 class Damping:
     """Linear damping of the chain: on-site ``gamma`` (force -gamma x_n') and between neighbours ``eta`` (a
@@ -64,12 +47,8 @@ class Damping:
     eta: float = 0.0
 
     def __post_init__(self):
-        object.__setattr__(self, "gamma", _nonnegative("gamma", self.gamma, "the on-site damping"))
-        object.__setattr__(self, "eta", _nonnegative("eta", self.eta, "the damping between neighbours"))
-
-    @property
-    def active(self):
-        return self.gamma > 0.0 or self.eta > 0.0
+        object.__setattr__(self, "gamma", check_number("gamma", self.gamma, "the on-site damping", 0.0))
+        object.__setattr__(self, "eta", check_number("eta", self.eta, "the damping between neighbours", 0.0))
 
 
 @dataclass(frozen=True)
@@ -82,7 +61,8 @@ class LatticeModel:
     damping: Damping = field(default_factory=Damping)
 
     def __post_init__(self):
-        check_law(self.law)
+        if not isinstance(self.law, InteractionLaw):
+            raise ParameterError("law", self.law, "must be an InteractionLaw (V, V', V'' of a bond), e.g. HertzLaw()")
         object.__setattr__(self, "masses", _check_masses(self.masses))
         if not isinstance(self.damping, Damping):
             raise ParameterError("damping", self.damping, "must be a Damping(gamma, eta)")
@@ -141,7 +121,7 @@ class LatticeModel:
 
     @property
     def damped(self):
-        return self.damping.active
+        return self.damping.gamma > 0.0 or self.damping.eta > 0.0
 
     # --- the forces, as every solver evaluates them ------------------------------------------------------------
     def force(self, r):
@@ -231,13 +211,10 @@ class Harmonic(Signal):
     offset: float = 0.0
 
     def __post_init__(self):
-        object.__setattr__(self, "amplitude", _nonnegative("amplitude", self.amplitude, "the actuator amplitude"))
-        object.__setattr__(self, "omega", _positive("omega", self.omega, "the driving frequency"))
+        object.__setattr__(self, "amplitude", check_number("amplitude", self.amplitude, "the actuator amplitude", 0.0))
+        object.__setattr__(self, "omega", check_number("omega", self.omega, "the driving frequency", 0.0, True))
         for name in ("phase", "offset"):
-            v = float(getattr(self, name))
-            if not math.isfinite(v):
-                raise ParameterError(name, v, "must be a finite number")
-            object.__setattr__(self, name, v)
+            object.__setattr__(self, name, check_number(name, getattr(self, name), f"the actuator's {name}"))
 
     @property
     def period(self):
@@ -270,7 +247,7 @@ class SampledSignal(Signal):
         if len(s) < 2 or not np.all(np.isfinite(s)):
             raise ParameterError("samples", len(s), "at least 2 finite samples of one period")
         object.__setattr__(self, "samples", tuple(float(v) for v in s))
-        object.__setattr__(self, "period", _positive("period", self.period, "the signal's period"))
+        object.__setattr__(self, "period", check_number("period", self.period, "the signal's period", 0.0, True))
 
     def _coefficients(self):
         c = np.fft.rfft(np.asarray(self.samples)) / len(self.samples)
@@ -298,7 +275,7 @@ class FunctionSignal(Signal):
 
     def __init__(self, f, df, period, name="function"):
         self.f, self.df, self.name = f, df, name
-        self.period = _positive("period", period, "the signal's period")
+        self.period = check_number("period", period, "the signal's period", 0.0, True)
         t = np.linspace(0.0, self.period, 64, endpoint=False)
         for what, g in (("position", f), ("velocity", df)):
             a, b = np.asarray(g(t), float), np.asarray(g(t + self.period), float)
@@ -376,14 +353,6 @@ class ChainSpec:
         """N beads of the Hertzian chain with exponent alpha (the paper's, with unit masses and no
         precompression, by default)."""
         return cls(LatticeModel.hertz(alpha, masses, delta0), N, boundary, **ends)
-
-    @property
-    def alpha(self):
-        return self.model.alpha
-
-    @property
-    def periodic(self):
-        return self.boundary == "periodic"
 
     @property
     def driven(self):

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import Chain, ChainIntegrator, IntegrationTolerances
+from .chain import IntegrationTolerances
 from .errors import ConvergenceError, ParameterError
 from .gauss_newton import GaussNewton
 from .tangent import TangentFlow
@@ -39,31 +39,23 @@ PAPER_TOLERANCES = IntegrationTolerances(rtol=1e-12, atol=1e-14)
 JACOBIAN_TOLERANCES = IntegrationTolerances(rtol=1e-10, atol=1e-12)
 
 
-class ShiftMap:
-    """X0 -> S^k X(T; X0) on a periodic chain, with its own TS (options prefix ``prefix``)."""
+class ShiftMap(TangentFlow):
+    """X0 -> S^k X(T; X0) on a periodic chain: the flow without tangents, with its own TS (options prefix
+    ``prefix``)."""
 
     def __init__(self, spec, comm, tolerances, prefix):
         if spec.boundary != "periodic":
             raise ParameterError("boundary", spec.boundary, "travelling waves modulo shifts need a periodic chain")
-        self.chain = Chain(spec, comm)
-        self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
-        self.X = self.chain.create_state()
+        super().__init__(spec, 0, comm, tolerances, prefix)
 
     def __call__(self, x0, T, shift=1):
         """S^shift X(T) as an (N, 2) array on every rank, from the (N, 2) initial state ``x0`` (S moves bead n+c
         to bead n, c the mass pattern's length)."""
-        self.chain.set_from_array(self.X, x0)
-        self.integrator.integrate(self.X, 0.0, T, dt=self.integrator.initial_step)
-        return np.roll(self.chain.gather(self.X), -shift * self.chain.model.cell, axis=0)
+        return np.roll(self.run(x0, T, np.zeros((self.spec.N, 2, 0)))[0], -shift * self.spec.model.cell, axis=0)
 
     def residual(self, orbit):
         """E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf of an orbit."""
         return relative_residual(orbit.x, self(orbit.x, orbit.T))
-
-    def destroy(self):
-        self.X.destroy()
-        self.integrator.destroy()
-        self.chain.destroy()
 
 
 def relative_residual(x0, sxT):
@@ -119,7 +111,7 @@ class ShiftMapFixedPoint:
     def jacobian(self, z):
         x = z.reshape(-1, 2)
         M, _ = self.flow.monodromy_mod_shift(x, self.T, self.shift)
-        return M - np.eye(len(z)), symmetry_complement(self.smap.chain, x)
+        return M - np.eye(len(z)), symmetry_complement(self.smap.aug, x)
 
 
 class Refiner:

@@ -32,16 +32,6 @@ from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, FloquetSolver, Spectrum
 from .symmetry import real_sector
 
 
-def cell_map(sectors, orbit, theta):
-    """P_Theta = e^{-i j Theta} G_Theta^{m'} (2M x 2M, index 2n + c) of ``orbit`` (an N-bead wave), and its cell."""
-    sym = orbit.symmetry
-    G = sectors.monodromy(orbit.x[:sym.M], sym.delta(orbit.T), theta, sym.k)
-    P = np.linalg.matrix_power(G, sym.m_cell)
-    if theta != 0.0:
-        P = np.exp(-1j * sym.j * theta) * P
-    return P, sym
-
-
 def zone_directions(model, x0, q):
     """Per zone k of the M-bead cell state ``x0`` (M, 2): the restriction to the zone's beads of the time-shift
     direction f = (xdot, xddot) and of the translation t = (1, 0) of its beads of each type c of the mass pattern,
@@ -114,34 +104,23 @@ class DeflatedSector:
         return float(np.max(np.abs(self.values))) if len(self.values) else 1.0
 
 
-def deflate(P, known, partners_of=None, extra=(), vectors=False, nearest=0):
+def deflate(P, known, partners_of, extra=(), vectors=False, nearest=0):
     """Deflate the known eigenvectors ``known`` (columns, eigenvalue 1 of P) and their Jordan partners.
 
-    ``partners_of``: columns whose partners are computed (minimum-norm least squares of (P - I) w = z; default all
-    of ``known``); ``extra``: further (eigenvector, partner) columns known in closed form; ``nearest``: then that
-    many eigenvalues nearest 1 of the deflated matrix join the cluster (the partners of known eigenvectors not
-    computed: with the exact eigenvector deflated, its partner's eigenvalue is 1 to the orbit's error, not to its
-    square root). Returns (values outside, cluster eigenvalues, partner residual, invariance residual, r); with
-    nothing known, P's eigenvalues and r = 0. ``vectors``: the values' eigenvectors (columns, in P's space) are
-    appended to the tuple."""
-    n = len(P)
-    known = np.asarray(known, dtype=complex).reshape(n, -1)
-    if known.shape[1] == 0 and not extra:
-        if vectors:
-            values, V = np.linalg.eig(P)
-            return values, np.zeros(0, dtype=complex), 0.0, 0.0, 0, V
-        return np.linalg.eigvals(P), np.zeros(0, dtype=complex), 0.0, 0.0, 0
-    Zs = known if partners_of is None else np.asarray(partners_of, dtype=complex).reshape(n, -1)
-    if Zs.shape[1]:
-        W, *_ = np.linalg.lstsq(P - np.eye(n), Zs, rcond=1e-10)
-        partner_res = float(np.max(np.linalg.norm((P - np.eye(n)) @ W - Zs, axis=0) / np.linalg.norm(Zs, axis=0)))
-    else:
-        W, partner_res = np.zeros((n, 0), dtype=complex), 0.0
-    cols = [known, W] + [np.asarray(e, dtype=complex).reshape(n, -1) for e in extra]
-    B = np.concatenate(cols, axis=1)
+    ``partners_of``: columns whose partners are computed (minimum-norm least squares of (P - I) w = z);
+    ``extra``: further (eigenvector, partner) columns known in closed form; ``nearest``: then that many eigenvalues
+    nearest 1 of the deflated matrix join the cluster (the partners of known eigenvectors not computed: with the
+    exact eigenvector deflated, its partner's eigenvalue is 1 to the orbit's error, not to its square root). Returns
+    (values outside, cluster eigenvalues, partner residual, invariance residual, r, the values' eigenvectors (columns,
+    in P's space) if ``vectors`` else None); with nothing known, P's eigenvalues and r = 0."""
+    n, I = len(P), np.eye(len(P))
+    Zs = np.asarray(partners_of, dtype=complex).reshape(n, -1)
+    W = np.linalg.lstsq(P - I, Zs, rcond=1e-10)[0]
+    partner_res = float(np.max(np.linalg.norm((P - I) @ W - Zs, axis=0) / np.linalg.norm(Zs, axis=0), initial=0.0))
+    B = np.concatenate([np.asarray(c, dtype=complex).reshape(n, -1) for c in (known, W, *extra)], axis=1)
     Q, R = np.linalg.qr(B, mode="complete")
     d = np.abs(np.diag(R))
-    r = int(np.sum(d > 1e-10 * d.max()))
+    r = int(np.sum(d > 1e-10 * d.max(initial=0.0)))
     if r != B.shape[1]:
         raise ParameterError("known eigenvectors", B.shape[1], f"must be independent (rank {r}); the orbit is not "
                              "a travelling wave of the chain or its zones touch")
@@ -149,19 +128,15 @@ def deflate(P, known, partners_of=None, extra=(), vectors=False, nearest=0):
     A11 = U.conj().T @ P @ U
     invariance = float(np.linalg.norm(P @ U - U @ A11) / np.linalg.norm(P))
     cluster = np.linalg.eigvals(A11)
-    if vectors:
-        values, Y = np.linalg.eig(Uperp.conj().T @ P @ Uperp)
-    else:
-        values, Y = np.linalg.eigvals(Uperp.conj().T @ P @ Uperp), None
+    D = Uperp.conj().T @ P @ Uperp
+    values, Y = np.linalg.eig(D) if vectors else (np.linalg.eigvals(D), None)
     if nearest:
         near = np.argsort(np.abs(values - 1.0), kind="stable")[:nearest]
         cluster = np.concatenate([cluster, values[near]])
         values = np.delete(values, near)
         Y = None if Y is None else np.delete(Y, near, axis=1)
         r += len(near)
-    if vectors:
-        return values, cluster, partner_res, invariance, r, Uperp @ Y
-    return values, cluster, partner_res, invariance, r
+    return values, cluster, partner_res, invariance, r, None if Y is None else Uperp @ Y
 
 
 def symplectic_form(model, M):
@@ -201,14 +176,13 @@ def krein_pattern(values, signatures):
 ZONE_TOL = 1e-6
 
 
-def known_vectors(model, orbit, P, theta, decoupled=None, zone_tol=ZONE_TOL):
+def known_vectors(model, orbit, P, theta, decoupled=None):
     """The symmetry eigenvectors of P_Theta at 1 for ``orbit`` (module docstring): (known columns, the columns whose
     partners are computed, closed-form (eigenvector, partner) extras, the number of partners taken as the nearest 1
-    after deflation (:func:`deflate`), the known columns' largest residual, v, the zone modes' residual, decoupled).
+    after deflation (:func:`deflate`), the known columns' largest residual, v, decoupled).
 
-    ``decoupled``: whether the zone translations are exact (None: decided from their residual against ``zone_tol``,
-    where that is informative, i.e. the cell holds several zones or
-    Theta != 0; with one zone at
+    ``decoupled``: whether the zone translations are exact (None: decided from their residual against
+    :data:`ZONE_TOL`, where that is informative, i.e. the cell holds several zones or Theta != 0; with one zone at
     Theta = 0 the only symmetry modes are the wave's time shift and the uniform translation). Zones joined by a
     contact (a precompressed wave below its gap opening) leave at Theta = 0 the time shift f of the whole cell, and
     the uniform translation with the boost; f's partner (the family's amplitude direction, an eigenvector itself in
@@ -218,33 +192,29 @@ def known_vectors(model, orbit, P, theta, decoupled=None, zone_tol=ZONE_TOL):
     M = sym.M
     f, t = zone_directions(model, orbit.x[:M], orbit.q)
     Z, v, zone_res = zone_modes(P, f, t)
-    informative = len(f) > 1 or abs(theta) > 1e-14
     if decoupled is None:
         # decoupled when the zone translations are eigenvectors (without precompression no contact of the paper's
         # chain outlives a compression zone, but a mass pattern's light beads may carry one across the zones'
-        # boundaries: the residual decides for every law)
-        decoupled = informative and bool(zone_res <= zone_tol)
+        # boundaries: the residual decides for every law), where that is informative
+        decoupled = (len(f) > 1 or abs(theta) > 1e-14) and bool(zone_res <= ZONE_TOL)
     I = np.eye(2 * M)
 
     def residual(vec):
         return float(np.linalg.norm((P - I) @ vec) / np.linalg.norm(vec))
 
-    if decoupled:
-        known, partners, eig_res = Z, Z, zone_res
-    else:
-        known = partners = np.zeros((2 * M, 0))
-        eig_res = 0.0
+    none = np.zeros((2 * M, 0))
+    known, partners, eig_res = (Z, Z, zone_res) if decoupled else (none, none, 0.0)
     extra, nearest = (), 0
     if abs(theta) < 1e-14:                     # uniform translation and the Galilean boost (0, 1) / script-T
         trans, boost = np.tile([1.0, 0.0], M), np.tile([0.0, 1.0], M) / orbit.T
         if not decoupled:                      # the whole cell's time shift; its partner: the nearest 1 left
             whole = f.sum(axis=0)
-            known, partners, nearest = whole[:, None], np.zeros((2 * M, 0)), 1
+            known, partners, nearest = whole[:, None], none, 1
             eig_res = residual(whole)
         known = np.concatenate([known, trans[:, None]], axis=1)
         eig_res = max(eig_res, residual(trans))
         extra = (boost,)
-    return known, partners, extra, nearest, eig_res, v, zone_res, decoupled
+    return known, partners, extra, nearest, eig_res, v, decoupled
 
 
 class DeflatedSectors(FloquetSolver):
@@ -256,9 +226,8 @@ class DeflatedSectors(FloquetSolver):
     :meth:`scan`: any set of twists of one orbit (the infinite chain's Bloch parameters), every map from one
     cell-propagator run when the response stays within a cell."""
 
-    def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, twists=(0.0,),
-                 zone_tol=ZONE_TOL, krein=None):
-        self.model, self.zone_tol = model, zone_tol
+    def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, twists=(0.0,), krein=None):
+        self.model = model
         self.krein = krein           # None, or the tolerance on | ln|mu| | of a multiplier on the unit circle
         self.twists = None if twists is None else [float(t) for t in twists]
         self.sectors = BlochSectors(model, comm, tolerances, prefix)
@@ -266,12 +235,11 @@ class DeflatedSectors(FloquetSolver):
 
     def _deflated(self, orbit, P, theta, decoupled=None, raw=True):
         t0 = time.perf_counter()
-        known, partners, extra, nearest, eig_res, v, _, decoupled = known_vectors(self.model, orbit, P, theta,
-                                                                                  decoupled, self.zone_tol)
-        out = deflate(P, known, partners, extra, vectors=self.krein is not None, nearest=nearest)
-        values, cluster, partner_res, invariance, r = out[:5]
+        known, partners, extra, nearest, eig_res, v, decoupled = known_vectors(self.model, orbit, P, theta, decoupled)
+        values, cluster, partner_res, invariance, r, V = deflate(P, known, partners, extra, self.krein is not None,
+                                                                 nearest)
         signatures = None if self.krein is None else \
-            krein_signatures(values, out[5], symplectic_form(self.model, len(P) // 2), self.krein)
+            krein_signatures(values, V, symplectic_form(self.model, len(P) // 2), self.krein)
         if r and raw:
             lam = np.linalg.eigvals(P)
             nearest_one = lam[np.argsort(np.abs(lam - 1.0))[:r]]
@@ -283,12 +251,10 @@ class DeflatedSectors(FloquetSolver):
                               invariance, v, time.perf_counter() - t0, decoupled, signatures)
 
     @PETSc.Log.EventDecorator("hz_deflated_sector")
-    def sector(self, orbit, theta, decoupled=None):
+    def sector(self, orbit, theta):
         """The :class:`DeflatedSector` of ``orbit`` (a wave on N beads) at twist ``theta`` in [0, pi] per cell of
-        M = N / gcd(m, N) beads (``decoupled``: see :func:`known_vectors`)."""
-        _check_twist(theta)
-        P, _ = cell_map(self.sectors, orbit, theta)
-        return self._deflated(orbit, P, theta, decoupled)
+        M = N / gcd(m, N) beads (one twisted run)."""
+        return self.scan(orbit, [theta], propagate=False)[1][0]
 
     @PETSc.Log.EventDecorator("hz_deflated_scan")
     def scan(self, orbit, thetas, propagate=None, raw=True):

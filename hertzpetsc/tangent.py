@@ -16,22 +16,8 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
-from .errors import HertzPetscError, ParameterError
+from .errors import ParameterError
 from .model import ChainSpec
-
-
-def stack_tangents(x, Y):
-    """The chain's augmented state (n, 2 + 2k) from the state ``x`` (n, 2) and k tangent columns ``Y`` (n, 2, k)."""
-    x = np.asarray(x, float)
-    n, k = len(x), np.shape(Y)[2]
-    return np.concatenate([x.reshape(n, 2), np.asarray(Y, float).reshape(n, 2, k).transpose(0, 2, 1).reshape(n, 2 * k)],
-                          axis=1)
-
-
-def split_tangents(z, k):
-    """(state (n, 2), tangent columns (n, 2, k)) from an augmented state ``z`` (n, 2 + 2k)."""
-    n = len(z)
-    return z[:, :2].copy(), z[:, 2:].reshape(n, k, 2).transpose(0, 2, 1).copy()
 
 
 class TangentFlow:
@@ -43,15 +29,13 @@ class TangentFlow:
         self.spec = spec
         self.k = int(n_tangent)
         self.aug = chain(spec, comm, n_tangent=self.k)
-        self.base = Chain(spec, comm)                  # same N and comm: same ownership ranges
         self.integrator = ChainIntegrator(self.aug, tolerances, prefix, rk_type)
         self.Z = self.aug.create_state()
 
     def set_spec(self, spec):
-        """Move both chains to another chain of the same layout (:meth:`~hertzpetsc.chain.Chain.set_spec`: e.g. an
+        """Move the flow to another chain of the same layout (:meth:`~hertzpetsc.chain.Chain.set_spec`: e.g. an
         actuator's signal at another driving frequency)."""
         self.aug.set_spec(spec)
-        self.base.set_spec(spec)
         self.spec = spec
 
     def run(self, x0, T, Y0, monitor=None):
@@ -61,8 +45,10 @@ class TangentFlow:
         Returns (X(T) as (N, 2), R(T; 0) Y0 as (N, 2, k)) on every rank.
         """
         N, k, ts = self.spec.N, self.k, self.integrator.ts
-        self.aug.set_from_array(self.Z, stack_tangents(np.asarray(x0, float).reshape(N, 2),
-                                                       np.asarray(Y0, float).reshape(N, 2, k)))
+        z = np.empty((N, 2 + 2 * k))                  # bead-major: x, xdot, then (y, ydot) of each column
+        z[:, :2] = np.asarray(x0, float).reshape(N, 2)
+        z[:, 2:] = np.asarray(Y0, float).reshape(N, 2, k).transpose(0, 2, 1).reshape(N, 2 * k)
+        self.aug.set_from_array(self.Z, z)
         if monitor is not None:
             ts.setMonitor(lambda ts, i, t, X: monitor(self.aug, X))
         try:
@@ -70,7 +56,8 @@ class TangentFlow:
         finally:
             if monitor is not None:
                 ts.cancelMonitor()
-        return split_tangents(self.aug.gather(self.Z), k)
+        z = self.aug.gather(self.Z)
+        return z[:, :2].copy(), z[:, 2:].reshape(N, k, 2).transpose(0, 2, 1).copy()
 
     def resolvent(self, x0, T):
         """Dense R(T; 0) (2N x 2N, index 2n + c for bead n, component c) and X(T), on every rank.
@@ -94,7 +81,6 @@ class TangentFlow:
         self.Z.destroy()
         self.integrator.destroy()
         self.aug.destroy()
-        self.base.destroy()
 
 
 class MonodromyModShift:
@@ -112,21 +98,24 @@ class MonodromyModShift:
             raise ParameterError("shift", shift, "must be 1 (F = S R, a travelling wave) or 0 (R, a driven chain)")
         self.shift = int(shift)
         self.flow = TangentFlow(spec, 1, comm, tolerances, prefix)
+        # the chain of one vector: same N and comm, same ownership ranges (also flow.base, its former place)
+        self.base = self.flow.base = Chain(spec, comm)
         self.products = self.integrations = 0
-        self._RY = self.flow.base.create_state()
+        self._RY = self.base.create_state()
         self._blocks = {}
         self.set_orbit(x0, T)
 
     def set_spec(self, spec):
         """Move the operator to another chain of the same layout (:meth:`TangentFlow.set_spec`)."""
         self.spec = spec
+        self.base.set_spec(spec)
         self.flow.set_spec(spec)
         for flow in self._blocks.values():
             flow.set_spec(spec)
 
     def set_orbit(self, x0, T):
         """Move the operator to another orbit of the same chain (the next wavenumber of a scan)."""
-        base = self.flow.base
+        base = self.base
         self.x0 = np.asarray(x0, dtype=float).reshape(self.spec.N, 2).copy()
         self.x0_local = self.x0[base.xs:base.xe].copy()
         self.T = float(T)
@@ -144,20 +133,10 @@ class MonodromyModShift:
         self.integrations += 1
         if size == 1 or k < size:
             return self._integrate(Y, self.comm)
-        rank = self.comm.getRank()
-        mine = list(range(rank, k, size))
-        try:
-            share, failure = self._integrate(Y[:, :, mine], PETSc.COMM_SELF), None
-        except HertzPetscError as err:
-            share, failure = None, (type(err), err.args)
-        parts = self.comm.tompi4py().allgather((mine, share, failure))
-        for _, _, failed in parts:
-            if failed is not None:
-                err = failed[0].__new__(failed[0])
-                err.args = failed[1]
-                raise err
+        from .studies.dealing import dealt
         FY = np.empty_like(Y)
-        for cols, part, _ in parts:
+        shares = [list(range(r, k, size)) for r in range(size)]             # equal costs: share r on rank r
+        for cols, part in dealt(shares, [1] * size, self.comm, lambda c: self._integrate(Y[:, :, c], PETSc.COMM_SELF)):
             FY[:, :, cols] = part
         return FY
 
@@ -171,7 +150,7 @@ class MonodromyModShift:
 
     def mult(self, mat, x, y):
         """y = S^shift R(T; 0) x, all in the chain's distributed layout (no gathering)."""
-        flow, base = self.flow, self.flow.base
+        flow, base = self.flow, self.base
         z = flow.Z.getArray().reshape(base.nloc, 4)
         z[:, :2] = self.x0_local
         z[:, 2:] = x.getArray(readonly=True).reshape(base.nloc, 2)
@@ -186,7 +165,7 @@ class MonodromyModShift:
 
     def create_mat(self):
         """The PETSc shell matrix (2N x 2N, the chain's layout)."""
-        base = self.flow.base
+        base = self.base
         n_local = 2 * base.nloc
         N2 = 2 * self.flow.spec.N
         mat = PETSc.Mat().createPython(((n_local, N2), (n_local, N2)), context=self, comm=base.comm)
@@ -197,6 +176,7 @@ class MonodromyModShift:
         """Free the flow; also called by petsc4py (with the matrix) when the shell matrix is destroyed."""
         if self.flow is not None:
             self._RY.destroy()
+            self.base.destroy()
             self.flow.destroy()
             self.flow = None
             for flow in self._blocks.values():

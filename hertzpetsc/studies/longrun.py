@@ -65,7 +65,7 @@ class LongRun(Study):
         self.integrator = ChainIntegrator(self.chain, prefix=prefix)
         ts = self.integrator.ts
         rtol, atol = ts.getTolerances()
-        self.header = dict(alpha=orbit.spec.alpha, N=orbit.N, boundary="periodic", q=orbit.q, T=orbit.T,
+        self.header = dict(alpha=orbit.spec.model.alpha, N=orbit.N, boundary="periodic", q=orbit.q, T=orbit.T,
                            initial_state=orbit.source, initial_state_sha256=state_digest(orbit.x),
                            snapshot_dt=self.dt_snap, rtol=rtol, atol=atol, ts=f"{ts.getType()} {ts.getRKType()}",
                            masses=list(orbit.spec.model.masses))

@@ -17,7 +17,7 @@ tangent-linear map together (the resolvent R(t; 0) of the paper's sections 3.4-3
 Two chains reuse this one with other ghost rows: the Bloch cell, whose tangents satisfy y_{n+M} = e^{i theta} y_n
 (:attr:`Chain.theta`, :attr:`Chain.complex_modes`; :class:`hertzpetsc.bloch.TwistedChain`), and the chain in
 gap-lattice coordinates, whose bonds are r = gap + y_{n+1} - y_n (:attr:`Chain.gap`;
-:class:`hertzpetsc.compacton_window.WindowChain`), where one bond may carry an extra length (:attr:`Chain.step`:
+:func:`hertzpetsc.compacton_window.WindowChain`), where one bond may carry an extra length (:attr:`Chain.step`:
 the beads behind it stored relative to their rest position, so that bonds closed by less than the positions'
 round-off are computed without cancellation).
 

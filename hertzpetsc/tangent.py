@@ -23,7 +23,8 @@ from .model import ChainSpec
 class TangentFlow:
     """Flow and tangent-linear flow of a chain over [0, T], with k >= 0 tangent vectors at a time; its TS has the
     options prefix of the role it serves (``shoot_`` for the refinement, ``floquet_`` for the spectra, ``cwin_`` for
-    the compacton window, whose ``chain`` class is its gap-lattice chain) and the Runge-Kutta pair ``rk_type``."""
+    the compacton window), the chain built by ``chain`` (e.g. the Bloch cell's) and the Runge-Kutta pair
+    ``rk_type``."""
 
     def __init__(self, spec, n_tangent, comm, tolerances, prefix, chain=Chain, rk_type="8vr"):
         self.spec = spec
@@ -98,8 +99,7 @@ class MonodromyModShift:
             raise ParameterError("shift", shift, "must be 1 (F = S R, a travelling wave) or 0 (R, a driven chain)")
         self.shift = int(shift)
         self.flow = TangentFlow(spec, 1, comm, tolerances, prefix)
-        # the chain of one vector: same N and comm, same ownership ranges (also flow.base, its former place)
-        self.base = self.flow.base = Chain(spec, comm)
+        self.base = Chain(spec, comm)      # the chain of one vector: same N and comm, same ownership ranges
         self.products = self.integrations = 0
         self._RY = self.base.create_state()
         self._blocks = {}

@@ -201,7 +201,7 @@ def test_matrix_free_monodromy_equals_dense():
     A = op.create_mat()
     x, y = A.createVecs()
     v = random_state(N, seed=11).ravel()
-    base = op.flow.base
+    base = op.base
     x.getArray()[:] = v[2 * base.xs:2 * base.xe]
     A.mult(x, y)
     got = base.gather(y).ravel()

@@ -704,12 +704,8 @@ class AdvanceDelayProblem(ContinuationProblem):
         return indptr, indices, values
 
     def _bordered_aij(self, X):
-        indptr, indices, values = self._bordered_csr(X)
-        J = PETSc.Mat().create(comm=self.comm)
         sizes = (X.getLocalSize(), X.getSize())
-        J.setSizes((sizes, sizes))
-        J.setType(PETSc.Mat.Type.AIJ)
-        J.setPreallocationCSR((indptr, indices, values))
+        J = PETSc.Mat().createAIJ((sizes, sizes), csr=self._bordered_csr(X), comm=self.comm)
         J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         J.assemble()
         return J

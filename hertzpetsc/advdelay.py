@@ -29,7 +29,6 @@ for omega and the masses, a finite difference otherwise. Solvers: :mod:`hertzpet
 direct LU or Newton-Krylov for every p and every border).
 """
 import math
-import weakref
 
 import numpy as np
 from petsc4py import PETSc
@@ -58,7 +57,7 @@ def check_wavenumber(q, h=None, name="q"):
 
 
 # --- the shift stencils -------------------------------------------------------------------------------------------
-class ShiftStencils:
+class ShiftStencils(StencilGather):
     """D2, tau_q and tau_{-q} on a :class:`~hertzpetsc.grid.ProfileGrid` at one wavenumber q.
 
     The three linear maps are stacked into one AIJ matrix T (3 rows per unknown, built once per q), so that one
@@ -70,24 +69,16 @@ class ShiftStencils:
     """
 
     def __init__(self, grid, q):
-        self.grid = grid
         self.q = check_wavenumber(q, grid.h)
         self.sigma = self.q / grid.h
-        h2 = grid.h ** 2
         self.parallel = grid.comm.getSize() > 1
-        self.gather = StencilGather(grid, {
-            "d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / h2),
-            "plus": shift_stencil(self.sigma),
-            "minus": shift_stencil(-self.sigma),
-        }, scatter=self.parallel)
-        st = self.gather
-        nloc = grid.rend - grid.rstart
-        self.nloc = nloc
-        if self.parallel:
-            parts = [merged_csr(st.pos[k], st.coef[k]) for k in ("d2", "plus", "minus")]
-            st.pos = {}                   # positions are folded into T's columns
-        else:
-            parts = [_d2_csr(grid, st)] + [merged_csr(st.cols[k], st.coef[k]) for k in ("plus", "minus")]
+        super().__init__(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2),
+                                "plus": shift_stencil(self.sigma), "minus": shift_stencil(-self.sigma)},
+                         scatter=self.parallel)
+        key = self.pos if self.parallel else self.cols
+        parts = [merged_csr(key[k], self.coef[k]) for k in ("d2", "plus", "minus")]
+        self.pos = {}                     # positions are folded into T's columns
+        self.nloc = nloc = grid.rend - grid.rstart
         offsets = np.cumsum([0] + [p[0][-1] for p in parts])
         indptr = np.concatenate([parts[0][0]] + [p[0][1:] + offsets[i] for i, p in enumerate(parts) if i > 0])
         csr = (indptr.astype(PETSc.IntType), np.concatenate([p[1] for p in parts]),
@@ -95,46 +86,24 @@ class ShiftStencils:
         del parts, indptr
         # the arrays are used in place (petsc4py keeps them alive)
         if self.parallel:
-            self.T = PETSc.Mat().createAIJWithArrays((3 * nloc, len(st.needed)), csr, comm=PETSc.COMM_SELF)
+            self.T = PETSc.Mat().createAIJWithArrays((3 * nloc, len(self.needed)), csr, comm=PETSc.COMM_SELF)
         else:
             self.T = PETSc.Mat().createAIJWithArrays(((3 * nloc, 3 * grid.size), (nloc, grid.size)), csr,
                                                      comm=grid.comm)
         self.T.assemble()
         self.w = self.T.createVecLeft()
 
-    @property
-    def cols(self):
-        return self.gather.cols
-
-    @property
-    def coef(self):
-        return self.gather.coef
-
     def stacked(self, X):
         """w = T X = (D2 X, tau_q X, tau_{-q} X) on the owned rows (one scatter and one MatMult)."""
         if self.parallel:
-            st = self.gather
-            st.scatter.scatter(X, st.local, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-            self.T.mult(st.local, self.w)
-        else:
-            self.T.mult(X, self.w)
+            self.gather(X)
+        self.T.mult(self.local if self.parallel else X, self.w)
         return self.w
 
     def destroy(self):
-        self.gather.destroy()
+        super().destroy()
         self.T.destroy()
         self.w.destroy()
-
-
-_D2_CACHE = weakref.WeakKeyDictionary()
-
-
-def _d2_csr(grid, stencils):
-    """CSR rows of the second difference on ``grid`` (independent of q: built once per grid)."""
-    csr = _D2_CACHE.get(grid)
-    if csr is None:
-        csr = _D2_CACHE[grid] = merged_csr(stencils.cols["d2"], stencils.coef["d2"])
-    return csr
 
 
 def profile_sup(values, periodic=False):

@@ -37,6 +37,7 @@ from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
 from .errors import ParameterError
+from .law import check_scale
 from .model import LatticeModel
 from .stencil import shift_stencil
 
@@ -154,8 +155,6 @@ class AdvanceDelayProblem(ContinuationProblem):
     parameter (default q).
     """
 
-    FIELD_PARAMETERS = ("q", "omega", "a", "log_a", "delta0", "alpha", "epsilon")
-
     def __init__(self, model, grid, q, omega=1.0, amplitude=None, measure="a1", normalised=0, parameter="q"):
         if not isinstance(model, LatticeModel):
             raise ParameterError("model", model, "must be a LatticeModel")
@@ -205,40 +204,20 @@ class AdvanceDelayProblem(ContinuationProblem):
 
     # --- parameters (the lenses of the continuation layer) ----------------------------------------------------
     def _check_parameter(self, name):
-        ok = name in self.FIELD_PARAMETERS or (name.startswith("m") and name[1:].isdigit() and
-                                                int(name[1:]) < self.p)
-        if name == "epsilon" and self.p < 2:
-            ok = False
-        if name == "omega" and self.bordered:
-            ok = False
-        if name in ("a", "log_a") and not self.bordered:
-            ok = False
-        if not ok:
-            have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
-                   [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
+        have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
+            [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
+        if name not in have:
             raise ParameterError("parameter", name, "this travelling-wave problem continues in one of "
                                  + ", ".join(have))
 
     def _set_omega(self, omega):
-        try:
-            w = float(omega)
-        except (TypeError, ValueError):
-            raise ParameterError("omega", omega, "must be a real number > 0") from None
-        if not (w > 0 and math.isfinite(w)):
-            raise ParameterError("omega", omega, "the frequency must be a finite number > 0")
-        self.omega = w
+        self.omega = w = check_scale(omega, "omega")
         self.lam = w * w
         self.lattice = self.model
 
     def _set_amplitude(self, a):
-        try:
-            af = float(a)
-        except (TypeError, ValueError):
-            raise ParameterError("amplitude", a, "must be a real number > 0") from None
-        if not af > 0 or math.isnan(af):
-            raise ParameterError("amplitude", a, "the wave amplitude must be a number > 0")
-        self.amplitude = af
-        self.lattice = self.model.rescaled(af)          # the law seen by w = u / a
+        self.amplitude = math.inf if a == math.inf else check_scale(a, "amplitude")
+        self.lattice = self.model.rescaled(self.amplitude)          # the law seen by w = u / a
 
     def _set_q(self, q):
         q = check_wavenumber(q, self.grid.h)

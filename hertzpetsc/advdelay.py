@@ -327,16 +327,8 @@ class AdvanceDelayProblem(ContinuationProblem):
 
     def half_profiles(self, V):
         """The p half profiles (K+1 values each, on every rank) of an X or Z Vec."""
-        a = V.getArray(readonly=True)
-        out = []
-        for c in range(self.p):
-            w = self._work[0]
-            w.placeArray(a[c * self.nloc:(c + 1) * self.nloc])
-            try:
-                out.append(self.grid.half_profile(w))
-            finally:
-                w.resetArray()
-        return out
+        a, n = V.getArray(readonly=True), self.nloc
+        return [self._gathered_profile(a[c * n:(c + 1) * n]) for c in range(self.p)]
 
     def frequency(self, V):
         """omega of the wave held by V (fixed frequency: self.omega; fixed amplitude: a^((d-1)/2) sqrt(lam))."""

@@ -191,9 +191,10 @@ def set_parameter(Z, value):
 
 @dataclass(frozen=True)
 class Natural:
-    """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`~ContinuationProblem.predictor_ratio`), step
-    halved on failure (or when the corrector moves X by more than ``max_corrector``, relative, sup norm) and doubled
-    after a success, up to the next target; no step longer than ``max_step`` in the parameter."""
+    """Natural continuation: steps in the parameter, secant predictor (in s(p) X,
+    :meth:`~ContinuationProblem.predictor_ratio`), step halved on failure (or when the corrector moves X by more than
+    ``max_corrector``, relative, sup norm) and doubled after a success, up to the next target; no step longer than
+    ``max_step`` in the parameter."""
 
     max_halvings: int = 8
     max_corrector: float = 0.25

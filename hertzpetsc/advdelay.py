@@ -29,7 +29,6 @@ for omega and the masses, a finite difference otherwise. Solvers: :mod:`hertzpet
 direct LU or Newton-Krylov for every p and every border).
 """
 import math
-import weakref
 
 import numpy as np
 from petsc4py import PETSc
@@ -38,6 +37,7 @@ from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
 from .errors import ParameterError
+from .law import check_scale
 from .model import LatticeModel
 from .stencil import shift_stencil
 
@@ -58,7 +58,7 @@ def check_wavenumber(q, h=None, name="q"):
 
 
 # --- the shift stencils -------------------------------------------------------------------------------------------
-class ShiftStencils:
+class ShiftStencils(StencilGather):
     """D2, tau_q and tau_{-q} on a :class:`~hertzpetsc.grid.ProfileGrid` at one wavenumber q.
 
     The three linear maps are stacked into one AIJ matrix T (3 rows per unknown, built once per q), so that one
@@ -70,24 +70,16 @@ class ShiftStencils:
     """
 
     def __init__(self, grid, q):
-        self.grid = grid
         self.q = check_wavenumber(q, grid.h)
         self.sigma = self.q / grid.h
-        h2 = grid.h ** 2
         self.parallel = grid.comm.getSize() > 1
-        self.gather = StencilGather(grid, {
-            "d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / h2),
-            "plus": shift_stencil(self.sigma),
-            "minus": shift_stencil(-self.sigma),
-        }, scatter=self.parallel)
-        st = self.gather
-        nloc = grid.rend - grid.rstart
-        self.nloc = nloc
-        if self.parallel:
-            parts = [merged_csr(st.pos[k], st.coef[k]) for k in ("d2", "plus", "minus")]
-            st.pos = {}                   # positions are folded into T's columns
-        else:
-            parts = [_d2_csr(grid, st)] + [merged_csr(st.cols[k], st.coef[k]) for k in ("plus", "minus")]
+        super().__init__(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2),
+                                "plus": shift_stencil(self.sigma), "minus": shift_stencil(-self.sigma)},
+                         scatter=self.parallel)
+        key = self.pos if self.parallel else self.cols
+        parts = [merged_csr(key[k], self.coef[k]) for k in ("d2", "plus", "minus")]
+        self.pos = {}                     # positions are folded into T's columns
+        self.nloc = nloc = grid.rend - grid.rstart
         offsets = np.cumsum([0] + [p[0][-1] for p in parts])
         indptr = np.concatenate([parts[0][0]] + [p[0][1:] + offsets[i] for i, p in enumerate(parts) if i > 0])
         csr = (indptr.astype(PETSc.IntType), np.concatenate([p[1] for p in parts]),
@@ -95,46 +87,24 @@ class ShiftStencils:
         del parts, indptr
         # the arrays are used in place (petsc4py keeps them alive)
         if self.parallel:
-            self.T = PETSc.Mat().createAIJWithArrays((3 * nloc, len(st.needed)), csr, comm=PETSc.COMM_SELF)
+            self.T = PETSc.Mat().createAIJWithArrays((3 * nloc, len(self.needed)), csr, comm=PETSc.COMM_SELF)
         else:
             self.T = PETSc.Mat().createAIJWithArrays(((3 * nloc, 3 * grid.size), (nloc, grid.size)), csr,
                                                      comm=grid.comm)
         self.T.assemble()
         self.w = self.T.createVecLeft()
 
-    @property
-    def cols(self):
-        return self.gather.cols
-
-    @property
-    def coef(self):
-        return self.gather.coef
-
     def stacked(self, X):
         """w = T X = (D2 X, tau_q X, tau_{-q} X) on the owned rows (one scatter and one MatMult)."""
         if self.parallel:
-            st = self.gather
-            st.scatter.scatter(X, st.local, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
-            self.T.mult(st.local, self.w)
-        else:
-            self.T.mult(X, self.w)
+            self.gather(X)
+        self.T.mult(self.local if self.parallel else X, self.w)
         return self.w
 
     def destroy(self):
-        self.gather.destroy()
+        super().destroy()
         self.T.destroy()
         self.w.destroy()
-
-
-_D2_CACHE = weakref.WeakKeyDictionary()
-
-
-def _d2_csr(grid, stencils):
-    """CSR rows of the second difference on ``grid`` (independent of q: built once per grid)."""
-    csr = _D2_CACHE.get(grid)
-    if csr is None:
-        csr = _D2_CACHE[grid] = merged_csr(stencils.cols["d2"], stencils.coef["d2"])
-    return csr
 
 
 def profile_sup(values, periodic=False):
@@ -185,8 +155,6 @@ class AdvanceDelayProblem(ContinuationProblem):
     parameter (default q).
     """
 
-    FIELD_PARAMETERS = ("q", "omega", "a", "log_a", "delta0", "alpha", "epsilon")
-
     def __init__(self, model, grid, q, omega=1.0, amplitude=None, measure="a1", normalised=0, parameter="q"):
         if not isinstance(model, LatticeModel):
             raise ParameterError("model", model, "must be a LatticeModel")
@@ -236,40 +204,20 @@ class AdvanceDelayProblem(ContinuationProblem):
 
     # --- parameters (the lenses of the continuation layer) ----------------------------------------------------
     def _check_parameter(self, name):
-        ok = name in self.FIELD_PARAMETERS or (name.startswith("m") and name[1:].isdigit() and
-                                                int(name[1:]) < self.p)
-        if name == "epsilon" and self.p < 2:
-            ok = False
-        if name == "omega" and self.bordered:
-            ok = False
-        if name in ("a", "log_a") and not self.bordered:
-            ok = False
-        if not ok:
-            have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
-                   [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
+        have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
+            [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
+        if name not in have:
             raise ParameterError("parameter", name, "this travelling-wave problem continues in one of "
                                  + ", ".join(have))
 
     def _set_omega(self, omega):
-        try:
-            w = float(omega)
-        except (TypeError, ValueError):
-            raise ParameterError("omega", omega, "must be a real number > 0") from None
-        if not (w > 0 and math.isfinite(w)):
-            raise ParameterError("omega", omega, "the frequency must be a finite number > 0")
-        self.omega = w
+        self.omega = w = check_scale(omega, "omega")
         self.lam = w * w
         self.lattice = self.model
 
     def _set_amplitude(self, a):
-        try:
-            af = float(a)
-        except (TypeError, ValueError):
-            raise ParameterError("amplitude", a, "must be a real number > 0") from None
-        if not af > 0 or math.isnan(af):
-            raise ParameterError("amplitude", a, "the wave amplitude must be a number > 0")
-        self.amplitude = af
-        self.lattice = self.model.rescaled(af)          # the law seen by w = u / a
+        self.amplitude = math.inf if a == math.inf else check_scale(a, "amplitude")
+        self.lattice = self.model.rescaled(self.amplitude)          # the law seen by w = u / a
 
     def _set_q(self, q):
         q = check_wavenumber(q, self.grid.h)
@@ -379,16 +327,8 @@ class AdvanceDelayProblem(ContinuationProblem):
 
     def half_profiles(self, V):
         """The p half profiles (K+1 values each, on every rank) of an X or Z Vec."""
-        a = V.getArray(readonly=True)
-        out = []
-        for c in range(self.p):
-            w = self._work[0]
-            w.placeArray(a[c * self.nloc:(c + 1) * self.nloc])
-            try:
-                out.append(self.grid.half_profile(w))
-            finally:
-                w.resetArray()
-        return out
+        a, n = V.getArray(readonly=True), self.nloc
+        return [self._gathered_profile(a[c * n:(c + 1) * n]) for c in range(self.p)]
 
     def frequency(self, V):
         """omega of the wave held by V (fixed frequency: self.omega; fixed amplitude: a^((d-1)/2) sqrt(lam))."""
@@ -470,12 +410,6 @@ class AdvanceDelayProblem(ContinuationProblem):
             w.resetArray()
 
     def formFunction(self, snes, X, F):
-        if self.simple and X.getSize() == self.grid.size:
-            dplus, dminus, d2u = self.shift_differences(X)
-            force, lat = self.lattice.force, self.lattice
-            first = d2u if self.lam == 1.0 else self.lam * d2u
-            F.getArray()[:] = first - _on_contact(lat, force, dplus) + _on_contact(lat, force, dminus)
-            return
         extended = X.getSize() > self.p * self.grid.size + self.nsc
         if extended:
             self.set_parameter(self.parameter, self._scalars(X)[-1])
@@ -538,12 +472,6 @@ class AdvanceDelayProblem(ContinuationProblem):
         return self._assembler
 
     def _coefficients(self, X):
-        if self.simple and X.getSize() == self.grid.size:
-            lat = self.lattice
-            dplus, dminus, _ = self.shift_differences(X)
-            self.a = _on_contact(lat, lat.stiffness, dplus)
-            self.b = _on_contact(lat, lat.stiffness, dminus)
-            return
         if X.getSize() > self.p * self.grid.size + self.nsc:
             self.set_parameter(self.parameter, self._scalars(X)[-1])
         if self.full and self.gauge is None:
@@ -556,9 +484,9 @@ class AdvanceDelayProblem(ContinuationProblem):
         self._lam_lin = self._scalars(X)[0] if self.bordered else self.lam
 
     def _jacobian_blocks(self):
-        a, b = self.a[:, None], self.b[:, None]
+        a, b, lam = self.a[0][:, None], self.b[0][:, None], self.masses[0] * self.lam
         c = self.stencils.coef
-        d2 = c["d2"] if self.lam == 1.0 else self.lam * c["d2"]
+        d2 = c["d2"] if lam == 1.0 else lam * c["d2"]
         return [d2, a + b, -a * c["plus"], -b * c["minus"]]
 
     def create_jacobian(self, X, kind="aij"):
@@ -704,12 +632,8 @@ class AdvanceDelayProblem(ContinuationProblem):
         return indptr, indices, values
 
     def _bordered_aij(self, X):
-        indptr, indices, values = self._bordered_csr(X)
-        J = PETSc.Mat().create(comm=self.comm)
         sizes = (X.getLocalSize(), X.getSize())
-        J.setSizes((sizes, sizes))
-        J.setType(PETSc.Mat.Type.AIJ)
-        J.setPreallocationCSR((indptr, indices, values))
+        J = PETSc.Mat().createAIJ((sizes, sizes), csr=self._bordered_csr(X), comm=self.comm)
         J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         J.assemble()
         return J
@@ -890,8 +814,8 @@ class _JacobianProduct:
             w = p.stencils.stacked(x).getArray(readonly=True)
             v = x.getArray(readonly=True)
             n = p.nloc
-            d2 = w[:n] if p.lam == 1.0 else p.lam * w[:n]
-            y.getArray()[:] = d2 + (p.a + p.b) * v - p.a * w[n:2 * n] - p.b * w[2 * n:]
+            a, b, lam = p.a[0], p.b[0], p.masses[0] * p.lam
+            y.getArray()[:] = (w[:n] if lam == 1.0 else lam * w[:n]) + (a + b) * v - a * w[n:2 * n] - b * w[2 * n:]
             return
         extended = self.size > p.p * p.grid.size + p.nsc
         sc = p._scalars(x)                    # the direction's components along lam and the parameter

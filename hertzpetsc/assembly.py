@@ -72,44 +72,27 @@ class StencilGather:
             self.local.destroy()
 
 
+def _merge_pattern(cols):
+    """(entry -> CSR position, indices, indptr) of rows with the given (rows x width) columns: each (short) row
+    sorted, repeated columns merged; O(n w log w), no global sort."""
+    order = np.argsort(cols, axis=1, kind="stable")
+    cols = np.take_along_axis(cols, order, axis=1)
+    first = np.ones(cols.shape, dtype=bool)
+    first[:, 1:] = cols[:, 1:] != cols[:, :-1]
+    where = np.empty(cols.size, dtype=np.int64)
+    where[(np.arange(len(cols), dtype=np.int64)[:, None] * cols.shape[1] + order).ravel()] = \
+        np.cumsum(first.ravel()) - 1
+    indptr = np.concatenate([[0], np.cumsum(first.sum(axis=1))]).astype(PETSc.IntType)
+    return where, cols[first].astype(PETSc.IntType), indptr
+
+
 def merged_csr(cols, vals):
     """CSR arrays (indptr, indices, values) of rows given as (rows x width) column and value arrays, with the
-    entries of a row that hit the same column summed and columns sorted.
-
-    Rows whose columns already increase strictly (all rows of a shift stencil away from the folding points
-    xi = 0, pi) are copied as they are; only the others are sorted and merged. O(n w), no global sort.
-    """
+    entries of a row that hit the same column summed and columns sorted."""
     cols = np.asarray(cols, dtype=np.int64)
-    vals = np.broadcast_to(np.asarray(vals, dtype=float), cols.shape)
-    nrows, width = cols.shape
-    good = (np.diff(cols, axis=1) > 0).all(axis=1)
-    bad = np.flatnonzero(~good)
-    counts = np.full(nrows, width, dtype=np.int64)
-    if len(bad):
-        bcols, bvals = cols[bad], vals[bad]
-        order = np.argsort(bcols, axis=1, kind="stable")
-        bcols = np.take_along_axis(bcols, order, axis=1)
-        bvals = np.take_along_axis(bvals, order, axis=1)
-        first = np.ones(bcols.shape, dtype=bool)
-        first[:, 1:] = bcols[:, 1:] != bcols[:, :-1]
-        group = np.cumsum(first.ravel()) - 1
-        bvalues = np.bincount(group, weights=bvals.ravel(), minlength=group[-1] + 1)
-        bcount = first.sum(axis=1)
-        counts[bad] = bcount
-        bindices = bcols[first]
-    indptr = np.concatenate([[0], np.cumsum(counts)])
-    indices = np.empty(indptr[-1], dtype=np.int64)
-    values = np.empty(indptr[-1])
-    if len(bad) < nrows:
-        pos = (indptr[:-1][good][:, None] + np.arange(width)[None, :]).ravel()
-        indices[pos] = cols[good].ravel()
-        values[pos] = vals[good].ravel()
-    if len(bad):
-        starts = np.repeat(indptr[bad], bcount)
-        within = np.arange(len(bindices)) - np.repeat(np.cumsum(bcount) - bcount, bcount)
-        indices[starts + within] = bindices
-        values[starts + within] = bvalues
-    return indptr.astype(PETSc.IntType), indices.astype(PETSc.IntType), values
+    where, indices, indptr = _merge_pattern(cols)
+    vals = np.broadcast_to(np.asarray(vals, dtype=float), cols.shape).ravel()
+    return indptr, indices, np.bincount(where, weights=vals, minlength=len(indices)).astype(float, copy=False)
 
 
 class RowAssembler:
@@ -124,17 +107,7 @@ class RowAssembler:
         self.grid = grid
         nrows = grid.rend - grid.rstart
         cols = np.concatenate([np.asarray(b, dtype=np.int64).reshape(nrows, -1) for b in blocks], axis=1)
-        width = cols.shape[1]
-        # sort each (short) row, merge repeated columns: O(n w log w), no global sort
-        order = np.argsort(cols, axis=1, kind="stable")
-        cols = np.take_along_axis(cols, order, axis=1)
-        first = np.ones(cols.shape, dtype=bool)
-        first[:, 1:] = cols[:, 1:] != cols[:, :-1]
-        self.entry_to_csr = np.empty(nrows * width, dtype=np.int64)
-        self.entry_to_csr[(np.arange(nrows, dtype=np.int64)[:, None] * width + order).ravel()] = \
-            np.cumsum(first.ravel()) - 1
-        self.indices = cols[first].astype(PETSc.IntType)
-        self.indptr = np.concatenate([[0], np.cumsum(first.sum(axis=1))]).astype(PETSc.IntType)
+        self.entry_to_csr, self.indices, self.indptr = _merge_pattern(cols)
         self.nnz = len(self.indices)
 
     def values(self, blocks):
@@ -144,11 +117,8 @@ class RowAssembler:
 
     def create(self, blocks):
         g = self.grid
-        nloc = g.rend - g.rstart
-        mat = PETSc.Mat().create(comm=g.comm)
-        mat.setSizes(((nloc, g.size), (nloc, g.size)))
-        mat.setType(PETSc.Mat.Type.AIJ)
-        mat.setPreallocationCSR((self.indptr, self.indices, self.values(blocks)))
+        n = (g.rend - g.rstart, g.size)
+        mat = PETSc.Mat().createAIJ((n, n), csr=(self.indptr, self.indices, self.values(blocks)), comm=g.comm)
         mat.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, True)
         mat.setOption(PETSc.Mat.Option.NO_OFF_PROC_ENTRIES, True)      # rows are owned: no stash exchange
         mat.assemble()

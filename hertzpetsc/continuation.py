@@ -64,6 +64,7 @@ def _discard(evals):
     """Destroy the trial solutions of a location that failed (``evals``: parameter -> (Z, its, value))."""
     for Z, _, _ in evals.values():
         Z.destroy()
+    evals.clear()
 
 
 def golden_maximum(f, a, b, tol):
@@ -190,9 +191,10 @@ def set_parameter(Z, value):
 
 @dataclass(frozen=True)
 class Natural:
-    """Natural continuation: steps in the parameter, secant predictor (in s(p) X, :meth:`~ContinuationProblem.predictor_ratio`), step
-    halved on failure (or when the corrector moves X by more than ``max_corrector``, relative, sup norm) and doubled
-    after a success, up to the next target; no step longer than ``max_step`` in the parameter."""
+    """Natural continuation: steps in the parameter, secant predictor (in s(p) X,
+    :meth:`~ContinuationProblem.predictor_ratio`), step halved on failure (or when the corrector moves X by more than
+    ``max_corrector``, relative, sup norm) and doubled after a success, up to the next target; no step longer than
+    ``max_step`` in the parameter."""
 
     max_halvings: int = 8
     max_corrector: float = 0.25
@@ -419,18 +421,6 @@ class Continuation:
         return local[0] / max(local[1], 1e-300)
 
     # --- pseudo-arclength steps -----------------------------------------------------------------------------
-    def _tangent(self):
-        """Unit secant tangent through the last two points (in the W inner product)."""
-        Z0, Z1 = self.history[0][0], self.history[-1][0]
-        t = Z1.copy()
-        t.axpy(-1.0, Z0)
-        n = self._norm(t)
-        if not n > 0:
-            t.destroy()
-            raise ParameterError("points", "identical", "the last two points coincide: no tangent")
-        t.scale(1.0 / n)
-        return t
-
     def _arclength_solve(self, t, Z1, ds):
         """The point at W-projected distance ds from Z1 along t (None if the corrector fails, needs too many
         iterations or lands too far from the prediction)."""
@@ -468,8 +458,8 @@ class Continuation:
             raise ParameterError("points", len(self.history), "pseudo-arclength needs two points to start")
         if self._pending:
             return self._pending.pop(0)
-        t = self._tangent()
         (Zm, sm, _), (Z1, s1, tests1) = self.history
+        t = self._chord(Zm, Z1)[0]
         ds, halvings = self.ds, 0
         while True:
             Z, its = self._arclength_solve(t, Z1, ds)
@@ -489,7 +479,7 @@ class Continuation:
         Zm, Z1 = Zm.copy(), Z1.copy()
         self.s = s1 + ds
         point = self._accept(Z, its)
-        t_new = self._tangent()
+        t_new = self._chord(Z1, Z)[0]
         point.dp_ds = _parameter(t_new)
         t_new.destroy()
         located = []
@@ -513,10 +503,14 @@ class Continuation:
     _pending = ()
 
     def _chord(self, Za, Zb):
-        """Unit W-direction from Za to Zb and their W-distance."""
+        """Unit W-direction from Za to Zb (the secant tangent when they are the last two points) and their
+        W-distance."""
         c = Zb.copy()
         c.axpy(-1.0, Za)
         n = self._norm(c)
+        if not n > 0:
+            c.destroy()
+            raise ParameterError("points", "identical", "the last two points coincide: no tangent")
         c.scale(1.0 / n)
         return c, n
 
@@ -537,9 +531,7 @@ class Continuation:
     def _located(self, evals, sigma, s, name):
         """The ContinuationPoint of the solved point ``evals[sigma]`` (arclength s); frees the other points."""
         Z, its, _ = evals.pop(sigma)
-        for Zo, _, _ in evals.values():
-            Zo.destroy()
-        evals.clear()
+        _discard(evals)
         point = ContinuationPoint(parameter=_parameter(Z), s=s, dp_ds=0.0 if name == "fold" else
                                   math.nan, iterations=its, event=name, report=self.problem.report(Z),
                                   tests=self.problem.test_functions(Z))

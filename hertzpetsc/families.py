@@ -25,6 +25,7 @@ from .assembly import gathered
 from .branch import BranchPoint
 from .continuation import Continuation, ContinuationError, LazyTests, Natural, PseudoArclength
 from .errors import ConvergenceError, ParameterError
+from .law import check_scale
 from .stencil import full_period, lagrange_periodic
 
 PRECOMP_PREFIX = "precomp_"
@@ -33,13 +34,7 @@ DIMER_PREFIX = "dimer_"
 
 def check_amplitude(a, name="amplitude"):
     """a must be a finite number > 0."""
-    try:
-        x = float(a)
-    except (TypeError, ValueError):
-        raise ParameterError(name, a, "must be a real number > 0") from None
-    if not (x > 0 and math.isfinite(x)):
-        raise ParameterError(name, a, "the wave amplitude must be a finite number > 0")
-    return x
+    return check_scale(a, name)
 
 
 @dataclass(frozen=True)

@@ -67,10 +67,7 @@ class ContinuationParameters:
         if self.q_stop < self.h:
             raise ParameterError("q_stop", self.q_stop, f"must be at least the grid step h = pi/{self.cells_per_pi}"
                                  f" = {self.h:.6g}; increase cells_per_pi")
-        if not (isinstance(self.max_halvings, (int, np.integer)) and self.max_halvings >= 0):
-            raise ParameterError("max_halvings", self.max_halvings, "must be an integer >= 0")
-        if not self.max_corrector > 0:
-            raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
+        Natural(self.max_halvings, self.max_corrector)         # their checks
 
     @property
     def h(self):

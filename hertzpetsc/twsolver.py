@@ -19,12 +19,18 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from .assembly import StencilGather
+from .assembly import RowAssembler, StencilGather
 from .branch import SolveStats
 from .errors import ConvergenceError, ParameterError
 from .options import inserted_options
 
 TW_PREFIX = "tw_"
+
+
+def second_difference(grid):
+    """The D2 stencil (1, -2, 1)/h^2 of eq. ad on ``grid`` (columns and weights only: no scatter)."""
+    return StencilGather(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2)},
+                         scatter=False)
 
 
 class SecondDifferencePC:
@@ -34,16 +40,17 @@ class SecondDifferencePC:
     profiles) carries the 1/h^2 and K (the V''-weighted shift couplings) stays bounded as h -> 0; hence D2^{-1} J
     is the identity plus a compact operator and GMRES needs a number of iterations independent of h.
 
-    D2 is taken from the ``d2`` stencil of a :class:`~hertzpetsc.grid.StencilGather` (any tridiagonal stencil
-    works) and does not depend on u or q, so it is factored once per problem. The solve is exact and independent
-    of the partition: each rank factors its diagonal block (LU, natural ordering: O(n) for a tridiagonal), and
-    the couplings between neighbouring ranks are restored by the two "spikes" B^{-1} e_first, B^{-1} e_last of
-    each block and a 2p x 2p interface system (p ranks), solved redundantly after one allgather of 2 numbers per
-    rank per application.
+    D2 is taken from the ``name`` stencil of a :class:`~hertzpetsc.assembly.StencilGather` (any tridiagonal
+    stencil works; default :func:`second_difference`) and does not depend on u or q, so it is factored once per
+    problem. The solve is exact and independent of the partition: each rank factors its diagonal block (LU,
+    natural ordering: O(n) for a tridiagonal), and the couplings between neighbouring ranks are restored by the two
+    "spikes" B^{-1} e_first, B^{-1} e_last of each block and a 2p x 2p interface system (p ranks), solved
+    redundantly after one allgather of 2 numbers per rank per application.
     """
 
-    def __init__(self, grid, stencils, name="d2"):
+    def __init__(self, grid, stencils=None, name="d2"):
         self.grid = grid
+        stencils = second_difference(grid) if stencils is None else stencils
         rstart, rend = grid.rstart, grid.rend
         nloc = rend - rstart
         self.nloc = nloc
@@ -109,9 +116,6 @@ class SecondDifferencePC:
         self.interface_inverse = np.linalg.inv(A)
         self.my_index = int(np.searchsorted(self.active, self.mpi.rank)) if counts[self.mpi.rank] else -1
 
-    def setUp(self, pc):
-        pass
-
     def solve_local(self, x, out):
         """out = D2^{-1} x on the owned rows (numpy arrays; collective on several ranks)."""
         if self.nloc:
@@ -148,13 +152,10 @@ class PeriodicSecondDifferencePC:
     rest, and the gauge border removes the constants and translations."""
 
     def __init__(self, grid, shift=1.0):
-        d2 = StencilGather(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2)},
-                           scatter=False)
-        from .assembly import RowAssembler
+        d2 = second_difference(grid)
         diag = np.arange(grid.rstart, grid.rend, dtype=np.int64)[:, None]
         asm = RowAssembler(grid, [d2.cols["d2"], diag])
         self.A = asm.create([d2.coef["d2"], np.full((grid.rend - grid.rstart, 1), -float(shift))])
-        d2.destroy()
         self.ksp = PETSc.KSP().create(comm=grid.comm)
         self.ksp.setOperators(self.A)
         self.ksp.setType(PETSc.KSP.Type.PREONLY)
@@ -184,9 +185,6 @@ class BlockSecondDifferencePC:
     def __init__(self, inner, p, nloc):
         self.inner, self.p, self.nloc = inner, p, nloc
         self.scales = [1.0] * p
-
-    def setUp(self, pc):
-        pass
 
     def apply(self, pc, x, y):
         xa, ya = x.getArray(readonly=True), y.getArray()
@@ -243,7 +241,7 @@ def tw_solver(prefix=TW_PREFIX, solver=None):
     return solver
 
 
-def _set_linear_defaults(snes, solver, grid, stencils, blocks=None):
+def _set_linear_defaults(snes, solver, grid, stencils=None, blocks=None):
     """The code defaults of the linear solves (before the options database is read). ``blocks`` = (p, nloc): a
     layout of p profiles and border scalars (the nk preconditioner is then :class:`BlockSecondDifferencePC`; LU is
     MUMPS, whose pivoting handles the zero diagonal of the border rows, also on one rank)."""
@@ -322,14 +320,8 @@ class TravellingWaveSolver:
         else:
             self.F = layout.create_vec() if extended else layout.create_state()
         self.snes.setFunction(self._function, self.F)
-        d2 = None
-        if self.solver == "nk":
-            d2 = StencilGather(grid, {"d2": (np.array([-1, 0, 1]), np.array([1.0, -2.0, 1.0]) / grid.h ** 2)},
-                               scatter=False)
-        self.pc_context = _set_linear_defaults(self.snes, self.solver, grid, d2,
-                                               None if plain else (layout.p, layout.nloc))
-        if d2 is not None:
-            d2.destroy()
+        self.pc_context = _set_linear_defaults(self.snes, self.solver, grid,
+                                               blocks=None if plain else (layout.p, layout.nloc))
         _set_from_options(self.snes, prefix)
         opts = PETSc.Options()
         default_kind = "shell" if self.solver == "nk" else "aij"
@@ -346,8 +338,6 @@ class TravellingWaveSolver:
         self.problem.formJacobian(snes, X, J, P)
 
     def _tolerances(self, problem, u):
-        if getattr(problem, "simple", True) and u.getSize() == self.grid.size and getattr(problem, "lam", 1.0) == 1.0:
-            return default_tolerances(self.grid, u.norm(PETSc.NormType.NORM_INFINITY))
         tol = default_tolerances(self.grid, problem.tolerance_scale(u))
         tol["atol"] *= math.sqrt(u.getSize() / self.grid.size)
         return tol

@@ -410,6 +410,12 @@ class AdvanceDelayProblem(ContinuationProblem):
             w.resetArray()
 
     def formFunction(self, snes, X, F):
+        if self.simple and X.getSize() == self.grid.size:
+            dplus, dminus, d2u = self.shift_differences(X)
+            force, lat = self.lattice.force, self.lattice
+            first = d2u if self.lam == 1.0 else self.lam * d2u
+            F.getArray()[:] = first - _on_contact(lat, force, dplus) + _on_contact(lat, force, dminus)
+            return
         extended = X.getSize() > self.p * self.grid.size + self.nsc
         if extended:
             self.set_parameter(self.parameter, self._scalars(X)[-1])
@@ -472,6 +478,12 @@ class AdvanceDelayProblem(ContinuationProblem):
         return self._assembler
 
     def _coefficients(self, X):
+        if self.simple and X.getSize() == self.grid.size:
+            lat = self.lattice
+            dplus, dminus, _ = self.shift_differences(X)
+            self.a = _on_contact(lat, lat.stiffness, dplus)
+            self.b = _on_contact(lat, lat.stiffness, dminus)
+            return
         if X.getSize() > self.p * self.grid.size + self.nsc:
             self.set_parameter(self.parameter, self._scalars(X)[-1])
         if self.full and self.gauge is None:
@@ -484,9 +496,9 @@ class AdvanceDelayProblem(ContinuationProblem):
         self._lam_lin = self._scalars(X)[0] if self.bordered else self.lam
 
     def _jacobian_blocks(self):
-        a, b, lam = self.a[0][:, None], self.b[0][:, None], self.masses[0] * self.lam
+        a, b = self.a[:, None], self.b[:, None]
         c = self.stencils.coef
-        d2 = c["d2"] if lam == 1.0 else lam * c["d2"]
+        d2 = c["d2"] if self.lam == 1.0 else self.lam * c["d2"]
         return [d2, a + b, -a * c["plus"], -b * c["minus"]]
 
     def create_jacobian(self, X, kind="aij"):
@@ -814,8 +826,8 @@ class _JacobianProduct:
             w = p.stencils.stacked(x).getArray(readonly=True)
             v = x.getArray(readonly=True)
             n = p.nloc
-            a, b, lam = p.a[0], p.b[0], p.masses[0] * p.lam
-            y.getArray()[:] = (w[:n] if lam == 1.0 else lam * w[:n]) + (a + b) * v - a * w[n:2 * n] - b * w[2 * n:]
+            d2 = w[:n] if p.lam == 1.0 else p.lam * w[:n]
+            y.getArray()[:] = d2 + (p.a + p.b) * v - p.a * w[n:2 * n] - p.b * w[2 * n:]
             return
         extended = self.size > p.p * p.grid.size + p.nsc
         sc = p._scalars(x)                    # the direction's components along lam and the parameter

@@ -413,7 +413,8 @@ class AdvanceDelayProblem(ContinuationProblem):
         if self.simple and X.getSize() == self.grid.size:
             dplus, dminus, d2u = self.shift_differences(X)
             force, lat = self.lattice.force, self.lattice
-            first = d2u if self.lam == 1.0 else self.lam * d2u
+            lam = self.masses[0] * self.lam               # m_0 omega^2 (eq. ad)
+            first = d2u if lam == 1.0 else lam * d2u
             F.getArray()[:] = first - _on_contact(lat, force, dplus) + _on_contact(lat, force, dminus)
             return
         extended = X.getSize() > self.p * self.grid.size + self.nsc
@@ -498,7 +499,8 @@ class AdvanceDelayProblem(ContinuationProblem):
     def _jacobian_blocks(self):
         a, b = self.a[:, None], self.b[:, None]
         c = self.stencils.coef
-        d2 = c["d2"] if self.lam == 1.0 else self.lam * c["d2"]
+        lam = self.masses[0] * self.lam
+        d2 = c["d2"] if lam == 1.0 else lam * c["d2"]
         return [d2, a + b, -a * c["plus"], -b * c["minus"]]
 
     def create_jacobian(self, X, kind="aij"):
@@ -826,7 +828,8 @@ class _JacobianProduct:
             w = p.stencils.stacked(x).getArray(readonly=True)
             v = x.getArray(readonly=True)
             n = p.nloc
-            d2 = w[:n] if p.lam == 1.0 else p.lam * w[:n]
+            lam = p.masses[0] * p.lam
+            d2 = w[:n] if lam == 1.0 else lam * w[:n]
             y.getArray()[:] = d2 + (p.a + p.b) * v - p.a * w[n:2 * n] - p.b * w[2 * n:]
             return
         extended = self.size > p.p * p.grid.size + p.nsc

@@ -27,9 +27,9 @@ def test_fold_implements_oddness_and_periodicity():
     assert list(idx[sign != 0]) == [2, 4, 2, 2]           # unknown index of u_3, u_5, u_3, u_3
 
 
-@pytest.mark.parametrize("q", [0.7 * math.pi, 0.7, math.pi])   # integer, interpolated, half-period shifts
-def test_jacobian_matches_finite_differences(q):
-    pot = LatticeModel.hertz(1.5)
+@pytest.mark.parametrize("q, mass", [(0.7 * math.pi, 1.0), (0.7, 1.0), (math.pi, 1.0), (0.7, 2.0)])
+def test_jacobian_matches_finite_differences(q, mass):    # integer, interpolated, half-period shifts; a heavy chain
+    pot = LatticeModel.hertz(1.5, masses=(mass,))
     g = ProfileGrid(120, PETSc.COMM_WORLD)
     xi = g.xi_half()
     rng = np.random.default_rng(7)
@@ -135,3 +135,17 @@ def test_damped_models_and_unknown_parameters_are_refused():
 def test_bad_grid_is_rejected(K):
     with pytest.raises(ParameterError, match="cells_per_pi"):
         ProfileGrid(K, PETSc.COMM_SELF)
+
+
+def test_a_monatomic_chain_of_mass_m_at_omega_is_the_unit_chain_at_omega_sqrt_m():
+    """Eq. ad with masses m: m omega^2 u'' = V'(tau_q u - u) - V'(u - tau_-q u), so the residual depends on m omega^2
+    only (the single-profile path included)."""
+    g = ProfileGrid(200, PETSc.COMM_WORLD)
+    u = g.vec_from_half_profile(np.sin(g.xi_half()) + 0.2 * np.sin(3 * g.xi_half()))
+    heavy = AdvanceDelayProblem(LatticeModel.hertz(1.5, masses=(2.0,)), g, 2.0, omega=0.8)
+    unit = AdvanceDelayProblem(LatticeModel.hertz(1.5), g, 2.0, omega=0.8 * math.sqrt(2.0))
+    r_heavy, r_unit = residual(heavy, u), residual(unit, u)
+    r_heavy.axpy(-1.0, r_unit)
+    assert r_heavy.norm(PETSc.NormType.INFINITY) <= 1e-13 * r_unit.norm(PETSc.NormType.INFINITY)
+    heavy.destroy()
+    unit.destroy()

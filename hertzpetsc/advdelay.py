@@ -29,6 +29,7 @@ for omega and the masses, a finite difference otherwise. Solvers: :mod:`hertzpet
 direct LU or Newton-Krylov for every p and every border).
 """
 import math
+import weakref
 
 import numpy as np
 from petsc4py import PETSc
@@ -77,7 +78,8 @@ class ShiftStencils(StencilGather):
                                 "plus": shift_stencil(self.sigma), "minus": shift_stencil(-self.sigma)},
                          scatter=self.parallel)
         key = self.pos if self.parallel else self.cols
-        parts = [merged_csr(key[k], self.coef[k]) for k in ("d2", "plus", "minus")]
+        parts = [_d2_csr(grid, self) if k == "d2" and not self.parallel else merged_csr(key[k], self.coef[k])
+                 for k in ("d2", "plus", "minus")]
         self.pos = {}                     # positions are folded into T's columns
         self.nloc = nloc = grid.rend - grid.rstart
         offsets = np.cumsum([0] + [p[0][-1] for p in parts])
@@ -105,6 +107,17 @@ class ShiftStencils(StencilGather):
         super().destroy()
         self.T.destroy()
         self.w.destroy()
+
+
+_D2_CACHE = weakref.WeakKeyDictionary()
+
+
+def _d2_csr(grid, stencils):
+    """CSR rows of the second difference on ``grid`` (independent of q: built once per grid)."""
+    csr = _D2_CACHE.get(grid)
+    if csr is None:
+        csr = _D2_CACHE[grid] = merged_csr(stencils.cols["d2"], stencils.coef["d2"])
+    return csr
 
 
 def profile_sup(values, periodic=False):

@@ -48,6 +48,10 @@ _EXPORTS = {
     "Refiner": "shooting", "Refinement": "shooting", "Spectrum": "floquet", "DenseFloquet": "floquet",
     "DominantFloquet": "floquet", "SymmetricFloquet": "bloch", "wave_of_amplitude": "families",
     "WaveStudy": "studies.wave", "WaveParameters": "studies.wave",
+    "RefinementScan": "studies.refinement", "RefinedStates": "studies.refinement", "FloquetScan": "studies.floquet",
+    "BlochScan": "studies.floquet", "SlowInstabilityScan": "studies.slow", "LongRun": "studies.longrun",
+    "CompactonStabilityScan": "studies.compacton_stability", "CompactonDynamics": "studies.compacton_dynamics",
+    "CompactonPairs": "studies.compacton_pairs",
     # driven, damped chains (issue 22)
     "Drive": "driven", "HarmonicWave": "driven", "HalfSinePulses": "driven", "SampledWave": "driven",
     "ProfileWave": "driven", "PeriodicShooting": "driven", "Response": "driven", "switch_to_doubled": "driven",

@@ -153,6 +153,28 @@ def test_floquet_scan_resumes_and_its_file_is_the_documented_one(refined, tmp_pa
         assert str(z["format"]) == "hertzpetsc-floquet-1" and z["multipliers"].shape == (2, 40)
 
 
+def test_section_3_scans_run_in_memory_with_the_records_and_identity_of_their_files(refined, tmp_path):
+    """The scans that take their arguments directly are studies too: without an output path their records stay in
+    memory, equal to those of the file; the file's identity (constants but the labels, solver options) is what a
+    resume compares."""
+    d, branch, *_ = refined
+    states = RefinedStates.load(f"{d}/r.npz")
+    memory = FloquetScan(branch, 20, refined=states, qs=[0.4 * math.pi])
+    on_file = FloquetScan(branch, 20, COMM, f"{shared(tmp_path)}/f.npz", refined=states, qs=[0.4 * math.pi])
+    rows = [list(s.run()) for s in (memory, on_file)]
+    assert memory.store.path is None and len(memory.records) == 1
+    assert np.array_equal(rows[0][0]["multipliers"], rows[1][0]["multipliers"])
+    with np.load(f"{shared(tmp_path)}/f.npz") as z:
+        for key, value in memory.arrays().items():
+            if key != "seconds":
+                assert np.array_equal(z[key], value, equal_nan=value.dtype.kind in "fc"), key
+        assert "note" in z.files and "note" not in memory.identity() and "solver_options" in memory.identity()
+    memory.destroy()
+    on_file.destroy()
+    refinement = RefinementScan(branch, "coarse", 20, qs=[0.4 * math.pi])
+    assert np.array_equal(next(refinement.run())["x"], states.state(0.4 * math.pi))
+
+
 def test_critical_wavenumbers():
     q = np.array([1.0, 0.9, 0.8, 0.7])
     assert critical_wavenumbers(q, [1.0, 1.0, 1.1, 1.2], 1e-4) == (0.8, 0.9, 0.7)

@@ -335,11 +335,9 @@ class StabilityMap(Study):
     # --- one q -------------------------------------------------------------------------------------------------
     def _row(self, q, kind, a, A, omega, probe=None, entry=None, **extra):
         nan = math.nan
-        m = check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1
-        row = dict(q=q, m=m, kind=kind, a=a, A=A, omega=omega, rho=nan, outside=-1,
-                   sector=nan, cluster=nan, raw_cluster=nan, eigvec=nan, decoupled=-1, rho_inf=nan, theta_inf=nan,
-                   cluster_inf=nan, a_stable=nan, a_unstable=nan, A_stable=nan, A_unstable=nan, rho_stable=nan,
-                   rho_unstable=nan, theta_unstable=nan, evaluations=0, seconds=0.0)
+        row = dict.fromkeys(MAP_FIELDS, nan)
+        row.update(q=q, m=check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1, kind=kind, a=a, A=A,
+                   omega=omega, outside=-1, decoupled=-1, evaluations=0, seconds=0.0)
         if entry is not None:
             if fits_chain(q, self.N):
                 c = probe.chain(entry)
@@ -547,11 +545,7 @@ class QBoundaryParameters:
                 raise ParameterError("q", q, f"q / 2 pi must be a fraction with a denominator of at most max_cell = "
                                      f"{self.max_cell}")
         object.__setattr__(self, "q", tuple(qs))
-        amps = []
-        for A in self.A:
-            A = math.inf if A == math.inf else check_amplitude(A, "A")
-            if A not in amps:
-                amps.append(A)
+        amps = {math.inf if A == math.inf else check_amplitude(A, "A") for A in self.A}
         if not amps:
             raise ParameterError("A", self.A, "give at least one amplitude")
         object.__setattr__(self, "A", tuple(sorted(amps)))
@@ -612,11 +606,9 @@ class QBoundary(Study):
             probe.destroy()
             if limit is not None:
                 limit.destroy()
-        nan = math.nan
-        return dict(A=A, q=q, M=scan["M"], kind=KIND_POINT, grid=0, omega=entry.get("omega", nan),
-                    rho_inf=scan["rho"], theta_inf=scan["theta"], cluster_inf=scan["cluster"], q_stable=nan,
-                    q_unstable=nan, rho_stable=nan, rho_unstable=nan, theta_unstable=nan, evaluations=1,
-                    seconds=time.perf_counter() - t0)
+        return dict(dict.fromkeys(QMAP_FIELDS, math.nan), A=A, q=q, M=scan["M"], kind=KIND_POINT, grid=0,
+                    omega=entry.get("omega", math.nan), rho_inf=scan["rho"], theta_inf=scan["theta"],
+                    cluster_inf=scan["cluster"], evaluations=1, seconds=time.perf_counter() - t0)
 
     def unstable(self, row):
         return row["rho_inf"] - 1 > self.tol_rho
@@ -624,13 +616,9 @@ class QBoundary(Study):
     def compute(self, A):
         """Every record of the level A (on this rank): the grid q, then each located edge after its samples."""
         p = self.params
-        grid = []
-        for cell in (wave_cell(q) for q in p.q):
-            x = Fraction(cell.m, cell.M)
-            row = self.evaluate(x, A)
-            row["grid"] = 1
-            grid.append((x, row))
-        rows = [row for _, row in grid]
+        cells = [Fraction(c.m, c.M) for c in map(wave_cell, p.q)]
+        rows = [dict(self.evaluate(x, A), grid=1) for x in cells]
+        grid = list(zip(cells, rows))
         for (x1, r1), (x2, r2) in zip(grid, grid[1:]):
             if self.unstable(r1) == self.unstable(r2):
                 continue

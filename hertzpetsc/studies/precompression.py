@@ -196,9 +196,8 @@ class AmplitudeFamilies(Study):
         if limit is not None:
             out["Omega0"] = float(limit["Omega"])
             if len(grid) >= 2:
-                c1 = [(float(r["Omega"]) - out["Omega0"]) * float(r["A"]) / d0 for r in grid[-2:]]
-                out.update(c1=c1[-1], c1_previous=c1[0])
                 (A1, O1), (A2, O2) = [(float(r["A"]), float(r["Omega"]) - out["Omega0"]) for r in grid[-2:]]
+                out.update(c1=O2 * A2 / d0, c1_previous=O1 * A1 / d0)
                 if O1 > 0 and O2 > 0:
                     out["rate"] = math.log(O1 / O2) / math.log(A2 / A1)
         far = [r for r in grid if float(r["A"]) >= 20 * d0]
@@ -361,11 +360,9 @@ class DimerFamilies(Study):
                     # the two start points; the state (both points) is saved with the second: a run stopped after
                     # the first recomputes them and saves the second (the first is the same computation)
                     points = list(mc.start())
-                    for i, p in enumerate(points):
-                        if i < saved:
-                            continue
-                        row = self._row(q, p)
-                        yield self.store.append(row, state=dict(q=q, **mc.snapshot()) if i == len(points) - 1 else None)
+                    for i, p in enumerate(points[saved:], saved):
+                        yield self.store.append(self._row(q, p), state=dict(q=q, **mc.snapshot())
+                                                if i == len(points) - 1 else None)
                     saved = len(points)
                 try:
                     for p in mc.run(self.epsilon_end, self.max_steps - (saved - 2)):

@@ -375,12 +375,13 @@ class Response:
 
 
 def _peak(f):
-    """The maximum of periodic samples f, refined by the parabola through it and its two neighbours."""
+    """(position, value) of the maximum of periodic samples f, refined by the parabola through it and its two
+    neighbours."""
     f = np.asarray(f, float)
     k = int(np.argmax(f))
     a, b, c = f[k - 1], f[k], f[(k + 1) % len(f)]
     den = a - 2 * b + c
-    return float(b - 0.125 * (a - c) ** 2 / den) if den < 0 else float(b)
+    return (k + 0.5 * (a - c) / den, float(b - 0.125 * (a - c) ** 2 / den)) if den < 0 else (k, float(b))
 
 
 def verdict(rho, tol=TOL_MU):
@@ -640,7 +641,7 @@ class PeriodicShooting(ContinuationProblem):
             p_in.append(a)
             diss.append(b)
         return dict(amplitude=0.5 * (pos.max(axis=0) - pos.min(axis=0)), mean=pos[:-1].mean(axis=0),
-                    force_right=_peak(f_right[:-1]), force_left=_peak(f_left[:-1]), power_in=float(np.mean(p_in)),
+                    force_right=_peak(f_right[:-1])[1], force_left=_peak(f_left[:-1])[1], power_in=float(np.mean(p_in)),
                     dissipation=float(np.mean(diss)))
 
     # --- SNES callbacks ------------------------------------------------------------------------------------------
@@ -847,9 +848,7 @@ class PeriodicShooting(ContinuationProblem):
     def solve(self, Z, row=None, value=None):
         """Newton (SNES ``drive_``) on G(X; p) = 0 with row . Z = value (row None: p fixed at Z's). Returns the
         iterations (at least 1: a Z that is already a response counts as one); ConvergenceError naming p."""
-        self._row, self._value = row, value
-        self._dGdp, self._last_fnorm, self._solves = None, math.inf, self._solves + 1
-        self._f_last = None
+        self._row, self._value, self._dGdp = row, value, None
         self._row_full = gathered(row) if row is not None and self.jacobian_kind == "dense" else None
         x0, p0 = self.state(Z)
         self._p_fixed = p0
@@ -860,20 +859,18 @@ class PeriodicShooting(ContinuationProblem):
                                    **{self.parameter: p0}) from None
         if "atol" not in self._user_set:
             self._snes.setTolerances(atol=self.tol * self.scale(x0))
-        self._tight, Z0 = False, Z.copy()
+        Z0, its = Z.copy(), 0
         try:
-            self._snes.solve(None, Z)
-            reason = int(self._snes.getConvergedReason())
-            its = int(self._snes.getIterationNumber())
-            if reason <= 0:
-                # a chord step that led nowhere, or a Jacobian too loose for R - I (multipliers near 1: an undamped
-                # chain amplifies JACOBIAN_RTOL by cond(R - I)): again with fresh, fully resolved Jacobians
+            # a chord step that led nowhere, or a Jacobian too loose for R - I (multipliers near 1: an undamped
+            # chain amplifies JACOBIAN_RTOL by cond(R - I)): again from Z with fresh, fully resolved Jacobians
+            for self._tight in (False, True):
                 Z0.copy(Z)
-                self._tight = True
                 self._last_fnorm, self._solves, self._f_last = math.inf, self._solves + 1, None
                 self._snes.solve(None, Z)
                 reason = int(self._snes.getConvergedReason())
                 its += int(self._snes.getIterationNumber())
+                if reason > 0:
+                    break
         finally:
             self._tight = False
             Z0.destroy()
@@ -945,8 +942,8 @@ class PeriodicShooting(ContinuationProblem):
         out = dict(x=x, periods=self.periods)
         if self.floquet_kind != "none":
             mu = self.multipliers(x=x, p=p)
-            out.update(multipliers=mu, rho=float(np.max(np.abs(mu))), verdict=verdict(float(np.max(np.abs(mu)))),
-                       **counts(mu))
+            rho = float(np.max(np.abs(mu)))
+            out.update(multipliers=mu, rho=rho, verdict=verdict(rho), **counts(mu))
         return out
 
     def destroy(self):
@@ -999,24 +996,20 @@ class LinearChainPreconditioner:
         self.inverse = np.linalg.inv(phi - np.eye(2))
         self._key = (drive, T)
 
-    def _sine(self, x):
-        """sum_n x_n sin(2 pi j n / ext) at the modes' frequencies j (x: (N, c))."""
+    def _sine(self, x, into, out):
+        """The sine transform of x (rows ``into`` of the length-ext sequence) at the rows ``out``: the modes
+        sum_n x_n sin(2 pi j n / ext) (into the beads 1..N, out the frequencies j) and, divided by norm, back."""
         z = np.zeros((self.ext, x.shape[1]))
-        z[1:len(x) + 1] = x
-        return -np.fft.rfft(z, axis=0).imag[self.freq]
-
-    def _inverse_sine(self, y):
-        """x_n = sum_k y_k sin(2 pi j_k n / ext) / norm, n = 1..N."""
-        w = np.zeros((self.ext, y.shape[1]))
-        w[self.freq] = y
-        return -np.fft.rfft(w, axis=0).imag[1:len(y) + 1] / self.norm
+        z[into] = x
+        return -np.fft.rfft(z, axis=0).imag[out]
 
     def apply(self, pc, x, y):
         prob = self.problem
         self._modes()
         full = gathered(x)
-        modes = self._sine(full[:2 * prob.N].reshape(prob.N, 2))
-        solved = self._inverse_sine(np.einsum("kij,kj->ki", self.inverse, modes))
+        beads = slice(1, prob.N + 1)
+        modes = self._sine(full[:2 * prob.N].reshape(prob.N, 2), beads, self.freq)
+        solved = self._sine(np.einsum("kij,kj->ki", self.inverse, modes), self.freq, beads) / self.norm
         out = y.getArray()
         xs = prob.chain.xs
         out[:prob.nloc] = solved[xs:xs + prob.nloc // 2].ravel()
@@ -1159,11 +1152,7 @@ def local_wave(t, positions, omega):
     dt = (t[-1] - t[0]) / J
     for n in range(x.shape[1] - 1):
         cc = np.fft.irfft(F[:, n + 1] * np.conj(F[:, n]), n=J)   # cc[s] = sum_j x_{n+1}(t_j + s) x_n(t_j)
-        k = int(np.argmax(cc))
-        a, b, d = cc[k - 1], cc[k], cc[(k + 1) % J]
-        den = a - 2 * b + d
-        shift = k + (0.5 * (a - d) / den if den < 0 else 0.0)
-        lag = shift * dt                               # x_{n+1}(t) = x_n(t - lag)
+        lag = _peak(cc)[0] * dt                        # x_{n+1}(t) = x_n(t - lag)
         q[n] = (omega * lag + math.pi) % (2 * math.pi) - math.pi
     return A, c, q
 
@@ -1210,11 +1199,10 @@ class BranchFamily:
             return math.nan
         y = (xs - 0.5 * (xs.max() + xs.min())) / A
         phis = np.linspace(0, 2 * math.pi, 256, endpoint=False)
-        d = [np.sqrt(np.mean((y - self.shape(q, ph - omega * tt)) ** 2)) for ph in phis]
-        k = int(np.argmin(d))
+        f = lambda ph: np.sqrt(np.mean((y - self.shape(q, ph - omega * tt)) ** 2))   # noqa: E731
+        k = int(np.argmin([f(ph) for ph in phis]))
         # refine the phase by golden section around the best grid phase
         a, b = phis[k] - 2 * math.pi / 256, phis[k] + 2 * math.pi / 256
-        f = lambda ph: np.sqrt(np.mean((y - self.shape(q, ph - omega * tt)) ** 2))   # noqa: E731
         return -golden_maximum(lambda ph: -f(ph), a, b, 1e-9)[1]
 
 

@@ -426,8 +426,9 @@ class ResponseCurve(DrivenStudy):
                 if trailing and self._same_event(trailing[0], ev, EVENTS[ev.event]):
                     trailing.pop(0)            # recorded before the run was stopped
                     continue
-                er = self._record(prob, ev, branch, ev.event,
-                                  int(self._confirmed(ev, previous, mu_prev, rec, mu, prob)))
+                # confirmed by the spectra on both sides, else by two responses close to it
+                confirmed = crossing(mu_prev, mu) == ev.event or self._confirmed_nearby(ev, previous, rec, prob)
+                er = self._record(prob, ev, branch, ev.event, int(confirmed))
                 self._append(er, cont)
                 yield er
             if branch == 0:
@@ -443,11 +444,6 @@ class ResponseCurve(DrivenStudy):
             self._append(rec, cont)
             yield rec
             mu_prev, tests_prev, dp_prev, previous = mu, point.tests or {}, point.dp_ds, rec
-
-    def _confirmed(self, ev, before, mu_before, after, mu_after, problem):
-        """Whether the event ``ev`` between the records ``before`` and ``after`` (spectra ``mu_before``,
-        ``mu_after``) is the crossing it names: by the two spectra, else by two responses close to it."""
-        return crossing(mu_before, mu_after) == ev.event or self._confirmed_nearby(ev, before, after, problem)
 
     def _confirmed_nearby(self, ev, before, after, problem=None):
         """Whether two responses close to a located event, on either side of it, have multipliers that differ by
@@ -570,10 +566,8 @@ class ResponseCurve(DrivenStudy):
                  "amp_max |", "|---|---|---|---|---|---|---|---|---|"]
         arclength = str(self.store.constants.get("mode", "arclength")) == "arclength"
         for r in recs:
-            if int(r["event"]) == 0 and int(r["branch"]) == 0:
-                continue
-            if int(r["branch"]) > 0 and int(r["event"]) == 0 and r is not self.branch_records(int(r["branch"]))[0]:
-                continue
+            if int(r["event"]) == 0 and (int(r["branch"]) == 0 or r is not self.branch_records(int(r["branch"]))[0]):
+                continue                           # regular points but the first of a switched branch
             name = EVENT_NAMES[int(r["event"])] or "first point"
             if int(r["event"]) == EVENTS["neimark_sacker"] and int(r["confirmed"]) == 0 and \
                     neutral_saddle(r["multipliers"]):
@@ -584,21 +578,18 @@ class ResponseCurve(DrivenStudy):
             lines.append(f"| {int(r['branch'])} | {int(r['periods'])} | {name} | {float(r['p']):.8f} | "
                          f"{int(r['confirmed'])} | {float(r['rho']):.6f} | {float(r['residual']):.1e} | "
                          f"{float(r['force_right']):.4g} | {float(r['amp_max']):.4g} |")
-        main = self.branch_records(0)
-        if main:
-            stable = sum(1 for r in main if float(r["rho"]) < 1 - TOL_MU)
-            verdicts = f"stable (rho < 1 - {TOL_MU:g}) at {stable}" \
-                if any(math.isfinite(float(r["rho"])) for r in main) else "multipliers not computed (floquet none)"
-            lines.append("")
-            lines.append(f"Branch 0: {len(main)} points, {self.parameter} from {float(main[0]['p']):.6g} to "
-                         f"{float(main[-1]['p']):.6g}; {verdicts}; max residual "
-                         f"{max(float(r['residual']) for r in main):.1e}; max force_right "
-                         f"{np.nanmax([float(r['force_right']) for r in main]):.4g}.")
-        for j in sorted({int(r["branch"]) for r in recs} - {0}):
+        for j in sorted({int(r["branch"]) for r in recs}):
             br = self.branch_records(j)
-            lines.append(f"Branch {j} (period {int(br[0]['periods'])} T): {len(br)} points, {self.parameter} from "
-                         f"{float(br[0]['p']):.6g} to {float(br[-1]['p']):.6g}, max residual "
-                         f"{max(float(r['residual']) for r in br):.1e}.")
+            span = f"{len(br)} points, {self.parameter} from {float(br[0]['p']):.6g} to {float(br[-1]['p']):.6g}"
+            worst = f"max residual {max(float(r['residual']) for r in br):.1e}"
+            if j:
+                lines.append(f"Branch {j} (period {int(br[0]['periods'])} T): {span}, {worst}.")
+                continue
+            stable = sum(1 for r in br if float(r["rho"]) < 1 - TOL_MU)
+            verdicts = f"stable (rho < 1 - {TOL_MU:g}) at {stable}" \
+                if any(math.isfinite(float(r["rho"])) for r in br) else "multipliers not computed (floquet none)"
+            lines += ["", f"Branch 0: {span}; {verdicts}; {worst}; max force_right "
+                          f"{np.nanmax([float(r['force_right']) for r in br]):.4g}."]
         return "\n".join(lines) + "\n"
 
 

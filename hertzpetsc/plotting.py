@@ -29,6 +29,11 @@ def _save(fig, directory, name, tight=True):
         _pyplot().close(fig)
 
 
+def _columns(rows, *keys):
+    """One float array per key, over the records ``rows``."""
+    return [np.array([float(r[k]) for r in rows]) for k in keys]
+
+
 def _nearest(branch, q):
     return int(np.argmin(np.abs(branch.q - q)))
 
@@ -159,16 +164,21 @@ def plot_snapshot(x0, xt, t, directory, name, title=""):
     return _save(fig, directory, name)
 
 
-def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
-    """Interaction forces V'(x_{n+1} - x_n) in grey levels over (n, t) (figs. stabletw ... structures)."""
-    f = -np.abs(bond_forces(states)) ** alpha
+def _spacetime(image, times, n0, cmap, label, directory, name, title):
+    """``image`` (times x beads, bead j at n0 + j) in grey levels over (n, t), with its colour bar."""
     fig, ax = _pyplot().subplots(figsize=(6, 4))
-    im = ax.imshow(f, aspect="auto", origin="lower", cmap="gray",
-                   extent=(0.5, states.shape[1] + 0.5, times[0], times[-1]))
-    fig.colorbar(im, ax=ax, label=r"$V'(x_{n+1}-x_n)$")
+    im = ax.imshow(image, aspect="auto", origin="lower", cmap=cmap,
+                   extent=(n0 - 0.5, image.shape[1] + n0 - 0.5, times[0], times[-1]))
+    fig.colorbar(im, ax=ax, label=label)
     ax.set(xlabel="$n$", ylabel="$t$")
     ax.set_title(title, fontsize=9)
     return _save(fig, directory, name)
+
+
+def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
+    """Interaction forces V'(x_{n+1} - x_n) in grey levels over (n, t) (figs. stabletw ... structures)."""
+    return _spacetime(-np.abs(bond_forces(states)) ** alpha, times, 1, "gray", r"$V'(x_{n+1}-x_n)$", directory,
+                      name, title)
 
 
 def plot_deviation(runs, directory, name="deviation.png"):
@@ -273,14 +283,7 @@ def plot_compacton_profiles(single, double, directory):
 
 def plot_spacetime_velocities(times, states, directory, name, title=""):
     """Bead velocities xdot_n over (n, t): compactons travel through beads at rest (white = exactly 0)."""
-    v = states[..., 1]
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
-    im = ax.imshow(v, aspect="auto", origin="lower", cmap="gray_r",
-                   extent=(-0.5, states.shape[1] - 0.5, times[0], times[-1]))
-    fig.colorbar(im, ax=ax, label=r"$\dot x_n$")
-    ax.set(xlabel="$n$", ylabel="$t$")
-    ax.set_title(title, fontsize=9)
-    return _save(fig, directory, name)
+    return _spacetime(states[..., 1], times, 0, "gray_r", r"$\dot x_n$", directory, name, title)
 
 
 # --- section 3.2 beyond the paper: small q -------------------------------------------------------------------------
@@ -304,8 +307,7 @@ def plot_compacton_max_multiplier(rows, directory):
     fig, ax = _pyplot().subplots(figsize=(6, 4))
     for k, a in enumerate(sorted({float(r["alpha"]) for r in rows})):
         rs = [r for r in rows if float(r["alpha"]) == a]
-        q = np.array([float(r["q"]) for r in rs])
-        mu = np.array([float(r["max_nontrivial"]) for r in rs])
+        q, mu = _columns(rs, "q", "max_nontrivial")
         pos = q > 0
         order = np.argsort(q[pos])
         line, = ax.semilogx(q[pos][order], mu[pos][order], ".-", ms=5, lw=0.8, label=rf"$\alpha = {a:g}$")
@@ -341,9 +343,7 @@ def plot_solitary_stability(rows, directory):
     fig, (ax, bx) = _pyplot().subplots(1, 2, figsize=(10, 4))
     for a in sorted({float(r["alpha"]) for r in rows}):
         rs = sorted((r for r in rows if float(r["alpha"]) == a), key=lambda r: float(r["c0"]))
-        c0 = np.array([float(r["c0"]) for r in rs])
-        slope = np.array([float(r["log_slope"]) for r in rs])
-        fd = np.array([float(r["log_slope_fd"]) for r in rs])
+        c0, slope, fd = _columns(rs, "c0", "log_slope", "log_slope_fd")
         pos = c0 > 0
         line, = ax.plot(1 / c0[pos], slope[pos], "-", lw=0.9, label=rf"$\alpha = {a:g}$")
         ax.plot(1 / c0[pos], fd[pos], "o", mfc="none", color=line.get_color(), ms=5)
@@ -400,8 +400,7 @@ def plot_slow_instabilities(records, target, alpha, directory, name="slow_instab
     deflated monodromy route (|gamma|: both are rounding-level where stable), the undeflated symmetry cluster
     (ln(1 + raw |mu| - 1) / script-T, what an undeflated spectrum shows) and the target resolution."""
     rows = sorted(records, key=lambda r: float(r["q"]))
-    q = np.array([float(r["q"]) for r in rows])
-    T = np.array([float(r["T"]) for r in rows])
+    q, T = _columns(rows, "q", "T")
     g = np.array([np.abs(np.asarray(r["gamma_cm"], dtype=float)) for r in rows])
     floor = 1e-17
     fig, ax = _pyplot().subplots(figsize=(7, 4.2))
@@ -592,10 +591,8 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
         regular = [r for r in rs if int(r["event"]) == 0]
         if not regular:
             continue
-        p = np.array([float(r["p"]) for r in regular])
-        f = np.array([float(r["force_right"]) for r in regular])
-        rho = np.array([float(r["rho"]) for r in regular])
-        y = f if np.any(np.isfinite(f)) else np.array([float(r["amp_max"]) for r in regular])
+        p, f, rho, amp = _columns(regular, "p", "force_right", "rho", "amp_max")
+        y = f if np.any(np.isfinite(f)) else amp
         color = "k" if j == 0 else f"C{j}"
         if not np.any(np.isfinite(rho)):           # no multipliers (floquet none): no verdict to draw
             ax.plot(p, y, "-", color="0.4", lw=1.2, label=f"branch {j} (period {int(rs[0]['periods'])} T; "
@@ -613,9 +610,8 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
             if ev in _EVENT_MARKERS:
                 m, lab = _EVENT_MARKERS[ev]
                 yv = float(r["force_right"]) if np.isfinite(float(r["force_right"])) else float(r["amp_max"])
-                ax.plot(float(r["p"]), yv, m, mfc="none" if not int(r["confirmed"]) else "r", mec="r", ms=6)
-                bx.plot(float(r["p"]), float(r["rho"]), m, mfc="none" if not int(r["confirmed"]) else "r", mec="r",
-                        ms=6)
+                for axis, v in ((ax, yv), (bx, float(r["rho"]))):
+                    axis.plot(float(r["p"]), v, m, mfc="r" if int(r["confirmed"]) else "none", mec="r", ms=6)
     for ev, (m, lab) in _EVENT_MARKERS.items():
         ax.plot([], [], m, mfc="r", mec="r", label=lab)
     ax.set_ylabel("max force on the wall")
@@ -634,9 +630,7 @@ def plot_driven_resonances(records, directory, name="driven_resonances.png"):
     fig, (ax, bx) = _pyplot().subplots(2, 1, figsize=(6, 5.5), sharex=True)
     recs = sorted(records, key=lambda r: int(r["k"]))
     k = np.array([int(r["k"]) for r in recs])
-    wk = np.array([float(r["omega_k"]) for r in recs])
-    pl = np.array([float(r["peak_linear"]) for r in recs])
-    ps = np.array([float(r["peak_shooting"]) for r in recs])
+    wk, pl, ps = _columns(recs, "omega_k", "peak_linear", "peak_shooting")
     ax.plot(k, wk, "k-", lw=1, label=r"$\omega_k$ (closed form)")
     ax.plot(k, pl, "o", mfc="none", mec="C0", label="peak, damped linear chain")
     ax.plot(k, ps, "x", color="C3", label="peak, shooting (Hertz chain)")

@@ -274,9 +274,8 @@ def plot_compacton_profiles(single, double, directory):
         ax.plot(xi, train(xi), "k-", lw=1)
         for s in train.offsets:
             ax.axvspan(s + train.ell, s + 2 * math.pi - train.ell, color="0.85", lw=0)
-        ax.set_xlabel(r"$\xi$")
         theta = "" if train.count == 1 else rf", $\theta = {train.offsets[1] - 2 * math.pi:.3g}$"
-        ax.set_ylabel("$U_q$" if train.count == 1 else "$U^{(2)}_{q,\\theta}$")
+        ax.set(xlabel=r"$\xi$", ylabel="$U_q$" if train.count == 1 else "$U^{(2)}_{q,\\theta}$")
         ax.set_title(rf"$q = {train.q:.4f}$, $F(q) = {train.F:.3f}$" + theta, fontsize=9)
     return _save(fig, directory, "graphulin.png")
 
@@ -388,8 +387,7 @@ def plot_compacton_dynamics(records, directory):
                        vmin=max(dev.min(), -14), shading="nearest")
     fig.colorbar(im, ax=bx, label=r"$\log_{10}$ |deviation| (window bead)")
     bx.set_xscale("symlog", linthresh=50)
-    bx.set_xlabel("time = beads travelled")
-    bx.set_ylabel("window bead (moving frame)")
+    bx.set(xlabel="time = beads travelled", ylabel="window bead (moving frame)")
     bx.set_title(f"q = {float(r['q']):.4f}, {r['kind']}: perturbed compacton, moving frame", fontsize=9)
     return _save(fig, directory, "compacton_dynamics.png")
 
@@ -420,8 +418,7 @@ def plot_slow_instabilities(records, target, alpha, directory, name="slow_instab
     unstable = np.array([int(r["verdict"]) for r in rows]) == 1
     if unstable.any():
         ax.semilogy(q[unstable], g[unstable, -1], "r*", ms=9, label="slowly unstable")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$|\gamma(q)| = \max \ln|\mu| / \mathcal{T}$")
+    ax.set(xlabel="$q$", ylabel=r"$|\gamma(q)| = \max \ln|\mu| / \mathcal{T}$")
     ax.set_title(rf"$\alpha = {alpha:g}$: growth rates on the infinite chain", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     return _save(fig, directory, name)
@@ -498,6 +495,7 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
                    zorder=3)
         ax.scatter(q[located & ~onset], A[located & ~onset], marker="v", s=22, c="orange", edgecolors="k", lw=0.4,
                    label="offset (located)", zorder=3)
+        from .studies.floquet import critical_wavenumbers
         from .studies.maps import unstable_intervals
         finite = np.isfinite(A) & (A > 0)
         lo_A, hi_A = (A[finite].min(), A[finite].max()) if finite.any() else (1e-2, 1e3)
@@ -516,16 +514,13 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
         if gap.any():
             ax.plot(q[gap][order], A[gap][order], "b--", lw=0.9, label=r"$A_{gap}(q)$")
         limit = (kind == 3) & np.isfinite(rho)
-        unstable_limit = q[limit & (rho - 1 > tol)]
-        if len(unstable_limit):        # q_c lies between the largest q unstable at A = inf and the next stable one
-            q_lo = unstable_limit.max()
-            stable_above = q[limit & (rho - 1 <= tol) & (q > q_lo)]
-            if len(stable_above):
-                ax.axvspan(q_lo, stable_above.min(), color="0.85", zorder=0, label=r"$q_c$ (uncompressed) in here")
-            else:
-                ax.axvline(q_lo, color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed) above")
-        ax.set(yscale="log", xlabel="$q$")
-        ax.set_ylabel(r"$A = \|u\|_\infty$")
+        # q_c lies between the largest q unstable at A = inf and the next stable one
+        q_lo, q_hi, _ = critical_wavenumbers(q[limit], rho[limit], tol) if limit.any() else (math.nan, None, None)
+        if q_hi is not None:
+            ax.axvspan(q_lo, q_hi, color="0.85", zorder=0, label=r"$q_c$ (uncompressed) in here")
+        elif q_lo == q_lo:
+            ax.axvline(q_lo, color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed) above")
+        ax.set(yscale="log", xlabel="$q$", ylabel=r"$A = \|u\|_\infty$")
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=7, loc="upper right")
     fig.colorbar(sc, ax=list(axes[0]), label=r"$\log_{10}(\rho - 1)$")
@@ -569,8 +564,7 @@ def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
     if not np.all(np.isfinite(A)):
         ax.axhline(top, color="0.8", lw=0.6)
         ax.text(ax.get_xlim()[0], top, r" $A = \infty$", va="bottom", fontsize=7)
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$A = \|u\|_\infty$")
+    ax.set(xlabel="$q$", ylabel=r"$A = \|u\|_\infty$")
     ax.set_title(rf"infinite chain, $\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$: "
                  "boundary located in $q$", fontsize=10)
     ax.legend(fontsize=7, loc="upper right")
@@ -656,8 +650,7 @@ def plot_driven_wave_ends(records, directory, name="driven_wave_ends.png"):
         rr = sorted((r for r in recs if int(r["N"]) == N), key=lambda r: float(r["q"]))
         ax.semilogy([float(r["q"]) for r in rr], [float(r["rho"]) - 1 + 1e-16 for r in rr], "s--", ms=4,
                     color=f"C{i}", label=f"ends driven, N = {N}")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$\rho - 1$ over $\tau = 2\pi/\omega$")
+    ax.set(xlabel="$q$", ylabel=r"$\rho - 1$ over $\tau = 2\pi/\omega$")
     ax.legend(fontsize=8)
     return _save(fig, directory, name)
 

@@ -47,7 +47,7 @@ import numpy as np
 from .diagnostics import WaveDiagnostics, crossing
 from .errors import RecordFileError
 from .model import LatticeModel
-from .records import NpzRecords, check_kind, load_npz, on_rank0
+from .records import MemoryRecords, NpzRecords, check_kind, load_npz, on_rank0
 from .stencil import full_period
 
 BRANCH_FORMAT = "hertzpetsc-branch-1"
@@ -209,14 +209,10 @@ class Branch:
 
 def branch_store(path, branch, comm, mode):
     """The record store of a branch file for ``branch`` (its model, grid and M; its meta is written): resuming
-    needs the same alpha, cells_per_pi and M. Collective."""
-    store = NpzRecords(path, BRANCH_FORMAT, branch.constants(),
-                       dict(alpha=branch.alpha, cells_per_pi=branch.cells_per_pi, M=branch.M),
-                       POINT_FIELDS + ("u",), comm, mode, dtypes={k: np.int64 for k in INT_FIELDS},
-                       shapes={"u": (branch.cells_per_pi + 1,)}, what="branch file")
-    return store
-
-
-def points_from_store(store, branch):
-    """The points already in a (resumed) branch store, as BranchPoints of ``branch``'s grid."""
-    return [BranchPoint.from_record(r, branch.h, branch.model) for r in store.records]
+    needs the same alpha, cells_per_pi and M. Collective. ``path`` None: the records are kept in memory."""
+    layout = dict(dtypes={k: np.int64 for k in INT_FIELDS}, shapes={"u": (branch.cells_per_pi + 1,)})
+    if path is None:
+        return MemoryRecords(BRANCH_FORMAT, branch.constants(), POINT_FIELDS + ("u",), comm, **layout)
+    return NpzRecords(path, BRANCH_FORMAT, branch.constants(),
+                      dict(alpha=branch.alpha, cells_per_pi=branch.cells_per_pi, M=branch.M),
+                      POINT_FIELDS + ("u",), comm, mode, what="branch file", **layout)

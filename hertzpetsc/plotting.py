@@ -29,6 +29,11 @@ def _save(fig, directory, name, tight=True):
         _pyplot().close(fig)
 
 
+def _columns(rows, *keys):
+    """One float array per key, over the records ``rows``."""
+    return [np.array([float(r[k]) for r in rows]) for k in keys]
+
+
 def _nearest(branch, q):
     return int(np.argmin(np.abs(branch.q - q)))
 
@@ -159,16 +164,21 @@ def plot_snapshot(x0, xt, t, directory, name, title=""):
     return _save(fig, directory, name)
 
 
-def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
-    """Interaction forces V'(x_{n+1} - x_n) in grey levels over (n, t) (figs. stabletw ... structures)."""
-    f = -np.abs(bond_forces(states)) ** alpha
+def _spacetime(image, times, n0, cmap, label, directory, name, title):
+    """``image`` (times x beads, bead j at n0 + j) in grey levels over (n, t), with its colour bar."""
     fig, ax = _pyplot().subplots(figsize=(6, 4))
-    im = ax.imshow(f, aspect="auto", origin="lower", cmap="gray",
-                   extent=(0.5, states.shape[1] + 0.5, times[0], times[-1]))
-    fig.colorbar(im, ax=ax, label=r"$V'(x_{n+1}-x_n)$")
+    im = ax.imshow(image, aspect="auto", origin="lower", cmap=cmap,
+                   extent=(n0 - 0.5, image.shape[1] + n0 - 0.5, times[0], times[-1]))
+    fig.colorbar(im, ax=ax, label=label)
     ax.set(xlabel="$n$", ylabel="$t$")
     ax.set_title(title, fontsize=9)
     return _save(fig, directory, name)
+
+
+def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
+    """Interaction forces V'(x_{n+1} - x_n) in grey levels over (n, t) (figs. stabletw ... structures)."""
+    return _spacetime(-np.abs(bond_forces(states)) ** alpha, times, 1, "gray", r"$V'(x_{n+1}-x_n)$", directory,
+                      name, title)
 
 
 def plot_deviation(runs, directory, name="deviation.png"):
@@ -264,23 +274,15 @@ def plot_compacton_profiles(single, double, directory):
         ax.plot(xi, train(xi), "k-", lw=1)
         for s in train.offsets:
             ax.axvspan(s + train.ell, s + 2 * math.pi - train.ell, color="0.85", lw=0)
-        ax.set_xlabel(r"$\xi$")
         theta = "" if train.count == 1 else rf", $\theta = {train.offsets[1] - 2 * math.pi:.3g}$"
-        ax.set_ylabel("$U_q$" if train.count == 1 else "$U^{(2)}_{q,\\theta}$")
+        ax.set(xlabel=r"$\xi$", ylabel="$U_q$" if train.count == 1 else "$U^{(2)}_{q,\\theta}$")
         ax.set_title(rf"$q = {train.q:.4f}$, $F(q) = {train.F:.3f}$" + theta, fontsize=9)
     return _save(fig, directory, "graphulin.png")
 
 
 def plot_spacetime_velocities(times, states, directory, name, title=""):
     """Bead velocities xdot_n over (n, t): compactons travel through beads at rest (white = exactly 0)."""
-    v = states[..., 1]
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
-    im = ax.imshow(v, aspect="auto", origin="lower", cmap="gray_r",
-                   extent=(-0.5, states.shape[1] - 0.5, times[0], times[-1]))
-    fig.colorbar(im, ax=ax, label=r"$\dot x_n$")
-    ax.set(xlabel="$n$", ylabel="$t$")
-    ax.set_title(title, fontsize=9)
-    return _save(fig, directory, name)
+    return _spacetime(states[..., 1], times, 0, "gray_r", r"$\dot x_n$", directory, name, title)
 
 
 # --- section 3.2 beyond the paper: small q -------------------------------------------------------------------------
@@ -304,8 +306,7 @@ def plot_compacton_max_multiplier(rows, directory):
     fig, ax = _pyplot().subplots(figsize=(6, 4))
     for k, a in enumerate(sorted({float(r["alpha"]) for r in rows})):
         rs = [r for r in rows if float(r["alpha"]) == a]
-        q = np.array([float(r["q"]) for r in rs])
-        mu = np.array([float(r["max_nontrivial"]) for r in rs])
+        q, mu = _columns(rs, "q", "max_nontrivial")
         pos = q > 0
         order = np.argsort(q[pos])
         line, = ax.semilogx(q[pos][order], mu[pos][order], ".-", ms=5, lw=0.8, label=rf"$\alpha = {a:g}$")
@@ -341,9 +342,7 @@ def plot_solitary_stability(rows, directory):
     fig, (ax, bx) = _pyplot().subplots(1, 2, figsize=(10, 4))
     for a in sorted({float(r["alpha"]) for r in rows}):
         rs = sorted((r for r in rows if float(r["alpha"]) == a), key=lambda r: float(r["c0"]))
-        c0 = np.array([float(r["c0"]) for r in rs])
-        slope = np.array([float(r["log_slope"]) for r in rs])
-        fd = np.array([float(r["log_slope_fd"]) for r in rs])
+        c0, slope, fd = _columns(rs, "c0", "log_slope", "log_slope_fd")
         pos = c0 > 0
         line, = ax.plot(1 / c0[pos], slope[pos], "-", lw=0.9, label=rf"$\alpha = {a:g}$")
         ax.plot(1 / c0[pos], fd[pos], "o", mfc="none", color=line.get_color(), ms=5)
@@ -388,8 +387,7 @@ def plot_compacton_dynamics(records, directory):
                        vmin=max(dev.min(), -14), shading="nearest")
     fig.colorbar(im, ax=bx, label=r"$\log_{10}$ |deviation| (window bead)")
     bx.set_xscale("symlog", linthresh=50)
-    bx.set_xlabel("time = beads travelled")
-    bx.set_ylabel("window bead (moving frame)")
+    bx.set(xlabel="time = beads travelled", ylabel="window bead (moving frame)")
     bx.set_title(f"q = {float(r['q']):.4f}, {r['kind']}: perturbed compacton, moving frame", fontsize=9)
     return _save(fig, directory, "compacton_dynamics.png")
 
@@ -400,8 +398,7 @@ def plot_slow_instabilities(records, target, alpha, directory, name="slow_instab
     deflated monodromy route (|gamma|: both are rounding-level where stable), the undeflated symmetry cluster
     (ln(1 + raw |mu| - 1) / script-T, what an undeflated spectrum shows) and the target resolution."""
     rows = sorted(records, key=lambda r: float(r["q"]))
-    q = np.array([float(r["q"]) for r in rows])
-    T = np.array([float(r["T"]) for r in rows])
+    q, T = _columns(rows, "q", "T")
     g = np.array([np.abs(np.asarray(r["gamma_cm"], dtype=float)) for r in rows])
     floor = 1e-17
     fig, ax = _pyplot().subplots(figsize=(7, 4.2))
@@ -421,8 +418,7 @@ def plot_slow_instabilities(records, target, alpha, directory, name="slow_instab
     unstable = np.array([int(r["verdict"]) for r in rows]) == 1
     if unstable.any():
         ax.semilogy(q[unstable], g[unstable, -1], "r*", ms=9, label="slowly unstable")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$|\gamma(q)| = \max \ln|\mu| / \mathcal{T}$")
+    ax.set(xlabel="$q$", ylabel=r"$|\gamma(q)| = \max \ln|\mu| / \mathcal{T}$")
     ax.set_title(rf"$\alpha = {alpha:g}$: growth rates on the infinite chain", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     return _save(fig, directory, name)
@@ -499,6 +495,7 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
                    zorder=3)
         ax.scatter(q[located & ~onset], A[located & ~onset], marker="v", s=22, c="orange", edgecolors="k", lw=0.4,
                    label="offset (located)", zorder=3)
+        from .studies.floquet import critical_wavenumbers
         from .studies.maps import unstable_intervals
         finite = np.isfinite(A) & (A > 0)
         lo_A, hi_A = (A[finite].min(), A[finite].max()) if finite.any() else (1e-2, 1e3)
@@ -517,16 +514,13 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
         if gap.any():
             ax.plot(q[gap][order], A[gap][order], "b--", lw=0.9, label=r"$A_{gap}(q)$")
         limit = (kind == 3) & np.isfinite(rho)
-        unstable_limit = q[limit & (rho - 1 > tol)]
-        if len(unstable_limit):        # q_c lies between the largest q unstable at A = inf and the next stable one
-            q_lo = unstable_limit.max()
-            stable_above = q[limit & (rho - 1 <= tol) & (q > q_lo)]
-            if len(stable_above):
-                ax.axvspan(q_lo, stable_above.min(), color="0.85", zorder=0, label=r"$q_c$ (uncompressed) in here")
-            else:
-                ax.axvline(q_lo, color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed) above")
-        ax.set(yscale="log", xlabel="$q$")
-        ax.set_ylabel(r"$A = \|u\|_\infty$")
+        # q_c lies between the largest q unstable at A = inf and the next stable one
+        q_lo, q_hi, _ = critical_wavenumbers(q[limit], rho[limit], tol) if limit.any() else (math.nan, None, None)
+        if q_hi is not None:
+            ax.axvspan(q_lo, q_hi, color="0.85", zorder=0, label=r"$q_c$ (uncompressed) in here")
+        elif q_lo == q_lo:
+            ax.axvline(q_lo, color="k", ls=":", lw=0.9, label=r"$q_c$ (uncompressed) above")
+        ax.set(yscale="log", xlabel="$q$", ylabel=r"$A = \|u\|_\infty$")
         ax.set_title(title, fontsize=10)
         ax.legend(fontsize=7, loc="upper right")
     fig.colorbar(sc, ax=list(axes[0]), label=r"$\log_{10}(\rho - 1)$")
@@ -570,8 +564,7 @@ def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
     if not np.all(np.isfinite(A)):
         ax.axhline(top, color="0.8", lw=0.6)
         ax.text(ax.get_xlim()[0], top, r" $A = \infty$", va="bottom", fontsize=7)
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$A = \|u\|_\infty$")
+    ax.set(xlabel="$q$", ylabel=r"$A = \|u\|_\infty$")
     ax.set_title(rf"infinite chain, $\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$: "
                  "boundary located in $q$", fontsize=10)
     ax.legend(fontsize=7, loc="upper right")
@@ -592,10 +585,8 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
         regular = [r for r in rs if int(r["event"]) == 0]
         if not regular:
             continue
-        p = np.array([float(r["p"]) for r in regular])
-        f = np.array([float(r["force_right"]) for r in regular])
-        rho = np.array([float(r["rho"]) for r in regular])
-        y = f if np.any(np.isfinite(f)) else np.array([float(r["amp_max"]) for r in regular])
+        p, f, rho, amp = _columns(regular, "p", "force_right", "rho", "amp_max")
+        y = f if np.any(np.isfinite(f)) else amp
         color = "k" if j == 0 else f"C{j}"
         if not np.any(np.isfinite(rho)):           # no multipliers (floquet none): no verdict to draw
             ax.plot(p, y, "-", color="0.4", lw=1.2, label=f"branch {j} (period {int(rs[0]['periods'])} T; "
@@ -613,9 +604,8 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
             if ev in _EVENT_MARKERS:
                 m, lab = _EVENT_MARKERS[ev]
                 yv = float(r["force_right"]) if np.isfinite(float(r["force_right"])) else float(r["amp_max"])
-                ax.plot(float(r["p"]), yv, m, mfc="none" if not int(r["confirmed"]) else "r", mec="r", ms=6)
-                bx.plot(float(r["p"]), float(r["rho"]), m, mfc="none" if not int(r["confirmed"]) else "r", mec="r",
-                        ms=6)
+                for axis, v in ((ax, yv), (bx, float(r["rho"]))):
+                    axis.plot(float(r["p"]), v, m, mfc="r" if int(r["confirmed"]) else "none", mec="r", ms=6)
     for ev, (m, lab) in _EVENT_MARKERS.items():
         ax.plot([], [], m, mfc="r", mec="r", label=lab)
     ax.set_ylabel("max force on the wall")
@@ -634,9 +624,7 @@ def plot_driven_resonances(records, directory, name="driven_resonances.png"):
     fig, (ax, bx) = _pyplot().subplots(2, 1, figsize=(6, 5.5), sharex=True)
     recs = sorted(records, key=lambda r: int(r["k"]))
     k = np.array([int(r["k"]) for r in recs])
-    wk = np.array([float(r["omega_k"]) for r in recs])
-    pl = np.array([float(r["peak_linear"]) for r in recs])
-    ps = np.array([float(r["peak_shooting"]) for r in recs])
+    wk, pl, ps = _columns(recs, "omega_k", "peak_linear", "peak_shooting")
     ax.plot(k, wk, "k-", lw=1, label=r"$\omega_k$ (closed form)")
     ax.plot(k, pl, "o", mfc="none", mec="C0", label="peak, damped linear chain")
     ax.plot(k, ps, "x", color="C3", label="peak, shooting (Hertz chain)")
@@ -662,8 +650,7 @@ def plot_driven_wave_ends(records, directory, name="driven_wave_ends.png"):
         rr = sorted((r for r in recs if int(r["N"]) == N), key=lambda r: float(r["q"]))
         ax.semilogy([float(r["q"]) for r in rr], [float(r["rho"]) - 1 + 1e-16 for r in rr], "s--", ms=4,
                     color=f"C{i}", label=f"ends driven, N = {N}")
-    ax.set_xlabel("$q$")
-    ax.set_ylabel(r"$\rho - 1$ over $\tau = 2\pi/\omega$")
+    ax.set(xlabel="$q$", ylabel=r"$\rho - 1$ over $\tau = 2\pi/\omega$")
     ax.legend(fontsize=8)
     return _save(fig, directory, name)
 

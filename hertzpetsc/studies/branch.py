@@ -6,12 +6,12 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from ..branch import BRANCH_FORMAT, INT_FIELDS, POINT_FIELDS, Branch, branch_store, points_from_store
+from ..branch import BRANCH_FORMAT, POINT_FIELDS, Branch, BranchPoint, branch_store
 from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
                             paper_targets)
 from ..errors import ParameterError, RecordFileError
 from ..model import LatticeModel
-from ..records import MemoryRecords, load_npz, npz_arrays, on_rank0, write_npz
+from ..records import load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
 from ..richardson import richardson
 from ..twsolver import TW_PREFIX
@@ -42,10 +42,8 @@ class BranchStudy(Study):
 
     def _open(self):
         """The branch file (or memory); the resumed points seed the continuation."""
-        store = (MemoryRecords(BRANCH_FORMAT, self.branch.constants(), self.FIELDS, self.comm,
-                               {k: np.int64 for k in INT_FIELDS}, {"u": (self.params.cells_per_pi + 1,)})
-                 if self.output is None else branch_store(self.output, self.branch, self.comm, self.mode))
-        pts = self.branch.points = points_from_store(store, self.branch)
+        store = branch_store(self.output, self.branch, self.comm, self.mode)
+        pts = self.branch.points = [BranchPoint.from_record(r, self.branch.h, self.branch.model) for r in store.records]
         self.resumed = len(pts)          # points found in the file
         if pts:
             self.continuation.resume_from([p.q for p in pts], [p.u_half for p in pts])

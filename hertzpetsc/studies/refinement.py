@@ -140,13 +140,11 @@ class RefinementScan(Study):
                     E_after_paper_flow=E_after_paper, r=res.r, iterations=res.iterations, jacobians=res.jacobians,
                     wall_time=res.wall_time, sigma_min=res.sigma_min)
 
-    def done(self):
-        return {round(float(r["q"]), 12) for r in self.store.records}
-
     def run(self):
         """Refine every q not yet in the file; yields the record (a dict of the fields) after saving it."""
         self.open()
-        todo = [q for q in self.qs if round(q, 12) not in self.done()]
+        done = {round(float(r["q"]), 12) for r in self.store.records}
+        todo = [q for q in self.qs if round(q, 12) not in done]
         costs = [WaveSymmetry(self.N, check_chain_wavenumber(q, self.N)).cost() for q in todo]
         try:
             for q, row in dealt(todo, costs, self.comm, self._refine):

@@ -54,7 +54,7 @@ from petsc4py import PETSc
 from .assembly import gathered
 from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .continuation import ContinuationProblem, _parameter, golden_maximum, set_parameter
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_real
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal, Signal
@@ -91,19 +91,6 @@ def _whole(name, value, minimum, what):
             and math.isfinite(value) and value == int(value) and int(value) >= minimum:
         return int(value)
     raise ParameterError(name, value, f"{what} must be an integer >= {minimum}")
-
-
-def _real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
-    """A finite real parameter in the interval given (open ends by default), else ParameterError."""
-    ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool) \
-        and math.isfinite(value)
-    ok = ok and (lo is None or (value > lo if lo_open else value >= lo))
-    ok = ok and (hi is None or (value < hi if hi_open else value <= hi))
-    if not ok:
-        rng = " and ".join(x for x in ((f"{'>' if lo_open else '>='} {lo:g}" if lo is not None else ""),
-                                       (f"{'<' if hi_open else '<='} {hi:g}" if hi is not None else "")) if x)
-        raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else ""))
-    return float(value)
 
 
 def _one_of(name, value, choices, what="must be one of"):
@@ -169,7 +156,7 @@ class HalfSinePulses(Waveform):
     name = "half_sine"
 
     def __post_init__(self):
-        object.__setattr__(self, "width", _real("width", self.width, "the pulse width (a fraction of the period)",
+        object.__setattr__(self, "width", check_real("width", self.width, "the pulse width (a fraction of the period)",
                                                 0.0, 1.0, hi_open=False))
 
     def signal(self, amplitude, omega, phase=0.0):
@@ -296,9 +283,9 @@ class Drive:
         if not isinstance(self.waveform, Waveform):
             raise ParameterError("waveform", self.waveform, "must be a Waveform (harmonic, half_sine, samples, "
                                  "profile)")
-        object.__setattr__(self, "amplitude", _real("amplitude", self.amplitude, "the actuator amplitude", 0.0,
+        object.__setattr__(self, "amplitude", check_real("amplitude", self.amplitude, "the actuator amplitude", 0.0,
                                                     lo_open=False))
-        object.__setattr__(self, "omega", _real("omega", self.omega, "the driving frequency", 0.0))
+        object.__setattr__(self, "omega", check_real("omega", self.omega, "the driving frequency", 0.0))
         if not (self.right in ("wall", "free") or isinstance(self.right, Waveform)):
             raise ParameterError("right", self.right, "the far end is 'wall', 'free' or a Waveform (second actuator)")
 
@@ -460,7 +447,7 @@ class PeriodicShooting(ContinuationProblem):
         _check_parameter(parameter)
         _one_of("jacobian", jacobian, JACOBIANS)
         _one_of("floquet", floquet, FLOQUET_METHODS)
-        self.tol = _real("tol", tol, "the shooting tolerance", 0.0)
+        self.tol = check_real("tol", tol, "the shooting tolerance", 0.0)
         self.periods = _whole("periods", periods, 1, "the response period in driving periods")
         self.parameter, self.comm = parameter, comm
         self.jacobian_kind, self.floquet_kind = jacobian, floquet

@@ -43,16 +43,19 @@ class ParameterError(HertzPetscError, ValueError):
         return self
 
 
-def check_number(name, value, what, minimum=None, strict=False):
-    """``value`` as a float if it is a finite real number >= ``minimum`` (> if ``strict``; any if None), else a
-    :class:`ParameterError` naming the parameter ``name`` (``what`` it is) and its valid range."""
+def check_real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
+    """``value`` as a float if it is a finite real number in the interval from ``lo`` to ``hi`` (open ends by
+    default; no bound where None), else a :class:`ParameterError` naming the parameter ``name`` (``what`` it is)
+    and its valid range: the one check of a real parameter."""
     try:
-        v = float(value)
+        v = math.nan if isinstance(value, bool) else float(value)
     except (TypeError, ValueError):
         v = math.nan
-    if not (math.isfinite(v) and (minimum is None or (v > minimum if strict else v >= minimum))):
-        bound = "" if minimum is None else f" {'>' if strict else '>='} {minimum:g}"
-        raise ParameterError(name, value, f"{what} must be a finite real number{bound}")
+    if not (math.isfinite(v) and (lo is None or (v > lo if lo_open else v >= lo))
+            and (hi is None or (v < hi if hi_open else v <= hi))):
+        rng = " and ".join(f"{op} {b:g}" for op, b in ((">" if lo_open else ">=", lo), ("<" if hi_open else "<=", hi))
+                           if b is not None)
+        raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else ""))
     return v
 
 

@@ -8,18 +8,18 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ParameterError, check_number
+from .errors import ParameterError, check_real
 from .law import InteractionLaw, check_scale
 
 
 def check_alpha(alpha):
     """Return ``alpha`` as a float, or raise :class:`ParameterError` unless alpha > 1 (eq. vhertz)."""
-    return check_number("alpha", alpha, "the Hertz exponent", 1.0, strict=True)
+    return check_real("alpha", alpha, "the Hertz exponent", 1.0)
 
 
 def check_delta0(delta0):
     """Return the precompression ``delta0`` as a float, or raise :class:`ParameterError` unless delta0 >= 0."""
-    return check_number("delta0", delta0, "the precompression (static overlap)", 0.0)
+    return check_real("delta0", delta0, "the precompression (static overlap)", 0.0, lo_open=False)
 
 
 def abs_power(a, e):

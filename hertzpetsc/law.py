@@ -18,7 +18,7 @@ Closed forms a law may provide (the defaults say what they cost when it does not
 """
 import numpy as np
 
-from .errors import check_number
+from .errors import check_real
 
 
 class InteractionLaw:
@@ -65,7 +65,7 @@ class InteractionLaw:
 
 def check_scale(a, name="a"):
     """a must be a finite number > 0 (an amplitude or a scale)."""
-    return check_number(name, a, "the scale", 0.0, strict=True)
+    return check_real(name, a, "the scale", 0.0)
 
 
 class RescaledLaw(InteractionLaw):

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ParameterError, check_number
+from .errors import ParameterError, check_real
 from .hertz import HertzLaw
 from .law import InteractionLaw
 
@@ -47,8 +47,8 @@ class Damping:
     eta: float = 0.0
 
     def __post_init__(self):
-        object.__setattr__(self, "gamma", check_number("gamma", self.gamma, "the on-site damping", 0.0))
-        object.__setattr__(self, "eta", check_number("eta", self.eta, "the damping between neighbours", 0.0))
+        for name, what in (("gamma", "the on-site damping"), ("eta", "the damping between neighbours")):
+            object.__setattr__(self, name, check_real(name, getattr(self, name), what, 0.0, lo_open=False))
 
 
 @dataclass(frozen=True)
@@ -211,10 +211,11 @@ class Harmonic(Signal):
     offset: float = 0.0
 
     def __post_init__(self):
-        object.__setattr__(self, "amplitude", check_number("amplitude", self.amplitude, "the actuator amplitude", 0.0))
-        object.__setattr__(self, "omega", check_number("omega", self.omega, "the driving frequency", 0.0, True))
+        object.__setattr__(self, "amplitude", check_real("amplitude", self.amplitude, "the actuator amplitude", 0.0,
+                                                         lo_open=False))
+        object.__setattr__(self, "omega", check_real("omega", self.omega, "the driving frequency", 0.0))
         for name in ("phase", "offset"):
-            object.__setattr__(self, name, check_number(name, getattr(self, name), f"the actuator's {name}"))
+            object.__setattr__(self, name, check_real(name, getattr(self, name), f"the actuator's {name}"))
 
     @property
     def period(self):
@@ -247,7 +248,7 @@ class SampledSignal(Signal):
         if len(s) < 2 or not np.all(np.isfinite(s)):
             raise ParameterError("samples", len(s), "at least 2 finite samples of one period")
         object.__setattr__(self, "samples", tuple(float(v) for v in s))
-        object.__setattr__(self, "period", check_number("period", self.period, "the signal's period", 0.0, True))
+        object.__setattr__(self, "period", check_real("period", self.period, "the signal's period", 0.0))
 
     def _coefficients(self):
         c = np.fft.rfft(np.asarray(self.samples)) / len(self.samples)
@@ -275,7 +276,7 @@ class FunctionSignal(Signal):
 
     def __init__(self, f, df, period, name="function"):
         self.f, self.df, self.name = f, df, name
-        self.period = check_number("period", period, "the signal's period", 0.0, True)
+        self.period = check_real("period", period, "the signal's period", 0.0)
         t = np.linspace(0.0, self.period, 64, endpoint=False)
         for what, g in (("position", f), ("velocity", df)):
             a, b = np.asarray(g(t), float), np.asarray(g(t + self.period), float)

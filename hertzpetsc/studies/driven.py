@@ -58,10 +58,10 @@ from petsc4py import PETSc
 from ..continuation import (Continuation, ContinuationError, ContinuationPoint, Natural, PseudoArclength,
                              golden_maximum)
 from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
-                      HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of, _real, _whole,
+                      HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of, _whole,
                       configure_options, crossing, local_wave, neutral_saddle, refined_profile, switch_to_doubled,
                       verdict, wave_ends_drive)
-from ..errors import ConvergenceError, ParameterError
+from ..errors import ConvergenceError, ParameterError, check_real
 from ..floquet import DenseFloquet
 from ..model import LatticeModel
 from ..resources import MAX_DENSE_BEADS, check_chain_memory
@@ -110,8 +110,8 @@ def tolerances_of(rtol, scale=1.0):
 
 # --- the protocol of the driven studies --------------------------------------------------------------------------
 def _reals(name, values, what, lo=None, hi=None, lo_open=True, hi_open=True):
-    """A non-empty tuple of reals, each checked as by :func:`_real`."""
-    out = tuple(_real(name, v, what, lo, hi, lo_open, hi_open) for v in np.atleast_1d(values).tolist())
+    """A non-empty tuple of reals, each checked as by :func:`~hertzpetsc.errors.check_real`."""
+    out = tuple(check_real(name, v, what, lo, hi, lo_open, hi_open) for v in np.atleast_1d(values).tolist())
     if not out:
         raise ParameterError(name, values, f"give at least one {what}")
     return out
@@ -201,7 +201,7 @@ class ResponseParameters:
         drive = _drive(self.drive)
         _check_parameter(self.parameter)
         p0 = drive.value(self.parameter)
-        p_end = _real("p_end", self.p_end, "the end value of the parameter")
+        p_end = check_real("p_end", self.p_end, "the end value of the parameter")
         if not p_end != p0:
             raise ParameterError("p_end", self.p_end, f"must differ from the start {self.parameter} = {p0:g}")
         object.__setattr__(self, "p_end", p_end)
@@ -211,7 +211,7 @@ class ResponseParameters:
         _one_of("floquet", self.floquet, FLOQUET_METHODS)
         object.__setattr__(self, "nev", _whole("nev", self.nev, 1, "the number of dominant multipliers"))
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
-            _real(name, getattr(self, name), what, 0.0, 1.0)
+            check_real(name, getattr(self, name), what, 0.0, 1.0)
         if self.algorithm is not None and not isinstance(self.algorithm, (PseudoArclength, Natural)):
             raise ParameterError("algorithm", self.algorithm, "a continuation.PseudoArclength (None: "
                                  "corner_arclength()) or, with a grid, a continuation.Natural")
@@ -677,7 +677,7 @@ class ResonanceParameters:
                 raise ParameterError("modes", self.modes, "give at least one mode number (None: all)")
             object.__setattr__(self, "modes", modes)
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
-            _real(name, getattr(self, name), what, 0.0, 1.0)
+            check_real(name, getattr(self, name), what, 0.0, 1.0)
         object.__setattr__(self, "golden", _whole("golden", self.golden, 1, "the golden-section steps per peak"))
 
 
@@ -953,7 +953,7 @@ class GenerationParameters:
         object.__setattr__(self, "gammas", _reals("gammas", self.gammas, "on-site damping", 0.0, lo_open=False))
         object.__setattr__(self, "run_in", _whole("run_in", self.run_in, 0, "the run-in in driving periods"))
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
-            _real(name, getattr(self, name), what, 0.0, 1.0)
+            check_real(name, getattr(self, name), what, 0.0, 1.0)
         bulk = tuple(np.atleast_1d(self.bulk).tolist())
         if not (len(bulk) == 2 and all(isinstance(x, (int, float)) for x in bulk) and 0 <= bulk[0] < bulk[1] <= 1):
             raise ParameterError("bulk", self.bulk, "two fractions lo, hi of the chain with 0 <= lo < hi <= 1")

@@ -27,7 +27,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain
-from .errors import ParameterError
+from .errors import ParameterError, check_integer
 from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, DominantFloquet, FloquetSolver, Spectrum
 from .model import ChainSpec
 from .symmetry import real_sector
@@ -153,9 +153,7 @@ class SymmetricFloquet(FloquetSolver):
                  n_modes=0):
         if split not in ("sectors", "beads"):
             raise ParameterError("split", split, "must be 'sectors' or 'beads'")
-        if not (isinstance(n_modes, (int, np.integer)) and n_modes >= 0):
-            raise ParameterError("n_modes", n_modes, "must be an integer >= 0")
-        self.comm, self.split, self.n_modes = comm, split, int(n_modes)
+        self.comm, self.split, self.n_modes = comm, split, check_integer("n_modes", n_modes, 0)
         self.sectors = BlochSectors(model, PETSc.COMM_SELF if split == "sectors" else comm, tolerances, prefix)
         self.sectors.configure()
 

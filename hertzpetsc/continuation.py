@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_integer
 
 
 def illinois(f, a, fa, b, fb, tol, max_iter, bisect=False, bracket=False):
@@ -202,8 +202,8 @@ class Natural:
     max_step: float = math.inf
 
     def __post_init__(self):
-        _check_count("max_halvings", self.max_halvings, 0)
-        _check_count("max_step_changes", self.max_step_changes, 1)
+        object.__setattr__(self, "max_halvings", check_integer("max_halvings", self.max_halvings, 0))
+        object.__setattr__(self, "max_step_changes", check_integer("max_step_changes", self.max_step_changes, 1))
         if not self.max_corrector > 0:
             raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
         if not self.max_step > 0:
@@ -237,16 +237,13 @@ class PseudoArclength:
             raise ParameterError("ds", self.ds, f"must lie in [ds_min, ds_max] = [{self.ds_min:g}, {self.ds_max:g}]")
         if not self.growth >= 1:
             raise ParameterError("growth", self.growth, "must be >= 1")
-        _check_count("max_halvings", self.max_halvings, 0)
-        _check_count("max_step_changes", self.max_step_changes, 1)
-        _check_count("max_iterations", self.max_iterations, 1)
+        object.__setattr__(self, "max_halvings", check_integer("max_halvings", self.max_halvings, 0))
+        object.__setattr__(self, "max_step_changes", check_integer("max_step_changes", self.max_step_changes, 1))
+        object.__setattr__(self, "max_iterations", check_integer("max_iterations", self.max_iterations, 1))
         if not self.max_corrector > 0:
             raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
 
 
-def _check_count(name, value, minimum):
-    if not (isinstance(value, (int, np.integer)) and value >= minimum):
-        raise ParameterError(name, value, f"must be an integer >= {minimum}")
 
 
 class Continuation:

@@ -54,7 +54,7 @@ from petsc4py import PETSc
 from .assembly import gathered
 from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .continuation import ContinuationProblem, _parameter, golden_maximum, set_parameter
-from .errors import ConvergenceError, ParameterError, check_real
+from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal, Signal
@@ -83,14 +83,6 @@ FLOQUET_METHODS = ("dense", "slepc", "none")
 # Multipliers within this distance of the unit circle are 'neutral' (the default resolution of the verdicts; the
 # measured one, from a looser flow, is ResponseFloquet.resolution).
 TOL_MU = 1e-6
-
-
-def _whole(name, value, minimum, what):
-    """An integer parameter >= minimum (a float with an integral value is taken), else ParameterError."""
-    if isinstance(value, (int, np.integer, float, np.floating)) and not isinstance(value, bool) \
-            and math.isfinite(value) and value == int(value) and int(value) >= minimum:
-        return int(value)
-    raise ParameterError(name, value, f"{what} must be an integer >= {minimum}")
 
 
 def _one_of(name, value, choices, what="must be one of"):
@@ -279,7 +271,7 @@ class Drive:
     def __post_init__(self):
         if not isinstance(self.model, LatticeModel):
             raise ParameterError("model", self.model, "must be a LatticeModel")
-        object.__setattr__(self, "N", _whole("N", self.N, 1, "the number of beads"))
+        object.__setattr__(self, "N", check_integer("N", self.N, 1, "the number of beads"))
         if not isinstance(self.waveform, Waveform):
             raise ParameterError("waveform", self.waveform, "must be a Waveform (harmonic, half_sine, samples, "
                                  "profile)")
@@ -448,7 +440,7 @@ class PeriodicShooting(ContinuationProblem):
         _one_of("jacobian", jacobian, JACOBIANS)
         _one_of("floquet", floquet, FLOQUET_METHODS)
         self.tol = check_real("tol", tol, "the shooting tolerance", 0.0)
-        self.periods = _whole("periods", periods, 1, "the response period in driving periods")
+        self.periods = check_integer("periods", periods, 1, "the response period in driving periods")
         self.parameter, self.comm = parameter, comm
         self.jacobian_kind, self.floquet_kind = jacobian, floquet
         self.drive = drive

@@ -17,6 +17,7 @@ Errors are raised on every rank at once: parameters and input files are checked 
 the verdict broadcast), and solver verdicts are collective, so a driver can print on rank 0 and exit on all.
 """
 import math
+import numbers
 
 
 class HertzPetscError(Exception):
@@ -57,6 +58,17 @@ def check_real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
                            if b is not None)
         raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else ""))
     return v
+
+
+def check_integer(name, value, lo, what="", hi=None, note=""):
+    """``value`` as an int if it is a whole number in [lo, hi] (no upper bound where None; an integral float is
+    taken), else a :class:`ParameterError` naming the parameter ``name`` (``what`` it is) and its valid range, then
+    ``note``: the one check of an integer parameter."""
+    if not (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+            and value == int(value) and lo <= value and (hi is None or value <= hi)):
+        rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        raise ParameterError(name, value, " ".join(x for x in (what, f"must be an integer {rng}", note) if x))
+    return int(value)
 
 
 class OptionError(ParameterError):

@@ -16,18 +16,12 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import gathered
-from .errors import ParameterError
+from .errors import ParameterError, check_integer
 
 
 def check_cells_per_pi(cells_per_pi):
     """K must be an integer >= 4 (h = pi/K); returns it as int."""
-    try:
-        K = int(cells_per_pi)
-    except (TypeError, ValueError):
-        raise ParameterError("cells_per_pi", cells_per_pi, "must be an integer >= 4 (h = pi / cells_per_pi)") from None
-    if K != cells_per_pi or K < 4:
-        raise ParameterError("cells_per_pi", cells_per_pi, "must be an integer >= 4 (h = pi / cells_per_pi)")
-    return K
+    return check_integer("cells_per_pi", cells_per_pi, 4, note="(h = pi / cells_per_pi)")
 
 
 class ProfileGrid:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import ParameterError, check_real
+from .errors import ParameterError, check_integer, check_real
 from .hertz import HertzLaw
 from .law import InteractionLaw
 
@@ -331,9 +331,7 @@ class ChainSpec:
     def __post_init__(self):
         if not isinstance(self.model, LatticeModel):
             raise ParameterError("model", self.model, "must be a LatticeModel")
-        if not (isinstance(self.N, (int, np.integer)) and not isinstance(self.N, bool) and self.N >= 1):
-            raise ParameterError("N", self.N, "the number of beads must be an integer >= 1")
-        object.__setattr__(self, "N", int(self.N))
+        object.__setattr__(self, "N", check_integer("N", self.N, 1, "the number of beads"))
         if self.boundary not in BOUNDARIES:
             raise ParameterError("boundary", self.boundary, f"must be one of {', '.join(BOUNDARIES)}")
         if self.boundary == "periodic":

@@ -25,7 +25,7 @@ from .binary import binary_oscillation
 from .branch import BranchPoint
 from .continuation import Continuation, ContinuationError, Natural
 from .diagnostics import point_diagnostics
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_integer
 from .grid import ProfileGrid, check_cells_per_pi
 from .hertz import check_alpha
 from .model import LatticeModel
@@ -58,8 +58,7 @@ class ContinuationParameters:
             raise ParameterError("alpha", self.alpha, f"differs from the model's exponent {model.alpha}")
         object.__setattr__(self, "model", model)
         object.__setattr__(self, "alpha", model.alpha)
-        if not (isinstance(self.M, (int, np.integer)) and self.M >= 1):
-            raise ParameterError("M", self.M, "must be an integer >= 1 (wavenumbers q = m pi / M)")
+        object.__setattr__(self, "M", check_integer("M", self.M, 1, note="(wavenumbers q = m pi / M)"))
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         if self.q_stop is None:
             object.__setattr__(self, "q_stop", math.pi / self.M)
@@ -107,10 +106,8 @@ class RefiningGrid:
     level: int = 0
 
     def __post_init__(self):
-        if not (isinstance(self.cells_per_q, (int, np.integer)) and self.cells_per_q >= 4):
-            raise ParameterError("cells_per_q", self.cells_per_q, "must be an integer >= 4")
-        if not (isinstance(self.level, (int, np.integer)) and self.level >= 0):
-            raise ParameterError("level", self.level, "must be an integer >= 0")
+        object.__setattr__(self, "cells_per_q", check_integer("cells_per_q", self.cells_per_q, 4))
+        object.__setattr__(self, "level", check_integer("level", self.level, 0))
 
     def cells_per_pi(self, q):
         K0 = int(round(self.cells_per_q * math.pi / self.q_first))

@@ -9,7 +9,7 @@ import numpy as np
 from ..branch import BRANCH_FORMAT, POINT_FIELDS, Branch, BranchPoint, branch_store
 from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
                             paper_targets)
-from ..errors import ParameterError, RecordFileError
+from ..errors import ParameterError, RecordFileError, check_integer
 from ..model import LatticeModel
 from ..records import load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
@@ -132,10 +132,8 @@ class SmallQParameters:
     def __post_init__(self):
         if not (0 < self.q_stop <= self.q_first <= math.pi):
             raise ParameterError("q_stop", self.q_stop, f"must satisfy 0 < q_stop <= q_first = {self.q_first:.6g} <= pi")
-        if not (isinstance(self.per_halving, (int, np.integer)) and self.per_halving >= 1):
-            raise ParameterError("per_halving", self.per_halving, "must be an integer >= 1")
-        if not (isinstance(self.levels, (int, np.integer)) and self.levels >= 3):
-            raise ParameterError("levels", self.levels, "must be an integer >= 3 (an order needs three grids)")
+        object.__setattr__(self, "per_halving", check_integer("per_halving", self.per_halving, 1))
+        object.__setattr__(self, "levels", check_integer("levels", self.levels, 3, note="(an order needs three grids)"))
         RefiningGrid(self.q_first, self.cells_per_q)          # validates cells_per_q
 
     @property

@@ -58,10 +58,10 @@ from petsc4py import PETSc
 from ..continuation import (Continuation, ContinuationError, ContinuationPoint, Natural, PseudoArclength,
                              golden_maximum)
 from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
-                      HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of, _whole,
+                      HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of,
                       configure_options, crossing, local_wave, neutral_saddle, refined_profile, switch_to_doubled,
                       verdict, wave_ends_drive)
-from ..errors import ConvergenceError, ParameterError, check_real
+from ..errors import ConvergenceError, ParameterError, check_integer, check_real
 from ..floquet import DenseFloquet
 from ..model import LatticeModel
 from ..resources import MAX_DENSE_BEADS, check_chain_memory
@@ -205,11 +205,11 @@ class ResponseParameters:
         if not p_end != p0:
             raise ParameterError("p_end", self.p_end, f"must differ from the start {self.parameter} = {p0:g}")
         object.__setattr__(self, "p_end", p_end)
-        object.__setattr__(self, "periods", _whole("periods", self.periods, 1, "the response period in driving "
+        object.__setattr__(self, "periods", check_integer("periods", self.periods, 1, "the response period in driving "
                                                    "periods"))
         _one_of("jacobian", self.jacobian, JACOBIANS)
         _one_of("floquet", self.floquet, FLOQUET_METHODS)
-        object.__setattr__(self, "nev", _whole("nev", self.nev, 1, "the number of dominant multipliers"))
+        object.__setattr__(self, "nev", check_integer("nev", self.nev, 1, "the number of dominant multipliers"))
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
             check_real(name, getattr(self, name), what, 0.0, 1.0)
         if self.algorithm is not None and not isinstance(self.algorithm, (PseudoArclength, Natural)):
@@ -221,7 +221,7 @@ class ResponseParameters:
                                "period"), ("switch", 0, "the steps on each doubled branch"),
                                ("max_steps", 1, "the number of continuation steps"),
                                ("nmult", 1, "the number of recorded multipliers")):
-            object.__setattr__(self, name, _whole(name, getattr(self, name), lo, what))
+            object.__setattr__(self, name, check_integer(name, getattr(self, name), lo, what))
 
 
 class ResponseCurve(DrivenStudy):
@@ -669,7 +669,7 @@ class ResonanceParameters:
         if drive.N > MAX_DENSE_BEADS:
             raise ParameterError("N", drive.N, f"at most {MAX_DENSE_BEADS} beads (dense linear chain and multipliers)")
         if self.modes is not None:
-            modes = tuple(_whole("modes", k, 1, "a mode number") for k in np.atleast_1d(self.modes).tolist())
+            modes = tuple(check_integer("modes", k, 1, "a mode number") for k in np.atleast_1d(self.modes).tolist())
             for k in modes:
                 if not 1 <= k <= drive.N:
                     raise ParameterError("modes", k, f"a mode number in [1, N] = [1, {drive.N}]")
@@ -678,7 +678,7 @@ class ResonanceParameters:
             object.__setattr__(self, "modes", modes)
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
             check_real(name, getattr(self, name), what, 0.0, 1.0)
-        object.__setattr__(self, "golden", _whole("golden", self.golden, 1, "the golden-section steps per peak"))
+        object.__setattr__(self, "golden", check_integer("golden", self.golden, 1, "the golden-section steps per peak"))
 
 
 class LinearResonances(DrivenStudy):
@@ -793,7 +793,8 @@ class WaveEndsParameters:
 
     def __post_init__(self):
         P = self.refined.N
-        sizes = tuple(_whole("sizes", N, 1, "the beads of a driven chain") for N in np.atleast_1d(self.sizes).tolist())
+        sizes = tuple(check_integer("sizes", N, 1, "the beads of a driven chain")
+                      for N in np.atleast_1d(self.sizes).tolist())
         if not sizes:
             raise ParameterError("sizes", self.sizes, "give at least one chain size")
         for N in sizes:
@@ -807,8 +808,9 @@ class WaveEndsParameters:
         object.__setattr__(self, "sizes", sizes)
         object.__setattr__(self, "q", qs)
         object.__setattr__(self, "rtols", _reals("rtols", self.rtols, "flow tolerance", 0.0, 1.0))
-        object.__setattr__(self, "samples", _whole("samples", self.samples, 1, "the points of the sampled profile"))
-        object.__setattr__(self, "nmult", _whole("nmult", self.nmult, 1, "the number of recorded multipliers"))
+        for name, what in (("samples", "the points of the sampled profile"),
+                           ("nmult", "the number of recorded multipliers")):
+            object.__setattr__(self, name, check_integer(name, getattr(self, name), 1, what))
 
 
 class WaveEnds(DrivenStudy):
@@ -939,7 +941,7 @@ class GenerationParameters:
             raise ParameterError("model", self.model, "must be a LatticeModel")
         if abs(self.model.alpha - self.branch.alpha) > 1e-12:
             raise ParameterError("alpha", self.model.alpha, f"must be the branch's exponent {self.branch.alpha:g}")
-        object.__setattr__(self, "N", _whole("N", self.N, 1, "the number of beads"))
+        object.__setattr__(self, "N", check_integer("N", self.N, 1, "the number of beads"))
         signals = tuple(np.atleast_1d(self.signals).tolist())
         if not signals:
             raise ParameterError("signals", self.signals, "give at least one of " + ", ".join(WAVEFORMS))
@@ -951,14 +953,14 @@ class GenerationParameters:
         object.__setattr__(self, "amplitudes", _reals("amplitudes", self.amplitudes, "actuator amplitude", 0.0,
                                                       lo_open=False))
         object.__setattr__(self, "gammas", _reals("gammas", self.gammas, "on-site damping", 0.0, lo_open=False))
-        object.__setattr__(self, "run_in", _whole("run_in", self.run_in, 0, "the run-in in driving periods"))
+        object.__setattr__(self, "run_in", check_integer("run_in", self.run_in, 0, "the run-in in driving periods"))
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
             check_real(name, getattr(self, name), what, 0.0, 1.0)
         bulk = tuple(np.atleast_1d(self.bulk).tolist())
         if not (len(bulk) == 2 and all(isinstance(x, (int, float)) for x in bulk) and 0 <= bulk[0] < bulk[1] <= 1):
             raise ParameterError("bulk", self.bulk, "two fractions lo, hi of the chain with 0 <= lo < hi <= 1")
         object.__setattr__(self, "bulk", bulk)
-        object.__setattr__(self, "samples", _whole("samples", self.samples, 8, "the samples per period"))
+        object.__setattr__(self, "samples", check_integer("samples", self.samples, 8, "the samples per period"))
 
 
 class Generation(DrivenStudy):

@@ -44,7 +44,7 @@ from petsc4py import PETSc
 
 from ..chain import IntegrationTolerances
 from ..diagnostics import sup_norm
-from ..errors import ParameterError
+from ..errors import ParameterError, check_integer
 from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_amplitude, uncompressed_limit,
                         wave_at)
 from ..floquet import FLOQUET_PREFIX
@@ -137,8 +137,8 @@ class MapParameters:
         object.__setattr__(self, "a", tuple(amps))
         if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
             raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
-        if not (isinstance(self.twists, (int, np.integer)) and 0 <= self.twists <= 10 ** 6):
-            raise ParameterError("twists", self.twists, "must be an integer in [0, 1e6] (0: no infinite chain)")
+        object.__setattr__(self, "twists", check_integer("twists", self.twists, 0, hi=10 ** 6,
+                                                         note="(0: no infinite chain)"))
         locate = tuple(self.locate)
         if any(name not in TESTS for name in locate):
             raise ParameterError("locate", ",".join(locate), f"must be a subset of {', '.join(TESTS)}")
@@ -537,8 +537,7 @@ class QBoundaryParameters:
             raise ParameterError("masses", list(self.model.masses), "the boundary in q is located for monatomic "
                                  "chains (the dimers' infinite chains are unstable at every amplitude of their maps)")
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        if not (isinstance(self.max_cell, (int, np.integer)) and 2 <= self.max_cell <= MAX_MAP_BEADS):
-            raise ParameterError("max_cell", self.max_cell, f"must be an integer in [2, {MAX_MAP_BEADS}]")
+        object.__setattr__(self, "max_cell", check_integer("max_cell", self.max_cell, 2, hi=MAX_MAP_BEADS))
         qs = sorted(set(_check_qs(self.q, math.pi / self.cells_per_pi)))
         for q in qs:
             if wave_cell(q).M > self.max_cell:
@@ -551,8 +550,7 @@ class QBoundaryParameters:
         object.__setattr__(self, "A", tuple(sorted(amps)))
         if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
             raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
-        if not (isinstance(self.twists, (int, np.integer)) and 1 <= self.twists <= 10 ** 6):
-            raise ParameterError("twists", self.twists, "must be an integer in [1, 1e6]")
+        object.__setattr__(self, "twists", check_integer("twists", self.twists, 1, hi=10 ** 6))
         if not (0 < self.locate_tol < 0.5):
             raise ParameterError("locate_tol", self.locate_tol, "must lie in (0, 0.5)")
 

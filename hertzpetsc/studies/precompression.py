@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..diagnostics import sup_norm
-from ..errors import ConvergenceError, ParameterError
+from ..errors import ConvergenceError, ParameterError, check_integer
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..advdelay import check_wavenumber
 from ..model import ChainSpec, LatticeModel
@@ -286,8 +286,7 @@ class DimerParameters:
         if not (0 < self.epsilon_end < 1):
             raise ParameterError("epsilon_end", self.epsilon_end, "must lie in (0, 1) (continuation from epsilon = 1 "
                                  "down)")
-        if not (isinstance(self.max_steps, (int, np.integer)) and 1 <= self.max_steps <= MAX_STEPS):
-            raise ParameterError("max_steps", self.max_steps, f"must be an integer in [1, {MAX_STEPS}]")
+        object.__setattr__(self, "max_steps", check_integer("max_steps", self.max_steps, 1, hi=MAX_STEPS))
         for name in ("ds", "ds_max"):
             v = getattr(self, name)
             if not (0 < v <= 1):

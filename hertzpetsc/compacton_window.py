@@ -306,4 +306,3 @@ class CompactonRefiner(ContinuationProblem):
 
     def report(self, Z):
         return dict(compacton=self.last)
-

@@ -244,8 +244,6 @@ class PseudoArclength:
             raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
 
 
-
-
 class Continuation:
     """The continuation loop over a :class:`ContinuationProblem` with a :class:`Natural` or
     :class:`PseudoArclength` algorithm (module docstring). Collective over the problem's communicator."""

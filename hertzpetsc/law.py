@@ -92,4 +92,3 @@ class RescaledLaw(InteractionLaw):
 
     def describe(self):
         return dict(self.base.describe(), scale=self.a)
-

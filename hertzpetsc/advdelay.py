@@ -37,8 +37,7 @@ from petsc4py import PETSc
 from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
-from .errors import ParameterError
-from .law import check_scale
+from .errors import ParameterError, check_real
 from .model import LatticeModel
 from .stencil import shift_stencil
 
@@ -224,12 +223,12 @@ class AdvanceDelayProblem(ContinuationProblem):
                                  + ", ".join(have))
 
     def _set_omega(self, omega):
-        self.omega = w = check_scale(omega, "omega")
+        self.omega = w = check_real("omega", omega, "the frequency", 0.0)
         self.lam = w * w
         self.lattice = self.model
 
     def _set_amplitude(self, a):
-        self.amplitude = math.inf if a == math.inf else check_scale(a, "amplitude")
+        self.amplitude = math.inf if a == math.inf else check_real("amplitude", a, "the wave amplitude", 0.0)
         self.lattice = self.model.rescaled(self.amplitude)          # the law seen by w = u / a
 
     def _set_q(self, q):

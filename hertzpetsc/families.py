@@ -24,8 +24,7 @@ from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
 from .assembly import gathered
 from .branch import BranchPoint
 from .continuation import Continuation, ContinuationError, LazyTests, Natural, PseudoArclength
-from .errors import ConvergenceError, ParameterError
-from .law import check_scale
+from .errors import ConvergenceError, ParameterError, check_real
 from .stencil import full_period, lagrange_periodic
 
 PRECOMP_PREFIX = "precomp_"
@@ -34,7 +33,7 @@ DIMER_PREFIX = "dimer_"
 
 def check_amplitude(a, name="amplitude"):
     """a must be a finite number > 0."""
-    return check_scale(a, name)
+    return check_real(name, a, "the wave amplitude", 0.0)
 
 
 @dataclass(frozen=True)

@@ -27,16 +27,6 @@ BOUNDARIES = ("periodic", "free", "fixed")
 END_KINDS = ("free", "wall")
 
 
-def _check_masses(masses):
-    try:
-        m = tuple(float(x) for x in masses)
-    except (TypeError, ValueError):
-        raise ParameterError("masses", masses, "must be a non-empty list of positive numbers") from None
-    if not m or not all(math.isfinite(x) and x > 0 for x in m):
-        raise ParameterError("masses", masses, "every mass of the pattern must be a finite number > 0")
-    return m
-
-
 @dataclass(frozen=True)
 class Damping:
     """Linear damping of the chain: on-site ``gamma`` (force -gamma x_n') and between neighbours ``eta`` (a
@@ -63,7 +53,13 @@ class LatticeModel:
     def __post_init__(self):
         if not isinstance(self.law, InteractionLaw):
             raise ParameterError("law", self.law, "must be an InteractionLaw (V, V', V'' of a bond), e.g. HertzLaw()")
-        object.__setattr__(self, "masses", _check_masses(self.masses))
+        try:
+            masses = tuple(float(x) for x in self.masses)
+        except (TypeError, ValueError):
+            raise ParameterError("masses", self.masses, "must be a non-empty list of positive numbers") from None
+        if not masses or not all(math.isfinite(x) and x > 0 for x in masses):
+            raise ParameterError("masses", self.masses, "every mass of the pattern must be a finite number > 0")
+        object.__setattr__(self, "masses", masses)
         if not isinstance(self.damping, Damping):
             raise ParameterError("damping", self.damping, "must be a Damping(gamma, eta)")
 
@@ -250,21 +246,20 @@ class SampledSignal(Signal):
         object.__setattr__(self, "samples", tuple(float(v) for v in s))
         object.__setattr__(self, "period", check_real("period", self.period, "the signal's period", 0.0))
 
-    def _coefficients(self):
-        c = np.fft.rfft(np.asarray(self.samples)) / len(self.samples)
+    def _series(self, t):
+        """The interpolant's terms at t: the phases exp(2 pi i k t / period) (t, k), the coefficients c_k, and k."""
         n = len(self.samples)
+        c = np.fft.rfft(np.asarray(self.samples)) / n
         k = np.arange(len(c))
-        weight = np.where((k == 0) | ((n % 2 == 0) & (k == n // 2)), 1.0, 2.0)
-        return c * weight, k
+        c = c * np.where((k == 0) | ((n % 2 == 0) & (k == n // 2)), 1.0, 2.0)
+        return np.exp(2j * math.pi * np.multiply.outer(np.asarray(t, float) / self.period, k)), c, k
 
     def position(self, t):
-        c, k = self._coefficients()
-        ph = np.exp(2j * math.pi * np.multiply.outer(np.asarray(t, float) / self.period, k))
+        ph, c, _ = self._series(t)
         return (ph @ c).real
 
     def velocity(self, t):
-        c, k = self._coefficients()
-        ph = np.exp(2j * math.pi * np.multiply.outer(np.asarray(t, float) / self.period, k))
+        ph, c, k = self._series(t)
         return (ph @ (c * 2j * math.pi * k / self.period)).real
 
     def describe(self):
@@ -309,12 +304,6 @@ class Actuator:
         return dict(actuator=self.signal.describe())
 
 
-def _check_end(name, end):
-    if isinstance(end, Actuator) or end in END_KINDS:
-        return end
-    raise ParameterError(name, end, "an end is 'free', 'wall' or an Actuator(signal)")
-
-
 @dataclass(frozen=True)
 class ChainSpec:
     """A finite chain of ``model``: N beads and its ends. ``boundary`` 'periodic' (eq. pbcl), 'free' or 'fixed'
@@ -339,11 +328,13 @@ class ChainSpec:
                 raise ParameterError("boundary", "periodic", "a periodic chain has no ends (left/right)")
             if self.N < 2:
                 raise ParameterError("N", self.N, "a periodic chain needs at least 2 beads")
-        default = "free" if self.boundary == "free" else "wall"
-        for side in ("left", "right"):
-            end = getattr(self, side)
-            if self.boundary != "periodic":
-                object.__setattr__(self, side, _check_end(side, default if end is None else end))
+        else:
+            for side in ("left", "right"):
+                end = getattr(self, side)
+                end = ("free" if self.boundary == "free" else "wall") if end is None else end
+                if not (isinstance(end, Actuator) or end in END_KINDS):
+                    raise ParameterError(side, end, "an end is 'free', 'wall' or an Actuator(signal)")
+                object.__setattr__(self, side, end)
         if self.N % self.model.cell:
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {self.model.cell}")
 

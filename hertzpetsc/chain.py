@@ -32,7 +32,7 @@ from petsc4py import PETSc
 
 from . import kernels
 from .assembly import gathered
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_real
 from .hertz import HertzLaw
 from .model import Actuator, ChainSpec
 
@@ -50,9 +50,7 @@ class IntegrationTolerances:
 
     def __post_init__(self):
         for name in ("rtol", "atol"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
-                raise ParameterError(name, v, "the integration tolerance must be a positive real number")
+            object.__setattr__(self, name, check_real(name, getattr(self, name), "the integration tolerance", 0.0))
 
 
 class Chain:
@@ -291,12 +289,11 @@ class Chain:
         gamma, eta = self.model.damping.gamma, self.model.damping.eta
         N = self.spec.N
         n = np.arange(self.xs, self.xe)
-        rows_x = 2 * n
         rows_v = 2 * n + 1
         left, right = (n - 1) % N, (n + 1) % N
         P.zeroEntries()
         for i in range(self.nloc):
-            P.setValue(rows_x[i], rows_v[i], 1.0, addv=True)
+            P.setValue(2 * n[i], rows_v[i], 1.0, addv=True)
             sl, sr = s[i] * inv[i], s[i + 1] * inv[i]
             el, er = eta * mask[i] * inv[i], eta * mask[i + 1] * inv[i]
             P.setValue(rows_v[i], 2 * n[i], -(sl + sr), addv=True)

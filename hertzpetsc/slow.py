@@ -188,8 +188,7 @@ def known_vectors(model, orbit, P, theta, decoupled=None):
     the uniform translation with the boost; f's partner (the family's amplitude direction, an eigenvector itself in
     the linear limit, where the least-squares partner fails) is the eigenvalue nearest 1 once they are deflated; at
     Theta != 0 nothing."""
-    sym = orbit.symmetry
-    M = sym.M
+    M = orbit.symmetry.M
     f, t = zone_directions(model, orbit.x[:M], orbit.q)
     Z, v, zone_res = zone_modes(P, f, t)
     if decoupled is None:
@@ -270,7 +269,8 @@ class DeflatedSectors(FloquetSolver):
         state = dict(decoupled=None)
 
         def at(theta):
-            _check_twist(theta)
+            if not (-1e-14 <= theta <= math.pi + 1e-14):
+                raise ParameterError("theta", theta, "the cell's twist must lie in [0, pi]")
             G = maps(theta)
             P = np.linalg.matrix_power(G, sym.m_cell)
             if theta != 0.0:
@@ -308,11 +308,6 @@ class DeflatedSectors(FloquetSolver):
 
     def destroy(self):
         self.sectors.destroy()
-
-
-def _check_twist(theta):
-    if not (-1e-14 <= theta <= math.pi + 1e-14):
-        raise ParameterError("theta", theta, "the cell's twist must lie in [0, pi]")
 
 
 @dataclass

@@ -74,9 +74,9 @@ class WaveSymmetry:
     def cost(self):
         """Work relative to the dense route (2N columns on N beads over script-T): sectors weighted by their
         real (theta = 0, pi) or complex (twice) arithmetic, 2M columns on M beads, over 1 / m_cell of the time."""
-        real = sum(1 for th in self.sectors() if th in (0.0, math.pi))
-        complex_ = len(self.sectors()) - real
-        return (real + 2 * complex_) * (self.M / self.N) ** 2 / self.m_cell
+        thetas = self.sectors()
+        real = sum(1 for th in thetas if th in (0.0, math.pi))
+        return (real + 2 * (len(thetas) - real)) * (self.M / self.N) ** 2 / self.m_cell
 
 
 def real_sector(theta):

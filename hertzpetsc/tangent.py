@@ -155,11 +155,10 @@ class MonodromyModShift:
         z[:, :2] = self.x0_local
         z[:, 2:] = x.getArray(readonly=True).reshape(base.nloc, 2)
         flow.integrator.integrate(flow.Z, 0.0, self.T, dt=flow.integrator.initial_step)
+        RY = self._RY if self.shift else y                # R(T; 0) x: y itself, or shifted into y
+        RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
         if self.shift:
-            self._RY.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
             base.shift(self._RY, y)
-        else:
-            y.getArray()[:] = flow.Z.getArray(readonly=True).reshape(base.nloc, 4)[:, 2:].ravel()
         self.products += 1
         self.integrations += 1
 

@@ -1,16 +1,13 @@
 """Floquet multipliers modulo shifts from Bloch sectors of the wave's cell, over the wave's shortest time symmetry
-(section 3.5; :mod:`hertzpetsc.symmetry`), for any mass pattern.
+(section 3.5), for any mass pattern.
 
-A travelling wave with q = 2 pi m / N on N beads (periodic, eq. pbcl; p beads in the mass pattern, N / p cells)
-repeats every M = N / g beads, g = gcd(m, N / p), so its variational equations have M-periodic coefficients and
-F_q = S R(script-T; 0) commutes with the shift by M beads. Splitting the perturbations into Bloch waves
-y_{n+M} = e^{i theta} y_n, theta_l = 2 pi l / g, makes F_q block diagonal; and on the cell, whose m' = m / g
-wavelengths are coprime with its M / p pattern cells, the k-cell shift over the time script-T / m' is a symmetry too:
+A travelling wave with q = 2 pi m / N on N beads (periodic, eq. pbcl) repeats every M = N / g beads, and on that
+cell the shift by k pattern cells over the time script-T / m' is a symmetry (g, m', k, j: :mod:`hertzpetsc.symmetry`):
 
     spec(F_q on N beads) = union over l of { e^{-i j theta_l} mu^{m'} : mu in spec(G_theta_l) },
 
 G_theta = S_theta^k R_theta(script-T / m'; 0) the map of the M-bead cell (its masses the pattern's) with twisted
-boundary y_M = e^{i theta} y_0, k m' = 1 + j M / p. G_{-theta} = conj(G_theta): only l = 0, ..., floor(g/2) are
+boundary y_M = e^{i theta} y_0, theta_l = 2 pi l / g. G_{-theta} = conj(G_theta): only l = 0, ..., floor(g/2) are
 integrated (one TS run of the orbit and 2M columns each); theta = 0 and pi take real tangents, the others a complex
 tangent u + i w as two real ones (PETSc is a real build here) -- or, when there are several complex sectors and the
 response over T stays within a cell, one run of 2M real columns on three cells gives every sector

@@ -29,8 +29,6 @@ class HertzPetscError(Exception):
 class ParameterError(HertzPetscError, ValueError):
     """A parameter is outside its valid range."""
 
-    exit_status = 2
-
     def __init__(self, name, value, valid):
         self.name, self.value, self.valid = name, value, valid
         super().__init__(f"invalid {name} = {value!r}: {valid}")

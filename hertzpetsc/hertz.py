@@ -40,8 +40,7 @@ def power_recipe(e):
     power."""
     n2 = 2.0 * e
     if n2 == round(n2) and 0 <= n2 <= 8:
-        k, half = divmod(int(round(n2)), 2)
-        return k, half
+        return divmod(int(round(n2)), 2)
     return -1, 0
 
 

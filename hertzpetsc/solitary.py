@@ -160,13 +160,14 @@ def solve_solitary_wave(params, comm, prefix=SOL_PREFIX):
         J.destroy()
         X.destroy()
         prob.destroy()
-    if reason > 0 and fnorm > ACCEPT_FACTOR * atol:
-        reason = f"{reason}, but residual {fnorm:.3g} > {ACCEPT_FACTOR * atol:.3g}"
-    if isinstance(reason, str) or reason <= 0:
-        raise ConvergenceError("solitary-wave SNES (prefix -%s)" % prefix, int(reason), alpha=params.alpha)
-    if not r.min() < -0.1:
-        raise ConvergenceError("solitary-wave SNES (prefix -%s)" % prefix, "converged to the trivial solution r = 0",
+    what = "solitary-wave SNES (prefix -%s)" % prefix
+    if reason <= 0:
+        raise ConvergenceError(what, int(reason), alpha=params.alpha)
+    if fnorm > ACCEPT_FACTOR * atol:
+        raise ConvergenceError(what, f"{reason}, but residual {fnorm:.3g} > {ACCEPT_FACTOR * atol:.3g}",
                                alpha=params.alpha)
+    if not r.min() < -0.1:
+        raise ConvergenceError(what, "converged to the trivial solution r = 0", alpha=params.alpha)
     tail = float(np.max(np.abs(r[s >= params.half_length - 1])) / np.max(np.abs(r)))
     if tail > params.tail_tolerance:
         raise ParameterError("half_length", params.half_length,

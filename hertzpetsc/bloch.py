@@ -98,20 +98,19 @@ class BlochSectors:
         return G
 
     def monodromies(self, x0, T, thetas, shift=1, among=None):
-        """G_theta for several twists around one orbit, in the order of ``thetas`` (a generator): from the cell
-        propagator (:class:`~hertzpetsc.tangent.CellPropagator`: one run of 2M real columns on three cells) when it
-        is cheaper than the twisted runs of the twists ``among`` (default ``thetas``; the whole set when the caller
-        deals them to ranks, so that every rank takes the same route: two complex sectors or more) and the orbit's
-        response stays within a cell (checked first on the edge beads' 4 columns); else :meth:`monodromy` for
-        each."""
+        """G_theta for several twists around one orbit, in the order of ``thetas`` (a generator), by
+        :meth:`sector_maps`: through the cell propagator when two or more of the twists ``among`` are complex (default
+        ``thetas``; the whole set when the caller deals them to ranks, so that every rank takes the same route)."""
         among = thetas if among is None else among
         maps = self.sector_maps(x0, T, shift, bool(thetas) and sum(not real_sector(theta) for theta in among) >= 2)
         return (maps(theta) for theta in thetas)
 
     def sector_maps(self, x0, T, shift=1, propagate=True):
         """The function theta -> G_theta around one orbit (any number of twists, e.g. a scan of the infinite chain's
-        Bloch parameters with refinements): every twist from one cell-propagator run when ``propagate`` and the
-        response stays within a cell (cells of 4 beads or more), else one twisted run per call."""
+        Bloch parameters with refinements): every twist from one run of the cell propagator
+        (:class:`~hertzpetsc.tangent.CellPropagator`: 2M real columns on three cells) when ``propagate`` and the
+        response stays within a cell (cells of 4 beads or more; checked first on the edge beads' 4 columns), else
+        one twisted run per call."""
         x0 = np.asarray(x0, dtype=float)
         prop = self._propagate(x0, T) if propagate and len(x0) >= 4 else None
         if prop is None:

@@ -174,7 +174,7 @@ class DominantFloquet(FloquetSolver):
         dim = 2 * spec.N
         if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
-        self.prefix, self.dim, self.warm, self.start, self.previous = prefix, dim, warm, [], []
+        self.prefix, self.warm, self.start, self.previous = prefix, warm, [], []
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
         self.eps = largest_magnitude(self.op.base.comm, prefix, nev,

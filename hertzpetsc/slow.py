@@ -59,7 +59,7 @@ def zone_modes(P, f, t):
     uniform translation is itself exact) are set to 0."""
     I = np.eye(len(P))
     t = t[:, None, :] if t.ndim == 2 else t
-    n_zones, p, n = t.shape
+    n_zones, p = t.shape[:2]
     A = np.concatenate([((P - I) @ t[k].T) for k in range(n_zones)])          # (m' 2M, p)
     B = np.concatenate([(P - I) @ f[k] for k in range(n_zones)])
     A, B = np.concatenate([A.real, A.imag]), np.concatenate([B.real, B.imag])   # v is real
@@ -222,8 +222,7 @@ class DeflatedSectors(FloquetSolver):
     the sectors at the cell twists ``twists`` (in [0, pi]; None: the chain's own sectors theta_l = 2 pi l / g and
     their conjugates, i.e. all 2N multipliers of F_q on N beads): the multipliers of each and its deflated cluster,
     which are the known (trivial) ones; the :class:`DeflatedSector` of each twist is in ``work["sectors"]``.
-    :meth:`scan`: any set of twists of one orbit (the infinite chain's Bloch parameters), every map from one
-    cell-propagator run when the response stays within a cell."""
+    :meth:`scan`: any set of twists of one orbit (the infinite chain's Bloch parameters)."""
 
     def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, twists=(0.0,), krein=None):
         self.model = model

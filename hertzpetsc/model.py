@@ -167,10 +167,9 @@ class LatticeModel:
         nonzero, so that the identities of the uncompressed chain's records are unchanged."""
         out = dict(self.law.describe())
         out["masses"] = list(self.masses)
-        if self.damping.gamma > 0.0:
-            out["gamma"] = self.damping.gamma
-        if self.damping.eta > 0.0:
-            out["eta"] = self.damping.eta
+        for name in ("gamma", "eta"):
+            if getattr(self.damping, name) > 0.0:
+                out[name] = getattr(self.damping, name)
         return out
 
 

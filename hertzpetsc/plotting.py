@@ -586,12 +586,10 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
                     "multipliers not computed)")
             bx.text(0.5, 0.5, "multipliers not computed", ha="center", va="center", transform=bx.transAxes)
             continue
-        stable = rho < 1
-        ax.plot(p, y, ":", color=color, lw=0.9)
-        bx.plot(p, rho, ":", color=color, lw=0.9)
-        ax.plot(p, np.where(stable, y, np.nan), "-", color=color, lw=1.6,
-                label=f"branch {j} (period {int(rs[0]['periods'])} T; solid: stable)")
-        bx.plot(p, np.where(stable, rho, np.nan), "-", color=color, lw=1.6)
+        for axis, v, label in ((ax, y, f"branch {j} (period {int(rs[0]['periods'])} T; solid: stable)"),
+                               (bx, rho, None)):
+            axis.plot(p, v, ":", color=color, lw=0.9)
+            axis.plot(p, np.where(rho < 1, v, np.nan), "-", color=color, lw=1.6, label=label)
         for r in rs:
             ev = int(r["event"])
             if ev in _EVENT_MARKERS:

@@ -22,14 +22,12 @@ of the h = pi/K wave of the family and the h = pi/(2K) one solved at the same am
 O(h^4) error). The uncompressed limit (delta0 / A = 0) closes each q. The q are dealt to the ranks, each computed on
 one rank (:mod:`hertzpetsc.studies.dealing`): the records do not depend on the number of ranks.
 
-Record file (npz, record store, kind ``hertzpetsc-precompression-map-2``; schema in docs/schemas.md): constants
-alpha, delta0, masses, N, cells_per_pi, rtol, tol_rho, twists, locate, locate_tol; per record: q, m, kind (0: a point
-of the map, 1: a located boundary point on N beads, 2: on the infinite chain, 3: the uncompressed limit, 4: the gap
-opening), a, A, omega, rho, outside, sector, cluster, raw_cluster, eigvec, decoupled, rho_inf, theta_inf,
-cluster_inf, a_stable, a_unstable, A_stable, A_unstable, rho_stable, rho_unstable, theta_unstable, evaluations,
-seconds. Files of kind ``hertzpetsc-precompression-map-1`` (the dense route before issue 23, trivial multipliers
-the four nearest 1, no located boundary) are read for their tables and figure (:func:`read_map`,
-:func:`map_table`); they cannot be resumed by this study.
+Record file (npz, record store, kind ``hertzpetsc-precompression-map-2``; its constants and fields :data:`MAP_FIELDS`
+in docs/schemas.md); a record's kind: 0 a point of the map, 1 a located boundary point on N beads, 2 on the infinite
+chain, 3 the uncompressed limit, 4 the gap opening, 5 a Krein crossing. Files of kind
+``hertzpetsc-precompression-map-1`` (the dense route before issue 23, trivial multipliers the four nearest 1, no
+located boundary) are read for their tables and figure (:func:`read_map`, :func:`map_table`); they cannot be resumed
+by this study.
 """
 import math
 import os
@@ -438,7 +436,7 @@ class StabilityMap(Study):
             return [row]
         # the family is at the unstable sample, coming from one stable end around it (the layer located that edge):
         # a step to the other end locates the other edge
-        inside, _, a, b = found
+        _, _, a, b = found
         came_from = fam.continuation.previous
         for target in (b if abs(came_from - a) < abs(came_from - b) else a, hi):
             if abs(target - fam.continuation.parameter) > 1e-12:

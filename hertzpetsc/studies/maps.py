@@ -512,11 +512,10 @@ def simplest_fraction(lo, hi):
 @dataclass(frozen=True)
 class QBoundaryParameters:
     """The stability boundary on the infinite chain located in q at fixed amplitudes: the precompressed monatomic
-    ``model``, the amplitudes ``A`` = ||u||_inf (inf: the uncompressed limit), the grid of wavenumbers ``q`` (q / 2 pi
-    a fraction, the wave's cell at most ``max_cell`` beads) between which the verdict's changes are located to
-    ``locate_tol`` (a bracket of at most locate_tol / 2 relative in q) through wavenumbers whose cells have at most
-    ``max_cell`` beads; the Richardson grid K = ``cells_per_pi``, the flow's tolerances, tol_rho and the twists per
-    pi as for the map."""
+    ``model``, the amplitudes ``A`` = ||u||_inf (inf: the uncompressed limit), the grid of wavenumbers ``q`` between
+    which the verdict's changes are located to ``locate_tol`` (a bracket of at most locate_tol / 2 relative in q),
+    every wavenumber (grid or bisection) with q / 2 pi a fraction whose cell has at most ``max_cell`` beads; the
+    Richardson grid K = ``cells_per_pi``, the flow's tolerances, tol_rho and the twists per pi as for the map."""
 
     model: object
     A: tuple

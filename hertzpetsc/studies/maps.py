@@ -331,7 +331,7 @@ class StabilityMap(Study):
         return self._routes[key]
 
     # --- one q -------------------------------------------------------------------------------------------------
-    def _row(self, q, kind, a, A, omega, probe=None, entry=None, **extra):
+    def _row(self, q, kind, a, A, omega, probe=None, entry=None):
         nan = math.nan
         row = dict.fromkeys(MAP_FIELDS, nan)
         row.update(q=q, m=check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1, kind=kind, a=a, A=A,
@@ -352,7 +352,6 @@ class StabilityMap(Study):
                 row.update(rho_inf=i["rho"], theta_inf=i["theta"], cluster_inf=i["cluster"],
                            decoupled=int(i["decoupled"]) if row["decoupled"] < 0 else row["decoupled"])
             row["omega"] = entry.get("omega", omega)
-        row.update(extra)
         return row
 
     def _edge(self, q, probe, event, seconds):

@@ -227,7 +227,6 @@ class MapProbe:
     def chain(self, entry):
         if "chain" not in entry:
             st, e = self.study, self.wave(entry)
-            t0 = time.perf_counter()
             orbit = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], st.N, math.pi / st.K)
             spec = st.route(self.model).spectrum(orbit, st.tol_rho)
             sectors = spec.work["sectors"]
@@ -240,14 +239,13 @@ class MapProbe:
                 sector=2 * math.pi * float(spec.sector[top]) / sym.g, cluster=spec.trivial_spread,
                 raw=max((float(np.max(np.abs(s.raw_cluster))) - 1 for s in sectors if s.r), default=0.0),
                 eigvec=max(s.eigenvector_residual for s in sectors), decoupled=bool(spec.work["decoupled"]),
-                patterns=tuple(s.pattern() for s in sectors), seconds=time.perf_counter() - t0)
+                patterns=tuple(s.pattern() for s in sectors))
             self.evaluations["chain"] += 1
         return entry["chain"]
 
     def infinite(self, entry):
         if "infinite" not in entry:
             st, e = self.study, self.wave(entry)
-            t0 = time.perf_counter()
             sym = wave_cell(self.q, self.model.cell)
             cell = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], sym.M, math.pi / st.K)
             scan = twist_scan(st.route(self.model), cell, max(2, -(-st.twists // sym.M)), hints=self.hints,
@@ -256,8 +254,7 @@ class MapProbe:
                 self.hints = ([scan.theta] + [h for h in self.hints if abs(h - scan.theta) > 1e-9])[:3]
             entry["omega"] = cell.omega
             entry["infinite"] = dict(rho=scan.rho_max, theta=scan.theta, cluster=scan.cluster, M=sym.M,
-                                     decoupled=scan.decoupled, evaluated=len(scan.thetas),
-                                     seconds=time.perf_counter() - t0)
+                                     decoupled=scan.decoupled)
             self.evaluations["infinite"] += 1
         return entry["infinite"]
 

@@ -20,48 +20,40 @@ import importlib
 
 __version__ = "0.2.0"
 
-# name -> module (relative to the package) that defines it
-_EXPORTS = {
+# module (relative to the package) -> the names it defines that the package exports
+_MODULES = {
     # the lattice model (numpy only)
-    "InteractionLaw": "law", "HertzLaw": "hertz", "LatticeModel": "model", "ChainSpec": "model",
-    "Damping": "model", "Actuator": "model", "Harmonic": "model", "SampledSignal": "model",
-    "FunctionSignal": "model",
+    "law": "InteractionLaw", "hertz": "HertzLaw",
+    "model": "LatticeModel ChainSpec Damping Actuator Harmonic SampledSignal FunctionSignal",
     # travelling waves: the advance-delay problem, branches, families
-    "ProfileGrid": "grid", "AdvanceDelayProblem": "advdelay", "Branch": "branch", "BranchPoint": "branch",
-    "BranchContinuation": "qbranch", "ContinuationParameters": "qbranch", "AmplitudeFamily": "families",
-    "MassFamily": "families", "AmplitudePoint": "families", "uncompressed_limit": "families",
+    "grid": "ProfileGrid", "advdelay": "AdvanceDelayProblem", "branch": "Branch BranchPoint",
+    "qbranch": "BranchContinuation ContinuationParameters",
+    "families": "AmplitudeFamily MassFamily AmplitudePoint uncompressed_limit wave_of_amplitude",
     # the continuation layer
-    "Continuation": "continuation", "ContinuationProblem": "continuation", "Natural": "continuation",
-    "PseudoArclength": "continuation", "ContinuationPoint": "continuation",
+    "continuation": "Continuation ContinuationProblem Natural PseudoArclength ContinuationPoint",
     # the chain, its flows and orbits
-    "Chain": "chain", "ChainIntegrator": "chain", "IntegrationTolerances": "chain", "Orbit": "waves",
-    "orbit_on_chain": "waves", "TangentFlow": "tangent",
-    # studies (records in memory when no output path is given)
-    "Study": "studies.base", "BranchStudy": "studies.branch", "SmallQStudy": "studies.branch",
-    "SmallQParameters": "studies.branch", "AmplitudeFamilies": "studies.precompression",
-    "AmplitudeParameters": "studies.precompression", "DimerFamilies": "studies.precompression",
-    "DimerParameters": "studies.precompression", "StabilityMap": "studies.maps",
-    "MapParameters": "studies.maps", "QBoundary": "studies.maps", "QBoundaryParameters": "studies.maps",
+    "chain": "Chain ChainIntegrator IntegrationTolerances", "waves": "Orbit orbit_on_chain", "tangent": "TangentFlow",
     # errors
-    "ParameterError": "errors", "ConvergenceError": "errors", "RecordFileError": "errors",
+    "errors": "ParameterError ConvergenceError RecordFileError",
     # refinement and Floquet spectra
-    "Refiner": "shooting", "Refinement": "shooting", "Spectrum": "floquet", "DenseFloquet": "floquet",
-    "DominantFloquet": "floquet", "SymmetricFloquet": "bloch", "wave_of_amplitude": "families",
-    "WaveStudy": "studies.wave", "WaveParameters": "studies.wave",
-    "RefinementScan": "studies.refinement", "RefinedStates": "studies.refinement", "FloquetScan": "studies.floquet",
-    "BlochScan": "studies.floquet", "SlowInstabilityScan": "studies.slow", "LongRun": "studies.longrun",
-    "CompactonStabilityScan": "studies.compacton_stability", "CompactonDynamics": "studies.compacton_dynamics",
-    "CompactonPairs": "studies.compacton_pairs",
+    "shooting": "Refiner Refinement", "floquet": "Spectrum DenseFloquet DominantFloquet", "bloch": "SymmetricFloquet",
+    # studies (records in memory when no output path is given)
+    "studies.base": "Study", "studies.branch": "BranchStudy SmallQStudy SmallQParameters",
+    "studies.precompression": "AmplitudeFamilies AmplitudeParameters DimerFamilies DimerParameters",
+    "studies.maps": "StabilityMap MapParameters QBoundary QBoundaryParameters",
+    "studies.wave": "WaveStudy WaveParameters", "studies.refinement": "RefinementScan RefinedStates",
+    "studies.floquet": "FloquetScan BlochScan", "studies.slow": "SlowInstabilityScan", "studies.longrun": "LongRun",
+    "studies.compacton_stability": "CompactonStabilityScan", "studies.compacton_dynamics": "CompactonDynamics",
+    "studies.compacton_pairs": "CompactonPairs",
     # driven, damped chains (issue 22)
-    "Drive": "driven", "HarmonicWave": "driven", "HalfSinePulses": "driven", "SampledWave": "driven",
-    "ProfileWave": "driven", "PeriodicShooting": "driven", "Response": "driven", "switch_to_doubled": "driven",
-    "ResponseCurve": "studies.driven", "LinearResonances": "studies.driven", "WaveEnds": "studies.driven",
-    "Generation": "studies.driven", "ResponseParameters": "studies.driven", "ResonanceParameters": "studies.driven",
-    "WaveEndsParameters": "studies.driven", "GenerationParameters": "studies.driven",
+    "driven": "Drive HarmonicWave HalfSinePulses SampledWave ProfileWave PeriodicShooting Response switch_to_doubled",
+    "studies.driven": "ResponseCurve LinearResonances WaveEnds Generation ResponseParameters ResonanceParameters "
+                      "WaveEndsParameters GenerationParameters",
     # conveniences (this package's api module)
-    "compute_branch": "api", "wave_at": "api", "wave": "api", "orbit": "api", "refine": "api",
-    "multipliers": "api", "plot_spectrum": "api",
+    "api": "compute_branch wave_at wave orbit refine multipliers plot_spectrum",
 }
+# name -> module that defines it
+_EXPORTS = {name: module for module, names in _MODULES.items() for name in names.split()}
 
 __all__ = sorted(_EXPORTS)
 

@@ -2,14 +2,8 @@
 the package's objects with the paper's defaults (solver options still read from the options database, e.g.
 ``-shoot_ts_rtol``), runs them, frees the PETSc objects and returns plain results. Every call here is collective over
 ``comm`` (default PETSc.COMM_WORLD): all ranks call it with the same arguments and get the same result, except
-:func:`plot_spectrum` (local: call it on one rank).
-
-The pipeline of the paper, in four calls (sections 3.1, 3.4, 3.5)::
-
-    branch = hz.compute_branch(hz.LatticeModel.hertz(1.5), M=10, cells_per_pi=400)   # eq. ad continued in q
-    orbit = hz.orbit(branch.point(3 * math.pi / 10), N=100)                      # eq. twper, ||x|| = 1
-    refined = hz.refine(orbit)                                                    # Gauss-Newton, E(q)
-    spectrum = hz.multipliers(refined.orbit)                                      # F_q modulo shift
+:func:`plot_spectrum` (local: call it on one rank). The package's docstring (:mod:`hertzpetsc`) shows the paper's
+pipeline in these calls.
 """
 from __future__ import annotations
 

@@ -9,9 +9,8 @@ damping and masses -- in one C function that the TS calls directly (:func:`insta
 
 The library is built once per machine against Debian's libpetsc by ``python -m hertzpetsc.kernels`` (run by
 ``scripts/hz.sh setup``; it needs gcc, which hz.sh installs; it is rebuilt when its source changes). Without it the
-chain uses
-:meth:`~hertzpetsc.chain.Chain.rhs_reference` (numpy, the same arithmetic): :func:`status` says which, and
-``tests/test_kernels.py`` fails when the library is missing.
+chain uses :meth:`~hertzpetsc.chain.Chain.rhs_reference` (numpy, the same arithmetic): :func:`status` says which,
+and ``tests/test_kernels.py`` fails when the library is missing.
 """
 import ctypes
 import hashlib

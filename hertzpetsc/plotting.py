@@ -34,10 +34,6 @@ def _columns(rows, *keys):
     return [np.array([float(r[k]) for r in rows]) for k in keys]
 
 
-def _nearest(branch, q):
-    return int(np.argmin(np.abs(branch.q - q)))
-
-
 def branch_k_alpha(branch):
     """Estimate of k_alpha from the branch: ||u||_inf q^(2/(alpha-1)) at its smallest q (eq. normscaling)."""
     return float(branch.column("rescaled_norm")[np.argmin(branch.q)])
@@ -49,7 +45,7 @@ def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50
     xi = branch.xi
     xfull = np.concatenate([xi[:-1], 2 * math.pi - xi[:0:-1]])
     for ax, q in zip(np.atleast_1d(axes), qs):
-        point = branch.points[_nearest(branch, q)]
+        point = branch.points[int(np.argmin(np.abs(branch.q - q)))]      # the branch point nearest to q
         ax.plot(xfull, point.u_full, "k-", lw=1)
         ax.set(xlim=(0, 2 * math.pi), ylabel=r"$u(\xi)$")
         ax.set_title(rf"$q = {point.q:.4f}$", fontsize=10)
@@ -469,6 +465,8 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
     intervals between them (red bars), the uppermost located edge of each q joined along q, the gap opening A_gap(q)
     (dashed) and q_c of the uncompressed limit (shaded: between the largest q unstable at A = infinity and the next
     stable q of the map)."""
+    from .studies.floquet import critical_wavenumbers
+    from .studies.maps import unstable_intervals
     tol = float(z["tol_rho"])
     kind = np.asarray(z["kind"])
     q, A = np.asarray(z["q"], float), np.asarray(z["A"], float)
@@ -478,10 +476,12 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
     fig, axes = _pyplot().subplots(1, len(panels), figsize=(6 * len(panels), 4.8), squeeze=False)
     rho_all = np.concatenate([np.asarray(z[key], float) for key, _, _ in panels])
     bad_all = rho_all[np.isfinite(rho_all) & (rho_all - 1 > tol)]
-    vmin, vmax = (np.log10(tol), max(np.log10(tol) + 1, float(np.log10(bad_all.max() - 1)))) if len(bad_all) else \
-        (np.log10(tol), np.log10(tol) + 1)
+    vmin = np.log10(tol)
+    vmax = max(vmin + 1, float(np.log10(bad_all.max() - 1))) if len(bad_all) else vmin + 1
     gap = kind == 4
     order = np.argsort(q[gap])
+    finite = np.isfinite(A) & (A > 0)
+    lo_A, hi_A = (A[finite].min(), A[finite].max()) if finite.any() else (1e-2, 1e3)
     for ax, (key, edge, title) in zip(axes[0], panels):
         rho = np.asarray(z[key], float)
         pts = (kind == 0) & np.isfinite(rho)
@@ -495,22 +495,15 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
                    zorder=3)
         ax.scatter(q[located & ~onset], A[located & ~onset], marker="v", s=22, c="orange", edgecolors="k", lw=0.4,
                    label="offset (located)", zorder=3)
-        from .studies.floquet import critical_wavenumbers
-        from .studies.maps import unstable_intervals
-        finite = np.isfinite(A) & (A > 0)
-        lo_A, hi_A = (A[finite].min(), A[finite].max()) if finite.any() else (1e-2, 1e3)
         for qq, spans in unstable_intervals(z, key).items():
             for a1, a2 in spans:
                 if not (a1 == a1 and a2 == a2):        # an edge not located: nothing to draw between
                     continue
                 ax.plot([qq, qq], [max(a1, lo_A), min(a2, hi_A)], color="r", lw=2.5, alpha=0.35,
                         solid_capstyle="butt", zorder=1)
-        top_q, top_A = [], []
-        for qq in np.unique(q[located]):
-            top_q.append(qq)
-            top_A.append(A[located & (q == qq)].max())
+        top_q = np.unique(q[located])
         if len(top_q) > 1:           # the uppermost located edge of each q: where the verdict becomes final
-            ax.plot(top_q, top_A, "k-", lw=0.7, zorder=2, label="uppermost edge")
+            ax.plot(top_q, [A[located & (q == qq)].max() for qq in top_q], "k-", lw=0.7, zorder=2, label="uppermost edge")
         if gap.any():
             ax.plot(q[gap][order], A[gap][order], "b--", lw=0.9, label=r"$A_{gap}(q)$")
         limit = (kind == 3) & np.isfinite(rho)
@@ -527,7 +520,6 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
     fig.suptitle(rf"$\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$, masses "
                  + ", ".join(f"{m:g}" for m in np.asarray(z["masses"], float)), fontsize=10)
     return _save(fig, directory, name, tight=False)
-
 
 
 def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
@@ -570,6 +562,7 @@ def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
     ax.legend(fontsize=7, loc="upper right")
     return _save(fig, directory, name, tight=False)
 
+
 # --- driven, damped chains (issue 22) ---------------------------------------------------------------------------------
 _EVENT_MARKERS = {1: ("o", "fold"), 2: ("s", "period doubling"), 3: ("D", "Neimark-Sacker")}
 
@@ -593,12 +586,10 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
                     "multipliers not computed)")
             bx.text(0.5, 0.5, "multipliers not computed", ha="center", va="center", transform=bx.transAxes)
             continue
-        stable = rho < 1
-        ax.plot(p, y, ":", color=color, lw=0.9)
-        bx.plot(p, rho, ":", color=color, lw=0.9)
-        ax.plot(p, np.where(stable, y, np.nan), "-", color=color, lw=1.6,
-                label=f"branch {j} (period {int(rs[0]['periods'])} T; solid: stable)")
-        bx.plot(p, np.where(stable, rho, np.nan), "-", color=color, lw=1.6)
+        for axis, v, label in ((ax, y, f"branch {j} (period {int(rs[0]['periods'])} T; solid: stable)"),
+                               (bx, rho, None)):
+            axis.plot(p, v, ":", color=color, lw=0.9)
+            axis.plot(p, np.where(rho < 1, v, np.nan), "-", color=color, lw=1.6, label=label)
         for r in rs:
             ev = int(r["event"])
             if ev in _EVENT_MARKERS:

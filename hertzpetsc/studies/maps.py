@@ -22,14 +22,12 @@ of the h = pi/K wave of the family and the h = pi/(2K) one solved at the same am
 O(h^4) error). The uncompressed limit (delta0 / A = 0) closes each q. The q are dealt to the ranks, each computed on
 one rank (:mod:`hertzpetsc.studies.dealing`): the records do not depend on the number of ranks.
 
-Record file (npz, record store, kind ``hertzpetsc-precompression-map-2``; schema in docs/schemas.md): constants
-alpha, delta0, masses, N, cells_per_pi, rtol, tol_rho, twists, locate, locate_tol; per record: q, m, kind (0: a point
-of the map, 1: a located boundary point on N beads, 2: on the infinite chain, 3: the uncompressed limit, 4: the gap
-opening), a, A, omega, rho, outside, sector, cluster, raw_cluster, eigvec, decoupled, rho_inf, theta_inf,
-cluster_inf, a_stable, a_unstable, A_stable, A_unstable, rho_stable, rho_unstable, theta_unstable, evaluations,
-seconds. Files of kind ``hertzpetsc-precompression-map-1`` (the dense route before issue 23, trivial multipliers
-the four nearest 1, no located boundary) are read for their tables and figure (:func:`read_map`,
-:func:`map_table`); they cannot be resumed by this study.
+Record file (npz, record store, kind ``hertzpetsc-precompression-map-2``; its constants and fields :data:`MAP_FIELDS`
+in docs/schemas.md); a record's kind: 0 a point of the map, 1 a located boundary point on N beads, 2 on the infinite
+chain, 3 the uncompressed limit, 4 the gap opening, 5 a Krein crossing. Files of kind
+``hertzpetsc-precompression-map-1`` (the dense route before issue 23, trivial multipliers the four nearest 1, no
+located boundary) are read for their tables and figure (:func:`read_map`, :func:`map_table`); they cannot be resumed
+by this study.
 """
 import math
 import os
@@ -229,7 +227,6 @@ class MapProbe:
     def chain(self, entry):
         if "chain" not in entry:
             st, e = self.study, self.wave(entry)
-            t0 = time.perf_counter()
             orbit = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], st.N, math.pi / st.K)
             spec = st.route(self.model).spectrum(orbit, st.tol_rho)
             sectors = spec.work["sectors"]
@@ -242,14 +239,13 @@ class MapProbe:
                 sector=2 * math.pi * float(spec.sector[top]) / sym.g, cluster=spec.trivial_spread,
                 raw=max((float(np.max(np.abs(s.raw_cluster))) - 1 for s in sectors if s.r), default=0.0),
                 eigvec=max(s.eigenvector_residual for s in sectors), decoupled=bool(spec.work["decoupled"]),
-                patterns=tuple(s.pattern() for s in sectors), seconds=time.perf_counter() - t0)
+                patterns=tuple(s.pattern() for s in sectors))
             self.evaluations["chain"] += 1
         return entry["chain"]
 
     def infinite(self, entry):
         if "infinite" not in entry:
             st, e = self.study, self.wave(entry)
-            t0 = time.perf_counter()
             sym = wave_cell(self.q, self.model.cell)
             cell = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], sym.M, math.pi / st.K)
             scan = twist_scan(st.route(self.model), cell, max(2, -(-st.twists // sym.M)), hints=self.hints,
@@ -258,8 +254,7 @@ class MapProbe:
                 self.hints = ([scan.theta] + [h for h in self.hints if abs(h - scan.theta) > 1e-9])[:3]
             entry["omega"] = cell.omega
             entry["infinite"] = dict(rho=scan.rho_max, theta=scan.theta, cluster=scan.cluster, M=sym.M,
-                                     decoupled=scan.decoupled, evaluated=len(scan.thetas),
-                                     seconds=time.perf_counter() - t0)
+                                     decoupled=scan.decoupled)
             self.evaluations["infinite"] += 1
         return entry["infinite"]
 
@@ -333,7 +328,7 @@ class StabilityMap(Study):
         return self._routes[key]
 
     # --- one q -------------------------------------------------------------------------------------------------
-    def _row(self, q, kind, a, A, omega, probe=None, entry=None, **extra):
+    def _row(self, q, kind, a, A, omega, probe=None, entry=None):
         nan = math.nan
         row = dict.fromkeys(MAP_FIELDS, nan)
         row.update(q=q, m=check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1, kind=kind, a=a, A=A,
@@ -354,15 +349,13 @@ class StabilityMap(Study):
                 row.update(rho_inf=i["rho"], theta_inf=i["theta"], cluster_inf=i["cluster"],
                            decoupled=int(i["decoupled"]) if row["decoupled"] < 0 else row["decoupled"])
             row["omega"] = entry.get("omega", omega)
-        row.update(extra)
         return row
 
     def _edge(self, q, probe, event, seconds):
-        (s1, g1), (s2, g2) = event.bracket
-        (ss, _), (su, _) = ((s1, g1), (s2, g2)) if g1 <= 0 else ((s2, g2), (s1, g1))
-        stable, unstable = probe.at(ss), probe.at(su)
+        (s1, g1), (s2, _) = event.bracket
+        stable, unstable = (probe.at(s1), probe.at(s2)) if g1 <= 0 else (probe.at(s2), probe.at(s1))
         name = event.event
-        get = probe.chain if name == "chain" else probe.infinite
+        get = getattr(probe, name)                      # probe.chain or probe.infinite
         located = probe.entry(event)
         row = self._row(q, EDGE_KIND[name], event.a, probe.wave(located)["A"], event.omega, probe, located)
         row.update(a_stable=stable["point"].a, a_unstable=unstable["point"].a, A_stable=probe.wave(stable)["A"],
@@ -439,7 +432,7 @@ class StabilityMap(Study):
             return [row]
         # the family is at the unstable sample, coming from one stable end around it (the layer located that edge):
         # a step to the other end locates the other edge
-        inside, _, a, b = found
+        _, _, a, b = found
         came_from = fam.continuation.previous
         for target in (b if abs(came_from - a) < abs(came_from - b) else a, hi):
             if abs(target - fam.continuation.parameter) > 1e-12:
@@ -515,11 +508,10 @@ def simplest_fraction(lo, hi):
 @dataclass(frozen=True)
 class QBoundaryParameters:
     """The stability boundary on the infinite chain located in q at fixed amplitudes: the precompressed monatomic
-    ``model``, the amplitudes ``A`` = ||u||_inf (inf: the uncompressed limit), the grid of wavenumbers ``q`` (q / 2 pi
-    a fraction, the wave's cell at most ``max_cell`` beads) between which the verdict's changes are located to
-    ``locate_tol`` (a bracket of at most locate_tol / 2 relative in q) through wavenumbers whose cells have at most
-    ``max_cell`` beads; the Richardson grid K = ``cells_per_pi``, the flow's tolerances, tol_rho and the twists per
-    pi as for the map."""
+    ``model``, the amplitudes ``A`` = ||u||_inf (inf: the uncompressed limit), the grid of wavenumbers ``q`` between
+    which the verdict's changes are located to ``locate_tol`` (a bracket of at most locate_tol / 2 relative in q),
+    every wavenumber (grid or bisection) with q / 2 pi a fraction whose cell has at most ``max_cell`` beads; the
+    Richardson grid K = ``cells_per_pi``, the flow's tolerances, tol_rho and the twists per pi as for the map."""
 
     model: object
     A: tuple
@@ -707,10 +699,6 @@ def q_boundary_table(z):
         lines.append(f"| {level:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
-def _records(z, q):
-    mine = np.abs(np.asarray(z["q"], dtype=float) - q) <= 1e-12 * q
-    return {k: np.asarray(z[k])[mine] for k in MAP_FIELDS if k in z}
-
 
 def read_map(path, comm=None):
     """The arrays of a stability-map file of either kind (``format``: :data:`MAP_FORMAT` or :data:`MAP_FORMAT_V1`),
@@ -866,7 +854,43 @@ def map_table(z):
         return map_v1_table(z)
     tol = float(z["tol_rho"])
     twists = int(z["twists"])
-    qs = sorted(set(float(q) for q in np.asarray(z["q"])))
+    kinds, qarr = np.asarray(z["kind"]), np.asarray(z["q"], float)
+    spans = {key: unstable_intervals(z, key) for key in (("rho", "rho_inf") if twists else ("rho",))}
+
+    def shown(key, q):
+        if q not in spans.get(key, {}):
+            return "n/a"
+        return "none" if not spans[key][q] else ", ".join(f"[{lo:.5g}, {hi:.5g}]".replace("nan", "?")
+                                                          for lo, hi in spans[key][q])
+
+    def mark(x):                               # '?': no verdict (rho nan: the deflation did not hold)
+        return "?" if not math.isfinite(float(x)) else "U" if float(x) - 1 > tol else "."
+
+    def marks(rho, pts, lim):                  # the map's amplitudes in order, then the limit after '|'
+        return "`" + "".join(mark(x) for x in rho[pts]) + ("|" + mark(rho[lim[0]]) if len(lim) else "") + "`"
+
+    # one row of each table per q: the located edges, the unstable intervals, the verdicts
+    edges, intervals, verdicts = [], [], []
+    for q in sorted(set(qarr.tolist())):
+        mine = np.abs(qarr - q) <= 1e-12 * q
+        r = {k: np.asarray(z[k])[mine] for k in MAP_FIELDS if k in z}
+        for i in np.nonzero((r["kind"] == KIND_EDGE) | (r["kind"] == KIND_EDGE_INF))[0]:
+            As, Au = float(r["A_stable"][i]), float(r["A_unstable"][i])
+            edges.append(f"| {q_label(q)} | {'N' if r['kind'][i] == KIND_EDGE else 'inf'} | {As:.6g} | {Au:.6g} | "
+                         f"{abs(Au - As) / min(As, Au):.1e} | {float(r['rho_stable'][i]):.1e} | "
+                         f"{float(r['rho_unstable'][i]):.1e} | {float(r['theta_unstable'][i]):.4f} | "
+                         f"{'onset' if Au > As else 'offset'} | {int(r['evaluations'][i])} |")
+        pts = np.nonzero(r["kind"] == KIND_POINT)[0]
+        pts = pts[np.argsort(r["a"][pts])]
+        lim = np.nonzero(r["kind"] == KIND_LIMIT)[0]
+        gap = np.nonzero(r["kind"] == KIND_GAP)[0]
+        gap_A = f"{float(r['A'][gap[0]]):.4f}" if len(gap) else "n/a"
+        intervals.append(f"| {q_label(q)} | {gap_A} | {shown('rho', q)} | {shown('rho_inf', q)} |")
+        verdicts.append(f"| {q_label(q)} | {gap_A} | {marks(r['rho'], pts, lim)} | "
+                        + (marks(r["rho_inf"], pts, lim) if twists else "n/a")
+                        + f" | {_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |")
+    amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), kinds) if k == KIND_POINT))
+    unresolved = bool(np.any(((kinds == KIND_POINT) | (kinds == KIND_LIMIT)) & ~np.isfinite(np.asarray(z["rho"], float))))
     lines = [f"schema: {MAP_FORMAT}; alpha = {float(z['alpha']):g}, delta0 = {float(z['delta0']):g}, masses "
              f"{', '.join(f'{m:g}' for m in np.asarray(z['masses']))} (repeated), N = {int(z['N'])}; waves: "
              f"Richardson of h = pi/{int(z['cells_per_pi'])} and pi/{2 * int(z['cells_per_pi'])}; flow rtol "
@@ -881,56 +905,18 @@ def map_table(z):
              "the edge is an onset (stable below, unstable above) or an offset.\n",
              "| q | chain | A stable | A unstable | relative width | rho - 1 stable side | rho - 1 unstable side | "
              "Theta | edge | bisections |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
-    for q in qs:
-        r = _records(z, q)
-        for i in np.nonzero((r["kind"] == KIND_EDGE) | (r["kind"] == KIND_EDGE_INF))[0]:
-            As, Au = float(r["A_stable"][i]), float(r["A_unstable"][i])
-            lines.append(f"| {q_label(q)} | {'N' if r['kind'][i] == KIND_EDGE else 'inf'} | {As:.6g} | {Au:.6g} | "
-                         f"{abs(Au - As) / min(As, Au):.1e} | {float(r['rho_stable'][i]):.1e} | "
-                         f"{float(r['rho_unstable'][i]):.1e} | {float(r['theta_unstable'][i]):.4f} | "
-                         f"{'onset' if Au > As else 'offset'} | {int(r['evaluations'][i])} |")
-    lines += ["\n### Unstable intervals\n",
-              "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within "
-              "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
-              "limit; ?: an edge not located (a window found between two edges of the same kind).\n",
-              "| q | A_gap | N beads | infinite chain |", "|---|---|---|---|"]
-    spans = {key: unstable_intervals(z, key) for key in (("rho", "rho_inf") if twists else ("rho",))}
-
-    def shown(v):
-        return "none" if not v else ", ".join(f"[{lo:.5g}, {hi:.5g}]".replace("nan", "?") for lo, hi in v)
-    kinds, qarr = np.asarray(z["kind"]), np.asarray(z["q"], float)
-    for q in qs:
-        g = np.nonzero((kinds == KIND_GAP) & (np.abs(qarr - q) <= 1e-12 * q))[0]
-        lines.append(f"| {q_label(q)} | " + (f"{float(np.asarray(z['A'])[g[0]]):.4f}" if len(g) else "n/a") + " | "
-                     + (shown(spans["rho"][q]) if q in spans["rho"] else "n/a") + " | "
-                     + (shown(spans["rho_inf"].get(q)) if twists and q in spans["rho_inf"] else "n/a") + " |")
-    amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), kinds) if k == KIND_POINT))
-    unresolved = bool(np.any(((kinds == KIND_POINT) | (kinds == KIND_LIMIT)) & ~np.isfinite(np.asarray(z["rho"], float))))
-    lines += ["\n### Verdicts on the map\n",
-              f"Amplitudes a (first sine coefficient) of the map: {', '.join(f'{a:.4g}' for a in amps)}. Per q, one "
-              "character per amplitude, increasing: '.' stable, 'U' unstable (rho - 1 > tol_rho)"
-              + (f", '?' no verdict (the deflation's eigenvector residual above {EIGVEC_MAX:g})" if unresolved else "")
-              + ", then the uncompressed limit after '|'; A_gap: the located gap opening; largest deflated cluster |mu - 1| and "
-              "eigenvector residual over the row (what the deflation removed, and how exact it was).\n",
-              "| q | A_gap | N beads | infinite chain | cluster (N) | eigenvector residual |",
-              "|---|---|---|---|---|---|"]
-    for q in qs:
-        r = _records(z, q)
-        pts = np.nonzero(r["kind"] == KIND_POINT)[0]
-        pts = pts[np.argsort(r["a"][pts])]
-        lim = np.nonzero(r["kind"] == KIND_LIMIT)[0]
-        gap = np.nonzero(r["kind"] == KIND_GAP)[0]
-
-        def mark(x):                           # '?': no verdict (rho nan: the deflation did not hold)
-            return "?" if not math.isfinite(float(x)) else "U" if float(x) - 1 > tol else "."
-
-        def verdicts(key):
-            v = "".join(mark(x) for x in r[key][pts])
-            return v + ("|" + mark(r[key][lim[0]]) if len(lim) else "")
-
-        gap_A = f"{float(r['A'][gap[0]]):.4f}" if len(gap) else "n/a"
-        lines.append(f"| {q_label(q)} | {gap_A} | `{verdicts('rho')}` | "
-                     + (f"`{verdicts('rho_inf')}`" if twists else "n/a")
-                     + f" | {_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |")
+             "|---|---|---|---|---|---|---|---|---|---|", *edges,
+             "\n### Unstable intervals\n",
+             "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within "
+             "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
+             "limit; ?: an edge not located (a window found between two edges of the same kind).\n",
+             "| q | A_gap | N beads | infinite chain |", "|---|---|---|---|", *intervals,
+             "\n### Verdicts on the map\n",
+             f"Amplitudes a (first sine coefficient) of the map: {', '.join(f'{a:.4g}' for a in amps)}. Per q, one "
+             "character per amplitude, increasing: '.' stable, 'U' unstable (rho - 1 > tol_rho)"
+             + (f", '?' no verdict (the deflation's eigenvector residual above {EIGVEC_MAX:g})" if unresolved else "")
+             + ", then the uncompressed limit after '|'; A_gap: the located gap opening; largest deflated cluster |mu - 1| and "
+             "eigenvector residual over the row (what the deflation removed, and how exact it was).\n",
+             "| q | A_gap | N beads | infinite chain | cluster (N) | eigenvector residual |",
+             "|---|---|---|---|---|---|", *verdicts]
     return "\n".join(lines) + "\n"

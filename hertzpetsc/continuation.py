@@ -524,9 +524,8 @@ class Continuation:
         return at
 
     def _located(self, evals, sigma, s, name):
-        """The ContinuationPoint of the solved point ``evals[sigma]`` (arclength s); frees the other points."""
+        """The ContinuationPoint of the solved point ``evals[sigma]`` (arclength s; the caller frees the others)."""
         Z, its, _ = evals.pop(sigma)
-        _discard(evals)
         point = ContinuationPoint(parameter=_parameter(Z), s=s, dp_ds=0.0 if name == "fold" else
                                   math.nan, iterations=its, event=name, report=self.problem.report(Z),
                                   tests=self.problem.test_functions(Z))
@@ -568,9 +567,9 @@ class Continuation:
                 raise ConvergenceError("fold location", "degenerate parabola", sigma=sigma1)
             return self._located(evals, x, s_origin + x, "fold")
         except ConvergenceError:
-            _discard(evals)
             return None
         finally:
+            _discard(evals)
             c.destroy()
 
     def _locate_natural(self, Z1, Z2, s_origin, name, g1, g2):
@@ -605,8 +604,9 @@ class Continuation:
             point.bracket = bracket
             return point
         except ConvergenceError:
-            _discard(evals)
             return None
+        finally:
+            _discard(evals)
 
     def take_events(self):
         """The points located by the natural steps since the last call (sorted by arclength)."""
@@ -623,9 +623,9 @@ class Continuation:
             x = illinois(at, 0.0, g1, length, g2, self.locate_tol * length, self.locate_max)
             return self._located(evals, x, s_origin + x, name)
         except ConvergenceError:
-            _discard(evals)
             return None
         finally:
+            _discard(evals)
             c.destroy()
 
     def run(self, until=None, max_steps=1000):
@@ -633,10 +633,8 @@ class Continuation:
         for _ in range(max_steps):
             point = self.step()
             yield point
-            if until is not None and point.event is None and len(self.history) == 2:
-                p_prev = self._p(self.history[0][0])
-                if (point.parameter - until) * (p_prev - until) <= 0:
-                    return
+            if until is not None and point.event is None and (point.parameter - until) * (self.previous - until) <= 0:
+                return
 
     def destroy(self):
         for Z, _, _ in self.history:

@@ -225,11 +225,8 @@ def continue_branch(params, targets, grids, comm, seeds=(), prefix=TW_PREFIX, so
                 cont = BranchContinuation(params, comm, prefix, solver, cells_per_pi=K)
                 cont.resume_from([h[0] for h in history], [h[1] for h in history])
                 K_cur = K
-            point = cont.step_to(q) if cont.history else cont.start()
-            if not history and abs(q - math.pi) > 1e-12 * math.pi:
-                history.append((point.q, point.u_half))        # from u0 at pi, on to the first target
-                point = cont.step_to(q)
-            history = (history + [(point.q, point.u_half)])[-2:]
+            for point in cont.points([q]):        # from u0 at pi first if nothing is computed yet
+                history = (history + [(point.q, point.u_half)])[-2:]
             yield point
     finally:
         if cont is not None:

@@ -94,14 +94,11 @@ class FamilyProblem(AdvanceDelayProblem):
     extra_tests = None
 
     def test_functions(self, Z):
-        functions = {}
-        if self.model.delta0 > 0 and math.isfinite(self.amplitude):
-            self.set_parameter(self.parameter, self._scalars(Z)[-1])
-            gap = self.gap(self.half_profiles(Z))
-            functions["gap"] = lambda: gap
+        self.set_parameter(self.parameter, self._scalars(Z)[-1])
+        point = self.point(Z, 0)
+        functions = {"gap": lambda: point.gap} if self.model.delta0 > 0 and math.isfinite(self.amplitude) else {}
         if self.extra_tests is not None:
-            self.set_parameter(self.parameter, self._scalars(Z)[-1])
-            functions.update(self.extra_tests(self.point(Z, 0)))
+            functions.update(self.extra_tests(point))
         return LazyTests(functions)
 
     def point(self, V, iterations):

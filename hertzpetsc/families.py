@@ -254,22 +254,17 @@ class MassFamily:
         self.continuation = Continuation(self.problem, PseudoArclength(ds=min(ds, ds_max), ds_min=1e-10, ds_max=ds_max,
                                                                        max_halvings=max_halvings))
 
-    def _natural(self, epsilon):
-        model = self.model.with_masses((self.model.masses[0], epsilon))
-        fam = AmplitudeFamily(model, self.q, self.grid, self.prefix + "natural_", self.branch, solver=self.solver_kind)
-        try:
-            pts = list(fam.points(np.geomspace(min(1e-3, self.a), self.a, 12)))
-            normalised = fam.problem.normalised
-        finally:
-            fam.destroy()
-        return pts[-1], normalised
-
     def start(self, epsilon_start=1.0, first_step=-0.01):
         """Two natural points, at epsilon_start and epsilon_start + first_step (the direction of the path)."""
         out, states = [], []
         for e in (epsilon_start, epsilon_start + first_step):
-            p, normalised = self._natural(e)
-            self.problem.normalised = normalised
+            fam = AmplitudeFamily(self.model.with_masses((self.model.masses[0], e)), self.q, self.grid,
+                                  self.prefix + "natural_", self.branch, solver=self.solver_kind)
+            try:
+                p = list(fam.points(np.geomspace(min(1e-3, self.a), self.a, 12)))[-1]
+                self.problem.normalised = fam.problem.normalised
+            finally:
+                fam.destroy()
             self.problem.set_parameter("epsilon", e)
             states.append(self.problem.pack(p.profiles, p.lam, e))
             out.append(MassPoint(e, p, 0.0, float("nan")))

@@ -454,6 +454,7 @@ class Continuation:
         if self._pending:
             return self._pending.pop(0)
         (Zm, sm, _), (Z1, s1, tests1) = self.history
+        pm, p1 = self._p(Zm), self._p(Z1)
         t = self._chord(Zm, Z1)[0]
         ds, halvings = self.ds, 0
         while True:
@@ -463,15 +464,13 @@ class Continuation:
             halvings += 1
             self.changes += 1
             if halvings > alg.max_halvings or ds * 0.5 < alg.ds_min or self.changes > alg.max_step_changes:
-                p1 = _parameter(Z1)
                 dp = _parameter(t)
                 t.destroy()
                 raise ContinuationError(self.problem.parameter, p1, p1 + ds * dp, "arclength corrector")
             ds *= 0.5
         t.destroy()
         self.changes = 0
-        pm, p1 = self._p(Zm), self._p(Z1)
-        Zm, Z1 = Zm.copy(), Z1.copy()
+        Zm = Zm.copy()                 # _accept destroys the oldest point of the history (Z1 stays in it)
         self.s = s1 + ds
         point = self._accept(Z, its)
         t_new = self._chord(Z1, Z)[0]
@@ -484,7 +483,6 @@ class Continuation:
             if name in tests1 and tests1[name] * value < 0:
                 located.append(self._locate_root(Z1, Z, s1, name, tests1[name], value))
         Zm.destroy()
-        Z1.destroy()
         located = sorted((p for p in located if p is not None), key=lambda p: p.s)
         if its <= alg.easy and halvings == 0:
             self.ds = min(alg.ds_max, alg.growth * ds)

@@ -521,12 +521,12 @@ class Continuation:
             return v
         return at
 
-    def _located(self, evals, sigma, s, name):
+    def _located(self, evals, sigma, s, name, bracket=None):
         """The ContinuationPoint of the solved point ``evals[sigma]`` (arclength s; the caller frees the others)."""
         Z, its, _ = evals.pop(sigma)
-        point = ContinuationPoint(parameter=_parameter(Z), s=s, dp_ds=0.0 if name == "fold" else
-                                  math.nan, iterations=its, event=name, report=self.problem.report(Z),
-                                  tests=self.problem.test_functions(Z))
+        point = ContinuationPoint(parameter=_parameter(Z), s=s, dp_ds=0.0 if name == "fold" else math.nan,
+                                  iterations=its, event=name, report=self.problem.report(Z),
+                                  tests=self.problem.test_functions(Z), bracket=bracket)
         Z.destroy()
         return point
 
@@ -598,9 +598,7 @@ class Continuation:
         try:
             x, bracket = illinois(at, p1, g1, p2, g2, tol, self.locate_max, bisect=name in self.bisect,
                                   bracket=True)
-            point = self._located(evals, x, s_origin + abs(x - p1), name)
-            point.bracket = bracket
-            return point
+            return self._located(evals, x, s_origin + abs(x - p1), name, bracket)
         except ConvergenceError:
             return None
         finally:

@@ -60,9 +60,8 @@ class ContinuationParameters:
         object.__setattr__(self, "alpha", model.alpha)
         object.__setattr__(self, "M", check_integer("M", self.M, 1, note="(wavenumbers q = m pi / M)"))
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        if self.q_stop is None:
-            object.__setattr__(self, "q_stop", math.pi / self.M)
-        object.__setattr__(self, "q_stop", check_wavenumber(self.q_stop, name="q_stop"))
+        q_stop = math.pi / self.M if self.q_stop is None else self.q_stop
+        object.__setattr__(self, "q_stop", check_wavenumber(q_stop, name="q_stop"))
         if self.q_stop < self.h:
             raise ParameterError("q_stop", self.q_stop, f"must be at least the grid step h = pi/{self.cells_per_pi}"
                                  f" = {self.h:.6g}; increase cells_per_pi")

@@ -454,6 +454,7 @@ class Continuation:
         if self._pending:
             return self._pending.pop(0)
         (Zm, sm, _), (Z1, s1, tests1) = self.history
+        pm, p1 = self._p(Zm), self._p(Z1)
         t = self._chord(Zm, Z1)[0]
         ds, halvings = self.ds, 0
         while True:
@@ -463,15 +464,13 @@ class Continuation:
             halvings += 1
             self.changes += 1
             if halvings > alg.max_halvings or ds * 0.5 < alg.ds_min or self.changes > alg.max_step_changes:
-                p1 = _parameter(Z1)
                 dp = _parameter(t)
                 t.destroy()
                 raise ContinuationError(self.problem.parameter, p1, p1 + ds * dp, "arclength corrector")
             ds *= 0.5
         t.destroy()
         self.changes = 0
-        pm, p1 = self._p(Zm), self._p(Z1)
-        Zm, Z1 = Zm.copy(), Z1.copy()
+        Zm = Zm.copy()                 # _accept destroys the oldest point of the history (Z1 stays in it)
         self.s = s1 + ds
         point = self._accept(Z, its)
         t_new = self._chord(Z1, Z)[0]
@@ -484,7 +483,6 @@ class Continuation:
             if name in tests1 and tests1[name] * value < 0:
                 located.append(self._locate_root(Z1, Z, s1, name, tests1[name], value))
         Zm.destroy()
-        Z1.destroy()
         located = sorted((p for p in located if p is not None), key=lambda p: p.s)
         if its <= alg.easy and halvings == 0:
             self.ds = min(alg.ds_max, alg.growth * ds)
@@ -523,13 +521,12 @@ class Continuation:
             return v
         return at
 
-    def _located(self, evals, sigma, s, name):
-        """The ContinuationPoint of the solved point ``evals[sigma]`` (arclength s); frees the other points."""
+    def _located(self, evals, sigma, s, name, bracket=None):
+        """The ContinuationPoint of the solved point ``evals[sigma]`` (arclength s; the caller frees the others)."""
         Z, its, _ = evals.pop(sigma)
-        _discard(evals)
-        point = ContinuationPoint(parameter=_parameter(Z), s=s, dp_ds=0.0 if name == "fold" else
-                                  math.nan, iterations=its, event=name, report=self.problem.report(Z),
-                                  tests=self.problem.test_functions(Z))
+        point = ContinuationPoint(parameter=_parameter(Z), s=s, dp_ds=0.0 if name == "fold" else math.nan,
+                                  iterations=its, event=name, report=self.problem.report(Z),
+                                  tests=self.problem.test_functions(Z), bracket=bracket)
         Z.destroy()
         return point
 
@@ -568,9 +565,9 @@ class Continuation:
                 raise ConvergenceError("fold location", "degenerate parabola", sigma=sigma1)
             return self._located(evals, x, s_origin + x, "fold")
         except ConvergenceError:
-            _discard(evals)
             return None
         finally:
+            _discard(evals)
             c.destroy()
 
     def _locate_natural(self, Z1, Z2, s_origin, name, g1, g2):
@@ -601,12 +598,11 @@ class Continuation:
         try:
             x, bracket = illinois(at, p1, g1, p2, g2, tol, self.locate_max, bisect=name in self.bisect,
                                   bracket=True)
-            point = self._located(evals, x, s_origin + abs(x - p1), name)
-            point.bracket = bracket
-            return point
+            return self._located(evals, x, s_origin + abs(x - p1), name, bracket)
         except ConvergenceError:
-            _discard(evals)
             return None
+        finally:
+            _discard(evals)
 
     def take_events(self):
         """The points located by the natural steps since the last call (sorted by arclength)."""
@@ -623,9 +619,9 @@ class Continuation:
             x = illinois(at, 0.0, g1, length, g2, self.locate_tol * length, self.locate_max)
             return self._located(evals, x, s_origin + x, name)
         except ConvergenceError:
-            _discard(evals)
             return None
         finally:
+            _discard(evals)
             c.destroy()
 
     def run(self, until=None, max_steps=1000):
@@ -633,10 +629,8 @@ class Continuation:
         for _ in range(max_steps):
             point = self.step()
             yield point
-            if until is not None and point.event is None and len(self.history) == 2:
-                p_prev = self._p(self.history[0][0])
-                if (point.parameter - until) * (p_prev - until) <= 0:
-                    return
+            if until is not None and point.event is None and (point.parameter - until) * (self.previous - until) <= 0:
+                return
 
     def destroy(self):
         for Z, _, _ in self.history:

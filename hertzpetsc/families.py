@@ -94,20 +94,26 @@ class FamilyProblem(AdvanceDelayProblem):
     extra_tests = None
 
     def test_functions(self, Z):
-        functions = {}
-        if self.model.delta0 > 0 and math.isfinite(self.amplitude):
-            self.set_parameter(self.parameter, self._scalars(Z)[-1])
-            gap = self.gap(self.half_profiles(Z))
-            functions["gap"] = lambda: gap
+        self.set_parameter(self.parameter, self._scalars(Z)[-1])
+        point = self.point(Z, 0)
+        functions = {"gap": lambda: point.gap} if self.model.delta0 > 0 and math.isfinite(self.amplitude) else {}
         if self.extra_tests is not None:
-            self.set_parameter(self.parameter, self._scalars(Z)[-1])
-            functions.update(self.extra_tests(self.point(Z, 0)))
+            functions.update(self.extra_tests(point))
         return LazyTests(functions)
 
     def point(self, V, iterations):
         """The :class:`AmplitudePoint` of an X or Z Vec at the problem's current parameters."""
-        prof = self.half_profiles(V)
-        lam = float(self._scalars(V)[0])
+        return self._wave(self.half_profiles(V), float(self._scalars(V)[0]), iterations)
+
+    def located(self, cp, current):
+        """The :class:`AmplitudePoint` of the layer's ContinuationPoint ``cp`` (from its report, at its parameter);
+        the problem's parameter is then set to ``current`` (the continuation's last)."""
+        self.set_parameter(self.parameter, cp.parameter)
+        point = self._wave(cp.report["profiles"], cp.report["lam"], cp.iterations)
+        self.set_parameter(self.parameter, current)
+        return point
+
+    def _wave(self, prof, lam, iterations):
         a = self.amplitude
         norm = max(profile_sup(w, self.full) for w in prof)
         d = self.model.law.scale_degree
@@ -156,32 +162,28 @@ class AmplitudeFamily:
                                          locate_step=locate_step)
 
     def solve_at(self, a):
-        """The wave at amplitude a: the first from the linear wave, the next by a natural step."""
-        a = check_amplitude(a)
-        if self.continuation.history:
-            return self.step_to(a)
-        self.problem.set_parameter("a", a)
-        prof, lam = self.problem.linear_guess(self.branch)
-        Z = self.problem.pack(prof, lam, parameter=math.log(a))
-        try:
-            cp = self.continuation.start(Z)
-        finally:
-            Z.destroy()
-        return self._point(cp)
-
-    def _point(self, cp):
-        self.problem.set_parameter("log_a", cp.parameter)
-        return self.problem.point(self.continuation.history[-1][0], cp.iterations)
+        """The wave at amplitude a (:meth:`step_to`)."""
+        return self.step_to(a)
 
     def step_to(self, a_target):
-        """Continue from the last point to a_target (intermediate steps halved on failure)."""
+        """The wave at amplitude a_target: the first from the linear wave, the next by continuation from the last
+        point (intermediate steps halved on failure)."""
+        a = check_amplitude(a_target)
         if not self.continuation.history:
-            return self.solve_at(a_target)
-        try:
-            cp = self.continuation.step_to(math.log(check_amplitude(a_target)))
-        except ContinuationError as err:
-            raise ConvergenceError("amplitude continuation", err.reason, q=self.q, a=math.exp(err.failed)) from None
-        return self._point(cp)
+            self.problem.set_parameter("a", a)
+            prof, lam = self.problem.linear_guess(self.branch)
+            Z = self.problem.pack(prof, lam, parameter=math.log(a))
+            try:
+                cp = self.continuation.start(Z)
+            finally:
+                Z.destroy()
+        else:
+            try:
+                cp = self.continuation.step_to(math.log(a))
+            except ContinuationError as err:
+                raise ConvergenceError("amplitude continuation", err.reason, q=self.q,
+                                       a=math.exp(err.failed)) from None
+        return self.problem.located(cp, cp.parameter)
 
     def points(self, amplitudes):
         """Yield the waves at the increasing amplitudes ``amplitudes``."""
@@ -191,15 +193,8 @@ class AmplitudeFamily:
     def events(self):
         """The points located since the last call (AmplitudePoints: the gap openings, and the roots of the caller's
         ``tests``), each with its ``event`` and ``bracket``."""
-        out = []
-        for cp in self.continuation.take_events():
-            prof = cp.report["profiles"]
-            self.problem.set_parameter("log_a", cp.parameter)
-            Z = self.problem.pack(prof, cp.report["lam"], cp.parameter)
-            out.append(replace(self.problem.point(Z, cp.iterations), event=cp.event, bracket=cp.bracket))
-            Z.destroy()
-        self.problem.set_parameter("log_a", self.continuation.parameter)
-        return out
+        return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket)
+                for cp in self.continuation.take_events()]
 
     def destroy(self):
         self.continuation.destroy()
@@ -259,29 +254,22 @@ class MassFamily:
         self.continuation = Continuation(self.problem, PseudoArclength(ds=min(ds, ds_max), ds_min=1e-10, ds_max=ds_max,
                                                                        max_halvings=max_halvings))
 
-    def _natural(self, epsilon):
-        model = self.model.with_masses((self.model.masses[0], epsilon))
-        fam = AmplitudeFamily(model, self.q, self.grid, self.prefix + "natural_", self.branch, solver=self.solver_kind)
-        try:
-            pts = list(fam.points(np.geomspace(min(1e-3, self.a), self.a, 12)))
-            normalised = fam.problem.normalised
-        finally:
-            fam.destroy()
-        return pts[-1], normalised
-
     def start(self, epsilon_start=1.0, first_step=-0.01):
         """Two natural points, at epsilon_start and epsilon_start + first_step (the direction of the path)."""
         out, states = [], []
         for e in (epsilon_start, epsilon_start + first_step):
-            p, normalised = self._natural(e)
-            self.problem.normalised = normalised
+            fam = AmplitudeFamily(self.model.with_masses((self.model.masses[0], e)), self.q, self.grid,
+                                  self.prefix + "natural_", self.branch, solver=self.solver_kind)
+            try:
+                p = list(fam.points(np.geomspace(min(1e-3, self.a), self.a, 12)))[-1]
+                self.problem.normalised = fam.problem.normalised
+            finally:
+                fam.destroy()
             self.problem.set_parameter("epsilon", e)
             states.append(self.problem.pack(p.profiles, p.lam, e))
             out.append(MassPoint(e, p, 0.0, float("nan")))
-        d = states[1].copy()
-        d.axpy(-1.0, states[0])
-        dist = self.continuation._norm(d)
-        d.destroy()
+        chord, dist = self.continuation._chord(*states)
+        chord.destroy()
         self.continuation.seed(states, [0.0, dist])
         for Z in states:
             Z.destroy()
@@ -315,11 +303,7 @@ class MassFamily:
             cp = self.continuation.step()
         except ContinuationError as err:
             raise ConvergenceError("mass-ratio continuation", err.reason, q=self.q, epsilon=err.failed) from None
-        self.problem.set_parameter("epsilon", cp.parameter)
-        Z = self.problem.pack(cp.report["profiles"], cp.report["lam"], cp.parameter)
-        wave = self.problem.point(Z, cp.iterations)
-        Z.destroy()
-        self.problem.set_parameter("epsilon", self.continuation.parameter)
+        wave = self.problem.located(cp, self.continuation.parameter)
         return MassPoint(cp.parameter, wave, cp.s, cp.dp_ds, cp.event)
 
     def run(self, epsilon_end, max_steps=400):
@@ -349,10 +333,7 @@ def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start
     try:
         a0 = min(a_start * max(model.delta0, 1e-300), A)
         n = max(1, int(math.ceil(math.log(A / a0) / ds)))
-        point = None
-        for a in np.geomspace(a0, A, n + 1):
-            point = fam.step_to(float(a))
-        return point
+        return list(fam.points(np.geomspace(a0, A, n + 1)))[-1]
     finally:
         fam.destroy()
 

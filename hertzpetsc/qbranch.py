@@ -60,9 +60,8 @@ class ContinuationParameters:
         object.__setattr__(self, "alpha", model.alpha)
         object.__setattr__(self, "M", check_integer("M", self.M, 1, note="(wavenumbers q = m pi / M)"))
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        if self.q_stop is None:
-            object.__setattr__(self, "q_stop", math.pi / self.M)
-        object.__setattr__(self, "q_stop", check_wavenumber(self.q_stop, name="q_stop"))
+        q_stop = math.pi / self.M if self.q_stop is None else self.q_stop
+        object.__setattr__(self, "q_stop", check_wavenumber(q_stop, name="q_stop"))
         if self.q_stop < self.h:
             raise ParameterError("q_stop", self.q_stop, f"must be at least the grid step h = pi/{self.cells_per_pi}"
                                  f" = {self.h:.6g}; increase cells_per_pi")
@@ -225,11 +224,8 @@ def continue_branch(params, targets, grids, comm, seeds=(), prefix=TW_PREFIX, so
                 cont = BranchContinuation(params, comm, prefix, solver, cells_per_pi=K)
                 cont.resume_from([h[0] for h in history], [h[1] for h in history])
                 K_cur = K
-            point = cont.step_to(q) if cont.history else cont.start()
-            if not history and abs(q - math.pi) > 1e-12 * math.pi:
-                history.append((point.q, point.u_half))        # from u0 at pi, on to the first target
-                point = cont.step_to(q)
-            history = (history + [(point.q, point.u_half)])[-2:]
+            for point in cont.points([q]):        # from u0 at pi first if nothing is computed yet
+                history = (history + [(point.q, point.u_half)])[-2:]
             yield point
     finally:
         if cont is not None:

@@ -91,7 +91,7 @@ def tail_rate(c0):
         mid = 0.5 * (lo + hi)
         if mid == lo or mid == hi:
             break
-        if mid > 0 and math.sinh(mid) / mid < 1.0 / c0:
+        if math.sinh(mid) / mid < 1.0 / c0:          # mid > lo >= 0
             lo = mid
         else:
             hi = mid

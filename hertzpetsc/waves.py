@@ -84,8 +84,7 @@ def orbit_on_chain(point: "BranchPoint", spec: ChainSpec, phase: float = 0.0, ti
 
     ``scale`` s uses the law's exact scaling (degree d, :mod:`hertzpetsc.law`): the chain's law must be the point's
     rescaled by 1/s. Default: the paper's normalisation s = 1 / max_c ||u_c||_inf (section 3.4) when the law is
-    scale-invariant (eq. ad fixes the shape only), else 1 (the wave as stored). Positions and velocities at q n
-    come from the degree-5 Lagrange interpolant of the profiles (error below their O(h^2) discretisation error)."""
+    scale-invariant (eq. ad fixes the shape only), else 1 (the wave as stored); the interpolation: module docstring."""
     if spec.boundary != "periodic":
         raise ParameterError("boundary", spec.boundary, "a travelling wave modulo shifts needs a periodic chain")
     model, q, p = point.model, point.q, point.model.cell

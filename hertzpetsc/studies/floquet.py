@@ -146,9 +146,7 @@ class FloquetScan(Study):
         """Compute the spectrum at every q not yet in the file; yields the record after saving it. The symmetric
         route deals the q to the ranks (each on one rank); the others distribute each q over the ranks, in order
         (the SLEPc route starts from the previous q's eigenvectors)."""
-        self.open()
-        done = {round(float(r["q"]), 12) for r in self.store.records}
-        todo = [q for q in self.qs if round(q, 12) not in done]
+        todo = self.open()._todo(self.qs)
         rows = (dealt(todo, [self.orbit(q).symmetry.cost() for q in todo], self.comm, self._spectrum)
                 if self.method == "symmetric" else ((q, self._spectrum(q)) for q in todo))
         for _, row in rows:

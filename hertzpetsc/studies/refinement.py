@@ -142,9 +142,7 @@ class RefinementScan(Study):
 
     def run(self):
         """Refine every q not yet in the file; yields the record (a dict of the fields) after saving it."""
-        self.open()
-        done = {round(float(r["q"]), 12) for r in self.store.records}
-        todo = [q for q in self.qs if round(q, 12) not in done]
+        todo = self.open()._todo(self.qs)
         costs = [WaveSymmetry(self.N, check_chain_wavenumber(q, self.N)).cost() for q in todo]
         try:
             for q, row in dealt(todo, costs, self.comm, self._refine):

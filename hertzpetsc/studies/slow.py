@@ -259,9 +259,7 @@ class SlowInstabilityScan(Study):
 
     def run(self):
         """Compute every q not yet in the file; yields each record after saving it."""
-        self.open()
-        done = {round(float(r["q"]), 12) for r in self.store.records}
-        todo = [q for q in self.qs if round(q, 12) not in done]
+        todo = self.open()._todo(self.qs)
         costs = [1.0 + (WaveSymmetry(self.N, int(round(q * self.N / (2 * math.pi)))).cost() * 50
                         if self.n_twist and fits_chain(q, self.N) else 0.0) for q in todo]
         for q, row in dealt(todo, costs, self.comm, self.point):

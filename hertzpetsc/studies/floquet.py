@@ -130,17 +130,14 @@ class FloquetScan(Study):
             return self.refined.orbit(point, self.spec)
         return orbit_on_chain(point, self.spec)
 
-    def _row(self, q, spec, orbit, seconds):
-        lam = spec.multipliers
-        return dict(q=q, rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
-                    growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
-                    multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
-
     def _spectrum(self, q):
         orbit = self.orbit(q)
         t0 = time.perf_counter()
         spec = self.solver.spectrum(orbit, self.tol_rho)
-        return self._row(q, spec, orbit, time.perf_counter() - t0)
+        lam, seconds = spec.multipliers, time.perf_counter() - t0
+        return dict(q=q, rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
+                    growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
+                    multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
 
     def run(self):
         """Compute the spectrum at every q not yet in the file; yields the record after saving it. The symmetric
@@ -265,7 +262,8 @@ class BlochScan(Study):
         for N in self.sizes:
             L = N // self.M
             for cell in self.orbits:
-                if (N, round(cell.q, 12)) in done:
+                key = (N, round(cell.q, 12))
+                if key in done:
                     continue
                 t0 = time.perf_counter()
                 full = cell.tiled(L)
@@ -291,11 +289,11 @@ class BlochScan(Study):
                            slepc_seconds=slepc["seconds"] if slepc else math.nan,
                            dominant=np.array([mu for mu, _, _ in b.modes]),
                            dominant_theta=np.array([(j * per / b.L) % 1.0 for _, j, _ in b.modes]))
-                self.extra[(N, round(cell.q, 12))] = dict(m=full.m, L=L, runs=b.work["runs"], columns=b.work["columns"],
-                                                           res_products=res_products, t_res=t_res, slepc=slepc,
-                                                           propagated=b.work["propagated"])
+                self.extra[key] = dict(m=full.m, L=L, runs=b.work["runs"], columns=b.work["columns"],
+                                       res_products=res_products, t_res=t_res, slepc=slepc,
+                                       propagated=b.work["propagated"])
                 self.store.append(row)
-                yield row, self.extra[(N, round(cell.q, 12))]
+                yield row, self.extra[key]
 
     def destroy(self):
         self.solver.destroy()

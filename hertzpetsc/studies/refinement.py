@@ -65,7 +65,7 @@ class RefinedStates:
         return np.asarray(self.data[name])
 
     def has(self, q):
-        return bool(len(self.q)) and float(np.min(np.abs(self.q - q))) <= 1e-12 * max(1.0, q)
+        return self.state(q) is not None
 
     def state(self, q):
         """The refined (N, 2) state at q, or None."""

@@ -336,14 +336,13 @@ class AppOptions:
         role_options = known_solver_options({p: kinds for p, (_, kinds) in self.roles.items()}) if self.roles else set()
         idle = [(n, v) for n, v in left if n in role_options]
         left = [(n, v) for n, v in left if n not in role_options]
-        if idle and not left:
-            # a documented option of one of the driver's solver roles, for a solver this run does not create (e.g.
-            # -floquet_eps_* with -method symmetric): accepted, and said
-            print0("note: " + ", ".join("-" + n + (f" {v}" if v else "") for n, v in idle)
-                   + " not used: this run creates no solver that reads " + ("them" if len(idle) > 1 else "it")
-                   + " (its solvers depend on the other options; -help lists the roles)", file=sys.stderr)
-            return
         if not left:
+            if idle:
+                # a documented option of one of the driver's solver roles, for a solver this run does not create
+                # (e.g. -floquet_eps_* with -method symmetric): accepted, and said
+                print0("note: " + ", ".join("-" + n + (f" {v}" if v else "") for n, v in idle)
+                       + " not used: this run creates no solver that reads " + ("them" if len(idle) > 1 else "it")
+                       + " (its solvers depend on the other options; -help lists the roles)", file=sys.stderr)
             return
         name, value = left[0]
         candidates = self.known() | role_options
@@ -483,8 +482,8 @@ def guarded_main(main):
     Package errors are raised on every rank at once (see :mod:`hertzpetsc.errors`): rank 0 prints and every rank
     exits. SIGINT, SIGTERM and SIGHUP end the run with status 130, 143 and 129 after the ``finally`` blocks ran
     (child processes ended, record files left as after their last complete record). PETSc errors are collective
-    as well (configuration and solver calls are) and are reported with PETSc's own message. Anything else is a failure of one rank: that rank prints it and aborts the others, so an
-    MPI run never hangs.
+    as well (configuration and solver calls are) and are reported with PETSc's own message. Anything else is a
+    failure of one rank: that rank prints it and aborts the others, so an MPI run never hangs.
     """
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_terminated)

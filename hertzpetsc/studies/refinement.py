@@ -56,9 +56,9 @@ class RefinedStates:
             return on_rank0(comm, cls.load, path, what=f"cannot read refinement file {path!r}")
         data = load_npz(path, "refinement file")
         check_kind(data, path, REFINED_FORMAT, "refinement file")
-        missing = set(REFINED_FIELDS) - set(data)
-        if missing or "x" not in data:
-            raise RecordFileError(f"refinement file {path!r} is corrupt: missing {sorted(missing | {'x'} - set(data))}")
+        missing = set(REFINED_FIELDS + ("x",)) - set(data)
+        if missing:
+            raise RecordFileError(f"refinement file {path!r} is corrupt: missing {sorted(missing)}")
         return cls(path, data)
 
     def column(self, name):

@@ -251,11 +251,9 @@ class AppOptions:
             if bad:
                 raise ParameterError(f"-{name}", text, f"member {bad[0]!r} is not {valid[1]}")
         if distinct:
-            seen = []
-            for v in values:
-                if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in seen):
+            for i, v in enumerate(values):
+                if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in values[:i]):
                     raise ParameterError(f"-{name}", text, f"lists {v!r} twice; the members must be different")
-                seen.append(v)
         return values
 
     def words(self, name, default, help="", choices=None, old=()):
@@ -377,10 +375,7 @@ def check_ranks_agree(comm):
         return
     mine = sorted((k, "" if v is None else str(v)) for k, v in PETSc.Options().getAll().items())
     everyone = comm.tompi4py().allgather(mine)
-    if all(other == everyone[0] for other in everyone):
-        return
-    names = sorted({k for other in everyone for k, _ in other})
-    for name in names:
+    for name in sorted({k for other in everyone for k, _ in other}):
         values = [dict(other).get(name) for other in everyone]
         if any(v != values[0] for v in values):
             shown = ", ".join(f"rank {r}: {'(absent)' if v is None else v or '(no value)'}" for r, v in

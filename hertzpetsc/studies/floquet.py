@@ -203,12 +203,8 @@ class FloquetScan(Study):
 
     def eigen_panels(self, labels):
         """[(label, multipliers)] of the records at the (label, q) pairs that were scanned (fig. eigen)."""
-        out = []
-        for label, q in labels:
-            for r in self.store.records:
-                if abs(float(r["q"]) - q) < 1e-9:
-                    out.append((label, np.asarray(r["multipliers"])))
-        return out
+        return [(label, np.asarray(r["multipliers"])) for label, q in labels for r in self.store.records
+                if abs(float(r["q"]) - q) < 1e-9]
 
 
 def floquet_reference(path):

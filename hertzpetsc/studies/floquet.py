@@ -249,8 +249,7 @@ class BlochScan(Study):
         return dict(alpha=self.branch.alpha, M=self.M, nev=self.nev, tol_rho=self.tol_rho, split=self.split,
                     rtol=self.tolerances.rtol, refined_file=_path(self.refined))
 
-    def inputs(self):
-        return dict(branch=_path(self.branch), refined=_path(self.refined))
+    inputs = FloquetScan.inputs          # the branch and the refinement file
 
     def run(self):
         self.open()

@@ -251,11 +251,9 @@ class AppOptions:
             if bad:
                 raise ParameterError(f"-{name}", text, f"member {bad[0]!r} is not {valid[1]}")
         if distinct:
-            seen = []
-            for v in values:
-                if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in seen):
+            for i, v in enumerate(values):
+                if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in values[:i]):
                     raise ParameterError(f"-{name}", text, f"lists {v!r} twice; the members must be different")
-                seen.append(v)
         return values
 
     def words(self, name, default, help="", choices=None, old=()):
@@ -336,14 +334,13 @@ class AppOptions:
         role_options = known_solver_options({p: kinds for p, (_, kinds) in self.roles.items()}) if self.roles else set()
         idle = [(n, v) for n, v in left if n in role_options]
         left = [(n, v) for n, v in left if n not in role_options]
-        if idle and not left:
-            # a documented option of one of the driver's solver roles, for a solver this run does not create (e.g.
-            # -floquet_eps_* with -method symmetric): accepted, and said
-            print0("note: " + ", ".join("-" + n + (f" {v}" if v else "") for n, v in idle)
-                   + " not used: this run creates no solver that reads " + ("them" if len(idle) > 1 else "it")
-                   + " (its solvers depend on the other options; -help lists the roles)", file=sys.stderr)
-            return
         if not left:
+            if idle:
+                # a documented option of one of the driver's solver roles, for a solver this run does not create
+                # (e.g. -floquet_eps_* with -method symmetric): accepted, and said
+                print0("note: " + ", ".join("-" + n + (f" {v}" if v else "") for n, v in idle)
+                       + " not used: this run creates no solver that reads " + ("them" if len(idle) > 1 else "it")
+                       + " (its solvers depend on the other options; -help lists the roles)", file=sys.stderr)
             return
         name, value = left[0]
         candidates = self.known() | role_options
@@ -378,10 +375,7 @@ def check_ranks_agree(comm):
         return
     mine = sorted((k, "" if v is None else str(v)) for k, v in PETSc.Options().getAll().items())
     everyone = comm.tompi4py().allgather(mine)
-    if all(other == everyone[0] for other in everyone):
-        return
-    names = sorted({k for other in everyone for k, _ in other})
-    for name in names:
+    for name in sorted({k for other in everyone for k, _ in other}):
         values = [dict(other).get(name) for other in everyone]
         if any(v != values[0] for v in values):
             shown = ", ".join(f"rank {r}: {'(absent)' if v is None else v or '(no value)'}" for r, v in
@@ -483,8 +477,8 @@ def guarded_main(main):
     Package errors are raised on every rank at once (see :mod:`hertzpetsc.errors`): rank 0 prints and every rank
     exits. SIGINT, SIGTERM and SIGHUP end the run with status 130, 143 and 129 after the ``finally`` blocks ran
     (child processes ended, record files left as after their last complete record). PETSc errors are collective
-    as well (configuration and solver calls are) and are reported with PETSc's own message. Anything else is a failure of one rank: that rank prints it and aborts the others, so an
-    MPI run never hangs.
+    as well (configuration and solver calls are) and are reported with PETSc's own message. Anything else is a
+    failure of one rank: that rank prints it and aborts the others, so an MPI run never hangs.
     """
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_terminated)

@@ -361,8 +361,8 @@ def write_npz(path, arrays):
     """Write a record archive atomically (temporary file, fsync, rename): npz, or HDF5 by its name."""
     if is_hdf5(path):
         _write_h5(path, arrays)
-        return
-    _replace_atomically(path, lambda f: np.savez(f, **arrays))
+    else:
+        _replace_atomically(path, lambda f: np.savez(f, **arrays))
 
 
 def _h5py():

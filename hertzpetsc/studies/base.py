@@ -77,6 +77,11 @@ class Study:
         return NpzRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity, self.FIELDS,
                           self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT)
 
+    def _todo(self, qs):
+        """The wavenumbers of ``qs`` that the store holds no record of yet (to 12 decimals)."""
+        done = {round(float(r["q"]), 12) for r in self.store.records}
+        return [q for q in qs if round(q, 12) not in done]
+
     @property
     def records(self):
         """The records computed so far (a list of dicts, one per record)."""
@@ -135,8 +140,7 @@ def plain(params):
     for f in fields(params):
         v = getattr(params, f.name)
         if hasattr(v, "describe"):
-            for k, x in v.describe().items():
-                out[k] = x
+            out.update(v.describe())
         elif isinstance(v, (tuple, list)):
             out[f.name] = list(v)
         elif v is not None:

@@ -253,7 +253,7 @@ class SmallQStudy(Study):
                 seeds = (seeds + [(point.q, point.u_half)])[-2:]
                 state = {}
                 for j, (q, u) in enumerate(seeds):
-                    state.update({f"L{level}_seed{j}_q": q, f"L{level}_seed{j}_K": int(round(len(u) - 1)),
+                    state.update({f"L{level}_seed{j}_q": q, f"L{level}_seed{j}_K": len(u) - 1,
                                   f"L{level}_seed{j}_u": u})
                 d = point.diagnostics
                 self.store.append(dict(level=level, q=point.q, K=K, **{f: d[f] for f in SMALLQ_FIELDS}), state)

@@ -11,7 +11,7 @@ from ..compacton_window import DEFAULT_REAR, CompactonRefiner, CompactonWindow, 
 from ..errors import ParameterError
 from ..model import ChainSpec
 from .base import Study
-from .compacton_dynamics import DYNAMICS_TOLERANCES, dynamics_integrator
+from .compacton_dynamics import DYNAMICS_TOLERANCES, CompactonDynamics, dynamics_integrator
 from .compacton_stability import q_text
 
 PAIRS_FORMAT = "hertzpetsc-compacton-pairs-1"
@@ -28,7 +28,7 @@ class CompactonPairs(Study):
     v_peak) and the debris left behind the rear compacton (max |v| / v_peak)."""
 
     FORMAT, FIELDS, DTYPES = PAIRS_FORMAT, PAIR_FIELDS, {"case": str, "rear": str, "front": str}
-    ROLES = {"cdyn_": ("the long free chain's TS", ("ts",)), "cwin_": ("the window flows", ("ts",))}
+    ROLES = CompactonDynamics.ROLES
     WHAT, LABELS = "compacton pairs file", ("N", "gap")
 
     def __init__(self, branch, q, comm=None, output=None, mode="new", spacing=132, travel=100, M=18,

@@ -177,8 +177,7 @@ class CompactonStabilityScan(Study):
                     jordan_split=split, jordan_translation=jc.translation, jordan_generalized=jc.generalized,
                     max_nontrivial=float(abs(rest[0])), unstable=unstable, doubling_change=doubling,
                     slepc_change=slepc_change, slepc_products=sl.work["products"], slepc_nev=nev,
-                    core_first=int(core[0]),
-                    core_last=int(core[-1]), seconds=time.perf_counter() - t0, multipliers=lam,
+                    core_first=int(core[0]), core_last=int(core[-1]), seconds=time.perf_counter() - t0, multipliers=lam,
                     dominant=np.pad(dominant, (0, NDOM - len(dominant))), state=Y)
 
     def run(self):
@@ -260,7 +259,6 @@ class CompactonStabilityScan(Study):
                          f"{max(float(r['doubling_change']) for r in rs):.1e} | "
                          f"{max(float(r['slepc_change']) for r in rs):.1e} |")
         return "\n".join(lines) + "\n"
-
 
     def limit_table(self):
         """The q -> 0 limit of the compacton family against the solitary wave (q = 0), per alpha: D and the dominant

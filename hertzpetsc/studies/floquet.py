@@ -130,25 +130,20 @@ class FloquetScan(Study):
             return self.refined.orbit(point, self.spec)
         return orbit_on_chain(point, self.spec)
 
-    def _row(self, q, spec, orbit, seconds):
-        lam = spec.multipliers
-        return dict(q=q, rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
-                    growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
-                    multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
-
     def _spectrum(self, q):
         orbit = self.orbit(q)
         t0 = time.perf_counter()
         spec = self.solver.spectrum(orbit, self.tol_rho)
-        return self._row(q, spec, orbit, time.perf_counter() - t0)
+        lam, seconds = spec.multipliers, time.perf_counter() - t0
+        return dict(q=q, rho=spec.rho, outside=spec.outside, trivial_spread=spec.trivial_spread,
+                    growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
+                    multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
 
     def run(self):
         """Compute the spectrum at every q not yet in the file; yields the record after saving it. The symmetric
         route deals the q to the ranks (each on one rank); the others distribute each q over the ranks, in order
         (the SLEPc route starts from the previous q's eigenvectors)."""
-        self.open()
-        done = {round(float(r["q"]), 12) for r in self.store.records}
-        todo = [q for q in self.qs if round(q, 12) not in done]
+        todo = self.open()._todo(self.qs)
         rows = (dealt(todo, [self.orbit(q).symmetry.cost() for q in todo], self.comm, self._spectrum)
                 if self.method == "symmetric" else ((q, self._spectrum(q)) for q in todo))
         for _, row in rows:
@@ -208,12 +203,8 @@ class FloquetScan(Study):
 
     def eigen_panels(self, labels):
         """[(label, multipliers)] of the records at the (label, q) pairs that were scanned (fig. eigen)."""
-        out = []
-        for label, q in labels:
-            for r in self.store.records:
-                if abs(float(r["q"]) - q) < 1e-9:
-                    out.append((label, np.asarray(r["multipliers"])))
-        return out
+        return [(label, np.asarray(r["multipliers"])) for label, q in labels for r in self.store.records
+                if abs(float(r["q"]) - q) < 1e-9]
 
 
 def floquet_reference(path):
@@ -258,8 +249,7 @@ class BlochScan(Study):
         return dict(alpha=self.branch.alpha, M=self.M, nev=self.nev, tol_rho=self.tol_rho, split=self.split,
                     rtol=self.tolerances.rtol, refined_file=_path(self.refined))
 
-    def inputs(self):
-        return dict(branch=_path(self.branch), refined=_path(self.refined))
+    inputs = FloquetScan.inputs          # the branch and the refinement file
 
     def run(self):
         self.open()
@@ -267,7 +257,8 @@ class BlochScan(Study):
         for N in self.sizes:
             L = N // self.M
             for cell in self.orbits:
-                if (N, round(cell.q, 12)) in done:
+                key = (N, round(cell.q, 12))
+                if key in done:
                     continue
                 t0 = time.perf_counter()
                 full = cell.tiled(L)
@@ -293,11 +284,11 @@ class BlochScan(Study):
                            slepc_seconds=slepc["seconds"] if slepc else math.nan,
                            dominant=np.array([mu for mu, _, _ in b.modes]),
                            dominant_theta=np.array([(j * per / b.L) % 1.0 for _, j, _ in b.modes]))
-                self.extra[(N, round(cell.q, 12))] = dict(m=full.m, L=L, runs=b.work["runs"], columns=b.work["columns"],
-                                                           res_products=res_products, t_res=t_res, slepc=slepc,
-                                                           propagated=b.work["propagated"])
+                self.extra[key] = dict(m=full.m, L=L, runs=b.work["runs"], columns=b.work["columns"],
+                                       res_products=res_products, t_res=t_res, slepc=slepc,
+                                       propagated=b.work["propagated"])
                 self.store.append(row)
-                yield row, self.extra[(N, round(cell.q, 12))]
+                yield row, self.extra[key]
 
     def destroy(self):
         self.solver.destroy()

@@ -90,6 +90,7 @@ class LongRun(Study):
             if self.store.records:
                 times, _, steps, states = decode(np.asarray(self.store.records[-1])[None, :], self.orbit.N)
                 t, dt, x = float(times[0]), float(steps[0]), states[0]
+                chain.set_from_array(X, x)
                 E0 = float(self.store.records[0][1])
             else:
                 x, t = self.orbit.x, 0.0
@@ -97,7 +98,6 @@ class LongRun(Study):
                 E0 = chain.energy(X)
                 dt = integ.ts.getTimeStep()
                 self.store.append(snapshot_record(0.0, E0, dt, x))
-            chain.set_from_array(X, x)
             k = int(round(t / self.dt_snap))
             t0 = time.perf_counter()
             per_progress = self.snapshots_per_T * every

@@ -73,6 +73,11 @@ def _check_delta0_positive(model):
         raise ParameterError("delta0", model.delta0, "the families of this study need a precompression > 0")
 
 
+def _at(records, q):
+    """The records at wavenumber ``q`` (to 1e-12 relative)."""
+    return [r for r in records if abs(float(r["q"]) - q) <= 1e-12 * q]
+
+
 def _check_qs(q, h=None, name="q"):
     qs = tuple(check_wavenumber(x, h, name) for x in q)
     if not qs:
@@ -138,8 +143,7 @@ class AmplitudeFamilies(Study):
                     Omega=point.Omega, lam=point.lam, gap=point.gap, iterations=point.iterations)
 
     def _done(self, q):
-        return {(int(r["kind"]), round(float(r["a"]), 10)) for r in self.store.records
-                if abs(float(r["q"]) - q) <= 1e-12 * q}
+        return {(int(r["kind"]), round(float(r["a"]), 10)) for r in _at(self.store.records, q)}
 
     def run(self):
         """Compute every q not complete in the file; yields each new record after saving it."""
@@ -169,7 +173,7 @@ class AmplitudeFamilies(Study):
 
     def rows(self, q):
         """(grid points sorted by a, gap record or None, limit record or None) at q."""
-        recs = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
+        recs = _at(self.store.records, q)
         grid = sorted((r for r in recs if int(r["kind"]) == KIND_GRID), key=lambda r: float(r["a"]))
         gap = next((r for r in recs if int(r["kind"]) == KIND_GAP), None)
         limit = next((r for r in recs if int(r["kind"]) == KIND_LIMIT), None)
@@ -331,9 +335,13 @@ class DimerFamilies(Study):
                     v2=self.a * sine_coefficient(w.profiles[1], 2), iterations=w.iterations,
                     event=EVENT_CODES[getattr(p, "event", None)])
 
+    def _regular(self, q):
+        """The records of the regular points of the path at q (events left out)."""
+        return [r for r in _at(self.store.records, q) if int(r.get("event", 0)) == 0]
+
     def _progress(self, q):
         """(regular points saved for q, finished?) from the records."""
-        rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q and int(r["event"]) == 0]
+        rows = self._regular(q)
         if not rows:
             return 0, False
         last = float(rows[-1]["epsilon"])
@@ -369,8 +377,8 @@ class DimerFamilies(Study):
                         if p.event is not None:
                             # an event row keeps the state of the previous point: a resume recomputes this step
                             # and finds the event again (not saved twice)
-                            if any(abs(float(r["q"]) - q) <= 1e-12 * q and int(r["event"]) == row["event"]
-                                   and abs(float(r["epsilon"]) - p.epsilon) <= 1e-9 for r in self.store.records):
+                            if any(int(r["event"]) == row["event"] and abs(float(r["epsilon"]) - p.epsilon) <= 1e-9
+                                   for r in _at(self.store.records, q)):
                                 continue
                             self.store.append(row)
                         else:
@@ -392,12 +400,11 @@ class DimerFamilies(Study):
                  "|---|---|---|---|---|---|---|---|---|---|"]
         names = {v: k for k, v in EVENT_CODES.items()}
         for q in self.qs:
-            mine = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q]
-            rows = [r for r in mine if int(r.get("event", 0)) == 0]
+            rows = self._regular(q)
             if not rows:
                 continue
-            events = ", ".join(f"{names[int(r['event'])]} {float(r['epsilon']):.6f}" for r in mine
-                               if int(r.get("event", 0)) != 0) or "none"
+            events = ", ".join(f"{names[int(r['event'])]} {float(r['epsilon']):.6f}"
+                               for r in _at(self.store.records, q) if int(r.get("event", 0)) != 0) or "none"
             t = np.array([float(r["tangent_epsilon"]) for r in rows])
             t = t[np.isfinite(t)]
             folds = int(np.sum(np.sign(t[1:]) != np.sign(t[:-1]))) if len(t) > 1 else 0
@@ -414,8 +421,7 @@ class DimerFamilies(Study):
     def curves(self):
         out = {}
         for q in self.qs:
-            rows = [r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q
-                    and int(r.get("event", 0)) == 0]
+            rows = self._regular(q)
             if rows:
                 out[q] = tuple(np.array([float(r[k]) for r in rows]) for k in ("epsilon", "omega", "omega_acoustic",
                                                                                  "norm_v"))

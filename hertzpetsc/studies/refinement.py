@@ -56,16 +56,16 @@ class RefinedStates:
             return on_rank0(comm, cls.load, path, what=f"cannot read refinement file {path!r}")
         data = load_npz(path, "refinement file")
         check_kind(data, path, REFINED_FORMAT, "refinement file")
-        missing = set(REFINED_FIELDS) - set(data)
-        if missing or "x" not in data:
-            raise RecordFileError(f"refinement file {path!r} is corrupt: missing {sorted(missing | {'x'} - set(data))}")
+        missing = set(REFINED_FIELDS + ("x",)) - set(data)
+        if missing:
+            raise RecordFileError(f"refinement file {path!r} is corrupt: missing {sorted(missing)}")
         return cls(path, data)
 
     def column(self, name):
         return np.asarray(self.data[name])
 
     def has(self, q):
-        return bool(len(self.q)) and float(np.min(np.abs(self.q - q))) <= 1e-12 * max(1.0, q)
+        return self.state(q) is not None
 
     def state(self, q):
         """The refined (N, 2) state at q, or None."""
@@ -142,9 +142,7 @@ class RefinementScan(Study):
 
     def run(self):
         """Refine every q not yet in the file; yields the record (a dict of the fields) after saving it."""
-        self.open()
-        done = {round(float(r["q"]), 12) for r in self.store.records}
-        todo = [q for q in self.qs if round(q, 12) not in done]
+        todo = self.open()._todo(self.qs)
         costs = [WaveSymmetry(self.N, check_chain_wavenumber(q, self.N)).cost() for q in todo]
         try:
             for q, row in dealt(todo, costs, self.comm, self._refine):

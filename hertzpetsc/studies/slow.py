@@ -64,14 +64,14 @@ from ..symmetry import WaveSymmetry
 from ..waves import fits_chain, orbit_on_chain
 from .base import Study
 from .dealing import dealt
-from .floquet import q_label
+from .floquet import _path, q_label
 
 SLOW_FORMAT = "hertzpetsc-slow-1"
 TARGET = 1e-9                       # the resolution asked for, per unit time
+MONO_FIELDS = ("twist_mono", "gamma_mono", "raw_cluster_mono", "cluster_mono", "eigvec_mono", "invariance_mono",
+               "E_orbit", "E_short")            # the monodromy route's fields (nan where it is not run)
 SLOW_FIELDS = ("q", "m", "T", "theta_cm", "gamma_cm", "gamma_cm_extrapolated", "order_cm", "band_cm",
-               "separation_cm", "twist_mono", "gamma_mono", "raw_cluster_mono", "cluster_mono", "eigvec_mono",
-               "invariance_mono", "E_orbit", "E_short", "slope_cm", "slope_whitham", "resolution", "verdict",
-               "seconds")
+               "separation_cm") + MONO_FIELDS + ("slope_cm", "slope_whitham", "resolution", "verdict", "seconds")
 # the flow of the refinement and of the sector maps: as tight as rk 8vr allows in double precision
 SLOW_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
 
@@ -185,7 +185,7 @@ class SlowInstabilityScan(Study):
                     rtol=self.tolerances.rtol, target=self.target, theta_longwave=self.theta_longwave)
 
     def inputs(self):
-        return dict(branch=self.branch_path, refined=getattr(self.refined, "path", "") or "")
+        return dict(branch=self.branch_path, refined=_path(self.refined))
 
     # --- the two routes ---------------------------------------------------------------------------------------
     def comoving(self, point):
@@ -210,9 +210,8 @@ class SlowInstabilityScan(Study):
         refinement file's state when it has this q. E stalls above refine_tol at the flow's floor (e.g. long
         cells): then within 10 refine_tol, else the starting state as it is (E_orbit and E_short say what the
         deflation worked with)."""
-        orbit = orbit_on_chain(point, self.spec)
-        if self.refined is not None and self.refined.has(point.q):
-            orbit = self.refined.orbit(point, self.spec)
+        orbit = (self.refined.orbit(point, self.spec) if self.refined is not None and self.refined.has(point.q)
+                 else orbit_on_chain(point, self.spec))
         for tol in (self.refine_tol, 10 * self.refine_tol):
             self.refiner.tol = tol
             try:
@@ -244,14 +243,10 @@ class SlowInstabilityScan(Study):
     def point(self, q):
         t0 = time.perf_counter()
         point = self.branch.point(q)
-        row = dict(q=q, m=-1, **self.comoving(point))
-        nan_mono = dict(twist_mono=math.nan, gamma_mono=math.nan, raw_cluster_mono=math.nan, cluster_mono=math.nan,
-                        eigvec_mono=math.nan, invariance_mono=math.nan, E_orbit=math.nan, E_short=math.nan)
+        row = dict(q=q, m=-1, **self.comoving(point), **dict.fromkeys(MONO_FIELDS, math.nan))
         if self.n_twist and fits_chain(q, self.N):
             row["m"] = int(round(q * self.N / (2 * math.pi)))
             row.update(self.monodromy(point))
-        else:
-            row.update(nan_mono)
         row["slope_whitham"] = whitham_slope(point, PETSc.COMM_SELF) if q < math.pi * (1 - 1e-9) else math.nan
         row["resolution"], row["verdict"] = self.verdict(row)
         row["seconds"] = time.perf_counter() - t0
@@ -259,9 +254,7 @@ class SlowInstabilityScan(Study):
 
     def run(self):
         """Compute every q not yet in the file; yields each record after saving it."""
-        self.open()
-        done = {round(float(r["q"]), 12) for r in self.store.records}
-        todo = [q for q in self.qs if round(q, 12) not in done]
+        todo = self.open()._todo(self.qs)
         costs = [1.0 + (WaveSymmetry(self.N, int(round(q * self.N / (2 * math.pi)))).cost() * 50
                         if self.n_twist and fits_chain(q, self.N) else 0.0) for q in todo]
         for q, row in dealt(todo, costs, self.comm, self.point):

@@ -98,13 +98,13 @@ class SolitaryStabilityScan(Study):
 
     Parameters = SolitaryStabilityParameters
     FORMAT, FIELDS = FORMAT, FIELDS + ("multipliers", "dominant", "state")
+    DTYPES = {"multipliers": complex, "dominant": complex, "iterations": np.int64, "points": np.int64,
+              "unstable": np.int64}
     ROLES = ROLES
     WHAT = "solitary stability file"
 
     def __init__(self, params, comm=None, output=None, mode="new"):
         super().__init__(params, comm, output, mode)
-        self.DTYPES = {"multipliers": complex, "dominant": complex, "iterations": np.int64, "points": np.int64,
-                       "unstable": np.int64}
         self.SHAPES = {"multipliers": (2 * params.M,), "dominant": (NDOM,), "state": (params.M, 2)}
         self.configure()
         self._tools = {}

@@ -123,11 +123,7 @@ class WaveStudy(Study):
                     seconds=time.perf_counter() - t0)
 
     def run(self):
-        self.open()
-        done = {round(float(r["q"]), 12) for r in self.store.records}
-        for q in self.params.q:
-            if round(q, 12) in done:
-                continue
+        for q in self.open()._todo(self.params.q):
             yield self.store.append(self.compute(q))
 
     def table(self):

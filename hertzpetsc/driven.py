@@ -119,20 +119,20 @@ class HalfSineSignal(Signal):
     def __init__(self, amplitude, omega, width, phase=0.0):
         self.amplitude, self.omega, self.width, self.phase = amplitude, omega, width, phase
         self.period = 2 * math.pi / omega
+        self._w = 2 * math.pi * width          # the pulse's duration in phase
 
-    def _theta(self, t):
-        return np.mod(self.omega * np.asarray(t, float) + self.phase, 2 * math.pi)
+    def _pulse(self, t):
+        """(whether the times t fall in a pulse, the pulse's phase pi s / w there)."""
+        th = np.mod(self.omega * np.asarray(t, float) + self.phase, 2 * math.pi)
+        return th < self._w, math.pi * np.minimum(th, self._w) / self._w
 
     def position(self, t):
-        th = self._theta(t)
-        w = 2 * math.pi * self.width
-        return np.where(th < w, self.amplitude * np.sin(math.pi * np.minimum(th, w) / w), 0.0)
+        on, s = self._pulse(t)
+        return np.where(on, self.amplitude * np.sin(s), 0.0)
 
     def velocity(self, t):
-        th = self._theta(t)
-        w = 2 * math.pi * self.width
-        return np.where(th < w, self.amplitude * self.omega * math.pi / w * np.cos(math.pi * np.minimum(th, w) / w),
-                        0.0)
+        on, s = self._pulse(t)
+        return np.where(on, self.amplitude * self.omega * math.pi / self._w * np.cos(s), 0.0)
 
     def describe(self):
         return dict(signal="half_sine", amplitude=self.amplitude, omega=self.omega, width=self.width,
@@ -461,7 +461,7 @@ class PeriodicShooting(ContinuationProblem):
             self.integrator.ts.setMaxSteps(MAX_STEPS_PER_FLOW * self.periods)
         self.X = self.chain.create_state()
         ftol = floquet_tolerances or tolerances
-        self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if "dense" in (jacobian, floquet) else None
+        self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if dense else None
         if self.dense is not None:             # R's columns start as unit vectors: R to rtol in norm
             rtol = self.dense.flow.integrator.ts.getTolerances()[0]
             self.dense.flow.integrator.control_components(tangents=(rtol, rtol))
@@ -601,18 +601,12 @@ class PeriodicShooting(ContinuationProblem):
         spec = self.drive.spec()
         law = self.drive.model
         eta = law.damping.eta
-
-        def end_motion(end, tt):
-            if isinstance(end, Actuator):
-                return end.signal.position(tt), end.signal.velocity(tt)
-            return np.zeros_like(tt), np.zeros_like(tt)
-        x0, v0 = end_motion(spec.left, t)
+        # the ends' positions and velocities (an actuator's motion, a wall at rest)
+        (x0, v0), (xr, vr) = [(end.signal.position(t), end.signal.velocity(t)) if isinstance(end, Actuator)
+                              else (0.0, 0.0) for end in (spec.left, spec.right)]
         f_left = -(law.force(pos[:, 0] - x0) + eta * (X[:, 0, 1] - v0))
-        if spec.right == "free":
-            f_right = np.zeros_like(t)
-        else:
-            xr, vr = end_motion(spec.right, t)
-            f_right = -(law.force(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))
+        f_right = np.zeros_like(t) if spec.right == "free" else \
+            -(law.force(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))             # a free end has no bond
         p_in, diss = [], []
         for j in range(len(t) - 1):
             self.chain.set_from_array(self.X, X[j])
@@ -727,16 +721,14 @@ class PeriodicShooting(ContinuationProblem):
         p = _parameter(Z)
         try:
             self._at(p)
-            rtol = self._evaluation_rtol()
-            steps = self._flow_at(self.X, z, rtol)
-            g = self.X.getArray(readonly=True) - z[:self.nloc]
-            rel = self._relative(g, z[:self.nloc])
-            if rtol > self._flow_tolerances[0] and rtol * steps > INEXACT_FRACTION * rel:
-                # not resolved to a small fraction of itself (the global error: up to rtol per step): again at the
-                # flow's tolerance
-                steps = self._flow_at(self.X, z, self._flow_tolerances[0])
+            for rtol in (self._evaluation_rtol(), self._flow_tolerances[0]):
+                steps = self._flow_at(self.X, z, rtol)
                 g = self.X.getArray(readonly=True) - z[:self.nloc]
                 rel = self._relative(g, z[:self.nloc])
+                # an evaluation not resolved to a small fraction of itself (the global error: up to rtol per step)
+                # is made again at the flow's tolerance
+                if not (rtol > self._flow_tolerances[0] and rtol * steps > INEXACT_FRACTION * rel):
+                    break
         except (ParameterError, ConvergenceError):
             # outside the parameter's range (omega <= 0, a < 0) or a failed flow: NaN makes the line search
             # shorten the step, or SNES stop with a negative reason
@@ -786,7 +778,7 @@ class PeriodicShooting(ContinuationProblem):
         dGdp = self._dGdp if self._row is not None else np.zeros(self.nloc)
         if self.jacobian_kind == "mf":
             self.counters["jacobians"] += 1
-            self._shell.set_point(x, p, dGdp)
+            self._shell.set_point(x, dGdp)
             return
         fnorm = snes.getFunctionNorm()
         first = snes.getIterationNumber() == 0
@@ -1006,9 +998,8 @@ class _BorderedProduct:
         self.vX, self.RvX = chain.create_state(), chain.create_state()
         self.dGdp = None
 
-    def set_point(self, x, p, dGdp):
-        prob = self.problem
-        prob.product.set_orbit(x, prob.T)
+    def set_point(self, x, dGdp):
+        self.problem.product.set_orbit(x, self.problem.T)
         self.dGdp = dGdp
 
     def mult(self, mat, v, y):

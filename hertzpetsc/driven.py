@@ -16,22 +16,19 @@ A periodic response of period k 2 pi / omega is a fixed point of the map P = flo
 
     G(X; p) = P(X; p) - X = 0,
 
-solved by :class:`PeriodicShooting`, a :class:`~hertzpetsc.continuation.ContinuationProblem` on the extended vector
-Z = (X, p) (p = omega, amplitude or gamma, last entry on the last rank): Newton on SNES (prefix ``drive_``, the state
-flow is the TS of the same prefix) with the bordered Jacobian [R(kT; 0) - I, dG/dp; row], R the monodromy from the
-tangent flow (prefix ``floquet_``): assembled from 2N tangent columns (``jacobian='dense'``, small N; LU, MUMPS on
-several ranks; the steps controlled by the state's error alone, to JACOBIAN_RTOL, reused as a chord while Newton
-contracts; a failed corrector is repeated with the fully resolved flow's Jacobians) or
-matrix-free, one tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long
-chains). The residual of an iterate far from the response is evaluated inexactly, with the state flow at a
-tolerance that follows the residual (INEXACT_FRACTION), the converged one at the flow's own. dG/dp is a forward
-difference with one state flow. So the continuation layer's natural and
-pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
+solved by :class:`PeriodicShooting`, a :class:`~hertzpetsc.continuation.ContinuationProblem` on the extended vector Z =
+(X, p) (p = omega, amplitude or gamma, last entry on the last rank): Newton on SNES (prefix ``drive_``, the state flow
+is the TS of the same prefix) with the bordered Jacobian [R(kT; 0) - I, dG/dp; row], R the monodromy from the tangent
+flow (prefix ``floquet_``): dense from 2N tangent columns (``jacobian='dense'``, small N; LU, MUMPS on several ranks;
+the state resolved to JACOBIAN_RTOL, reused as a chord while Newton contracts, CHORD_CONTRACTION) or matrix-free, one
+tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long chains); the residuals of far iterates from
+a looser state flow (INEXACT_FRACTION); dG/dp a forward difference with one state flow. So the continuation layer's
+natural and pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
 
 Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by LAPACK on the dense monodromy
-(:class:`~hertzpetsc.floquet.DenseFloquet`, the tangents resolved too, the Newton Jacobian's where it is one) or the dominant ones by SLEPc
-Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A driven chain has no
-symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
+(:class:`~hertzpetsc.floquet.DenseFloquet`, the tangents resolved too, the Newton Jacobian's where it is one) or the
+dominant ones by SLEPc Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A
+driven chain has no symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
 exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`). The test functions of the layer are
 
     period doubling:   tau_PD = prod (1 + mu_i)              (a real multiplier through -1)

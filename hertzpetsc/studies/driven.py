@@ -151,8 +151,8 @@ class DrivenStudy(Study):
     RENAMED = {}
 
     def identity(self):
-        """What a resumed file must agree with: the constants (the subclasses leave file names out)."""
-        return self.constants()
+        """What a resumed file must agree with: the constants but the ``LABELS``."""
+        return {k: v for k, v in self.constants().items() if k not in self.LABELS}
 
     def configure(self):
         """Nothing left to check: the options of ``drive_`` and ``floquet_`` are read when the study is built (its
@@ -322,9 +322,9 @@ class ResponseCurve(DrivenStudy):
             cont.ds = float(ds)
         return records[last], list(records[last + 1:])
 
-    def _append(self, rec, cont=None):
+    def _append(self, rec, cont):
         """Append a record with the continuation's next step size (the state a resume starts from)."""
-        state = {f"ds_{int(rec['branch'])}": np.float64(cont.ds)} if cont is not None and cont.ds is not None else None
+        state = {f"ds_{int(rec['branch'])}": np.float64(cont.ds)} if cont.ds is not None else None
         self.store.append(rec, state)
 
     @staticmethod
@@ -827,6 +827,7 @@ class WaveEnds(DrivenStudy):
     ROLES = {"drive_": _DRIVE_ROLE,
              "floquet_": ("the tangent flows (Jacobian, multipliers, periodic chain)", ("ts",))}
     WHAT, RENAMED = "driven wave-ends file", {"qs": "q"}
+    LABELS = ("branch", "refined", "rtols")         # not the file names, nor rtols: a resume may add tolerances
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -843,12 +844,6 @@ class WaveEnds(DrivenStudy):
         return dict(alpha=p.branch.alpha, P=p.refined.N, branch=p.branch_path, refined=p.refined_path,
                     samples=p.samples, rtols=list(p.rtols))
 
-    def identity(self):
-        """As in the files written before the protocol: alpha, P and samples (not the file names, nor rtols: a
-        resume may add tolerances)."""
-        p = self.params
-        return dict(alpha=p.branch.alpha, P=p.refined.N, samples=p.samples)
-
     def periodic_rho(self, orbit, rtol):
         key = (round(orbit.q, 12), rtol)
         if key not in self._rho_periodic:
@@ -856,12 +851,9 @@ class WaveEnds(DrivenStudy):
                 self._rho_periodic[key] = dense.spectrum(orbit).rho ** (orbit.N / orbit.m)
         return self._rho_periodic[key]
 
-    def _done(self):
-        return {(round(float(r["q"]), 12), int(r["N"]), float(r["rtol"])) for r in self.store.records}
-
     def run(self):
         self.open()
-        done = self._done()
+        done = {(round(float(r["q"]), 12), int(r["N"]), float(r["rtol"])) for r in self.store.records}
         for q in self.qs:
             orbit = self.refined.orbit(self.branch.point(q))
             profile = None
@@ -976,6 +968,7 @@ class Generation(DrivenStudy):
     DTYPES = {"waveform": np.int64, "ok": np.int64, "iterations": np.int64}
     ROLES = {"drive_": _DRIVE_ROLE, "floquet_": ("the tangent flow and SLEPc's eigensolver", ("ts", "eps"))}
     WHAT, RENAMED = "driven-generation file", {"waveforms": "signals"}
+    LABELS = ("branch",)
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -994,10 +987,6 @@ class Generation(DrivenStudy):
         p = self.params
         return dict(model=json.dumps(p.model.describe(), sort_keys=True), N=p.N, branch=p.branch_path,
                     bulk=list(p.bulk), run_in=p.run_in, width=p.width)
-
-    def identity(self):
-        """As in the files written before the protocol: the constants but the branch file's name."""
-        return {k: v for k, v in self.constants().items() if k != "branch"}
 
     def _key(self, w, om, a, g):
         return (WAVEFORMS.index(w), round(om, 12), round(a, 12), round(g, 12))

@@ -593,11 +593,6 @@ class ResponseCurve(DrivenStudy):
         return "\n".join(lines) + "\n"
 
 
-def _Point(parameter, s, dp_ds, iterations, report, tests, event=None):
-    """A ContinuationPoint in the argument order of before."""
-    return ContinuationPoint(parameter, s, dp_ds, iterations, event, report, tests)
-
-
 # --- small-amplitude resonances of the precompressed chain ---------------------------------------------------------
 def linear_chain(drive):
     """(M, C, Kmat, f) of the linearised chain of a drive with a harmonic actuator at the left and a wall (or free

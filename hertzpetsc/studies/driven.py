@@ -37,15 +37,15 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   refined wave itself in the driven chain), residual (after Newton), moved (relative distance Newton moved it),
   iterations, rho (the driven finite chain over tau = 2 pi / omega), outside, rho_periodic (rho(F_q)^(P/m): the
   periodic chain over tau), multipliers (nmult).
-* ``hertzpetsc-driven-generation-1`` (:class:`Generation`): constants model, N, branch, bulk; per record (one per
-  waveform, omega, amplitude, gamma): waveform (0 harmonic, 1 half-sine train), omega, amplitude, gamma, ok (1: a
-  periodic response converged), runin_residual (||P(X) - X|| / scale after the run-in: a motion that has not
-  settled to a periodic one keeps it large), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan), amp_first,
-  decay (-d ln A_n / dn over the bulk), q_bulk (median local wavenumber over the bulk), q_spread (its interquartile
-  range), amp_bulk (median A_n), family_ratio (median A_n / A(q_n, omega): 1 for the branch's wave at that
+* ``hertzpetsc-driven-generation-1`` (:class:`Generation`): constants model, N, branch, bulk, run_in, width; per record
+  (one per waveform, omega, amplitude, gamma): waveform (0 harmonic, 1 half-sine train), omega, amplitude, gamma, ok (1:
+  a periodic response converged), runin_residual (||P(X) - X|| / scale after the run-in: a motion that has not settled
+  to a periodic one keeps it large), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan),
+  amp_first, decay (-d ln A_n / dn over the bulk), q_bulk (median local wavenumber over the bulk), q_spread (its
+  interquartile range), amp_bulk (median A_n), family_ratio (median A_n / A(q_n, omega): 1 for the branch's wave at that
   frequency), distance (median shape distance D_n to the branch's wave U_{q_n} over the bulk), distance_slope
-  (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic
-  (median (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
+  (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic (median
+  (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
 """
 import json
 import math
@@ -87,9 +87,8 @@ WAVE_ENDS_FIELDS = ("q", "m", "N", "rtol", "imposed", "residual", "moved", "iter
                     "rho_periodic", "multipliers")
 GENERATION_FORMAT = "hertzpetsc-driven-generation-1"
 GENERATION_FIELDS = ("waveform", "omega", "amplitude", "gamma", "ok", "runin_residual", "residual", "iterations",
-                     "rho", "verdict",
-                     "amp_first", "decay", "q_bulk", "q_spread", "amp_bulk", "family_ratio", "distance",
-                     "distance_slope", "strain_static", "strain_dynamic", "A_n", "q_n", "D_n")
+                     "rho", "verdict", "amp_first", "decay", "q_bulk", "q_spread", "amp_bulk", "family_ratio",
+                     "distance", "distance_slope", "strain_static", "strain_dynamic", "A_n", "q_n", "D_n")
 WAVEFORMS = ("harmonic", "half_sine")
 
 
@@ -127,10 +126,8 @@ _DRIVE_ROLE = ("Newton on P(X) - X and the state flow", ("snes", "ts"))
 
 
 class DrivenStudy(Study):
-    """Common part of the driven studies (:class:`~hertzpetsc.studies.base.Study`): built as
-    ``Study(params, comm=None, output=None, mode="new")``; the call of before the protocol (the parameters as loose
-    arguments, ``comm`` and ``output`` among them) is still accepted, through :meth:`legacy`. The identity is the
-    record kind's as the files written before hold it (:meth:`identity`: no solver options), so they resume."""
+    """Common part of the driven studies (:class:`~hertzpetsc.studies.base.Study`; the call of before and the
+    identity: module docstring)."""
 
     def __init__(self, *args, **kwargs):
         if not ((args and isinstance(args[0], self.Parameters)) or "params" in kwargs):
@@ -176,9 +173,9 @@ class ResponseParameters:
     ``p_end``; the response's period in driving ``periods``; Newton's ``jacobian`` (dense, mf) and the multipliers'
     route ``floquet`` (dense, slepc with ``nev``, none); the shooting tolerance ``tol`` and the flows' ``rtol``
     (:func:`tolerances_of`); ``algorithm`` the pseudo-arclength (None: :func:`corner_arclength`), or ``grid`` the
-    parameter values of the grid mode (natural steps: ``algorithm`` if it is a continuation.Natural); ``run_in`` driving periods from rest before the first Newton; ``samples``
-    per period for the diagnostics (0: none); ``switch`` steps on each period-doubled branch; ``max_steps``; the
-    ``nmult`` largest multipliers recorded (at most 2N)."""
+    parameter values of the grid mode (natural steps: ``algorithm`` if it is a continuation.Natural); ``run_in`` driving
+    periods from rest before the first Newton; ``samples`` per period for the diagnostics (0: none); ``switch`` steps on
+    each period-doubled branch; ``max_steps``; the ``nmult`` largest multipliers recorded (at most 2N)."""
 
     drive: Drive
     parameter: str
@@ -1011,8 +1008,8 @@ class Generation(DrivenStudy):
         pos = X[:, :, 0]
         A, c, q = local_wave(t, pos, om)
         D = np.full(self.N, np.nan)
-        lo, hi = int(self.bulk[0] * self.N), max(int(self.bulk[0] * self.N) + 2, int(self.bulk[1] * self.N))
-        bulk = np.arange(lo, min(hi, self.N - 1))
+        lo = int(self.bulk[0] * self.N)
+        bulk = np.arange(lo, min(max(lo + 2, int(self.bulk[1] * self.N)), self.N - 1))
         for n in bulk:
             if np.isfinite(q[n]) and A[n] > 0:
                 D[n] = self.family.distance(t, pos[:, n], om, abs(q[n]))

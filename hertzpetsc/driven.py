@@ -622,6 +622,7 @@ class PeriodicShooting(ContinuationProblem):
         self.F = self.create_vec()
         snes.setFunction(self.formFunction, self.F)
         ksp = snes.getKSP()
+        pc = ksp.getPC()
         local = self.nloc + (1 if self.last_rank else 0)
         sizes = ((local, self.size), (local, self.size))
         if self.jacobian_kind == "dense":
@@ -632,26 +633,24 @@ class PeriodicShooting(ContinuationProblem):
             else:
                 self.J = PETSc.Mat().createAIJ(sizes, nnz=(local, self.size - local), comm=self.comm)
                 self.J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-            self.J.setUp()
             ksp.setType(PETSc.KSP.Type.PREONLY)
-            pc = ksp.getPC()
             pc.setType(PETSc.PC.Type.LU)
             if self.comm.getSize() > 1:
                 pc.setFactorSolverType("mumps")
         else:
             self._shell = _BorderedProduct(self)
             self.J = PETSc.Mat().createPython(sizes, context=self._shell, comm=self.comm)
-            self.J.setUp()
             ksp.setType(PETSc.KSP.Type.GMRES)
             ksp.setGMRESRestart(200)
             if LinearChainPreconditioner.applies(self.drive):
                 # right preconditioning: GMRES measures the true residual of the Newton step
-                ksp.getPC().setType(PETSc.PC.Type.PYTHON)
-                ksp.getPC().setPythonContext(LinearChainPreconditioner(self))
+                pc.setType(PETSc.PC.Type.PYTHON)
+                pc.setPythonContext(LinearChainPreconditioner(self))
                 ksp.setPCSide(PETSc.PC.Side.RIGHT)
             else:
-                ksp.getPC().setType(PETSc.PC.Type.NONE)
+                pc.setType(PETSc.PC.Type.NONE)
             ksp.setTolerances(rtol=1e-8, max_it=2000)
+        self.J.setUp()
         snes.setJacobian(self.formJacobian, self.J, self.J)
         snes.setTolerances(rtol=1e-30, stol=1e-30, max_it=20)
         snes.setConvergenceTest(self._converged)

@@ -1060,17 +1060,16 @@ class Generation(DrivenStudy):
                  "compressed) and dynamic ((max - min)/2); q lin: the wavenumber of the linear wave at omega in the "
                  "chain statically compressed by the bulk's static strain s: omega = 2 sqrt(K) sin(q/2), K = V''(s) = "
                  "alpha |s|^(alpha-1) (the actuator's mean push compresses the chain against the wall).\n",
-                 "| signal | omega | a | gamma | periodic | rho | q | q lin | q IQR | A bulk | A/A_fam | D | dD/dn | decay | "
-                 "static strain | dynamic strain |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                 "| signal | omega | a | gamma | periodic | rho | q | q lin | q IQR | A bulk | A/A_fam | D | dD/dn | "
+                 "decay | static strain | dynamic strain |", "|---" * 16 + "|"]
         for r in sorted(self.store.records, key=lambda r: (int(r["waveform"]), float(r["gamma"]), float(r["amplitude"]),
                                                            float(r["omega"]))):
+            case = (f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
+                    f"{float(r['gamma']):g} | ")
             if not int(r["ok"]):
-                lines.append(f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
-                             f"{float(r['gamma']):g} | no (run-in residual {float(r['runin_residual']):.1e}) "
-                             "| | | | | | | | | | | |")
+                lines.append(case + f"no (run-in residual {float(r['runin_residual']):.1e}) | | | | | | | | | | | |")
                 continue
-            lines.append(f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
-                         f"{float(r['gamma']):g} | yes | {float(r['rho']):.4f} | {float(r['q_bulk']):.4f} | "
+            lines.append(case + f"yes | {float(r['rho']):.4f} | {float(r['q_bulk']):.4f} | "
                          f"{self.linear_wavenumber(float(r['omega']), float(r['strain_static'])):.4f} | "
                          f"{float(r['q_spread']):.3f} | {float(r['amp_bulk']):.3g} | {float(r['family_ratio']):.3g} | "
                          f"{float(r['distance']):.3f} | {float(r['distance_slope']):.1e} | {float(r['decay']):.3f} | "

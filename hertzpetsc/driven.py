@@ -16,22 +16,19 @@ A periodic response of period k 2 pi / omega is a fixed point of the map P = flo
 
     G(X; p) = P(X; p) - X = 0,
 
-solved by :class:`PeriodicShooting`, a :class:`~hertzpetsc.continuation.ContinuationProblem` on the extended vector
-Z = (X, p) (p = omega, amplitude or gamma, last entry on the last rank): Newton on SNES (prefix ``drive_``, the state
-flow is the TS of the same prefix) with the bordered Jacobian [R(kT; 0) - I, dG/dp; row], R the monodromy from the
-tangent flow (prefix ``floquet_``): assembled from 2N tangent columns (``jacobian='dense'``, small N; LU, MUMPS on
-several ranks; the steps controlled by the state's error alone, to JACOBIAN_RTOL, reused as a chord while Newton
-contracts; a failed corrector is repeated with the fully resolved flow's Jacobians) or
-matrix-free, one tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long
-chains). The residual of an iterate far from the response is evaluated inexactly, with the state flow at a
-tolerance that follows the residual (INEXACT_FRACTION), the converged one at the flow's own. dG/dp is a forward
-difference with one state flow. So the continuation layer's natural and
-pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
+solved by :class:`PeriodicShooting`, a :class:`~hertzpetsc.continuation.ContinuationProblem` on the extended vector Z =
+(X, p) (p = omega, amplitude or gamma, last entry on the last rank): Newton on SNES (prefix ``drive_``, the state flow
+is the TS of the same prefix) with the bordered Jacobian [R(kT; 0) - I, dG/dp; row], R the monodromy from the tangent
+flow (prefix ``floquet_``): dense from 2N tangent columns (``jacobian='dense'``, small N; LU, MUMPS on several ranks;
+the state resolved to JACOBIAN_RTOL, reused as a chord while Newton contracts, CHORD_CONTRACTION) or matrix-free, one
+tangent column per product (``jacobian='mf'``: GMRES, Newton-Krylov for long chains); the residuals of far iterates from
+a looser state flow (INEXACT_FRACTION); dG/dp a forward difference with one state flow. So the continuation layer's
+natural and pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
 
 Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by LAPACK on the dense monodromy
-(:class:`~hertzpetsc.floquet.DenseFloquet`, the tangents resolved too, the Newton Jacobian's where it is one) or the dominant ones by SLEPc
-Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A driven chain has no
-symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
+(:class:`~hertzpetsc.floquet.DenseFloquet`, the tangents resolved too, the Newton Jacobian's where it is one) or the
+dominant ones by SLEPc Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A
+driven chain has no symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
 exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`). The test functions of the layer are
 
     period doubling:   tau_PD = prod (1 + mu_i)              (a real multiplier through -1)
@@ -119,20 +116,20 @@ class HalfSineSignal(Signal):
     def __init__(self, amplitude, omega, width, phase=0.0):
         self.amplitude, self.omega, self.width, self.phase = amplitude, omega, width, phase
         self.period = 2 * math.pi / omega
+        self._w = 2 * math.pi * width          # the pulse's duration in phase
 
-    def _theta(self, t):
-        return np.mod(self.omega * np.asarray(t, float) + self.phase, 2 * math.pi)
+    def _pulse(self, t):
+        """(whether the times t fall in a pulse, the pulse's phase pi s / w there)."""
+        th = np.mod(self.omega * np.asarray(t, float) + self.phase, 2 * math.pi)
+        return th < self._w, math.pi * np.minimum(th, self._w) / self._w
 
     def position(self, t):
-        th = self._theta(t)
-        w = 2 * math.pi * self.width
-        return np.where(th < w, self.amplitude * np.sin(math.pi * np.minimum(th, w) / w), 0.0)
+        on, s = self._pulse(t)
+        return np.where(on, self.amplitude * np.sin(s), 0.0)
 
     def velocity(self, t):
-        th = self._theta(t)
-        w = 2 * math.pi * self.width
-        return np.where(th < w, self.amplitude * self.omega * math.pi / w * np.cos(math.pi * np.minimum(th, w) / w),
-                        0.0)
+        on, s = self._pulse(t)
+        return np.where(on, self.amplitude * self.omega * math.pi / self._w * np.cos(s), 0.0)
 
     def describe(self):
         return dict(signal="half_sine", amplitude=self.amplitude, omega=self.omega, width=self.width,
@@ -461,7 +458,7 @@ class PeriodicShooting(ContinuationProblem):
             self.integrator.ts.setMaxSteps(MAX_STEPS_PER_FLOW * self.periods)
         self.X = self.chain.create_state()
         ftol = floquet_tolerances or tolerances
-        self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if "dense" in (jacobian, floquet) else None
+        self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if dense else None
         if self.dense is not None:             # R's columns start as unit vectors: R to rtol in norm
             rtol = self.dense.flow.integrator.ts.getTolerances()[0]
             self.dense.flow.integrator.control_components(tangents=(rtol, rtol))
@@ -601,18 +598,12 @@ class PeriodicShooting(ContinuationProblem):
         spec = self.drive.spec()
         law = self.drive.model
         eta = law.damping.eta
-
-        def end_motion(end, tt):
-            if isinstance(end, Actuator):
-                return end.signal.position(tt), end.signal.velocity(tt)
-            return np.zeros_like(tt), np.zeros_like(tt)
-        x0, v0 = end_motion(spec.left, t)
+        # the ends' positions and velocities (an actuator's motion, a wall at rest)
+        (x0, v0), (xr, vr) = [(end.signal.position(t), end.signal.velocity(t)) if isinstance(end, Actuator)
+                              else (0.0, 0.0) for end in (spec.left, spec.right)]
         f_left = -(law.force(pos[:, 0] - x0) + eta * (X[:, 0, 1] - v0))
-        if spec.right == "free":
-            f_right = np.zeros_like(t)
-        else:
-            xr, vr = end_motion(spec.right, t)
-            f_right = -(law.force(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))
+        f_right = np.zeros_like(t) if spec.right == "free" else \
+            -(law.force(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))             # a free end has no bond
         p_in, diss = [], []
         for j in range(len(t) - 1):
             self.chain.set_from_array(self.X, X[j])
@@ -631,6 +622,7 @@ class PeriodicShooting(ContinuationProblem):
         self.F = self.create_vec()
         snes.setFunction(self.formFunction, self.F)
         ksp = snes.getKSP()
+        pc = ksp.getPC()
         local = self.nloc + (1 if self.last_rank else 0)
         sizes = ((local, self.size), (local, self.size))
         if self.jacobian_kind == "dense":
@@ -641,26 +633,24 @@ class PeriodicShooting(ContinuationProblem):
             else:
                 self.J = PETSc.Mat().createAIJ(sizes, nnz=(local, self.size - local), comm=self.comm)
                 self.J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-            self.J.setUp()
             ksp.setType(PETSc.KSP.Type.PREONLY)
-            pc = ksp.getPC()
             pc.setType(PETSc.PC.Type.LU)
             if self.comm.getSize() > 1:
                 pc.setFactorSolverType("mumps")
         else:
             self._shell = _BorderedProduct(self)
             self.J = PETSc.Mat().createPython(sizes, context=self._shell, comm=self.comm)
-            self.J.setUp()
             ksp.setType(PETSc.KSP.Type.GMRES)
             ksp.setGMRESRestart(200)
             if LinearChainPreconditioner.applies(self.drive):
                 # right preconditioning: GMRES measures the true residual of the Newton step
-                ksp.getPC().setType(PETSc.PC.Type.PYTHON)
-                ksp.getPC().setPythonContext(LinearChainPreconditioner(self))
+                pc.setType(PETSc.PC.Type.PYTHON)
+                pc.setPythonContext(LinearChainPreconditioner(self))
                 ksp.setPCSide(PETSc.PC.Side.RIGHT)
             else:
-                ksp.getPC().setType(PETSc.PC.Type.NONE)
+                pc.setType(PETSc.PC.Type.NONE)
             ksp.setTolerances(rtol=1e-8, max_it=2000)
+        self.J.setUp()
         snes.setJacobian(self.formJacobian, self.J, self.J)
         snes.setTolerances(rtol=1e-30, stol=1e-30, max_it=20)
         snes.setConvergenceTest(self._converged)
@@ -727,16 +717,14 @@ class PeriodicShooting(ContinuationProblem):
         p = _parameter(Z)
         try:
             self._at(p)
-            rtol = self._evaluation_rtol()
-            steps = self._flow_at(self.X, z, rtol)
-            g = self.X.getArray(readonly=True) - z[:self.nloc]
-            rel = self._relative(g, z[:self.nloc])
-            if rtol > self._flow_tolerances[0] and rtol * steps > INEXACT_FRACTION * rel:
-                # not resolved to a small fraction of itself (the global error: up to rtol per step): again at the
-                # flow's tolerance
-                steps = self._flow_at(self.X, z, self._flow_tolerances[0])
+            for rtol in (self._evaluation_rtol(), self._flow_tolerances[0]):
+                steps = self._flow_at(self.X, z, rtol)
                 g = self.X.getArray(readonly=True) - z[:self.nloc]
                 rel = self._relative(g, z[:self.nloc])
+                # an evaluation not resolved to a small fraction of itself (the global error: up to rtol per step)
+                # is made again at the flow's tolerance
+                if not (rtol > self._flow_tolerances[0] and rtol * steps > INEXACT_FRACTION * rel):
+                    break
         except (ParameterError, ConvergenceError):
             # outside the parameter's range (omega <= 0, a < 0) or a failed flow: NaN makes the line search
             # shorten the step, or SNES stop with a negative reason
@@ -786,7 +774,7 @@ class PeriodicShooting(ContinuationProblem):
         dGdp = self._dGdp if self._row is not None else np.zeros(self.nloc)
         if self.jacobian_kind == "mf":
             self.counters["jacobians"] += 1
-            self._shell.set_point(x, p, dGdp)
+            self._shell.set_point(x, dGdp)
             return
         fnorm = snes.getFunctionNorm()
         first = snes.getIterationNumber() == 0
@@ -1006,9 +994,8 @@ class _BorderedProduct:
         self.vX, self.RvX = chain.create_state(), chain.create_state()
         self.dGdp = None
 
-    def set_point(self, x, p, dGdp):
-        prob = self.problem
-        prob.product.set_orbit(x, prob.T)
+    def set_point(self, x, dGdp):
+        self.problem.product.set_orbit(x, self.problem.T)
         self.dGdp = dGdp
 
     def mult(self, mat, v, y):

@@ -12,7 +12,7 @@ from petsc4py import PETSc
 from conftest import RESULTS, ROOT, one_error_line, run_script
 from hertzpetsc.assembly import gathered
 from hertzpetsc.chain import IntegrationTolerances
-from hertzpetsc.continuation import Natural, PseudoArclength
+from hertzpetsc.continuation import ContinuationPoint, Natural, PseudoArclength
 from hertzpetsc.driven import (CHORD_CONTRACTION, Drive, HalfSinePulses, HarmonicWave, PeriodicShooting, SampledWave,
                                crossing, damping_trace, neutral_saddle, refined_profile, wave_ends_drive)
 from hertzpetsc.driven import test_functions as tau_functions        # not collected as a test
@@ -21,7 +21,7 @@ from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel
 from hertzpetsc.studies.driven import (EVENTS, Generation, GenerationParameters, LinearResonances,
                                        ResonanceParameters, ResponseCurve, ResponseParameters, WaveEnds,
-                                       WaveEndsParameters, _Point, linear_chain, linear_multipliers, linear_response,
+                                       WaveEndsParameters, linear_chain, linear_multipliers, linear_response,
                                        normal_modes)
 from hertzpetsc.tangent import TangentFlow
 
@@ -316,7 +316,7 @@ def test_period_doubling_is_located_confirmed_and_switched():
         # the check on two responses close to the event (for neighbours that differ by several crossings) says
         # the same, and does not confirm a crossing of another kind there
         for kind, expected in (("period_doubling", True), ("neimark_sacker", False)):
-            event = _Point(pd[0]["p"], pd[0]["s"], math.nan, 1, dict(x=pd[0]["x"]), {}, event=kind)
+            event = ContinuationPoint(pd[0]["p"], pd[0]["s"], math.nan, 1, kind, dict(x=pd[0]["x"]))
             assert study._confirmed_nearby(event, before, after) is expected
     finally:
         study.destroy()
@@ -360,7 +360,7 @@ def test_folds_of_a_driven_chain_are_located_and_confirmed_on_both_sides_of_the_
             before = [r for r in records[:i] if r["event"] == 0][-1]
             after = [r for r in records[i:] if r["event"] == 0][0]
             for kind, expected in (("fold", True), ("period_doubling", False)):
-                event = _Point(records[i]["p"], records[i]["s"], math.nan, 1, dict(x=records[i]["x"]), {}, event=kind)
+                event = ContinuationPoint(records[i]["p"], records[i]["s"], math.nan, 1, kind, dict(x=records[i]["x"]))
                 assert study._confirmed_nearby(event, before, after) is expected
     finally:
         study.destroy()

@@ -37,15 +37,15 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   refined wave itself in the driven chain), residual (after Newton), moved (relative distance Newton moved it),
   iterations, rho (the driven finite chain over tau = 2 pi / omega), outside, rho_periodic (rho(F_q)^(P/m): the
   periodic chain over tau), multipliers (nmult).
-* ``hertzpetsc-driven-generation-1`` (:class:`Generation`): constants model, N, branch, bulk; per record (one per
-  waveform, omega, amplitude, gamma): waveform (0 harmonic, 1 half-sine train), omega, amplitude, gamma, ok (1: a
-  periodic response converged), runin_residual (||P(X) - X|| / scale after the run-in: a motion that has not
-  settled to a periodic one keeps it large), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan), amp_first,
-  decay (-d ln A_n / dn over the bulk), q_bulk (median local wavenumber over the bulk), q_spread (its interquartile
-  range), amp_bulk (median A_n), family_ratio (median A_n / A(q_n, omega): 1 for the branch's wave at that
+* ``hertzpetsc-driven-generation-1`` (:class:`Generation`): constants model, N, branch, bulk, run_in, width; per record
+  (one per waveform, omega, amplitude, gamma): waveform (0 harmonic, 1 half-sine train), omega, amplitude, gamma, ok (1:
+  a periodic response converged), runin_residual (||P(X) - X|| / scale after the run-in: a motion that has not settled
+  to a periodic one keeps it large), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan),
+  amp_first, decay (-d ln A_n / dn over the bulk), q_bulk (median local wavenumber over the bulk), q_spread (its
+  interquartile range), amp_bulk (median A_n), family_ratio (median A_n / A(q_n, omega): 1 for the branch's wave at that
   frequency), distance (median shape distance D_n to the branch's wave U_{q_n} over the bulk), distance_slope
-  (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic
-  (median (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
+  (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic (median
+  (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
 """
 import json
 import math
@@ -87,9 +87,8 @@ WAVE_ENDS_FIELDS = ("q", "m", "N", "rtol", "imposed", "residual", "moved", "iter
                     "rho_periodic", "multipliers")
 GENERATION_FORMAT = "hertzpetsc-driven-generation-1"
 GENERATION_FIELDS = ("waveform", "omega", "amplitude", "gamma", "ok", "runin_residual", "residual", "iterations",
-                     "rho", "verdict",
-                     "amp_first", "decay", "q_bulk", "q_spread", "amp_bulk", "family_ratio", "distance",
-                     "distance_slope", "strain_static", "strain_dynamic", "A_n", "q_n", "D_n")
+                     "rho", "verdict", "amp_first", "decay", "q_bulk", "q_spread", "amp_bulk", "family_ratio",
+                     "distance", "distance_slope", "strain_static", "strain_dynamic", "A_n", "q_n", "D_n")
 WAVEFORMS = ("harmonic", "half_sine")
 
 
@@ -127,10 +126,8 @@ _DRIVE_ROLE = ("Newton on P(X) - X and the state flow", ("snes", "ts"))
 
 
 class DrivenStudy(Study):
-    """Common part of the driven studies (:class:`~hertzpetsc.studies.base.Study`): built as
-    ``Study(params, comm=None, output=None, mode="new")``; the call of before the protocol (the parameters as loose
-    arguments, ``comm`` and ``output`` among them) is still accepted, through :meth:`legacy`. The identity is the
-    record kind's as the files written before hold it (:meth:`identity`: no solver options), so they resume."""
+    """Common part of the driven studies (:class:`~hertzpetsc.studies.base.Study`; the call of before and the
+    identity: module docstring)."""
 
     def __init__(self, *args, **kwargs):
         if not ((args and isinstance(args[0], self.Parameters)) or "params" in kwargs):
@@ -151,8 +148,8 @@ class DrivenStudy(Study):
     RENAMED = {}
 
     def identity(self):
-        """What a resumed file must agree with: the constants (the subclasses leave file names out)."""
-        return self.constants()
+        """What a resumed file must agree with: the constants but the ``LABELS``."""
+        return {k: v for k, v in self.constants().items() if k not in self.LABELS}
 
     def configure(self):
         """Nothing left to check: the options of ``drive_`` and ``floquet_`` are read when the study is built (its
@@ -176,9 +173,9 @@ class ResponseParameters:
     ``p_end``; the response's period in driving ``periods``; Newton's ``jacobian`` (dense, mf) and the multipliers'
     route ``floquet`` (dense, slepc with ``nev``, none); the shooting tolerance ``tol`` and the flows' ``rtol``
     (:func:`tolerances_of`); ``algorithm`` the pseudo-arclength (None: :func:`corner_arclength`), or ``grid`` the
-    parameter values of the grid mode (natural steps: ``algorithm`` if it is a continuation.Natural); ``run_in`` driving periods from rest before the first Newton; ``samples``
-    per period for the diagnostics (0: none); ``switch`` steps on each period-doubled branch; ``max_steps``; the
-    ``nmult`` largest multipliers recorded (at most 2N)."""
+    parameter values of the grid mode (natural steps: ``algorithm`` if it is a continuation.Natural); ``run_in`` driving
+    periods from rest before the first Newton; ``samples`` per period for the diagnostics (0: none); ``switch`` steps on
+    each period-doubled branch; ``max_steps``; the ``nmult`` largest multipliers recorded (at most 2N)."""
 
     drive: Drive
     parameter: str
@@ -322,9 +319,9 @@ class ResponseCurve(DrivenStudy):
             cont.ds = float(ds)
         return records[last], list(records[last + 1:])
 
-    def _append(self, rec, cont=None):
+    def _append(self, rec, cont):
         """Append a record with the continuation's next step size (the state a resume starts from)."""
-        state = {f"ds_{int(rec['branch'])}": np.float64(cont.ds)} if cont is not None and cont.ds is not None else None
+        state = {f"ds_{int(rec['branch'])}": np.float64(cont.ds)} if cont.ds is not None else None
         self.store.append(rec, state)
 
     @staticmethod
@@ -593,11 +590,6 @@ class ResponseCurve(DrivenStudy):
         return "\n".join(lines) + "\n"
 
 
-def _Point(parameter, s, dp_ds, iterations, report, tests, event=None):
-    """A ContinuationPoint in the argument order of before."""
-    return ContinuationPoint(parameter, s, dp_ds, iterations, event, report, tests)
-
-
 # --- small-amplitude resonances of the precompressed chain ---------------------------------------------------------
 def linear_chain(drive):
     """(M, C, Kmat, f) of the linearised chain of a drive with a harmonic actuator at the left and a wall (or free
@@ -827,6 +819,7 @@ class WaveEnds(DrivenStudy):
     ROLES = {"drive_": _DRIVE_ROLE,
              "floquet_": ("the tangent flows (Jacobian, multipliers, periodic chain)", ("ts",))}
     WHAT, RENAMED = "driven wave-ends file", {"qs": "q"}
+    LABELS = ("branch", "refined", "rtols")         # not the file names, nor rtols: a resume may add tolerances
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -843,12 +836,6 @@ class WaveEnds(DrivenStudy):
         return dict(alpha=p.branch.alpha, P=p.refined.N, branch=p.branch_path, refined=p.refined_path,
                     samples=p.samples, rtols=list(p.rtols))
 
-    def identity(self):
-        """As in the files written before the protocol: alpha, P and samples (not the file names, nor rtols: a
-        resume may add tolerances)."""
-        p = self.params
-        return dict(alpha=p.branch.alpha, P=p.refined.N, samples=p.samples)
-
     def periodic_rho(self, orbit, rtol):
         key = (round(orbit.q, 12), rtol)
         if key not in self._rho_periodic:
@@ -856,12 +843,9 @@ class WaveEnds(DrivenStudy):
                 self._rho_periodic[key] = dense.spectrum(orbit).rho ** (orbit.N / orbit.m)
         return self._rho_periodic[key]
 
-    def _done(self):
-        return {(round(float(r["q"]), 12), int(r["N"]), float(r["rtol"])) for r in self.store.records}
-
     def run(self):
         self.open()
-        done = self._done()
+        done = {(round(float(r["q"]), 12), int(r["N"]), float(r["rtol"])) for r in self.store.records}
         for q in self.qs:
             orbit = self.refined.orbit(self.branch.point(q))
             profile = None
@@ -976,6 +960,7 @@ class Generation(DrivenStudy):
     DTYPES = {"waveform": np.int64, "ok": np.int64, "iterations": np.int64}
     ROLES = {"drive_": _DRIVE_ROLE, "floquet_": ("the tangent flow and SLEPc's eigensolver", ("ts", "eps"))}
     WHAT, RENAMED = "driven-generation file", {"waveforms": "signals"}
+    LABELS = ("branch",)
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
@@ -994,10 +979,6 @@ class Generation(DrivenStudy):
         p = self.params
         return dict(model=json.dumps(p.model.describe(), sort_keys=True), N=p.N, branch=p.branch_path,
                     bulk=list(p.bulk), run_in=p.run_in, width=p.width)
-
-    def identity(self):
-        """As in the files written before the protocol: the constants but the branch file's name."""
-        return {k: v for k, v in self.constants().items() if k != "branch"}
 
     def _key(self, w, om, a, g):
         return (WAVEFORMS.index(w), round(om, 12), round(a, 12), round(g, 12))
@@ -1027,8 +1008,8 @@ class Generation(DrivenStudy):
         pos = X[:, :, 0]
         A, c, q = local_wave(t, pos, om)
         D = np.full(self.N, np.nan)
-        lo, hi = int(self.bulk[0] * self.N), max(int(self.bulk[0] * self.N) + 2, int(self.bulk[1] * self.N))
-        bulk = np.arange(lo, min(hi, self.N - 1))
+        lo = int(self.bulk[0] * self.N)
+        bulk = np.arange(lo, min(max(lo + 2, int(self.bulk[1] * self.N)), self.N - 1))
         for n in bulk:
             if np.isfinite(q[n]) and A[n] > 0:
                 D[n] = self.family.distance(t, pos[:, n], om, abs(q[n]))
@@ -1079,17 +1060,16 @@ class Generation(DrivenStudy):
                  "compressed) and dynamic ((max - min)/2); q lin: the wavenumber of the linear wave at omega in the "
                  "chain statically compressed by the bulk's static strain s: omega = 2 sqrt(K) sin(q/2), K = V''(s) = "
                  "alpha |s|^(alpha-1) (the actuator's mean push compresses the chain against the wall).\n",
-                 "| signal | omega | a | gamma | periodic | rho | q | q lin | q IQR | A bulk | A/A_fam | D | dD/dn | decay | "
-                 "static strain | dynamic strain |", "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                 "| signal | omega | a | gamma | periodic | rho | q | q lin | q IQR | A bulk | A/A_fam | D | dD/dn | "
+                 "decay | static strain | dynamic strain |", "|---" * 16 + "|"]
         for r in sorted(self.store.records, key=lambda r: (int(r["waveform"]), float(r["gamma"]), float(r["amplitude"]),
                                                            float(r["omega"]))):
+            case = (f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
+                    f"{float(r['gamma']):g} | ")
             if not int(r["ok"]):
-                lines.append(f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
-                             f"{float(r['gamma']):g} | no (run-in residual {float(r['runin_residual']):.1e}) "
-                             "| | | | | | | | | | | |")
+                lines.append(case + f"no (run-in residual {float(r['runin_residual']):.1e}) | | | | | | | | | | | |")
                 continue
-            lines.append(f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
-                         f"{float(r['gamma']):g} | yes | {float(r['rho']):.4f} | {float(r['q_bulk']):.4f} | "
+            lines.append(case + f"yes | {float(r['rho']):.4f} | {float(r['q_bulk']):.4f} | "
                          f"{self.linear_wavenumber(float(r['omega']), float(r['strain_static'])):.4f} | "
                          f"{float(r['q_spread']):.3f} | {float(r['amp_bulk']):.3g} | {float(r['family_ratio']):.3g} | "
                          f"{float(r['distance']):.3f} | {float(r['distance_slope']):.1e} | {float(r['decay']):.3f} | "

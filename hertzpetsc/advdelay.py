@@ -429,42 +429,40 @@ class AdvanceDelayProblem(ContinuationProblem):
             first = d2u if lam == 1.0 else lam * d2u
             F.getArray()[:] = first - _on_contact(lat, force, dplus) + _on_contact(lat, force, dminus)
             return
-        extended = X.getSize() > self.p * self.grid.size + self.nsc
-        if extended:
-            self.set_parameter(self.parameter, self._scalars(X)[-1])
-        if self.full and self.gauge is None:
-            self.set_gauge(X)
-        sc = self._scalars(X)
-        lam = sc[0] if self.bordered else self.lam
-        parts = self._profile_parts(X)
-        diffs = self._differences(parts)
+        extended, sc, lam, diffs = self._evaluate(X)
         out = F.getArray()
         n = self.nloc
         for c, r in enumerate(self._field_rows(diffs, lam)):
             out[c * n:(c + 1) * n] = r
-        k = self.p * n
+        profiles = [d[3] for d in diffs]
+        border = []                       # the border rows (collective), written on the last rank
         if self.bordered:
-            m = self._measure([d[3] for d in diffs])
-            if self.last:
-                out[k] = m - 1.0
-            k += 1
+            border.append(self._measure(profiles) - 1.0)
         if self.full:
             i = self.i_gauge
             out[:self.p * n] += sc[i] + sc[i + 1] * self.gauge
-            rows = self._gauge_rows([d[3] for d in diffs])
-            if self.last:
-                out[k:k + 2] = rows
-            k += 2
+            border.extend(self._gauge_rows(profiles))
         if extended:
-            row, value = self.arclength
-            local = float(np.dot(row[self._owned_slice(X)], X.getArray(readonly=True)))
-            total = self.mpi.allreduce(local) if self.mpi is not None else local
-            if self.last:
-                out[k] = total - value
+            border.append(self._arclength_dot(X) - self.arclength[1])
+        if self.last:
+            out[self.p * n:] = border
 
-    def _owned_slice(self, V):
+    def _evaluate(self, X):
+        """(extended, scalars, lam, :meth:`_differences`) of an X or Z Vec in the general layout, with the free
+        parameter set from Z and the gauge column from X if none is set."""
+        extended = X.getSize() > self.p * self.grid.size + self.nsc
+        sc = self._scalars(X)
+        if extended:
+            self.set_parameter(self.parameter, sc[-1])
+        if self.full and self.gauge is None:
+            self.set_gauge(X)
+        return extended, sc, (sc[0] if self.bordered else self.lam), self._differences(self._profile_parts(X))
+
+    def _arclength_dot(self, V):
+        """row . V with the arclength row of the Z solve (collective)."""
         lo, hi = V.getOwnershipRange()
-        return slice(lo, hi)
+        local = float(np.dot(self.arclength[0][lo:hi], V.getArray(readonly=True)))
+        return self.mpi.allreduce(local) if self.mpi is not None else local
 
     def shift_differences(self, X):
         """d+ = tau_q u - u, d- = u - tau_{-q} u and D2 u on the owned rows (p = 1, X the grid Vec)."""
@@ -497,16 +495,11 @@ class AdvanceDelayProblem(ContinuationProblem):
             self.a = _on_contact(lat, lat.stiffness, dplus)
             self.b = _on_contact(lat, lat.stiffness, dminus)
             return
-        if X.getSize() > self.p * self.grid.size + self.nsc:
-            self.set_parameter(self.parameter, self._scalars(X)[-1])
-        if self.full and self.gauge is None:
-            self.set_gauge(X)
+        _, _, self._lam_lin, diffs = self._evaluate(X)
         lat = self.lattice
-        diffs = self._differences(self._profile_parts(X))
         self.a = [_on_contact(lat, lat.stiffness, d[1]) for d in diffs]
         self.b = [_on_contact(lat, lat.stiffness, d[2]) for d in diffs]
         self._diffs = diffs
-        self._lam_lin = self._scalars(X)[0] if self.bordered else self.lam
 
     def _jacobian_blocks(self):
         a, b = self.a[:, None], self.b[:, None]
@@ -522,11 +515,14 @@ class AdvanceDelayProblem(ContinuationProblem):
             raise ParameterError("kind", kind, "must be 'aij' or 'shell'")
         self._coefficients(X)
         simple = self.simple and X.getSize() == self.grid.size
-        if kind == "aij":
-            if simple:
-                return self.assembler.create(self._jacobian_blocks())
-            return self._bordered_aij(X)
+        if kind == "aij" and simple:
+            return self.assembler.create(self._jacobian_blocks())
         sizes = (X.getLocalSize(), X.getSize())
+        if kind == "aij":
+            J = PETSc.Mat().createAIJ((sizes, sizes), csr=self._bordered_csr(X), comm=self.comm)
+            J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+            J.assemble()
+            return J
         J = PETSc.Mat().createPython((sizes, sizes), _JacobianProduct(self, X.getSize()), comm=self.comm)
         J.setUp()
         if not simple:
@@ -549,26 +545,21 @@ class AdvanceDelayProblem(ContinuationProblem):
         if J.handle != P.handle:
             J.assemble()
         pc = getattr(self, "preconditioner", None)
-        if pc is not None:
-            sc = self._scalars(X)
-            lam = sc[0] if self.bordered else self.lam
-            pc.scales = [self.masses[c] * lam for c in range(self.p)]
+        if pc is not None:                # a layout's block preconditioner (never the simple path)
+            pc.scales = [self.masses[c] * self._lam_lin for c in range(self.p)]
 
     def _parameter_column(self, X):
-        """dF/dp (field rows and the normalisation row) as local arrays: exact for omega and the masses, a
+        """dF/dp on the field rows (owned; the border rows do not depend on p): exact for omega and the masses, a
         finite difference otherwise."""
-        name = self.parameter
-        diffs = self._diffs
-        sc = self._scalars(X)
-        lam = sc[0] if self.bordered else self.lam
+        name, diffs, lam = self.parameter, self._diffs, self._lam_lin
         n = self.nloc
         if name == "omega":
             cols = [2 * self.omega * self.masses[c] * diffs[c][0] for c in range(self.p)]
-            return np.concatenate(cols), 0.0
+            return np.concatenate(cols)
         if name == "epsilon" or (name.startswith("m") and name[1:].isdigit()):
             c0 = 1 if name == "epsilon" else int(name[1:])
             cols = [lam * diffs[c][0] if c == c0 else np.zeros(n) for c in range(self.p)]
-            return np.concatenate(cols), 0.0
+            return np.concatenate(cols)
         value = self.get_parameter(name)
         step = 1e-7 * max(abs(value), 1e-3)
         if name == "q" and value + step > math.pi:
@@ -580,14 +571,14 @@ class AdvanceDelayProblem(ContinuationProblem):
             shifted = np.concatenate(self._field_rows(self._differences(parts) if parts else diffs, lam))
         finally:
             self.set_parameter(name, value)
-        return (shifted - base) / step, 0.0
+        return (shifted - base) / step
 
     def _border_columns(self, X):
         """The dense columns of the current Jacobian: d/dlam (bordered form) and d/dp (Z)."""
         diffs = self._diffs
         self.dlam = np.concatenate([self.masses[c] * diffs[c][0] for c in range(self.p)]) if self.bordered else None
         extended = X.getSize() > self.p * self.grid.size + self.nsc
-        self.dparam = self._parameter_column(X)[0] if extended else None
+        self.dparam = self._parameter_column(X) if extended else None
         self.measure_row = self._measure_gradient([d[3] for d in diffs])
 
     def _measure_gradient(self, profiles_local):
@@ -608,9 +599,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         """CSR rows (owned) of the Jacobian on X (or Z) with the border columns and rows."""
         self._border_columns(X)
         extended = X.getSize() > self.p * self.grid.size + self.nsc
-        st = self.stencils
-        sc = self._scalars(X)
-        lam = sc[0] if self.bordered else self.lam
+        st, lam = self.stencils, self._lam_lin
         rows_i = np.arange(self.grid.rstart, self.grid.rend, dtype=np.int64)
         n = self.nloc
         cols, vals = [], []
@@ -656,13 +645,6 @@ class AdvanceDelayProblem(ContinuationProblem):
                 values = np.concatenate([values, np.asarray(rv, float)[order]])
                 indptr = np.concatenate([indptr, [indptr[-1] + len(rc)]]).astype(PETSc.IntType)
         return indptr, indices, values
-
-    def _bordered_aij(self, X):
-        sizes = (X.getLocalSize(), X.getSize())
-        J = PETSc.Mat().createAIJ((sizes, sizes), csr=self._bordered_csr(X), comm=self.comm)
-        J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        J.assemble()
-        return J
 
     # --- the linear wave (start of the amplitude families) -------------------------------------------------
     def linear_guess(self, branch="acoustic"):
@@ -863,24 +845,15 @@ class _JacobianProduct:
             if extended:
                 r = r + sc[-1] * p.dparam[c * n:(c + 1) * n]
             out[c * n:(c + 1) * n] = r
-        k = p.p * n
+        border = []                       # the border rows (collective), written on the last rank
         if p.bordered:
             idx, vals = p.measure_row
             own = (idx >= p.grid.rstart) & (idx < p.grid.rend)
             local = float(np.dot(vals[own], x.getArray(readonly=True)[p.normalised * n + idx[own] - p.grid.rstart]))
-            total = p.mpi.allreduce(local) if p.mpi is not None else local
-            if p.last:
-                out[k] = total
-            k += 1
+            border.append(p.mpi.allreduce(local) if p.mpi is not None else local)
         if p.full:
-            rows = p._gauge_rows([parts[c][3] for c in range(p.p)])
-            if p.last:
-                out[k:k + 2] = rows
-            k += 2
+            border.extend(p._gauge_rows([parts[c][3] for c in range(p.p)]))
         if extended:
-            row = p.arclength[0]
-            lo, hi = x.getOwnershipRange()
-            local = float(np.dot(row[lo:hi], x.getArray(readonly=True)))
-            total = p.mpi.allreduce(local) if p.mpi is not None else local
-            if p.last:
-                out[k] = total
+            border.append(p._arclength_dot(x))
+        if p.last:
+            out[p.p * n:] = border

@@ -649,9 +649,13 @@ class AdvanceDelayProblem(ContinuationProblem):
     # --- the linear wave (start of the amplitude families) -------------------------------------------------
     def linear_guess(self, branch="acoustic"):
         """Half profiles and lam of the discrete linear wave of the fixed-amplitude form (the law's linear
-        stiffness K = V''(0) > 0): the eigenvector of the scheme's p x p Bloch matrix (exact symbols of D2 and of
-        the shift stencils), normalised so that the measure of profile c* is 1, where c* (:attr:`normalised`) is
-        set to the profile of largest amplitude (the optical wave at the zone edge leaves a bead at rest)."""
+        stiffness K = V''(0) > 0): the eigenvector of the scheme's p x p Bloch matrix L_cc = 2K, L_{c,c+1} = -K mu+,
+        L_{c,c-1} = -K mu- against diag(m) sigma_h, mu+- and sigma_h the symbols of tau_{+-q} and of -D2,
+        normalised so that the measure of profile c* is 1, where c* (:attr:`normalised`) is set to the profile of
+        largest amplitude (the optical wave at the zone edge leaves a bead at rest). Odd profiles: the symbols on
+        the sine (exact, from the stencils). Whole-period profiles: on e^{i xi} (mu- = conj(mu+), sigma_h =
+        4 sin^2(h/2)/h^2; L Hermitian), the profiles Im(Y_c e^{i xi}) (the bead types' phases differ when the
+        pattern has no reflection symmetry)."""
         if not self.bordered:
             raise ParameterError("amplitude", None, "the linear wave starts the fixed-amplitude form")
         K = self.lattice.law.linear_stiffness
@@ -660,56 +664,39 @@ class AdvanceDelayProblem(ContinuationProblem):
                                  "(a precompression > 0)")
         if branch not in ("acoustic", "optical"):
             raise ParameterError("branch", branch, "must be 'acoustic' or 'optical'")
-        g = self.grid
-        s = np.sin(g.xi_half())
+        import scipy.linalg
+        g, p = self.grid, self.p
+        xi = g.xi_half()
+        s = np.sin(xi)
         if self.full:
-            return self._linear_guess_complex(K, branch, s)
-        v = g.vec_from_half_profile(s)
-        st = self.stencils.stacked(v).getArray(readonly=True)
-        n = self.nloc
-        sl = v.getArray(readonly=True)
-        dots = np.array([np.dot(sl, sl), np.dot(sl, st[:n]), np.dot(sl, st[n:2 * n]), np.dot(sl, st[2 * n:])])
-        dots = self.mpi.allreduce(dots) if self.mpi is not None else dots
-        v.destroy()
-        sigma_h, mu_plus, mu_minus = -dots[1] / dots[0], dots[2] / dots[0], dots[3] / dots[0]
-        L = np.zeros((self.p, self.p))
-        for c in range(self.p):
-            L[c, c] += 2 * K
-            L[c, (c + 1) % self.p] -= K * mu_plus
-            L[c, (c - 1) % self.p] -= K * mu_minus
-        import scipy.linalg
-        lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
-        k = 0 if branch == "acoustic" else self.p - 1
-        vec = vecs[:, k]
-        self.normalised = int(np.argmax(np.abs(vec)))
-        unit = 1.0 if self.measure == "a1" else sup_norm(s)
-        vec = vec / (vec[self.normalised] * unit)
-        return [vec[c] * s for c in range(self.p)], float(lams[k])
-
-    def _linear_guess_complex(self, K, branch, s):
-        """The linear wave of a whole-period problem: the profiles are Im(Y_c e^{i xi}) with Y the eigenvector of
-        the Hermitian Bloch matrix L_cc = 2K, L_{c,c+1} = -K mu, L_{c,c-1} = -K conj(mu) against diag(m) sigma_h,
-        mu the symbol of tau_q on e^{i xi} and sigma_h = 4 sin^2(h/2)/h^2 that of -D2 (the bead types' phases
-        differ when the pattern has no reflection symmetry)."""
-        from .stencil import shift_stencil
-        import scipy.linalg
-        h, p = self.grid.h, self.p
-        offsets, weights = shift_stencil(self.sigma)
-        mu = complex(np.sum(weights * np.exp(1j * offsets * h)))
-        sigma_h = 4 * math.sin(h / 2) ** 2 / h ** 2
-        L = np.zeros((p, p), dtype=complex)
+            offsets, weights = shift_stencil(self.sigma)
+            mu_plus = complex(np.sum(weights * np.exp(1j * offsets * g.h)))
+            mu_minus = np.conj(mu_plus)
+            sigma_h = 4 * math.sin(g.h / 2) ** 2 / g.h ** 2
+        else:
+            v = g.vec_from_half_profile(s)
+            st = self.stencils.stacked(v).getArray(readonly=True)
+            n = self.nloc
+            sl = v.getArray(readonly=True)
+            dots = np.array([np.dot(sl, sl), np.dot(sl, st[:n]), np.dot(sl, st[n:2 * n]), np.dot(sl, st[2 * n:])])
+            dots = self.mpi.allreduce(dots) if self.mpi is not None else dots
+            v.destroy()
+            sigma_h, mu_plus, mu_minus = -dots[1] / dots[0], dots[2] / dots[0], dots[3] / dots[0]
+        L = np.zeros((p, p), dtype=complex if self.full else float)
         for c in range(p):
             L[c, c] += 2 * K
-            L[c, (c + 1) % p] -= K * mu
-            L[c, (c - 1) % p] -= K * np.conj(mu)
+            L[c, (c + 1) % p] -= K * mu_plus
+            L[c, (c - 1) % p] -= K * mu_minus
         lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
         k = 0 if branch == "acoustic" else p - 1
-        Y = vecs[:, k]
-        self.normalised = int(np.argmax(np.abs(Y)))
-        Y = Y * np.conj(Y[self.normalised]) / abs(Y[self.normalised]) ** 2
-        xi = self.grid.xi_half()
-        unit = 1.0 if self.measure == "a1" else profile_sup(s, True)
-        return [np.imag(Y[c] * np.exp(1j * xi)) / unit for c in range(p)], float(lams[k])
+        vec = vecs[:, k]
+        self.normalised = int(np.argmax(np.abs(vec)))
+        unit = 1.0 if self.measure == "a1" else profile_sup(s, self.full)
+        if self.full:
+            Y = vec * np.conj(vec[self.normalised]) / abs(vec[self.normalised]) ** 2
+            return [np.imag(Y[c] * np.exp(1j * xi)) / unit for c in range(p)], float(lams[k])
+        vec = vec / (vec[self.normalised] * unit)
+        return [vec[c] * s for c in range(p)], float(lams[k])
 
     # --- solving --------------------------------------------------------------------------------------------
     def tolerance_scale(self, V):

@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
-from .errors import ParameterError, check_real
+from .errors import ParameterError, check_integer, check_real
 from .model import LatticeModel
 from .stencil import shift_stencil
 
@@ -180,12 +180,10 @@ class AdvanceDelayProblem(ContinuationProblem):
             grid = ProfileGrid(grid.K, grid.comm, parity=0)
         self.model, self.grid = model, grid
         self.masses = np.array(model.masses, dtype=float)
-        if not (isinstance(normalised, (int, np.integer)) and 0 <= normalised < self.p):
-            raise ParameterError("normalised", normalised, f"must be a profile index in [0, {self.p - 1}]")
-        self.normalised, self.measure = int(normalised), measure
+        self.normalised = check_integer("normalised", normalised, 0, "the normalised profile's index", self.p - 1)
+        self.measure = measure
         self.bordered = amplitude is not None
-        self.amplitude = None
-        self.lam = None
+        self.amplitude = self.lam = None
         if self.bordered:
             self._set_amplitude(amplitude)
         else:
@@ -253,15 +251,14 @@ class AdvanceDelayProblem(ContinuationProblem):
             self._set_amplitude(value)
         elif name == "log_a":
             self._set_amplitude(math.exp(value))
-        elif name in ("delta0", "alpha"):
-            self.model = self.model.with_delta0(value) if name == "delta0" else self.model.with_alpha(value)
-            self.lattice = self.model.rescaled(self.amplitude) if self.bordered else self.model
-        else:
-            c = 1 if name == "epsilon" else int(name[1:])
-            masses = list(self.masses)
-            masses[c] = value
-            self.model = self.model.with_masses(masses)
-            self.masses = np.array(self.model.masses)
+        else:                                       # the model: delta0, alpha or a mass
+            if name in ("delta0", "alpha"):
+                self.model = self.model.with_delta0(value) if name == "delta0" else self.model.with_alpha(value)
+            else:
+                masses = list(self.masses)
+                masses[1 if name == "epsilon" else int(name[1:])] = value
+                self.model = self.model.with_masses(masses)
+                self.masses = np.array(self.model.masses)
             self.lattice = self.model.rescaled(self.amplitude) if self.bordered else self.model
 
     def get_parameter(self, name):
@@ -346,8 +343,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         """omega of the wave held by V (fixed frequency: self.omega; fixed amplitude: a^((d-1)/2) sqrt(lam))."""
         if not self.bordered:
             return self.omega
-        lam = self._scalars(V)[0]
-        return self._omega_from(lam)
+        return self._omega_from(self._scalars(V)[0])
 
     def _omega_from(self, lam):
         d = self.model.law.scale_degree
@@ -701,20 +697,18 @@ class AdvanceDelayProblem(ContinuationProblem):
     # --- solving --------------------------------------------------------------------------------------------
     def tolerance_scale(self, V):
         """max(m lam) ||u||_inf: the scale of the field rows' round-off (4 eps scale / h^2 per row)."""
-        sc = self._scalars(V)
-        lam = abs(sc[0]) if self.bordered else self.lam
+        lam = abs(self._scalars(V)[0]) if self.bordered else self.lam
         return max(float(np.max(self.masses)) * lam, 1e-300) * max(V.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
 
     def solver(self, extended, prefix=None, solver=None):
         """The SNES of this problem's X (or Z) layout under ``prefix`` (built once)."""
         from .resources import check_memory
         from .twsolver import TW_PREFIX, TravellingWaveSolver, tw_solver
-        key = extended
-        if key not in self.solvers:
+        if extended not in self.solvers:
             prefix = prefix or getattr(self, "prefix", TW_PREFIX)
             check_memory(self.grid.K, self.comm, tw_solver(prefix, solver), profiles=self.p)
-            self.solvers[key] = TravellingWaveSolver(self.grid, prefix, solver, layout=self, extended=extended)
-        return self.solvers[key]
+            self.solvers[extended] = TravellingWaveSolver(self.grid, prefix, solver, layout=self, extended=extended)
+        return self.solvers[extended]
 
     def solve_state(self, X, tolerances=None):
         """Solve for X at the current parameters (SolveStats); ConvergenceError when SNES fails. With the 'sup'
@@ -774,9 +768,6 @@ class AdvanceDelayProblem(ContinuationProblem):
         if self.last:
             W.getArray()[self.p * self.nloc:] = 1.0
         return W
-
-    def test_functions(self, Z):
-        return {}
 
     def report(self, Z):
         profiles = self.half_profiles(Z)

@@ -19,7 +19,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import gathered
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_integer
 from .floquet import Spectrum, largest_magnitude
 
 STABILITY_PREFIX = "cstab_"
@@ -98,13 +98,12 @@ class WindowStability:
     be meaningful: below, the transport part's pseudospectrum)."""
 
     def __init__(self, window, nev=3, eta=DEFAULT_ETA, tol=1e-12, prefix=STABILITY_PREFIX):
-        if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= window.dim):
-            raise ParameterError("-nev", nev, f"the window map has dimension 2M = {window.dim}: 1 <= nev <= "
-                                              f"{window.dim}")
+        nev = check_integer("-nev", nev, 1, "the number of multipliers", window.dim,
+                            f"(the window map has dimension 2M = {window.dim})")
         if not (math.isfinite(eta) and 0 <= eta <= 700.0 / max(window.M, 1)):
             raise ParameterError("-eta", eta, f"the weight exp(eta M) must stay finite: 0 <= eta <= "
                                               f"{700.0 / window.M:.3g} for M = {window.M}")
-        self.window, self.nev, self.eta = window, int(nev), float(eta)
+        self.window, self.nev, self.eta = window, nev, float(eta)
         self.eps = largest_magnitude(window.comm, prefix, self.nev, min(window.dim, max(2 * self.nev + 1,
                                                                                         self.nev + 15)), tol)
 

@@ -24,7 +24,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import IntegrationTolerances
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_integer
 from .gauss_newton import GaussNewton
 from .tangent import TangentFlow
 
@@ -128,9 +128,8 @@ class Refiner:
             raise ParameterError("tol", tol, "the target residual must be positive")
         self.spec, self.tol, self.comm, self.symmetric = spec, tol, comm, symmetric
         self.tolerances, self.jacobian_tolerances, self.prefix = tolerances, jacobian_tolerances, prefix
-        self.max_iterations = PETSc.Options().getInt(prefix + "gn_max_it", max_iterations)
-        if self.max_iterations < 1:
-            raise ParameterError(f"-{prefix}gn_max_it", self.max_iterations, "must be an integer >= 1")
+        self.max_iterations = check_integer(f"-{prefix}gn_max_it",
+                                            PETSc.Options().getInt(prefix + "gn_max_it", max_iterations), 1)
         self.engine = GaussNewton(comm)
         self._flows = {}
         self.smap = self._maps(spec.N)[0]          # configures both flows (options read now)

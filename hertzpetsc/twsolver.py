@@ -51,10 +51,8 @@ class SecondDifferencePC:
     def __init__(self, grid, stencils=None, name="d2"):
         self.grid = grid
         stencils = second_difference(grid) if stencils is None else stencils
-        rstart, rend = grid.rstart, grid.rend
-        nloc = rend - rstart
-        self.nloc = nloc
-        rows = np.arange(rstart, rend)[:, None]
+        self.nloc = nloc = grid.rend - grid.rstart
+        rows = np.arange(grid.rstart, grid.rend)[:, None]
         cols, coef = stencils.cols[name], stencils.coef[name]
         lower = np.where(cols == rows - 1, coef, 0.0).sum(axis=1)
         diag = np.where(cols == rows, coef, 0.0).sum(axis=1)
@@ -64,9 +62,7 @@ class SecondDifferencePC:
         # the diagonal block, as sequential AIJ (CSR rows: lower, diagonal, upper within the block)
         local = np.arange(nloc)
         entries = [(local - 1, lower, local > 0), (local, diag, local >= 0), (local + 1, upper, local < nloc - 1)]
-        c = np.stack([e[0] for e in entries], axis=1)
-        v = np.stack([e[1] for e in entries], axis=1)
-        keep = np.stack([e[2] for e in entries], axis=1)
+        c, v, keep = (np.stack(column, axis=1) for column in zip(*entries))
         indptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))]).astype(PETSc.IntType)
         self.block = PETSc.Mat().createAIJ((nloc, nloc), csr=(indptr, c[keep].astype(PETSc.IntType), v[keep]),
                                            comm=PETSc.COMM_SELF)

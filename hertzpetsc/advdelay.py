@@ -202,8 +202,12 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.stencils = None
         self._assembler = None
         self._set_q(q)
+        have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
+            [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
+        if parameter not in have:
+            raise ParameterError("parameter", parameter, "this travelling-wave problem continues in one of "
+                                 + ", ".join(have))
         self.parameter = parameter
-        self._check_parameter(parameter)
         self._work = [PETSc.Vec().createMPI((self.nloc, grid.size), comm=self.comm) for _ in range(2)]
         self.a = self.b = None            # V''(d+), V''(d-) at the last Jacobian evaluation
         self.arclength = None             # (row as a full array, value) while solving on Z
@@ -213,13 +217,6 @@ class AdvanceDelayProblem(ContinuationProblem):
         self._state = None                # X of the natural solves (:meth:`solve` with row None)
 
     # --- parameters (the lenses of the continuation layer) ----------------------------------------------------
-    def _check_parameter(self, name):
-        have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
-            [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
-        if name not in have:
-            raise ParameterError("parameter", name, "this travelling-wave problem continues in one of "
-                                 + ", ".join(have))
-
     def _set_omega(self, omega):
         self.omega = w = check_real("omega", omega, "the frequency", 0.0)
         self.lam = w * w
@@ -262,10 +259,8 @@ class AdvanceDelayProblem(ContinuationProblem):
             self.lattice = self.model.rescaled(self.amplitude) if self.bordered else self.model
 
     def get_parameter(self, name):
-        if name == "q":
-            return self.q
-        if name == "omega":
-            return self.omega
+        if name in ("q", "omega"):
+            return getattr(self, name)
         if name == "a":
             return self.amplitude
         if name == "log_a":
@@ -402,12 +397,11 @@ class AdvanceDelayProblem(ContinuationProblem):
         solve (a whole-period problem only)."""
         if not self.full:
             return
-        n, g = self.nloc, self.grid
-        out = []
+        g, out = self.grid, []
         for prof in self.half_profiles(V):
             d = (np.roll(prof, -1) - np.roll(prof, 1)) / (2 * g.h)
             out.append(d[g.rstart:g.rend])
-        self.gauge = np.concatenate(out) if out else np.zeros(self.p * n)
+        self.gauge = np.concatenate(out)
 
     def _gathered_profile(self, w_local):
         w = self._work[1]

@@ -74,8 +74,7 @@ def jordan_check(window, J, Y, gap):
 
 def exponential_weight(M, eta, j_ref):
     """Diagonal of W = diag(exp(eta (j - j_ref))) on the bead-major state (heavier ahead)."""
-    w = np.exp(eta * (np.arange(M) - j_ref))
-    return np.repeat(w, 2)
+    return np.repeat(np.exp(eta * (np.arange(M) - j_ref)), 2)
 
 
 class WeightedWindowOperator:

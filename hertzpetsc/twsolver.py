@@ -265,11 +265,8 @@ def _configure(snes, prefix, solver, grid, stencils=None, blocks=None):
 
 def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None, solver=None):
     """SNES with the paper-reproducing defaults, then the options database under ``prefix`` (read once).
-
-    ``solver`` (or ``-<prefix>solver``) picks the defaults of the linear solves: 'direct' (PREONLY + LU, MUMPS
-    on several ranks) or 'nk' (GMRES preconditioned by :class:`SecondDifferencePC`, which needs the problem's
-    ``stencils["d2"]``). Either can be changed afterwards by -<prefix>ksp_type, -<prefix>pc_type, ...
-    """
+    ``solver``: the linear solves' defaults (:func:`tw_solver`; 'nk' needs the problem's ``stencils["d2"]``), which
+    -<prefix>ksp_type, -<prefix>pc_type, ... can change."""
     solver = tw_solver(prefix, solver)
     snes = PETSc.SNES().create(comm=problem.grid.comm)
     snes.setOptionsPrefix(prefix)

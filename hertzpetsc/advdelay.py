@@ -708,20 +708,20 @@ class AdvanceDelayProblem(ContinuationProblem):
         """Solve for X at the current parameters (SolveStats); ConvergenceError when SNES fails. With the 'sup'
         measure, the normalised profile is the largest one (max_c ||u_c||_inf = A): solved again on the
         largest profile if the solution's largest is another."""
-        self.set_gauge(X)
-        self.stats = self.solver(False).solve(self, X, tolerances)
-        self._renormalise(X, lambda: self.solver(False).solve(self, X, tolerances))
-        return self.stats
+        return self._solve(X, False, tolerances)
 
-    def _renormalise(self, V, solve):
-        if not (self.bordered and self.measure == "sup" and self.p > 1):
-            return
-        for _ in range(self.p):
-            largest = int(np.argmax([profile_sup(w, self.full) for w in self.half_profiles(V)]))
-            if largest == self.normalised:
-                return
-            self.normalised = largest
-            self.stats = solve()
+    def _solve(self, V, extended, tolerances=None):
+        """:meth:`solve_state` on an X Vec, or on a Z Vec (``extended``) with the arclength row set."""
+        self.set_gauge(V)
+        self.stats = self.solver(extended).solve(self, V, tolerances)
+        if self.bordered and self.measure == "sup" and self.p > 1:
+            for _ in range(self.p):
+                largest = int(np.argmax([profile_sup(w, self.full) for w in self.half_profiles(V)]))
+                if largest == self.normalised:
+                    break
+                self.normalised = largest
+                self.stats = self.solver(extended).solve(self, V, tolerances)
+        return self.stats
 
     def solve(self, Z, row=None, value=None):
         """The continuation layer's corrector (:meth:`ContinuationProblem.solve`)."""
@@ -737,9 +737,7 @@ class AdvanceDelayProblem(ContinuationProblem):
             return stats.iterations
         self.arclength = (gathered(row), float(value))
         try:
-            self.set_gauge(Z)
-            self.stats = self.solver(True).solve(self, Z)
-            self._renormalise(Z, lambda: self.solver(True).solve(self, Z))
+            self._solve(Z, True)
         finally:
             self.arclength = None
         self.set_parameter(self.parameter, self._scalars(Z)[-1])

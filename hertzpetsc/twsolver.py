@@ -49,7 +49,6 @@ class SecondDifferencePC:
     """
 
     def __init__(self, grid, stencils=None, name="d2"):
-        self.grid = grid
         stencils = second_difference(grid) if stencils is None else stencils
         self.nloc = nloc = grid.rend - grid.rstart
         rows = np.arange(grid.rstart, grid.rend)[:, None]

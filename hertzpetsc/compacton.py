@@ -23,7 +23,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, check_real
 from .model import ChainSpec, LatticeModel
 from .stencil import lagrange_periodic
 
@@ -178,8 +178,7 @@ class CompactonScales:
     @classmethod
     def for_velocity(cls, train, c):
         """The scales that make the compactons travel at c > 0 beads per unit time (a = (c q)^(2/(alpha-1)))."""
-        if not (math.isfinite(c) and c > 0):
-            raise ParameterError("c", c, "the compacton velocity must be a positive number of beads per unit time")
+        c = check_real("c", c, "the compacton velocity (beads per unit time)", 0.0)
         alpha = train.model.alpha
         a = (c * train.q) ** (2 / (alpha - 1))
         omega = a ** ((alpha - 1) / 2)

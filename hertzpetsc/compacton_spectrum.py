@@ -11,7 +11,6 @@ part has norm exp(-eta): without the weight the nilpotent blocks' pseudospectrum
 ~ tol^(1/L) and SLEPc accepts spurious multipliers. The multiplier 1 is a Jordan block (translation v1 = the vector
 field, (J - 1) v2 = v1): only the pair's mean is accurate, its split is ~ sqrt(integration error).
 """
-import math
 import time
 from dataclasses import dataclass
 
@@ -19,7 +18,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import gathered
-from .errors import ConvergenceError, ParameterError, check_integer
+from .errors import ConvergenceError, check_integer, check_real
 from .floquet import Spectrum, largest_magnitude
 
 STABILITY_PREFIX = "cstab_"
@@ -99,10 +98,9 @@ class WindowStability:
     def __init__(self, window, nev=3, eta=DEFAULT_ETA, tol=1e-12, prefix=STABILITY_PREFIX):
         nev = check_integer("-nev", nev, 1, "the number of multipliers", window.dim,
                             f"(the window map has dimension 2M = {window.dim})")
-        if not (math.isfinite(eta) and 0 <= eta <= 700.0 / max(window.M, 1)):
-            raise ParameterError("-eta", eta, f"the weight exp(eta M) must stay finite: 0 <= eta <= "
-                                              f"{700.0 / window.M:.3g} for M = {window.M}")
-        self.window, self.nev, self.eta = window, nev, float(eta)
+        eta = check_real("-eta", eta, f"the weight's rate (exp(eta M) finite, M = {window.M})", 0.0,
+                         700.0 / window.M, lo_open=False, hi_open=False)
+        self.window, self.nev, self.eta = window, nev, eta
         self.eps = largest_magnitude(window.comm, prefix, self.nev, min(window.dim, max(2 * self.nev + 1,
                                                                                         self.nev + 15)), tol)
 

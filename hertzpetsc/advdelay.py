@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
-from .errors import ParameterError, check_real
+from .errors import ParameterError, check_integer, check_real
 from .model import LatticeModel
 from .stencil import shift_stencil
 
@@ -180,12 +180,10 @@ class AdvanceDelayProblem(ContinuationProblem):
             grid = ProfileGrid(grid.K, grid.comm, parity=0)
         self.model, self.grid = model, grid
         self.masses = np.array(model.masses, dtype=float)
-        if not (isinstance(normalised, (int, np.integer)) and 0 <= normalised < self.p):
-            raise ParameterError("normalised", normalised, f"must be a profile index in [0, {self.p - 1}]")
-        self.normalised, self.measure = int(normalised), measure
+        self.normalised = check_integer("normalised", normalised, 0, "the normalised profile's index", self.p - 1)
+        self.measure = measure
         self.bordered = amplitude is not None
-        self.amplitude = None
-        self.lam = None
+        self.amplitude = self.lam = None
         if self.bordered:
             self._set_amplitude(amplitude)
         else:
@@ -204,8 +202,12 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.stencils = None
         self._assembler = None
         self._set_q(q)
+        have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
+            [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
+        if parameter not in have:
+            raise ParameterError("parameter", parameter, "this travelling-wave problem continues in one of "
+                                 + ", ".join(have))
         self.parameter = parameter
-        self._check_parameter(parameter)
         self._work = [PETSc.Vec().createMPI((self.nloc, grid.size), comm=self.comm) for _ in range(2)]
         self.a = self.b = None            # V''(d+), V''(d-) at the last Jacobian evaluation
         self.arclength = None             # (row as a full array, value) while solving on Z
@@ -215,13 +217,6 @@ class AdvanceDelayProblem(ContinuationProblem):
         self._state = None                # X of the natural solves (:meth:`solve` with row None)
 
     # --- parameters (the lenses of the continuation layer) ----------------------------------------------------
-    def _check_parameter(self, name):
-        have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
-            [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
-        if name not in have:
-            raise ParameterError("parameter", name, "this travelling-wave problem continues in one of "
-                                 + ", ".join(have))
-
     def _set_omega(self, omega):
         self.omega = w = check_real("omega", omega, "the frequency", 0.0)
         self.lam = w * w
@@ -253,22 +248,19 @@ class AdvanceDelayProblem(ContinuationProblem):
             self._set_amplitude(value)
         elif name == "log_a":
             self._set_amplitude(math.exp(value))
-        elif name in ("delta0", "alpha"):
-            self.model = self.model.with_delta0(value) if name == "delta0" else self.model.with_alpha(value)
-            self.lattice = self.model.rescaled(self.amplitude) if self.bordered else self.model
-        else:
-            c = 1 if name == "epsilon" else int(name[1:])
-            masses = list(self.masses)
-            masses[c] = value
-            self.model = self.model.with_masses(masses)
-            self.masses = np.array(self.model.masses)
+        else:                                       # the model: delta0, alpha or a mass
+            if name in ("delta0", "alpha"):
+                self.model = self.model.with_delta0(value) if name == "delta0" else self.model.with_alpha(value)
+            else:
+                masses = list(self.masses)
+                masses[1 if name == "epsilon" else int(name[1:])] = value
+                self.model = self.model.with_masses(masses)
+                self.masses = np.array(self.model.masses)
             self.lattice = self.model.rescaled(self.amplitude) if self.bordered else self.model
 
     def get_parameter(self, name):
-        if name == "q":
-            return self.q
-        if name == "omega":
-            return self.omega
+        if name in ("q", "omega"):
+            return getattr(self, name)
         if name == "a":
             return self.amplitude
         if name == "log_a":
@@ -346,8 +338,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         """omega of the wave held by V (fixed frequency: self.omega; fixed amplitude: a^((d-1)/2) sqrt(lam))."""
         if not self.bordered:
             return self.omega
-        lam = self._scalars(V)[0]
-        return self._omega_from(lam)
+        return self._omega_from(self._scalars(V)[0])
 
     def _omega_from(self, lam):
         d = self.model.law.scale_degree
@@ -406,12 +397,11 @@ class AdvanceDelayProblem(ContinuationProblem):
         solve (a whole-period problem only)."""
         if not self.full:
             return
-        n, g = self.nloc, self.grid
-        out = []
+        g, out = self.grid, []
         for prof in self.half_profiles(V):
             d = (np.roll(prof, -1) - np.roll(prof, 1)) / (2 * g.h)
             out.append(d[g.rstart:g.rend])
-        self.gauge = np.concatenate(out) if out else np.zeros(self.p * n)
+        self.gauge = np.concatenate(out)
 
     def _gathered_profile(self, w_local):
         w = self._work[1]
@@ -429,42 +419,40 @@ class AdvanceDelayProblem(ContinuationProblem):
             first = d2u if lam == 1.0 else lam * d2u
             F.getArray()[:] = first - _on_contact(lat, force, dplus) + _on_contact(lat, force, dminus)
             return
-        extended = X.getSize() > self.p * self.grid.size + self.nsc
-        if extended:
-            self.set_parameter(self.parameter, self._scalars(X)[-1])
-        if self.full and self.gauge is None:
-            self.set_gauge(X)
-        sc = self._scalars(X)
-        lam = sc[0] if self.bordered else self.lam
-        parts = self._profile_parts(X)
-        diffs = self._differences(parts)
+        extended, sc, lam, diffs = self._evaluate(X)
         out = F.getArray()
         n = self.nloc
         for c, r in enumerate(self._field_rows(diffs, lam)):
             out[c * n:(c + 1) * n] = r
-        k = self.p * n
+        profiles = [d[3] for d in diffs]
+        border = []                       # the border rows (collective), written on the last rank
         if self.bordered:
-            m = self._measure([d[3] for d in diffs])
-            if self.last:
-                out[k] = m - 1.0
-            k += 1
+            border.append(self._measure(profiles) - 1.0)
         if self.full:
             i = self.i_gauge
             out[:self.p * n] += sc[i] + sc[i + 1] * self.gauge
-            rows = self._gauge_rows([d[3] for d in diffs])
-            if self.last:
-                out[k:k + 2] = rows
-            k += 2
+            border.extend(self._gauge_rows(profiles))
         if extended:
-            row, value = self.arclength
-            local = float(np.dot(row[self._owned_slice(X)], X.getArray(readonly=True)))
-            total = self.mpi.allreduce(local) if self.mpi is not None else local
-            if self.last:
-                out[k] = total - value
+            border.append(self._arclength_dot(X) - self.arclength[1])
+        if self.last:
+            out[self.p * n:] = border
 
-    def _owned_slice(self, V):
+    def _evaluate(self, X):
+        """(extended, scalars, lam, :meth:`_differences`) of an X or Z Vec in the general layout, with the free
+        parameter set from Z and the gauge column from X if none is set."""
+        extended = X.getSize() > self.p * self.grid.size + self.nsc
+        sc = self._scalars(X)
+        if extended:
+            self.set_parameter(self.parameter, sc[-1])
+        if self.full and self.gauge is None:
+            self.set_gauge(X)
+        return extended, sc, (sc[0] if self.bordered else self.lam), self._differences(self._profile_parts(X))
+
+    def _arclength_dot(self, V):
+        """row . V with the arclength row of the Z solve (collective)."""
         lo, hi = V.getOwnershipRange()
-        return slice(lo, hi)
+        local = float(np.dot(self.arclength[0][lo:hi], V.getArray(readonly=True)))
+        return self.mpi.allreduce(local) if self.mpi is not None else local
 
     def shift_differences(self, X):
         """d+ = tau_q u - u, d- = u - tau_{-q} u and D2 u on the owned rows (p = 1, X the grid Vec)."""
@@ -497,16 +485,11 @@ class AdvanceDelayProblem(ContinuationProblem):
             self.a = _on_contact(lat, lat.stiffness, dplus)
             self.b = _on_contact(lat, lat.stiffness, dminus)
             return
-        if X.getSize() > self.p * self.grid.size + self.nsc:
-            self.set_parameter(self.parameter, self._scalars(X)[-1])
-        if self.full and self.gauge is None:
-            self.set_gauge(X)
+        _, _, self._lam_lin, diffs = self._evaluate(X)
         lat = self.lattice
-        diffs = self._differences(self._profile_parts(X))
         self.a = [_on_contact(lat, lat.stiffness, d[1]) for d in diffs]
         self.b = [_on_contact(lat, lat.stiffness, d[2]) for d in diffs]
         self._diffs = diffs
-        self._lam_lin = self._scalars(X)[0] if self.bordered else self.lam
 
     def _jacobian_blocks(self):
         a, b = self.a[:, None], self.b[:, None]
@@ -522,11 +505,14 @@ class AdvanceDelayProblem(ContinuationProblem):
             raise ParameterError("kind", kind, "must be 'aij' or 'shell'")
         self._coefficients(X)
         simple = self.simple and X.getSize() == self.grid.size
-        if kind == "aij":
-            if simple:
-                return self.assembler.create(self._jacobian_blocks())
-            return self._bordered_aij(X)
+        if kind == "aij" and simple:
+            return self.assembler.create(self._jacobian_blocks())
         sizes = (X.getLocalSize(), X.getSize())
+        if kind == "aij":
+            J = PETSc.Mat().createAIJ((sizes, sizes), csr=self._bordered_csr(X), comm=self.comm)
+            J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
+            J.assemble()
+            return J
         J = PETSc.Mat().createPython((sizes, sizes), _JacobianProduct(self, X.getSize()), comm=self.comm)
         J.setUp()
         if not simple:
@@ -549,26 +535,21 @@ class AdvanceDelayProblem(ContinuationProblem):
         if J.handle != P.handle:
             J.assemble()
         pc = getattr(self, "preconditioner", None)
-        if pc is not None:
-            sc = self._scalars(X)
-            lam = sc[0] if self.bordered else self.lam
-            pc.scales = [self.masses[c] * lam for c in range(self.p)]
+        if pc is not None:                # a layout's block preconditioner (never the simple path)
+            pc.scales = [self.masses[c] * self._lam_lin for c in range(self.p)]
 
     def _parameter_column(self, X):
-        """dF/dp (field rows and the normalisation row) as local arrays: exact for omega and the masses, a
+        """dF/dp on the field rows (owned; the border rows do not depend on p): exact for omega and the masses, a
         finite difference otherwise."""
-        name = self.parameter
-        diffs = self._diffs
-        sc = self._scalars(X)
-        lam = sc[0] if self.bordered else self.lam
+        name, diffs, lam = self.parameter, self._diffs, self._lam_lin
         n = self.nloc
         if name == "omega":
             cols = [2 * self.omega * self.masses[c] * diffs[c][0] for c in range(self.p)]
-            return np.concatenate(cols), 0.0
+            return np.concatenate(cols)
         if name == "epsilon" or (name.startswith("m") and name[1:].isdigit()):
             c0 = 1 if name == "epsilon" else int(name[1:])
             cols = [lam * diffs[c][0] if c == c0 else np.zeros(n) for c in range(self.p)]
-            return np.concatenate(cols), 0.0
+            return np.concatenate(cols)
         value = self.get_parameter(name)
         step = 1e-7 * max(abs(value), 1e-3)
         if name == "q" and value + step > math.pi:
@@ -580,14 +561,14 @@ class AdvanceDelayProblem(ContinuationProblem):
             shifted = np.concatenate(self._field_rows(self._differences(parts) if parts else diffs, lam))
         finally:
             self.set_parameter(name, value)
-        return (shifted - base) / step, 0.0
+        return (shifted - base) / step
 
     def _border_columns(self, X):
         """The dense columns of the current Jacobian: d/dlam (bordered form) and d/dp (Z)."""
         diffs = self._diffs
         self.dlam = np.concatenate([self.masses[c] * diffs[c][0] for c in range(self.p)]) if self.bordered else None
         extended = X.getSize() > self.p * self.grid.size + self.nsc
-        self.dparam = self._parameter_column(X)[0] if extended else None
+        self.dparam = self._parameter_column(X) if extended else None
         self.measure_row = self._measure_gradient([d[3] for d in diffs])
 
     def _measure_gradient(self, profiles_local):
@@ -608,9 +589,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         """CSR rows (owned) of the Jacobian on X (or Z) with the border columns and rows."""
         self._border_columns(X)
         extended = X.getSize() > self.p * self.grid.size + self.nsc
-        st = self.stencils
-        sc = self._scalars(X)
-        lam = sc[0] if self.bordered else self.lam
+        st, lam = self.stencils, self._lam_lin
         rows_i = np.arange(self.grid.rstart, self.grid.rend, dtype=np.int64)
         n = self.nloc
         cols, vals = [], []
@@ -657,19 +636,16 @@ class AdvanceDelayProblem(ContinuationProblem):
                 indptr = np.concatenate([indptr, [indptr[-1] + len(rc)]]).astype(PETSc.IntType)
         return indptr, indices, values
 
-    def _bordered_aij(self, X):
-        sizes = (X.getLocalSize(), X.getSize())
-        J = PETSc.Mat().createAIJ((sizes, sizes), csr=self._bordered_csr(X), comm=self.comm)
-        J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
-        J.assemble()
-        return J
-
     # --- the linear wave (start of the amplitude families) -------------------------------------------------
     def linear_guess(self, branch="acoustic"):
         """Half profiles and lam of the discrete linear wave of the fixed-amplitude form (the law's linear
-        stiffness K = V''(0) > 0): the eigenvector of the scheme's p x p Bloch matrix (exact symbols of D2 and of
-        the shift stencils), normalised so that the measure of profile c* is 1, where c* (:attr:`normalised`) is
-        set to the profile of largest amplitude (the optical wave at the zone edge leaves a bead at rest)."""
+        stiffness K = V''(0) > 0): the eigenvector of the scheme's p x p Bloch matrix L_cc = 2K, L_{c,c+1} = -K mu+,
+        L_{c,c-1} = -K mu- against diag(m) sigma_h, mu+- and sigma_h the symbols of tau_{+-q} and of -D2,
+        normalised so that the measure of profile c* is 1, where c* (:attr:`normalised`) is set to the profile of
+        largest amplitude (the optical wave at the zone edge leaves a bead at rest). Odd profiles: the symbols on
+        the sine (exact, from the stencils). Whole-period profiles: on e^{i xi} (mu- = conj(mu+), sigma_h =
+        4 sin^2(h/2)/h^2; L Hermitian), the profiles Im(Y_c e^{i xi}) (the bead types' phases differ when the
+        pattern has no reflection symmetry)."""
         if not self.bordered:
             raise ParameterError("amplitude", None, "the linear wave starts the fixed-amplitude form")
         K = self.lattice.law.linear_stiffness
@@ -678,93 +654,74 @@ class AdvanceDelayProblem(ContinuationProblem):
                                  "(a precompression > 0)")
         if branch not in ("acoustic", "optical"):
             raise ParameterError("branch", branch, "must be 'acoustic' or 'optical'")
-        g = self.grid
-        s = np.sin(g.xi_half())
+        import scipy.linalg
+        g, p = self.grid, self.p
+        xi = g.xi_half()
+        s = np.sin(xi)
         if self.full:
-            return self._linear_guess_complex(K, branch, s)
-        v = g.vec_from_half_profile(s)
-        st = self.stencils.stacked(v).getArray(readonly=True)
-        n = self.nloc
-        sl = v.getArray(readonly=True)
-        dots = np.array([np.dot(sl, sl), np.dot(sl, st[:n]), np.dot(sl, st[n:2 * n]), np.dot(sl, st[2 * n:])])
-        dots = self.mpi.allreduce(dots) if self.mpi is not None else dots
-        v.destroy()
-        sigma_h, mu_plus, mu_minus = -dots[1] / dots[0], dots[2] / dots[0], dots[3] / dots[0]
-        L = np.zeros((self.p, self.p))
-        for c in range(self.p):
-            L[c, c] += 2 * K
-            L[c, (c + 1) % self.p] -= K * mu_plus
-            L[c, (c - 1) % self.p] -= K * mu_minus
-        import scipy.linalg
-        lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
-        k = 0 if branch == "acoustic" else self.p - 1
-        vec = vecs[:, k]
-        self.normalised = int(np.argmax(np.abs(vec)))
-        unit = 1.0 if self.measure == "a1" else sup_norm(s)
-        vec = vec / (vec[self.normalised] * unit)
-        return [vec[c] * s for c in range(self.p)], float(lams[k])
-
-    def _linear_guess_complex(self, K, branch, s):
-        """The linear wave of a whole-period problem: the profiles are Im(Y_c e^{i xi}) with Y the eigenvector of
-        the Hermitian Bloch matrix L_cc = 2K, L_{c,c+1} = -K mu, L_{c,c-1} = -K conj(mu) against diag(m) sigma_h,
-        mu the symbol of tau_q on e^{i xi} and sigma_h = 4 sin^2(h/2)/h^2 that of -D2 (the bead types' phases
-        differ when the pattern has no reflection symmetry)."""
-        from .stencil import shift_stencil
-        import scipy.linalg
-        h, p = self.grid.h, self.p
-        offsets, weights = shift_stencil(self.sigma)
-        mu = complex(np.sum(weights * np.exp(1j * offsets * h)))
-        sigma_h = 4 * math.sin(h / 2) ** 2 / h ** 2
-        L = np.zeros((p, p), dtype=complex)
+            offsets, weights = shift_stencil(self.sigma)
+            mu_plus = complex(np.sum(weights * np.exp(1j * offsets * g.h)))
+            mu_minus = np.conj(mu_plus)
+            sigma_h = 4 * math.sin(g.h / 2) ** 2 / g.h ** 2
+        else:
+            v = g.vec_from_half_profile(s)
+            st = self.stencils.stacked(v).getArray(readonly=True)
+            n = self.nloc
+            sl = v.getArray(readonly=True)
+            dots = np.array([np.dot(sl, sl), np.dot(sl, st[:n]), np.dot(sl, st[n:2 * n]), np.dot(sl, st[2 * n:])])
+            dots = self.mpi.allreduce(dots) if self.mpi is not None else dots
+            v.destroy()
+            sigma_h, mu_plus, mu_minus = -dots[1] / dots[0], dots[2] / dots[0], dots[3] / dots[0]
+        L = np.zeros((p, p), dtype=complex if self.full else float)
         for c in range(p):
             L[c, c] += 2 * K
-            L[c, (c + 1) % p] -= K * mu
-            L[c, (c - 1) % p] -= K * np.conj(mu)
+            L[c, (c + 1) % p] -= K * mu_plus
+            L[c, (c - 1) % p] -= K * mu_minus
         lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
         k = 0 if branch == "acoustic" else p - 1
-        Y = vecs[:, k]
-        self.normalised = int(np.argmax(np.abs(Y)))
-        Y = Y * np.conj(Y[self.normalised]) / abs(Y[self.normalised]) ** 2
-        xi = self.grid.xi_half()
-        unit = 1.0 if self.measure == "a1" else profile_sup(s, True)
-        return [np.imag(Y[c] * np.exp(1j * xi)) / unit for c in range(p)], float(lams[k])
+        vec = vecs[:, k]
+        self.normalised = int(np.argmax(np.abs(vec)))
+        unit = 1.0 if self.measure == "a1" else profile_sup(s, self.full)
+        if self.full:
+            Y = vec * np.conj(vec[self.normalised]) / abs(vec[self.normalised]) ** 2
+            return [np.imag(Y[c] * np.exp(1j * xi)) / unit for c in range(p)], float(lams[k])
+        vec = vec / (vec[self.normalised] * unit)
+        return [vec[c] * s for c in range(p)], float(lams[k])
 
     # --- solving --------------------------------------------------------------------------------------------
     def tolerance_scale(self, V):
         """max(m lam) ||u||_inf: the scale of the field rows' round-off (4 eps scale / h^2 per row)."""
-        sc = self._scalars(V)
-        lam = abs(sc[0]) if self.bordered else self.lam
+        lam = abs(self._scalars(V)[0]) if self.bordered else self.lam
         return max(float(np.max(self.masses)) * lam, 1e-300) * max(V.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
 
     def solver(self, extended, prefix=None, solver=None):
         """The SNES of this problem's X (or Z) layout under ``prefix`` (built once)."""
         from .resources import check_memory
         from .twsolver import TW_PREFIX, TravellingWaveSolver, tw_solver
-        key = extended
-        if key not in self.solvers:
+        if extended not in self.solvers:
             prefix = prefix or getattr(self, "prefix", TW_PREFIX)
             check_memory(self.grid.K, self.comm, tw_solver(prefix, solver), profiles=self.p)
-            self.solvers[key] = TravellingWaveSolver(self.grid, prefix, solver, layout=self, extended=extended)
-        return self.solvers[key]
+            self.solvers[extended] = TravellingWaveSolver(self.grid, prefix, solver, layout=self, extended=extended)
+        return self.solvers[extended]
 
     def solve_state(self, X, tolerances=None):
         """Solve for X at the current parameters (SolveStats); ConvergenceError when SNES fails. With the 'sup'
         measure, the normalised profile is the largest one (max_c ||u_c||_inf = A): solved again on the
         largest profile if the solution's largest is another."""
-        self.set_gauge(X)
-        self.stats = self.solver(False).solve(self, X, tolerances)
-        self._renormalise(X, lambda: self.solver(False).solve(self, X, tolerances))
-        return self.stats
+        return self._solve(X, False, tolerances)
 
-    def _renormalise(self, V, solve):
-        if not (self.bordered and self.measure == "sup" and self.p > 1):
-            return
-        for _ in range(self.p):
-            largest = int(np.argmax([profile_sup(w, self.full) for w in self.half_profiles(V)]))
-            if largest == self.normalised:
-                return
-            self.normalised = largest
-            self.stats = solve()
+    def _solve(self, V, extended, tolerances=None):
+        """:meth:`solve_state` on an X Vec, or on a Z Vec (``extended``) with the arclength row set."""
+        self.set_gauge(V)
+        self.stats = self.solver(extended).solve(self, V, tolerances)
+        if self.bordered and self.measure == "sup" and self.p > 1:
+            for _ in range(self.p):
+                largest = int(np.argmax([profile_sup(w, self.full) for w in self.half_profiles(V)]))
+                if largest == self.normalised:
+                    break
+                self.normalised = largest
+                self.stats = self.solver(extended).solve(self, V, tolerances)
+        return self.stats
 
     def solve(self, Z, row=None, value=None):
         """The continuation layer's corrector (:meth:`ContinuationProblem.solve`)."""
@@ -780,9 +737,7 @@ class AdvanceDelayProblem(ContinuationProblem):
             return stats.iterations
         self.arclength = (gathered(row), float(value))
         try:
-            self.set_gauge(Z)
-            self.stats = self.solver(True).solve(self, Z)
-            self._renormalise(Z, lambda: self.solver(True).solve(self, Z))
+            self._solve(Z, True)
         finally:
             self.arclength = None
         self.set_parameter(self.parameter, self._scalars(Z)[-1])
@@ -805,9 +760,6 @@ class AdvanceDelayProblem(ContinuationProblem):
         if self.last:
             W.getArray()[self.p * self.nloc:] = 1.0
         return W
-
-    def test_functions(self, Z):
-        return {}
 
     def report(self, Z):
         profiles = self.half_profiles(Z)
@@ -863,24 +815,15 @@ class _JacobianProduct:
             if extended:
                 r = r + sc[-1] * p.dparam[c * n:(c + 1) * n]
             out[c * n:(c + 1) * n] = r
-        k = p.p * n
+        border = []                       # the border rows (collective), written on the last rank
         if p.bordered:
             idx, vals = p.measure_row
             own = (idx >= p.grid.rstart) & (idx < p.grid.rend)
             local = float(np.dot(vals[own], x.getArray(readonly=True)[p.normalised * n + idx[own] - p.grid.rstart]))
-            total = p.mpi.allreduce(local) if p.mpi is not None else local
-            if p.last:
-                out[k] = total
-            k += 1
+            border.append(p.mpi.allreduce(local) if p.mpi is not None else local)
         if p.full:
-            rows = p._gauge_rows([parts[c][3] for c in range(p.p)])
-            if p.last:
-                out[k:k + 2] = rows
-            k += 2
+            border.extend(p._gauge_rows([parts[c][3] for c in range(p.p)]))
         if extended:
-            row = p.arclength[0]
-            lo, hi = x.getOwnershipRange()
-            local = float(np.dot(row[lo:hi], x.getArray(readonly=True)))
-            total = p.mpi.allreduce(local) if p.mpi is not None else local
-            if p.last:
-                out[k] = total
+            border.append(p._arclength_dot(x))
+        if p.last:
+            out[p.p * n:] = border

@@ -35,8 +35,9 @@ import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
 
+from .advdelay import check_wavenumber
 from .diagnostics import sup_norm
-from .errors import ParameterError
+from .errors import check_integer
 from .stencil import INTEGER_SHIFT_TOLERANCE, full_period, shift_stencil, shifted
 from .symmetry import real_sector
 
@@ -104,14 +105,12 @@ class ComovingWave:
     n_sub: int = 8
 
     def __post_init__(self):
+        check_wavenumber(self.q)
+        self.n_sub = check_integer("n_sub", self.n_sub, 1, "the sub-pieces per cell")
         self.u_half = np.asarray(self.u_half, dtype=float)
         self.K = len(self.u_half) - 1
         self.h = math.pi / self.K
         self.sigma = self.q / self.h
-        if not (0 < self.q <= math.pi * (1 + 1e-14)):
-            raise ParameterError("q", self.q, "the wavenumber must lie in (0, pi]")
-        if self.n_sub < 1:
-            raise ParameterError("n_sub", self.n_sub, "the sub-pieces per cell must be an integer >= 1")
         law = self.model.law
         u = full_period(self.u_half)
         rp = shifted(u, self.sigma) - u

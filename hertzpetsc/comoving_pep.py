@@ -61,8 +61,7 @@ class ComovingPEP:
     MUMPS_DEFAULTS = {"st_mat_mumps_icntl_14": "100"}
 
     def __init__(self, comm, prefix=COMOVING_PREFIX, nev=12, tol=1e-13):
-        self.comm, self.prefix, self.tol = comm, prefix, tol
-        self.default_nev = nev
+        self.comm, self.prefix, self.tol, self.default_nev = comm, prefix, tol, nev
         probe = self._create()
         self.nev = probe.getDimensions()[0]          # -cm_pep_nev overrides the starting nev
         probe.destroy()

@@ -8,7 +8,8 @@ those lines gives U_q (eq. extens), a solution of eq. ad on the whole line, and 
     U(xi) = p xi + sum_j g(xi - s_j),   g(z) = 0 (z <= ell),  u(z) - p z (ell < z < 2 pi - ell),  -2 pi p (z >= 2 pi - ell),
 
 with s_0 = 0 and s_{j+1} = s_j + 2 pi + theta_j, theta_j = q d_j (d_j = extra beads between compactons j and
-j+1; d_j >= 0 in the paper, d_j >= 2 - F(q) suffices too, see :func:`min_spacing`). One bump (n = 1) is U_q; n = 2 is U^(2)_{q, theta}. On the chain (eqs. twlin, compacton, defvit):
+j+1; d_j >= 0 in the paper, d_j >= 2 - F(q) suffices too, see :func:`min_spacing`). One bump (n = 1) is U_q;
+n = 2 is U^(2)_{q, theta}. On the chain (eqs. twlin, compacton, defvit):
 
     x_n(t) = a U(q n - omega t + phi) + v t,   omega = a^((alpha-1)/2),   v = a^((alpha+1)/2) p,
 
@@ -22,7 +23,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, check_real
 from .model import ChainSpec, LatticeModel
 from .stencil import lagrange_periodic
 
@@ -79,7 +80,7 @@ class CompactonTrain:
         """U(j h) for integer j, from the grid values of u (no interpolation); needs every s_j on the grid."""
         steps = [s / self.h for s in self.offsets]
         if any(abs(k - round(k)) > 1e-9 for k in steps):
-            raise ParameterError("spacings", [s for s in self.offsets],
+            raise ParameterError("spacings", list(self.offsets),
                                  "grid evaluation needs every offset s_j to be a whole number of steps h")
         j = np.asarray(j, dtype=np.int64)
         n = len(self.u_full)
@@ -142,8 +143,8 @@ def compacton_train(point, spacings=(), q_k=None):
     Raises ParameterError when F(q) < 1 (q above q_k: no linear extension, eq. extens) or a spacing is below
     :func:`min_spacing` (the compactons would overlap).
     """
-    q = point.q
-    F = point.diagnostics.F
+    q, diag = point.q, point.diagnostics
+    F = diag.F
     if F < 1.0:
         bound = f"q <= q_k = {q_k:.4f}" if q_k is not None and q_k == q_k else "q <= q_k"
         raise ParameterError("q", q, f"compactons need F(q) = 2 ell(q)/q >= 1, i.e. {bound} "
@@ -158,8 +159,7 @@ def compacton_train(point, spacings=(), q_k=None):
     offsets = [0.0]
     for dj in d:
         offsets.append(offsets[-1] + 2 * math.pi + q * dj)
-    d = point.diagnostics
-    return CompactonTrain(model=point.model, q=q, h=point.h, p=d.slope, ell=d.ell, u_full=point.u_full,
+    return CompactonTrain(model=point.model, q=q, h=point.h, p=diag.slope, ell=diag.ell, u_full=point.u_full,
                           offsets=tuple(offsets))
 
 
@@ -178,8 +178,7 @@ class CompactonScales:
     @classmethod
     def for_velocity(cls, train, c):
         """The scales that make the compactons travel at c > 0 beads per unit time (a = (c q)^(2/(alpha-1)))."""
-        if not (math.isfinite(c) and c > 0):
-            raise ParameterError("c", c, "the compacton velocity must be a positive number of beads per unit time")
+        c = check_real("c", c, "the compacton velocity (beads per unit time)", 0.0)
         alpha = train.model.alpha
         a = (c * train.q) ** (2 / (alpha - 1))
         omega = a ** ((alpha - 1) / 2)

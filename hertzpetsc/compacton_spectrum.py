@@ -11,7 +11,6 @@ part has norm exp(-eta): without the weight the nilpotent blocks' pseudospectrum
 ~ tol^(1/L) and SLEPc accepts spurious multipliers. The multiplier 1 is a Jordan block (translation v1 = the vector
 field, (J - 1) v2 = v1): only the pair's mean is accurate, its split is ~ sqrt(integration error).
 """
-import math
 import time
 from dataclasses import dataclass
 
@@ -19,7 +18,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import gathered
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, check_integer, check_real
 from .floquet import Spectrum, largest_magnitude
 
 STABILITY_PREFIX = "cstab_"
@@ -74,8 +73,7 @@ def jordan_check(window, J, Y, gap):
 
 def exponential_weight(M, eta, j_ref):
     """Diagonal of W = diag(exp(eta (j - j_ref))) on the bead-major state (heavier ahead)."""
-    w = np.exp(eta * (np.arange(M) - j_ref))
-    return np.repeat(w, 2)
+    return np.repeat(np.exp(eta * (np.arange(M) - j_ref)), 2)
 
 
 class WeightedWindowOperator:
@@ -98,13 +96,11 @@ class WindowStability:
     be meaningful: below, the transport part's pseudospectrum)."""
 
     def __init__(self, window, nev=3, eta=DEFAULT_ETA, tol=1e-12, prefix=STABILITY_PREFIX):
-        if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= window.dim):
-            raise ParameterError("-nev", nev, f"the window map has dimension 2M = {window.dim}: 1 <= nev <= "
-                                              f"{window.dim}")
-        if not (math.isfinite(eta) and 0 <= eta <= 700.0 / max(window.M, 1)):
-            raise ParameterError("-eta", eta, f"the weight exp(eta M) must stay finite: 0 <= eta <= "
-                                              f"{700.0 / window.M:.3g} for M = {window.M}")
-        self.window, self.nev, self.eta = window, int(nev), float(eta)
+        nev = check_integer("-nev", nev, 1, "the number of multipliers", window.dim,
+                            f"(the window map has dimension 2M = {window.dim})")
+        eta = check_real("-eta", eta, f"the weight's rate (exp(eta M) finite, M = {window.M})", 0.0,
+                         700.0 / window.M, lo_open=False, hi_open=False)
+        self.window, self.nev, self.eta = window, nev, eta
         self.eps = largest_magnitude(window.comm, prefix, self.nev, min(window.dim, max(2 * self.nev + 1,
                                                                                         self.nev + 15)), tol)
 

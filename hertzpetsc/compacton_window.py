@@ -27,7 +27,7 @@ from petsc4py import PETSc
 
 from .chain import Chain, IntegrationTolerances
 from .continuation import ContinuationProblem
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_integer
 from .gauss_newton import GaussNewton
 from .model import ChainSpec
 from .tangent import TangentFlow
@@ -84,9 +84,8 @@ class CompactonWindow:
     first use). Arrays in and out are given on every rank."""
 
     def __init__(self, model, M, comm, tolerances=WINDOW_TOLERANCES, prefix=WINDOW_PREFIX, rk_type="8vr"):
-        if not (isinstance(M, (int, np.integer)) and M >= 4):
-            raise ParameterError("M", M, "the window needs at least 4 beads")
-        self.model, self.M, self.comm, self.spec = model, int(M), comm, ChainSpec(model, int(M), "free")
+        self.M = check_integer("M", M, 4, "the window's number of beads")
+        self.model, self.comm, self.spec = model, comm, ChainSpec(model, self.M, "free")
         self.tolerances, self.prefix, self.rk_type = tolerances, prefix, rk_type
         self._flows = {}
         self._flow(0)                  # reads and checks the -cwin_ts_* options now

@@ -29,9 +29,10 @@ class ProfileGrid:
 
     With ``parity = +1`` the profiles are even instead (u_{2K-j} = u_j, unknowns u_0 .. u_K); with ``parity = 0``
     they have no symmetry (unknowns u_0 .. u_{2K-1}: the whole period; the waves of mass patterns of three or more
-    beads, where n -> -n exchanges bead types); ``length`` replaces 2 pi by another period. With ``dirichlet`` (even profiles only) the profile lives on the line and
-    vanishes beyond +-length/2 instead of being periodic: the solitary wave of :mod:`hertzpetsc.solitary` (on a
-    period, sum_j R_j = 0 for eq. adr and its Jacobian would be singular).
+    beads, where n -> -n exchanges bead types); ``length`` replaces 2 pi by another period. With ``dirichlet`` (even
+    profiles only) the profile lives on the line and vanishes beyond +-length/2 instead of being periodic: the
+    solitary wave of :mod:`hertzpetsc.solitary` (on a period, sum_j R_j = 0 for eq. adr and its Jacobian would be
+    singular).
     """
 
     def __init__(self, cells_per_pi, comm, parity=-1, length=2 * math.pi, dirichlet=False):
@@ -40,12 +41,11 @@ class ProfileGrid:
             raise ParameterError("parity", parity, "must be -1 (odd profiles), +1 (even) or 0 (no symmetry)")
         if dirichlet and parity < 0:
             raise ParameterError("dirichlet", dirichlet, "is only available for even profiles (parity +1)")
-        self.parity = parity
-        self.dirichlet = dirichlet
+        self.parity, self.dirichlet, self.comm = parity, dirichlet, comm
         self.h = 0.5 * length / self.K
-        self.comm = comm
         self.offset = 1 if parity < 0 else 0          # unknown index = grid index - offset
         self.size = self.K - 1 if parity < 0 else (self.K + 1 if parity > 0 else 2 * self.K)
+        self.n_half = self.K + 1 if parity else 2 * self.K      # values of a half profile (xi_half)
         # The PETSc default layout, fixed once so that every Vec and Mat of this grid shares it.
         self._template = PETSc.Vec().createMPI(self.size, comm=self.comm)
         self.rstart, self.rend = self._template.getOwnershipRange()
@@ -53,7 +53,7 @@ class ProfileGrid:
     def xi_half(self):
         """Points xi_j = j h, j = 0..K (the half period [0, pi] on which profiles are stored); the whole period
         (j = 0 .. 2K-1) when the profiles have no symmetry."""
-        return np.arange(self.K + 1 if self.parity else 2 * self.K) * self.h
+        return np.arange(self.n_half) * self.h
 
     def create_vec(self):
         return self._template.duplicate()
@@ -82,18 +82,17 @@ class ProfileGrid:
     def half_profile(self, vec):
         """The profile on the half period (K+1 values; zeros at both ends if odd; the whole period's 2K values
         without symmetry) as a numpy array on every rank."""
-        out = np.zeros(self.K + 1 if self.parity else 2 * self.K)
+        out = np.zeros(self.n_half)
         out[self.offset:self.offset + self.size] = gathered(vec)
         return out
 
     def vec_from_half_profile(self, values):
         """A distributed Vec holding the odd profile whose values on [0, pi] are ``values`` (K+1 numbers)."""
         values = np.asarray(values, dtype=float)
-        n = self.K + 1 if self.parity else 2 * self.K
-        if values.shape != (n,):
+        if values.shape != (self.n_half,):
             raise ParameterError("profile", f"array of shape {values.shape}",
-                                 f"must have {n} values on [0, {'pi' if self.parity else '2 pi'}) for cells_per_pi = "
-                                 f"{self.K}")
+                                 f"must have {self.n_half} values on [0, {'pi' if self.parity else '2 pi'}) for "
+                                 f"cells_per_pi = {self.K}")
         vec = self.create_vec()
         vec.setArray(values[self.rstart + self.offset:self.rend + self.offset])
         return vec

@@ -24,7 +24,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import IntegrationTolerances
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .gauss_newton import GaussNewton
 from .tangent import TangentFlow
 
@@ -124,13 +124,11 @@ class Refiner:
 
     def __init__(self, spec, comm, tol=1e-10, max_iterations=20, tolerances=MEASURE_TOLERANCES,
                  prefix=SHOOT_PREFIX, symmetric=True, jacobian_tolerances=JACOBIAN_TOLERANCES):
-        if not tol > 0:
-            raise ParameterError("tol", tol, "the target residual must be positive")
+        tol = check_real("tol", tol, "the target residual", 0.0)
         self.spec, self.tol, self.comm, self.symmetric = spec, tol, comm, symmetric
         self.tolerances, self.jacobian_tolerances, self.prefix = tolerances, jacobian_tolerances, prefix
-        self.max_iterations = PETSc.Options().getInt(prefix + "gn_max_it", max_iterations)
-        if self.max_iterations < 1:
-            raise ParameterError(f"-{prefix}gn_max_it", self.max_iterations, "must be an integer >= 1")
+        self.max_iterations = check_integer(f"-{prefix}gn_max_it",
+                                            PETSc.Options().getInt(prefix + "gn_max_it", max_iterations), 1)
         self.engine = GaussNewton(comm)
         self._flows = {}
         self.smap = self._maps(spec.N)[0]          # configures both flows (options read now)

@@ -49,12 +49,9 @@ class SecondDifferencePC:
     """
 
     def __init__(self, grid, stencils=None, name="d2"):
-        self.grid = grid
         stencils = second_difference(grid) if stencils is None else stencils
-        rstart, rend = grid.rstart, grid.rend
-        nloc = rend - rstart
-        self.nloc = nloc
-        rows = np.arange(rstart, rend)[:, None]
+        self.nloc = nloc = grid.rend - grid.rstart
+        rows = np.arange(grid.rstart, grid.rend)[:, None]
         cols, coef = stencils.cols[name], stencils.coef[name]
         lower = np.where(cols == rows - 1, coef, 0.0).sum(axis=1)
         diag = np.where(cols == rows, coef, 0.0).sum(axis=1)
@@ -64,9 +61,7 @@ class SecondDifferencePC:
         # the diagonal block, as sequential AIJ (CSR rows: lower, diagonal, upper within the block)
         local = np.arange(nloc)
         entries = [(local - 1, lower, local > 0), (local, diag, local >= 0), (local + 1, upper, local < nloc - 1)]
-        c = np.stack([e[0] for e in entries], axis=1)
-        v = np.stack([e[1] for e in entries], axis=1)
-        keep = np.stack([e[2] for e in entries], axis=1)
+        c, v, keep = (np.stack(column, axis=1) for column in zip(*entries))
         indptr = np.concatenate([[0], np.cumsum(keep.sum(axis=1))]).astype(PETSc.IntType)
         self.block = PETSc.Mat().createAIJ((nloc, nloc), csr=(indptr, c[keep].astype(PETSc.IntType), v[keep]),
                                            comm=PETSc.COMM_SELF)
@@ -224,10 +219,8 @@ ACCEPT_FACTOR = 1e3
 
 TW_SOLVERS = ("direct", "nk")
 
-# Defaults of the Newton-Krylov path (-tw_solver nk): GMRES preconditioned by the exact inverse of the second
-# difference (:class:`SecondDifferencePC`). J = D2 + K with K bounded as h -> 0 (V''-weighted shifts), so
-# D2^{-1} J = I + compact and the Krylov iteration count does not grow as the grid is refined. The linear
-# tolerance keeps Newton quadratic down to round-off of the discrete equations.
+# The GMRES tolerance of the Newton-Krylov path (-tw_solver nk, :class:`SecondDifferencePC`): it keeps Newton
+# quadratic down to round-off of the discrete equations.
 NK_KSP_RTOL = 1e-10
 
 
@@ -241,42 +234,38 @@ def tw_solver(prefix=TW_PREFIX, solver=None):
     return solver
 
 
-def _set_linear_defaults(snes, solver, grid, stencils=None, blocks=None):
-    """The code defaults of the linear solves (before the options database is read). ``blocks`` = (p, nloc): a
-    layout of p profiles and border scalars (the nk preconditioner is then :class:`BlockSecondDifferencePC`; LU is
-    MUMPS, whose pivoting handles the zero diagonal of the border rows, also on one rank)."""
+def _configure(snes, prefix, solver, grid, stencils=None, blocks=None):
+    """The code defaults of the linear solves, then snes.setFromOptions() with :data:`QN_DEFAULTS` inserted for the
+    call only (where the user set none); returns the nk preconditioner's context (None for 'direct'). ``blocks`` =
+    (p, nloc): a layout of p profiles and border scalars (the nk preconditioner is then
+    :class:`BlockSecondDifferencePC`; LU is MUMPS, whose pivoting handles the zero diagonal of the border rows,
+    also on one rank)."""
     ksp = snes.getKSP()
     pc = ksp.getPC()
+    context = None
     if solver == "direct":
         ksp.setType(PETSc.KSP.Type.PREONLY)
         pc.setType(PETSc.PC.Type.LU)
         if grid.comm.getSize() > 1 or blocks is not None:
             pc.setFactorSolverType("mumps")
-        return None
-    ksp.setType(PETSc.KSP.Type.GMRES)
-    ksp.setTolerances(rtol=NK_KSP_RTOL)
-    pc.setType(PETSc.PC.Type.PYTHON)
-    context = PeriodicSecondDifferencePC(grid) if grid.parity == 0 else SecondDifferencePC(grid, stencils)
-    if blocks is not None:
-        context = BlockSecondDifferencePC(context, *blocks)
-    pc.setPythonContext(context)
-    return context
-
-
-def _set_from_options(snes, prefix):
-    """snes.setFromOptions(), with :data:`QN_DEFAULTS` inserted for the call only (where the user set none)."""
+    else:
+        ksp.setType(PETSc.KSP.Type.GMRES)
+        ksp.setTolerances(rtol=NK_KSP_RTOL)
+        pc.setType(PETSc.PC.Type.PYTHON)
+        context = PeriodicSecondDifferencePC(grid) if grid.parity == 0 else SecondDifferencePC(grid, stencils)
+        if blocks is not None:
+            context = BlockSecondDifferencePC(context, *blocks)
+        pc.setPythonContext(context)
     defaults = QN_DEFAULTS if PETSc.Options().getString(prefix + "snes_type", "") == "qn" else {}
     with inserted_options(prefix, defaults):
         snes.setFromOptions()
+    return context
 
 
 def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None, solver=None):
     """SNES with the paper-reproducing defaults, then the options database under ``prefix`` (read once).
-
-    ``solver`` (or ``-<prefix>solver``) picks the defaults of the linear solves: 'direct' (PREONLY + LU, MUMPS
-    on several ranks) or 'nk' (GMRES preconditioned by :class:`SecondDifferencePC`, which needs the problem's
-    ``stencils["d2"]``). Either can be changed afterwards by -<prefix>ksp_type, -<prefix>pc_type, ...
-    """
+    ``solver``: the linear solves' defaults (:func:`tw_solver`; 'nk' needs the problem's ``stencils["d2"]``), which
+    -<prefix>ksp_type, -<prefix>pc_type, ... can change."""
     solver = tw_solver(prefix, solver)
     snes = PETSc.SNES().create(comm=problem.grid.comm)
     snes.setOptionsPrefix(prefix)
@@ -286,8 +275,7 @@ def create_snes(problem, J, prefix=TW_PREFIX, tolerances=None, solver=None):
     snes.setJacobian(problem.formJacobian, J, J)
     if tolerances:
         snes.setTolerances(**tolerances)
-    _set_linear_defaults(snes, solver, problem.grid, getattr(problem, "stencils", None))
-    _set_from_options(snes, prefix)
+    _configure(snes, prefix, solver, problem.grid, getattr(problem, "stencils", None))
     F.destroy()
     return snes
 
@@ -320,9 +308,8 @@ class TravellingWaveSolver:
         else:
             self.F = layout.create_vec() if extended else layout.create_state()
         self.snes.setFunction(self._function, self.F)
-        self.pc_context = _set_linear_defaults(self.snes, self.solver, grid,
-                                               blocks=None if plain else (layout.p, layout.nloc))
-        _set_from_options(self.snes, prefix)
+        self.pc_context = _configure(self.snes, prefix, self.solver, grid,
+                                     blocks=None if plain else (layout.p, layout.nloc))
         opts = PETSc.Options()
         default_kind = "shell" if self.solver == "nk" else "aij"
         self.jacobian_kind = opts.getString(prefix + "jacobian", default_kind)

@@ -100,7 +100,7 @@ class WindowStability:
                             f"(the window map has dimension 2M = {window.dim})")
         eta = check_real("-eta", eta, f"the weight's rate (exp(eta M) finite, M = {window.M})", 0.0,
                          700.0 / window.M, lo_open=False, hi_open=False)
-        self.window, self.nev, self.eta = window, nev, eta
+        self.window, self.nev, self.eta, self.prefix = window, nev, eta, prefix
         self.eps = largest_magnitude(window.comm, prefix, self.nev, min(window.dim, max(2 * self.nev + 1,
                                                                                         self.nev + 15)), tol)
 
@@ -117,7 +117,7 @@ class WindowStability:
             self.eps.solve()
             nconv = self.eps.getConverged()
             if nconv < self.eps.getDimensions()[0]:
-                raise ConvergenceError("window EPS (prefix -cstab_eps_)", int(self.eps.getConvergedReason()),
+                raise ConvergenceError(f"window EPS (prefix -{self.prefix}eps_)", int(self.eps.getConvergedReason()),
                                        converged=nconv)
             vals = np.array([complex(self.eps.getEigenvalue(i)) for i in range(nconv)])
             errs = np.array([self.eps.computeError(i) for i in range(nconv)])

@@ -285,13 +285,22 @@ class AdvanceDelayProblem(ContinuationProblem):
         """A new extended Vec Z = (X, parameter)."""
         return PETSc.Vec().createMPI(self.sizes(True), comm=self.comm)
 
-    def global_index(self, c, i, extended=False):
-        """Index in X (or Z) of grid unknown i of profile c."""
+    def global_index(self, c, i, extended=False, counts=None):
+        """Index in X (or Z) of grid unknown i of profile c (``counts``: the grid rows per rank of another split
+        than this run's, e.g. the one a saved vector was written with)."""
+        starts, counts = (self._starts, self._counts) if counts is None else (np.cumsum(counts) - counts, counts)
         i = np.asarray(i, dtype=np.int64)
-        owner = np.searchsorted(self._starts, i, side="right") - 1
-        start, count = self._starts[owner], self._counts[owner]
+        owner = np.searchsorted(starts, i, side="right") - 1
+        start, count = starts[owner], counts[owner]
         # each rank holds its rows of u_0 .. u_{p-1} one after the other; the scalars sit after them on the last
         return self.p * start + c * count + (i - start)
+
+    def natural_order(self, size, counts=None):
+        """The positions in an X or Z Vec of ``size`` entries of its values in an order that does not depend on the
+        ranks (u_0 whole, ..., u_{p-1} whole, then the scalars): ``V_natural = gathered(V)[order]``."""
+        i = np.arange(self.grid.size)
+        return np.concatenate([self.global_index(c, i, counts=counts) for c in range(self.p)]
+                              + [np.arange(self.p * self.grid.size, size)])
 
     def scalar_index(self, k, extended=False):
         """Index of scalar k (0: lam; with ``extended``, the parameter after the scalars of X)."""

@@ -277,16 +277,20 @@ class MassFamily:
 
     def snapshot(self):
         """What a resume needs (collective; plain arrays, the same on every rank): the last two points' extended
-        vectors, their arclengths, the next step and the normalised profile."""
+        vectors in the ranks' independent order (:meth:`~hertzpetsc.advdelay.AdvanceDelayProblem.natural_order`;
+        ``layout`` says so), their arclengths, the next step and the normalised profile."""
         hist = self.continuation.history
-        return dict(Z=np.array([gathered(Z) for Z, _, _ in hist]), s=np.array([s for _, s, _ in hist]),
-                    ds=float(self.continuation.ds), normalised=int(self.problem.normalised))
+        order = self.problem.natural_order(self.problem.sizes(True)[1])
+        return dict(Z=np.array([gathered(Z)[order] for Z, _, _ in hist]), s=np.array([s for _, s, _ in hist]),
+                    ds=float(self.continuation.ds), normalised=int(self.problem.normalised), layout="natural")
 
     def restore(self, snap):
-        """Continue from a :meth:`snapshot` (instead of :meth:`start`)."""
+        """Continue from a :meth:`snapshot` (instead of :meth:`start`), on any number of ranks."""
         self.problem.normalised = int(snap["normalised"])
         states = []
-        for full in np.asarray(snap["Z"]):
+        for natural in np.asarray(snap["Z"]):
+            full = np.empty_like(natural)
+            full[self.problem.natural_order(len(natural))] = natural
             Z = self.problem.create_vec()
             lo, hi = Z.getOwnershipRange()
             Z.getArray()[:] = full[lo:hi]

@@ -135,6 +135,44 @@ def test_dimer_driver(tmp_path):
     assert "-epsilon_end" in one_error_line(run_script("dimer_branch.py", "-epsilon_end", "1.5", *common, *out(3)))
 
 
+@pytest.mark.serial
+def test_a_dimer_file_resumes_on_another_number_of_ranks(tmp_path):
+    """The saved state does not depend on the ranks: a run of 2 steps on 2 ranks resumed on 1 (and one of 1 resumed on
+    2) equals the uninterrupted run to round-off (MUMPS on 2 ranks). A file of the earlier code holds its state in
+    its writer's rank layout, without ``state_layout``: it resumes too, and a state matching none of the layouts is
+    a file error naming the file."""
+    common = ["-cells_per_pi", "60", "-a", "0.3"]
+    out = lambda k: ["-output", tmp_path / f"d{k}.npz", "-table", tmp_path / f"d{k}.md"]   # noqa: E731
+    assert run_script("dimer_branch.py", *common, "-max_steps", "4", *out(0), timeout=120).returncode == 0
+    full = np.load(tmp_path / "d0.npz")
+    for k, (first, then) in enumerate([(2, 1), (1, 2)], 1):
+        r = run_script("dimer_branch.py", *common, "-max_steps", "2", *out(k), ranks=first, timeout=120)
+        assert r.returncode == 0, r.stderr
+        r = run_script("dimer_branch.py", *common, "-max_steps", "4", *out(k), "-resume", ranks=then, timeout=120)
+        assert r.returncode == 0, r.stderr
+        d = np.load(tmp_path / f"d{k}.npz")
+        assert str(d["state_layout"]) == "natural" and np.array_equal(d["event"], full["event"])
+        for f in ("epsilon", "omega", "norm_v", "arclength"):
+            assert np.allclose(d[f], full[f], rtol=1e-10, atol=0), f
+    # the earlier layout on 2 ranks: each rank's rows of u_0, then of u_1 (K - 1 = 59 unknowns: 30 and 29 rows)
+    assert run_script("dimer_branch.py", *common, "-max_steps", "2", *out(3), timeout=120).returncode == 0
+    data = dict(np.load(tmp_path / "d3.npz"))
+    Z = data.pop("state_Z")
+    assert str(data.pop("state_layout")) == "natural"
+    u, v, rest = Z[:, :59], Z[:, 59:118], Z[:, 118:]
+    data["state_Z"] = np.hstack([u[:, :30], v[:, :30], u[:, 30:], v[:, 30:], rest])
+    np.savez(tmp_path / "d3.npz", **data)
+    r = run_script("dimer_branch.py", *common, "-max_steps", "4", *out(3), "-resume", timeout=120)
+    assert r.returncode == 0, r.stderr
+    d = np.load(tmp_path / "d3.npz")
+    for f in ("epsilon", "omega", "norm_v", "arclength", "event"):
+        assert np.array_equal(d[f], full[f]), f
+    data["state_Z"] = Z[:, ::-1]
+    np.savez(tmp_path / "d4.npz", **data)
+    r = run_script("dimer_branch.py", *common, "-max_steps", "4", *out(4), "-resume", timeout=120)
+    assert r.returncode == 4 and "d4.npz" in one_error_line(r) and "state_Z" in r.stderr
+
+
 def test_a_mass_patterns_amplitude_family_does_not_jump_branches():
     """The six-amplitude dimer maps' steps (a = 0.1, 0.3, 1, 3; epsilon = 0.4, q = 7pi/25) landed on another branch
     when every converged step as long as the grid's was taken (omega 0.79 at a = 3); with the pattern's guards

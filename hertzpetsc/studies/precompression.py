@@ -14,7 +14,8 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
   norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
   iterations, event (0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the
   path); state (for -resume of the q in progress): ``state_q``, ``state_Z`` (2, n) the last two extended
-  vectors (profiles, lam, epsilon), ``state_s``, ``state_ds``, ``state_normalised``. A ``hertzpetsc-dimer-1``
+  vectors (u_0 whole, u_1 whole, lam, epsilon: ``state_layout`` = 'natural'; without it, an older file's vectors in
+  its writer's rank layout), ``state_s``, ``state_ds``, ``state_normalised``. A ``hertzpetsc-dimer-1``
   file (no event, no state) is read for its tables; it cannot be resumed.
 
 The stability map in (q, A) (record kind ``hertzpetsc-precompression-map-2``) is :mod:`hertzpetsc.studies.maps`,
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..diagnostics import sup_norm
-from ..errors import ConvergenceError, ParameterError, check_integer
+from ..errors import ConvergenceError, ParameterError, RecordFileError, check_integer
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..advdelay import check_wavenumber
 from ..model import ChainSpec, LatticeModel
@@ -335,6 +336,25 @@ class DimerFamilies(Study):
                     v2=self.a * sine_coefficient(w.profiles[1], 2), iterations=w.iterations,
                     event=EVENT_CODES[getattr(p, "event", None)])
 
+    def _natural_state(self, state, q, problem):
+        """The saved state with its vectors in the ranks' independent order. Files written before that order (no
+        ``state_layout``) hold them in the layout of the writer's ranks, which they do not record: it is the split of
+        the grid over r ranks (PETSc's, r = 1, 2, ...) whose last profiles give back the last record's ||u||,
+        ||v|| and v1."""
+        if str(state.get("layout", "")) == "natural":
+            return state
+        Z = np.asarray(state["Z"])
+        n, last = problem.grid.size, self._regular(q)[-1]
+        want = [float(last[k]) for k in ("norm_u", "norm_v", "v1")]
+        for r in range(1, n + 1):
+            order = problem.natural_order(Z.shape[1], n // r + (np.arange(r) < n % r))
+            u, v = (np.concatenate([[0.0], w, [0.0]]) for w in np.split(Z[-1][order][:2 * n], 2))
+            got = [self.a * sup_norm(u), self.a * sup_norm(v), self.a * sine_coefficient(v, 1)]
+            if np.allclose(got, want, rtol=1e-10, atol=0.0):
+                return dict(state, Z=Z[:, order], layout="natural")
+        raise RecordFileError(f"{self.WHAT} {self.output!r}: its saved state (state_Z) does not match its last "
+                              f"record at q = {q!r}: rerun with -force")
+
     def _regular(self, q):
         """The records of the regular points of the path at q (events left out)."""
         return [r for r in _at(self.store.records, q) if int(r.get("event", 0)) == 0]
@@ -362,7 +382,7 @@ class DimerFamilies(Study):
             try:
                 state = self.store.state
                 if saved >= 2 and "q" in state and abs(float(state["q"]) - q) <= 1e-12 * q:
-                    mc.restore(state)
+                    mc.restore(self._natural_state(state, q, mc.problem))
                 else:
                     # the two start points; the state (both points) is saved with the second: a run stopped after
                     # the first recomputes them and saves the second (the first is the same computation)

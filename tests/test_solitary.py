@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.errors import ParameterError
+from hertzpetsc.errors import ConvergenceError, ParameterError
 from hertzpetsc.hertz import HertzLaw
 from hertzpetsc.solitary import SolitaryParameters, solve_solitary_wave
 
@@ -47,6 +47,15 @@ def test_k_alpha_converges_at_second_order_to_the_paper_value():
 def test_short_domain_is_refused():
     with pytest.raises(ParameterError, match="half_length.*too short"):
         solve_solitary_wave(SolitaryParameters(1.5, 20, 3.0), PETSc.COMM_WORLD)
+
+
+def test_a_converged_solve_with_a_residual_above_the_acceptance_is_a_convergence_error(monkeypatch):
+    """SNES may stop on a relative or step test with the residual still above ACCEPT_FACTOR * atol: that is reported
+    as a convergence failure naming the residual (it was a ValueError from int() of the reason's text)."""
+    import hertzpetsc.solitary as solitary
+    monkeypatch.setattr(solitary, "ACCEPT_FACTOR", 1e-30)
+    with pytest.raises(ConvergenceError, match="but residual"):
+        solve_solitary_wave(SolitaryParameters(1.5, 10, 8.0), PETSc.COMM_WORLD)
 
 
 @pytest.mark.parametrize("kw,name", [(dict(cells_per_unit=15), "cells_per_unit"), (dict(alpha=1.0), "alpha"),

@@ -55,6 +55,7 @@ class AmplitudePoint:
     m1: float = float("nan")
     event: str = None          # a located point: the test function whose root it is ('gap', or a caller's test)
     bracket: tuple = None      # ... and the last bracket ((s, value), (s, value)) in s = log a around the root
+    normalised: int = 0        # the profile c* whose measure is 1 (the family's normalisation)
 
     @property
     def s(self):
@@ -121,7 +122,8 @@ class FamilyProblem(AdvanceDelayProblem):
         return AmplitudePoint(q=self.q, a=a, A=a * norm, omega=omega,
                               Omega=math.sqrt(max(lam, 0.0)) * norm ** (-(d - 1) / 2), lam=lam,
                               gap=self.gap(prof) if self.model.delta0 > 0 else math.inf, profiles=tuple(prof),
-                              iterations=iterations, m1=float(self.masses[1]) if self.p > 1 else 1.0)
+                              iterations=iterations, m1=float(self.masses[1]) if self.p > 1 else 1.0,
+                              normalised=self.normalised)
 
 
 # A mass pattern's family is guarded against natural steps that land on another branch (docs/beyond-the-paper.md,
@@ -202,10 +204,10 @@ class AmplitudeFamily:
 
 
 def uncompressed_limit(model, q, grid, start, prefix=PRECOMP_PREFIX):
-    """The delta0 / a = 0 wave on ``grid`` from the AmplitudePoint ``start`` (a large-amplitude wave of the family):
-    Omega(q, 0) = ||u(.;q)||^((1-alpha)/2) of eq. dispers on the same grid, with ||u|| = max_c ||u_c||_inf over a
-    mass pattern's profiles (the amplitude A of the family's points)."""
-    problem = FamilyProblem(model, grid, q, amplitude=math.inf, parameter="q")
+    """The delta0 / a = 0 wave on ``grid`` from the AmplitudePoint ``start`` (a large-amplitude wave of the family,
+    normalised as it is): Omega(q, 0) = ||u(.;q)||^((1-alpha)/2) of eq. dispers on the same grid, with ||u|| =
+    max_c ||u_c||_inf over a mass pattern's profiles (the amplitude A of the family's points)."""
+    problem = FamilyProblem(model, grid, q, amplitude=math.inf, normalised=start.normalised, parameter="q")
     problem.prefix = prefix
     try:
         X = problem.pack(start.profiles, start.lam)

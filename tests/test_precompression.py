@@ -147,6 +147,28 @@ def test_large_amplitude_limit_is_the_uncompressed_wave():
     assert [p.omega for p in pts][0] == pytest.approx(model.linear_frequencies(Q)[0], rel=1e-4)  # h^2/24 ~ 1e-5
 
 
+def test_the_optical_dimer_wave_at_the_zone_edge_reaches_its_uncompressed_limit():
+    """At per-bead q = pi/2 (the dimer's zone edge) the optical wave is carried by the light bead (its linear wave
+    leaves the heavy one at rest), so its family normalises profile 1; the delta0 / a = 0 solve starts from the
+    family's last wave with the same normalisation (with profile 0's it began at residual 1 and diverged) and
+    gives the Omega0 that the family's Omega = Omega0 + c1 delta0 / A + O((delta0 / A)^2) extrapolates to
+    (three-term fit over A >= 100: error O((delta0 / A)^3) ~ 1e-6 at A = 100)."""
+    model = LatticeModel.hertz(1.5, masses=(1.0, 0.5), delta0=1.0)
+    grid = ProfileGrid(100, COMM)
+    fam = AmplitudeFamily(model, math.pi / 2, grid, branch="optical")
+    try:
+        pts = list(fam.points(amplitude_grid(1e-2, 1e3, math.log(10) / 4)))
+        assert pts[-1].normalised == 1
+        limit = uncompressed_limit(model, math.pi / 2, grid, pts[-1])
+    finally:
+        fam.destroy()
+    assert limit["iterations"] <= 4
+    far = [p for p in pts if p.A >= 100]
+    x = np.array([1.0 / p.A for p in far])
+    fit = np.linalg.lstsq(np.stack([np.ones_like(x), x, x ** 2], 1), [p.Omega for p in far], rcond=None)[0][0]
+    assert limit["Omega0"] == pytest.approx(fit, rel=1e-6)
+
+
 def test_gap_opening():
     """The gap indicator 2 u(q/2) - delta0 vanishes at the located point, where the largest extension u(xi+q) - u(xi)
     on the grid equals delta0 (O(h^2): the grid misses the maximiser by up to h/2 on a smooth maximum); A_gap

@@ -274,7 +274,9 @@ def limit_probe(study, q, grid, probe, point):
     entry = probe.wave(probe.entry(point))
     fine, lam2 = entry["fine"]
     coarse = uncompressed_limit(study.model, q, grid, point)
-    fine = uncompressed_limit(study.model, q, probe.companion.problem.grid, SimpleNamespace(profiles=fine, lam=lam2))
+    companion = probe.companion.problem
+    fine = uncompressed_limit(study.model, q, companion.grid,
+                              SimpleNamespace(profiles=fine, lam=lam2, normalised=companion.normalised))
     w = [extrapolate(np.asarray(w1), np.asarray(w2)[::2]) for w1, w2 in zip(coarse["profiles"], fine["profiles"])]
     lam = extrapolate(coarse["lam"], fine["lam"])
     # the probe of the delta0 = 0 chain on this wave (a = inf: wave_orbit takes the wave as it is)

@@ -663,6 +663,13 @@ class AdvanceDelayProblem(ContinuationProblem):
                                  "(a precompression > 0)")
         if branch not in ("acoustic", "optical"):
             raise ParameterError("branch", branch, "must be 'acoustic' or 'optical'")
+        if branch == "optical" and self.p == 1:
+            raise ParameterError("branch", branch, "a monatomic chain has the acoustic branch only")
+        cells = self.p * self.q / (2 * math.pi)
+        if branch == "acoustic" and abs(cells - round(cells)) < 1e-12 * self.p:
+            raise ParameterError("q", self.q, f"the acoustic wave of a pattern of {self.p} beads has zero frequency "
+                                 f"at q = 2 pi k / {self.p} (its cells move as one): choose another q, or the optical "
+                                 "branch")
         import scipy.linalg
         g, p = self.grid, self.p
         xi = g.xi_half()

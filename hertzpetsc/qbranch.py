@@ -56,6 +56,10 @@ class ContinuationParameters:
             model = LatticeModel.hertz(check_alpha(1.5 if self.alpha is None else self.alpha))
         elif self.alpha is not None and check_alpha(self.alpha) != model.alpha:
             raise ParameterError("alpha", self.alpha, f"differs from the model's exponent {model.alpha}")
+        if model.cell != 1 or model.delta0 != 0:
+            raise ParameterError("model", model.describe(), "the q-branch (eq. ad at omega = 1 from the binary "
+                                 "oscillation) is the uncompressed monatomic chain's; a precompressed chain or a mass "
+                                 "pattern has its waves at a given amplitude (wave_at, AmplitudeFamily)")
         object.__setattr__(self, "model", model)
         object.__setattr__(self, "alpha", model.alpha)
         object.__setattr__(self, "M", check_integer("M", self.M, 1, note="(wavenumbers q = m pi / M)"))

@@ -192,6 +192,31 @@ def test_bad_wave_input():
         AmplitudeFamily(LatticeModel.hertz(1.5, masses=(1.0, 0.5)), 0.6, grid)
 
 
+@pytest.mark.parametrize("masses,q", [((1.0, 0.7), math.pi), ((1.0, 0.5, 0.25), 2 * math.pi / 3),
+                                      ((1.0, 0.5, 0.25, 0.5), math.pi / 2)])
+def test_a_wavenumber_where_the_acoustic_wave_has_zero_frequency_is_refused(masses, q):
+    """At q = 2 pi k / p the acoustic linear wave of a pattern of p beads moves every cell as one (zero frequency):
+    no acoustic wave starts there, and the family refuses q before any Newton step (it stopped with a solver
+    failure); the optical wave exists there."""
+    model = LatticeModel.hertz(1.5, masses=masses, delta0=1.0)
+    grid = ProfileGrid(40, COMM)
+    with pytest.raises(ParameterError, match="q = .*zero frequency"):
+        wave_at(model, q, 0.1, grid)
+    assert wave_at(model, q, 0.1, grid, branch="optical").omega > 0
+
+
+def test_the_optical_branch_of_a_monatomic_chain_and_its_q_branch_with_a_pattern_are_refused():
+    """A monatomic chain has one branch (the optical request returned the acoustic wave); the q-branch at omega = 1
+    (section 3.1) is the uncompressed monatomic chain's (a pattern raised an IndexError, a precompressed chain a
+    continuation failure at q = pi)."""
+    from hertzpetsc.qbranch import ContinuationParameters
+    with pytest.raises(ParameterError, match="branch.*acoustic branch only"):
+        wave_at(LatticeModel.hertz(1.5, delta0=1.0), math.pi / 4, 0.5, ProfileGrid(40, COMM), branch="optical")
+    for model in (LatticeModel.hertz(1.5, masses=(1.0, 0.5)), LatticeModel.hertz(1.5, delta0=1.0)):
+        with pytest.raises(ParameterError, match="model.*monatomic"):
+            ContinuationParameters(model=model)
+
+
 def test_trimer_wave_is_a_travelling_wave_of_the_chain():
     """The trimer's wave (whole-period profiles, gauge rows) put on 90 beads is periodic modulo the shift by one
     cell up to its O(h^2) discretisation error: E of the second-order scheme at h = pi/200 and pi/400 falls by the

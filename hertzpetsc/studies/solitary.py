@@ -40,7 +40,7 @@ class SolitaryStudy:
 
     def section(self, alpha):
         ks, wl = self.results[alpha]
-        order, extrap = richardson(ks, order=2)
+        order, extrap = richardson(ks, order=2, steps=[1.0 / n for n in self.cells])      # any ratios of the grids
         cells, lengths = self.cells, self.lengths
         return [f"\n### alpha = {alpha}\n", "| n (delta = 1/n) | " + " | ".join(str(n) for n in cells)
                 + " | observed order | extrapolated |", "|---|" + "---|" * (len(cells) + 2),

@@ -17,6 +17,7 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.continuation import Natural  # noqa: E402
+from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.driven import (EVENT_NAMES, ResponseCurve, ResponseParameters,  # noqa: E402
@@ -47,8 +48,10 @@ def main():
                                    "response changes entirely between frequencies: large)",
                                    valid=(lambda x: x > 0, "> 0"))
     run_in = opts.integer("run_in", 50, "driving periods of transient from rest before the first Newton", minimum=0)
-    samples = opts.integer("samples_per_period", 64, "samples per period for forces and energy balance (0: none)",
-                           minimum=0)
+    samples = opts.integer("samples_per_period", 64, "samples per period for forces and energy balance (0: none, "
+                           "else at least 2)", minimum=0)
+    if samples == 1:
+        raise ParameterError("-samples_per_period", samples, "must be 0 (none) or an integer >= 2")
     switch = opts.integer("switch", 0, "steps on each period-doubled branch (branch switching)", minimum=0)
     max_steps = opts.integer("max_steps", 400, "largest number of continuation steps", minimum=1)
     output, omode, table_path, figures = opts.record_table_figures(

@@ -499,7 +499,8 @@ def test_wave_ends_and_generation_parameters_are_checked():
 
 # --- the drivers -----------------------------------------------------------------------------------------------------
 BAD = [(("-gamma", "-0.1"), "gamma"), (("-amplitude", "-1"), "amplitude"), (("-omega", "0"), "omega"),
-       (("-N", "0"), "-N"), (("-signal", "samples", "-signal_samples", "0,1,0.5"), "not periodic")]
+       (("-N", "0"), "-N"), (("-signal", "samples", "-signal_samples", "0,1,0.5"), "not periodic"),
+       (("-samples_per_period", "1"), "-samples_per_period")]
 
 
 @pytest.mark.serial

@@ -283,7 +283,7 @@ class SmallQStudy(Study):
                  "Orders and extrapolations from the three finest levels.\n",
                  "| q | pi/q | K (finest) | " + " | ".join(f"product, level {lev}" for lev in range(levels))
                  + " | order | product extrapolated | minus k_alpha | \\|\\|u\\|\\|_inf extrapolated | p(q) "
-                 "extrapolated | N(q) extrapolated | N order |", "|---" * (levels + 9) + "|"]
+                 "extrapolated | N(q) extrapolated | N order |", "|---" * (levels + 10) + "|"]
         for i, q in enumerate(targets):
             o, r = ext["rescaled_norm"][i]
             lines.append(f"| {q:.6f} | {math.pi / q:.2f} | {K_fine[round(q, 12)]} | "

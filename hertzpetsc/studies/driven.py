@@ -219,6 +219,8 @@ class ResponseParameters:
                                ("max_steps", 1, "the number of continuation steps"),
                                ("nmult", 1, "the number of recorded multipliers")):
             object.__setattr__(self, name, check_integer(name, getattr(self, name), lo, what))
+        if self.samples == 1:
+            raise ParameterError("samples", 1, "the samples per period must be 0 (no diagnostics) or at least 2")
 
 
 class ResponseCurve(DrivenStudy):

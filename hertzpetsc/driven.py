@@ -88,6 +88,14 @@ def _one_of(name, value, choices, what="must be one of"):
 
 
 # --- waveforms: the actuator's motion as a shape of period 2 pi ---------------------------------------------------
+
+def singular_factor(err):
+    """Whether a PETSc.Error is the LU factorisation of a singular matrix: a zero pivot (PETSC_ERR_MAT_LU_ZRPVT,
+    LAPACK on one rank) or MUMPS failing on it (several ranks)."""
+    from .options import petsc_message
+    code = getattr(err, "ierr", None)
+    return code == 71 or (code == 76 and "MUMPS" in petsc_message(err))
+
 class Waveform:
     """A 2 pi-periodic shape w(theta); :meth:`signal` gives the actuator's motion x(t) = a w(omega t + phase)."""
 
@@ -833,7 +841,15 @@ class PeriodicShooting(ContinuationProblem):
             for self._tight in (False, True):
                 Z0.copy(Z)
                 self._last_fnorm, self._solves, self._f_last = math.inf, self._solves + 1, None
-                self._snes.solve(None, Z)
+                try:
+                    self._snes.solve(None, Z)
+                except PETSc.Error as err:
+                    if not singular_factor(err):
+                        raise
+                    raise ConvergenceError(f"periodic-response Newton (prefix -{self._snes.getOptionsPrefix()})",
+                                           "zero pivot in R - I: a multiplier at 1 (e.g. beads out of contact "
+                                           "over a whole period, as in the sonic vacuum)", **{self.parameter: p0}) \
+                        from None
                 reason = int(self._snes.getConvergedReason())
                 its += int(self._snes.getIterationNumber())
                 if reason > 0:

@@ -530,3 +530,15 @@ def test_driven_drivers_run(tmp_path):
                    "-gammas", 0.1, "-run_in", 10, "-output", tmp_path / "g.npz", "-table", tmp_path / "g.md",
                    "-figures", tmp_path, ranks=2)
     assert r.returncode == 0 and "| half_sine | 0.5 | 0.1 | 0.1 | yes |" in (tmp_path / "g.md").read_text(), r.stderr
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_singular_newton_matrix_is_a_convergence_failure_at_its_frequency(tmp_path, ranks):
+    """A 4-bead sonic vacuum with a free end: beads out of contact over a whole period give R - I a multiplier at 1;
+    its LU (LAPACK on one rank, MUMPS on two) fails. That is a convergence failure at the frequency (exit 3, one line),
+    not PETSc's raw 'Zero pivot' or MUMPS error (exit 5)."""
+    r = run_script("driven_response.py", "-N", 4, "-omega", 0.5, "-p_end", 0.52, "-max_steps", 3, "-run_in", 5,
+                   "-right", "free", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md", ranks=ranks,
+                   timeout=120, cwd=tmp_path)
+    assert r.returncode == 3 and "zero pivot in R - I" in one_error_line(r) and "omega = 0.5" in r.stderr

@@ -87,14 +87,15 @@ def _one_of(name, value, choices, what="must be one of"):
         raise ParameterError(name, value, f"{what} " + ", ".join(choices))
 
 
-# --- waveforms: the actuator's motion as a shape of period 2 pi ---------------------------------------------------
-
 def singular_factor(err):
     """Whether a PETSc.Error is the LU factorisation of a singular matrix: a zero pivot (PETSC_ERR_MAT_LU_ZRPVT,
     LAPACK on one rank) or MUMPS failing on it (several ranks)."""
     from .options import petsc_message
     code = getattr(err, "ierr", None)
     return code == 71 or (code == 76 and "MUMPS" in petsc_message(err))
+
+
+# --- waveforms: the actuator's motion as a shape of period 2 pi ---------------------------------------------------
 
 class Waveform:
     """A 2 pi-periodic shape w(theta); :meth:`signal` gives the actuator's motion x(t) = a w(omega t + phase)."""

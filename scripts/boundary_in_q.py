@@ -28,7 +28,7 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
-from hertzpetsc.errors import RecordFileError  # noqa: E402
+from hertzpetsc.errors import ParameterError, RecordFileError  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import check_kind, load_npz, on_rank0, prepare_outputs, write_text  # noqa: E402
@@ -75,7 +75,8 @@ def main():
         write_figure_and_table(comm, z, zmap, table_path, figures)
         return
     if len(ms) + len(extra_q) < 2:
-        raise RecordFileError("-m and -q: give at least two grid wavenumbers between which to locate")
+        raise ParameterError("-m", ",".join(str(m) for m in ms), "with -q, at least two grid wavenumbers between "
+                             "which to locate")
     prepare_outputs(comm, table_path, figures=figures)
     qs = [2 * math.pi * m / N for m in ms] + list(extra_q)
     study = QBoundary(QBoundaryParameters(LatticeModel.hertz(alpha, delta0=delta0), tuple(levels), tuple(qs), K,

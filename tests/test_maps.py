@@ -337,3 +337,5 @@ def test_boundary_in_q_driver_on_one_and_two_ranks(tmp_path):
     assert (tmp_path / "again.md").read_text() == (tmp_path / "two.md").read_text()
     r = run_script("boundary_in_q.py", *args[2:], "-A", "0,3", "-output", tmp_path / "bad.npz")
     assert "-A" in one_error_line(r)
+    r = run_script("boundary_in_q.py", "-A", "1,inf", "-N", 10, "-m", 2, "-output", tmp_path / "bad.npz")
+    assert r.returncode == 2 and "-m" in one_error_line(r)        # a parameter error (it exited 4, a file's)

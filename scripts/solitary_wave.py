@@ -3,9 +3,9 @@
 domain length.
 
     mpiexec -n 2 python scripts/solitary_wave.py [-alphas 1.5,2,2.5] [-cells 10,20,40,80,160] [-lengths 5,6,7,8,10]
-        [-output results/solitary.md] [-figures figures]
+        [-half_length 8] [-output results/solitary.md] [-figures figures]
 
-For each alpha: k_alpha on grids delta = 1/n (n in -cells) at L = 8, the observed order and the Richardson
+For each alpha: k_alpha on grids delta = 1/n (n in -cells) at L = -half_length, the observed order and the Richardson
 extrapolation (h^2); and k_alpha for L in -lengths at the finest n. Figure ondesol.png: r(s) and y(s) for the
 first alpha on the finest grid. Solver prefix: -sol_ (the solitary-wave SNES, e.g. -sol_snes_monitor).
 """
@@ -31,11 +31,13 @@ def main():
                          distinct=True, minimum_count=3)
     lengths = opts.numbers("lengths", "5,6,7,8,10", "half-lengths L of the domain study", expr=False,
                            valid=(lambda L: 3 <= L <= 1000, "in [3, 1000]"), distinct=True)
+    half_length = opts.real("half_length", 8.0, "the domain [-L, L] of the grid study (alpha near 1 has a slow tail: "
+                            "larger L)", valid=(lambda L: 3 <= L <= 1000, "in [3, 1000]"))
     output, figures = opts.table_and_figures("results/solitary.md", "ondesol.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, output, figures=figures)
-    study = SolitaryStudy(alphas, cells, lengths, comm)
+    study = SolitaryStudy(alphas, cells, lengths, comm, half_length)
     opts.check_unused()
     for alpha in study.run():
         print0("\n".join(study.section(alpha)))

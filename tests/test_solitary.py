@@ -86,3 +86,17 @@ def test_k_alpha_order_and_extrapolation_use_the_grids_actual_ratios():
     (order, value), (order2, value2) = order_and_value((10, 20, 30)), order_and_value((20, 40, 80))
     assert abs(order - 2) < 0.05 and abs(order2 - 2) < 0.05
     assert value == pytest.approx(value2, abs=1e-5)
+
+
+@pytest.mark.serial
+def test_the_grid_study_domain_is_an_option():
+    """alpha = 1.2 has a tail too slow for L = 8 (refused naming -half_length, an option now, with what to do); on
+    L = 12 its grid study runs (second order)."""
+    from conftest import one_error_line, run_script
+    r = run_script("solitary_wave.py", "-alphas", 1.2, "-output", "/dev/null")
+    assert r.returncode == 2 and "-half_length" in one_error_line(r) and "increase L" in r.stderr
+    from hertzpetsc.studies.solitary import SolitaryStudy
+    study = SolitaryStudy([1.2], (20, 40, 80), [], PETSc.COMM_WORLD, half_length=12.0)
+    list(study.run())
+    row = next(line for line in study.section(1.2) if line.startswith("| k_alpha (L = 12)"))
+    assert abs(float(row.strip(" |").split("|")[-2]) - 2) < 0.05

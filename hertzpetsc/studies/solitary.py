@@ -13,16 +13,19 @@ def k_alpha_extrapolated(alpha, cells=(80, 160, 320), half_length=8.0):
 
 
 class SolitaryStudy:
-    """For each alpha: k_alpha (eq. kal2) on grids 1/n, n in ``cells`` (at least 3, all different), at L = 8, the
-    observed order and the Richardson value (delta^2); and k_alpha for L in ``lengths`` at the finest n."""
+    """For each alpha: k_alpha (eq. kal2) on grids 1/n, n in ``cells`` (at least 3, all different), on [-L, L],
+    L = ``half_length``, the observed order and the Richardson value (delta^2); and k_alpha for L in ``lengths`` at
+    the finest n."""
 
-    def __init__(self, alphas, cells, lengths, comm):
+    def __init__(self, alphas, cells, lengths, comm, half_length=8.0):
         cells = sorted(int(n) for n in cells)
         if len(cells) < 3 or len(set(cells)) != len(cells):
             raise ParameterError("-cells", cells, "needs at least three different grids for an observed order")
         for n in cells:
             SolitaryParameters(1.5, n)                 # validates n before any solve
+        SolitaryParameters(1.5, cells[0], half_length)          # validates L
         self.alphas, self.cells, self.lengths, self.comm = list(alphas), cells, sorted(lengths), comm
+        self.half_length = float(half_length)
         self.results = {}
         self.finest = {}
         configure_options(comm)
@@ -30,7 +33,7 @@ class SolitaryStudy:
     def run(self):
         """Solve for every alpha; yields alpha after each."""
         for alpha in self.alphas:
-            waves = [solve_solitary_wave(SolitaryParameters(alpha, n, 8.0), self.comm) for n in self.cells]
+            waves = [solve_solitary_wave(SolitaryParameters(alpha, n, self.half_length), self.comm) for n in self.cells]
             # the domain study accepts any tail (tail_tolerance 1) and reports it
             lengths = [solve_solitary_wave(SolitaryParameters(alpha, self.cells[-1], L, tail_tolerance=1.0),
                                            self.comm) for L in self.lengths]
@@ -44,7 +47,7 @@ class SolitaryStudy:
         cells, lengths = self.cells, self.lengths
         return [f"\n### alpha = {alpha}\n", "| n (delta = 1/n) | " + " | ".join(str(n) for n in cells)
                 + " | observed order | extrapolated |", "|---|" + "---|" * (len(cells) + 2),
-                "| k_alpha (L = 8) | " + " | ".join(f"{k:.8f}" for k in ks) + f" | {order:.2f} | {extrap:.7f} |",
+                f"| k_alpha (L = {self.half_length:g}) | " + " | ".join(f"{k:.8f}" for k in ks) + f" | {order:.2f} | {extrap:.7f} |",
                 "", "| L | " + " | ".join(f"{L:g}" for L in lengths) + " |", "|---|" + "---|" * len(lengths),
                 f"| k_alpha (n = {cells[-1]}) | " + " | ".join(f"{w.k_alpha:.10f}" for w in wl) + " |",
                 "| max \\|r\\| at \\|s\\| >= L-1, relative | " + " | ".join(f"{w.tail:.1e}" for w in wl) + " |"]

@@ -295,3 +295,19 @@ def test_parameter_errors_name_the_argument_or_the_option():
     err = ParameterError("max_steps", 0, "must be >= 1")
     assert str(err.as_option({"max_steps"})).startswith("invalid -max_steps = 0")
     assert err.as_option({"q"}) is err
+
+
+def test_the_slepc_route_table_does_not_cap_the_count_or_print_an_unseen_spread():
+    """The SLEPc route computes nev dominant multipliers: its rho is the dense route's (to the eigensolver's
+    tolerance), but when all nev are outside the unit circle the count is a lower bound ('>= nev'; 13 and 3 are
+    outside on the dense route here) and the trivial multipliers are not computed ('n/a', not 'nan')."""
+    branch = small_branch(q_stop=0.2 * math.pi)
+    tables, rhos = {}, {}
+    for method in ("dense", "slepc"):
+        scan = FloquetScan(branch, 20, COMM, refined=None, qs=[0.2 * math.pi, 0.3 * math.pi], method=method, nev=2)
+        rhos[method] = [r["rho"] for r in scan.run()]
+        scan.destroy()
+        tables[method] = scan.table()
+    assert np.allclose(rhos["slepc"], rhos["dense"], rtol=1e-9, atol=0)
+    assert "| 0.6283 | 1.23542531 | 13 | 8.8e-03 |" in tables["dense"]
+    assert "| 0.6283 | 1.23542531 | >= 2 | n/a |" in tables["slepc"] and "| >= 2 | n/a |" in tables["slepc"]

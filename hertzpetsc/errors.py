@@ -83,6 +83,8 @@ class ConvergenceError(HertzPetscError, RuntimeError):
     exit_status = 3
 
     def __init__(self, what, reason, **where):
+        if isinstance(reason, str) and reason.startswith("reason "):       # a nested failure's own reason
+            reason = reason[len("reason "):]
         self.what, self.reason, self.where = what, reason, where
         at = ", ".join(f"{k} = {v:.12g}" if isinstance(v, float) else f"{k} = {v}" for k, v in where.items())
         super().__init__(f"{what} did not converge (reason {reason}) at {at}")

@@ -125,6 +125,7 @@ def test_dimer_driver(tmp_path):
     d = np.load(tmp_path / "d1.npz")
     regular = d["event"] == 0
     assert str(d["format"]) == "hertzpetsc-dimer-2" and regular.sum() == 6 and d["epsilon"][0] == 1.0
+    assert "-max_steps = 4 reached at epsilon" in (tmp_path / "d1.md").read_text()     # the table says it stopped early
     assert run_script("dimer_branch.py", *common, "-max_steps", "2", *out(2), timeout=120).returncode == 0
     assert (np.load(tmp_path / "d2.npz")["event"] == 0).sum() == 4
     r = run_script("dimer_branch.py", *common, "-max_steps", "4", *out(2), "-resume", timeout=120)

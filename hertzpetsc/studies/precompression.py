@@ -436,6 +436,12 @@ class DimerFamilies(Study):
                          f"{float(last['omega_acoustic']):.6f} | {events} |")
         for q, why in self.stopped.items():
             lines.append(f"\nq = {q_label(q)}: stopped: {why}")
+        for q in self.qs:
+            rows = self._regular(q)
+            last = float(rows[-1]["epsilon"]) if rows else math.nan
+            if rows and q not in self.stopped and (last - self.epsilon_end) * (1.0 - self.epsilon_end) >= 0 < last:
+                lines.append(f"\nq = {q_label(q)}: -max_steps = {self.max_steps} reached at epsilon = {last:.5f}, "
+                             f"before -epsilon_end = {self.epsilon_end:g} (-resume with a larger -max_steps goes on)")
         return "\n".join(lines) + "\n"
 
     def curves(self):

@@ -364,9 +364,12 @@ class DimerFamilies(Study):
         rows = self._regular(q)
         if not rows:
             return 0, False
+        return len(rows), self._ended(rows) or len(rows) - 2 >= self.max_steps or q in self.stopped
+
+    def _ended(self, rows):
+        """Whether the path's last regular point passed epsilon_end (or epsilon 0): the path is complete."""
         last = float(rows[-1]["epsilon"])
-        passed = (last - self.epsilon_end) * (1.0 - self.epsilon_end) < 0 or last <= 0
-        return len(rows), passed or len(rows) - 2 >= self.max_steps or q in self.stopped
+        return (last - self.epsilon_end) * (1.0 - self.epsilon_end) < 0 or last <= 0
 
     def run(self):
         """Continue every q not finished in the file: a q in progress resumes from the saved state (the last two
@@ -438,10 +441,10 @@ class DimerFamilies(Study):
             lines.append(f"\nq = {q_label(q)}: stopped: {why}")
         for q in self.qs:
             rows = self._regular(q)
-            last = float(rows[-1]["epsilon"]) if rows else math.nan
-            if rows and q not in self.stopped and (last - self.epsilon_end) * (1.0 - self.epsilon_end) >= 0 < last:
-                lines.append(f"\nq = {q_label(q)}: -max_steps = {self.max_steps} reached at epsilon = {last:.5f}, "
-                             f"before -epsilon_end = {self.epsilon_end:g} (-resume with a larger -max_steps goes on)")
+            if rows and q not in self.stopped and not self._ended(rows):
+                lines.append(f"\nq = {q_label(q)}: -max_steps = {self.max_steps} reached at epsilon = "
+                             f"{float(rows[-1]['epsilon']):.5f}, before -epsilon_end = {self.epsilon_end:g} (-resume "
+                             "with a larger -max_steps goes on)")
         return "\n".join(lines) + "\n"
 
     def curves(self):

@@ -57,6 +57,21 @@ def check_wavenumber(q, h=None, name="q"):
     return min(qf, math.pi)
 
 
+def check_branch(model, q, branch):
+    """The linear wave ``branch`` ('acoustic' or 'optical') of ``model`` at per-bead wavenumber q must exist: a
+    monatomic chain has the acoustic one only, and the acoustic wave of a pattern of p beads has zero frequency at
+    q = 2 pi k / p (its cells move as one)."""
+    if branch not in ("acoustic", "optical"):
+        raise ParameterError("branch", branch, "must be 'acoustic' or 'optical'")
+    p = model.cell
+    if branch == "optical" and p == 1:
+        raise ParameterError("branch", branch, "a monatomic chain has the acoustic branch only")
+    cells = p * q / (2 * math.pi)
+    if branch == "acoustic" and abs(cells - round(cells)) < 1e-12 * p:
+        raise ParameterError("q", q, f"the acoustic wave of a pattern of {p} beads has zero frequency at "
+                             f"q = 2 pi k / {p} (its cells move as one): choose another q, or the optical branch")
+
+
 # --- the shift stencils -------------------------------------------------------------------------------------------
 class ShiftStencils(StencilGather):
     """D2, tau_q and tau_{-q} on a :class:`~hertzpetsc.grid.ProfileGrid` at one wavenumber q.
@@ -661,15 +676,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         if not K > 0:
             raise ParameterError("delta0", self.model.delta0, "the linear wave needs a linear stiffness V''(0) > 0 "
                                  "(a precompression > 0)")
-        if branch not in ("acoustic", "optical"):
-            raise ParameterError("branch", branch, "must be 'acoustic' or 'optical'")
-        if branch == "optical" and self.p == 1:
-            raise ParameterError("branch", branch, "a monatomic chain has the acoustic branch only")
-        cells = self.p * self.q / (2 * math.pi)
-        if branch == "acoustic" and abs(cells - round(cells)) < 1e-12 * self.p:
-            raise ParameterError("q", self.q, f"the acoustic wave of a pattern of {self.p} beads has zero frequency "
-                                 f"at q = 2 pi k / {self.p} (its cells move as one): choose another q, or the optical "
-                                 "branch")
+        check_branch(self.model, self.q, branch)
         import scipy.linalg
         g, p = self.grid, self.p
         xi = g.xi_half()

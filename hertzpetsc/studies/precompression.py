@@ -29,7 +29,7 @@ import numpy as np
 from ..diagnostics import sup_norm
 from ..errors import ConvergenceError, ParameterError, RecordFileError, check_integer
 from ..grid import ProfileGrid, check_cells_per_pi
-from ..advdelay import check_wavenumber
+from ..advdelay import check_branch, check_wavenumber
 from ..model import ChainSpec, LatticeModel
 from ..families import AmplitudeFamily, MassFamily, check_amplitude, uncompressed_limit
 from ..resources import check_memory
@@ -102,12 +102,10 @@ class AmplitudeParameters:
 
     def __post_init__(self):
         _check_delta0_positive(self.model)
-        if self.branch not in ("acoustic", "optical"):
-            raise ParameterError("branch", self.branch, "must be 'acoustic' or 'optical'")
-        if self.branch == "optical" and self.model.cell == 1:
-            raise ParameterError("branch", self.branch, "a monatomic chain has the acoustic branch only")
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
+        for q in self.q:
+            check_branch(self.model, q, self.branch)
         amplitude_grid(self.a_min, self.a_max, self.ds)
 
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..advdelay import check_branch
 from ..bloch import SymmetricFloquet
 from ..errors import ParameterError
 from ..families import check_amplitude, wave_of_amplitude
@@ -66,6 +67,7 @@ class WaveParameters:
         qs = _check_qs(self.q, math.pi / self.cells_per_pi)
         for q in qs:
             check_chain_wavenumber(q, self.N)
+            check_branch(m, q, "acoustic")
         object.__setattr__(self, "q", qs)
         sizes = tuple(int(L) for L in self.sizes)
         for L in sizes:

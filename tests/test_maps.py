@@ -339,3 +339,20 @@ def test_boundary_in_q_driver_on_one_and_two_ranks(tmp_path):
     assert "-A" in one_error_line(r)
     r = run_script("boundary_in_q.py", "-A", "1,inf", "-N", 10, "-m", 2, "-output", tmp_path / "bad.npz")
     assert r.returncode == 2 and "-m" in one_error_line(r)        # a parameter error (it exited 4, a file's)
+
+
+def test_a_map_of_small_amplitudes_reaches_its_uncompressed_limit():
+    """The limit (delta0 / A = 0) is solved from the map's largest amplitude; from a = 0.3 delta0 its Newton did not
+    converge (reason -5, the run stopped). It then starts from a = LIMIT_FROM_A delta0, and gives the limit that a
+    map reaching a = 100 delta0 gives from there: the same wave (omega to 1e-9, the two starts' solver tolerance)
+    and verdict."""
+    model = LatticeModel.hertz(1.5, (1.0,), 1.0)
+    limits = []
+    for a in ((0.3,), (0.3, 100.0)):
+        study = StabilityMap(MapParameters(model, (math.pi / 3,), a, N=6, cells_per_pi=100, locate=()), SELF)
+        try:
+            limits.append(next(r for r in study.run() if r["kind"] == KIND_LIMIT))
+        finally:
+            study.destroy()
+    assert limits[0]["omega"] == pytest.approx(limits[1]["omega"], rel=1e-9)
+    assert limits[0]["outside"] == limits[1]["outside"]

@@ -42,7 +42,7 @@ from petsc4py import PETSc
 
 from ..chain import IntegrationTolerances
 from ..diagnostics import sup_norm
-from ..errors import ParameterError, check_integer
+from ..errors import ConvergenceError, ParameterError, check_integer
 from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_amplitude, uncompressed_limit,
                         wave_at)
 from ..floquet import FLOQUET_PREFIX
@@ -58,7 +58,7 @@ from ..waves import check_chain_wavenumber, fits_chain
 from .base import Study
 from .dealing import dealt
 from .floquet import q_label
-from .precompression import _check_delta0_positive, _check_qs, wave_orbit
+from .precompression import _check_delta0_positive, _check_qs, amplitude_grid, wave_orbit
 
 MAP_FORMAT = "hertzpetsc-precompression-map-2"
 MAP_FORMAT_V1 = "hertzpetsc-precompression-map-1"
@@ -442,9 +442,22 @@ class StabilityMap(Study):
         return []
 
     def _limit(self, q, fam, probe, point):
-        """The uncompressed limit (delta0 / A = 0) from the largest amplitude, on both grids, and its spectra."""
+        """The uncompressed limit (delta0 / A = 0) from the largest amplitude, on both grids, and its spectra; if
+        that amplitude is too small for the limit's Newton to converge from it, from a = LIMIT_FROM_A delta0 (the
+        family continued there without the map's tests)."""
         t0 = time.perf_counter()
-        limit, entry = limit_probe(self, q, fam.grid, probe, point)
+        try:
+            limit, entry = limit_probe(self, q, fam.grid, probe, point)
+        except ConvergenceError:
+            if not point.a < LIMIT_FROM_A * self.model.delta0:
+                raise
+            bare = AmplitudeFamily(self.model, q, fam.grid)
+            try:
+                point = list(bare.points(amplitude_grid(point.a, LIMIT_FROM_A * self.model.delta0,
+                                                        math.log(10) / 4)))[-1]
+            finally:
+                bare.destroy()
+            limit, entry = limit_probe(self, q, fam.grid, probe, point)
         try:
             row = self._row(q, KIND_LIMIT, math.inf, math.inf, math.nan, limit, entry)
         finally:

@@ -289,10 +289,11 @@ class MassFamily:
     def restore(self, snap):
         """Continue from a :meth:`snapshot` (instead of :meth:`start`), on any number of ranks."""
         self.problem.normalised = int(snap["normalised"])
-        states = []
-        for natural in np.asarray(snap["Z"]):
+        states, vectors = [], np.asarray(snap["Z"])
+        order = self.problem.natural_order(vectors.shape[1])
+        for natural in vectors:
             full = np.empty_like(natural)
-            full[self.problem.natural_order(len(natural))] = natural
+            full[order] = natural
             Z = self.problem.create_vec()
             lo, hi = Z.getOwnershipRange()
             Z.getArray()[:] = full[lo:hi]

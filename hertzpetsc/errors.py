@@ -9,7 +9,7 @@ status   class
 2        :class:`ParameterError` (a value out of range, an unknown option, a malformed list)
 3        :class:`ConvergenceError` (a solver did not converge; the message names the parameter value)
 4        :class:`RecordFileError` (an input file missing, corrupt or of another kind; an output that cannot
-         be written or would overwrite a record file without -resume/-force)
+         be written or would overwrite a record file without -resume/-force, ``mode`` in the API)
 5        :class:`PetscFailure` (PETSc refused an operation; the message is PETSc's own)
 =======  ==================================================================================================
 

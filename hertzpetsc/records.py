@@ -27,7 +27,7 @@ import zipfile
 
 import numpy as np
 
-from .errors import HertzPetscError, RecordFileError
+from .errors import HertzPetscError, ParameterError, RecordFileError
 
 MODES = ("new", "resume", "force")
 
@@ -215,7 +215,7 @@ def check_identity(stored, wanted, path):
         if key in stored and not _same(stored[key], value):
             raise RecordFileError(f"{path!r} holds another computation: {key} = {stored[key]!r} there, {value!r} "
                                   "requested (rerun with the same parameters, or without -resume and with -force "
-                                  "to start afresh)")
+                                  "(mode 'force' in the API) to start afresh)")
 
 
 class RecordStore:
@@ -225,7 +225,7 @@ class RecordStore:
 
     def __init__(self, path, kind, identity, comm=None, mode="new"):
         if mode not in MODES:
-            raise ValueError(f"mode must be one of {MODES}")
+            raise ParameterError("mode", mode, f"must be one of {', '.join(MODES)}")
         self.path, self.kind, self.identity, self.comm, self.mode = path, kind, dict(identity), comm, mode
         self.state = {}            # arrays that are replaced, not stacked (e.g. the profiles a resume starts from)
         self.records, self.state = on_rank0(comm, self._open, what=f"cannot open {self.what} {path!r}")
@@ -235,12 +235,12 @@ class RecordStore:
         exists = self._exists()
         if self.mode == "resume":
             if not exists:
-                raise RecordFileError(f"{self.what} {self.path!r} does not exist: nothing to resume (omit -resume "
-                                      "to start it)")
+                raise RecordFileError(f"{self.what} {self.path!r} does not exist: nothing to resume (omit -resume, "
+                                      "mode 'resume' in the API, to start it)")
             records = self._load()
         elif exists and self.mode == "new":
             raise RecordFileError(f"{self.what} {self.path!r} exists: continue it with -resume or overwrite it "
-                                  "with -force")
+                                  "with -force (mode 'resume' or 'force' in the API)")
         else:
             records = []
         self._prepare()

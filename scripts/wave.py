@@ -9,7 +9,8 @@ At each q (per bead; q N / (2 pi) whole): the wave with amplitude A = max |u| (e
 border row; from the linear wave for delta0 > 0, from the paper's branch for delta0 = 0 and one mass), put on a
 periodic chain of N beads, refined by Gauss-Newton on its cell (E before and after), its Floquet multipliers
 modulo shift from the Bloch sectors of the wave's cell on N beads and on each longer chain of -sizes. One line
-and one table row per q. Solver prefixes: -precomp_ (the precompressed wave), -tw_ (the branch), -shoot_ and
+and one table row per q; a q that does not converge is named below the table, the others go on, and the
+driver exits with status 3. Solver prefixes: -precomp_ (the precompressed wave), -tw_ (the branch), -shoot_ and
 -shoot_jac_ (the refinement), -floquet_ (the sectors' flows).
 """
 import math
@@ -61,6 +62,8 @@ def main():
     text = study.table()
     write_text(table_path, text, comm)
     print0(text)
+    if study.failed:                         # the table holds every q that converged; exit 3 names the first failure
+        raise next(iter(study.failed.values()))
 
 
 if __name__ == "__main__":

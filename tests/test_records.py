@@ -57,7 +57,8 @@ def test_a_file_written_before_the_record_store_still_loads():
 def test_modes_new_resume_force(tmp_path):
     path = os.path.join(shared_tmp(tmp_path), "b.npz")
     write(path, small_branch(2))
-    with pytest.raises(RecordFileError, match="exists: continue it with -resume or overwrite it with -force"):
+    with pytest.raises(RecordFileError, match="exists: continue it with -resume or overwrite it with -force "
+                       r"\(mode 'resume' or 'force' in the API\)"):
         write(path, small_branch(1))
     empty = Branch(LatticeModel.hertz(1.5), 8, 10, [])
     resumed = branch_store(path, empty, COMM, "resume")
@@ -170,7 +171,7 @@ def test_unwritable_outputs_fail_on_every_rank_before_anything_is_computed(tmp_p
 
 
 def test_bad_mode_and_model_are_refused():
-    with pytest.raises(ValueError):
+    with pytest.raises(ParameterError, match="invalid mode = 'sometimes': must be one of new, resume, force"):
         NpzRecords("x.npz", "k", {}, {}, ("q",), None, "sometimes")
     with pytest.raises(ParameterError, match="masses"):
         LatticeModel.hertz(1.5, masses=(1.0, -2.0))

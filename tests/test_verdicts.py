@@ -55,7 +55,8 @@ def test_richardson_uses_the_actual_grid_ratios():
 
 
 def test_q_is_labelled_a_fraction_of_pi_only_when_it_is_one():
-    assert q_label(7 * math.pi / 25) == "7pi/25" and q_label(math.pi / 50) == "pi/50" and q_label(math.pi) == "1pi"
+    assert q_label(7 * math.pi / 25) == "7pi/25" and q_label(math.pi / 50) == "pi/50" and q_label(math.pi) == "pi"
+    assert q_label(2 * math.pi) == "2pi"
     assert q_label(1.0) == "1" and q_label(0.3) == "0.3"
     assert q_label(7 * math.pi / 22 * (1 + 1e-9)) != "7pi/22"
 

@@ -42,7 +42,8 @@ def q_label(q):
     f = Fraction(q / math.pi).limit_denominator(1000)
     if abs(float(f) * math.pi - q) > 1e-12 * max(q, 1.0):
         return f"{q:.6g}"
-    return f"{f.numerator if f.numerator != 1 else ''}pi/{f.denominator}" if f.denominator != 1 else f"{f.numerator}pi"
+    numerator = f"{f.numerator if f.numerator != 1 else ''}pi"
+    return f"{numerator}/{f.denominator}" if f.denominator != 1 else numerator
 
 
 def _path(source):

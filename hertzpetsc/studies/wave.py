@@ -18,7 +18,7 @@ import numpy as np
 
 from ..advdelay import check_branch
 from ..bloch import SymmetricFloquet
-from ..errors import ParameterError
+from ..errors import ConvergenceError, ParameterError
 from ..families import check_amplitude, wave_of_amplitude
 from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
@@ -125,8 +125,16 @@ class WaveStudy(Study):
                     seconds=time.perf_counter() - t0)
 
     def run(self):
+        """The records of the q not yet in the file; a q whose wave or refinement does not converge is left out
+        (its error kept in ``failed``, by q, for the table and the driver's exit status) and the next q goes on."""
+        self.failed = {}
         for q in self.open()._todo(self.params.q):
-            yield self.store.append(self.compute(q))
+            try:
+                record = self.compute(q)
+            except ConvergenceError as err:
+                self.failed[q] = err
+                continue
+            yield self.store.append(record)
 
     def table(self):
         p = self.params
@@ -143,4 +151,6 @@ class WaveStudy(Study):
                          f"{int(r['outside'])} | {float(r['spread']):.1e} | "
                          f"{'unstable' if int(r['unstable']) else 'stable within ' + format(p.tol_rho, 'g')} |"
                          + extra)
+        lines += [f"\nNot computed (-resume retries it): q = {q:.6f}: {err}" for q, err in
+                  sorted(getattr(self, "failed", {}).items())]
         return "\n".join(lines) + "\n"

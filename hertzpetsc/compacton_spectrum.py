@@ -26,10 +26,29 @@ DEFAULT_ETA = 2.5
 
 
 def sorted_eig(J):
-    """Eigenvalues (LAPACK dgeev) and right eigenvectors, by decreasing modulus."""
+    """Eigenvalues (LAPACK dgeev) and right eigenvectors, by decreasing modulus. The vectors are back-transformed
+    from dgeev's balancing and may be wrong (:func:`eigenvector`)."""
     lam, V = np.linalg.eig(J)
     order = np.argsort(-np.abs(lam), kind="stable")
     return lam[order], V[:, order]
+
+
+def kernel_vector(A):
+    """The unit right singular vector of A's smallest singular value (A's kernel when A is singular), scaled so
+    that its entry of largest modulus is real and positive."""
+    x = np.linalg.svd(A)[2][-1].conj()
+    i = int(np.argmax(np.abs(x)))
+    return x * (abs(x[i]) / x[i])
+
+
+def eigenvector(J, mu):
+    """The right eigenvector of J for the simple multiplier mu: :func:`kernel_vector` of J - mu I.
+
+    Not dgeev's: behind the solitary wave (Delta = 0) the rear bonds are closed by doubly exponentially small
+    amounts, so the rear beads' columns of J are tiny but nonzero; dgeev's balancing then scales them by huge
+    factors instead of isolating them, and the back-transformed vector of mu_3 is nearly a rear-bead unit vector
+    with |J v - mu v| ~ |mu| |v|. The singular vector's residual is at round-off."""
+    return kernel_vector(J - mu * np.eye(J.shape[0]))
 
 
 def split_jordan_pair(lam):
@@ -63,7 +82,7 @@ def jordan_check(window, J, Y, gap):
     v2 -= (v2 @ v1) / (v1 @ v1) * v1
     nv1 = np.linalg.norm(v1)
     # left vectors: u2 spans the left kernel of A; u1 solves A^T u1 = u2 (up to the left kernel)
-    u2 = np.linalg.svd(A.T)[2][-1]
+    u2 = kernel_vector(A.T)
     u2 = u2 / (u2 @ v2)
     u1 = np.linalg.lstsq(A.T, u2, rcond=None)[0]
     u1 -= (u1 @ v2) * u2

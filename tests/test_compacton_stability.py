@@ -13,10 +13,12 @@ from petsc4py import PETSc
 from conftest import RESULTS, one_error_line, run_script
 from hertzpetsc.branch import Branch
 from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
-from hertzpetsc.compacton_spectrum import WindowStability, jordan_check, sorted_eig, split_jordan_pair
+from hertzpetsc.compacton_spectrum import WindowStability, eigenvector, jordan_check, sorted_eig, split_jordan_pair
 from hertzpetsc.compacton_window import CompactonRefiner, CompactonWindow, embed, guess_from_branch
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.model import ChainSpec
+from hertzpetsc.model import ChainSpec, LatticeModel
+from hertzpetsc.studies.compacton_dynamics import CompactonDynamics
+from hertzpetsc.studies.compacton_stability import exact_compacton
 
 BRANCH = f"{RESULTS}/branch_alpha1.5.npz"
 M, REAR = 12, 3
@@ -144,6 +146,33 @@ def test_dense_and_slepc_multipliers_agree(compacton):
     assert abs(mean_s - mean_d) < 1e-9                  # the defective pair: means (SLEPc's split is ~1e-7)
     assert abs(rest_s[0] - rest_d[0]) < 1e-10          # mu_3 (measured agreement 2.5e-13)
     assert np.max(sl.work["errors"][:3]) < 1e-10 and sl.work["products"] < 200
+
+
+def test_least_stable_mode_of_the_solitary_wave_at_alpha_2():
+    """Behind the solitary wave (committed record, alpha = 2) the rear bonds are closed by doubly exponentially small
+    amounts, so J's rear columns are tiny but nonzero; dgeev's vector of mu_3 (balancing) was then nearly a rear-bead
+    unit vector, which leaves the window in one period (the dynamics' |rest| fell from 1e-8 to 1e-14 at k = 1).
+    The eigenvector is J's, and on the chain the perturbation along it shrinks by |mu_3| per bead."""
+    d = np.load(f"{RESULTS}/compacton_stability.npz")
+    i = int(np.nonzero((d["alpha"] == 2.0) & (d["q"] == 0.0))[0][0])
+    rec = {k: d[k][i] for k in ("alpha", "q", "gap", "residual", "iterations", "dominant", "state")}
+    ex = exact_compacton(rec)
+    model = LatticeModel.hertz(2.0)
+    w = CompactonWindow(model, ex.M, PETSc.COMM_SELF)
+    try:
+        J = w.jacobian(ex.Y, ex.gap)[1]
+    finally:
+        w.destroy()
+    mu3 = complex(rec["dominant"][0])
+    v = eigenvector(J, mu3)
+    assert np.linalg.norm(J @ v - mu3 * v) < 1e-12           # round-off of the SVD (|J| ~ 1; measured 1e-16)
+    dyn = CompactonDynamics([rec], model, PETSc.COMM_WORLD, None, N=ex.M + 30, n0=5, travel=12, kinds=("mode",))
+    try:
+        rest = [r for r in dyn.run()][0]["rest"]
+    finally:
+        dyn.destroy()
+    # |rest_k| ~ 1e-8 mu_3^k >= 2e-10 for k <= 3, the flow's floor of |rest| ~ 2e-14 (measured ratios: |mu_3| to 1e-5)
+    assert np.max(np.abs(rest[1:4] / rest[:3] / abs(mu3) - 1)) < 1e-3
 
 
 def test_results_do_not_depend_on_the_ranks(compacton, branch):

@@ -8,6 +8,10 @@ wave's cell over its shortest time symmetry (:mod:`hertzpetsc.symmetry`, any mas
 repeated, is a travelling wave with exactly the wave's periodicity, at about (M / N)^2 / m' of the cost; else the
 paper's S X(script-T) = X(0) on the N beads. E(q) is measured on the N beads over script-T.
 
+On a scale-invariant chain (no precompression, eq. twper) E(q) and the refinement are those of the wave rescaled to
+amplitude 1 (:meth:`~hertzpetsc.waves.Orbit.with_amplitude`), the refined wave rescaled back: the flows' absolute
+tolerances and the least-squares steps then mean the same at any amplitude.
+
 The Jacobian is singular at a travelling wave (translation, time shift f(X0)) and nearly singular along slow modes:
 steps lie in the orthogonal complement of the two symmetry directions (phase conditions) and come from the engine's
 truncated SVD. The Jacobian's flow is looser (prefix ``shoot_jac_``, rtol 1e-10) than the residual's (``shoot_``,
@@ -54,7 +58,9 @@ class ShiftMap(TangentFlow):
         return np.roll(self.run(x0, T, np.zeros((self.spec.N, 2, 0)))[0], -shift * self.spec.model.cell, axis=0)
 
     def residual(self, orbit):
-        """E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf of an orbit."""
+        """E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf of an orbit (a scale-invariant chain's: at amplitude
+        1)."""
+        orbit = orbit.with_amplitude(1.0)
         return relative_residual(orbit.x, self(orbit.x, orbit.T))
 
 
@@ -154,6 +160,7 @@ class Refiner:
         """The refined :class:`Refinement` of ``orbit``; :class:`ConvergenceError` if E cannot be brought below
         ``tol`` within the iteration limit."""
         t0 = time.perf_counter()
+        size, orbit = orbit.amplitude, orbit.with_amplitude(1.0)      # a scale-invariant chain: refined at size 1
         E0 = self.residual(orbit)
         sym = orbit.symmetry
         M, shift, T, m_cell = (sym.M, sym.k, sym.delta(orbit.T), sym.m_cell) if self.symmetric else \
@@ -177,8 +184,9 @@ class Refiner:
         if E > self.tol:
             raise ConvergenceError("Gauss-Newton refinement (prefix -%s)" % self.prefix, f"E = {E:.3g} > {self.tol:g}",
                                    q=orbit.q, iterations=total_it)
-        return Refinement(orbit=refined, E_initial=E0, E=E, r=r, iterations=total_it, jacobians=jacobians,
-                          history=history, sigma_min=sigma_min, wall_time=time.perf_counter() - t0)
+        return Refinement(orbit=refined.with_amplitude(size), E_initial=E0, E=E, r=r, iterations=total_it,
+                          jacobians=jacobians, history=history, sigma_min=sigma_min,
+                          wall_time=time.perf_counter() - t0)
 
     def destroy(self):
         for smap, flow in self._flows.values():

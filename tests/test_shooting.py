@@ -8,6 +8,7 @@ from petsc4py import PETSc
 from conftest import chain, refine, small_branch
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.chain import CHAIN_PREFIX
+from hertzpetsc.diagnostics import sup_norm
 from hertzpetsc.shooting import PAPER_TOLERANCES, ShiftMap
 from hertzpetsc.waves import orbit_on_chain
 
@@ -39,6 +40,27 @@ def test_refinement_reaches_target_and_is_rank_independent():
     # the refined state is close to the discrete wave: it corrects an O(h^2) error
     assert np.max(np.abs(serial.x - w.x)) < 1e-2 * np.max(np.abs(w.x))
     assert serial.orbit.source == "refined" and w.source == "branch"
+
+
+def test_small_sonic_vacuum_wave_refines_as_the_rescaled_unit_wave():
+    """Eq. twper: the uncompressed wave of amplitude 1e-6 (x ~ 1e-6, far below the flow's atol 1e-16 relative to
+    the unit wave's) has the unit wave's E and refines to the unit wave's refinement, rescaled. Both start from the
+    same state up to rounding: E before and after, and the refined states, differ by the flow's error (E <= tol
+    bounds it), not by the amplitude."""
+    point = small_branch().point(0.4 * math.pi)
+    tol, A = 1e-10, 1e-6
+    unit = orbit_on_chain(point, chain(N))
+    small = orbit_on_chain(point, chain(N), scale=A / max(sup_norm(u) for u in point.profiles))
+    assert small.amplitude == pytest.approx(A, rel=1e-15) and unit.amplitude == 1.0
+    assert np.max(np.abs(small.x[:, 0])) == pytest.approx(A * np.max(np.abs(unit.x[:, 0])), rel=1e-15)
+    ref1, refA = refine(unit, PETSc.COMM_WORLD, tol), refine(small, PETSc.COMM_WORLD, tol)
+    assert refA.E <= tol and abs(refA.E_initial - ref1.E_initial) <= tol and abs(refA.E - ref1.E) <= tol
+    back = refA.orbit.with_amplitude(1.0)
+    assert refA.orbit.amplitude == A and back.T == pytest.approx(ref1.orbit.T, rel=1e-15)
+    assert np.max(np.abs(back.x - ref1.x)) <= tol * np.max(np.abs(ref1.x))
+    # the refinement moved the small wave by what it moves the unit wave (the profile's O(h^2) error), not by noise
+    moved = [np.max(np.abs(r.x[:, 0] - w.x[:, 0])) / w.amplitude for r, w in ((refA, small), (ref1, unit))]
+    assert moved[0] == pytest.approx(moved[1], rel=1e-3) and moved[1] > 1e3 * tol
 
 
 def test_travelling_waves_need_a_periodic_chain():

@@ -44,12 +44,15 @@ class Orbit:
         """The wave's :class:`~hertzpetsc.symmetry.WaveSymmetry` (cell, short map, Bloch sectors)."""
         return WaveSymmetry(self.N, self.m, self.spec.model.cell)
 
-    def with_state(self, x, source):
-        """The same wave with another initial state (e.g. the refined one)."""
+    def with_state(self, x, source, T=None):
+        """The same wave with another initial state (e.g. the refined one) and, given, another script-T (omega
+        = p q / T)."""
         x = np.asarray(x, dtype=float)
         if x.shape != (self.N, 2):
             raise ParameterError("state", x.shape, f"must have shape (N, 2) = ({self.N}, 2)")
-        return replace(self, x=x, source=source)
+        if T is None or T == self.T:
+            return replace(self, x=x, source=source)
+        return replace(self, x=x, source=source, T=T, omega=self.omega * (self.T / T))
 
     def tiled(self, L: int) -> "Orbit":
         """The wave on L times as many beads (the state repeated: the same script-T, m times L)."""

@@ -6,9 +6,11 @@ import pytest
 from petsc4py import PETSc
 
 from conftest import chain, refine, small_branch
+import hertzpetsc as hz
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.chain import CHAIN_PREFIX
 from hertzpetsc.diagnostics import sup_norm
+from hertzpetsc.model import LatticeModel
 from hertzpetsc.shooting import PAPER_TOLERANCES, ShiftMap
 from hertzpetsc.waves import orbit_on_chain
 
@@ -61,6 +63,27 @@ def test_small_sonic_vacuum_wave_refines_as_the_rescaled_unit_wave():
     # the refinement moved the small wave by what it moves the unit wave (the profile's O(h^2) error), not by noise
     moved = [np.max(np.abs(r.x[:, 0] - w.x[:, 0])) / w.amplitude for r, w in ((refA, small), (ref1, unit))]
     assert moved[0] == pytest.approx(moved[1], rel=1e-3) and moved[1] > 1e3 * tol
+
+
+def test_precompressed_wave_where_the_period_barely_depends_on_the_amplitude():
+    """At C(q) = 0 (alpha = 3/2, q = pi/2: omega(A) flat to O(A^4)) the amplitude direction is nearly singular at
+    fixed script-T, where Gauss-Newton stalls at the profile's error (E 3.8e-6 at h = pi/400); with the period
+    unknown the refinement reaches tol, and the corrections of script-T and of the amplitude are the profile's
+    O(h^2) errors (a quarter at h/2). At q = 2 pi/5 (C < 0) script-T stays the paper's, fixed."""
+    model = LatticeModel.hertz(1.5, delta0=1.0)
+    assert model.law.stokes_coefficient(math.pi / 2) == pytest.approx(0.0, abs=1e-15)
+    tol, dT, dA = 1e-10, [], []
+    for K in (200, 400):
+        w = hz.wave(model, math.pi / 2, 0.3, 8, cells_per_pi=K)
+        r = refine(w, PETSc.COMM_WORLD, tol)
+        assert r.E <= tol < r.E_initial
+        dT.append(r.orbit.T / w.T - 1)
+        dA.append(np.max(np.abs(r.x[:, 0])) / np.max(np.abs(w.x[:, 0])) - 1)
+        assert r.orbit.omega * r.orbit.T == pytest.approx(w.omega * w.T, rel=1e-15)
+    assert 3 < dT[0] / dT[1] < 5 and 3 < dA[0] / dA[1] < 5, (dT, dA)
+    w = hz.wave(model, 2 * math.pi / 5, 0.3, 10, cells_per_pi=200)
+    r = refine(w, PETSc.COMM_WORLD, tol)
+    assert r.E <= tol and r.orbit.T == w.T and r.orbit.omega == w.omega
 
 
 def test_travelling_waves_need_a_periodic_chain():

@@ -106,6 +106,12 @@ class LatticeModel:
         return self.with_law(self.law.rescaled(a))
 
     @property
+    def scale_invariant(self):
+        """True when x -> a x, t -> a^(-(d-1)/2) t maps the chain's motions to motions (eq. twper): a law
+        homogeneous of degree d (no precompression) and no damping."""
+        return not self.damped and self.rescaled(2.0) == self
+
+    @property
     def cell(self):
         """Beads in the repeating mass pattern."""
         return len(self.masses)

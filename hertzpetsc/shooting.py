@@ -8,10 +8,19 @@ wave's cell over its shortest time symmetry (:mod:`hertzpetsc.symmetry`, any mas
 repeated, is a travelling wave with exactly the wave's periodicity, at about (M / N)^2 / m' of the cost; else the
 paper's S X(script-T) = X(0) on the N beads. E(q) is measured on the N beads over script-T.
 
+On a scale-invariant chain (no precompression, eq. twper) E(q) and the refinement are those of the wave rescaled to
+amplitude 1 (:meth:`~hertzpetsc.waves.Orbit.with_amplitude`), the refined wave rescaled back: the flows' absolute
+tolerances and the least-squares steps then mean the same at any amplitude.
+
 The Jacobian is singular at a travelling wave (translation, time shift f(X0)) and nearly singular along slow modes:
 steps lie in the orthogonal complement of the two symmetry directions (phase conditions) and come from the engine's
-truncated SVD. The Jacobian's flow is looser (prefix ``shoot_jac_``, rtol 1e-10) than the residual's (``shoot_``,
-rtol 1e-14): an error of 1e-10 in J changes a step of size r by 1e-10 r.
+truncated SVD. With precompression the period may barely depend on the amplitude (C(q) = 0,
+:meth:`~hertzpetsc.hertz.HertzLaw.stokes_coefficient`): script-T fixed then leaves the amplitude direction nearly
+singular and the iteration stalls; it is then solved again from the start with script-T an unknown too
+(:class:`ShiftMapFixedPoint`), the refined wave's script-T and omega corrected.
+
+The Jacobian's flow is looser (prefix ``shoot_jac_``, rtol 1e-10) than the residual's (``shoot_``, rtol 1e-14): an
+error of 1e-10 in J changes a step of size r by 1e-10 r.
 
 Options: the refinement's flows and Gauss-Newton live under the prefix ``shoot_`` (``-shoot_ts_rtol``, ...,
 ``-shoot_gn_max_it``), its Jacobian's flow under ``shoot_jac_``; E(q) measured with the paper's flow uses the
@@ -54,7 +63,9 @@ class ShiftMap(TangentFlow):
         return np.roll(self.run(x0, T, np.zeros((self.spec.N, 2, 0)))[0], -shift * self.spec.model.cell, axis=0)
 
     def residual(self, orbit):
-        """E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf of an orbit."""
+        """E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf of an orbit (a scale-invariant chain's: at amplitude
+        1)."""
+        orbit = orbit.with_amplitude(1.0)
         return relative_residual(orbit.x, self(orbit.x, orbit.T))
 
 
@@ -82,36 +93,57 @@ class Refinement:
         return self.orbit.x
 
 
-def symmetry_complement(chain, x):
-    """Orthonormal basis (2N x (2N-2)) of the complement of the translation and time-shift directions at x."""
-    N = chain.spec.N
+def vector_field(chain, x):
+    """f(X) of eq. nc at the (N, 2) state ``x``, flattened (index 2n + c), on every rank."""
     X, F = chain.create_state(), chain.create_state()
     chain.set_from_array(X, x)
     chain.rhs(None, 0.0, X, F)
     f = chain.gather(F).ravel()
     for v in (X, F):
         v.destroy()
-    translation = np.tile([1.0, 0.0], N)
-    Q, _ = np.linalg.qr(np.stack([translation, f], axis=1), mode="complete")
+    return f
+
+
+def symmetry_complement(chain, x):
+    """Orthonormal basis (2N x (2N-2)) of the complement of the translation and time-shift directions at x."""
+    translation = np.tile([1.0, 0.0], chain.spec.N)
+    Q, _ = np.linalg.qr(np.stack([translation, vector_field(chain, x)], axis=1), mode="complete")
     return Q[:, 2:]
 
 
 class ShiftMapFixedPoint:
     """x = S^shift X(T; x) for the Gauss-Newton engine: rows S^shift X(T; x) - x (measure: their relative size),
-    Jacobian S^shift R(T; 0) - I by the tangent flow, steps off the translation and time-shift directions."""
+    Jacobian S^shift R(T; 0) - I by the tangent flow, steps off the translation and time-shift directions.
 
-    def __init__(self, smap, flow, T, shift):
-        self.smap, self.flow, self.T, self.shift = smap, flow, T, shift
+    ``free_period``: T is an unknown too, z = (x, T), with the Jacobian's column S^shift f(X(T)); the wave's family
+    (amplitude and period together) is then a null direction that the engine's truncated SVD leaves out: the steps
+    keep the amplitude and correct the period."""
+
+    def __init__(self, smap, flow, T, shift, free_period=False):
+        self.smap, self.flow, self.T, self.shift, self.free_period = smap, flow, T, shift, free_period
+
+    def start(self, x):
+        """The unknowns z of the state ``x`` (and the period T when it is free)."""
+        z = np.asarray(x, dtype=float).ravel()
+        return np.append(z, self.T) if self.free_period else z
+
+    def split(self, z):
+        """(the state as (M, 2), T) of the unknowns z."""
+        return (z[:-1].reshape(-1, 2), z[-1]) if self.free_period else (z.reshape(-1, 2), self.T)
 
     def residual(self, z):
-        x = z.reshape(-1, 2)
-        sx = self.smap(x, self.T, self.shift)
+        x, T = self.split(z)
+        sx = self.smap(x, T, self.shift)
         return (sx - x).ravel(), relative_residual(x, sx)
 
     def jacobian(self, z):
-        x = z.reshape(-1, 2)
-        M, _ = self.flow.monodromy_mod_shift(x, self.T, self.shift)
-        return M - np.eye(len(z)), symmetry_complement(self.smap.aug, x)
+        x, T = self.split(z)
+        M, sxT = self.flow.monodromy_mod_shift(x, T, self.shift)
+        A, Q = M - np.eye(x.size), symmetry_complement(self.smap.aug, x)
+        if self.free_period:
+            A = np.hstack([A, vector_field(self.smap.aug, sxT)[:, None]])
+            Q = np.block([[Q, np.zeros((len(Q), 1))], [np.zeros((1, Q.shape[1])), np.ones((1, 1))]])
+        return A, Q
 
 
 class Refiner:
@@ -154,31 +186,41 @@ class Refiner:
         """The refined :class:`Refinement` of ``orbit``; :class:`ConvergenceError` if E cannot be brought below
         ``tol`` within the iteration limit."""
         t0 = time.perf_counter()
+        size, orbit = orbit.amplitude, orbit.with_amplitude(1.0)      # a scale-invariant chain: refined at size 1
         E0 = self.residual(orbit)
         sym = orbit.symmetry
         M, shift, T, m_cell = (sym.M, sym.k, sym.delta(orbit.T), sym.m_cell) if self.symmetric else \
             (orbit.N, 1, orbit.T, 1)
-        problem = ShiftMapFixedPoint(*self._maps(M), T, shift)
-        z = np.asarray(orbit.x[:M], dtype=float).ravel()
-        # the short map's residual accumulates over the m' maps that make script-T: aim below tol / m'
-        target = self.tol / m_cell
         total_it, jacobians, history, r, sigma_min = 0, 0, [E0], float("nan"), None
-        while True:
-            res = self.engine.solve(problem, z, target, self.max_iterations - total_it)
-            z, total_it, jacobians = res.z, total_it + res.iterations, jacobians + res.jacobians
-            r = res.r if res.r == res.r else r
-            sigma_min = res.sigma_min if res.sigma_min is not None else sigma_min
-            refined = orbit.with_state(np.tile(z.reshape(M, 2), (orbit.N // M, 1)), "refined")
-            E = self.residual(refined)
-            history.append(E)
-            if E <= self.tol or total_it >= self.max_iterations or target < 1e-16:
+        # script-T fixed (the paper's problem); where the period barely depends on the amplitude (C(q) = 0 with
+        # precompression) that stalls: then T is an unknown too (on a scale-invariant chain T fixes the amplitude)
+        for free_period in (False,) if orbit.spec.model.scale_invariant else (False, True):
+            problem = ShiftMapFixedPoint(*self._maps(M), T, shift, free_period)
+            z = problem.start(orbit.x[:M])
+            # the short map's residual accumulates over the m' maps that make script-T: aim below tol / m'
+            target = self.tol / m_cell
+            while True:
+                res = self.engine.solve(problem, z, target, self.max_iterations - total_it)
+                z, total_it, jacobians = res.z, total_it + res.iterations, jacobians + res.jacobians
+                r = res.r if res.r == res.r else r
+                sigma_min = res.sigma_min if res.sigma_min is not None else sigma_min
+                x, T_short = problem.split(z)
+                refined = orbit.with_state(np.tile(x, (orbit.N // M, 1)), "refined",
+                                           T_short * m_cell if free_period else None)
+                E = self.residual(refined)
+                history.append(E)
+                stalled = res.E > target and total_it < self.max_iterations   # no decrease with a fresh Jacobian
+                if E <= self.tol or stalled or total_it >= self.max_iterations or target < 1e-16:
+                    break
+                target *= 0.1                 # the cell's map converged but E over script-T did not: tighten
+            if E <= self.tol or total_it >= self.max_iterations:
                 break
-            target *= 0.1                 # the cell's map converged but E over script-T did not: tighten
         if E > self.tol:
             raise ConvergenceError("Gauss-Newton refinement (prefix -%s)" % self.prefix, f"E = {E:.3g} > {self.tol:g}",
                                    q=orbit.q, iterations=total_it)
-        return Refinement(orbit=refined, E_initial=E0, E=E, r=r, iterations=total_it, jacobians=jacobians,
-                          history=history, sigma_min=sigma_min, wall_time=time.perf_counter() - t0)
+        return Refinement(orbit=refined.with_amplitude(size), E_initial=E0, E=E, r=r, iterations=total_it,
+                          jacobians=jacobians, history=history, sigma_min=sigma_min,
+                          wall_time=time.perf_counter() - t0)
 
     def destroy(self):
         for smap, flow in self._flows.values():

@@ -15,7 +15,7 @@ from typing import Optional
 
 import numpy as np
 
-from .errors import ParameterError
+from .errors import ParameterError, check_real
 from .diagnostics import sup_norm
 from .model import ChainSpec
 from .stencil import full_period, lagrange_periodic
@@ -33,6 +33,7 @@ class Orbit:
     x: np.ndarray         # (N, 2) initial state
     omega: float          # frequency (the paper's chain: a^((alpha-1)/2))
     source: str = "branch"
+    amplitude: float = 1.0  # the wave's size s max_c ||u_c||_inf (eq. twper; 1: the paper's normalisation)
 
     @property
     def N(self):
@@ -43,17 +44,31 @@ class Orbit:
         """The wave's :class:`~hertzpetsc.symmetry.WaveSymmetry` (cell, short map, Bloch sectors)."""
         return WaveSymmetry(self.N, self.m, self.spec.model.cell)
 
-    def with_state(self, x, source):
-        """The same wave with another initial state (e.g. the refined one)."""
+    def with_state(self, x, source, T=None):
+        """The same wave with another initial state (e.g. the refined one) and, given, another script-T (omega
+        = p q / T)."""
         x = np.asarray(x, dtype=float)
         if x.shape != (self.N, 2):
             raise ParameterError("state", x.shape, f"must have shape (N, 2) = ({self.N}, 2)")
-        return replace(self, x=x, source=source)
+        if T is None or T == self.T:
+            return replace(self, x=x, source=source)
+        return replace(self, x=x, source=source, T=T, omega=self.omega * (self.T / T))
 
     def tiled(self, L: int) -> "Orbit":
         """The wave on L times as many beads (the state repeated: the same script-T, m times L)."""
         return Orbit(self.spec.with_length(L * self.N), self.q, self.m * L, self.T, np.tile(self.x, (L, 1)),
-                     self.omega, self.source)
+                     self.omega, self.source, self.amplitude)
+
+    def with_amplitude(self, A: float) -> "Orbit":
+        """The same wave of size A on a scale-invariant chain (eq. twper: x -> a x, xdot -> a^((d+1)/2) xdot,
+        script-T -> a^(-(d-1)/2) script-T, a = A / amplitude); itself when A is its size or the chain has no such
+        scaling."""
+        if A == self.amplitude or not self.spec.model.scale_invariant:
+            return self
+        a = check_real("A", A, "the amplitude", 0.0) / self.amplitude
+        e = (self.spec.model.law.scale_degree - 1) / 2
+        return replace(self, x=self.x * np.array([a, a ** (1 + e)]), T=self.T / a ** e, omega=self.omega * a ** e,
+                       amplitude=A)
 
 
 def fits_chain(q, N):
@@ -84,12 +99,14 @@ def orbit_on_chain(point: "BranchPoint", spec: ChainSpec, phase: float = 0.0, ti
 
     ``scale`` s uses the law's exact scaling (degree d, :mod:`hertzpetsc.law`): the chain's law must be the point's
     rescaled by 1/s. Default: the paper's normalisation s = 1 / max_c ||u_c||_inf (section 3.4) when the law is
-    scale-invariant (eq. ad fixes the shape only), else 1 (the wave as stored); the interpolation: module docstring."""
+    scale-invariant (eq. ad fixes the shape only), else 1 (the wave as stored); the orbit's ``amplitude`` is
+    s max_c ||u_c||_inf (1 in the paper's normalisation); the interpolation: module docstring."""
     if spec.boundary != "periodic":
         raise ParameterError("boundary", spec.boundary, "a travelling wave modulo shifts needs a periodic chain")
     model, q, p = point.model, point.q, point.model.cell
+    size = max(sup_norm(u) for u in point.profiles)
     if scale is None:
-        scale = 1.0 / max(sup_norm(u) for u in point.profiles) if model.rescaled(2.0) == model else 1.0
+        scale = 1.0 / size if model.rescaled(2.0) == model else 1.0
     seen = model if scale == 1.0 else model.rescaled(1.0 / scale)
     if not same_lattice(spec.model, seen):
         raise ParameterError("model", spec.model.describe(), f"differs from the wave's {seen.describe()} (scale "
@@ -104,7 +121,8 @@ def orbit_on_chain(point: "BranchPoint", spec: ChainSpec, phase: float = 0.0, ti
         full = u if len(u) == round(2 * math.pi / point.h) else full_period(u)
         x[beads, 0] = scale * lagrange_periodic(full, point.h, xi[beads])
         x[beads, 1] = -scale * omega * lagrange_periodic(full, point.h, xi[beads], derivative=True)
-    return Orbit(spec=spec, q=q, m=m, T=p * q / omega, x=x, omega=omega, source="branch")
+    return Orbit(spec=spec, q=q, m=m, T=p * q / omega, x=x, omega=omega, source="branch",
+                 amplitude=1.0 if scale == 1.0 / size else scale * size)
 
 
 def same_lattice(a, b, rtol=1e-12):

@@ -6,8 +6,11 @@ import pytest
 from petsc4py import PETSc
 
 from conftest import chain, refine, small_branch
+import hertzpetsc as hz
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.chain import CHAIN_PREFIX
+from hertzpetsc.diagnostics import sup_norm
+from hertzpetsc.model import LatticeModel
 from hertzpetsc.shooting import PAPER_TOLERANCES, ShiftMap
 from hertzpetsc.waves import orbit_on_chain
 
@@ -39,6 +42,48 @@ def test_refinement_reaches_target_and_is_rank_independent():
     # the refined state is close to the discrete wave: it corrects an O(h^2) error
     assert np.max(np.abs(serial.x - w.x)) < 1e-2 * np.max(np.abs(w.x))
     assert serial.orbit.source == "refined" and w.source == "branch"
+
+
+def test_small_sonic_vacuum_wave_refines_as_the_rescaled_unit_wave():
+    """Eq. twper: the uncompressed wave of amplitude 1e-6 (x ~ 1e-6, far below the flow's atol 1e-16 relative to
+    the unit wave's) has the unit wave's E and refines to the unit wave's refinement, rescaled. Both start from the
+    same state up to rounding: E before and after, and the refined states, differ by the flow's error (E <= tol
+    bounds it), not by the amplitude."""
+    point = small_branch().point(0.4 * math.pi)
+    tol, A = 1e-10, 1e-6
+    unit = orbit_on_chain(point, chain(N))
+    small = orbit_on_chain(point, chain(N), scale=A / max(sup_norm(u) for u in point.profiles))
+    assert small.amplitude == pytest.approx(A, rel=1e-15) and unit.amplitude == 1.0
+    assert np.max(np.abs(small.x[:, 0])) == pytest.approx(A * np.max(np.abs(unit.x[:, 0])), rel=1e-15)
+    ref1, refA = refine(unit, PETSc.COMM_WORLD, tol), refine(small, PETSc.COMM_WORLD, tol)
+    assert refA.E <= tol and abs(refA.E_initial - ref1.E_initial) <= tol and abs(refA.E - ref1.E) <= tol
+    back = refA.orbit.with_amplitude(1.0)
+    assert refA.orbit.amplitude == A and back.T == pytest.approx(ref1.orbit.T, rel=1e-15)
+    assert np.max(np.abs(back.x - ref1.x)) <= tol * np.max(np.abs(ref1.x))
+    # the refinement moved the small wave by what it moves the unit wave (the profile's O(h^2) error), not by noise
+    moved = [np.max(np.abs(r.x[:, 0] - w.x[:, 0])) / w.amplitude for r, w in ((refA, small), (ref1, unit))]
+    assert moved[0] == pytest.approx(moved[1], rel=1e-3) and moved[1] > 1e3 * tol
+
+
+def test_precompressed_wave_where_the_period_barely_depends_on_the_amplitude():
+    """At C(q) = 0 (alpha = 3/2, q = pi/2: omega(A) flat to O(A^4)) the amplitude direction is nearly singular at
+    fixed script-T, where Gauss-Newton stalls at the profile's error (E 3.8e-6 at h = pi/400); with the period
+    unknown the refinement reaches tol, and the corrections of script-T and of the amplitude are the profile's
+    O(h^2) errors (a quarter at h/2). At q = 2 pi/5 (C < 0) script-T stays the paper's, fixed."""
+    model = LatticeModel.hertz(1.5, delta0=1.0)
+    assert model.law.stokes_coefficient(math.pi / 2) == pytest.approx(0.0, abs=1e-15)
+    tol, dT, dA = 1e-10, [], []
+    for K in (200, 400):
+        w = hz.wave(model, math.pi / 2, 0.3, 8, cells_per_pi=K)
+        r = refine(w, PETSc.COMM_WORLD, tol)
+        assert r.E <= tol < r.E_initial
+        dT.append(r.orbit.T / w.T - 1)
+        dA.append(np.max(np.abs(r.x[:, 0])) / np.max(np.abs(w.x[:, 0])) - 1)
+        assert r.orbit.omega * r.orbit.T == pytest.approx(w.omega * w.T, rel=1e-15)
+    assert 3 < dT[0] / dT[1] < 5 and 3 < dA[0] / dA[1] < 5, (dT, dA)
+    w = hz.wave(model, 2 * math.pi / 5, 0.3, 10, cells_per_pi=200)
+    r = refine(w, PETSc.COMM_WORLD, tol)
+    assert r.E <= tol and r.orbit.T == w.T and r.orbit.omega == w.omega
 
 
 def test_travelling_waves_need_a_periodic_chain():

@@ -271,3 +271,15 @@ def test_a_wave_list_goes_on_past_a_q_that_does_not_converge():
     assert list(study.run()) == [] and sorted(study.failed) == sorted(qs)
     table = study.table()
     assert all(f"Not computed (-resume retries it): q = {q:.6f}: Gauss-Newton refinement" in table for q in qs)
+
+
+def test_the_wave_table_gives_the_refined_waves_omega():
+    """At C(q) = 0 the refinement corrects the period (the wave's profile error): the record's omega is the refined
+    wave's, not the profile's."""
+    import hertzpetsc as hz
+    from hertzpetsc.studies.wave import WaveParameters, WaveStudy
+    model = LatticeModel.hertz(1.5, delta0=1.0)
+    (row,) = list(WaveStudy(WaveParameters(model, (math.pi / 2,), 0.3, 200, 8), COMM).run())
+    w = hz.wave(model, math.pi / 2, 0.3, 8, cells_per_pi=200, comm=COMM)
+    refined = hz.refine(w, comm=COMM).orbit
+    assert row["omega"] == pytest.approx(refined.omega, rel=1e-12) and refined.omega != w.omega

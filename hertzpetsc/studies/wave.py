@@ -5,10 +5,10 @@ multipliers modulo shift from the Bloch sectors of its cell (section 3.5), on N 
 
 Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues): constants alpha, delta0, masses, A,
 cells_per_pi, N, sizes (the longer chains), tol, tol_rho, solver_options; per record: q, m (wavelengths on N
-beads), omega, E_profile (E(q) of the wave interpolated from the grid), E_refined, iterations (Gauss-Newton), rho
-(the largest multiplier modulus, trivial ones excluded), outside (multipliers with |mu| > 1 + tol_rho), spread
-(of the trivial multipliers), unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on each longer chain, in the order
-of ``sizes``), seconds.
+beads), omega (of the refined wave), E_profile (E(q) of the wave interpolated from the grid), E_refined,
+iterations (Gauss-Newton), rho (the largest multiplier modulus, trivial ones excluded), outside (multipliers with
+|mu| > 1 + tol_rho), spread (of the trivial multipliers), unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on
+each longer chain, in the order of ``sizes``), seconds.
 """
 import math
 import time
@@ -119,7 +119,7 @@ class WaveStudy(Study):
         with SymmetricFloquet(p.model, self.comm) as floquet:
             s = floquet.spectrum(refined.orbit, p.tol_rho)
             longer = [floquet.spectrum(refined.orbit.tiled(L // p.N), p.tol_rho).rho for L in p.sizes]
-        return dict(q=q, m=orbit.m, omega=orbit.omega, E_profile=E0, E_refined=refined.E,
+        return dict(q=q, m=orbit.m, omega=refined.orbit.omega, E_profile=E0, E_refined=refined.E,
                     iterations=refined.iterations, rho=s.rho, outside=s.outside, spread=s.trivial_spread,
                     unstable=int(s.rho - 1 > p.tol_rho), rho_sizes=np.array(longer, dtype=float),
                     seconds=time.perf_counter() - t0)

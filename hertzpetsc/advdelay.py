@@ -37,7 +37,7 @@ from petsc4py import PETSc
 from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
-from .errors import ParameterError, check_integer, check_real
+from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .model import LatticeModel
 from .stencil import shift_stencil
 
@@ -761,6 +761,9 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.arclength = (gathered(row), float(value))
         try:
             self._solve(Z, True)
+        except (ParameterError, OverflowError) as err:     # a Newton iterate's parameter out of its range (a -> 0, ...)
+            raise ConvergenceError(f"travelling-wave SNES (prefix -{getattr(self, 'prefix', 'tw_')})",
+                                   f"an iterate left the parameter's range: {err}", q=self.q) from None
         finally:
             self.arclength = None
         self.set_parameter(self.parameter, self._scalars(Z)[-1])

@@ -12,7 +12,8 @@ fixed: problems take their fixed-parameter path); pseudo-arclength passes r = W 
 secant tangent in the problem's inner product W, Z_pred = Z_1 + ds t). So both algorithms drive every problem, and
 a problem implements one bordered solve.
 
-:class:`Natural` (secant predictor in p, step halving on failure, doubling after success) and
+:class:`Natural` (secant predictor in p, step halving on failure, doubling after success; optionally
+pseudo-arclength steps around an S-shaped pair of folds where the halvings stall) and
 :class:`PseudoArclength` (secant tangent, step ds adapted to the Newton iterations, halved on failure) are the two
 algorithms; :class:`Continuation` is the loop: it keeps the last two points (Vecs), yields a
 :class:`ContinuationPoint` per accepted step, detects folds (a sign change of dp/ds) and the sign changes of the
@@ -194,16 +195,22 @@ class Natural:
     """Natural continuation: steps in the parameter, secant predictor (in s(p) X,
     :meth:`~ContinuationProblem.predictor_ratio`), step halved on failure (or when the corrector moves X by more than
     ``max_corrector``, relative, sup norm) and doubled after a success, up to the next target; no step longer than
-    ``max_step`` in the parameter."""
+    ``max_step`` in the parameter. ``around_folds`` > 0: when the halvings are exhausted (natural steps cannot pass
+    a fold of the parameter: they stall at it), at most that many pseudo-arclength steps from the last two points,
+    until the parameter passes the target (then a natural step back to it), so that the curve is followed through
+    an S-shaped pair of folds; the curve turning back past the step's start (a single fold) ends the step as a
+    failure. 0: every exhausted step is a failure."""
 
     max_halvings: int = 8
     max_corrector: float = 0.25
     max_step_changes: int = 64
     max_step: float = math.inf
+    around_folds: int = 0
 
     def __post_init__(self):
         object.__setattr__(self, "max_halvings", check_integer("max_halvings", self.max_halvings, 0))
         object.__setattr__(self, "max_step_changes", check_integer("max_step_changes", self.max_step_changes, 1))
+        object.__setattr__(self, "around_folds", check_integer("around_folds", self.around_folds, 0))
         if not self.max_corrector > 0:
             raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
         if not self.max_step > 0:
@@ -357,7 +364,19 @@ class Continuation:
     def step_to(self, p_target):
         """Natural continuation from the last point to ``p_target`` (intermediate steps are not reported)."""
         alg = self.natural
-        p_last = self.parameter
+        p_start = self.parameter
+        # the last two points, to go around a fold from (natural steps near it crawl: their secant is ill-conditioned)
+        start = ([(Z.copy(), s) for Z, s, _ in self.history]
+                 if alg.around_folds and not self._detouring and len(self.history) == 2 else None)
+        try:
+            return self._natural_steps(p_start, p_target, start)
+        finally:
+            for Z, _ in start or ():
+                Z.destroy()
+
+    def _natural_steps(self, p_start, p_target, start):
+        alg = self.natural
+        p_last = p_start
         dp = math.copysign(min(abs(p_target - p_last), alg.max_step), p_target - p_last)
         total_its, halvings, substeps = 0, 0, 0
         while True:
@@ -379,7 +398,14 @@ class Continuation:
                 halvings += 1
                 self.changes += 1
                 if halvings > alg.max_halvings or self.changes > alg.max_step_changes:
-                    raise ContinuationError(self.problem.parameter, p_last, p, failure)
+                    if start is None:
+                        raise ContinuationError(self.problem.parameter, p_last, p, failure)
+                    self._around_fold(start, p_start, p_target, p_last, p, failure)
+                    self._detouring = True              # the step back to the target: no second detour
+                    try:
+                        return self.step_to(p_target)
+                    finally:
+                        self._detouring = False
                 dp *= 0.5
                 continue
             halvings = 0
@@ -400,6 +426,56 @@ class Continuation:
             p_last = p
             dp = p_target - p_last if abs(2 * dp) >= abs(p_target - p_last) else 2 * dp
             dp = math.copysign(min(abs(dp), alg.max_step), dp)
+
+    _detouring = False
+
+    def _around_fold(self, start, p_start, p_target, p_last, p_failed, failure):
+        """Pseudo-arclength steps (:meth:`step`) from the two points ``start`` [(Z, s)] (the last two before the
+        natural steps to ``p_target`` from ``p_start``), at most ``around_folds``, until the parameter passes
+        ``p_target`` (the natural step to it then starts from the last two of them). The first step is the two
+        points' distance, and no step is longer than it or the natural step; the folds and the roots of the test
+        functions located on the way join :attr:`events` (those the natural steps had located are not repeated).
+        Raises :class:`ContinuationError` (the natural step's ``failure``, at ``p_failed`` from ``p_last``; the
+        continuation is then back at ``start``) when the steps fail, or the curve turns back past ``p_start`` (the
+        error names the fold), or it has not passed the target after ``around_folds`` steps."""
+        alg = self.natural
+        self.seed([Z for Z, _ in start], [s for _, s in start])
+        (Z0, _, _), (Z1, _, _) = self.history
+        chord, dist = self._chord(Z0, Z1)
+        chord.destroy()
+        longest = max(abs(p_target - p_start), dist)
+        known, folds = list(self.events), []
+        same = max(1e-6 * longest, self.locate_step or 0.0)      # a root the natural steps located
+        saved = self.algorithm, self.ds, self._pending
+        self.algorithm = PseudoArclength(ds=dist, ds_min=min(dist, 1e-12 * longest), ds_max=longest)
+        self.ds, self._pending, self.changes, self._detouring = dist, [], 0, True
+        direction = math.copysign(1.0, p_target - p_start)
+        why = f"{failure}; then {alg.around_folds} pseudo-arclength steps did not pass it"
+        try:
+            for _ in range(alg.around_folds):
+                point = self.step()
+                if point.event is not None:
+                    if point.event == "fold":
+                        folds.append(point.parameter)
+                    if not any(e.event == point.event and abs(e.parameter - point.parameter) <= same for e in known):
+                        self.events.append(point)
+                    continue
+                if (point.parameter - p_target) * direction >= 0:
+                    while self._pending:
+                        self.events.append(self._pending.pop(0))
+                    return
+                if (point.parameter - p_start) * direction < 0:
+                    at = f" = {folds[-1]:.12g}" if folds else ""
+                    why = (f"{failure}; the curve turns back at a fold of {self.problem.parameter}{at} "
+                           f"(pseudo-arclength steps came back past the step's start {p_start:.12g})")
+                    break
+        except ContinuationError as err:
+            why = f"{failure}; then pseudo-arclength steps failed too ({err.reason})"
+        finally:
+            self.algorithm, self.ds, self._pending = saved
+            self._detouring = False
+        self.seed([Z for Z, _ in start], [s for _, s in start])      # back where the natural steps started
+        raise ContinuationError(self.problem.parameter, p_last, p_failed, why)
 
     def _corrector_size(self, Z, pred):
         """||X - X_pred||_inf / ||X||_inf (the parameter left out): both norms from the local arrays, in one

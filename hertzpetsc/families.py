@@ -36,6 +36,36 @@ def check_amplitude(a, name="amplitude"):
     return check_real(name, a, "the wave amplitude", 0.0)
 
 
+# The largest first amplitude of a family, in units of delta0: it starts from the linear wave, the limit a << delta0.
+START_MAX = 0.1
+
+
+def amplitude_floor(model):
+    """The smallest amplitude (a or A) at which a family of the precompressed ``model`` keeps its amplitude:
+    delta0 max(sqrt(eps), eps^(1/(2(d-1)))), d the law's degree. Below sqrt(eps) delta0, omega / omega_lin - 1 =
+    C a^2 (C ~ (d-1)^2 / (4 delta0^2)) is below round-off: omega is the linear one whatever a. Below
+    eps^(1/(2(d-1))) delta0 the rescaled law's stiffness, hence lam = omega^2 a^(1-d) ~ (delta0 / a)^(d-1), exceeds
+    1/sqrt(eps): the Newton's stopping tolerance, scaled by lam max(lam, ||w||_inf) (the round-off floor,
+    :func:`~hertzpetsc.twsolver.default_tolerances`), then accepts the predictor itself (omega off by the step)."""
+    eps = float(np.finfo(float).eps)
+    return model.delta0 * max(math.sqrt(eps), eps ** (1.0 / (2.0 * (model.law.scale_degree - 1.0))))
+
+
+def check_family_amplitude(model, a, name="amplitude", start=False):
+    """a (> 0, finite) must be at least :func:`amplitude_floor`, and, for the ``start`` of a family from the linear
+    wave, at most START_MAX delta0; ``name`` is used in errors."""
+    a = check_amplitude(a, name)
+    lo, hi = amplitude_floor(model), (START_MAX * model.delta0 if start else math.inf)
+    if not lo <= a <= hi:
+        floor = (f"at least delta0 max(sqrt(eps), eps^(1/(2(alpha-1)))) = {lo:.3g} (delta0 = {model.delta0:g}; "
+                 "below, the amplitude is lost in floating point)")
+        if start:
+            raise ParameterError(name, a, f"the first amplitude of a family must lie in [{lo:.3g}, {hi:.3g}]: at most "
+                                 f"{START_MAX:g} delta0 (it starts from the linear wave, a << delta0) and {floor}")
+        raise ParameterError(name, a, f"the wave amplitude must be {floor}")
+    return a
+
+
 @dataclass(frozen=True)
 class AmplitudePoint:
     """One wave of a family: a (the scale of the normalised profile: first sine coefficient, or A itself for the
@@ -131,6 +161,10 @@ class FamilyProblem(AdvanceDelayProblem):
 # corrector moved (w, lam) by 26 % (steps within the family: at most 19 % once the secant predictor has two points).
 PATTERN_MAX_STEP = math.log(1.5)
 PATTERN_MAX_CORRECTOR = 0.25
+# A family may fold in a (an S-shaped pair of folds: the precompressed trimer 1, 1/2, 1/3 at q = 2 pi/15 just past
+# its gap opening), where natural steps stall: the layer then follows the curve by at most this many
+# pseudo-arclength steps (:class:`~hertzpetsc.continuation.Natural`, ``around_folds``).
+AROUND_FOLDS = 100
 
 
 class AmplitudeFamily:
@@ -141,10 +175,12 @@ class AmplitudeFamily:
     ``max_step``, ``max_corrector``: the layer's guards against a step landing on another branch, the longest
     natural step in log a and the largest corrector (relative, on (w, lam)); None: PATTERN_MAX_STEP and
     PATTERN_MAX_CORRECTOR for a mass pattern, none for the monatomic chain (every converged step taken, as when
-    its families were computed)."""
+    its families were computed). ``around_folds``: the layer's pseudo-arclength steps through a fold of a where the
+    natural steps stall (0: none, the step fails)."""
 
     def __init__(self, model, q, grid, prefix=PRECOMP_PREFIX, branch="acoustic", max_halvings=6, measure="a1",
-                 solver=None, tests=None, bisect=(), locate_step=None, max_step=None, max_corrector=None):
+                 solver=None, tests=None, bisect=(), locate_step=None, max_step=None, max_corrector=None,
+                 around_folds=AROUND_FOLDS):
         if not model.law.linear_stiffness > 0:
             raise ParameterError("delta0", model.delta0, "the amplitude family starts from the linear wave: it needs "
                                  "a precompression > 0")
@@ -160,8 +196,8 @@ class AmplitudeFamily:
         if max_corrector is None:
             max_corrector = PATTERN_MAX_CORRECTOR if pattern else math.inf
         self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=max_corrector,
-                                                               max_step=max_step), bisect=bisect,
-                                         locate_step=locate_step)
+                                                               max_step=max_step, around_folds=around_folds),
+                                         bisect=bisect, locate_step=locate_step)
 
     def solve_at(self, a):
         """The wave at amplitude a (:meth:`step_to`)."""
@@ -172,6 +208,7 @@ class AmplitudeFamily:
         point (intermediate steps halved on failure)."""
         a = check_amplitude(a_target)
         if not self.continuation.history:
+            check_family_amplitude(self.model, a, "a")
             self.problem.set_parameter("a", a)
             prof, lam = self.problem.linear_guess(self.branch)
             Z = self.problem.pack(prof, lam, parameter=math.log(a))
@@ -334,11 +371,12 @@ class MassFamily:
 def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start=1e-3, ds=0.25, solver=None):
     """The travelling wave of ``model`` with per-bead wavenumber q and amplitude A = max_c ||u_c||_inf: A is a
     border row of the problem (measure 'sup'), reached by natural steps in log A of size ``ds`` from the linear wave
-    at ``a_start`` delta0 (precompressed lattices). Returns the AmplitudePoint (omega at that A)."""
-    A = check_amplitude(A, "A")
+    at ``a_start`` delta0 (precompressed lattices; at least :func:`amplitude_floor`, as A must be). Returns the
+    AmplitudePoint (omega at that A)."""
+    A = check_family_amplitude(model, A, "A")
     fam = AmplitudeFamily(model, q, grid, prefix, branch, measure="sup", solver=solver)
     try:
-        a0 = min(a_start * max(model.delta0, 1e-300), A)
+        a0 = min(max(a_start * model.delta0, amplitude_floor(model)), A)
         n = max(1, int(math.ceil(math.log(A / a0) / ds)))
         return list(fam.points(np.geomspace(a0, A, n + 1)))[-1]
     finally:

@@ -12,7 +12,10 @@ A = max_c ||u_c||_inf). C(q) has its closed form for one mass only.
 
 At each q: continuation in s = log a (a: first sine coefficient of u; rescaled unknowns w = u / a and
 lam = omega^2 / a^(alpha-1)) from a_min to a_max by steps ds, the gap opening 2 u(q/2) = delta0 located on the
-way (regula falsi in s), then the uncompressed limit delta0 / A = 0 on the same grid. Table: C(q) (closed form and
+way (regula falsi in s), then the uncompressed limit delta0 / A = 0 on the same grid. A family that folds in a
+(an S past the gap opening) is followed around its folds by pseudo-arclength; one that turns back ends with an
+error naming the fold. a_min: at most 0.1 delta0 (the family starts from the linear wave), at least the amplitude
+below which it is lost in floating point (families.amplitude_floor). Table: C(q) (closed form and
 fit), A_gap, Omega = omega A^(-(alpha-1)/2) at the largest A, its limit Omega0 and the rate coefficient c1.
 Figure: precompressed_omega.png. Solver prefix: -precomp_ (the bordered Newton: -precomp_snes_*, -precomp_ksp_*,
 -precomp_pc_*).
@@ -45,7 +48,8 @@ def main():
     qs = opts.numbers("q", "3*pi/10,7*pi/25,pi/2,4*pi/5", "wavenumbers in (0, pi]",
                       valid=(lambda q: 0 < q <= math.pi * (1 + 1e-14), "in (0, pi]"), distinct=True)
     K = opts.integer("cells_per_pi", 1000, "grid h = pi / cells_per_pi", minimum=4)
-    a_min = opts.real("a_min", 1e-3, "first amplitude (first sine coefficient of u)", valid=(lambda x: x > 0, "> 0"))
+    a_min = opts.real("a_min", 1e-3, "first amplitude (first sine coefficient of u), in [delta0 max(sqrt(eps), "
+                      "eps^(1/(2(alpha-1)))), 0.1 delta0]", valid=(lambda x: x > 0, "> 0"))
     a_max = opts.real("a_max", 1e3, "last amplitude", valid=(lambda x: x > 0, "> 0"))
     ds = opts.real("ds", 0.1, "step in s = log a", valid=(lambda x: x > 0, "> 0"))
     output, mode, table_path, figures = opts.record_table_figures(

@@ -35,7 +35,8 @@ def main():
     masses = opts.numbers("masses", "1", "the repeating mass pattern", valid=(lambda m: m > 0, "> 0"))
     qs = opts.numbers("q", "2*pi/15", "per-bead wavenumbers (q N / (2 pi) whole)",
                       valid=(lambda q: 0 < q <= math.pi * (1 + 1e-14), "in (0, pi]"), distinct=True)
-    A = opts.real("A", 0.5, "amplitude max |u|", valid=(lambda x: x > 0, "> 0"))
+    A = opts.real("A", 0.5, "amplitude max |u| (delta0 > 0: at least delta0 max(sqrt(eps), eps^(1/(2(alpha-1)))))",
+                  valid=(lambda x: x > 0, "> 0"))
     K = opts.integer("cells_per_pi", 400, "grid h = pi / cells_per_pi", minimum=4)
     N = opts.integer("N", 90, "beads of the periodic chain of the refinement", minimum=2, maximum=MAX_BEADS)
     sizes = opts.numbers("sizes", "", "longer chains for the Bloch spectra (multiples of N; none if empty)",

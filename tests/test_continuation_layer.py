@@ -208,3 +208,78 @@ def test_bisection_locates_a_flat_sided_root_to_the_step_and_keeps_the_bracket()
     assert counted == substeps + 1                             # at the natural points only, not at the ~15 trials
     with pytest.raises(ParameterError):
         Continuation(Bratu(5), Natural(), locate_step=0.0)
+
+
+class Cubic(ContinuationProblem):
+    """x^3 - x = p: an S-shaped curve in p, folds at x = -+1/sqrt(3), p = +-2/(3 sqrt(3)). Z = (x, p); 2x2 Newton."""
+
+    parameter = "p"
+
+    def create_vec(self):
+        return PETSc.Vec().createSeq(2, comm=PETSc.COMM_SELF)
+
+    def solve(self, Z, row=None, value=None):
+        z = Z.getArray()
+        r = None if row is None else row.getArray(readonly=True).copy()
+        for it in range(1, 30):
+            x, p = z
+            A = np.array([[3 * x * x - 1, -1.0], [0.0, 1.0] if r is None else list(r)])
+            g = 0.0 if r is None else r @ z - value
+            d = np.linalg.solve(A, -np.array([x ** 3 - x - p, g]))
+            z += d
+            if np.max(np.abs(d)) < 1e-14 * max(1.0, np.max(np.abs(z))):
+                return it
+        raise ConvergenceError("cubic Newton", "no convergence", p=float(z[1]))
+
+
+def _cubic_from(p0, around_folds):
+    prob = Cubic()
+    cont = Continuation(prob, Natural(max_halvings=6, around_folds=around_folds))
+    Z = prob.create_vec()
+    lower = min(np.real(r) for r in np.roots([1, 0, -1, -p0]) if abs(np.imag(r)) < 1e-12)
+    Z.getArray()[:] = [lower, p0]
+    cont.start(Z)
+    Z.destroy()
+    cont.step_to(p0 + 0.05)
+    return cont
+
+
+def test_natural_steps_go_around_an_s_shaped_pair_of_folds():
+    """Natural steps from the lower branch (p = -1) to p = 1 stall at the fold p = 2/(3 sqrt(3)) (the corrector
+    guard refuses the jump to the upper branch); with ``around_folds`` the layer follows the curve by
+    pseudo-arclength through both folds (located, in order) and lands on the upper branch's x^3 - x = 1."""
+    cont = _cubic_from(-1.0, 0)
+    with pytest.raises(ContinuationError):
+        cont.step_to(1.0)
+    cont.destroy()
+    cont = _cubic_from(-1.0, 50)
+    try:
+        point = cont.step_to(1.0)
+        x = float(cont.history[-1][0].getArray()[0])
+        folds = [e.parameter for e in cont.take_events() if e.event == "fold"]
+    finally:
+        cont.destroy()
+    upper = max(np.real(r) for r in np.roots([1, 0, -1, -1]) if abs(np.imag(r)) < 1e-12)
+    assert point.parameter == 1.0 and abs(x - upper) < 1e-12
+    pf = 2 / (3 * math.sqrt(3))
+    assert len(folds) == 2 and abs(folds[0] - pf) < 1e-8 and abs(folds[1] + pf) < 1e-8
+
+
+def test_natural_steps_around_a_single_fold_stop_with_the_fold_named():
+    """Beyond the Bratu fold the curve turns back: the detour ends (bounded) with an error naming the fold."""
+    prob = Bratu(49)
+    cont = Continuation(prob, Natural(max_halvings=6, around_folds=100))
+    Z = prob.create_vec()
+    Z.set(0.0)
+    Z.getArray()[-1] = 1.0
+    try:
+        cont.start(Z)
+        cont.step_to(2.0)
+        with pytest.raises(ContinuationError, match="turns back at a fold of lambda = ") as err:
+            cont.step_to(4.0)
+        fold = float(str(err.value).split("fold of lambda = ")[1].split(" ")[0])
+        assert abs(fold - lambda_c()) < 1e-3 * lambda_c()           # the scheme's fold, O(h^2) from the continuum
+        assert prob.solves < 400
+    finally:
+        Z.destroy()
+        cont.destroy()

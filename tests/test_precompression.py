@@ -10,7 +10,7 @@ from petsc4py import PETSc
 from conftest import one_error_line, run_script, small_branch
 from hertzpetsc.advdelay import AdvanceDelayProblem
 from hertzpetsc.chain import IntegrationTolerances
-from hertzpetsc.errors import ParameterError
+from hertzpetsc.errors import ConvergenceError, ParameterError
 from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.grid import ProfileGrid
 from hertzpetsc.hertz import HertzLaw
@@ -236,7 +236,9 @@ def test_bad_input():
 @pytest.mark.parametrize("args, name", [(("-delta0", "-1"), "-delta0"), (("-a_min", "-0.5"), "-a_min"),
                                         (("-precomp_snes_rtoll", "1"), "-precomp_snes_rtoll"),
                                         (("-branch", "optical"), "-branch"), (("-branch", "upper"), "-branch"),
-                                        (("-masses", "1,0"), "-masses")])
+                                        (("-masses", "1,0"), "-masses"), (("-a_min", "1e-300"), "-a_min"),
+                                        (("-a_min", "1e-100", "-a_max", "1e-99"), "-a_min"),
+                                        (("-a_min", "100"), "-a_min")])
 def test_driver_bad_input_one_line(tmp_path, args, name):
     res = run_script("precompressed_branch.py", *args, "-output", tmp_path / "x.npz", "-table", tmp_path / "x.md")
     assert name in one_error_line(res)
@@ -264,3 +266,59 @@ def test_driver_records_resume_and_ranks(tmp_path):
     for k in ("A", "omega", "Omega"):
         fin = np.isfinite(d1[k])
         assert np.allclose(d1[k][fin], d2[k][fin], rtol=1e-10, atol=0)
+
+
+def test_amplitudes_below_the_floor_are_refused_and_above_it_keep_their_amplitude():
+    """alpha = 3, q = pi/3: below amplitude_floor (eps^(1/4) delta0 here) the amplitude is refused, naming the Python
+    argument (the API's A, a family's a); a family started at twice the floor resolves its amplitude: omega /
+    omega_lin - 1 = C a^2 (omega_lin the scheme's, from the linear wave) to 1 % of C a^2 = 5e-8 (the scheme's O(h^2)
+    in C is 0.03 % at h = pi/200; a wave that lost its amplitude would give 0, the old predictor accepted as converged
+    O(1))."""
+    from hertzpetsc.families import amplitude_floor, wave_at
+    model = LatticeModel.hertz(3.0, delta0=1.0)
+    grid, q = ProfileGrid(200, COMM), math.pi / 3
+    lo = amplitude_floor(model)
+    assert lo == pytest.approx(np.finfo(float).eps ** 0.25)
+    with pytest.raises(ParameterError, match="invalid A = "):
+        wave_at(model, q, 1e-300, grid)
+    fam = AmplitudeFamily(model, q, grid)
+    try:
+        with pytest.raises(ParameterError, match="invalid a = "):
+            fam.step_to(lo / 2)
+        a = 2 * lo
+        point = fam.step_to(a)
+        fam.problem.set_parameter("a", a)
+        lam_lin = fam.problem.linear_guess()[1]
+    finally:
+        fam.destroy()
+    omega_lin = a ** ((3.0 - 1) / 2) * math.sqrt(lam_lin)
+    C = float(model.law.stokes_coefficient(q))
+    assert abs((point.omega / omega_lin - 1) - C * a * a) < 1e-2 * C * a * a
+
+
+def test_trimer_family_goes_around_the_folds_past_its_gap_opening():
+    """The trimer 1, 1/2, 1/3 (alpha = 3/2, delta0 = 1, q = 2 pi/15) folds in a just past its gap opening (an S:
+    natural steps stall, reason -6); the layer's pseudo-arclength detour carries the family on, to the wave that the
+    A-imposed family (wave_at, no fold in A there) finds at the same A: omega to 1e-6 relative (the 'sup' border row,
+    a parabola through the largest grid value, is only piecewise smooth in w, and its Newton stops above the a1
+    row's round-off), where the branch beyond the family's next fold differs by more than 1e-3."""
+    from hertzpetsc.families import wave_at
+    model = LatticeModel.hertz(1.5, (1.0, 0.5, 0.333333333333), 1.0)
+    grid, q = ProfileGrid(60, COMM), 2 * math.pi / 15
+    amplitudes = [0.1 * math.exp(0.1 * k) for k in range(25)]          # 0.1 .. 1.1, then 2.0086, 2.2198
+    fam = AmplitudeFamily(model, q, grid, around_folds=0)
+    try:
+        with pytest.raises(ConvergenceError):
+            list(fam.points(amplitudes + [2.0086, 2.2198]))
+    finally:
+        fam.destroy()
+    fam = AmplitudeFamily(model, q, grid)
+    try:
+        point = list(fam.points(amplitudes + [2.0086, 2.2198]))[-1]
+        events = [e.event for e in fam.events()]
+    finally:
+        fam.destroy()
+    assert events.count("fold") == 2 and "gap" in events
+    assert point.gap > 0
+    imposed = wave_at(model, q, point.A, grid)
+    assert abs(imposed.omega - point.omega) < 1e-6 * point.omega

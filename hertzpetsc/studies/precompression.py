@@ -31,7 +31,7 @@ from ..errors import ConvergenceError, ParameterError, RecordFileError, check_in
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..advdelay import check_branch, check_wavenumber
 from ..model import ChainSpec, LatticeModel
-from ..families import AmplitudeFamily, MassFamily, check_amplitude, uncompressed_limit
+from ..families import AmplitudeFamily, MassFamily, check_amplitude, check_family_amplitude, uncompressed_limit
 from ..resources import check_memory
 from ..twsolver import tw_solver
 from .base import Study
@@ -107,6 +107,7 @@ class AmplitudeParameters:
         for q in self.q:
             check_branch(self.model, q, self.branch)
         amplitude_grid(self.a_min, self.a_max, self.ds)
+        check_family_amplitude(self.model, self.a_min, "a_min", start=True)
 
 
 class AmplitudeFamilies(Study):

@@ -19,7 +19,7 @@ import numpy as np
 from ..advdelay import check_branch
 from ..bloch import SymmetricFloquet
 from ..errors import ConvergenceError, ParameterError
-from ..families import check_amplitude, wave_of_amplitude
+from ..families import check_amplitude, check_family_amplitude, wave_of_amplitude
 from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
@@ -59,7 +59,8 @@ class WaveParameters:
         if m.delta0 == 0 and m.cell > 1:
             raise ParameterError("delta0", 0.0, "a mass pattern's waves start from the linear wave: give a "
                                  "precompression > 0 (the sonic-vacuum dimer: dimer_branch.py from epsilon = 1)")
-        object.__setattr__(self, "A", check_amplitude(self.A, "A"))
+        object.__setattr__(self, "A", check_family_amplitude(m, self.A, "A") if m.delta0 > 0 else
+                           check_amplitude(self.A, "A"))
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         if not (isinstance(self.N, (int, np.integer)) and 2 <= self.N <= MAX_BEADS and self.N % m.cell == 0):
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {m.cell} in "

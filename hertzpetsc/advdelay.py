@@ -485,13 +485,6 @@ class AdvanceDelayProblem(ContinuationProblem):
         n = self.nloc
         return w[n:2 * n] - u, u - w[2 * n:], w[:n]
 
-    def residual_norm(self, X):
-        F = X.duplicate()
-        self.formFunction(None, X, F)
-        norm = F.norm(PETSc.NormType.NORM_INFINITY)
-        F.destroy()
-        return norm
-
     # --- the Jacobian -----------------------------------------------------------------------------------------
     @property
     def assembler(self):

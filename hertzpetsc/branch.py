@@ -165,9 +165,6 @@ class Branch:
             raise RecordFileError(f"the branch has no point at q = {q:.12g} ({have})")
         return self.points[i]
 
-    def has(self, q, tol=1e-12):
-        return bool(len(self.points)) and float(np.min(np.abs(self.q - q))) <= tol * max(1.0, abs(q))
-
     def q_k(self):
         """q_k where F(q_k) = 1 (paper: q_k ~ 1.8)."""
         return crossing(self.q, self.column("F"), 1.0)

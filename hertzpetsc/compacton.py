@@ -19,7 +19,7 @@ at c = omega / q beads per unit time, the gaps outside them are Delta = a p q, a
 branch profile; outside, U is exactly linear, so beads ahead of the train have exactly zero velocity.
 """
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -255,9 +255,6 @@ class LatticeChecks:
     gap_error: float
     profile_error_x: float
     profile_error_v: float
-
-    def as_dict(self):
-        return asdict(self)
 
 
 def lattice_checks(train, scales, phi, times, states):

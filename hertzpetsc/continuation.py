@@ -290,12 +290,12 @@ class Continuation:
     def _norm(self, a):
         return math.sqrt(max(self._dot(a, a), 0.0))
 
-    def _accept(self, Z, its, event=None, dp_ds=math.nan, parameter=None):
+    def _accept(self, Z, its, parameter=None):
         """Append Z to the history (``parameter``: Z's, when the caller knows it; else read from Z)."""
         p = _parameter(Z) if parameter is None else parameter
         tests = self.problem.test_functions(Z)
         self._remember(Z, self.s, tests, p)
-        return ContinuationPoint(parameter=p, s=self.s, dp_ds=dp_ds, iterations=its, event=event,
+        return ContinuationPoint(parameter=p, s=self.s, dp_ds=math.nan, iterations=its,
                                  report=self.problem.report(Z), tests=tests)
 
     def _remember(self, Z, s, tests, p):

@@ -26,9 +26,8 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import __version__
-from .errors import HertzPetscError, OptionError, ParameterError
+from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure
 
-EXIT_PARAMETER, EXIT_CONVERGENCE, EXIT_FILE, EXIT_PETSC = 2, 3, 4, 5
 # seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
 ABORT_GRACE = 3.0
 
@@ -140,18 +139,14 @@ class AppOptions:
         self.doc = (doc or "").strip()
         self.roles = dict(roles or {})
         self.declared = []          # (name, default text, valid text, help)
-        self.aliases = {}           # old spelling -> name
         self.help = self.db.hasName("help")
 
     # --- declaration helpers ---------------------------------------------------------------------------------
-    def _raw(self, name, default, valid, help, old=()):
-        """Declare the option; the value given for ``name`` (or one of its old spellings ``old``), None if absent
-        or under -help."""
+    def _raw(self, name, default, valid, help):
+        """Declare the option; the value given for ``name``, None if absent or under -help."""
         self.declared.append((name, default, valid, help))
-        self.aliases.update({o: name for o in old})
-        for key in (name, *old):
-            if self.db.hasName(key):
-                return None if self.help else self.db.getString(key, "")
+        if self.db.hasName(name):
+            return None if self.help else self.db.getString(name, "")
         return None
 
     @staticmethod
@@ -163,9 +158,9 @@ class AppOptions:
             return float(eval(text, {"__builtins__": {}}, {"pi": math.pi}))
         return float(text)
 
-    def real(self, name, default, help="", valid=None, expr=False, old=()):
+    def real(self, name, default, help="", valid=None, expr=False):
         """A real option; ``valid`` = (predicate, text); with ``expr``, values like ``pi/50`` are accepted."""
-        raw = self._raw(name, default, valid[1] if valid else ("real" + (", pi allowed" if expr else "")), help, old)
+        raw = self._raw(name, default, valid[1] if valid else ("real" + (", pi allowed" if expr else "")), help)
         if raw is None:
             return default
         try:
@@ -178,9 +173,9 @@ class AppOptions:
             raise ParameterError(f"-{name}", raw, valid[1])
         return value
 
-    def integer(self, name, default, help="", minimum=None, maximum=None, old=()):
+    def integer(self, name, default, help="", minimum=None, maximum=None):
         rng = " and ".join(f"{op} {v}" for op, v in ((">=", minimum), ("<=", maximum)) if v is not None)
-        raw = self._raw(name, default, f"integer {rng}".strip(), help, old)
+        raw = self._raw(name, default, f"integer {rng}".strip(), help)
         if raw is None:
             return default
         try:
@@ -191,17 +186,17 @@ class AppOptions:
             raise ParameterError(f"-{name}", raw, f"must be an integer {rng}")
         return value
 
-    def string(self, name, default, help="", choices=None, old=()):
-        raw = self._raw(name, default, "one of " + ", ".join(choices) if choices else "text", help, old)
+    def string(self, name, default, help="", choices=None):
+        raw = self._raw(name, default, "one of " + ", ".join(choices) if choices else "text", help)
         if raw is None:
             return default
         if choices is not None and raw not in choices:
             raise ParameterError(f"-{name}", raw, "must be one of " + ", ".join(choices))
         return raw
 
-    def path(self, name, default, help="", old=()):
+    def path(self, name, default, help=""):
         """A file or directory name; empty only where the default is empty (none: an empty value says so too)."""
-        raw = self._raw(name, default, "a path" + (", or empty for none" if default == "" else ""), help, old)
+        raw = self._raw(name, default, "a path" + (", or empty for none" if default == "" else ""), help)
         if raw is None:
             return default
         if not raw.strip():
@@ -210,8 +205,8 @@ class AppOptions:
             raise ParameterError(f"-{name}", raw, "must be a non-empty path")
         return raw
 
-    def flag(self, name, help="", old=()):
-        raw = self._raw(name, "off", "flag", help, old)
+    def flag(self, name, help=""):
+        raw = self._raw(name, "off", "flag", help)
         if raw is None:
             return False
         if raw.lower() in ("", "1", "true", "yes", "on"):
@@ -220,15 +215,14 @@ class AppOptions:
             return False
         raise ParameterError(f"-{name}", raw, "is a flag: give it alone, or with true/false")
 
-    def numbers(self, name, default, help="", expr=True, kind=float, valid=None, distinct=False, minimum_count=1,
-                old=()):
+    def numbers(self, name, default, help="", expr=True, kind=float, valid=None, distinct=False, minimum_count=1):
         """A comma-separated list (``default`` is the list's text). Empty lists, members out of ``valid`` =
         (predicate, text), and (with ``distinct``) repeated members are refused."""
         what = "integers" if kind is int else "numbers" + (" (pi allowed)" if expr else "")
         rule = (f"a comma-separated list of at least {minimum_count} {what}" if minimum_count else
                 f"an optional comma-separated list of {what}") + \
                (f", each {valid[1]}" if valid else "") + (", all different" if distinct else "")
-        raw = self._raw(name, default, rule, help, old)
+        raw = self._raw(name, default, rule, help)
         if self.help:
             return []
         text = default if raw is None else raw
@@ -256,10 +250,10 @@ class AppOptions:
                     raise ParameterError(f"-{name}", text, f"lists {v!r} twice; the members must be different")
         return values
 
-    def words(self, name, default, help="", choices=None, old=()):
+    def words(self, name, default, help="", choices=None):
         """A comma-separated list of names (``default`` is the list's text), each one of ``choices``."""
         rule = "a comma-separated list" + (" of " + ", ".join(choices) if choices else " of names")
-        raw = self._raw(name, default, rule, help, old)
+        raw = self._raw(name, default, rule, help)
         text = default if raw is None else raw
         values = [v.strip() for v in text.split(",")] if text.strip() else []
         if not values or "" in values or (choices is not None and any(v not in choices for v in values)):
@@ -294,9 +288,6 @@ class AppOptions:
         for name, default, valid, text in self.declared:
             lines.append(f"  -{name} {default if default not in (None, '') else '(none)'}"
                          f"    [{valid}]" + (f"  {text}" if text else ""))
-        if self.aliases:
-            lines.append("Old spellings still accepted: " + ", ".join(f"-{o} (for -{n})" for o, n in
-                                                                         sorted(self.aliases.items())))
         if self.roles:
             lines += ["", "Solver prefixes (every PETSc option of these objects, e.g. -tw_snes_monitor):"]
             for prefix, (description, kinds) in self.roles.items():
@@ -323,7 +314,7 @@ class AppOptions:
         raise SystemExit(0)
 
     def known(self):
-        return {name for name, *_ in self.declared} | set(self.aliases)
+        return {name for name, *_ in self.declared}
 
     def check_unused(self, passed_on=()):
         """Refuse options that nothing has read (after every solver of the driver was configured); options under
@@ -513,6 +504,6 @@ def _report(err):
             err = err.as_option(AppOptions.current.known())
         _exit(err.exit_status, str(err), True)
     elif isinstance(err, PETSc.Error):
-        _exit(EXIT_PETSC, petsc_message(err), True)
+        _exit(PetscFailure.exit_status, petsc_message(err), True)
     else:                                         # a bug or a rank-local failure: never a hang
         _exit(1, f"internal error: {type(err).__name__}: {err}", False)

@@ -141,11 +141,11 @@ def plot_errors(refined, directory):
     return _save(fig, directory, "errors.png")
 
 
-def bond_forces(states, boundary="periodic"):
-    """V'(x_{n+1} - x_n) / (-|.|^alpha) without alpha: the bond compressions min(x_{n+1} - x_n, 0), per snapshot."""
+def bond_forces(states):
+    """V'(x_{n+1} - x_n) / (-|.|^alpha) without alpha on the ring: the bond compressions min(x_{n+1} - x_n, 0),
+    per snapshot."""
     x = states[..., 0]
-    r = np.roll(x, -1, axis=-1) - x if boundary == "periodic" else np.diff(x, axis=-1)
-    return np.minimum(r, 0.0)
+    return np.minimum(np.roll(x, -1, axis=-1) - x, 0.0)
 
 
 def plot_snapshot(x0, xt, t, directory, name, title=""):

@@ -330,8 +330,8 @@ class TwistScan:
     bubbles: int = 0
 
 
-def crossing_search(evaluate, unstable, pattern, a, b, pa, pb, min_width):
-    """A point of an instability bubble between two stable samples a < b whose Krein patterns pa != pb differ:
+def crossing_search(evaluate, unstable, pattern, a, b, pa, min_width):
+    """A point of an instability bubble between two stable samples a < b whose Krein patterns differ (``pa``: a's):
     bisection keeping the half whose end patterns differ, until a sample is unstable (returned with its value) or the
     interval is narrower than ``min_width`` (None: the crossing's bubble, if any, is narrower). Returns (the unstable
     sample, its value, the stable samples a, b around it)."""
@@ -387,7 +387,7 @@ def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution
                 continue
             crossings += 1
             found = crossing_search(sector, lambda s: s.rho - 1 > floor, lambda s: s.pattern(), t1, t2,
-                                    s1.pattern(), s2.pattern(), max(0.1 * floor, 1e-12))
+                                    s1.pattern(), max(0.1 * floor, 1e-12))
             if found is not None:
                 bubbles += 1
                 hints.append(found[0])

@@ -196,7 +196,7 @@ class CellPropagator:
     On the cell with the twisted boundary y_{n+M} = e^{i theta} y_n (a Bloch sector, :mod:`hertzpetsc.bloch`) the
     data in cell l are e^{i l theta} times those in cell 0, so the twisted resolvent is
 
-        R_theta(T; 0) = P_0 + e^{-i theta} P_1 + e^{i theta} P_{-1}       (:meth:`twisted`),
+        R_theta(T; 0) = P_0 + e^{-i theta} P_1 + e^{i theta} P_{-1}       (:func:`twisted_resolvent`),
 
     exactly when the response two cells away vanishes: in time T a perturbation has to cross a whole cell of M
     beads, and the lattice's coupling makes that decay faster than exponentially in M (out of contact, Hertz bonds
@@ -239,10 +239,6 @@ class CellPropagator:
         self.blocks = (R[4 * M:], R[:2 * M], R[2 * M:4 * M])          # P_{-1}, P_0, P_1
         self.local = self._far(RY) <= LOCAL_RESPONSE * float(np.max(np.abs(R)))
         return self
-
-    def twisted(self, theta):
-        """R_theta(T; 0) of the twisted cell (2M x 2M; real for theta = 0, pi)."""
-        return twisted_resolvent(self.blocks, theta)
 
     def destroy(self):
         self.flow.destroy()

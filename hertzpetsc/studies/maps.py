@@ -423,7 +423,7 @@ class StabilityMap(Study):
         lo, hi = math.log(first["point"].a), math.log(last["point"].a)
         found = crossing_search(lambda s: probe.chain(probe.entry(fam.step_to(math.exp(s)))),
                                 lambda c: c["rho"] - 1 > tol, lambda c: c["patterns"], lo, hi, c1["patterns"],
-                                c2["patterns"], 0.5 * self.locate_tol)
+                                0.5 * self.locate_tol)
         if found is None:
             # no sample above tol_rho: the crossing's bubble (if any) is narrower than the bracket, or weaker
             row = self._row(q, KIND_CROSSING, last["point"].a, probe.wave(last)["A"], math.nan)

@@ -95,8 +95,8 @@ class DeflatedSector:
     signatures: np.ndarray = None     # Krein signatures of ``values`` (DeflatedSectors(krein=True))
 
     def pattern(self):
-        """The sector's :func:`krein_pattern` (needs the signatures)."""
-        return krein_pattern(self.values, self.signatures)
+        """The sector's :func:`krein_pattern`; () without signatures (DeflatedSectors(krein=None))."""
+        return () if self.signatures is None else krein_pattern(self.values, self.signatures)
 
     @property
     def rho(self):

@@ -17,9 +17,29 @@ from hertzpetsc.errors import ConvergenceError
 from hertzpetsc.qbranch import BranchContinuation, ContinuationParameters
 
 
-def _children_of(pattern):
-    r = subprocess.run(["pgrep", "-f", pattern], capture_output=True, text=True)
-    return [int(p) for p in r.stdout.split()]
+def _cmdline(pid):
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            return f.read().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:                                  # ended (a zombie's command line is empty too)
+        return ""
+
+
+def _children_of(pattern, root):
+    """The processes below ``root`` (its children, theirs ...) whose command line contains ``pattern``: this test's
+    own, not those of another run on the machine."""
+    found, todo = [], [root]
+    while todo:
+        r = subprocess.run(["pgrep", "-P", str(todo.pop())], capture_output=True, text=True)
+        for pid in map(int, r.stdout.split()):
+            todo.append(pid)
+            if pattern in _cmdline(pid):
+                found.append(pid)
+    return found
+
+
+def _alive(pids, pattern):
+    return [pid for pid in pids if pattern in _cmdline(pid)]
 
 
 @pytest.mark.serial
@@ -32,15 +52,16 @@ def test_sigterm_ends_the_pipeline_step_and_its_ranks_then_resume_finishes(tmp_p
                             cwd=ROOT)
     marker = "scripts/convergence_h.py"
     deadline = time.time() + 60
-    while time.time() < deadline and not _children_of(marker):
+    while time.time() < deadline and not _children_of(marker, proc.pid):
         time.sleep(0.2)
-    assert _children_of(marker), "the step did not start"
+    step = _children_of(marker, proc.pid)
+    assert step, "the step did not start"
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 143
     assert err.strip().splitlines() == ["error: terminated by SIGTERM"]
     time.sleep(1.0)
-    assert not _children_of(marker)
+    assert not _alive(step, marker)
     r = subprocess.run(args + ["-resume"], env=script_env(), capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr
     assert "convergence_h" in r.stdout
@@ -56,14 +77,15 @@ def test_sigterm_to_a_benchmark_ends_its_workers_and_their_ranks(tmp_path):
                             cwd=ROOT)
     marker = '"K": 400000'                           # the workers' request, on their command lines
     deadline = time.time() + 60
-    while time.time() < deadline and not _children_of(marker):
+    while time.time() < deadline and not _children_of(marker, proc.pid):
         time.sleep(0.2)
-    assert _children_of(marker), "no worker started"
+    workers = _children_of(marker, proc.pid)
+    assert workers, "no worker started"
     proc.send_signal(signal.SIGTERM)
     out, err = proc.communicate(timeout=60)
     assert proc.returncode == 143, err
     time.sleep(1.0)
-    assert not _children_of(marker)
+    assert not _alive(workers, marker)
 
 
 @pytest.mark.serial
@@ -75,7 +97,7 @@ def test_a_second_pipeline_on_the_same_progress_file_is_refused(tmp_path):
     first = subprocess.Popen(args, env=script_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
     try:
         deadline = time.time() + 60
-        while time.time() < deadline and not _children_of("scripts/convergence_h.py"):
+        while time.time() < deadline and not _children_of("scripts/convergence_h.py", first.pid):
             time.sleep(0.05)
         first.send_signal(signal.SIGSTOP)
         assert first.poll() is None, "the pipeline ended before it could be held"

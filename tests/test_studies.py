@@ -129,6 +129,13 @@ def test_floquet_verdicts_only_from_the_waves_they_claim(refined, tmp_path):
     row = next(unrefined.run())
     unrefined.destroy()
     assert row["refined"] == 0 and "unrefined branch waves" in unrefined.table()
+    # a wave whose trivial multipliers spread by more than tol_rho is not judged at that threshold
+    spread = float(row["trivial_spread"])
+    assert spread > 1e-12
+    for tol_rho, judged in ((0.5 * spread, False), (2.0 * spread, True)):
+        unrefined.tol_rho = tol_rho
+        table = unrefined.table()
+        assert ("not judged: q = 1.2566" in table) != judged and ("within the scanned q" in table) == judged
     # symmetric route, each q on one rank: the multipliers are bit-for-bit the serial ones on any rank count
     fast = SymmetricFloquet(branch.model, PETSc.COMM_SELF)
     try:

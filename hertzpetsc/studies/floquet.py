@@ -10,7 +10,8 @@ residual, seconds, slepc_products, slepc_seconds.
 
 A stability verdict is only given for the waves it is computed on: with a refinement file, every scanned q must
 be in it (a list naming an unrefined q is an error; without a list the scan is restricted to the refined q,
-and the table says so); the unrefined branch waves are only used when asked for explicitly.
+and the table says so); the unrefined branch waves are only used when asked for explicitly, and a wave whose trivial
+multipliers spread by more than tol_rho is not judged (named below the table, left out of q_c).
 """
 import math
 import time
@@ -188,8 +189,18 @@ class FloquetScan(Study):
                          f"{'refined' if int(r['refined']) else 'branch'} |")
         if not len(rows):
             return "\n".join(lines) + "\n"
+        # a wave whose trivial multipliers spread by more than tol_rho (an unrefined one) cannot be judged there
+        unresolved = np.array([float(r["trivial_spread"]) > self.tol_rho for r in rows])
+        if unresolved.any():
+            lines.append(f"\nnot judged: q = {', '.join(f'{x:.4f}' for x in q[unresolved])}: the trivial "
+                         f"multipliers spread by more than tol_rho = {self.tol_rho:g}, so rho - 1 is not resolved "
+                         "there (refine the wave: refine_branch.py)")
+            q, rho, growth = q[~unresolved], rho[~unresolved], growth[~unresolved]
+            if not len(q):
+                return "\n".join(lines) + "\n"
         qc, qc_hi, qm = critical_wavenumbers(q, rho, self.tol_rho)
-        span = f" (within the scanned q in [{q.min():.4f}, {q.max():.4f}])"
+        span = f" (within the scanned q in [{q.min():.4f}, {q.max():.4f}]" + (", judged" if unresolved.any() else
+                                                                             "") + ")"
         if qc == qc and qc_hi is not None:
             lines.append(f"\nq_c in ({qc:.4f}, {qc_hi:.4f}]: largest unstable q = {qc:.4f}, next stable q = "
                          f"{qc_hi:.4f} (rho - 1 jumps from 0 at the threshold, so the bracket is the resolution of "

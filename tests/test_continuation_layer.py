@@ -66,12 +66,18 @@ def lambda_c():
     return 8 * y * y / math.cosh(y) ** 2
 
 
-def run_to_fold(n, algorithm=None):
+def bratu_from_rest(n, algorithm, lam):
+    """The Bratu problem on n points, its continuation and the start vector (u = 0, lambda = lam)."""
     prob = Bratu(n)
-    cont = Continuation(prob, algorithm or PseudoArclength(ds=0.05, ds_max=0.3))
+    cont = Continuation(prob, algorithm)
     Z = prob.create_vec()
     Z.set(0.0)
-    Z.getArray()[-1] = 0.5
+    Z.getArray()[-1] = lam
+    return prob, cont, Z
+
+
+def run_to_fold(n, algorithm=None):
+    prob, cont, Z = bratu_from_rest(n, algorithm or PseudoArclength(ds=0.05, ds_max=0.3), 0.5)
     try:
         cont.start(Z)
         cont.step_to(0.6)
@@ -267,11 +273,7 @@ def test_natural_steps_go_around_an_s_shaped_pair_of_folds():
 
 def test_natural_steps_around_a_single_fold_stop_with_the_fold_named():
     """Beyond the Bratu fold the curve turns back: the detour ends (bounded) with an error naming the fold."""
-    prob = Bratu(49)
-    cont = Continuation(prob, Natural(max_halvings=6, around_folds=100))
-    Z = prob.create_vec()
-    Z.set(0.0)
-    Z.getArray()[-1] = 1.0
+    prob, cont, Z = bratu_from_rest(49, Natural(max_halvings=6, around_folds=100), 1.0)
     try:
         cont.start(Z)
         cont.step_to(2.0)

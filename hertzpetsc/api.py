@@ -7,6 +7,7 @@ pipeline in these calls.
 """
 from __future__ import annotations
 
+import math
 from typing import Optional, Union
 
 import numpy as np
@@ -14,7 +15,7 @@ from petsc4py import PETSc
 
 from .bloch import SymmetricFloquet
 from .branch import Branch, BranchPoint
-from .errors import ParameterError
+from .errors import ParameterError, check_integer, check_real
 from .families import AmplitudePoint
 from .families import wave_at as _wave_at
 from .families import wave_of_amplitude
@@ -42,6 +43,8 @@ def compute_branch(model: Optional[LatticeModel] = None, M: int = 50, cells_per_
     Written to ``output`` as it goes when given (a branch file; ``mode`` new/resume/force), else kept in memory.
     Collective."""
     model = model if model is not None else LatticeModel.hertz()
+    if not isinstance(model, LatticeModel):
+        raise ParameterError("model", type(model).__name__, "must be a LatticeModel (e.g. LatticeModel.hertz(1.5))")
     params = ContinuationParameters(M=M, cells_per_pi=cells_per_pi, q_stop=q_stop, model=model)
     study = BranchStudy(params, output, _comm(comm), mode)
     for _ in study.run():
@@ -70,14 +73,18 @@ def wave(model: LatticeModel, q: float, A: float, N: int, cells_per_pi: int = 40
 
 
 def orbit(point: BranchPoint, N: int, A: Optional[float] = None) -> Orbit:
-    """A point of a branch (eq. ad) as a travelling wave on a periodic chain of N beads (eq. twper): max |x| = 1 (the
-    paper's normalisation, section 3.4) or ``A`` for a scale-invariant law. Local (numpy only)."""
+    """A point of a branch (eq. ad) as a travelling wave on a periodic chain of N beads (eq. twper): the profile
+    scaled to max |u| = 1 (the paper's normalisation, section 3.4) or to max |u| = ``A`` for a scale-invariant law
+    (the beads at t = 0 sample u at q n, so max_n |x_n(0)| can be below it). Local (numpy only)."""
     scale = None
     if A is not None:
-        if not (isinstance(A, (int, float)) and A > 0):
-            raise ParameterError("A", A, "the amplitude must be a number > 0")
+        A = check_real("A", A, "the amplitude max |u|", lo=0.0)
         scale = A / point.diagnostics.norm_inf
-    return orbit_on_chain(point, ChainSpec(point.model, N), scale=scale)
+    orbit = orbit_on_chain(point, ChainSpec(point.model, N), scale=scale)
+    if not (np.all(np.isfinite(orbit.x)) and math.isfinite(orbit.T) and orbit.T > 0):
+        raise ParameterError("A", A, "the wave's state at this amplitude is not finite in double precision "
+                                     "(displacements or velocities overflow)")
+    return orbit
 
 
 def refine(orbit: Orbit, tol: float = 1e-10, symmetric: bool = True,
@@ -86,6 +93,7 @@ def refine(orbit: Orbit, tol: float = 1e-10, symmetric: bool = True,
     :class:`~hertzpetsc.shooting.Refinement` (``.orbit`` the refined wave, ``.E_initial``, ``.E``, ``.iterations``);
     ``symmetric``: on the wave's cell over its shortest time symmetry. ConvergenceError if E stays above tol.
     Collective."""
+    tol = check_real("tol", tol, "the target E(q) of the refinement", lo=0.0, hi=1.0)
     return _refine(orbit, _comm(comm), tol, symmetric=symmetric)
 
 
@@ -95,9 +103,15 @@ def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = No
     :class:`~hertzpetsc.floquet.Spectrum` (``.multipliers`` sorted by modulus, ``.rho`` without the trivial ones,
     ``.outside``, ``.trivial_spread``). ``method``: ``symmetric`` (all 2N, from the Bloch sectors of the wave's
     cell; any N = L M), ``dense`` (all 2N on the whole chain, the paper's route) or ``slepc`` (the ``nev`` largest,
-    Krylov-Schur, default 10). Collective."""
+    Krylov-Schur, default 10). ``nev`` given with ``symmetric`` or ``dense``: all 2N are computed and the ``nev``
+    largest kept (``.complete`` False). ``tol_rho`` in (0, 1): unstable when rho - 1 > tol_rho (default 1e-4).
+    Collective."""
     if method not in METHODS:
         raise ParameterError("method", method, f"must be one of {', '.join(METHODS)}")
+    if tol_rho is not None:
+        tol_rho = check_real("tol_rho", tol_rho, "the verdict's threshold on rho - 1", lo=0.0, hi=1.0)
+    if nev is not None:
+        nev = check_integer("nev", nev, 1, "the multipliers kept", hi=2 * orbit.N)
     comm = _comm(comm)
     if method == "symmetric":
         solver = SymmetricFloquet(orbit.spec.model, comm)

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .diagnostics import WaveDiagnostics, crossing
-from .errors import RecordFileError
+from .errors import ParameterError, RecordFileError
 from .model import LatticeModel
 from .records import MemoryRecords, NpzRecords, check_kind, load_npz, on_rank0
 from .stencil import full_period
@@ -148,7 +148,9 @@ class Branch:
         return np.array([p.u_half for p in self.points]).reshape(len(self.points), self.cells_per_pi + 1)
 
     def column(self, name: str) -> np.ndarray:
-        """A diagnostic or a solver statistic along the branch, as an array."""
+        """A diagnostic or a solver statistic along the branch (one of :data:`POINT_FIELDS`), as an array."""
+        if name not in POINT_FIELDS:
+            raise ParameterError("name", name, f"must be a field of the branch: one of {', '.join(POINT_FIELDS)}")
         if name in WaveDiagnostics.names():
             return np.array([getattr(p.diagnostics, name) for p in self.points])
         return np.array([p.record()[name] for p in self.points])

@@ -26,7 +26,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.driven import WAVEFORMS, Generation, GenerationParameters  # noqa: E402
 
 ROLES = Generation.ROLES
@@ -66,13 +66,11 @@ def main():
     study.open()
     print0(f"# {'signal':>9} {'omega':>6} {'a':>6} {'gamma':>6} {'ok':>3} {'rho':>8} {'q':>7} {'A/A_fam':>8} "
            f"{'D':>6}")
-    for r in study.run():
-        print0(f"  {WAVEFORMS[int(r['waveform'])]:>9} {float(r['omega']):6.3g} {float(r['amplitude']):6.3g} "
-               f"{float(r['gamma']):6.3g} {int(r['ok']):3d} {float(r['rho']):8.4f} {float(r['q_bulk']):7.4f} "
-               f"{float(r['family_ratio']):8.3g} {float(r['distance']):6.3f}")
-    text = study.table()
+    text = study.run_to_table(table_path, lambda r: print0(
+        f"  {WAVEFORMS[int(r['waveform'])]:>9} {float(r['omega']):6.3g} {float(r['amplitude']):6.3g} "
+        f"{float(r['gamma']):6.3g} {int(r['ok']):3d} {float(r['rho']):8.4f} {float(r['q_bulk']):7.4f} "
+        f"{float(r['family_ratio']):8.3g} {float(r['distance']):6.3f}"))
     records = study.store.records
-    write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_driven_generation(records, figures), flush=True)

@@ -21,7 +21,7 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.driven import LinearResonances, ResonanceParameters, drive_options  # noqa: E402
 
 ROLES = LinearResonances.ROLES
@@ -45,13 +45,11 @@ def main():
     opts.check_unused()
     study.open()
     print0(f"# {'k':>3} {'omega_k':>12} {'peak linear':>12} {'peak shooting':>14} {'mu error':>9}")
-    for r in study.run():
-        print0(f"  {int(r['k']):3d} {float(r['omega_k']):12.8f} {float(r['peak_linear']):12.8f} "
-               f"{float(r['peak_shooting']):14.8f} {float(r['mu_error']):9.1e}")
-    text = study.table()
+    text = study.run_to_table(table_path, lambda r: print0(
+        f"  {int(r['k']):3d} {float(r['omega_k']):12.8f} {float(r['peak_linear']):12.8f} "
+        f"{float(r['peak_shooting']):14.8f} {float(r['mu_error']):9.1e}"))
     records = study.store.records
     study.destroy()
-    write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_driven_resonances(records, figures), flush=True)

@@ -19,7 +19,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.continuation import Natural  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.driven import (EVENT_NAMES, ResponseCurve, ResponseParameters,  # noqa: E402
                                        corner_arclength, drive_options)
 
@@ -40,7 +40,7 @@ def main():
     tol = opts.real("tol", 1e-10, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     ds = opts.real("ds", 0.02, "first arclength step")
-    ds_max = opts.real("ds_max", 0.05, "largest arclength step")
+    ds_max = opts.real("ds_max", 0.05, "largest arclength step (>= -ds)")
     max_corrector = opts.real("max_corrector", 1.5, "largest corrector distance, in steps (corners of the curve)",
                               valid=(lambda x: x > 0, "> 0"))
     grid_max_corrector = opts.real("grid_max_corrector", Natural.max_corrector, "grid mode: largest relative change "
@@ -72,14 +72,14 @@ def main():
     study.open()
     print0(f"# {drive.describe()}")
     print0(f"# {'branch':>6} {parameter:>12} {'event':>16} {'rho':>10} {'residual':>9} {'force':>10}")
-    for r in study.run():
+
+    def show(r):
         ev = EVENT_NAMES[int(r["event"])] or ""
         print0(f"  {int(r['branch']):6d} {float(r['p']):12.8f} {ev:>16} {float(r['rho']):10.6f} "
                f"{float(r['residual']):9.1e} {float(r['force_right']):10.4g}")
-    text = study.table()
+    text = study.run_to_table(table_path, show)        # on a stop: the table of the records done, then the error
     records = study.store.records
     study.destroy()
-    write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_driven_response(records, parameter, figures, name + ".png",

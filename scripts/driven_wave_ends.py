@@ -24,7 +24,7 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.studies.driven import WaveEnds, WaveEndsParameters  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
@@ -42,7 +42,7 @@ def main():
     sizes = opts.numbers("sizes", "10,20,40", "beads of the driven chains", expr=False, kind=int,
                          valid=(lambda n: 1 <= n <= MAX_DENSE_BEADS, f"in [1, {MAX_DENSE_BEADS}] (dense multipliers)"),
                          distinct=True)
-    rtols = opts.numbers("rtols", "1e-12,1e-14", "flow tolerances (atol = rtol/100)", expr=False,
+    rtols = opts.numbers("rtols", "1e-12,1e-14", "flow tolerances (atol = rtol/100)", expr=False, distinct=True,
                          valid=(lambda r: 0 < r < 1, "in (0, 1)"))
     samples = opts.integer("samples", 8192, "least number of points of the sampled wave profile", minimum=64)
     output, mode, table_path, figures = opts.record_table_figures(
@@ -58,12 +58,10 @@ def main():
     opts.check_unused()
     study.open()
     print0(f"# {'q':>8} {'N':>4} {'rtol':>7} {'imposed':>9} {'residual':>9} {'rho':>12} {'rho periodic':>12}")
-    for r in study.run():
-        print0(f"  {float(r['q']):8.5f} {int(r['N']):4d} {float(r['rtol']):7.0e} {float(r['imposed']):9.1e} "
-               f"{float(r['residual']):9.1e} {float(r['rho']):12.8f} {float(r['rho_periodic']):12.8f}")
-    text = study.table()
+    text = study.run_to_table(table_path, lambda r: print0(
+        f"  {float(r['q']):8.5f} {int(r['N']):4d} {float(r['rtol']):7.0e} {float(r['imposed']):9.1e} "
+        f"{float(r['residual']):9.1e} {float(r['rho']):12.8f} {float(r['rho_periodic']):12.8f}"))
     records = study.store.records
-    write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_driven_wave_ends(records, figures), flush=True)

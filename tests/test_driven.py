@@ -406,6 +406,41 @@ def test_a_response_curve_that_stops_early_says_where_and_keeps_its_points(monke
         assert err.count("note: the continuation stopped before omega = 0.9") == 1
 
 
+def test_a_study_stopped_by_an_error_writes_the_table_of_its_records(monkeypatch, tmp_path):
+    """Study.run_to_table (the drivers' loop): an error after records were written leaves the table of those
+    records with the error below it, then is raised; the table of another run does not stay next to the file."""
+    from hertzpetsc import continuation
+    from hertzpetsc.errors import ConvergenceError
+    from conftest import shared_tmp
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
+    run = continuation.Continuation.run
+
+    def failing(self, until, max_steps=None):
+        for k, point in enumerate(run(self, until, max_steps)):
+            if k == 1:
+                raise ConvergenceError("test solver", -3, omega=point.parameter)
+            yield point
+    monkeypatch.setattr(continuation.Continuation, "run", failing)
+    path = os.path.join(shared_tmp(tmp_path), "r.md")
+    if COMM.getRank() == 0:
+        with open(path, "w") as f:
+            f.write("the table of another run\n")
+    COMM.barrier()
+    study = ResponseCurve(ResponseParameters(drive, "omega", 0.9, run_in=5, max_steps=20, samples=0), COMM)
+    try:
+        with pytest.raises(ConvergenceError, match="test solver"):
+            study.run_to_table(path)
+        done = len(study.records)
+        expected = study.table()
+    finally:
+        study.destroy()
+    COMM.barrier()
+    with open(path) as f:
+        table = f.read()
+    assert done >= 1 and f"{done} records" in table and table.startswith(expected)
+    assert "Stopped before the end: test solver did not converge (reason -3)" in table
+
+
 def test_grid_mode_takes_the_natural_algorithm_it_is_given():
     """In grid mode a continuation.Natural given as the algorithm is the one stepping (here a corrector limit no
     step can meet: the curve stops after the first response, with its note), the default Natural otherwise."""
@@ -463,11 +498,31 @@ def test_driven_studies_follow_the_study_protocol():
     (lambda d: ResonanceParameters(Drive(LatticeModel.hertz(1.5, gamma=0.1), 3, HarmonicWave(), 0.1, 0.5)),
      "invalid delta0"),
     (lambda d: ResonanceParameters(d, golden=0), "invalid golden"),
+    # an end or grid value the drive refuses fails up front, not after the continuation reached it
+    (lambda d: ResponseParameters(d, "amplitude", -0.01), "invalid p_end = -0.01: .* amplitude must be .* >= 0"),
+    (lambda d: ResponseParameters(d, "omega", -1.0), "invalid p_end = -1.0: .* frequency must be .* > 0"),
+    (lambda d: ResponseParameters(d, "gamma", -0.1), "invalid p_end = -0.1: .* damping must be .* >= 0"),
+    (lambda d: ResponseParameters(d, "omega", 1.0, grid=(0.6, -0.2)), "invalid grid = -0.2: .* > 0"),
+    # an undamped chain has no isolated response at a resonance
+    (lambda d: ResonanceParameters(Drive(LatticeModel.hertz(1.5, delta0=1.0), 3, HarmonicWave(), 0.1, 0.5)),
+     "invalid gamma = 0.0: the resonances need a damped chain, gamma > 0"),
 ])
 def test_driven_parameters_name_the_field_and_its_range(make, name):
     drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
     with pytest.raises(ParameterError, match=name):
         make(drive)
+
+
+def test_arclength_steps_and_damping_by_bonds_are_checked_as_the_continuation_layer_does():
+    """corner_arclength refuses ds_max < ds (as continuation.PseudoArclength does), not silently raising ds_max;
+    a chain damped by its bonds only (eta > 0) has its resonances."""
+    from hertzpetsc.studies.driven import corner_arclength
+    with pytest.raises(ParameterError, match=r"invalid ds_max = 0.001: .* >= 0.02"):
+        corner_arclength(0.02, 0.001)
+    a = corner_arclength(0.02, 0.02)
+    assert (a.ds, a.ds_max) == (0.02, 0.02)
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, eta=0.01), 3, HarmonicWave(), 0.1, 0.5)
+    assert ResonanceParameters(drive).drive is drive
 
 
 def test_wave_ends_and_generation_parameters_are_checked():
@@ -480,6 +535,9 @@ def test_wave_ends_and_generation_parameters_are_checked():
     q = branch.point(2 * math.pi / 5).q
     p = WaveEndsParameters(branch, refined, [q], [4, 10], [1e-12])
     assert p.q == (q,) and p.sizes == (4, 10) and p.rtols == (1e-12,)
+    for kw, name in ((dict(rtols=[1e-12, 1e-12]), "rtols"), (dict(sizes=[4, 4]), "sizes"), (dict(q=[q, q]), "q")):
+        with pytest.raises(ParameterError, match=f"invalid {name} = .* must be distinct"):
+            WaveEndsParameters(**dict(dict(branch=branch, refined=refined, q=[q], sizes=[4]), **kw))
     with pytest.raises(ParameterError, match=r"invalid sizes = 99: .* 1 <= N <= P - 2 = 98"):
         WaveEndsParameters(branch, refined, [q], [99])
     with pytest.raises(ParameterError, match="invalid q = 1.3: the refinement file has no refined wave"):
@@ -500,7 +558,9 @@ def test_wave_ends_and_generation_parameters_are_checked():
 # --- the drivers -----------------------------------------------------------------------------------------------------
 BAD = [(("-gamma", "-0.1"), "gamma"), (("-amplitude", "-1"), "amplitude"), (("-omega", "0"), "omega"),
        (("-N", "0"), "-N"), (("-signal", "samples", "-signal_samples", "0,1,0.5"), "not periodic"),
-       (("-samples_per_period", "1"), "-samples_per_period")]
+       (("-samples_per_period", "1"), "-samples_per_period"),
+       (("-parameter", "amplitude", "-amplitude", "0.01", "-p_end", "-0.01"), "invalid -p_end = -0.01"),
+       (("-ds_max", "0.001"), "invalid -ds_max = 0.001")]
 
 
 @pytest.mark.serial
@@ -510,6 +570,12 @@ def test_drivers_refuse_bad_input_in_one_line_on_every_rank(tmp_path):
                        ranks=2, timeout=120, cwd=tmp_path)
         line = one_error_line(r)
         assert r.returncode == 2 and needle in line, (args, r.stderr)
+    assert not (tmp_path / "r.npz").exists()
+    for name, args, needle in (("driven_resonances.py", ("-N", "4", "-gamma", "0"), "invalid -gamma = 0.0"),
+                               ("driven_wave_ends.py", ("-rtols", "1e-12,1e-12"), "-rtols")):
+        r = run_script(name, *args, "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md", ranks=2, timeout=120,
+                       cwd=tmp_path)
+        assert r.returncode == 2 and needle in one_error_line(r), (name, r.stderr)
     assert not (tmp_path / "r.npz").exists()
 
 
@@ -538,7 +604,11 @@ def test_a_singular_newton_matrix_is_a_convergence_failure_at_its_frequency(tmp_
     """A 4-bead sonic vacuum with a free end: beads out of contact over a whole period give R - I a multiplier at 1;
     its LU (LAPACK on one rank, MUMPS on two) fails. That is a convergence failure at the frequency (exit 3, one line),
     not PETSc's raw 'Zero pivot' or MUMPS error (exit 5)."""
+    (tmp_path / "r.md").write_text("the table of another run\n")
     r = run_script("driven_response.py", "-N", 4, "-omega", 0.5, "-p_end", 0.52, "-max_steps", 3, "-run_in", 5,
-                   "-right", "free", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md", ranks=ranks,
-                   timeout=120, cwd=tmp_path)
+                   "-right", "free", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md", "-force",
+                   ranks=ranks, timeout=120, cwd=tmp_path)
     assert r.returncode == 3 and "zero pivot in R - I" in one_error_line(r) and "omega = 0.5" in r.stderr
+    # the table on disk is the record file's (no record), the failure below it, not the previous run's
+    table = (tmp_path / "r.md").read_text()
+    assert "0 records" in table and "Stopped before the end:" in table and "zero pivot in R - I" in table

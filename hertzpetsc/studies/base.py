@@ -21,8 +21,8 @@ from dataclasses import fields, is_dataclass
 
 from petsc4py import PETSc
 
-from ..errors import ParameterError
-from ..records import MemoryRecords, NpzRecords, file_digest
+from ..errors import HertzPetscError, ParameterError
+from ..records import MODES, MemoryRecords, NpzRecords, file_digest
 
 
 class Study:
@@ -41,6 +41,8 @@ class Study:
     def __init__(self, params, comm=None, output=None, mode="new"):
         if self.Parameters is not None and not isinstance(params, self.Parameters):
             raise ParameterError("params", type(params).__name__, f"must be {self.Parameters.__name__}(...)")
+        if mode not in MODES:
+            raise ParameterError("mode", mode, f"must be one of {', '.join(MODES)}")
         self.params = params
         self.comm = comm if comm is not None else PETSc.COMM_WORLD
         self.output, self.mode = output, mode
@@ -99,6 +101,24 @@ class Study:
     def table(self):
         """The Markdown table of the records."""
         raise NotImplementedError
+
+    def run_to_table(self, path, show=None):
+        """Run the study (``show(record)`` for each new record), then write its table to ``path`` and return the
+        text. If an error stops it (a solver that did not converge, PETSc refusing), the table of the records in
+        the store with the error below it is written first and the error re-raised: the table on disk never
+        describes another run than the record file's. Collective."""
+        from ..records import write_text
+        try:
+            for record in self.run():
+                if show is not None:
+                    show(record)
+        except HertzPetscError as err:
+            if self.store is not None:
+                write_text(path, self.table() + f"\nStopped before the end: {err}\n", self.comm)
+            raise
+        text = self.table()
+        write_text(path, text, self.comm)
+        return text
 
     def configure(self):
         """Read and check the options of every solver role now, so that a bad value fails before any computation

@@ -116,6 +116,13 @@ def _reals(name, values, what, lo=None, hi=None, lo_open=True, hi_open=True):
     return out
 
 
+def _distinct(name, values, what):
+    """``values`` unless one is repeated (a ParameterError naming ``name``), as AppOptions.numbers(distinct=True)."""
+    if len(set(values)) < len(values):
+        raise ParameterError(name, list(values), f"the {what}s must be distinct")
+    return values
+
+
 def _drive(drive):
     if not isinstance(drive, Drive):
         raise ParameterError("drive", drive, "must be a hertzpetsc.driven.Drive")
@@ -162,8 +169,10 @@ def corner_arclength(ds=0.02, ds_max=0.05, max_corrector=1.5):
     curves are only piecewise smooth (grazing points are corners, where the secant is not the tangent and Newton
     converges linearly): a corrector may land up to ``max_corrector`` ds from the prediction and take up to 20
     Newton iterations (the chord iterations of :class:`~hertzpetsc.driven.PeriodicShooting` are cheap), and the step
-    grows after steps of at most 5."""
-    return PseudoArclength(ds=ds, ds_max=max(ds, ds_max), easy=5, max_iterations=20, max_corrector=max_corrector,
+    grows after steps of at most 5; ``ds_max`` >= ``ds``."""
+    ds = check_real("ds", ds, "the first arclength step", 0.0)
+    ds_max = check_real("ds_max", ds_max, "the largest arclength step", ds, lo_open=False)
+    return PseudoArclength(ds=ds, ds_max=ds_max, easy=5, max_iterations=20, max_corrector=max_corrector,
                            max_halvings=10)
 
 
@@ -201,6 +210,7 @@ class ResponseParameters:
         p_end = check_real("p_end", self.p_end, "the end value of the parameter")
         if not p_end != p0:
             raise ParameterError("p_end", self.p_end, f"must differ from the start {self.parameter} = {p0:g}")
+        _check_end("p_end", self.p_end, drive, self.parameter)
         object.__setattr__(self, "p_end", p_end)
         object.__setattr__(self, "periods", check_integer("periods", self.periods, 1, "the response period in driving "
                                                    "periods"))
@@ -214,6 +224,8 @@ class ResponseParameters:
                                  "corner_arclength()) or, with a grid, a continuation.Natural")
         if self.grid is not None:
             object.__setattr__(self, "grid", _reals("grid", self.grid, "parameter value of the grid"))
+            for value in self.grid:
+                _check_end("grid", value, drive, self.parameter)
         for name, lo, what in (("run_in", 0, "the run-in in driving periods"), ("samples", 0, "the samples per "
                                "period"), ("switch", 0, "the steps on each doubled branch"),
                                ("max_steps", 1, "the number of continuation steps"),
@@ -221,6 +233,15 @@ class ResponseParameters:
             object.__setattr__(self, name, check_integer(name, getattr(self, name), lo, what))
         if self.samples == 1:
             raise ParameterError("samples", 1, "the samples per period must be 0 (no diagnostics) or at least 2")
+
+
+def _check_end(name, value, drive, parameter):
+    """A ParameterError naming ``name`` unless the drive with ``parameter`` set to ``value`` is valid (the drive's
+    own check: omega > 0, amplitude >= 0, gamma >= 0), so a continuation does not run into it."""
+    try:
+        drive.with_parameter(parameter, value)
+    except ParameterError as err:
+        raise ParameterError(name, value, f"a value of the continuation parameter {parameter}: {err.valid}") from None
 
 
 class ResponseCurve(DrivenStudy):
@@ -587,8 +608,9 @@ class ResponseCurve(DrivenStudy):
             stable = sum(1 for r in br if float(r["rho"]) < 1 - TOL_MU)
             verdicts = f"stable (rho < 1 - {TOL_MU:g}) at {stable}" \
                 if any(math.isfinite(float(r["rho"])) for r in br) else "multipliers not computed (floquet none)"
-            lines += ["", f"Branch 0: {span}; {verdicts}; {worst}; max force_right "
-                          f"{np.nanmax([float(r['force_right']) for r in br]):.4g}."]
+            forces = [float(r["force_right"]) for r in br if math.isfinite(float(r["force_right"]))]
+            force = f"max force_right {max(forces):.4g}" if forces else "force_right not computed (samples 0)"
+            lines += ["", f"Branch 0: {span}; {verdicts}; {worst}; {force}."]
         return "\n".join(lines) + "\n"
 
 
@@ -660,6 +682,9 @@ class ResonanceParameters:
         if not drive.model.delta0 > 0:
             raise ParameterError("delta0", drive.model.delta0, "the linear resonances need a precompressed chain "
                                  "(delta0 > 0)")
+        if not drive.model.damped:
+            raise ParameterError("gamma", drive.gamma, "the resonances need a damped chain, gamma > 0 (or eta > 0): "
+                                 "undamped, the response at omega_k is unbounded and not isolated (the multiplier 1)")
         if drive.N > MAX_DENSE_BEADS:
             raise ParameterError("N", drive.N, f"at most {MAX_DENSE_BEADS} beads (dense linear chain and multipliers)")
         if self.modes is not None:
@@ -799,9 +824,10 @@ class WaveEndsParameters:
         for q in qs:
             if not self.refined.has(q):
                 raise ParameterError("q", q, f"the refinement file has no refined wave at q = {q:.12g}")
-        object.__setattr__(self, "sizes", sizes)
-        object.__setattr__(self, "q", qs)
-        object.__setattr__(self, "rtols", _reals("rtols", self.rtols, "flow tolerance", 0.0, 1.0))
+        object.__setattr__(self, "sizes", _distinct("sizes", sizes, "chain size"))
+        object.__setattr__(self, "q", _distinct("q", qs, "wavenumber"))
+        object.__setattr__(self, "rtols", _distinct("rtols", _reals("rtols", self.rtols, "flow tolerance", 0.0, 1.0),
+                                                    "flow tolerance"))
         for name, what in (("samples", "the points of the sampled profile"),
                            ("nmult", "the number of recorded multipliers")):
             object.__setattr__(self, name, check_integer(name, getattr(self, name), 1, what))

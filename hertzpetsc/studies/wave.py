@@ -11,6 +11,7 @@ iterations (Gauss-Newton), rho (the largest multiplier modulus, trivial ones exc
 each longer chain, in the order of ``sizes``), seconds.
 """
 import math
+import numbers
 import time
 from dataclasses import dataclass
 
@@ -39,10 +40,10 @@ MAX_SIZE = 10 ** 6           # beads of the longer chains (Bloch sectors: the ce
 
 @dataclass(frozen=True)
 class WaveParameters:
-    """The chain (``model``), wavenumbers ``q`` (per bead), amplitude A = max |u| (with delta0 = 0 and one mass: any
-    A, the waves scale), grid h = pi / cells_per_pi, N beads of the periodic chain (a whole number of wavelengths
-    and of pattern cells), longer chains ``sizes`` (multiples of N), the refinement's target E ``tol`` and the
-    verdict's threshold ``tol_rho``."""
+    """The chain (``model``), wavenumbers ``q`` (per bead; one number or a sequence), amplitude A = max |u| (with
+    delta0 = 0 and one mass: any A, the waves scale), grid h = pi / cells_per_pi, N beads of the periodic chain (a
+    whole number of wavelengths and of pattern cells), longer chains ``sizes`` (multiples of N), the refinement's
+    target E ``tol`` and the verdict's threshold ``tol_rho``."""
 
     model: LatticeModel
     q: tuple
@@ -65,7 +66,7 @@ class WaveParameters:
         if not (isinstance(self.N, (int, np.integer)) and 2 <= self.N <= MAX_BEADS and self.N % m.cell == 0):
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {m.cell} in "
                                  f"[2, {MAX_BEADS}]")
-        qs = _check_qs(self.q, math.pi / self.cells_per_pi)
+        qs = _check_qs((self.q,) if isinstance(self.q, numbers.Real) else self.q, math.pi / self.cells_per_pi)
         for q in qs:
             check_chain_wavenumber(q, self.N)
             check_branch(m, q, "acoustic")

@@ -22,7 +22,7 @@ from dataclasses import fields, is_dataclass
 from petsc4py import PETSc
 
 from ..errors import HertzPetscError, ParameterError
-from ..records import MODES, MemoryRecords, NpzRecords, file_digest
+from ..records import MODES, MemoryRecords, NpzRecords, file_digest, write_text
 
 
 class Study:
@@ -107,7 +107,6 @@ class Study:
         text. If an error stops it (a solver that did not converge, PETSc refusing), the table of the records in
         the store with the error below it is written first and the error re-raised: the table on disk never
         describes another run than the record file's. Collective."""
-        from ..records import write_text
         try:
             for record in self.run():
                 if show is not None:

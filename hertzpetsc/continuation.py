@@ -89,12 +89,12 @@ def golden_maximum(f, a, b, tol):
 
 
 class ContinuationError(ConvergenceError):
-    """The continuation could not take a step from ``last`` (every point up to it was yielded)."""
+    """The continuation could not take a step from ``last`` (the last converged point; the caller says what it
+    kept)."""
 
     def __init__(self, parameter, last, failed, reason):
         self.last, self.failed = last, failed
-        done = (f"last converged {parameter} = {last:.12g}, everything up to it is saved" if last == last
-                else "no point converged")
+        done = f"last converged {parameter} = {last:.12g}" if last == last else "no point converged"
         RuntimeError.__init__(self, f"continuation stopped: no convergence at {parameter} = {failed:.12g} even "
                                     f"after step reduction ({reason}); {done}")
         self.what, self.reason, self.where = "continuation", reason, {parameter: failed}

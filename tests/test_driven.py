@@ -502,6 +502,7 @@ def test_driven_studies_follow_the_study_protocol():
     (lambda d: ResponseParameters(d, "amplitude", -0.01), "invalid p_end = -0.01: .* amplitude must be .* >= 0"),
     (lambda d: ResponseParameters(d, "omega", -1.0), "invalid p_end = -1.0: .* frequency must be .* > 0"),
     (lambda d: ResponseParameters(d, "gamma", -0.1), "invalid p_end = -0.1: .* damping must be .* >= 0"),
+    (lambda d: ResponseParameters(d, "amplitude", 0.0), "invalid p_end = 0.0: .* amplitude must be > 0"),
     (lambda d: ResponseParameters(d, "omega", 1.0, grid=(0.6, -0.2)), "invalid grid = -0.2: .* > 0"),
     # an undamped chain has no isolated response at a resonance
     (lambda d: ResonanceParameters(Drive(LatticeModel.hertz(1.5, delta0=1.0), 3, HarmonicWave(), 0.1, 0.5)),
@@ -612,3 +613,15 @@ def test_a_singular_newton_matrix_is_a_convergence_failure_at_its_frequency(tmp_
     # the table on disk is the record file's (no record), the failure below it, not the previous run's
     table = (tmp_path / "r.md").read_text()
     assert "0 records" in table and "Stopped before the end:" in table and "zero pivot in R - I" in table
+
+
+def test_a_continuation_whose_end_is_nearer_than_its_first_step_ends_there():
+    """-p_end within the first arclength step (ds): the first step lands on p_end and the curve ends there (it
+    overshot to a negative amplitude, and -p_end 0.001 gave a point at 4.5e-4)."""
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.05), 4, HarmonicWave(), 0.01, 1.0)
+    study = ResponseCurve(ResponseParameters(drive, "amplitude", 0.001, run_in=5, samples=0), COMM)
+    try:
+        recs = list(study.run())
+    finally:
+        study.destroy()
+    assert [float(r["p"]) for r in recs] == [0.01, 0.001] and study.ended is None

@@ -237,11 +237,15 @@ class ResponseParameters:
 
 def _check_end(name, value, drive, parameter):
     """A ParameterError naming ``name`` unless the drive with ``parameter`` set to ``value`` is valid (the drive's
-    own check: omega > 0, amplitude >= 0, gamma >= 0), so a continuation does not run into it."""
+    own check: omega > 0, amplitude >= 0, gamma >= 0), so a continuation does not run into it; an amplitude > 0
+    (at 0 the response is the chain at rest, which the steps' relative corrector cannot measure)."""
     try:
         drive.with_parameter(parameter, value)
     except ParameterError as err:
         raise ParameterError(name, value, f"a value of the continuation parameter {parameter}: {err.valid}") from None
+    if parameter == "amplitude" and value == 0:
+        raise ParameterError(name, value, "a value of the continuation parameter amplitude must be > 0 (at 0 the "
+                             "response is the chain at rest)")
 
 
 class ResponseCurve(DrivenStudy):
@@ -417,11 +421,14 @@ class ResponseCurve(DrivenStudy):
         if len(cont.history) < 2:
             direction = math.copysign(1.0, self.p_end - p_start)
             step = getattr(self.algorithm, "ds", 0.02) * direction
-            point = cont.step_to(float(previous["p"]) + step)
+            p_first = float(previous["p"]) + step
+            point = cont.step_to(self.p_end if (p_first - self.p_end) * direction > 0 else p_first)  # not past it
             previous = self._record(prob, point, 0)
             self._append(previous, cont)
             yield previous
             count += 1
+            if point.parameter == self.p_end:
+                return
         try:
             yield from self._steps(cont, prob, 0, previous, trailing, self.max_steps - count, self.p_end)
         except ContinuationError as err:

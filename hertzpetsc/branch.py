@@ -163,7 +163,12 @@ class Branch:
         qs = self.q
         i = int(np.argmin(np.abs(qs - q))) if len(qs) else -1
         if i < 0 or abs(qs[i] - q) > tol * max(1.0, abs(q)):
-            have = f"it has q in [{qs.min():.6g}, {qs.max():.6g}]" if len(qs) else "it is empty"
+            if len(qs):
+                near = sorted(qs[np.argsort(np.abs(qs - q))[:2]])
+                have = (f"it has {len(qs)} points, q in [{qs.min():.6g}, {qs.max():.6g}], the nearest "
+                        + " and ".join(f"{x:.12g}" for x in near))
+            else:
+                have = "it is empty"
             raise RecordFileError(f"the branch has no point at q = {q:.12g} ({have})")
         return self.points[i]
 

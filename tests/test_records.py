@@ -204,3 +204,11 @@ def test_hdf5_record_files_have_the_same_fields_and_identity_checks(tmp_path):
                     PETSc.COMM_SELF, "resume").open()
     resumed = BranchStudy(params, f"{d}/b.h5", PETSc.COMM_SELF, "resume").open()
     assert resumed.resumed == len(a["q"])
+
+
+def test_a_missing_branch_point_names_its_nearest_neighbours():
+    branch = Branch(LatticeModel.hertz(1.5), 8, 10, small_branch(3).points)
+    q = branch.q
+    with pytest.raises(RecordFileError, match=rf"no point at q = .* \(it has 3 points, .* the nearest "
+                                              rf"{min(q[:2]):.12g} and {max(q[:2]):.12g}\)"):
+        branch.point(0.5 * (q[0] + q[1]))

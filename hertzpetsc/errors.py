@@ -47,7 +47,7 @@ def check_real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
     default; no bound where None), else a :class:`ParameterError` naming the parameter ``name`` (``what`` it is)
     and its valid range: the one check of a real parameter."""
     try:
-        v = math.nan if isinstance(value, bool) else float(value)
+        v = math.nan if isinstance(value, (bool, str, bytes)) else float(value)
     except (TypeError, ValueError):
         v = math.nan
     if not (math.isfinite(v) and (lo is None or (v > lo if lo_open else v >= lo))

@@ -35,7 +35,7 @@ def test_orbit_amplitude_scales_the_displacements(point):
 
 @pytest.mark.parametrize("A,why", [(math.inf, "must be a finite number > 0"), (math.nan, "finite number > 0"),
                                    (-1.0, "> 0"), (0, "> 0"), (True, "> 0"),
-                                   (1e300, "not finite in double precision")])
+                                   ("2", "> 0"), (1e300, "not finite in double precision")])
 def test_orbit_refuses_amplitudes_naming_A(point, A, why):
     """An amplitude out of range, or one whose state overflows (1e300: velocities ~ A^((alpha+1)/2)), is refused
     naming A, not a later PETSc error of refine."""

@@ -238,13 +238,28 @@ class AmplitudeFamily:
                 cp = self.continuation.start(Z)
             finally:
                 Z.destroy()
+            self._gap = self.problem.located(cp, cp.parameter).gap
             if a0 == a:
                 return self.problem.located(cp, cp.parameter)
+        located = self._gap_events()
         try:
             cp = self.continuation.step_to(math.log(a))
         except ContinuationError as err:
             raise ConvergenceError("amplitude continuation", err.reason, q=self.q, a=math.exp(err.failed)) from None
-        return self.problem.located(cp, cp.parameter)
+        point = self.problem.located(cp, cp.parameter)
+        if (point.gap > 0) != (self._gap > 0) and self._gap_events() == located:
+            # the gap indicator changed sign but the layer found no root between: the step crossed to another
+            # branch (precompressed_branch.py -masses 1,0.01 -q pi/4 -alpha 2 at ds = 0.1 did)
+            raise ConvergenceError("amplitude continuation", "the gap indicator changed sign with no gap opening "
+                                   "located: a step jumped to another branch (take smaller steps)", q=self.q, a=a)
+        self._gap = point.gap
+        return point
+
+    _gap = math.nan
+
+    def _gap_events(self):
+        """The number of gap openings the layer has located and not handed out yet."""
+        return sum(1 for cp in self.continuation.events if cp.event == "gap")
 
     def points(self, amplitudes):
         """Yield the waves at the increasing amplitudes ``amplitudes``."""

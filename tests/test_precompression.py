@@ -346,6 +346,7 @@ def test_a_family_starting_beyond_the_linear_regime_is_continued_to_its_first_am
     assert abs(omega["small"] - omega["fine"]) < 1e-9 * omega["fine"]
 
 
+@pytest.mark.serial
 def test_amplitudes_beyond_the_ceiling_are_refused():
     """A = 1e308 made wave_at's step count an OverflowError (log(A / a0) = inf); such waves' energies overflow. The
     ceiling is where the square of the energy per bond, (2A + delta0)^(2(alpha+1)), leaves the floats (closed form:
@@ -362,3 +363,27 @@ def test_amplitudes_beyond_the_ceiling_are_refused():
             wave_at(model, Q, 1e308, ProfileGrid(20, COMM))
     r = run_script("wave.py", "-A", "1e308", "-cells_per_pi", "20", "-N", "30", "-q", "2*pi/15", timeout=120)
     assert r.returncode == 2 and "-A = 1e+308" in one_error_line(r) and "must lie in [" in r.stderr
+
+
+def test_a_step_across_the_gap_opening_onto_another_branch_is_not_silent():
+    """masses 1, 0.01, alpha = 2, q = pi/4: steps of 0.1 in log a jumped across the gap opening onto another branch
+    (no A_gap, Omega0 0.575 instead of 0.655) and the run passed; the gap indicator changes sign there with no root
+    located, now a convergence error. Steps of 0.05 stay on the family and locate the opening: the gap indicator is 0
+    there to the layer's tolerance (1e-9 of the step 0.05 in log a, times d gap / d log a of order 1: below 1e-8)."""
+    from hertzpetsc.studies.precompression import amplitude_grid
+    model = LatticeModel.hertz(2.0, masses=(1.0, 0.01), delta0=1.0)
+    for ds in (0.1, 0.05):
+        fam = AmplitudeFamily(model, math.pi / 4, ProfileGrid(200, COMM))
+        try:
+            gaps = []
+            for a in amplitude_grid(1e-3, 3.0, ds):
+                if ds == 0.1 and a > 1.5:
+                    with pytest.raises(ConvergenceError, match="gap indicator changed sign"):
+                        fam.step_to(a)
+                    break
+                fam.step_to(a)
+                gaps += fam.events()
+        finally:
+            fam.destroy()
+        if ds == 0.05:
+            assert [p.event for p in gaps] == ["gap"] and abs(gaps[0].gap) < 1e-8 and 1.5 < gaps[0].A < 2.5

@@ -51,9 +51,30 @@ def amplitude_floor(model):
     return model.delta0 * max(math.sqrt(eps), eps ** (1.0 / (2.0 * (model.law.scale_degree - 1.0))))
 
 
+def amplitude_ceiling(model):
+    """The largest amplitude (a or A) of a wave of ``model``: ((sqrt(max float))^(1/(d+1)) - delta0) / 2, d the law's
+    degree. The wave's energy per bond is V(2A + delta0) ~ (2A + delta0)^(d+1) (velocities omega A and forces
+    (2A + delta0)^d have squares of the same order or below): up to this bound it and its square (the norms of the
+    chain's states and residuals) are finite floats; beyond it they overflow."""
+    big = math.sqrt(float(np.finfo(float).max)) ** (1.0 / (model.law.scale_degree + 1.0))
+    return 0.99 * max(big - model.delta0, 0.0) / 2.0        # 0.99: the powers' rounding at the bound
+
+
+def check_wave_amplitude(model, a, name="amplitude", lo=0.0):
+    """a must be a finite number in (0, :func:`amplitude_ceiling`] (``lo``: the family's floor, named in the range);
+    ``name`` is used in errors."""
+    a = check_amplitude(a, name)
+    hi = amplitude_ceiling(model)
+    if not a <= hi:
+        span = f"[{lo:.3g}, {hi:.3g}]" if lo > 0 else f"(0, {hi:.3g}]"
+        raise ParameterError(name, a, f"the wave amplitude must lie in {span}: at most ((max float)^(1/(2(alpha+1))) "
+                             "- delta0) / 2, beyond which the wave's energy and its square overflow")
+    return a
+
+
 def check_family_amplitude(model, a, name="amplitude", start=False):
     """a (> 0, finite) must be at least :func:`amplitude_floor`, and, for the ``start`` of a family from the linear
-    wave, at most START_MAX delta0; ``name`` is used in errors."""
+    wave, at most START_MAX delta0, else at most :func:`amplitude_ceiling`; ``name`` is used in errors."""
     a = check_amplitude(a, name)
     lo, hi = amplitude_floor(model), (START_MAX * model.delta0 if start else math.inf)
     if not lo <= a <= hi:
@@ -63,7 +84,7 @@ def check_family_amplitude(model, a, name="amplitude", start=False):
             raise ParameterError(name, a, f"the first amplitude of a family must lie in [{lo:.3g}, {hi:.3g}]: at most "
                                  f"{START_MAX:g} delta0 (it starts from the linear wave, a << delta0) and {floor}")
         raise ParameterError(name, a, f"the wave amplitude must be {floor}")
-    return a
+    return check_wave_amplitude(model, a, name, lo)
 
 
 @dataclass(frozen=True)
@@ -204,25 +225,41 @@ class AmplitudeFamily:
         return self.step_to(a)
 
     def step_to(self, a_target):
-        """The wave at amplitude a_target: the first from the linear wave, the next by continuation from the last
-        point (intermediate steps halved on failure)."""
+        """The wave at amplitude a_target: the first from the linear wave at min(a_target, START_MAX delta0) continued
+        to a_target, the next by continuation from the last point (intermediate steps halved on failure)."""
         a = check_amplitude(a_target)
         if not self.continuation.history:
             check_family_amplitude(self.model, a, "a")
-            self.problem.set_parameter("a", a)
+            a0 = min(a, START_MAX * self.model.delta0)     # the linear wave is a guess for a << delta0 only
+            self.problem.set_parameter("a", a0)
             prof, lam = self.problem.linear_guess(self.branch)
-            Z = self.problem.pack(prof, lam, parameter=math.log(a))
+            Z = self.problem.pack(prof, lam, parameter=math.log(a0))
             try:
                 cp = self.continuation.start(Z)
             finally:
                 Z.destroy()
-        else:
-            try:
-                cp = self.continuation.step_to(math.log(a))
-            except ContinuationError as err:
-                raise ConvergenceError("amplitude continuation", err.reason, q=self.q,
-                                       a=math.exp(err.failed)) from None
-        return self.problem.located(cp, cp.parameter)
+            self._gap = self.problem.located(cp, cp.parameter).gap
+            if a0 == a:
+                return self.problem.located(cp, cp.parameter)
+        located = self._gap_events()
+        try:
+            cp = self.continuation.step_to(math.log(a))
+        except ContinuationError as err:
+            raise ConvergenceError("amplitude continuation", err.reason, q=self.q, a=math.exp(err.failed)) from None
+        point = self.problem.located(cp, cp.parameter)
+        if (point.gap > 0) != (self._gap > 0) and self._gap_events() == located:
+            # the gap indicator changed sign but the layer found no root between: the step crossed to another
+            # branch (precompressed_branch.py -masses 1,0.01 -q pi/4 -alpha 2 at ds = 0.1 did)
+            raise ConvergenceError("amplitude continuation", "the gap indicator changed sign with no gap opening "
+                                   "located: a step jumped to another branch (take smaller steps)", q=self.q, a=a)
+        self._gap = point.gap
+        return point
+
+    _gap = math.nan
+
+    def _gap_events(self):
+        """The number of gap openings the layer has located and not handed out yet."""
+        return sum(1 for cp in self.continuation.events if cp.event == "gap")
 
     def points(self, amplitudes):
         """Yield the waves at the increasing amplitudes ``amplitudes``."""
@@ -377,7 +414,7 @@ def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start
     fam = AmplitudeFamily(model, q, grid, prefix, branch, measure="sup", solver=solver)
     try:
         a0 = min(max(a_start * model.delta0, amplitude_floor(model)), A)
-        n = max(1, int(math.ceil(math.log(A / a0) / ds)))
+        n = max(1, int(math.ceil((math.log(A) - math.log(a0)) / ds)))
         return list(fam.points(np.geomspace(a0, A, n + 1)))[-1]
     finally:
         fam.destroy()
@@ -389,7 +426,7 @@ def wave_of_amplitude(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic
     imposed, the point at its physical amplitude, scale 1); without (eq. ad is scale-invariant), the q-branch from
     the binary oscillation continued to q on ``grid`` (steps pi / round(pi / q)), scaled by A / ||u||_inf.
     Collective over the grid's communicator."""
-    A = check_amplitude(A, "A")
+    A = check_wave_amplitude(model, A, "A")
     if model.delta0 > 0:
         return wave_at(model, q, A, grid, prefix, branch).branch_point(model, grid.h), 1.0
     from .qbranch import BranchContinuation, ContinuationParameters

@@ -158,7 +158,9 @@ def test_a_dimer_file_resumes_on_another_number_of_ranks(tmp_path):
     # the earlier layout on 2 ranks: each rank's rows of u_0, then of u_1 (K - 1 = 59 unknowns: 30 and 29 rows)
     assert run_script("dimer_branch.py", *common, "-max_steps", "2", *out(3), timeout=120).returncode == 0
     data = dict(np.load(tmp_path / "d3.npz"))
-    Z = data.pop("state_Z")
+    for k in ("q", "s", "ds", "normalised"):                # that code kept one state, of the last q
+        data["state_" + k] = data["state_" + k][-1]
+    Z = data.pop("state_Z")[-1]
     assert str(data.pop("state_layout")) == "natural"
     u, v, rest = Z[:, :59], Z[:, 59:118], Z[:, 118:]
     data["state_Z"] = np.hstack([u[:, :30], v[:, :30], u[:, 30:], v[:, 30:], rest])
@@ -225,3 +227,41 @@ def test_amplitude_families_of_a_mass_pattern(branch):
         AmplitudeParameters(LatticeModel.hertz(1.5, delta0=1.0), (Q,), 100, branch="optical")
     with pytest.raises(ParameterError, match="branch"):
         AmplitudeParameters(model, (Q,), 100, branch="upper")
+
+
+@pytest.mark.serial
+def test_every_q_resumes_from_its_own_end(tmp_path):
+    """A file of three q's run to -max_steps 3 and resumed with -max_steps 6 continues every q from its saved end state:
+    the records equal the uninterrupted -max_steps 6 run bit for bit (one rank: the same arithmetic). The earlier
+    code kept the last q's state alone and restarted the others from epsilon = 1, appending a second path. A file of
+    that code (one state, of the last q) resumes that q, and is refused (file error naming the q) for another."""
+    common = ["-cells_per_pi", "40", "-a", "0.3", "-q", "pi/4,3*pi/10,pi/5", "-ds", "0.05"]
+    out = lambda k: ["-output", tmp_path / f"d{k}.npz", "-table", tmp_path / f"d{k}.md"]   # noqa: E731
+    assert run_script("dimer_branch.py", *common, "-max_steps", "6", *out(0), timeout=300).returncode == 0
+    full = np.load(tmp_path / "d0.npz")
+    assert run_script("dimer_branch.py", *common, "-max_steps", "3", *out(1), timeout=300).returncode == 0
+    short = dict(np.load(tmp_path / "d1.npz"))
+    r = run_script("dimer_branch.py", *common, "-max_steps", "6", *out(1), "-resume", timeout=300)
+    assert r.returncode == 0, r.stderr
+    d = np.load(tmp_path / "d1.npz")
+    assert np.array_equal(np.unique(d["q"]), np.unique(full["q"]))
+    for q in np.unique(full["q"]):                 # the resumed file holds them in the order of computation
+        mine, ref = d["q"] == q, full["q"] == q
+        for f in ("epsilon", "omega", "norm_v", "v1", "arclength", "tangent_epsilon", "event"):
+            assert np.array_equal(d[f][mine], full[f][ref], equal_nan=True), (q, f)
+    # a file of the earlier code: one state (2, n), that of the last q computed (pi/5)
+    assert short["state_Z"].shape[0] == 3 and short["state_q"][-1] == math.pi / 5
+    for k in ("q", "Z", "s", "ds", "normalised"):
+        short["state_" + k] = short["state_" + k][-1]
+    np.savez(tmp_path / "d2.npz", **short)
+    r = run_script("dimer_branch.py", *common, "-max_steps", "6", *out(2), "-resume", timeout=300)
+    assert r.returncode == 4 and "q = pi/4" in one_error_line(r) and "d2.npz" in r.stderr
+    assert np.array_equal(np.load(tmp_path / "d2.npz")["epsilon"], short["epsilon"])     # nothing appended
+    r = run_script("dimer_branch.py", *common[:4], "-q", "pi/5", "-ds", "0.05", "-max_steps", "6", *out(2), "-resume",
+                   timeout=300)
+    assert r.returncode == 0, r.stderr
+    d = np.load(tmp_path / "d2.npz")
+    for q in np.unique(full["q"]):
+        mine, ref = d["q"] == q, full["q"] == q
+        want = full["epsilon"][ref] if q == math.pi / 5 else short["epsilon"][short["q"] == q]
+        assert np.array_equal(d["epsilon"][mine], want), q

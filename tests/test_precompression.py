@@ -322,3 +322,68 @@ def test_trimer_family_goes_around_the_folds_past_its_gap_opening():
     assert point.gap > 0
     imposed = wave_at(model, q, point.A, grid)
     assert abs(imposed.omega - point.omega) < 1e-6 * point.omega
+
+
+def test_a_family_starting_beyond_the_linear_regime_is_continued_to_its_first_amplitude():
+    """The first amplitude of a family above START_MAX delta0 (a = 0.3, delta0 = 0.5, alpha = 2, q = pi/6: the map's
+    -a 0.3 on N = 60, m = 5) was solved by Newton from the linear wave at a and failed; the family now starts from the
+    linear wave at START_MAX delta0 and steps to a, giving the wave a family from 1e-3 on a fine grid of a reaches
+    (the same discrete problem: omega equal to the Newton tolerance, 1e-9). A first amplitude at or below START_MAX
+    delta0 is solved as before, from the linear wave at that amplitude (the first point's a is it)."""
+    from hertzpetsc.families import START_MAX
+    model, q, grid = LatticeModel.hertz(2.0, delta0=0.5), math.pi / 6, ProfileGrid(60, COMM)
+    omega = {}
+    for name, amplitudes in (("direct", [0.3]), ("fine", np.geomspace(1e-3, 0.3, 30)), ("small", [0.02, 0.3])):
+        fam = AmplitudeFamily(model, q, grid)
+        try:
+            points = [fam.step_to(a) for a in amplitudes]
+        finally:
+            fam.destroy()
+        omega[name] = points[-1].omega
+        assert points[0].a == pytest.approx(amplitudes[0], rel=1e-14) and points[-1].a == pytest.approx(0.3, rel=1e-14)
+    assert 0.02 <= START_MAX * 0.5 < 0.3
+    assert abs(omega["direct"] - omega["fine"]) < 1e-9 * omega["fine"]
+    assert abs(omega["small"] - omega["fine"]) < 1e-9 * omega["fine"]
+
+
+@pytest.mark.serial
+def test_amplitudes_beyond_the_ceiling_are_refused():
+    """A = 1e308 made wave_at's step count an OverflowError (log(A / a0) = inf); such waves' energies overflow. The
+    ceiling is where the square of the energy per bond, (2A + delta0)^(2(alpha+1)), leaves the floats (closed form:
+    finite at the ceiling, inf at twice it); wave.py refuses -A beyond it with one line naming -A and the range."""
+    from hertzpetsc.families import amplitude_ceiling, check_wave_amplitude, wave_at
+    for alpha, d0 in ((1.5, 1.0), (3.0, 0.5)):
+        model = LatticeModel.hertz(alpha, delta0=d0)
+        top = amplitude_ceiling(model)
+        with np.errstate(over="ignore"):
+            assert np.isfinite(np.float64(2 * top + d0) ** (2 * (alpha + 1)))
+            assert np.isinf(np.float64(4 * top + d0) ** (2 * (alpha + 1)))
+        assert check_wave_amplitude(model, top, "A") == top
+        with pytest.raises(ParameterError, match=r"A = 1e\+308: .*must lie in \["):
+            wave_at(model, Q, 1e308, ProfileGrid(20, COMM))
+    r = run_script("wave.py", "-A", "1e308", "-cells_per_pi", "20", "-N", "30", "-q", "2*pi/15", timeout=120)
+    assert r.returncode == 2 and "-A = 1e+308" in one_error_line(r) and "must lie in [" in r.stderr
+
+
+def test_a_step_across_the_gap_opening_onto_another_branch_is_not_silent():
+    """masses 1, 0.01, alpha = 2, q = pi/4: steps of 0.1 in log a jumped across the gap opening onto another branch
+    (no A_gap, Omega0 0.575 instead of 0.655) and the run passed; the gap indicator changes sign there with no root
+    located, now a convergence error. Steps of 0.05 stay on the family and locate the opening: the gap indicator is 0
+    there to the layer's tolerance (1e-9 of the step 0.05 in log a, times d gap / d log a of order 1: below 1e-8)."""
+    from hertzpetsc.studies.precompression import amplitude_grid
+    model = LatticeModel.hertz(2.0, masses=(1.0, 0.01), delta0=1.0)
+    for ds in (0.1, 0.05):
+        fam = AmplitudeFamily(model, math.pi / 4, ProfileGrid(200, COMM))
+        try:
+            gaps = []
+            for a in amplitude_grid(1e-3, 3.0, ds):
+                if ds == 0.1 and a > 1.5:
+                    with pytest.raises(ConvergenceError, match="gap indicator changed sign"):
+                        fam.step_to(a)
+                    break
+                fam.step_to(a)
+                gaps += fam.events()
+        finally:
+            fam.destroy()
+        if ds == 0.05:
+            assert [p.event for p in gaps] == ["gap"] and abs(gaps[0].gap) < 1e-8 and 1.5 < gaps[0].A < 2.5

@@ -13,10 +13,12 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
   ds_max; per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u,
   norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
   iterations, event (0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the
-  path); state (for -resume of the q in progress): ``state_q``, ``state_Z`` (2, n) the last two extended
-  vectors (u_0 whole, u_1 whole, lam, epsilon: ``state_layout`` = 'natural'; without it, an older file's vectors in
-  its writer's rank layout), ``state_s``, ``state_ds``, ``state_normalised``. A ``hertzpetsc-dimer-1``
-  file (no event, no state) is read for its tables; it cannot be resumed.
+  path); state (for -resume, the end state of every q computed, stacked in the order of ``state_q`` (m,)):
+  ``state_Z`` (m, 2, n) the last two extended vectors (u_0 whole, u_1 whole, lam, epsilon: ``state_layout`` =
+  'natural'), ``state_s`` (m, 2), ``state_ds``, ``state_normalised`` (m,). Older files hold one state, of the last
+  q computed (``state_q`` (), ``state_Z`` (2, n), ...; without ``state_layout``, in its writer's rank layout): they
+  resume that q, and a resume that must continue another q is refused. A ``hertzpetsc-dimer-1`` file (no event, no
+  state) is read for its tables; it cannot be resumed.
 
 The stability map in (q, A) (record kind ``hertzpetsc-precompression-map-2``) is :mod:`hertzpetsc.studies.maps`,
 on the waves of :func:`richardson_wave` / :func:`wave_orbit` here.
@@ -370,28 +372,71 @@ class DimerFamilies(Study):
         last = float(rows[-1]["epsilon"])
         return (last - self.epsilon_end) * (1.0 - self.epsilon_end) < 0 or last <= 0
 
+    STATE_KEYS = ("Z", "s", "ds", "normalised")
+
+    def _end_states(self):
+        """{round(q, 12): state} of the q's whose end state the file holds (plain arrays, natural layout but for an
+        older file's one state, made natural in :meth:`run`)."""
+        state = self.store.state
+        if "q" not in state:
+            return {}
+        qs = np.asarray(state["q"], dtype=float)
+        if qs.ndim == 0:                   # a file written before the end state of every q was kept: the last q's
+            return {round(float(qs), 12): dict({k: state[k] for k in self.STATE_KEYS}, q=float(qs),
+                                               layout=str(state.get("layout", "")))}
+        return {round(float(q), 12): dict({k: state[k][i] for k in self.STATE_KEYS}, q=float(q), layout="natural")
+                for i, q in enumerate(qs)}
+
+    def _state_arrays(self):
+        """The store's state: the end state of every q held, stacked along a first axis (``state_q`` (m,), ...)."""
+        ends = list(self._ends.values())
+        return dict(q=np.array([e["q"] for e in ends]), layout="natural",
+                    **{k: np.array([np.asarray(e[k]) for e in ends]) for k in self.STATE_KEYS})
+
+    def _save(self, q, row, mc=None):
+        """Append ``row``; with ``mc``, the family's state replaces q's end state (collective)."""
+        if mc is None:
+            return self.store.append(row)
+        self._ends[round(q, 12)] = dict(mc.snapshot(), q=q)
+        return self.store.append(row, state=self._state_arrays())
+
     def run(self):
-        """Continue every q not finished in the file: a q in progress resumes from the saved state (the last two
-        points and the step), a larger -max_steps extends a finished path; yields each new record after saving
-        it (with the state for a resume)."""
+        """Continue every q not finished in the file: a q in progress resumes from its saved end state (the last
+        two points and the step), a larger -max_steps extends a finished path; yields each new record after saving
+        it (with the end state of its q for a resume). A file that lacks the end state of a q to continue (one
+        written when only the last q's was kept) is refused, naming the q."""
         self.open()
         grid = ProfileGrid(self.K, self.comm)
-        for q in self.qs:
-            saved, finished = self._progress(q)
+        self._ends = self._end_states()
+        todo = [(q, *self._progress(q)) for q in self.qs]
+        for q, saved, finished in todo:
+            if saved >= 2 and not finished and round(q, 12) not in self._ends:
+                held = ", ".join(q_label(e["q"]) for e in self._ends.values()) or "none"
+                raise RecordFileError(
+                    f"{self.WHAT} {self.output!r} holds no end state of q = {q_label(q)} (only of q = {held}: it was "
+                    "written when a file kept the last q's alone), so -resume cannot continue it without restarting "
+                    "it: resume the other q's alone (-q), or recompute it without -resume (-force, or another "
+                    "-output)")
+        for key, end in list(self._ends.items()):
+            if end["layout"] != "natural":          # an older file's state, in its writer's rank layout
+                mc = MassFamily(self.model, end["q"], grid, self.a, ds=self.ds, ds_max=self.ds_max)
+                try:
+                    self._ends[key] = self._natural_state(end, end["q"], mc.problem)
+                finally:
+                    mc.destroy()
+        for q, saved, finished in todo:
             if finished:
                 continue
             mc = MassFamily(self.model, q, grid, self.a, ds=self.ds, ds_max=self.ds_max)
             try:
-                state = self.store.state
-                if saved >= 2 and "q" in state and abs(float(state["q"]) - q) <= 1e-12 * q:
-                    mc.restore(self._natural_state(state, q, mc.problem))
+                if saved >= 2:
+                    mc.restore(self._ends[round(q, 12)])
                 else:
                     # the two start points; the state (both points) is saved with the second: a run stopped after
                     # the first recomputes them and saves the second (the first is the same computation)
                     points = list(mc.start())
                     for i, p in enumerate(points[saved:], saved):
-                        yield self.store.append(self._row(q, p), state=dict(q=q, **mc.snapshot())
-                                                if i == len(points) - 1 else None)
+                        yield self._save(q, self._row(q, p), mc if i == len(points) - 1 else None)
                     saved = len(points)
                 try:
                     for p in mc.run(self.epsilon_end, self.max_steps - (saved - 2)):
@@ -402,9 +447,9 @@ class DimerFamilies(Study):
                             if any(int(r["event"]) == row["event"] and abs(float(r["epsilon"]) - p.epsilon) <= 1e-9
                                    for r in _at(self.store.records, q)):
                                 continue
-                            self.store.append(row)
+                            self._save(q, row)
                         else:
-                            self.store.append(row, state=dict(q=q, **mc.snapshot()))
+                            self._save(q, row, mc)
                         yield row
                 except ConvergenceError as err:
                     self.stopped[q] = str(err)

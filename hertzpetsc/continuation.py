@@ -194,8 +194,8 @@ def set_parameter(Z, value):
 class Natural:
     """Natural continuation: steps in the parameter, secant predictor (in s(p) X,
     :meth:`~ContinuationProblem.predictor_ratio`), step halved on failure (or when the corrector moves X by more than
-    ``max_corrector``, relative, sup norm) and doubled after a success, up to the next target; no step longer than
-    ``max_step`` in the parameter. ``around_folds`` > 0: when the halvings are exhausted (natural steps cannot pass
+    ``max_corrector``, relative, sup norm, or a test function's own solve raises ConvergenceError) and doubled after a
+    success, up to the next target; no step longer than ``max_step`` in the parameter. ``around_folds`` > 0: when the halvings are exhausted (natural steps cannot pass
     a fold of the parameter: they stall at it), at most that many pseudo-arclength steps from the last two points,
     until the parameter passes the target (then a natural step back to it), so that the curve is followed through
     an S-shaped pair of folds; the curve turning back past the step's start (a single fold) ends the step as a
@@ -290,10 +290,11 @@ class Continuation:
     def _norm(self, a):
         return math.sqrt(max(self._dot(a, a), 0.0))
 
-    def _accept(self, Z, its, parameter=None):
-        """Append Z to the history (``parameter``: Z's, when the caller knows it; else read from Z)."""
+    def _accept(self, Z, its, parameter=None, tests=None):
+        """Append Z to the history (``parameter``: Z's, when the caller knows it; else read from Z; ``tests``: its
+        test functions, when the caller has them)."""
         p = _parameter(Z) if parameter is None else parameter
-        tests = self.problem.test_functions(Z)
+        tests = self.problem.test_functions(Z) if tests is None else tests
         self._remember(Z, self.s, tests, p)
         return ContinuationPoint(parameter=p, s=self.s, dp_ds=math.nan, iterations=its,
                                  report=self.problem.report(Z), tests=tests)
@@ -390,6 +391,12 @@ class Continuation:
                 size = self._corrector_size(Z, pred)
                 if size > alg.max_corrector:
                     failure = f"corrector moved the solution by {size:.3g} > max_corrector"
+                else:
+                    # every test read now (the loop below reads them all): a test function whose own solve fails
+                    # (e.g. LazyTests of a companion wave) fails the step, which is halved like a failed corrector
+                    tests = self.problem.test_functions(Z)
+                    for name in tests:
+                        tests[name]
             except ConvergenceError as err:
                 failure = f"reason {err.reason}"
             pred.destroy()
@@ -412,7 +419,7 @@ class Continuation:
             substeps += 1
             self.s += abs(p - p_last)
             previous = self.history[-1]
-            point = self._accept(Z, total_its, parameter=p)
+            point = self._accept(Z, total_its, parameter=p, tests=tests)
             for name, value in point.tests.items():
                 g0 = previous[2].get(name)
                 if g0 is not None and g0 * value < 0:
@@ -661,10 +668,10 @@ class Continuation:
             set_parameter(Z, p)
             try:
                 its = self._solve(Z, None, p)
+                v = self.problem.test_functions(Z)[name]
             except ConvergenceError:
                 Z.destroy()
                 raise
-            v = self.problem.test_functions(Z)[name]
             if p in evals:
                 evals[p][0].destroy()
             evals[p] = (Z, its, v)

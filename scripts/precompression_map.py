@@ -22,8 +22,10 @@ the cell maps, -floquet_ts_*).
 
 -render computes nothing: it rewrites -table (and the figure) from the file -output, of this kind or of kind
 hertzpetsc-precompression-map-1 (the maps before issue 23: rho - 1 per (q, a) on the dense route); such a file is
-not resumed (-resume refuses it and says so). -compare FILE (a map of kind -1) adds to the table the verdicts of
-both maps at the (q, a) both computed, at that file's threshold.
+not resumed (-resume refuses it and says so); the options that define the computation (-alpha ... -locate_tol) are
+refused with -render. -resume refuses a file of other parameters, the amplitudes (-a, -ds grid) included.
+-compare FILE (a map of kind -1 of the same alpha, delta0, masses, N, cells_per_pi and rtol, else refused) adds to
+the table the verdicts of both maps at the (q, a) both computed, at that file's threshold.
 """
 import math
 import os
@@ -38,12 +40,15 @@ from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.errors import RecordFileError  # noqa: E402
+from hertzpetsc.errors import ParameterError, RecordFileError  # noqa: E402
 from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MapParameters, StabilityMap, TESTS,  # noqa: E402
-                                     compare_v1, map_format, map_table, map_v1_as_v2, read_map)
+                                     check_comparable, compare_v1, map_format, map_table, map_v1_as_v2, read_map)
 from hertzpetsc.studies.precompression import amplitude_grid  # noqa: E402
 
 ROLES = StabilityMap.ROLES
+# the options that define the computation (refused with -render, which reads it from the file)
+COMPUTATION = ("alpha", "delta0", "N", "epsilon", "m", "q", "a", "a_min", "a_max", "ds", "cells_per_pi", "rtol",
+               "tol_rho", "twists", "locate", "locate_tol")
 
 
 def main():
@@ -82,17 +87,22 @@ def main():
     render = opts.flag("render", "compute nothing: rewrite -table and the figure from the file -output (either kind)")
     opts.done()
     comm = PETSc.COMM_WORLD
+    if compare and map_format(compare, comm) != MAP_FORMAT_V1:
+        raise RecordFileError(f"-compare {compare!r}: not a stability map of kind {MAP_FORMAT_V1}")
     if render:
         if mode != "new":
             raise RecordFileError("-render reads -output and writes only -table and the figure: give it without "
                                   "-resume or -force")
+        given = [name for name in COMPUTATION if opts.db.hasName(name)]
+        if given:
+            raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "-render takes the computation "
+                                 "from the file -output: give no option that defines it (-"
+                                 + ", -".join(COMPUTATION) + ")")
         opts.check_unused()
         z = read_map(output, comm)
         prepare_outputs(comm, table_path, figures=figures)
         write_figure_and_table(comm, z, table_path, figures, compare)
         return
-    if compare and map_format(compare, comm) != MAP_FORMAT_V1:
-        raise RecordFileError(f"-compare {compare!r}: not a stability map of kind {MAP_FORMAT_V1}")
     if mode == "resume" and map_format(output, comm) == MAP_FORMAT_V1:
         raise RecordFileError(f"-output {output!r} is a stability map of the route before issue 23 ({MAP_FORMAT_V1}, "
                               "no located boundary): it cannot be resumed; -render rewrites its table and figure, "
@@ -104,6 +114,8 @@ def main():
     study = StabilityMap(MapParameters(LatticeModel.hertz(alpha, masses, delta0), qs, tuple(amps) + tuple(grid), N, K,
                                        IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho, twists,
                                        tuple(w for w in locate if w != "none"), locate_tol), comm, output, mode)
+    if compare:                                        # before any computation: a map of the same computation
+        check_comparable(study.constants(), read_map(compare, comm), compare)
     study.configure()
     opts.check_unused()
     study.open()
@@ -121,7 +133,7 @@ def main():
 def write_figure_and_table(comm, z, table_path, figures, compare=""):
     text = map_table(z)
     if compare and str(z["format"]) != MAP_FORMAT_V1:
-        text += compare_v1(z, read_map(compare, comm))
+        text += compare_v1(z, read_map(compare, comm), path=compare)
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting

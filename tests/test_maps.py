@@ -136,7 +136,7 @@ def test_wave_cell_and_bad_parameters():
     model = LatticeModel.hertz(1.5, (1.0,), 1.0)
     with pytest.raises(ParameterError, match="locate"):
         MapParameters(model, (Q,), (1.0,), N=20, locate=("infinite",))
-    with pytest.raises(ParameterError, match="N"):
+    with pytest.raises(ParameterError, match="invalid q = 1.0: .*twists > 0"):
         MapParameters(model, (1.0,), (1.0,), N=20)             # not a chain wavenumber, no infinite chain
     with pytest.raises(ParameterError, match="N"):
         MapParameters(LatticeModel.hertz(1.5, (1.0, 0.5), 1.0), (Q,), (1.0,), N=21)
@@ -233,6 +233,47 @@ def test_unstable_intervals_pair_the_located_edges():
     z = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("q", "kind", "A", "rho", "A_stable", "A_unstable"))}
     z["tol_rho"] = 1e-6
     assert np.array_equal(unstable_intervals(z)[3.0], [(0.0, 0.15), (math.nan, math.inf)], equal_nan=True)
+
+
+def test_unstable_intervals_read_the_uncompressed_limit():
+    """The limit's verdict (kind 3, A = inf) ends the walk: stable map amplitudes and an unstable limit give an
+    interval to inf whose onset was not located (nan: '?'), an onset whose last map amplitude is unstable but whose
+    limit is stable has its offset not located (nan), an unstable limit continues an open interval to inf; without a
+    limit record the largest map amplitude decides, as before."""
+    from hertzpetsc.studies.maps import KIND_EDGE, map_table, unstable_intervals
+    nan, inf = math.nan, math.inf
+    rows = [  # q, kind, A, rho, A_stable, A_unstable
+        (1.0, KIND_POINT, 0.1, 1.0, nan, nan), (1.0, KIND_POINT, 0.2, 1.0, nan, nan),
+        (1.0, KIND_LIMIT, inf, 1.1, nan, nan),
+        (2.0, KIND_POINT, 0.1, 1.0, nan, nan), (2.0, KIND_EDGE, 0.15, nan, 0.149, 0.151),
+        (2.0, KIND_POINT, 0.2, 1.1, nan, nan), (2.0, KIND_LIMIT, inf, 1.0, nan, nan),
+        (3.0, KIND_POINT, 0.1, 1.0, nan, nan), (3.0, KIND_EDGE, 0.15, nan, 0.149, 0.151),
+        (3.0, KIND_POINT, 0.2, 1.1, nan, nan), (3.0, KIND_LIMIT, inf, 1.1, nan, nan),
+        (4.0, KIND_POINT, 0.1, 1.0, nan, nan), (4.0, KIND_LIMIT, inf, 1.0, nan, nan)]
+    z = {k: np.array([r[i] for r in rows]) for i, k in enumerate(("q", "kind", "A", "rho", "A_stable", "A_unstable"))}
+    z["tol_rho"] = 1e-6
+    spans = unstable_intervals(z)
+    assert np.array_equal(spans[1.0], [(nan, inf)], equal_nan=True)
+    assert np.array_equal(spans[2.0], [(0.15, nan)], equal_nan=True)
+    assert spans[3.0] == [(0.15, inf)] and spans[4.0] == []
+    keep = z["kind"] != KIND_LIMIT                      # no limit record: the largest amplitude decides
+    assert unstable_intervals({k: (v[keep] if k != "tol_rho" else v) for k, v in z.items()}) == \
+        {1.0: [], 2.0: [(0.15, inf)], 3.0: [(0.15, inf)], 4.0: []}
+    # the table: '[?, inf]' where the onset before the limit was not located
+    z = {k: np.array(v) for k, v in maps_file("stability_boundary_alpha2_N100.npz").items()}
+    q = float(z["q"][0])
+    mine = np.isclose(z["q"], q)
+    z["rho"][mine & (z["kind"] == KIND_POINT)] = 1.0
+    z["kind"][mine & (z["kind"] == KIND_EDGE)] = 99     # no edges for this q
+    z["rho"][mine & (z["kind"] == KIND_LIMIT)] = 1.1
+    from hertzpetsc.studies.floquet import q_label
+    row = next(line for line in map_table(z).splitlines() if line.startswith(f"| {q_label(q)} |") and "[" in line)
+    assert "[?, inf]" in row
+
+
+def maps_file(name):
+    from hertzpetsc.studies.maps import read_map
+    return read_map(os.path.join(RESULTS, name))
 
 
 def test_a_deflation_that_does_not_hold_gives_no_verdict(capfd):
@@ -356,3 +397,100 @@ def test_a_map_of_small_amplitudes_reaches_its_uncompressed_limit():
             study.destroy()
     assert limits[0]["omega"] == pytest.approx(limits[1]["omega"], rel=1e-9)
     assert limits[0]["outside"] == limits[1]["outside"]
+
+
+def small_map(a, output=None, mode="new", locate=()):
+    return StabilityMap(MapParameters(LatticeModel.hertz(2.0, (1.0,), 0.5), (math.pi / 3,), a, N=6, cells_per_pi=100,
+                                      locate=locate, limit=False), SELF, output, mode)
+
+
+def test_resume_refuses_other_amplitudes(tmp_path):
+    """-resume with another amplitude list (or -ds grid) is refused naming a: each q's family, located edges and
+    limit depend on all the map's amplitudes (it had marked the q done and left out the new amplitude). A file
+    written before the amplitudes were stored resumes with its own parameters."""
+    from hertzpetsc.errors import RecordFileError
+    path = str(tmp_path / "m.npz")
+    study = small_map((0.3, 3.0), path)
+    try:
+        assert [r["a"] for r in study.run() if r["kind"] == KIND_POINT] == pytest.approx([0.3, 3.0], rel=1e-14)
+    finally:
+        study.destroy()
+    with np.load(path) as z:
+        assert z["amplitudes"].tolist() == pytest.approx([0.3, 3.0], rel=1e-14)
+        old = {k: z[k] for k in z.files if k != "amplitudes"}
+    for a in ((0.3, 3.0, 10.0), (0.3,), (0.3, 2.0)):
+        study = small_map(a, path, "resume")
+        try:
+            with pytest.raises(RecordFileError, match=r"amplitudes a \(-a.* are 0.3, 3 there"):
+                list(study.run())
+        finally:
+            study.destroy()
+    study = small_map((3.0, 0.3), path, "resume")       # the same amplitudes: nothing to compute
+    try:
+        assert list(study.run()) == []
+    finally:
+        study.destroy()
+    np.savez(tmp_path / "old.npz", **old)
+    study = small_map((0.3, 3.0), str(tmp_path / "old.npz"), "resume")
+    try:
+        assert list(study.run()) == []                  # no amplitudes stored: not compared, nothing to compute
+    finally:
+        study.destroy()
+
+
+def test_a_failed_companion_wave_fails_the_family_step():
+    """alpha = 1.2, pi/4: the family's natural step from a = 1 to 10 converges on the h = pi/K grid to a wave whose
+    h = pi/2K companion Newton does not converge (a wave of the coarse grid only); the companion is solved in the
+    map's test functions, whose failure escaped the layer (the run stopped). It now fails the step, which is halved
+    and retried: the map reaches a = 10 on the wave that the map through 2 and 5 finds."""
+    model = LatticeModel.hertz(1.2, (1.0,), 1.0)
+    rows = {}
+    for a in ((0.1, 1.0, 10.0), (0.1, 1.0, 2.0, 5.0, 10.0)):
+        study = StabilityMap(MapParameters(model, (math.pi / 4,), a, N=40, cells_per_pi=200, limit=False), SELF)
+        try:
+            rows[a] = next(r for r in study.run() if r["kind"] == KIND_POINT and abs(r["a"] - 10) < 1e-9)
+        finally:
+            study.destroy()
+    one, other = rows.values()
+    # the same wave (the two Newton solves' tolerance) and its spectrum (the flows' rtol 1e-11)
+    assert one["omega"] == pytest.approx(other["omega"], rel=1e-9)
+    assert one["A"] == pytest.approx(other["A"], rel=1e-9)
+    assert one["rho"] == pytest.approx(other["rho"], rel=1e-8)
+
+
+def test_compare_refuses_a_map_of_another_computation():
+    """-compare: the verdicts of maps of other alpha, delta0, masses, N, grid or flow tolerance are not compared
+    (the first differing constant is named); tol_rho may differ (the comparison is at the old threshold)."""
+    from hertzpetsc.errors import RecordFileError
+    from hertzpetsc.studies.maps import check_comparable, compare_v1
+    old = maps_file("precompression_map.npz")
+    new = maps_file("stability_boundary_alpha1.5_N100.npz")
+    assert "agree at" in compare_v1(new, old)
+    for key, value in (("alpha", 2.0), ("delta0", 0.5), ("masses", [1.0, 0.7]), ("N", 60), ("cells_per_pi", 200),
+                       ("rtol", 1e-10)):
+        with pytest.raises(RecordFileError, match=f"another computation: {key} = "):
+            compare_v1(dict(new, **{key: np.asarray(value)}), old, path="x.npz")
+    check_comparable(dict(new, tol_rho=np.asarray(1e-3)), old, "x.npz")
+
+
+@pytest.mark.serial
+def test_driver_refuses_changed_computations(tmp_path):
+    """One error line each, naming the option: -resume with another -a (exit 4), -compare of a map of another alpha
+    (exit 4, -render and computing), -q without -twists (exit 2, -q: the infinite chain only), an option of the
+    computation with -render (exit 2)."""
+    args = ["-alpha", 2, "-delta0", 0.5, "-N", 6, "-m", 1, "-cells_per_pi", 100, "-locate", "none"]
+    out = ["-output", tmp_path / "m.npz", "-table", tmp_path / "m.md"]
+    r = run_script("precompression_map.py", *args, "-a", "0.3,3", *out)
+    assert r.returncode == 0, r.stderr
+    r = run_script("precompression_map.py", *args, "-a", "0.3,3,10", *out, "-resume")
+    assert r.returncode == 4 and "(-a" in one_error_line(r)
+    old = os.path.join(RESULTS, "precompression_map.npz")
+    r = run_script("precompression_map.py", "-render", "-compare", old, *out)
+    assert r.returncode == 4 and "alpha = 1.5 there, 2 in this map" in one_error_line(r)
+    r = run_script("precompression_map.py", *args, "-a", "0.3", "-compare", old, "-output", tmp_path / "c.npz",
+                   "-table", tmp_path / "c.md")
+    assert r.returncode == 4 and "alpha = 1.5 there" in one_error_line(r) and not (tmp_path / "c.npz").exists()
+    r = run_script("precompression_map.py", *args, "-q", "pi/7", "-a", "0.3", "-output", tmp_path / "q.npz")
+    assert r.returncode == 2 and one_error_line(r).startswith("error: invalid -q = ") and "twists > 0" in r.stderr
+    r = run_script("precompression_map.py", "-render", "-alpha", 3, *out)
+    assert r.returncode == 2 and one_error_line(r).startswith("error: invalid -alpha = ")

@@ -123,7 +123,8 @@ class MapParameters:
         for q in qs:
             if not fits_chain(q, self.N):
                 if not self.twists:
-                    check_chain_wavenumber(q, self.N)
+                    raise ParameterError("q", q, f"not a wavenumber 2 pi m / N of the chain of N = {self.N} beads: "
+                                         "such a q is computed on the infinite chain only, which needs twists > 0")
                 wave_cell(q, p)
         object.__setattr__(self, "q", qs)
         amps = []
@@ -220,7 +221,13 @@ class MapProbe:
     def wave(self, entry):
         if "w" not in entry:
             p = entry["point"]
-            w, lam, fine = self.companion.combine(p)
+            try:
+                w, lam, fine = self.companion.combine(p)
+            except ConvergenceError:
+                # the step to this wave fails (the continuation halves it): its entry goes, so that the wave the
+                # retried step reaches at this amplitude is not read from it
+                self.cache = {k: v for k, v in self.cache.items() if v is not entry}
+                raise
             entry.update(w=w, lam=lam, fine=fine, A=p.a * max(sup_norm(x) for x in w))
         return entry
 
@@ -318,7 +325,26 @@ class StabilityMap(Study):
     def constants(self):
         return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses), N=self.N,
                     cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists,
-                    locate=",".join(self.locate) or "none", locate_tol=self.locate_tol)
+                    locate=",".join(self.locate) or "none", locate_tol=self.locate_tol, amplitudes=self.a_values)
+
+    def _open(self):
+        """The record store; a resumed file whose map amplitudes differ is refused naming ``a`` (each q's family,
+        edges and limit depend on all of them: a q done with other amplitudes is another computation; files
+        written before the amplitudes were stored are not compared)."""
+        if self.output is not None and self.mode == "resume":
+            def stored():
+                if not os.path.exists(self.output):
+                    return None
+                z = load_npz(self.output, self.WHAT)
+                return z["amplitudes"].tolist() if "amplitudes" in z else None
+            there = on_rank0(self.comm, stored, what=self.WHAT)
+            if there is not None and not (len(there) == len(self.a_values)
+                                          and np.allclose(there, self.a_values, rtol=1e-12, atol=0)):
+                raise RecordFileError(f"{self.output!r} holds another computation: the map's amplitudes a (-a, with "
+                                      f"the -ds grid) are {', '.join(f'{x:g}' for x in there)} there, "
+                                      f"{', '.join(f'{x:g}' for x in self.a_values)} requested (rerun with the same "
+                                      "amplitudes, or without -resume and with -force to start afresh)")
+        return super()._open()
 
     def route(self, model):
         """The deflated sector route of ``model`` on one rank (built once per model, prefix ``floquet_``)."""
@@ -787,11 +813,12 @@ def map_v1_table(z):
 def unstable_intervals(z, key="rho"):
     """{q: [(A_from, A_to), ...]} the intervals of A where the chain of ``key`` (``rho``: N beads, ``rho_inf``: the
     infinite chain) is unstable, between its located edges (the located points' A, the midpoints of their
-    brackets), read together with the verdicts at the map's amplitudes: from 0 when the smallest map amplitude is
-    unstable before the first edge, to inf when the verdict stays unstable up to the largest map amplitude (then the
-    uncompressed limit's verdict is unstable too unless a change beyond the largest map amplitude was not located);
-    nan where an edge was not located (an onset after an onset, an offset after an offset, or a map amplitude whose
-    verdict contradicts the last located edge: the family stepped into a window the edges do not show)."""
+    brackets), read together with the verdicts at the map's amplitudes and at the uncompressed limit (A = inf, the
+    last verdict of the walk when the map has it): from 0 when the smallest map amplitude is unstable before the
+    first edge, to inf when the verdict stays unstable up to the limit (without a limit record: up to the largest
+    map amplitude); nan where an edge was not located (an onset after an onset, an offset after an offset, a map
+    amplitude or the limit whose verdict contradicts the last located edge: the family stepped into a window the
+    edges do not show, or the verdict changes beyond the largest map amplitude)."""
     tol = float(z["tol_rho"])
     kind, q, A = np.asarray(z["kind"]), np.asarray(z["q"], float), np.asarray(z["A"], float)
     rho = np.asarray(z[key], float)
@@ -799,10 +826,11 @@ def unstable_intervals(z, key="rho"):
     onset_of = np.asarray(z["A_unstable"], float) > np.asarray(z["A_stable"], float)
     out = {}
     for qq in sorted(set(q[(kind == KIND_POINT) & np.isfinite(rho)].tolist())):
-        pts = np.nonzero((kind == KIND_POINT) & (q == qq) & np.isfinite(rho))[0]
+        pts = np.nonzero(((kind == KIND_POINT) | (kind == KIND_LIMIT)) & (q == qq) & np.isfinite(rho))[0]
         mine = np.nonzero((kind == edge) & (q == qq))[0]
-        # the walk in A: points (their verdicts) and edges; at equal A the point comes first
-        walk = sorted([(float(A[i]), 0, i) for i in pts] + [(float(A[i]), 1, i) for i in mine])
+        # the walk in A: points (their verdicts, the limit's at A = inf last) and edges; at equal A the point first
+        walk = sorted([(float(A[i]) if kind[i] == KIND_POINT else math.inf, 0, i) for i in pts]
+                      + [(float(A[i]), 1, i) for i in mine])
         start, spans, seen = None, [], False
         for a, is_edge, i in walk:
             if not is_edge:
@@ -820,16 +848,34 @@ def unstable_intervals(z, key="rho"):
             else:                                               # stable before: nan, an onset between was not located
                 spans.append((math.nan if start is None else start, a))
                 start, seen = None, True
-        if start is not None:                  # up to the uncompressed limit only if the largest amplitude is unstable
-            last = pts[np.argmax(A[pts])]
+        if start is not None:                  # up to the uncompressed limit only if the last verdict is unstable
+            last = next(i for a, is_edge, i in reversed(walk) if not is_edge)
             spans.append((start, math.inf if rho[last] - 1 > tol or A[last] < start else math.nan))
         out[qq] = spans
     return out
 
 
-def compare_v1(z, old, tol=None):
-    """A Markdown section: the verdicts of this map (arrays ``z``) against a ``-1`` map (``old``) at the (q, a) both
-    computed, at the old threshold (``tol``: the old file's tol_rho); rho's agreement where rho - 1 > 10 tol."""
+# the constants of two maps that must agree for their verdicts to be compared (tol_rho may differ: the comparison is
+# at the old map's threshold)
+COMPARED = ("alpha", "delta0", "masses", "N", "cells_per_pi", "rtol")
+
+
+def check_comparable(z, old, path):
+    """:class:`~hertzpetsc.errors.RecordFileError` naming the first of :data:`COMPARED` that differs between this
+    map's constants ``z`` and the ``-1`` map ``old`` (file ``path``): another computation is not compared."""
+    for key in COMPARED:
+        mine, theirs = np.atleast_1d(np.asarray(z[key], float)), np.atleast_1d(np.asarray(old[key], float))
+        if mine.shape != theirs.shape or not np.allclose(mine, theirs, rtol=1e-12, atol=0):
+            show = (lambda v: ", ".join(f"{x:g}" for x in v))
+            raise RecordFileError(f"-compare {path!r} is a map of another computation: {key} = {show(theirs)} there, "
+                                  f"{show(mine)} in this map (compare maps of the same {', '.join(COMPARED)})")
+
+
+def compare_v1(z, old, tol=None, path="the other map"):
+    """A Markdown section: the verdicts of this map (arrays ``z``) against a ``-1`` map (``old``, file ``path``) at
+    the (q, a) both computed, at the old threshold (``tol``: the old file's tol_rho); rho's agreement where rho - 1 >
+    10 tol. Maps of another computation are refused (:func:`check_comparable`)."""
+    check_comparable(z, old, path)
     tol = float(old["tol_rho"]) if tol is None else tol
     kind = np.asarray(z["kind"])
     qn, an, rn = (np.asarray(z[k], float) for k in ("q", "a", "rho"))
@@ -924,7 +970,8 @@ def map_table(z):
              "\n### Unstable intervals\n",
              "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within "
              "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
-             "limit; ?: an edge not located (a window found between two edges of the same kind).\n",
+             "limit; ?: an edge not located (a window found between two edges of the same kind, or a change of the "
+             "verdict between the largest map amplitude and the uncompressed limit).\n",
              "| q | A_gap | N beads | infinite chain |", "|---|---|---|---|", *intervals,
              "\n### Verdicts on the map\n",
              f"Amplitudes a (first sine coefficient) of the map: {', '.join(f'{a:.4g}' for a in amps)}. Per q, one "

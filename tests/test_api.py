@@ -86,6 +86,8 @@ def test_scalar_wavenumber_is_a_list_of_one():
     m = hz.LatticeModel.hertz(2, delta0=0.5)
     one = hz.WaveParameters(m, q=math.pi / 3, A=0.5, N=6)
     assert one == hz.WaveParameters(m, q=(math.pi / 3,), A=0.5, N=6) and one.q == (math.pi / 3,)
+    assert hz.AmplitudeParameters(m, q=math.pi / 3).q == (math.pi / 3,)
+    assert hz.DimerParameters(m, q=math.pi / 4).q == (math.pi / 4,)
 
 
 def test_branch_column_names_the_fields():

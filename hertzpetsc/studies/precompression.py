@@ -24,6 +24,7 @@ The stability map in (q, A) (record kind ``hertzpetsc-precompression-map-2``) is
 on the waves of :func:`richardson_wave` / :func:`wave_orbit` here.
 """
 import math
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -82,7 +83,8 @@ def _at(records, q):
 
 
 def _check_qs(q, h=None, name="q"):
-    qs = tuple(check_wavenumber(x, h, name) for x in q)
+    """The wavenumbers ``q`` (a number or a sequence of them) as a tuple of checked wavenumbers."""
+    qs = tuple(check_wavenumber(x, h, name) for x in ((q,) if isinstance(q, numbers.Real) else q))
     if not qs:
         raise ParameterError(name, q, "give at least one wavenumber")
     return qs

@@ -11,7 +11,6 @@ iterations (Gauss-Newton), rho (the largest multiplier modulus, trivial ones exc
 each longer chain, in the order of ``sizes``), seconds.
 """
 import math
-import numbers
 import time
 from dataclasses import dataclass
 
@@ -66,7 +65,7 @@ class WaveParameters:
         if not (isinstance(self.N, (int, np.integer)) and 2 <= self.N <= MAX_BEADS and self.N % m.cell == 0):
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {m.cell} in "
                                  f"[2, {MAX_BEADS}]")
-        qs = _check_qs((self.q,) if isinstance(self.q, numbers.Real) else self.q, math.pi / self.cells_per_pi)
+        qs = _check_qs(self.q, math.pi / self.cells_per_pi)
         for q in qs:
             check_chain_wavenumber(q, self.N)
             check_branch(m, q, "acoustic")

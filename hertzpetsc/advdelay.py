@@ -695,10 +695,6 @@ class AdvanceDelayProblem(ContinuationProblem):
             L[c, (c - 1) % p] -= K * mu_minus
         lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
         k = 0 if branch == "acoustic" else p - 1
-        if p > 1 and abs(lams[k] - lams[1 if k == 0 else p - 2]) <= 1e-10 * abs(lams[-1]):
-            raise ParameterError("q", self.q, f"the {branch} linear wave is degenerate there (another branch has "
-                                 "its frequency, e.g. equal masses at the zone edge, where the pattern is the "
-                                 "monatomic chain): no wave of that branch is defined; choose another q or masses")
         vec = vecs[:, k]
         self.normalised = int(np.argmax(np.abs(vec)))
         unit = 1.0 if self.measure == "a1" else profile_sup(s, self.full)

@@ -149,23 +149,3 @@ def test_a_monatomic_chain_of_mass_m_at_omega_is_the_unit_chain_at_omega_sqrt_m(
     assert r_heavy.norm(PETSc.NormType.INFINITY) <= 1e-13 * r_unit.norm(PETSc.NormType.INFINITY)
     heavy.destroy()
     unit.destroy()
-
-
-def test_a_degenerate_linear_wave_is_refused_naming_q():
-    """Equal masses 1, 1 at per-bead q = pi/2 (cell wavenumber pi): the pattern's acoustic and optical linear waves
-    have one frequency (the monatomic chain's), so neither branch is defined; at q = pi/3 they differ."""
-    from hertzpetsc.families import AmplitudeFamily
-    comm = PETSc.COMM_WORLD
-    model = LatticeModel.hertz(2.0, masses=(1.0, 1.0), delta0=1.0)
-    for branch in ("acoustic", "optical"):
-        family = AmplitudeFamily(model, math.pi / 2, ProfileGrid(50, comm), branch=branch)
-        try:
-            with pytest.raises(ParameterError, match=f"invalid q = 1.57.*the {branch} linear wave is degenerate"):
-                family.step_to(1e-3)
-        finally:
-            family.destroy()
-    family = AmplitudeFamily(model, math.pi / 3, ProfileGrid(50, comm))
-    try:
-        assert family.step_to(1e-3).omega > 0
-    finally:
-        family.destroy()

@@ -88,12 +88,12 @@ def main():
     print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, h = pi/{K} and pi/{2 * K}, rtol {rtol:g}, "
            f"{len(study.params.A)} amplitudes, {len(study.params.q)} grid q, twists {twists}")
     print0(f"# {'A':>8} {'kind':>4} {'q':>10} {'cell':>5} {'rho - 1':>10} {'Theta':>7} {'s':>6}")
-    for r in study.run():
-        print0(f"  {r['A']:8.4g} {r['kind']:4d} {r['q']:10.6f} {r['M']:5d} {r['rho_inf'] - 1:10.3e} "
-               f"{r['theta_inf']:7.4f} {r['seconds']:6.1f}")
+    text = study.run_to_table(table_path, lambda r: print0(      # on a stop: the table of the records done
+        f"  {r['A']:8.4g} {r['kind']:4d} {r['q']:10.6f} {r['M']:5d} {r['rho_inf'] - 1:10.3e} "
+        f"{r['theta_inf']:7.4f} {r['seconds']:6.1f}"))
     z = study.arrays()
     study.destroy()
-    write_figure_and_table(comm, z, zmap, table_path, figures)
+    figure_and_table(comm, z, zmap, table_path, figures, text)
 
 
 def _read(path):
@@ -105,6 +105,10 @@ def _read(path):
 def write_figure_and_table(comm, z, zmap, table_path, figures):
     text = q_boundary_table(z)
     write_text(table_path, text, comm)
+    figure_and_table(comm, z, zmap, table_path, figures, text)
+
+
+def figure_and_table(comm, z, zmap, table_path, figures, text):
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         name = os.path.splitext(os.path.basename(table_path))[0] + ".png"

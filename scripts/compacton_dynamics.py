@@ -107,20 +107,20 @@ def main():
         if dyn is not None:
             print0(f"# {'q':>9} {'kind':>6} {'rate':>8} {'ln|mu3|':>8} {'late max|rest|':>14} {'|delta|(T)':>10} "
                    f"{'s':>6}")
-            for r in dyn.run():
+
+            def show(r):
                 print0(f"  {r['q']:9.6f} {r['kind']:>6} {r['rate']:8.4f} {math.log(abs(r['mu3'])):8.4f} "
                        f"{r['rest_max_late']:14.1e} {r['dist_end']:10.1e} {r['seconds']:6.1f}")
-                write_text(table, dyn.table(), comm)
+                write_text(table, dyn.table(), comm)         # a killed run leaves the table of its records
+            text = dyn.run_to_table(table, show)             # on a stop: the table of the records done
             if figures and comm.getRank() == 0:
                 from hertzpetsc import plotting
                 print("wrote " + plotting.plot_compacton_dynamics(dyn.store.records, figures), flush=True)
-            print0(dyn.table())
+            print0(text)
         if pairs is not None:
-            for r in pairs.run():
-                print0(f"  {r['case']:>6} rear {r['rear'] or '-':>9} front {r['front']:>9}: error x {r['error_x']:.1e}"
-                       f", v {r['error_v']:.1e}, debris {r['debris_v']:.1e} ({r['seconds']:.1f} s)")
-            write_text(pairs_table, pairs.table(), comm)
-            print0(pairs.table())
+            print0(pairs.run_to_table(pairs_table, lambda r: print0(
+                f"  {r['case']:>6} rear {r['rear'] or '-':>9} front {r['front']:>9}: error x {r['error_x']:.1e}"
+                f", v {r['error_v']:.1e}, debris {r['debris_v']:.1e} ({r['seconds']:.1f} s)")))
     finally:
         for s in (dyn, pairs):
             if s is not None:

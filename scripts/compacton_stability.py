@@ -83,18 +83,21 @@ def main():
            "; ".join(f"{a:g}: {len(s)}" for a, s in scan.sequences.items()))
     print0(f"# {'alpha':>5} {'q':>9} {'residual':>9} {'check':>9} {'pair mean':>16} {'max|mu|':>9} {'unst':>4} "
            f"{'2M chg':>8} {'SLEPc':>8} {'s':>5}")
-    try:
-        for r in scan.run():
-            print0(f"  {r['alpha']:5g} {r['q']:9.6f} {r['residual']:9.1e} {r['residual_check']:9.1e} "
-                   f"{r['jordan_mean']:16.13f} {r['max_nontrivial']:9.6f} {r['unstable']:4d} "
-                   f"{r['doubling_change']:8.1e} {r['slepc_change']:8.1e} {r['seconds']:5.1f}")
+
+    def records_text():
+        text = scan.summary() + "\n" + scan.table()
+        if solitary:
+            text += ("\nThe q -> 0 end of the family: the three smallest q extrapolated to q = 0 (Richardson with "
+                     "the leading order 1: the gap Delta = q D / 2 pi opens every bond by O(q)) against the solitary "
+                     "wave itself.\n\n" + scan.limit_table())
+        return text
+    try:                                         # on a stop: the table of the records done
+        text = scan.run_to_table(table, lambda r: print0(
+            f"  {r['alpha']:5g} {r['q']:9.6f} {r['residual']:9.1e} {r['residual_check']:9.1e} "
+            f"{r['jordan_mean']:16.13f} {r['max_nontrivial']:9.6f} {r['unstable']:4d} "
+            f"{r['doubling_change']:8.1e} {r['slepc_change']:8.1e} {r['seconds']:5.1f}"), records_text)
     finally:
         scan.destroy()
-    text = scan.summary() + "\n" + scan.table()
-    if solitary:
-        text += ("\nThe q -> 0 end of the family: the three smallest q extrapolated to q = 0 (Richardson with the "
-                 "leading order 1: the gap Delta = q D / 2 pi opens every bond by O(q)) against the solitary wave "
-                 "itself.\n\n" + scan.limit_table())
     if ring_qs:
         a0 = min(b.alpha for b in branches)
         lines = [f"\nThe same exact compactons (alpha = {a0:g}) on a periodic chain of N = 2 pi / q beads, i.e. the "
@@ -110,7 +113,7 @@ def main():
                          f"{float(rec['max_nontrivial']):.6f} |")
             print0(lines[-1])
         text += "\n".join(lines) + "\n"
-    write_text(table, text, comm)
+        write_text(table, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         rows = scan.rows()

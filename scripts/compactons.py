@@ -26,6 +26,7 @@ from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.studies.base import run_to_table  # noqa: E402
 from hertzpetsc.studies.compactons import CompactonStudy  # noqa: E402
 
 
@@ -49,9 +50,10 @@ def main():
     study = CompactonStudy([Branch.load(p, comm) for p in files], qs, comm, theta, c, margin, travel, dt)
     opts.check_unused()
     rank0 = comm.getRank() == 0
-    for case in study.run():
+
+    def show(case):
         print0(case.row())
-        write_text(output, study.table(), comm)
+        write_text(output, study.table(), comm)          # a killed run leaves the table of its cases
         first = case.train.q == study.branches[0].point(qs[0]).q and case.h == study.branches[0].h
         if figures and rank0 and first:
             from hertzpetsc import plotting
@@ -60,6 +62,7 @@ def main():
                                                f"q = {case.train.q:.4f}, {case.train.count} compacton(s), c = {c:g}")
             if case.train.count == 2:
                 plotting.plot_compacton_profiles(study.cases[-2].train, case.train, figures)
+    run_to_table(study, output, show)                    # on a stop: the table of the cases done
     print0(f"wrote {output}")
 
 

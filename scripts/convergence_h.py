@@ -18,7 +18,7 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_output, write_text  # noqa: E402
+from hertzpetsc.records import prepare_output  # noqa: E402
 from hertzpetsc.studies.branch import ConvergenceStudy  # noqa: E402
 
 
@@ -34,11 +34,7 @@ def main():
     prepare_output(output, comm)
     study = ConvergenceStudy(LatticeModel.hertz(alpha), M, cells, comm)
     opts.check_unused()
-    for K in study.run():
-        print0(f"# branch on h = pi/{K} done")
-    text = study.table()
-    write_text(output, text, comm)
-    print0(text)
+    print0(study.run_to_table(output, lambda K: print0(f"# branch on h = pi/{K} done")))   # on a stop: grids done
 
 
 if __name__ == "__main__":

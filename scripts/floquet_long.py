@@ -30,7 +30,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import on_rank0, prepare_output, write_text  # noqa: E402
+from hertzpetsc.records import on_rank0, prepare_output  # noqa: E402
 from hertzpetsc.studies.floquet import BlochScan, floquet_reference, q_label  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
@@ -63,15 +63,16 @@ def main():
     opts.check_unused()
     scan.open()
     print0(f"# cell M = {scan.M}, ranks {comm.getSize()}, split {split}, nev {nev}")
-    for r, e in scan.run():
+
+    def show(item):
+        r, e = item
         sl = e["slepc"]
         print0(f"  N {r['N']:6d} q {q_label(r['q']):>8} rho {r['rho']:.8f} (cell {r['rho_cell']:.8f}) outside "
                f"{r['outside']:5d} bloch {r['seconds']:7.1f} s ({e['runs']} runs), residual {r['residual']:.1e} "
                f"({e['res_products']} products, {e['t_res']:.1f} s)"
                + (f", SLEPc {sl['products']} products {sl['seconds']:.1f} s, |diff| {sl['dist']:.1e}" if sl else ""))
+    text = scan.run_to_table(output, show, lambda: scan.table(comm.getSize()))    # on a stop: the records done
     scan.destroy()
-    text = scan.table(comm.getSize())
-    write_text(output, text, comm)
     print0(text)
 
 

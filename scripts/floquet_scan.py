@@ -33,7 +33,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.floquet import METHODS, FloquetScan  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
@@ -65,12 +65,10 @@ def main():
     scan.open()
     print0(f"# N = {N}, method {method}, tol_rho = {tol_rho:g}; waves: {scan.restriction}")
     print0(f"# {'q':>8} {'rho(F_q)':>12} {'outside':>7} {'trivial spread':>14} {'state':>8} {'s':>6}")
-    for r in scan.run():
-        print0(f"  {r['q']:8.5f} {r['rho']:12.8f} {r['outside']:7d} {r['trivial_spread']:14.2e} "
-               f"{'refined' if r['refined'] else 'branch':>8} {r['seconds']:6.1f}")
-    text = scan.table(check_q)
+    text = scan.run_to_table(table_path, lambda r: print0(       # on a stop: the table of the records done
+        f"  {r['q']:8.5f} {r['rho']:12.8f} {r['outside']:7d} {r['trivial_spread']:14.2e} "
+        f"{'refined' if r['refined'] else 'branch':>8} {r['seconds']:6.1f}"), lambda: scan.table(check_q))
     scan.destroy()
-    write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         q = [float(r["q"]) for r in scan.store.records]

@@ -26,7 +26,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates, RefinementScan  # noqa: E402
 
 
@@ -50,10 +50,9 @@ def main():
     scan.open()
     print0(f"# N = {N}, alpha = {scan.branch.alpha}, {len(scan.qs)} wavenumbers, target E <= {tol:g}")
     print0(f"# {'q':>8} {'E before':>10} {'E after':>10} {'its':>4} {'jac':>4} {'time':>6}")
-    for r in scan.run():
-        print0(f"  {r['q']:8.5f} {r['E_before']:10.2e} {r['E_after']:10.2e} {r['iterations']:4d} "
-               f"{r['jacobians']:4d} {r['wall_time']:6.1f}")
-    write_text(table_path, scan.table(), comm)
+    scan.run_to_table(table_path, lambda r: print0(      # on a stop: the table of the records done
+        f"  {r['q']:8.5f} {r['E_before']:10.2e} {r['E_after']:10.2e} {r['iterations']:4d} "
+        f"{r['jacobians']:4d} {r['wall_time']:6.1f}"))
     refined = RefinedStates.load(output, comm)
     print0(f"max E after refinement: {refined.column('E_after').max():.2e} (tight flow); wrote {output}, {table_path}")
     if figures and comm.getRank() == 0:

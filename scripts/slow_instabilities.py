@@ -99,11 +99,12 @@ def main():
     print0(f"# alpha = {branch.alpha}, {len(scan.qs)} q, grids {grids}, n_theta {n_theta}, n_twist {n_twist}")
     print0(f"# {'q':>8} {'m':>3} {'gamma cm (K0..)':>30} {'gamma mono':>10} {'raw cluster':>11} {'E':>8} "
            f"{'verdict':>7} {'s':>6}")
-    for r in scan.run():
+
+    def show(r):
         g = " ".join(f"{v:9.1e}" for v in r["gamma_cm"])
         print0(f"  {r['q']:8.5f} {r['m']:3d} {g:>30} {r['gamma_mono']:10.1e} {r['raw_cluster_mono']:11.1e} "
                f"{r['E_orbit']:8.1e} {r['verdict']:7d} {r['seconds']:6.1f}")
-    text = scan.table()
+    text = scan.run_to_table(table_path, show)        # on a stop: the table of the records done
     scan.destroy()
     if convergence and n_twist:
         print0("# orbit residual and flow tolerance at q = " + ", ".join(f"{q:.5f}" for q in convergence))
@@ -115,7 +116,8 @@ def main():
         print0("# validation of the co-moving route at q = " + ", ".join(f"{q:.5f}" for q in validate))
         rows = on_rank0(comm, comoving_validation, branch, validate, N, reference_rho, what="co-moving validation")
         text += "\n" + validation_table(rows, N)
-    write_text(table_path, text, comm)
+    if convergence and n_twist or validate and reference != "none":
+        write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_slow_instabilities(scan.store.records, target, branch.alpha, figures,

@@ -25,7 +25,7 @@ from petsc4py import PETSc  # noqa: E402
 import numpy as np  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0, run_metadata  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_json, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_json  # noqa: E402
 from hertzpetsc.studies.branch import SmallQParameters, SmallQStudy  # noqa: E402
 from hertzpetsc.studies.solitary import k_alpha_extrapolated  # noqa: E402
 
@@ -51,11 +51,12 @@ def main():
     k_alpha = k_alpha_extrapolated(params.alpha)
     opts.check_unused()
     study.open()
-    for level, q, K, d in study.run():
+
+    def show(item):
+        level, q, K, d = item
         print0(f"level {level}: q = pi/{math.pi / q:7.2f}  K = {K:6d}  ||u|| q^(2/(alpha-1)) = "
                f"{d.rescaled_norm:.7f}  N = {d.N:.5f}")
-    text = study.table(k_alpha)
-    write_text(output, text, comm)
+    text = study.run_to_table(output, show, lambda: study.table(k_alpha))     # on a stop: why there is no table
     write_json(os.path.splitext(output)[0] + ".json", dict(meta=run_metadata(), **study.summary(k_alpha)), comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting

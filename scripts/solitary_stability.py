@@ -25,7 +25,7 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.solitary_stability import (DEFAULT_C0, ROLES, TOL_UNSTABLE,  # noqa: E402
                                                    SolitaryStabilityParameters, SolitaryStabilityScan)
 
@@ -53,15 +53,13 @@ def main():
     print0(f"# M = {params.M}, tail {tail:g}; c0: " + ", ".join(f"{c:g}" for c in params.c0))
     print0(f"# {'alpha':>5} {'c0':>5} {'residual':>9} {'max|mu|':>9} {'r_ess':>9} {'unst':>4} {'dlnH/dlnc':>12} "
            f"{'FD':>12} {'2M chg':>8} {'s':>5}")
-    try:
-        for r in scan.run():
-            print0(f"  {r['alpha']:5g} {r['c0']:5g} {r['residual']:9.1e} {r['max_nontrivial']:9.6f} "
-                   f"{r['essential']:9.6f} {r['unstable']:4d} {r['log_slope']:12.8f} {r['log_slope_fd']:12.8f} "
-                   f"{r['doubling_change']:8.1e} {r['seconds']:5.1f}")
+    try:                                         # on a stop: the table of the records done
+        text = scan.run_to_table(table, lambda r: print0(
+            f"  {r['alpha']:5g} {r['c0']:5g} {r['residual']:9.1e} {r['max_nontrivial']:9.6f} "
+            f"{r['essential']:9.6f} {r['unstable']:4d} {r['log_slope']:12.8f} {r['log_slope_fd']:12.8f} "
+            f"{r['doubling_change']:8.1e} {r['seconds']:5.1f}"), lambda: scan.summary() + "\n" + scan.table())
     finally:
         scan.destroy()
-    text = scan.summary() + "\n" + scan.table()
-    write_text(table, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_solitary_stability(scan.rows(), figures), flush=True)

@@ -17,7 +17,8 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
+from hertzpetsc.studies.base import run_to_table  # noqa: E402
 from hertzpetsc.studies.solitary import SolitaryStudy  # noqa: E402
 
 
@@ -39,9 +40,7 @@ def main():
     prepare_outputs(comm, output, figures=figures)
     study = SolitaryStudy(alphas, cells, lengths, comm, half_length)
     opts.check_unused()
-    for alpha in study.run():
-        print0("\n".join(study.section(alpha)))
-    write_text(output, study.table(), comm)
+    run_to_table(study, output, lambda alpha: print0("\n".join(study.section(alpha))))    # on a stop: alphas done
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_solitary(study.finest[alphas[0]], figures), flush=True)

@@ -318,3 +318,72 @@ def test_the_slepc_route_table_does_not_cap_the_count_or_print_an_unseen_spread(
     assert np.allclose(rhos["slepc"], rhos["dense"], rtol=1e-9, atol=0)
     assert "| 0.6283 | 1.23542531 | 13 | 8.8e-03 |" in tables["dense"]
     assert "| 0.6283 | 1.23542531 | >= 2 | n/a |" in tables["slepc"] and "| >= 2 | n/a |" in tables["slepc"]
+
+
+def _stale_table(tmp_path):
+    """A table file as another run left it (on every rank's shared directory)."""
+    from conftest import shared_tmp
+    path = os.path.join(shared_tmp(tmp_path), "t.md")
+    if COMM.getRank() == 0:
+        with open(path, "w") as f:
+            f.write("the table of another run\n")
+    COMM.barrier()
+    return path
+
+
+def _read_after(path):
+    COMM.barrier()
+    with open(path) as f:
+        return f.read()
+
+
+def test_a_stopped_study_that_is_not_a_study_subclass_writes_the_table_of_what_it_did(monkeypatch, tmp_path):
+    """run_to_table (solitary_wave.py, compactons.py): a ConvergenceError on the second alpha leaves the table of
+    the first with the stop below it, not the table of another run; the error is raised."""
+    from hertzpetsc.errors import ConvergenceError
+    from hertzpetsc.studies import solitary
+    from hertzpetsc.studies.base import run_to_table
+    solve = solitary.solve_solitary_wave
+
+    def failing(params, comm):
+        if params.alpha == 2.0:
+            raise ConvergenceError("test solver", -3, alpha=params.alpha)
+        return solve(params, comm)
+    monkeypatch.setattr(solitary, "solve_solitary_wave", failing)
+    path = _stale_table(tmp_path)
+    study = SolitaryStudy([1.5, 2.0], [10, 20, 40], [5], COMM)
+    shown = []
+    with pytest.raises(ConvergenceError, match="test solver"):
+        run_to_table(study, path, shown.append)
+    table = _read_after(path)
+    assert shown == [1.5] and table == study.table() + ("\nStopped before the end: test solver did not converge "
+                                                        "(reason -3) at alpha = 2\n")
+    assert "### alpha = 1.5" in table and "alpha = 2\n" not in table.split("Stopped")[0]
+
+
+def test_a_stopped_study_without_a_record_file_writes_the_table_of_what_it_did(monkeypatch, tmp_path):
+    """Study.run_to_table (convergence_h.py: no record file, the table is the result; small_q.py: a table that
+    needs the whole run): an error on the second grid leaves the table of the first grid, or the reason there is
+    none, with the stop below it; the stale table is gone and the error is raised."""
+    from hertzpetsc.errors import ConvergenceError
+    from hertzpetsc.studies import branch
+    points = branch.BranchContinuation.points
+
+    def failing(self, targets=None):
+        if self.params.cells_per_pi == 40:
+            raise ConvergenceError("test solver", -3, q=1.0)
+        yield from points(self, targets)
+    monkeypatch.setattr(branch.BranchContinuation, "points", failing)
+    stop = "\nStopped before the end: test solver did not converge (reason -3) at q = 1\n"
+    for text, why in ((None, None), ("needs", "the progress file lacks q = 1 (run to the end first)")):
+        path = _stale_table(tmp_path)
+        study = ConvergenceStudy(LatticeModel.hertz(1.5), 5, [20, 40, 80], COMM)
+
+        def lacking():
+            raise RecordFileError(why)
+        shown = []
+        with pytest.raises(ConvergenceError, match="test solver"):
+            study.run_to_table(path, shown.append, lacking if text else None)
+        table = _read_after(path)
+        assert shown == [20] and {K for K, _ in study.values} == {20}
+        assert table == (f"No table: {why}\n" if text else study.table()) + stop

@@ -102,22 +102,9 @@ class Study:
         """The Markdown table of the records."""
         raise NotImplementedError
 
-    def run_to_table(self, path, show=None):
-        """Run the study (``show(record)`` for each new record), then write its table to ``path`` and return the
-        text. If an error stops it (a solver that did not converge, PETSc refusing), the table of the records in
-        the store with the error below it is written first and the error re-raised: the table on disk never
-        describes another run than the record file's. Collective."""
-        try:
-            for record in self.run():
-                if show is not None:
-                    show(record)
-        except HertzPetscError as err:
-            if self.store is not None:
-                write_text(path, self.table() + f"\nStopped before the end: {err}\n", self.comm)
-            raise
-        text = self.table()
-        write_text(path, text, self.comm)
-        return text
+    def run_to_table(self, path, show=None, text=None):
+        """:func:`run_to_table` of this study."""
+        return run_to_table(self, path, show, text)
 
     def configure(self):
         """Read and check the options of every solver role now, so that a bad value fails before any computation
@@ -126,6 +113,30 @@ class Study:
 
     def destroy(self):
         """Free the PETSc objects the study holds (none by default)."""
+
+
+def run_to_table(study, path, show=None, text=None):
+    """Run ``study`` (anything with ``run()``, ``comm`` and ``table()``; ``show(item)`` for each item it yields),
+    then write ``text()`` (default ``study.table()``) to ``path`` and return it. If an error stops it (a solver that
+    did not converge, PETSc refusing), the table of what was done with the error below it is written first (a
+    table that needs the whole run says why there is none) and the error re-raised: the table on disk never
+    describes another run than the record file's (one that could not be opened is left alone). Collective."""
+    text = text or study.table
+    try:
+        for item in study.run():
+            if show is not None:
+                show(item)
+    except HertzPetscError as err:
+        if getattr(study, "output", None) is None or study.store is not None:
+            try:
+                done = text()
+            except HertzPetscError as why:
+                done = f"No table: {why}\n"
+            write_text(path, done + f"\nStopped before the end: {err}\n", study.comm)
+        raise
+    out = text()
+    write_text(path, out, study.comm)
+    return out
 
 
 def configure_roles(roles, comm):

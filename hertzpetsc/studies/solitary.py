@@ -55,6 +55,6 @@ class SolitaryStudy:
     def table(self):
         lines = ["k_alpha = -sum_k r(k + 1/2) (eq. kal2) of the unit-velocity solitary wave of eq. adr, grid step "
                  "delta = 1/n on [-L, L]; order from the three finest grids; extrapolated = Richardson (delta^2).\n"]
-        for alpha in self.alphas:
+        for alpha in self.results:                   # those done, in the order of alphas
             lines += self.section(alpha)
         return "\n".join(lines) + "\n"

@@ -42,9 +42,16 @@ def mpi_comm(comm):
     return comm if comm.Get_size() > 1 else None
 
 
-def _rebuild(kind, message):
+def _sent(err):
+    """A package error as (class, message, attributes), to be sent to the other ranks and raised there by
+    :func:`_rebuild` (a ParameterError keeps the name an error line turns into the option)."""
+    return type(err), str(err), dict(vars(err))
+
+
+def _rebuild(kind, message, attributes=None):
     err = kind.__new__(kind)
     err.args = (message,)
+    err.__dict__.update(attributes or {})
     return err
 
 
@@ -59,7 +66,7 @@ def on_rank0(comm, fn, *args, what="file operation"):
         try:
             result = fn(*args)
         except HertzPetscError as err:
-            error = (type(err), str(err))
+            error = _sent(err)
         except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
             error = (RecordFileError, f"{what}: {err}")
     if mpi is not None:

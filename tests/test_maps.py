@@ -140,6 +140,8 @@ def test_wave_cell_and_bad_parameters():
         MapParameters(model, (1.0,), (1.0,), N=20)             # not a chain wavenumber, no infinite chain
     with pytest.raises(ParameterError, match="N"):
         MapParameters(LatticeModel.hertz(1.5, (1.0, 0.5), 1.0), (Q,), (1.0,), N=21)
+    with pytest.raises(ParameterError, match="invalid a = 1e-12: .* at least"):    # before any family is computed
+        MapParameters(model, (Q,), (1e-12, 3.0), N=20)
 
 
 @pytest.mark.serial

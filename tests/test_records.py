@@ -212,3 +212,29 @@ def test_a_missing_branch_point_names_its_nearest_neighbours():
     with pytest.raises(RecordFileError, match=rf"no point at q = .* \(it has 3 points, .* the nearest "
                                               rf"{min(q[:2]):.12g} and {max(q[:2]):.12g}\)"):
         branch.point(0.5 * (q[0] + q[1]))
+
+
+def test_an_error_raised_on_every_rank_keeps_its_fields():
+    """A package error passed from the rank that raised it to the others (rank 0's file operations, the dealt
+    computations) keeps its fields, so that the driver's one error line names the option on every rank (on two
+    ranks a ParameterError arrived without ``name``: an AttributeError traceback, exit 1)."""
+    from hertzpetsc.errors import ConvergenceError
+    from hertzpetsc.records import on_rank0
+    from hertzpetsc.studies.dealing import dealt
+
+    def refuse(x=None):
+        raise ParameterError("a", 1e-12, "too small")
+
+    with pytest.raises(ParameterError) as err:
+        on_rank0(COMM, refuse)
+    assert (err.value.name, err.value.value, err.value.as_option({"a"}).name) == ("a", 1e-12, "-a")
+    with pytest.raises(ParameterError) as err:
+        list(dealt([1, 2], [1.0, 1.0], COMM, refuse))
+    assert err.value.as_option({"a"}).name == "-a"
+
+    def diverge():
+        raise ConvergenceError("Newton", -5, q=0.5)
+
+    with pytest.raises(ConvergenceError) as err:
+        on_rank0(COMM, diverge)
+    assert err.value.reason == -5 and err.value.where == {"q": 0.5}

@@ -7,7 +7,7 @@ rule on estimated costs; after each round every rank has every result of the rou
 can record them as they come. An error on one rank is passed to every rank in the same round, so all raise it.
 """
 from ..errors import HertzPetscError
-from ..records import _rebuild
+from ..records import _rebuild, _sent
 
 
 def lpt_plan(costs, size):
@@ -35,7 +35,7 @@ def dealt(items, costs, comm, compute):
             except HertzPetscError as err:
                 if mpi is None:
                     raise
-                result = (mine, None, (type(err), str(err)))
+                result = (mine, None, _sent(err))
         done = mpi.allgather(result) if mpi is not None else [result]
         failed = [entry[2] for entry in done if entry is not None and entry[2] is not None]
         if failed:

@@ -43,7 +43,7 @@ from petsc4py import PETSc
 from ..chain import IntegrationTolerances
 from ..diagnostics import sup_norm
 from ..errors import ConvergenceError, ParameterError, check_integer
-from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_amplitude, uncompressed_limit,
+from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_family_amplitude, uncompressed_limit,
                         wave_at)
 from ..floquet import FLOQUET_PREFIX
 from ..grid import ProfileGrid, check_cells_per_pi
@@ -128,7 +128,7 @@ class MapParameters:
                 wave_cell(q, p)
         object.__setattr__(self, "q", qs)
         amps = []
-        for a in sorted(check_amplitude(a, "a") for a in self.a):
+        for a in sorted(check_family_amplitude(self.model, a, "a") for a in self.a):
             if not amps or a > amps[-1] * (1 + 1e-9):
                 amps.append(a)
         if not amps:
@@ -577,7 +577,7 @@ class QBoundaryParameters:
                 raise ParameterError("q", q, f"q / 2 pi must be a fraction with a denominator of at most max_cell = "
                                      f"{self.max_cell}")
         object.__setattr__(self, "q", tuple(qs))
-        amps = {math.inf if A == math.inf else check_amplitude(A, "A") for A in self.A}
+        amps = {math.inf if A == math.inf else check_family_amplitude(self.model, A, "A") for A in self.A}
         if not amps:
             raise ParameterError("A", self.A, "give at least one amplitude")
         object.__setattr__(self, "A", tuple(sorted(amps)))

@@ -283,3 +283,17 @@ def test_the_wave_table_gives_the_refined_waves_omega():
     w = hz.wave(model, math.pi / 2, 0.3, 8, cells_per_pi=200, comm=COMM)
     refined = hz.refine(w, comm=COMM).orbit
     assert row["omega"] == pytest.approx(refined.omega, rel=1e-12) and refined.omega != w.omega
+
+
+@pytest.mark.serial
+def test_wave_driver_reads_its_documented_gauss_newton_option(tmp_path):
+    """-shoot_gn_max_it (in wave.py's -help) is read before the first wave: 0 is refused naming it, 5 is taken
+    (it was refused as an unknown option)."""
+    from conftest import one_error_line, run_script
+    common = ["-q", "2*pi/3", "-N", 30, "-A", 0.3, "-cells_per_pi", 100, "-output", tmp_path / "w.npz",
+              "-table", tmp_path / "w.md", "-force"]
+    bad = run_script("wave.py", *common, "-shoot_gn_max_it", 0, timeout=120)
+    assert bad.returncode == 2 and "invalid -shoot_gn_max_it = 0" in one_error_line(bad)
+    assert not (tmp_path / "w.npz").exists()
+    good = run_script("wave.py", *common, "-shoot_gn_max_it", 5, timeout=120)
+    assert good.returncode == 0, good.stderr

@@ -24,7 +24,7 @@ from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
 from ..resources import check_memory
-from ..shooting import Refiner
+from ..shooting import Refiner, gauss_newton_max_iterations
 from ..twsolver import tw_solver
 from ..waves import check_chain_wavenumber, orbit_on_chain
 from .base import Study
@@ -101,6 +101,11 @@ class WaveStudy(Study):
         super().__init__(params, comm, output, mode)
         self.SHAPES = {"rho_sizes": (len(params.sizes),)}
         check_memory(params.cells_per_pi, self.comm, tw_solver("precomp_"), profiles=params.model.cell)
+
+    def configure(self):
+        """The solver roles' options, and the refinement's -shoot_gn_max_it (read by each q's refiner), now."""
+        super().configure()
+        gauss_newton_max_iterations()
 
     def constants(self):
         p = self.params

@@ -21,6 +21,7 @@ Solver prefixes: -cwin_ (TS of the window flows), -ccheck_ (TS of the independen
 Ring check (-ring_q, skipped with -no_ring): the exact compacton of the first alpha at each -ring_q on a periodic
 chain of 2 pi / q beads, which is the paper's periodic wave: rho(F_q) with the feedback, against the isolated one.
 """
+import math
 import sys
 
 from hertzpetsc.start import init_petsc
@@ -36,6 +37,7 @@ from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.waves import fits_chain  # noqa: E402
 from hertzpetsc.studies.compacton_stability import (DEFAULT_QS, TOL_UNSTABLE, CompactonStabilityScan,  # noqa: E402
                                                     ring_spectrum)
 
@@ -77,6 +79,14 @@ def main():
         if not b.alpha > 1:
             raise ParameterError("alpha", b.alpha, f"the Hertz exponent of {p} must be > 1")
     scan = CompactonStabilityScan(branches, qs, comm, output, mode, M, rear, nev, eta, solitary, tol)
+    a0 = min(b.alpha for b in branches)
+    for q in ring_qs:                            # checked now, not after the scan
+        if not any(abs(x - q) <= 1e-12 * max(1.0, q) for x in scan.sequences[a0]):
+            raise ParameterError("-ring_q", q, f"must be one of the scanned q at alpha = {a0:g} (-q), or give "
+                                 "-no_ring to skip the ring check")
+        if not (fits_chain(q, round(2 * math.pi / q)) and round(2 * math.pi / q) >= M + 2):
+            raise ParameterError("-ring_q", q, f"the ring needs 2 pi / q to be a whole number of beads >= M + 2 = "
+                                 f"{M + 2}")
     opts.check_unused()
     scan.open()
     print0(f"# M = {M}, rear = {rear}, eta = {eta:g}, nev = {nev}; q per alpha: " +
@@ -99,7 +109,6 @@ def main():
     finally:
         scan.destroy()
     if ring_qs:
-        a0 = min(b.alpha for b in branches)
         lines = [f"\nThe same exact compactons (alpha = {a0:g}) on a periodic chain of N = 2 pi / q beads, i.e. the "
                  "paper's periodic waves, with the dense F_q = S R(script-T) (hertzpetsc.floquet, -floquet_ flow): "
                  "rho excludes the 4 trivial multipliers; outside: |mu| > 1 + 1e-4; residual: max|S X(1) - X(0) - "

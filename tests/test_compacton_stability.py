@@ -223,5 +223,10 @@ def test_drivers_smoke_and_errors(tmp_path):
     e = run_script("compacton_stability.py", "-branches", BRANCH, "-q", "1.9", "-output", tmp_path / "x.npz",
                    "-table", tmp_path / "x.md", timeout=60)
     assert "invalid -q = 1.9" in one_error_line(e) and "q_k" in one_error_line(e)          # no compacton there
+    for ring, why in (("pi/25", "must be one of the scanned q"), ("pi/5", "a whole number of beads >= M + 2")):
+        e = run_script("compacton_stability.py", "-branches", BRANCH, "-q", "pi/5", "-no_solitary", "-ring_q", ring,
+                       "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md", timeout=60)
+        assert "invalid -ring_q" in one_error_line(e) and why in one_error_line(e)   # before the scan
+        assert not (tmp_path / "r.npz").exists()
     e = run_script("compacton_dynamics.py", "-stability", out, "-alpha", "1", "-output", tmp_path / "y.npz")
     assert "-alpha" in one_error_line(e)

@@ -22,6 +22,7 @@ Solver prefixes: -cm_ (the co-moving PEP: -cm_pep_*, -cm_st_*), -tw_ (profiles o
 -shoot_jac_ (the refinement), -floquet_ (the flow of the sector maps: -floquet_ts_*).
 """
 import math
+import os
 import sys
 
 from hertzpetsc.start import init_petsc
@@ -75,6 +76,11 @@ def main():
                                "study of the monodromy route (none if empty)", valid=(lambda q: q > 0, "> 0"),
                                distinct=True, minimum_count=0)
     figure_name = opts.path("figure_name", "slow_instabilities.png", "file name of the figure")
+    from matplotlib.figure import Figure
+    formats = Figure().canvas.get_supported_filetypes()
+    if os.path.splitext(figure_name)[1].lstrip(".").lower() not in formats:
+        raise ParameterError("-figure_name", figure_name, "must end in a figure format: ."
+                             + ", .".join(sorted(formats)))
     output, mode, table_path, figures = opts.record_table_figures(
         "results/slow_instabilities.npz", "slow-instability file", "results/slow_instabilities.md", figure_name)
     opts.done()

@@ -166,7 +166,8 @@ def test_driver_runs_resumes_and_refuses_bad_input(tmp_path):
                    "-q", "2*pi/5", "-output", tmp_path / "one.npz", "-table", tmp_path / "one.md", "-resume")
     assert "n_twist" in one_error_line(r)                      # the file's identity names the parameter
     for bad, name in ((("-grids", "250,500"), "-grids"), (("-n_theta", 1), "-n_theta"), (("-rtol", 1e-3), "-rtol"),
-                      (("-q_min", 4), "-q_min"), (("-convergence_q", "3*pi/10", "-N", 30), "-convergence_q")):
+                      (("-q_min", 4), "-q_min"), (("-convergence_q", "3*pi/10", "-N", 30), "-convergence_q"),
+                      (("-figure_name", "x.txt"), "-figure_name")):
         r = run_script("slow_instabilities.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *bad, "-output",
                        tmp_path / "bad.npz", "-table", tmp_path / "bad.md")
         assert name in one_error_line(r)

@@ -190,6 +190,10 @@ def main():
     output, repeats, records_path, mode = declare_common(opts, "results/bench_driven.md", repeats=1)
     opts.done()
     opts.check_unused()
+    if set(workloads) == {"long"} and not long_N:
+        from hertzpetsc.errors import ParameterError
+        raise ParameterError("-long_N", long_N, "the only workload is long: give its beads (>= 2), or add sweep to "
+                             "-workloads")
     if not opts.help:                    # before any worker starts: the sweep's tangent flow, the long chain's state
         from petsc4py import PETSc
         check_chain_memory(N, PETSc.COMM_WORLD, columns=2 + 2 * N, name="N")

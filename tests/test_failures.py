@@ -260,6 +260,8 @@ def test_processes_fail_in_one_line_on_every_rank(tmp_path, ranks):
           "-table", tmp_path / "f.md"), 4, "does not exist"),
         (("refine_branch.py", "-q", "2*pi/5", "-N", 20, "-output", tmp_path / "r.npz", "-table",
           tmp_path / "afile" / "t.md"), 4, "is not a directory"),
+        (("bench_driven.py", "-workloads", "long", "-long_N", 0, "-output", tmp_path / "b.md"), 2,
+         "invalid -long_N = 0: the only workload is long"),
     ]
     for (script, *args), status, needle in checks:
         t0 = time.perf_counter()

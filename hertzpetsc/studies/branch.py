@@ -273,13 +273,14 @@ class SmallQStudy(Study):
         K_fine = {round(q, 12): int(lookup[-1][round(q, 12)]["K"]) for q in targets}
         return table, ext, K_fine
 
-    def table(self, k_alpha):
+    def table(self, k_alpha, half_length=8.0):
         p = self.params
         targets = p.targets()
         table, ext, K_fine = self.extrapolations()
         levels = p.levels
         lines = [f"alpha = {p.alpha}; level l keeps q/h >= {p.cells_per_q} 2^l (grid doubled each time q "
-                 f"halves below pi/50); k_alpha = {k_alpha:.7f} (solitary wave, n = 80, 160, 320, extrapolated). "
+                 f"halves below pi/50); k_alpha = {k_alpha:.7f} (solitary wave, n = 80, 160, 320, "
+                 f"L = {half_length:g}, extrapolated). "
                  "Orders and extrapolations from the three finest levels.\n",
                  "| q | pi/q | K (finest) | " + " | ".join(f"product, level {lev}" for lev in range(levels))
                  + " | order | product extrapolated | minus k_alpha | \\|\\|u\\|\\|_inf extrapolated | p(q) "
@@ -292,8 +293,8 @@ class SmallQStudy(Study):
                          f"{ext['slope'][i][1]:.6e} | {ext['N'][i][1]:.5f} | {ext['N'][i][0]:.2f} |")
         return "\n".join(lines) + "\n"
 
-    def summary(self, k_alpha):
+    def summary(self, k_alpha, half_length=8.0):
         """The extrapolated products and N(q) against q (the JSON beside the table)."""
         _, ext, _ = self.extrapolations()
-        return dict(k_alpha=k_alpha, q=self.params.targets(), product=[e[1] for e in ext["rescaled_norm"]],
+        return dict(k_alpha=k_alpha, half_length=half_length, q=self.params.targets(), product=[e[1] for e in ext["rescaled_norm"]],
                     N=[e[1] for e in ext["N"]], params=asdict(self.params))

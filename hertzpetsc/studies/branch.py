@@ -76,6 +76,9 @@ class ConvergenceStudy(Study):
         cells = sorted(int(K) for K in cells)
         if len(cells) < 3 or len(set(cells)) != len(cells):
             raise ParameterError("cells", cells, "needs at least three different grids for an observed order")
+        if cells[0] < M:        # the smallest target q = pi/M must be at least every grid's step h = pi/K
+            raise ParameterError("cells", cells, f"every grid K must be >= M = {M} (the smallest target q = pi/M at "
+                                 "least the grid step h = pi/K): increase the grids or decrease M")
         super().__init__(dict(alpha=model.alpha, M=M, cells=cells), comm)
         check_memory(cells[-1], self.comm, name="cells")
         self.model, self.M, self.cells, self.prefix = model, M, cells, prefix
@@ -205,11 +208,31 @@ class SmallQStudy(Study):
 
     def __init__(self, params, progress=None, comm=None, mode="new", prefix=TW_PREFIX):
         super().__init__(params, comm, progress, mode)
-        check_memory(params.cells_per_pi(params.q_stop, params.levels - 1), self.comm, name="q_stop")
+        self._check_memory(params)
         self.prefix, self.progress = prefix, progress
         self.continuation = ContinuationParameters(model=params.model, M=1, cells_per_pi=params.grid(0).cells_per_pi(
             params.q_first))
         configure_roles({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
+
+    def _check_memory(self, params):
+        """check_memory of the finest level's grid at q_stop, refused as q_stop with the smallest q_stop that fits
+        (K doubles at each halving of q_first). Collective."""
+        finest = params.levels - 1
+        K = params.cells_per_pi(params.q_stop, finest)
+        try:
+            check_memory(K, self.comm, name="q_stop")
+        except ParameterError as e:
+            halvings = 0
+            while True:
+                try:
+                    check_memory(params.cells_per_pi(params.q_first / 2 ** halvings, finest), self.comm)
+                except ParameterError:
+                    break
+                halvings += 1
+            bound = (f"must be >= q_first / 2^{halvings - 1} = {params.q_first / 2 ** (halvings - 1):.6g}"
+                     if halvings else "no q_stop fits (decrease cells_per_q or levels)")
+            raise ParameterError("q_stop", params.q_stop, f"{bound} on this machine: the finest level's grid, "
+                                 f"K = {K} cells per pi, {e.valid.rsplit(': ', 1)[0]}") from None
 
     def constants(self):
         return self.params.identity()

@@ -6,7 +6,8 @@ Relative displacements r(s) = y(s + 1/2) - y(s - 1/2) of the solitary wave x_n(t
 
 with r even, negative and decaying super-exponentially. We solve it on [-L, L] with step delta = 1/n (n even,
 so that the unit shift and the half-integers are grid points), second-order differences, r even and r = 0
-beyond +-L (justified once |r| has decayed below the tail tolerance at |s| >= L - 1, which is checked; on a
+beyond +-L (justified once |r| has decayed below the tail tolerance at |s| >= L - 1, which is checked: a given L
+too short is refused, an L not given is chosen, from 8 enlarged by 1.5x up to 40.5 until the check passes; on a
 period instead, the equations would sum to zero and the Jacobian be singular). PETSc SNES under the prefix ``sol_``
 (the same Newton/LU defaults as the travelling waves), started from the exact compacton of the continuum limit
 w'' = 12 (w^(1/alpha) - w), w = |r|^alpha (Nesterenko's and Ahnert-Pikovsky's profile): w = A cos^m(kappa s),
@@ -15,7 +16,7 @@ Then k_alpha = -sum_{k>=0} r(k + 1/2) (eq. kal2) and y(s) = sum_{k>=0} r(k+1/2-s
 """
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from petsc4py import PETSc
@@ -28,15 +29,17 @@ from .model import LatticeModel
 from .twsolver import ACCEPT_FACTOR, create_snes
 
 SOL_PREFIX = "sol_"
+AUTO_HALF_LENGTHS = (8.0, 12.0, 18.0, 27.0, 40.5)   # L tried in turn when none is given (x 1.5; alpha near 1: slow tail)
 
 
 @dataclass(frozen=True)
 class SolitaryParameters:
-    """alpha > 1; grid step 1/cells_per_unit (even); half-length L of the truncated line; tail tolerance."""
+    """alpha > 1; grid step 1/cells_per_unit (even); half-length L of the truncated line (None: chosen by
+    :func:`solve_solitary_wave` from ``AUTO_HALF_LENGTHS``); tail tolerance."""
 
     alpha: float = 1.5
     cells_per_unit: int = 40
-    half_length: float = 8.0
+    half_length: float = None
     tail_tolerance: float = 1e-13
 
     def __post_init__(self):
@@ -45,8 +48,8 @@ class SolitaryParameters:
         if not (isinstance(n, (int, np.integer)) and n >= 2 and n % 2 == 0):
             raise ParameterError("cells_per_unit", n, "must be an even integer >= 2 (unit shift and half-integers "
                                  "on the grid)")
-        K = self.half_length * n
-        if not (self.half_length >= 3 and abs(K - round(K)) < 1e-9):
+        K = None if self.half_length is None else self.half_length * n
+        if K is not None and not (self.half_length >= 3 and abs(K - round(K)) < 1e-9):
             raise ParameterError("half_length", self.half_length, "must be >= 3 and a multiple of the grid step "
                                  f"1/{n}")
         if not self.tail_tolerance > 0:
@@ -138,10 +141,31 @@ def displacement_profile(r_half, n):
     return y, k_alpha
 
 
-@PETSc.Log.EventDecorator("hz_solitary_solve")
 def solve_solitary_wave(params, comm, prefix=SOL_PREFIX):
-    """Compute the unit-velocity solitary wave and k_alpha; ParameterError if L is too short for the tail
-    tolerance, ConvergenceError if SNES fails or lands on the trivial solution r = 0."""
+    """Compute the unit-velocity solitary wave and k_alpha (``wave.params.half_length`` is the L used);
+    ParameterError if L is too short for the tail tolerance (a given L, or 40.5 when L is chosen), ConvergenceError
+    if SNES fails or lands on the trivial solution r = 0."""
+    if params.half_length is not None:
+        return _check_tail(_solve(params, comm, prefix))
+    for L in AUTO_HALF_LENGTHS:
+        wave = _solve(replace(params, half_length=L), comm, prefix)
+        if wave.tail <= params.tail_tolerance:
+            return wave
+    return _check_tail(wave)
+
+
+def _check_tail(wave):
+    params = wave.params
+    if wave.tail > params.tail_tolerance:
+        raise ParameterError("half_length", params.half_length,
+                             f"too short: |r| at |s| >= L - 1 is {wave.tail:.1e} of its maximum, above the tolerance "
+                             f"{params.tail_tolerance:g}; increase L")
+    return wave
+
+
+@PETSc.Log.EventDecorator("hz_solitary_solve")
+def _solve(params, comm, prefix):
+    """The solve of :func:`solve_solitary_wave` at a given L, without the tail check."""
     t0 = time.perf_counter()
     prob = SolitaryWaveProblem(params, comm)
     grid = prob.grid
@@ -169,10 +193,6 @@ def solve_solitary_wave(params, comm, prefix=SOL_PREFIX):
     if not r.min() < -0.1:
         raise ConvergenceError(what, "converged to the trivial solution r = 0", alpha=params.alpha)
     tail = float(np.max(np.abs(r[s >= params.half_length - 1])) / np.max(np.abs(r)))
-    if tail > params.tail_tolerance:
-        raise ParameterError("half_length", params.half_length,
-                             f"too short: |r| at |s| >= L - 1 is {tail:.1e} of its maximum, above the tolerance "
-                             f"{params.tail_tolerance:g}; increase L")
     y, k_alpha = displacement_profile(r, params.cells_per_unit)
     return SolitaryWave(params=params, s=s, r=r, y=y, k_alpha=k_alpha, iterations=its, residual_norm=float(fnorm),
                         tail=tail, wall_time=time.perf_counter() - t0)

@@ -48,7 +48,7 @@ def main():
     k_alpha = None
     if figures:     # the line of figs. normes and pentes uses k_alpha of the solitary wave (eq. kal2)
         from hertzpetsc.solitary import SolitaryParameters, solve_solitary_wave
-        k_alpha = solve_solitary_wave(SolitaryParameters(params.alpha, 80, 8.0), PETSc.COMM_SELF).k_alpha
+        k_alpha = solve_solitary_wave(SolitaryParameters(params.alpha, 80), PETSc.COMM_SELF).k_alpha
     opts.check_unused()
     study.open()
     if study.resumed:

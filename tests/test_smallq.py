@@ -89,3 +89,19 @@ def test_a_killed_small_q_run_resumes_to_the_same_table(tmp_path):
     with pytest.raises(Exception, match="another computation"):
         SmallQStudy(SmallQParameters(q_first=math.pi / 10, q_stop=math.pi / 20, per_halving=2, cells_per_q=10),
                     f"{d}/part.npz", COMM, "resume").open()
+
+
+def test_a_q_stop_too_small_for_the_machine_names_q_stop_and_the_smallest_that_fits():
+    """The memory check of the finest grid is reported as q_stop's value and bound (it showed the grid K and K's
+    bound under the name q_stop): the bound q_first / 2^k fits, half of it does not (K doubles per halving)."""
+    import re
+    from hertzpetsc.resources import check_memory
+    p = SmallQParameters(q_stop=1e-9)
+    with pytest.raises(ParameterError, match=r"q_stop = 1e-09: must be >= q_first / 2\^") as e:
+        SmallQStudy(p, None, COMM)
+    k = int(re.search(r"2\^(\d+) = ", str(e.value)).group(1))
+    bound, finest = p.q_first / 2 ** k, p.levels - 1
+    check_memory(p.cells_per_pi(bound, finest), COMM)
+    with pytest.raises(ParameterError):
+        check_memory(p.cells_per_pi(bound / 2, finest), COMM)
+    assert f"= {bound:.6g} on this machine" in str(e.value)

@@ -49,6 +49,24 @@ def test_short_domain_is_refused():
         solve_solitary_wave(SolitaryParameters(1.5, 20, 3.0), PETSc.COMM_WORLD)
 
 
+def test_half_length_not_given_is_chosen_where_the_tail_check_passes():
+    """alpha = 1.2 has a slow tail: L = 8 given is refused (as before), L not given is enlarged (1.5x) until the
+    tail check passes, and the L used is in the wave's parameters; where 8 passes (alpha = 1.5) it is kept, so the
+    wave is that of an explicit L = 8 (the published numbers)."""
+    with pytest.raises(ParameterError, match="half_length = 8.*too short"):
+        solve_solitary_wave(SolitaryParameters(1.2, 20, 8.0), PETSc.COMM_WORLD)
+    w = solve_solitary_wave(SolitaryParameters(1.2, 20), PETSc.COMM_WORLD)
+    L = w.params.half_length
+    assert L > 8 and w.tail <= w.params.tail_tolerance and len(w.r) == 20 * L + 1
+    assert full_line_residual(w) < 1e-9
+    # L / 1.5 did not pass (the first enlargement of 8 that passes), and an explicit L gives the same wave
+    with pytest.raises(ParameterError, match="too short"):
+        solve_solitary_wave(SolitaryParameters(1.2, 20, L / 1.5), PETSc.COMM_WORLD)
+    assert solve_solitary_wave(SolitaryParameters(1.2, 20, L), PETSc.COMM_WORLD).k_alpha == w.k_alpha
+    a, b = (solve_solitary_wave(SolitaryParameters(1.5, 20, L), PETSc.COMM_WORLD) for L in (None, 8.0))
+    assert a.params.half_length == 8 and a.k_alpha == b.k_alpha
+
+
 def test_a_converged_solve_with_a_residual_above_the_acceptance_is_a_convergence_error(monkeypatch):
     """SNES may stop on a relative or step test with the residual still above ACCEPT_FACTOR * atol: that is reported
     as a convergence failure naming the residual (it was a ValueError from int() of the reason's text)."""

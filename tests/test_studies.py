@@ -82,6 +82,9 @@ def test_convergence_study_reports_second_order():
     assert len(rows) == 4 and all(abs(float(r.split("|")[-3]) - 2) < 0.3 for r in rows)   # observed order
     with pytest.raises(ParameterError, match="three different grids"):
         ConvergenceStudy(LatticeModel.hertz(1.5), 10, [100, 200, 200], COMM)
+    # a grid coarser than the smallest target q = pi/M is refused as cells (it was q_stop, an internal parameter)
+    with pytest.raises(ParameterError, match=r"cells = \[5, 100, 200\]: every grid K must be >= M = 10"):
+        ConvergenceStudy(LatticeModel.hertz(1.5), 10, [100, 200, 5], COMM)
 
 
 @pytest.fixture(scope="module")
@@ -230,6 +233,10 @@ def test_long_run_resumes_bit_for_bit(tmp_path):
         LongRun(orbit, 10.0, 2, f"{d}/a", COMM).open()
     with pytest.raises(ParameterError, match="t_final"):
         LongRun(orbit, -1.0, 2, f"{d}/c", COMM)
+    # shorter than one snapshot interval: named as t_final with the bound T / snapshots_per_T (was snapshot_dt)
+    with pytest.raises(ParameterError, match=f"t_final = 1e-09: must be >= script-T / snapshots_per_T = "
+                       f"{orbit.T / 2:.6g} "):
+        LongRun(orbit, 1e-9, 2, f"{d}/c", COMM)
 
 
 def test_long_run_directories_of_the_first_format_are_read_but_not_resumed(tmp_path):
@@ -265,6 +272,12 @@ def test_compacton_study_keeps_beads_ahead_at_rest():
     assert study.table().count("| pi/200 |") == 2
     with pytest.raises(ParameterError, match="q_k"):
         CompactonStudy([branch], [0.7 * math.pi], COMM)
+    # a snapshot interval longer than the single compacton's run (travel + its length, over c: the times of the
+    # cases above) is refused before any run, naming dt_snapshot with that bound and saying where it comes from
+    t_final = min(c.times[-1] for c in cases)
+    with pytest.raises(ParameterError, match=rf"dt_snapshot = 1000.0: must lie in \(0, {t_final:g}\], the shortest "
+                       r"run's duration t_final = \(travel \+ "):
+        CompactonStudy([branch], [0.3 * math.pi], COMM, margin=4, travel=10, dt_snapshot=1e3)
 
 
 def test_studies_run_in_memory_without_an_output_file():

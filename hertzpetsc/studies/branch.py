@@ -76,6 +76,9 @@ class ConvergenceStudy(Study):
         cells = sorted(int(K) for K in cells)
         if len(cells) < 3 or len(set(cells)) != len(cells):
             raise ParameterError("cells", cells, "needs at least three different grids for an observed order")
+        if cells[0] < M:        # the smallest target q = pi/M must be at least every grid's step h = pi/K
+            raise ParameterError("cells", cells, f"every grid K must be >= M = {M} (the smallest target q = pi/M at "
+                                 "least the grid step h = pi/K): increase the grids or decrease M")
         super().__init__(dict(alpha=model.alpha, M=M, cells=cells), comm)
         check_memory(cells[-1], self.comm, name="cells")
         self.model, self.M, self.cells, self.prefix = model, M, cells, prefix
@@ -205,11 +208,31 @@ class SmallQStudy(Study):
 
     def __init__(self, params, progress=None, comm=None, mode="new", prefix=TW_PREFIX):
         super().__init__(params, comm, progress, mode)
-        check_memory(params.cells_per_pi(params.q_stop, params.levels - 1), self.comm, name="q_stop")
+        self._check_memory(params)
         self.prefix, self.progress = prefix, progress
         self.continuation = ContinuationParameters(model=params.model, M=1, cells_per_pi=params.grid(0).cells_per_pi(
             params.q_first))
         configure_roles({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
+
+    def _check_memory(self, params):
+        """check_memory of the finest level's grid at q_stop, refused as q_stop with the smallest q_stop that fits
+        (K doubles at each halving of q_first). Collective."""
+        finest = params.levels - 1
+        K = params.cells_per_pi(params.q_stop, finest)
+        try:
+            check_memory(K, self.comm, name="q_stop")
+        except ParameterError as e:
+            halvings = 0
+            while True:
+                try:
+                    check_memory(params.cells_per_pi(params.q_first / 2 ** halvings, finest), self.comm)
+                except ParameterError:
+                    break
+                halvings += 1
+            bound = (f"must be >= q_first / 2^{halvings - 1} = {params.q_first / 2 ** (halvings - 1):.6g}"
+                     if halvings else "no q_stop fits (decrease cells_per_q or levels)")
+            raise ParameterError("q_stop", params.q_stop, f"{bound} on this machine: the finest level's grid, "
+                                 f"K = {K} cells per pi, {e.valid.rsplit(': ', 1)[0]}") from None
 
     def constants(self):
         return self.params.identity()
@@ -273,13 +296,14 @@ class SmallQStudy(Study):
         K_fine = {round(q, 12): int(lookup[-1][round(q, 12)]["K"]) for q in targets}
         return table, ext, K_fine
 
-    def table(self, k_alpha):
+    def table(self, k_alpha, half_length=8.0):
         p = self.params
         targets = p.targets()
         table, ext, K_fine = self.extrapolations()
         levels = p.levels
         lines = [f"alpha = {p.alpha}; level l keeps q/h >= {p.cells_per_q} 2^l (grid doubled each time q "
-                 f"halves below pi/50); k_alpha = {k_alpha:.7f} (solitary wave, n = 80, 160, 320, extrapolated). "
+                 f"halves below pi/50); k_alpha = {k_alpha:.7f} (solitary wave, n = 80, 160, 320, "
+                 f"L = {half_length:g}, extrapolated). "
                  "Orders and extrapolations from the three finest levels.\n",
                  "| q | pi/q | K (finest) | " + " | ".join(f"product, level {lev}" for lev in range(levels))
                  + " | order | product extrapolated | minus k_alpha | \\|\\|u\\|\\|_inf extrapolated | p(q) "
@@ -292,8 +316,8 @@ class SmallQStudy(Study):
                          f"{ext['slope'][i][1]:.6e} | {ext['N'][i][1]:.5f} | {ext['N'][i][0]:.2f} |")
         return "\n".join(lines) + "\n"
 
-    def summary(self, k_alpha):
+    def summary(self, k_alpha, half_length=8.0):
         """The extrapolated products and N(q) against q (the JSON beside the table)."""
         _, ext, _ = self.extrapolations()
-        return dict(k_alpha=k_alpha, q=self.params.targets(), product=[e[1] for e in ext["rescaled_norm"]],
+        return dict(k_alpha=k_alpha, half_length=half_length, q=self.params.targets(), product=[e[1] for e in ext["rescaled_norm"]],
                     N=[e[1] for e in ext["N"]], params=asdict(self.params))

@@ -6,6 +6,7 @@ import time
 from dataclasses import dataclass
 
 from ..chain import configure_options
+from ..errors import ParameterError
 from ..resources import check_chain_memory
 from ..model import ChainSpec
 from ..compacton import (CompactonScales, chain_length, compacton_train, extension_residuals, lattice_checks,
@@ -51,6 +52,12 @@ class CompactonStudy:
         self.theta, self.c, self.margin, self.travel, self.dt = theta, c, margin, travel, dt_snapshot
         for b in branches:                                   # refuse bad input before any long run
             for q in qs:
+                # the shortest run, the single compacton's: t_final = (travel + its length) / c
+                t_final = (travel + math.ceil(train_span(compacton_train(b.point(q))))) / c
+                if not 0 < dt_snapshot <= t_final:
+                    raise ParameterError("dt_snapshot", dt_snapshot, f"must lie in (0, {t_final:g}], the shortest "
+                                         f"run's duration t_final = (travel + the compacton's length in beads) / c "
+                                         f"at q = {q:.6g}: decrease dt_snapshot or increase travel")
                 train = compacton_train(b.point(q), (theta / q,), b.q_k())
                 N = chain_length(train, margin, travel + math.ceil(train_span(train)))
                 # the run's snapshots are kept: travel / (c dt) states of N beads, 16 bytes per bead each, i.e. one

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass
 import numpy as np
 
 from ..chain import CHAIN_PREFIX, Chain, ChainIntegrator
+from ..errors import ParameterError
 from ..records import write_json
 from ..simulation import (check_times, decode, first_crossing, snapshot_record, snapshot_store, state_digest,
                           wave_deviation)
@@ -59,6 +60,10 @@ class LongRun(Study):
         super().__init__(None, comm, output, mode)
         self.orbit = orbit
         self.dt_snap = orbit.T / snapshots_per_T
+        if t_final > 0 and self.dt_snap > t_final:       # the interval is derived: name the two arguments
+            raise ParameterError("t_final", t_final, f"must be >= script-T / snapshots_per_T = {self.dt_snap:.6g} "
+                                 f"(one snapshot interval, script-T = {orbit.T:.6g}): increase t_final or "
+                                 "snapshots_per_T")
         check_times(t_final, self.dt_snap)
         self.t_final, self.snapshots_per_T = t_final, snapshots_per_T
         self.chain = Chain(orbit.spec, self.comm)

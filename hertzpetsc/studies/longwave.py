@@ -13,7 +13,7 @@ class LongWaveStudy:
 
     def __init__(self, branch, cells_per_unit=160, window=0.1, count=Q_REPORT):
         self.branch, self.n, self.window = branch, cells_per_unit, window
-        self.wave = solve_solitary_wave(SolitaryParameters(branch.alpha, cells_per_unit, 8.0), PETSc.COMM_SELF)
+        self.wave = solve_solitary_wave(SolitaryParameters(branch.alpha, cells_per_unit), PETSc.COMM_SELF)
         order = sorted(branch.points, key=lambda p: p.q)[:count]
         self.rows = [compare_with_branch(self.wave, p, window) for p in order]
         self.smallest = order[0]
@@ -21,7 +21,7 @@ class LongWaveStudy:
     def table(self):
         b, w = self.branch, self.wave
         lines = [f"alpha = {b.alpha}, branch h = pi/{b.cells_per_pi}; k_alpha = {w.k_alpha:.7f} (solitary wave, "
-                 f"delta = 1/{self.n}). Errors relative to k_alpha; window |xi - pi| <= {self.window}.\n",
+                 f"delta = 1/{self.n}, L = {w.params.half_length:g}). Errors relative to k_alpha; window |xi - pi| <= {self.window}.\n",
                  "| q | composite, max over the period | composite, max in the window | inner solution, max in the "
                  "window | \\|u\\|_inf q^(2/(alpha-1)) | minus k_alpha |", "|---|---|---|---|---|---|"]
         for r in self.rows:

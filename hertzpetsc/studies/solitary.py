@@ -6,10 +6,14 @@ from ..richardson import richardson
 from ..solitary import SolitaryParameters, configure_options, solve_solitary_wave
 
 
-def k_alpha_extrapolated(alpha, cells=(80, 160, 320), half_length=8.0):
-    """k_alpha extrapolated in the grid step (Richardson with the observed order) from three solves on one rank."""
-    ks = [solve_solitary_wave(SolitaryParameters(alpha, n, half_length), PETSc.COMM_SELF).k_alpha for n in cells]
-    return richardson(ks)[1]
+def k_alpha_extrapolated(alpha, cells=(80, 160, 320), half_length=None):
+    """(k_alpha extrapolated in the grid step (Richardson with the observed order) from three solves on one rank,
+    the L used: ``half_length``, or chosen on the first grid when None)."""
+    first = solve_solitary_wave(SolitaryParameters(alpha, cells[0], half_length), PETSc.COMM_SELF)
+    L = first.params.half_length
+    ks = [first.k_alpha] + [solve_solitary_wave(SolitaryParameters(alpha, n, L), PETSc.COMM_SELF).k_alpha
+                            for n in cells[1:]]
+    return richardson(ks)[1], L
 
 
 class SolitaryStudy:

@@ -131,7 +131,7 @@ class SolitaryStabilityScan(Study):
         cont_problem = self._solvers(alpha)[0]
         M = self.params.M
         if i == 0:
-            wave = solve_solitary_wave(SolitaryParameters(alpha, 40, 8.0), PETSc.COMM_SELF)
+            wave = solve_solitary_wave(SolitaryParameters(alpha, 40), PETSc.COMM_SELF)
             return cont_problem.refine(guess_from_solitary(wave, M, M // 2), 0.0)
         byc = {_key(r["alpha"], r["c0"]): r for r in self.store.records}
         prev = [byc[_key(alpha, c)] for c in self.params.c0[max(0, i - 2):i]]

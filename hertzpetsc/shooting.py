@@ -156,7 +156,7 @@ class Refiner:
     """Gauss-Newton refinement of travelling-wave orbits, any mass pattern (flows built once per chain length,
     prefix ``shoot_``; the engine :class:`~hertzpetsc.gauss_newton.GaussNewton`); ``with Refiner(...) as r:``.
 
-    ``tol``: the target E(q) (on the N beads over script-T); the iteration limit is ``-<prefix>gn_max_it``
+    ``tol``: the target E(q) (on the N beads over script-T), at least the residual flow's rtol; the iteration limit is ``-<prefix>gn_max_it``
     (default ``max_iterations``). ``symmetric``: refine on the wave's cell with its shortest time symmetry.
     """
 
@@ -169,6 +169,13 @@ class Refiner:
         self.engine = GaussNewton(comm)
         self._flows = {}
         self.smap = self._maps(spec.N)[0]          # configures both flows (options read now)
+        # E is a relative error of X(script-T) measured with the residual flow: below its rtol E is that flow's
+        # error, and the steps that still lower it drift along the nearly singular direction of the wave family
+        rtol = self.smap.integrator.ts.getTolerances()[0]
+        if not self.tol >= rtol:
+            self.destroy()
+            raise ParameterError("tol", tol, f"the target residual must be at least the residual flow's rtol "
+                                 f"{rtol:g} (-{prefix}ts_rtol), below which E(q) is not resolved")
 
     def _maps(self, N):
         """(state flow, tangent flow with 2N columns) on N beads of the lattice, built once."""

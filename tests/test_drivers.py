@@ -116,6 +116,22 @@ def test_benchmark_drivers(tmp_path, script, args, rows):
     assert out.read_text().count(needle) == count
 
 
+def test_bench_branch_labels_the_last_q_and_shows_a_disagreement(tmp_path):
+    """The comparison column names q = pi/M, not pi/50; at M = 5 the SciPy route's large q steps reach another
+    solution (max u differs by O(1)): each row beyond the stated tolerance is marked and a note says so."""
+    out = tmp_path / "bench.md"
+    r = run_script("bench_branch.py", "-cells", 100, "-M", 5, "-repeats", 1, "-scipy_timeout", 60, "-output", out,
+                   timeout=600)
+    assert r.returncode == 0, r.stderr
+    text = out.read_text()
+    assert "rel. diff of max u(pi/5) vs SciPy |" in text and "pi/50" not in text
+    rows = [line.split("|")[-2].split() for line in text.splitlines() if line.startswith("| pi/100 |")]
+    assert len(rows) == 5
+    marked = [float(cell[0]) > 1e-8 for cell in rows]
+    assert marked == [cell[-1] == "(!)" for cell in rows] and any(marked)
+    assert "(!) max u(pi/5) differs from SciPy's by more than 1e-08" in text
+
+
 def test_paper_pipeline_lists_its_steps():
     r = run_script("paper.py", "-help")
     assert r.returncode == 0 and "-steps branch,paper_table,convergence_h" in r.stdout

@@ -345,6 +345,29 @@ def test_a_killed_branch_resumes_to_the_same_branch(tmp_path):
     assert math.isclose(resumed.q[-1], math.pi / 5)
 
 
+def test_floquet_long_resumed_table_and_slepc_sizes(tmp_path, capfd, monkeypatch):
+    """A resumed floquet_long.py table equals the uninterrupted one (SLEPc, work and residual detail read from the
+    records, not from the session); -slepc_sizes outside -sizes is refused in one line before computing."""
+    base = fill(DRIVERS["floquet_long.py"][0], tmp_path)
+    code, _, err = drive("floquet_long.py", base + ["-slepc_sizes", 300], capfd, monkeypatch, tmp_path)
+    assert code == 2 and len(err) == 1 and "-slepc_sizes" in err[0] and "(200)" in err[0], err
+    assert not (tmp_path / "l.npz").exists()
+    code, _, err = drive("floquet_long.py", base + ["-slepc_sizes", 200], capfd, monkeypatch, tmp_path)
+    assert code == 0, err
+    first = (tmp_path / "l.md").read_text()
+    resumed = swap(base, "output", tmp_path / "r.md") + ["-slepc_sizes", 200, "-resume"]
+    code, _, err = drive("floquet_long.py", resumed, capfd, monkeypatch, tmp_path)
+    assert code == 0, err
+    assert (tmp_path / "r.md").read_text() == first and "not run" not in first
+
+
+def test_a_refinement_target_below_the_flows_rtol_is_refused(tmp_path, capfd, monkeypatch):
+    """wave.py -tol 1e-15 (below the residual flow's rtol 1e-14) drifted along the wave family with exit 0."""
+    base = fill(DRIVERS["wave.py"][0], tmp_path)
+    code, _, err = drive("wave.py", swap(base, "tol", "1e-15"), capfd, monkeypatch, tmp_path)
+    assert code == 2 and len(err) == 1 and "-tol" in err[0] and "-shoot_ts_rtol" in err[0], err
+
+
 # a size, count or amplitude far beyond what the machine or the method allows: refused in one line (the option
 # named, status 2) before anything is allocated or computed, never MemoryError, an overflow or hours of work
 OVERSIZED = {

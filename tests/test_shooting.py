@@ -8,10 +8,10 @@ from petsc4py import PETSc
 from conftest import chain, refine, small_branch
 import hertzpetsc as hz
 from hertzpetsc.errors import ParameterError, RecordFileError
-from hertzpetsc.chain import CHAIN_PREFIX
+from hertzpetsc.chain import CHAIN_PREFIX, IntegrationTolerances
 from hertzpetsc.diagnostics import sup_norm
 from hertzpetsc.model import LatticeModel
-from hertzpetsc.shooting import PAPER_TOLERANCES, ShiftMap
+from hertzpetsc.shooting import MEASURE_TOLERANCES, PAPER_TOLERANCES, ShiftMap
 from hertzpetsc.waves import orbit_on_chain
 
 N = 20   # q = 2 pi m / 20 = m pi / 10: on the M = 10 branch
@@ -42,6 +42,19 @@ def test_refinement_reaches_target_and_is_rank_independent():
     # the refined state is close to the discrete wave: it corrects an O(h^2) error
     assert np.max(np.abs(serial.x - w.x)) < 1e-2 * np.max(np.abs(w.x))
     assert serial.orbit.source == "refined" and w.source == "branch"
+
+
+def test_a_target_below_the_residual_flows_rtol_is_refused():
+    """E(q) is measured with the residual flow: a target below its rtol (default 1e-14) drifted along the wave
+    family (wave.py -tol 1e-15 moved omega in the 5th digit); it is refused naming tol and the flow's rtol, and
+    accepted once the flow is tight enough."""
+    w = orbit_on_chain(small_branch().point(0.4 * math.pi), chain(N))
+    rtol = MEASURE_TOLERANCES.rtol
+    with pytest.raises(ParameterError, match=f"tol = {rtol / 10!r}.*rtol {rtol:g} .-shoot_ts_rtol"):
+        refine(w, PETSc.COMM_WORLD, tol=rtol / 10)
+    for tol, flow in ((rtol, MEASURE_TOLERANCES), (rtol / 10, IntegrationTolerances(rtol / 10, rtol / 1000))):
+        with hz.Refiner(w.spec, PETSc.COMM_WORLD, tol, tolerances=flow) as refiner:
+            assert refiner.tol == tol
 
 
 def test_small_sonic_vacuum_wave_refines_as_the_rescaled_unit_wave():

@@ -17,7 +17,7 @@ from hertzpetsc.model import LatticeModel
 from hertzpetsc.simulation import read_snapshots
 from hertzpetsc.studies.branch import BranchStudy, ConvergenceStudy
 from hertzpetsc.studies.compactons import CompactonStudy
-from hertzpetsc.studies.floquet import BlochScan, FloquetScan, critical_wavenumbers
+from hertzpetsc.studies.floquet import BLOCH_DETAIL, BlochScan, FloquetScan, critical_wavenumbers
 from hertzpetsc.studies.longrun import LongRun
 from hertzpetsc.studies.refinement import RefinedStates, RefinementScan
 from hertzpetsc.studies.solitary import SolitaryStudy
@@ -202,6 +202,36 @@ def test_bloch_scan_records_and_table(refined, tmp_path):
     (row, extra), = rows
     assert row["N"] == 40 and extra["runs"] == 5 and row["residual"] < 1e-8 and len(row["dominant"]) == 4
     assert "| 40 | 2pi/5 | 8 |" in scan.table(COMM.getSize())
+
+
+def test_bloch_scan_resumed_table_is_the_uninterrupted_one(refined, tmp_path):
+    """The table of a resumed Bloch file prints what the run that computed each row printed (work, residual detail,
+    SLEPc), read from the records; a file written before those were recorded falls back, marked; -slepc_sizes
+    outside -sizes is refused before any computation."""
+    d, branch, *_ = refined
+    path = f"{shared(tmp_path)}/b.npz"
+    kw = dict(nev=4)                          # SLEPc: test_failures.py (it does not converge on this tiny chain)
+    scan = BlochScan(branch, RefinedStates.load(f"{d}/r.npz"), [40], [0.4 * math.pi], COMM, path, **kw)
+    (row, extra), = list(scan.run())
+    table = scan.table(COMM.getSize())
+    scan.destroy()
+    assert extra["propagated"] and f"({extra['res_products']}, " in table and f"| {extra['runs']} from 1 x {extra['columns'] // extra['runs']} on 3 cells |" in table
+    again = BlochScan(branch, RefinedStates.load(f"{d}/r.npz"), [40], [0.4 * math.pi], COMM, path, "resume", **kw)
+    assert list(again.run()) == [] and again.table(COMM.getSize()) == table
+    again.destroy()
+    old = f"{shared(tmp_path)}/old.npz"
+    if COMM.getRank() == 0:                    # the file as written before BLOCH_DETAIL was recorded
+        data = dict(np.load(path))
+        np.savez(old, **{k: v for k, v in data.items() if k not in BLOCH_DETAIL})
+    COMM.barrier()
+    older = BlochScan(branch, RefinedStates.load(f"{d}/r.npz"), [40], [0.4 * math.pi], COMM, old, "resume", **kw)
+    text = older.open().table(COMM.getSize())
+    older.destroy()
+    L = 40 // 20
+    assert f"| {L // 2 + 1} x 40* |" in text and f"{row['residual']:.1e} * |" in text
+    assert "* not recorded in this file" in text
+    with pytest.raises(ParameterError, match="-slepc_sizes.*one of -sizes"):
+        BlochScan(branch, RefinedStates.load(f"{d}/r.npz"), [40], [0.4 * math.pi], COMM, slepc_sizes=[60])
 
 
 def test_long_run_resumes_bit_for_bit(tmp_path):

@@ -24,7 +24,7 @@ from ..bloch import SymmetricFloquet, bloch_residuals, real_pairs, seeded_domina
 from ..errors import ParameterError, RecordFileError
 from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
-from ..records import check_kind, load_npz
+from ..records import NpzRecords, check_kind, load_npz
 from ..waves import orbit_on_chain
 from .base import Study
 from .dealing import dealt
@@ -35,6 +35,8 @@ FLOQUET_FIELDS = ("q", "rho", "outside", "trivial_spread", "growth", "refined", 
 BLOCH_FORMAT = "hertzpetsc-bloch-1"
 METHODS = ("symmetric", "dense", "slepc")
 BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "slepc_products", "slepc_seconds")
+# what the table prints besides, recorded since; a file written before lacks them: -1 (integers) or nan on load
+BLOCH_DETAIL = ("runs", "columns", "propagated", "res_products", "res_seconds", "slepc_dist")
 
 
 def q_label(q):
@@ -231,12 +233,30 @@ def floquet_reference(path):
     return {round(float(a), 12): float(b) for a, b in zip(data["q"], data["rho"])}
 
 
+class _BlochRecords(NpzRecords):
+    """The Bloch record file; a file written before ``BLOCH_DETAIL`` was recorded loads with -1 / nan there."""
+
+    def _load(self):
+        fields = self.fields
+        present = set(load_npz(self.path, self.what))
+        self.fields = tuple(f for f in fields if f in present or f not in BLOCH_DETAIL)
+        try:
+            records = super()._load()
+        finally:
+            self.fields = fields
+        for r in records:
+            for f in BLOCH_DETAIL:
+                r.setdefault(f, -1 if self.dtypes.get(f) is np.int64 else math.nan)
+        return records
+
+
 class BlochScan(Study):
     """All 2N multipliers of F_q on N = L M beads from Bloch sectors of the refined M-bead wave, the residuals of
     the dominant modes on the full chain (matrix-free) and, for N in ``slepc_sizes``, seeded SLEPc (sec. 3.5)."""
 
-    FORMAT, FIELDS = BLOCH_FORMAT, BLOCH_FIELDS + ("dominant", "dominant_theta")
-    DTYPES = {"N": np.int64, "outside": np.int64, "slepc_products": np.int64, "dominant": complex}
+    FORMAT, FIELDS = BLOCH_FORMAT, BLOCH_FIELDS + ("dominant", "dominant_theta") + BLOCH_DETAIL
+    DTYPES = {"N": np.int64, "outside": np.int64, "slepc_products": np.int64, "dominant": complex, "runs": np.int64,
+              "columns": np.int64, "propagated": np.int64, "res_products": np.int64}
     ROLES = {"floquet_": ("Bloch sectors and full-chain checks: the variational flow, the seeded eigensolver",
                           ("ts", "eps"))}
     WHAT, LABELS = "Bloch file", ("split", "refined_file")
@@ -251,6 +271,10 @@ class BlochScan(Study):
             if N % self.M:
                 raise ParameterError("-sizes", N, f"every chain length must be a multiple of the refined wave's "
                                      f"{self.M} beads (it is tiled)")
+        unknown = sorted(set(slepc_sizes) - set(sizes))
+        if unknown:
+            raise ParameterError("-slepc_sizes", ",".join(map(str, unknown)), "every N must be one of -sizes "
+                                 f"({','.join(map(str, sizes))}): SLEPc runs on the chains the scan computes")
         if split not in ("sectors", "beads"):
             raise ParameterError("-split", split, "must be sectors or beads")
         self.solver = SymmetricFloquet(branch.model, self.comm, tolerances, split=split, n_modes=nev)
@@ -265,6 +289,14 @@ class BlochScan(Study):
                     rtol=self.tolerances.rtol, refined_file=_path(self.refined))
 
     inputs = FloquetScan.inputs          # the branch and the refinement file
+
+    def _open(self):
+        """The record store; records of a file written before ``BLOCH_DETAIL`` was recorded get -1 / nan there."""
+        if self.output is None:
+            return super()._open()
+        identity = self.identity()
+        return _BlochRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity, self.FIELDS,
+                             self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT)
 
     def run(self):
         self.open()
@@ -298,7 +330,10 @@ class BlochScan(Study):
                            seconds=t_bloch, slepc_products=slepc["products"] if slepc else -1,
                            slepc_seconds=slepc["seconds"] if slepc else math.nan,
                            dominant=np.array([mu for mu, _, _ in b.modes]),
-                           dominant_theta=np.array([(j * per / b.L) % 1.0 for _, j, _ in b.modes]))
+                           dominant_theta=np.array([(j * per / b.L) % 1.0 for _, j, _ in b.modes]),
+                           runs=b.work["runs"], columns=b.work["columns"], propagated=int(bool(b.work["propagated"])),
+                           res_products=res_products, res_seconds=t_res,
+                           slepc_dist=slepc["dist"] if slepc else math.nan)
                 self.extra[key] = dict(m=full.m, L=L, runs=b.work["runs"], columns=b.work["columns"],
                                        res_products=res_products, t_res=t_res, slepc=slepc,
                                        propagated=b.work["propagated"])
@@ -324,25 +359,35 @@ class BlochScan(Study):
                  "| N | q | m | rho(F_q) | rho(cell) | rho(N=100 table) | outside | Bloch runs x columns | Bloch time (s) "
                  "| residual (products, s) | SLEPc seeded (products, s, max diff) |",
                  "|---|---|---|---|---|---|---|---|---|---|---|"]
-        dominant = []
+        dominant, older = [], False
         for r in self.store.records:
             N, q = int(r["N"]), float(r["q"])
             L = N // M
-            e = self.extra.get((N, round(q, 12)), {})
             ref = self.reference.get(round(q, 12))
-            sl = e.get("slepc")
-            runs, cols = e.get("runs", L // 2 + 1), e.get("columns", 2 * M * (L // 2 + 1))
-            res_detail = (f"({e['res_products']}, {e['t_res']:.1f})" if "res_products" in e else "")
+            runs, cols = int(r["runs"]), int(r["columns"])
+            if runs < 0:            # a record from before the work was recorded: the sector count, marked *
+                older = True
+                work = f"{L // 2 + 1} x {2 * M}*"
+            elif r["propagated"]:
+                work = f"{runs} from 1 x {cols // runs} on 3 cells"
+            else:
+                work = f"{runs} x {cols // runs}"
+            res_detail = f"({int(r['res_products'])}, {float(r['res_seconds']):.1f})" if r["res_products"] >= 0 else "*"
+            slepc = "not run"
+            if r["slepc_products"] >= 0:
+                dist = float(r["slepc_dist"])
+                slepc = (f"{int(r['slepc_products'])}, {float(r['slepc_seconds']):.1f}, "
+                         + (f"{dist:.1e}" if math.isfinite(dist) else "*"))
+            older = older or r["res_products"] < 0 or slepc.endswith("*")
             lines.append(f"| {N} | {q_label(q)} | {int(round(N * q / (2 * math.pi)))} | {float(r['rho']):.8f} | "
                          f"{float(r['rho_cell']):.8f} | {f'{ref:.8f}' if ref is not None else 'n/a'} | "
-                         f"{int(r['outside'])} | "
-                         + (f"{runs} from 1 x {cols // runs} on 3 cells" if e.get("propagated") else
-                            f"{runs} x {cols // runs}")
-                         + f" | {float(r['seconds']):.1f} | "
-                         f"{float(r['residual']):.1e} {res_detail} | "
-                         + (f"{sl['products']}, {sl['seconds']:.1f}, {sl['dist']:.1e}" if sl else "not run") + " |")
+                         f"{int(r['outside'])} | {work} | {float(r['seconds']):.1f} | "
+                         f"{float(r['residual']):.1e} {res_detail} | {slepc} |")
             dom = ", ".join(f"{abs(v):.6f} @ {np.angle(v) / math.pi:+.4f} [{t:.3f}]"
                             for v, t in zip(r["dominant"], r["dominant_theta"]))
             dominant.append(f"- N = {N}, q = {q_label(q)}: {dom}")
+        if older:
+            lines.append("\n* not recorded in this file (written before they were): Bloch work is L//2 + 1 sectors x 2M "
+                         "columns, the residual's products and time and SLEPc's max diff are not known.")
         lines.append(f"\nThe {self.nev} dominant multipliers (|lambda|, arg lambda / pi, theta / 2 pi):\n")
         return "\n".join(lines + dominant) + "\n"

@@ -156,8 +156,9 @@ class Refiner:
     """Gauss-Newton refinement of travelling-wave orbits, any mass pattern (flows built once per chain length,
     prefix ``shoot_``; the engine :class:`~hertzpetsc.gauss_newton.GaussNewton`); ``with Refiner(...) as r:``.
 
-    ``tol``: the target E(q) (on the N beads over script-T), at least the residual flow's rtol; the iteration limit is ``-<prefix>gn_max_it``
-    (default ``max_iterations``). ``symmetric``: refine on the wave's cell with its shortest time symmetry.
+    ``tol``: the target E(q) (on the N beads over script-T), at least the residual flow's rtol; the iteration
+    limit is ``-<prefix>gn_max_it`` (default ``max_iterations``). ``symmetric``: refine on the wave's cell with its
+    shortest time symmetry.
     """
 
     def __init__(self, spec, comm, tol=1e-10, max_iterations=20, tolerances=MEASURE_TOLERANCES,

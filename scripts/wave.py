@@ -42,7 +42,8 @@ def main():
     sizes = opts.numbers("sizes", "", "longer chains for the Bloch spectra (multiples of N; none if empty)",
                          expr=False, kind=int, valid=(lambda L: 2 <= L <= MAX_SIZE, f"in [2, {MAX_SIZE}]"),
                          distinct=True, minimum_count=0)
-    tol = opts.real("tol", 1e-10, "the refinement's target E", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    tol = opts.real("tol", 1e-10, "the refinement's target E (at least the flow's -shoot_ts_rtol, 1e-14)",
+                    valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     tol_rho = opts.real("tol_rho", 1e-4, "unstable when rho - 1 > tol_rho", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     output = opts.path("output", "results/wave.npz", "wave file (record store)")
     mode = opts.mode()

@@ -260,15 +260,20 @@ def test_wave_study_of_a_trimer_in_memory():
 
 
 def test_a_wave_list_goes_on_past_a_q_that_does_not_converge():
-    """A q whose refinement cannot reach its target (tol below what the flow's tolerances allow) is left out and
-    named below the table; the study goes on to the next q, and the finished records are kept."""
+    """A q whose refinement does not reach its target (tol 1e-14 in one Gauss-Newton iteration, which leaves E
+    near 1e-11) is left out and named below the table; the study goes on to the next q, and the finished records
+    are kept."""
     from hertzpetsc.studies.wave import WaveParameters, WaveStudy
     model = LatticeModel.hertz(1.5, delta0=1.0)
     qs = (2 * math.pi / 3, 2 * math.pi / 5)
     study = WaveStudy(WaveParameters(model, qs, 0.3, 100, 30, (), 1e-10), COMM)
     assert [r["q"] for r in study.run()] == list(qs) and not study.failed
-    study = WaveStudy(WaveParameters(model, qs, 0.3, 100, 30, (), 1e-16), COMM)
-    assert list(study.run()) == [] and sorted(study.failed) == sorted(qs)
+    PETSc.Options().setValue("shoot_gn_max_it", 1)
+    try:
+        study = WaveStudy(WaveParameters(model, qs, 0.3, 100, 30, (), 1e-14), COMM)
+        assert list(study.run()) == [] and sorted(study.failed) == sorted(qs)
+    finally:
+        PETSc.Options().delValue("shoot_gn_max_it")
     table = study.table()
     assert all(f"Not computed (-resume retries it): q = {q:.6f}: Gauss-Newton refinement" in table for q in qs)
 

@@ -24,7 +24,7 @@ from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
 from ..resources import check_memory
-from ..shooting import Refiner, gauss_newton_max_iterations
+from ..shooting import Refiner
 from ..twsolver import tw_solver
 from ..waves import check_chain_wavenumber, orbit_on_chain
 from .base import Study
@@ -103,9 +103,10 @@ class WaveStudy(Study):
         check_memory(params.cells_per_pi, self.comm, tw_solver("precomp_"), profiles=params.model.cell)
 
     def configure(self):
-        """The solver roles' options, and the refinement's -shoot_gn_max_it (read by each q's refiner), now."""
+        """The solver roles' options, and the refiner's (-shoot_gn_max_it, tol against the flow's rtol), now."""
         super().configure()
-        gauss_newton_max_iterations()
+        with Refiner(ChainSpec(self.params.model, self.params.N), self.comm, self.params.tol):
+            pass
 
     def constants(self):
         p = self.params

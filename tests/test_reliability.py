@@ -176,7 +176,7 @@ def test_a_resume_from_another_input_or_other_solver_options_is_refused(tmp_path
     r = run_script("refine_branch.py", "-branch", other, *args, "-resume", timeout=120)
     assert r.returncode == 4 and "branch_sha256" in one_error_line(r)
     r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, "-resume",
-                   "-shoot_ts_rtol", "1e-9", timeout=120)
+                   "-shoot_ts_rtol", "1e-13", timeout=120)
     assert r.returncode == 4 and "solver_options" in one_error_line(r)
     r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, "-resume",
                    "-shoot_ts_monitor", timeout=120)          # a monitor changes no number: accepted

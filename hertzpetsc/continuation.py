@@ -195,11 +195,11 @@ class Natural:
     """Natural continuation: steps in the parameter, secant predictor (in s(p) X,
     :meth:`~ContinuationProblem.predictor_ratio`), step halved on failure (or when the corrector moves X by more than
     ``max_corrector``, relative, sup norm, or a test function's own solve raises ConvergenceError) and doubled after a
-    success, up to the next target; no step longer than ``max_step`` in the parameter. ``around_folds`` > 0: when the halvings are exhausted (natural steps cannot pass
-    a fold of the parameter: they stall at it), at most that many pseudo-arclength steps from the last two points,
-    until the parameter passes the target (then a natural step back to it), so that the curve is followed through
-    an S-shaped pair of folds; the curve turning back past the step's start (a single fold) ends the step as a
-    failure. 0: every exhausted step is a failure."""
+    success, up to the next target; no step longer than ``max_step`` in the parameter. ``around_folds`` > 0: when
+    the halvings are exhausted (natural steps cannot pass a fold of the parameter: they stall at it), at most that
+    many pseudo-arclength steps from the last two points, until the parameter passes the target (then a natural step
+    back to it), so that the curve is followed through an S-shaped pair of folds; the curve turning back past the
+    step's start (a single fold) ends the step as a failure. 0: every exhausted step is a failure."""
 
     max_halvings: int = 8
     max_corrector: float = 0.25

@@ -475,4 +475,3 @@ class AppendRecords(RecordStore):
     def array(self):
         """The records as an (n, record_length) array."""
         return np.array(self.records).reshape(-1, self.record_length)
-

@@ -29,7 +29,8 @@ from .model import LatticeModel
 from .twsolver import ACCEPT_FACTOR, create_snes
 
 SOL_PREFIX = "sol_"
-AUTO_HALF_LENGTHS = (8.0, 12.0, 18.0, 27.0, 40.5)   # L tried in turn when none is given (x 1.5; alpha near 1: slow tail)
+# L tried in turn when none is given (x 1.5 each; alpha near 1: a slow tail)
+AUTO_HALF_LENGTHS = (8.0, 12.0, 18.0, 27.0, 40.5)
 
 
 @dataclass(frozen=True)

@@ -187,8 +187,8 @@ def main():
                          f"{res.get('krylov', '')} | {max(res['rss_mb']):.0f} | {ratio} | {diff:.1e}{mark} |")
         print("\n".join(lines[-len(rows):]), flush=True)
     if disagree:
-        lines.append(f"\n(!) max u(pi/{M}) differs from SciPy's by more than {AGREE:g} ({'; '.join(disagree)}): the routes "
-                     "converged to different solutions (large q steps: small -M), so their "
+        lines.append(f"\n(!) max u(pi/{M}) differs from SciPy's by more than {AGREE:g} ({'; '.join(disagree)}): "
+                     "the routes converged to different solutions (large q steps: small -M), so their "
                      "times do not compare the same computation.")
     lines.append(f"\nload average at the end {os.getloadavg()[0]:.2f}")
     write_report(output, lines)

@@ -56,8 +56,10 @@ def main():
         level, q, K, d = item
         print0(f"level {level}: q = pi/{math.pi / q:7.2f}  K = {K:6d}  ||u|| q^(2/(alpha-1)) = "
                f"{d.rescaled_norm:.7f}  N = {d.N:.5f}")
-    text = study.run_to_table(output, show, lambda: study.table(k_alpha, half_length))     # on a stop: why there is no table
-    write_json(os.path.splitext(output)[0] + ".json", dict(meta=run_metadata(), **study.summary(k_alpha, half_length)), comm)
+    # on a stop: why there is no table
+    text = study.run_to_table(output, show, lambda: study.table(k_alpha, half_length))
+    write_json(os.path.splitext(output)[0] + ".json", dict(meta=run_metadata(), **study.summary(k_alpha, half_length)),
+               comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         table, ext, _ = study.extrapolations()

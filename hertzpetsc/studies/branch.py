@@ -319,5 +319,6 @@ class SmallQStudy(Study):
     def summary(self, k_alpha, half_length=8.0):
         """The extrapolated products and N(q) against q (the JSON beside the table)."""
         _, ext, _ = self.extrapolations()
-        return dict(k_alpha=k_alpha, half_length=half_length, q=self.params.targets(), product=[e[1] for e in ext["rescaled_norm"]],
-                    N=[e[1] for e in ext["N"]], params=asdict(self.params))
+        return dict(k_alpha=k_alpha, half_length=half_length, q=self.params.targets(),
+                    product=[e[1] for e in ext["rescaled_norm"]], N=[e[1] for e in ext["N"]],
+                    params=asdict(self.params))

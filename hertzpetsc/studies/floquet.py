@@ -387,7 +387,7 @@ class BlochScan(Study):
                             for v, t in zip(r["dominant"], r["dominant_theta"]))
             dominant.append(f"- N = {N}, q = {q_label(q)}: {dom}")
         if older:
-            lines.append("\n* not recorded in this file (written before they were): Bloch work is L//2 + 1 sectors x 2M "
-                         "columns, the residual's products and time and SLEPc's max diff are not known.")
+            lines.append("\n* not recorded in this file (written before they were): Bloch work is L//2 + 1 sectors "
+                         "x 2M columns, the residual's products and time and SLEPc's max diff are not known.")
         lines.append(f"\nThe {self.nev} dominant multipliers (|lambda|, arg lambda / pi, theta / 2 pi):\n")
         return "\n".join(lines + dominant) + "\n"

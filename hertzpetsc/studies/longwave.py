@@ -21,7 +21,8 @@ class LongWaveStudy:
     def table(self):
         b, w = self.branch, self.wave
         lines = [f"alpha = {b.alpha}, branch h = pi/{b.cells_per_pi}; k_alpha = {w.k_alpha:.7f} (solitary wave, "
-                 f"delta = 1/{self.n}, L = {w.params.half_length:g}). Errors relative to k_alpha; window |xi - pi| <= {self.window}.\n",
+                 f"delta = 1/{self.n}, L = {w.params.half_length:g}). Errors relative to k_alpha; window "
+                 f"|xi - pi| <= {self.window}.\n",
                  "| q | composite, max over the period | composite, max in the window | inner solution, max in the "
                  "window | \\|u\\|_inf q^(2/(alpha-1)) | minus k_alpha |", "|---|---|---|---|---|---|"]
         for r in self.rows:

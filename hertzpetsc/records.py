@@ -285,13 +285,14 @@ class NpzRecords(RecordStore):
     ``constants``: arrays written once per file (the identity's values among them, plus e.g. a grid or JSON
     metadata); ``fields``: the per-record entries, stacked along a first axis of length P; ``dtypes`` maps a
     field to its dtype (default float64) and ``shapes`` gives the per-record shape of array fields, so that an
-    archive with P = 0 records still has the right shapes.
+    archive with P = 0 records still has the right shapes. ``added``: {field: value} of the fields added to the
+    format after files were written; a file without one loads with that value in every record.
     """
 
     def __init__(self, path, kind, constants, identity, fields, comm=None, mode="new", dtypes=None, shapes=None,
-                 what="record file"):
+                 what="record file", added=None):
         self.constants, self.fields = dict(constants), tuple(fields)
-        self.dtypes, self.shapes = dict(dtypes or {}), dict(shapes or {})
+        self.dtypes, self.shapes, self.added = dict(dtypes or {}), dict(shapes or {}), dict(added or {})
         self.what = what
         super().__init__(path, kind, identity, comm, mode)
 
@@ -306,14 +307,15 @@ class NpzRecords(RecordStore):
         check_kind(data, self.path, self.kind, self.what)
         check_identity({k: data[k].item() if data[k].ndim == 0 else data[k].tolist() for k in self.identity
                         if k in data}, self.identity, self.path)
-        missing = [f for f in self.fields if f not in data]
+        missing = [f for f in self.fields if f not in data and f not in self.added]
         if missing:
             raise RecordFileError(f"{self.what} {self.path!r} is corrupt: missing {missing}")
-        P = len(data[self.fields[0]])
-        if any(len(data[f]) != P for f in self.fields):
+        present = [f for f in self.fields if f in data]
+        P = len(data[present[0]])
+        if any(len(data[f]) != P for f in present):
             raise RecordFileError(f"{self.what} {self.path!r} is corrupt: inconsistent array shapes")
         self.state = {k[len("state_"):]: data[k] for k in data if k.startswith("state_")}
-        return [{f: data[f][i] for f in self.fields} for i in range(P)]
+        return [{f: data[f][i] if f in data else self.added[f] for f in self.fields} for i in range(P)]
 
     def _start(self, records):
         self._write_last()

@@ -24,7 +24,7 @@ from ..bloch import SymmetricFloquet, bloch_residuals, real_pairs, seeded_domina
 from ..errors import ParameterError, RecordFileError
 from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
-from ..records import NpzRecords, check_kind, load_npz
+from ..records import check_kind, load_npz
 from ..waves import orbit_on_chain
 from .base import Study
 from .dealing import dealt
@@ -36,7 +36,8 @@ BLOCH_FORMAT = "hertzpetsc-bloch-1"
 METHODS = ("symmetric", "dense", "slepc")
 BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "slepc_products", "slepc_seconds")
 # what the table prints besides, recorded since; a file written before lacks them: -1 (integers) or nan on load
-BLOCH_DETAIL = ("runs", "columns", "propagated", "res_products", "res_seconds", "slepc_dist")
+BLOCH_DETAIL = {"runs": -1, "columns": -1, "propagated": -1, "res_products": -1, "res_seconds": math.nan,
+                "slepc_dist": math.nan}
 
 
 def q_label(q):
@@ -233,33 +234,16 @@ def floquet_reference(path):
     return {round(float(a), 12): float(b) for a, b in zip(data["q"], data["rho"])}
 
 
-class _BlochRecords(NpzRecords):
-    """The Bloch record file; a file written before ``BLOCH_DETAIL`` was recorded loads with -1 / nan there."""
-
-    def _load(self):
-        fields = self.fields
-        present = set(load_npz(self.path, self.what))
-        self.fields = tuple(f for f in fields if f in present or f not in BLOCH_DETAIL)
-        try:
-            records = super()._load()
-        finally:
-            self.fields = fields
-        for r in records:
-            for f in BLOCH_DETAIL:
-                r.setdefault(f, -1 if self.dtypes.get(f) is np.int64 else math.nan)
-        return records
-
-
 class BlochScan(Study):
     """All 2N multipliers of F_q on N = L M beads from Bloch sectors of the refined M-bead wave, the residuals of
     the dominant modes on the full chain (matrix-free) and, for N in ``slepc_sizes``, seeded SLEPc (sec. 3.5)."""
 
-    FORMAT, FIELDS = BLOCH_FORMAT, BLOCH_FIELDS + ("dominant", "dominant_theta") + BLOCH_DETAIL
+    FORMAT, FIELDS = BLOCH_FORMAT, BLOCH_FIELDS + ("dominant", "dominant_theta") + tuple(BLOCH_DETAIL)
     DTYPES = {"N": np.int64, "outside": np.int64, "slepc_products": np.int64, "dominant": complex, "runs": np.int64,
               "columns": np.int64, "propagated": np.int64, "res_products": np.int64}
     ROLES = {"floquet_": ("Bloch sectors and full-chain checks: the variational flow, the seeded eigensolver",
                           ("ts", "eps"))}
-    WHAT, LABELS = "Bloch file", ("split", "refined_file")
+    WHAT, LABELS, ADDED = "Bloch file", ("split", "refined_file"), BLOCH_DETAIL
 
     def __init__(self, branch, refined, sizes, qs, comm=None, output=None, mode="new", nev=10, tol_rho=TOL_RHO,
                  slepc_sizes=(), split="sectors", tolerances=FLOQUET_TOLERANCES, reference=None):
@@ -289,14 +273,6 @@ class BlochScan(Study):
                     rtol=self.tolerances.rtol, refined_file=_path(self.refined))
 
     inputs = FloquetScan.inputs          # the branch and the refinement file
-
-    def _open(self):
-        """The record store; records of a file written before ``BLOCH_DETAIL`` was recorded get -1 / nan there."""
-        if self.output is None:
-            return super()._open()
-        identity = self.identity()
-        return _BlochRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity, self.FIELDS,
-                             self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT)
 
     def run(self):
         self.open()

@@ -331,16 +331,9 @@ class AdvanceDelayProblem(ContinuationProblem):
         for c in range(self.p):
             a[c * self.nloc:(c + 1) * self.nloc] = \
                 np.asarray(profiles_half[c], float)[g.rstart + g.offset:g.rend + g.offset]
-        if self.last:
-            k = self.p * self.nloc
-            if self.bordered:
-                a[k] = self.lam if lam is None else lam
-                k += 1
-            if self.full:
-                a[k:k + 2] = 0.0
-                k += 2
-            if extended:
-                a[k] = parameter
+        if self.last:                     # lam (fixed amplitude), the gauge unknowns (0), the parameter (Z)
+            scalars = [self.lam if lam is None else lam] if self.bordered else []
+            a[self.p * self.nloc:] = scalars + [0.0] * (self.nsc - self.i_gauge) + ([parameter] if extended else [])
         return V
 
     def _scalars(self, V):
@@ -349,9 +342,13 @@ class AdvanceDelayProblem(ContinuationProblem):
         out = np.zeros(max(n, 1))
         if self.last and n:
             out[:n] = V.getArray(readonly=True)[self.p * self.nloc:]
-        if self.mpi is not None and n:
-            out = self.mpi.allreduce(out)
+        if n:
+            out = self._sum(out)
         return out[:n]
+
+    def _sum(self, local):
+        """The sum of ``local`` (a number or an array) over the ranks (collective)."""
+        return self.mpi.allreduce(local) if self.mpi is not None else local
 
     def half_profiles(self, V):
         """The p half profiles (K+1 values each, on every rank) of an X or Z Vec."""
@@ -405,16 +402,14 @@ class AdvanceDelayProblem(ContinuationProblem):
         w = profiles_local[self.normalised]
         if self.measure == "a1":
             xi = self.grid.owned_points() * self.grid.h
-            local = float(np.dot((1.0 if self.full else 2.0) / self.grid.K * np.sin(xi), w))
-            return self.mpi.allreduce(local) if self.mpi is not None else local
+            return self._sum(float(np.dot((1.0 if self.full else 2.0) / self.grid.K * np.sin(xi), w)))
         return profile_sup(self._gathered_profile(w), self.full)
 
     def _gauge_rows(self, profiles_local):
         """(mean(u_0), b1(u_0)) over the whole period (collective): the two gauge rows."""
         xi = self.grid.owned_points() * self.grid.h
         u0 = profiles_local[0]
-        local = np.array([np.sum(u0) / (2 * self.grid.K), np.dot(np.cos(xi), u0) / self.grid.K])
-        return self.mpi.allreduce(local) if self.mpi is not None else local
+        return self._sum(np.array([np.sum(u0) / (2 * self.grid.K), np.dot(np.cos(xi), u0) / self.grid.K]))
 
     def set_gauge(self, V):
         """The translation column of the gauge border: u_c' of V's profiles (centred differences), fixed for a
@@ -475,8 +470,7 @@ class AdvanceDelayProblem(ContinuationProblem):
     def _arclength_dot(self, V):
         """row . V with the arclength row of the Z solve (collective)."""
         lo, hi = V.getOwnershipRange()
-        local = float(np.dot(self.arclength[0][lo:hi], V.getArray(readonly=True)))
-        return self.mpi.allreduce(local) if self.mpi is not None else local
+        return self._sum(float(np.dot(self.arclength[0][lo:hi], V.getArray(readonly=True))))
 
     def shift_differences(self, X):
         """d+ = tau_q u - u, d- = u - tau_{-q} u and D2 u on the owned rows (p = 1, X the grid Vec)."""
@@ -657,12 +651,12 @@ class AdvanceDelayProblem(ContinuationProblem):
     def linear_guess(self, branch="acoustic"):
         """Half profiles and lam of the discrete linear wave of the fixed-amplitude form (the law's linear
         stiffness K = V''(0) > 0): the eigenvector of the scheme's p x p Bloch matrix L_cc = 2K, L_{c,c+1} = -K mu+,
-        L_{c,c-1} = -K mu- against diag(m) sigma_h, mu+- and sigma_h the symbols of tau_{+-q} and of -D2,
-        normalised so that the measure of profile c* is 1, where c* (:attr:`normalised`) is set to the profile of
-        largest amplitude (the optical wave at the zone edge leaves a bead at rest). Odd profiles: the symbols on
-        the sine (exact, from the stencils). Whole-period profiles: on e^{i xi} (mu- = conj(mu+), sigma_h =
-        4 sin^2(h/2)/h^2; L Hermitian), the profiles Im(Y_c e^{i xi}) (the bead types' phases differ when the
-        pattern has no reflection symmetry)."""
+        L_{c,c-1} = -K mu- (:meth:`~hertzpetsc.model.LatticeModel.bloch_matrix`) against diag(m) sigma_h, mu+- and
+        sigma_h the symbols of tau_{+-q} and of -D2, normalised so that the measure of profile c* is 1, where c*
+        (:attr:`normalised`) is set to the profile of largest amplitude (the optical wave at the zone edge leaves a
+        bead at rest). Odd profiles: the symbols on the sine (exact, from the stencils). Whole-period profiles: on
+        e^{i xi} (mu- = conj(mu+), sigma_h = 4 sin^2(h/2)/h^2; L Hermitian), the profiles Im(Y_c e^{i xi}) (the
+        bead types' phases differ when the pattern has no reflection symmetry)."""
         if not self.bordered:
             raise ParameterError("amplitude", None, "the linear wave starts the fixed-amplitude form")
         K = self.lattice.law.linear_stiffness
@@ -684,16 +678,11 @@ class AdvanceDelayProblem(ContinuationProblem):
             st = self.stencils.stacked(v).getArray(readonly=True)
             n = self.nloc
             sl = v.getArray(readonly=True)
-            dots = np.array([np.dot(sl, sl), np.dot(sl, st[:n]), np.dot(sl, st[n:2 * n]), np.dot(sl, st[2 * n:])])
-            dots = self.mpi.allreduce(dots) if self.mpi is not None else dots
+            dots = self._sum(np.array([np.dot(sl, sl), np.dot(sl, st[:n]), np.dot(sl, st[n:2 * n]),
+                                       np.dot(sl, st[2 * n:])]))
             v.destroy()
             sigma_h, mu_plus, mu_minus = -dots[1] / dots[0], dots[2] / dots[0], dots[3] / dots[0]
-        L = np.zeros((p, p), dtype=complex if self.full else float)
-        for c in range(p):
-            L[c, c] += 2 * K
-            L[c, (c + 1) % p] -= K * mu_plus
-            L[c, (c - 1) % p] -= K * mu_minus
-        lams, vecs = scipy.linalg.eigh(L, np.diag(self.masses) * sigma_h)
+        lams, vecs = scipy.linalg.eigh(self.lattice.bloch_matrix(mu_plus, mu_minus), np.diag(self.masses) * sigma_h)
         k = 0 if branch == "acoustic" else p - 1
         vec = vecs[:, k]
         self.normalised = int(np.argmax(np.abs(vec)))

@@ -158,15 +158,22 @@ class LatticeModel:
         at the per-bead wavenumber q: the eigenvalues of M^-1 B, B_cc = 2K, B_{c,c+-1} = -K e^{+-iq} (indices of
         the mass pattern, cyclic). p = 1: omega = 2 sqrt(K) sin(q/2) (the acoustic dispersion relation); p = 2:
         omega^2 = K [(1 + eps) -+ sqrt((1 + eps)^2 - 4 eps sin^2 q)] / eps for masses (1, eps)."""
-        K = self.law.linear_stiffness
-        p = self.cell
-        B = np.zeros((p, p), dtype=complex)
-        for c in range(p):
-            B[c, c] += 2 * K
-            B[c, (c + 1) % p] -= K * np.exp(1j * q)
-            B[c, (c - 1) % p] -= K * np.exp(-1j * q)
+        B = self.bloch_matrix(np.exp(1j * q), np.exp(-1j * q))
         w2 = np.sort(np.linalg.eigvals(B / np.asarray(self.masses)[:, None]).real)
         return np.sqrt(np.maximum(w2, 0.0))
+
+    def bloch_matrix(self, mu_plus, mu_minus):
+        """The p x p stiffness matrix of the linearised lattice on a wave with shift symbols mu+- (the lattice's:
+        e^{+-iq}; a scheme's: its stencils' symbols): B_cc = 2K, B_{c,c+-1} = -K mu+- (K = V''(0), indices of the
+        mass pattern, cyclic); real when both symbols are."""
+        K = self.law.linear_stiffness
+        p = self.cell
+        B = np.zeros((p, p), dtype=np.result_type(mu_plus, mu_minus))
+        for c in range(p):
+            B[c, c] += 2 * K
+            B[c, (c + 1) % p] -= K * mu_plus
+            B[c, (c - 1) % p] -= K * mu_minus
+        return B
 
     def describe(self):
         """The model as plain data (for record identities and file metadata); delta0 and damping only when

@@ -18,6 +18,7 @@ from petsc4py import PETSc
 from .chain import Chain, ChainIntegrator
 from .errors import ParameterError
 from .model import ChainSpec
+from .symmetry import real_sector
 
 
 class TangentFlow:
@@ -249,7 +250,6 @@ def twisted_resolvent(blocks, theta):
     """R_theta = P_0 + e^{-i theta} P_1 + e^{i theta} P_{-1} from the cell blocks (P_{-1}, P_0, P_1) of a
     :class:`CellPropagator` run (real for theta = 0, pi)."""
     Pm, P0, P1 = blocks
-    if abs(math.sin(theta)) < 1e-14:
-        c = 1.0 if math.cos(theta) > 0 else -1.0
-        return P0 + c * (P1 + Pm)
+    if real_sector(theta):
+        return P0 + (1.0 if math.cos(theta) > 0 else -1.0) * (P1 + Pm)
     return P0 + np.exp(-1j * theta) * P1 + np.exp(1j * theta) * Pm

@@ -53,9 +53,7 @@ class SecondDifferencePC:
         self.nloc = nloc = grid.rend - grid.rstart
         rows = np.arange(grid.rstart, grid.rend)[:, None]
         cols, coef = stencils.cols[name], stencils.coef[name]
-        lower = np.where(cols == rows - 1, coef, 0.0).sum(axis=1)
-        diag = np.where(cols == rows, coef, 0.0).sum(axis=1)
-        upper = np.where(cols == rows + 1, coef, 0.0).sum(axis=1)
+        lower, diag, upper = (np.where(cols == rows + k, coef, 0.0).sum(axis=1) for k in (-1, 0, 1))
         if np.any((np.abs(cols - rows) > 1) & (coef != 0.0)):
             raise ParameterError("stencil", name, "must be tridiagonal for SecondDifferencePC")
         # the diagonal block, as sequential AIJ (CSR rows: lower, diagonal, upper within the block)

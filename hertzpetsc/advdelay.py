@@ -242,14 +242,12 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.lattice = self.model.rescaled(self.amplitude)          # the law seen by w = u / a
 
     def _set_q(self, q):
-        q = check_wavenumber(q, self.grid.h)
-        if self.stencils is not None and q == self.q:
-            return
         if self.stencils is not None:
+            if check_wavenumber(q, self.grid.h) == self.q:
+                return
             self.stencils.destroy()
-        self.q = q
-        self.stencils = ShiftStencils(self.grid, q)
-        self.sigma = self.stencils.sigma
+        self.stencils = ShiftStencils(self.grid, q)        # checks q (ParameterError naming q)
+        self.q, self.sigma = self.stencils.q, self.stencils.sigma
         self._assembler = None
 
     def set_parameter(self, name, value):
@@ -553,14 +551,11 @@ class AdvanceDelayProblem(ContinuationProblem):
         """dF/dp on the field rows (owned; the border rows do not depend on p): exact for omega and the masses, a
         finite difference otherwise."""
         name, diffs, lam = self.parameter, self._diffs, self._lam_lin
-        n = self.nloc
         if name == "omega":
-            cols = [2 * self.omega * self.masses[c] * diffs[c][0] for c in range(self.p)]
-            return np.concatenate(cols)
+            return np.concatenate([2 * self.omega * self.masses[c] * diffs[c][0] for c in range(self.p)])
         if name == "epsilon" or (name.startswith("m") and name[1:].isdigit()):
             c0 = 1 if name == "epsilon" else int(name[1:])
-            cols = [lam * diffs[c][0] if c == c0 else np.zeros(n) for c in range(self.p)]
-            return np.concatenate(cols)
+            return np.concatenate([lam * diffs[c][0] if c == c0 else np.zeros(self.nloc) for c in range(self.p)])
         value = self.get_parameter(name)
         step = 1e-7 * max(abs(value), 1e-3)
         if name == "q" and value + step > math.pi:

@@ -116,9 +116,8 @@ class MonodromyModShift:
 
     def set_orbit(self, x0, T):
         """Move the operator to another orbit of the same chain (the next wavenumber of a scan)."""
-        base = self.base
         self.x0 = np.asarray(x0, dtype=float).reshape(self.spec.N, 2).copy()
-        self.x0_local = self.x0[base.xs:base.xe].copy()
+        self.x0_local = self.x0[self.base.xs:self.base.xe].copy()
         self.T = float(T)
 
     def apply(self, Y):

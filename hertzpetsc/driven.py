@@ -508,8 +508,7 @@ class PeriodicShooting(ContinuationProblem):
         a = Z.getArray()
         xs = self.chain.xs
         a[:self.nloc] = np.asarray(x, float).reshape(self.N, 2)[xs:xs + self.nloc // 2].ravel()
-        if self.last_rank:
-            a[-1] = self.drive.value(self.parameter) if p is None else p
+        set_parameter(Z, self.drive.value(self.parameter) if p is None else p)
         return Z
 
     def state(self, Z):

@@ -199,13 +199,16 @@ def plot_floquet_radius(q, rho, tol_rho, directory):
     return _save(fig, directory, "floquet.png")
 
 
-def draw_multipliers(ax, lam, title=None):
-    """Multipliers ``lam`` in the complex plane with the unit circle, on the matplotlib axes ``ax`` (fig. eigen)."""
+def draw_multipliers(ax, lam, title=None, ms=5, inner=None):
+    """Multipliers ``lam`` in the complex plane with the unit circle (and the circle of radius ``inner``, dotted), on
+    the matplotlib axes ``ax`` (fig. eigen)."""
     th = np.linspace(0, 2 * math.pi, 400)
     lam = np.asarray(lam)
     lam = lam[np.isfinite(lam)]
     ax.plot(np.cos(th), np.sin(th), "b-", lw=0.6)
-    ax.plot(lam.real, lam.imag, "k+", ms=5)
+    if inner is not None:
+        ax.plot(inner * np.cos(th), inner * np.sin(th), "g:", lw=0.6)
+    ax.plot(lam.real, lam.imag, "k+", ms=ms)
     ax.set_aspect("equal")
     if title:
         ax.set_title(title, fontsize=10)
@@ -246,18 +249,17 @@ def plot_long_wave(wave, point, directory, zoom=0.3):
     xi = np.arange(2 * K + 1) * math.pi / K
     ut = q ** point.model.law.rescaling_exponent * np.concatenate([u_half, -u_half[-2::-1]])
     near = np.abs(xi - math.pi) <= zoom
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
-    ax.plot(xi[near], ut[near], "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")
-    ax.plot(xi[near], inner_solution(wave, (xi[near] - math.pi) / q), "b-", lw=0.8, label="inner solution (eq. inner)")
-    ax.set(xlabel=r"$\xi$", ylabel=r"$\tilde u(\xi)$")
-    ax.legend(fontsize=8)
-    first = _save(fig, directory, "approxz.png")
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
-    ax.plot(xi, ut, "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")
-    ax.plot(xi, composite_profile(wave, q, xi), "b-", lw=0.8, label="composite (eq. solapprox)")
-    ax.set(xlabel=r"$\xi$", ylabel=r"$\tilde u(\xi)$")
-    ax.legend(fontsize=8)
-    return [first, _save(fig, directory, "approx.png")]
+    paths = []
+    for name, shown, approximation, label in (
+            ("approxz.png", near, lambda x: inner_solution(wave, (x - math.pi) / q), "inner solution (eq. inner)"),
+            ("approx.png", slice(None), lambda x: composite_profile(wave, q, x), "composite (eq. solapprox)")):
+        fig, ax = _pyplot().subplots(figsize=(6, 4))
+        ax.plot(xi[shown], ut[shown], "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")
+        ax.plot(xi[shown], approximation(xi[shown]), "b-", lw=0.8, label=label)
+        ax.set(xlabel=r"$\xi$", ylabel=r"$\tilde u(\xi)$")
+        ax.legend(fontsize=8)
+        paths.append(_save(fig, directory, name))
+    return paths
 
 
 # --- section 3.3: compactons ------------------------------------------------------------------------------------
@@ -320,14 +322,9 @@ def plot_compacton_spectra(rows, eta, directory):
     """All window multipliers of the given records in the complex plane, with the unit circle and the circle
     exp(-eta) below which the transport part lies in the weighted space."""
     fig, axes = _pyplot().subplots(1, len(rows), figsize=(4 * len(rows), 4))
-    th = np.linspace(0, 2 * math.pi, 400)
     for ax, r in zip(np.atleast_1d(axes), rows):
-        lam = np.asarray(r["multipliers"])
-        ax.plot(np.cos(th), np.sin(th), "b-", lw=0.6)
-        ax.plot(math.exp(-eta) * np.cos(th), math.exp(-eta) * np.sin(th), "g:", lw=0.6)
-        ax.plot(lam.real, lam.imag, "k+", ms=6)
-        ax.set_aspect("equal")
-        ax.set_title(rf"$\alpha = {float(r['alpha']):g}$, $q = {float(r['q']):.4f}$", fontsize=10)
+        draw_multipliers(ax, r["multipliers"], rf"$\alpha = {float(r['alpha']):g}$, $q = {float(r['q']):.4f}$", ms=6,
+                         inner=math.exp(-eta))
     return _save(fig, directory, "compacton_stability_spectra.png")
 
 

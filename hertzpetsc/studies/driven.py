@@ -108,9 +108,10 @@ def tolerances_of(rtol, scale=1.0):
 
 
 # --- the protocol of the driven studies --------------------------------------------------------------------------
-def _reals(name, values, what, lo=None, hi=None, lo_open=True, hi_open=True):
-    """A non-empty tuple of reals, each checked as by :func:`~hertzpetsc.errors.check_real`."""
-    out = tuple(check_real(name, v, what, lo, hi, lo_open, hi_open) for v in np.atleast_1d(values).tolist())
+def _several(name, values, what, lo=None, hi=None, lo_open=True, hi_open=True, check=None):
+    """A non-empty tuple of reals, each checked as by :func:`~hertzpetsc.errors.check_real` (or by ``check``)."""
+    check = check or (lambda v: check_real(name, v, what, lo, hi, lo_open, hi_open))
+    out = tuple(check(v) for v in np.atleast_1d(values).tolist())
     if not out:
         raise ParameterError(name, values, f"give at least one {what}")
     return out
@@ -223,7 +224,7 @@ class ResponseParameters:
             raise ParameterError("algorithm", self.algorithm, "a continuation.PseudoArclength (None: "
                                  "corner_arclength()) or, with a grid, a continuation.Natural")
         if self.grid is not None:
-            object.__setattr__(self, "grid", _reals("grid", self.grid, "parameter value of the grid"))
+            object.__setattr__(self, "grid", _several("grid", self.grid, "parameter value of the grid"))
             for value in self.grid:
                 _check_end("grid", value, drive, self.parameter)
         for name, lo, what in (("run_in", 0, "the run-in in driving periods"), ("samples", 0, "the samples per "
@@ -695,12 +696,11 @@ class ResonanceParameters:
         if drive.N > MAX_DENSE_BEADS:
             raise ParameterError("N", drive.N, f"at most {MAX_DENSE_BEADS} beads (dense linear chain and multipliers)")
         if self.modes is not None:
-            modes = tuple(check_integer("modes", k, 1, "a mode number") for k in np.atleast_1d(self.modes).tolist())
+            modes = _several("modes", self.modes, "mode number (None: all)",
+                             check=lambda k: check_integer("modes", k, 1, "a mode number"))
             for k in modes:
                 if not 1 <= k <= drive.N:
                     raise ParameterError("modes", k, f"a mode number in [1, N] = [1, {drive.N}]")
-            if not modes:
-                raise ParameterError("modes", self.modes, "give at least one mode number (None: all)")
             object.__setattr__(self, "modes", modes)
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
             check_real(name, getattr(self, name), what, 0.0, 1.0)
@@ -819,21 +819,19 @@ class WaveEndsParameters:
 
     def __post_init__(self):
         P = self.refined.N
-        sizes = tuple(check_integer("sizes", N, 1, "the beads of a driven chain")
-                      for N in np.atleast_1d(self.sizes).tolist())
-        if not sizes:
-            raise ParameterError("sizes", self.sizes, "give at least one chain size")
+        sizes = _several("sizes", self.sizes, "chain size",
+                         check=lambda N: check_integer("sizes", N, 1, "the beads of a driven chain"))
         for N in sizes:
             if not 1 <= N <= P - 2:
                 raise ParameterError("sizes", N, f"the driven chain must be a window of the periodic chain: "
                                      f"1 <= N <= P - 2 = {P - 2}")
-        qs = _reals("q", self.q, "wavenumber", 0.0, math.pi, hi_open=False)
+        qs = _several("q", self.q, "wavenumber", 0.0, math.pi, hi_open=False)
         for q in qs:
             if not self.refined.has(q):
                 raise ParameterError("q", q, f"the refinement file has no refined wave at q = {q:.12g}")
         object.__setattr__(self, "sizes", _distinct("sizes", sizes, "chain size"))
         object.__setattr__(self, "q", _distinct("q", qs, "wavenumber"))
-        object.__setattr__(self, "rtols", _distinct("rtols", _reals("rtols", self.rtols, "flow tolerance", 0.0, 1.0),
+        object.__setattr__(self, "rtols", _distinct("rtols", _several("rtols", self.rtols, "flow tolerance", 0.0, 1.0),
                                                     "flow tolerance"))
         for name, what in (("samples", "the points of the sampled profile"),
                            ("nmult", "the number of recorded multipliers")):
@@ -961,17 +959,16 @@ class GenerationParameters:
         if abs(self.model.alpha - self.branch.alpha) > 1e-12:
             raise ParameterError("alpha", self.model.alpha, f"must be the branch's exponent {self.branch.alpha:g}")
         object.__setattr__(self, "N", check_integer("N", self.N, 1, "the number of beads"))
-        signals = tuple(np.atleast_1d(self.signals).tolist())
-        if not signals:
-            raise ParameterError("signals", self.signals, "give at least one of " + ", ".join(WAVEFORMS))
-        for w in signals:
+        def signal(w):
             _one_of("signals", w, WAVEFORMS, "one of")
-            make_waveform(w, self.width)
-        object.__setattr__(self, "signals", signals)
-        object.__setattr__(self, "omegas", _reals("omegas", self.omegas, "driving frequency", 0.0))
-        object.__setattr__(self, "amplitudes", _reals("amplitudes", self.amplitudes, "actuator amplitude", 0.0,
+            make_waveform(w, self.width)                # a half_sine train checks the width
+            return w
+        object.__setattr__(self, "signals", _several("signals", self.signals, "of " + ", ".join(WAVEFORMS),
+                                                     check=signal))
+        object.__setattr__(self, "omegas", _several("omegas", self.omegas, "driving frequency", 0.0))
+        object.__setattr__(self, "amplitudes", _several("amplitudes", self.amplitudes, "actuator amplitude", 0.0,
                                                       lo_open=False))
-        object.__setattr__(self, "gammas", _reals("gammas", self.gammas, "on-site damping", 0.0, lo_open=False))
+        object.__setattr__(self, "gammas", _several("gammas", self.gammas, "on-site damping", 0.0, lo_open=False))
         object.__setattr__(self, "run_in", check_integer("run_in", self.run_in, 0, "the run-in in driving periods"))
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
             check_real(name, getattr(self, name), what, 0.0, 1.0)

@@ -113,12 +113,11 @@ class MapParameters:
     limit: bool = True
 
     def __post_init__(self):
-        _check_delta0_positive(self.model)
+        _check_shared(self)
         p = self.model.cell
         if not (isinstance(self.N, (int, np.integer)) and p <= self.N <= MAX_MAP_BEADS and self.N % p == 0):
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {p} in [{p}, "
                                  f"{MAX_MAP_BEADS}]")
-        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         qs = _check_qs(self.q, math.pi / self.cells_per_pi)
         for q in qs:
             if not fits_chain(q, self.N):
@@ -134,8 +133,6 @@ class MapParameters:
         if not amps:
             raise ParameterError("a", self.a, "give at least one amplitude")
         object.__setattr__(self, "a", tuple(amps))
-        if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
-            raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
         object.__setattr__(self, "twists", check_integer("twists", self.twists, 0, hi=10 ** 6,
                                                          note="(0: no infinite chain)"))
         locate = tuple(self.locate)
@@ -144,8 +141,16 @@ class MapParameters:
         if "infinite" in locate and not self.twists:
             raise ParameterError("locate", ",".join(locate), "locating the infinite chain's boundary needs twists > 0")
         object.__setattr__(self, "locate", locate)
-        if not (0 < self.locate_tol < 0.5):
-            raise ParameterError("locate_tol", self.locate_tol, "must lie in (0, 0.5)")
+
+
+def _check_shared(params):
+    """The checks the map and the boundary in q share: a precompressed model, the grid, tol_rho and locate_tol."""
+    _check_delta0_positive(params.model)
+    object.__setattr__(params, "cells_per_pi", check_cells_per_pi(params.cells_per_pi))
+    if not (params.tol_rho > 0 and math.isfinite(params.tol_rho)):
+        raise ParameterError("tol_rho", params.tol_rho, "must be a finite number > 0")
+    if not (0 < params.locate_tol < 0.5):
+        raise ParameterError("locate_tol", params.locate_tol, "must lie in (0, 0.5)")
 
 
 class RichardsonCompanion:
@@ -565,11 +570,10 @@ class QBoundaryParameters:
     max_cell: int = QB_MAX_CELL
 
     def __post_init__(self):
-        _check_delta0_positive(self.model)
+        _check_shared(self)
         if self.model.cell != 1:
             raise ParameterError("masses", list(self.model.masses), "the boundary in q is located for monatomic "
                                  "chains (the dimers' infinite chains are unstable at every amplitude of their maps)")
-        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         object.__setattr__(self, "max_cell", check_integer("max_cell", self.max_cell, 2, hi=MAX_MAP_BEADS))
         qs = sorted(set(_check_qs(self.q, math.pi / self.cells_per_pi)))
         for q in qs:
@@ -581,11 +585,7 @@ class QBoundaryParameters:
         if not amps:
             raise ParameterError("A", self.A, "give at least one amplitude")
         object.__setattr__(self, "A", tuple(sorted(amps)))
-        if not (self.tol_rho > 0 and math.isfinite(self.tol_rho)):
-            raise ParameterError("tol_rho", self.tol_rho, "must be a finite number > 0")
         object.__setattr__(self, "twists", check_integer("twists", self.twists, 1, hi=10 ** 6))
-        if not (0 < self.locate_tol < 0.5):
-            raise ParameterError("locate_tol", self.locate_tol, "must lie in (0, 0.5)")
 
 
 class QBoundary(Study):
@@ -733,10 +733,7 @@ def q_boundary_table(z):
               "rho - 1 on the infinite chain per amplitude (rows) and grid q (columns); U: unstable.\n",
               "| A | " + " | ".join(q_label(x) for x in gq) + " |", "|---|" + "---|" * len(gq)]
     for level in sorted(set(A.tolist())):
-        cells = []
-        for x in gq:
-            i = np.nonzero((A == level) & (grid == 1) & (q == x))[0]
-            cells.append("" if not len(i) else f"{rho[i[0]] - 1:.1e}" + (" U" if rho[i[0]] - 1 > tol else ""))
+        cells = (_rho_cell(rho, np.nonzero((A == level) & (grid == 1) & (q == x))[0], tol) for x in gq)
         lines.append(f"| {level:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
@@ -779,6 +776,17 @@ def map_v1_as_v2(z):
     return out
 
 
+def _matching(q, a, qq, aa):
+    """The indices of the records at the wavenumber qq (to 1e-12 relative) and amplitude aa (to 1e-10; inf: the
+    uncompressed limit)."""
+    return np.nonzero((np.abs(q - qq) <= 1e-12 * qq) & ((a == aa) | np.isclose(a, aa, rtol=1e-10, atol=0)))[0]
+
+
+def _rho_cell(rho, i, tol):
+    """A table cell: rho - 1 of the first record of the indices ``i``, with U where unstable; empty without one."""
+    return "" if not len(i) else f"{rho[i[0]] - 1:.1e}" + (" U" if rho[i[0]] - 1 > tol else "")
+
+
 def map_v1_table(z):
     """The table of a ``-1`` file, as its driver wrote it: rho - 1 per (q, a), U where unstable, A = inf last."""
     q, a, rho = (np.asarray(z[k], float) for k in ("q", "a", "rho"))
@@ -796,16 +804,9 @@ def map_v1_table(z):
     lines += ["| q | " + " | ".join(f"a = {x:g}" for x in amps) + " | A = inf |", "|" + "---|" * (len(amps) + 2)]
     worst = 0.0
     for qq in qs:
-        cells = []
-        for x in amps + [math.inf]:
-            i = np.nonzero((np.abs(q - qq) <= 1e-12 * qq) & ((a == x) if not math.isfinite(x) else
-                                                            np.isclose(a, x, rtol=1e-10, atol=0)))[0]
-            if not len(i):
-                cells.append("")
-                continue
-            worst = max(worst, float(spread[i[0]]))
-            cells.append(f"{rho[i[0]] - 1:.1e}" + (" U" if rho[i[0]] - 1 > tol else ""))
-        lines.append(f"| {q_label(qq)} ({qq:.4f}) | " + " | ".join(cells) + " |")
+        found = [_matching(q, a, qq, x) for x in amps + [math.inf]]
+        worst = max([worst] + [float(spread[i[0]]) for i in found if len(i)])
+        lines.append(f"| {q_label(qq)} ({qq:.4f}) | " + " | ".join(_rho_cell(rho, i, tol) for i in found) + " |")
     lines.append(f"\nmax trivial spread {worst:.1e}")
     return "\n".join(lines) + "\n"
 
@@ -882,7 +883,8 @@ def compare_v1(z, old, tol=None, path="the other map"):
     usable = (kind == KIND_POINT) | (kind == KIND_LIMIT)
     common, agree, worst, differ = 0, 0, 0.0, []
     for q, a, r in zip(*(np.asarray(old[k], float) for k in ("q", "a", "rho"))):
-        i = np.nonzero(usable & (np.abs(qn - q) <= 1e-12 * q) & ((an == a) | np.isclose(an, a, rtol=1e-10, atol=0)))[0]
+        i = _matching(qn, an, q, a)
+        i = i[usable[i]]
         if not len(i):
             continue
         common += 1

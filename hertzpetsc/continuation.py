@@ -173,20 +173,22 @@ class ContinuationPoint:
     bracket: tuple = None      # a located root: ((p, value), (p, value)) of the last bracket, the root between them
 
 
+def _owns_last(Z):
+    """Whether this rank holds the last entry of Z (the parameter)."""
+    lo, hi = Z.getOwnershipRange()
+    return lo <= Z.getSize() - 1 < hi
+
+
 def _parameter(Z):
     """The last entry of Z on every rank."""
-    n = Z.getSize()
-    lo, hi = Z.getOwnershipRange()
-    local = float(Z.getArray(readonly=True)[-1]) if lo <= n - 1 < hi else 0.0
+    local = float(Z.getArray(readonly=True)[-1]) if _owns_last(Z) else 0.0
     comm = Z.getComm().tompi4py()
     return comm.allreduce(local) if comm.Get_size() > 1 else local
 
 
 def set_parameter(Z, value):
     """Set the last entry of Z (collective)."""
-    n = Z.getSize()
-    lo, hi = Z.getOwnershipRange()
-    if lo <= n - 1 < hi:
+    if _owns_last(Z):
         Z.getArray()[-1] = value
 
 
@@ -488,9 +490,7 @@ class Continuation:
         """||X - X_pred||_inf / ||X||_inf (the parameter left out): both norms from the local arrays, in one
         reduction."""
         z, zp = Z.getArray(readonly=True), pred.getArray(readonly=True)
-        n = Z.getSize()
-        lo, hi = Z.getOwnershipRange()
-        k = len(z) - 1 if lo <= n - 1 < hi else len(z)
+        k = len(z) - 1 if _owns_last(Z) else len(z)
         local = np.array([np.max(np.abs(z[:k] - zp[:k]), initial=0.0), np.max(np.abs(z[:k]), initial=0.0)])
         comm = Z.getComm().tompi4py()
         if comm.Get_size() > 1:

@@ -365,12 +365,11 @@ class MassFamily:
         self.problem.normalised = int(snap["normalised"])
         states, vectors = [], np.asarray(snap["Z"])
         order = self.problem.natural_order(vectors.shape[1])
+        back = np.argsort(order)                     # the inverse permutation: Z's entries from the natural ones
         for natural in vectors:
-            full = np.empty_like(natural)
-            full[order] = natural
             Z = self.problem.create_vec()
             lo, hi = Z.getOwnershipRange()
-            Z.getArray()[:] = full[lo:hi]
+            Z.getArray()[:] = natural[back[lo:hi]]
             states.append(Z)
         self.continuation.seed(states, [float(v) for v in snap["s"]])
         self.continuation.ds = float(snap["ds"])

@@ -253,6 +253,14 @@ class PseudoArclength:
         _check_algorithm(self, (), max_iterations=1)
 
 
+class ContinuationUse:
+    """A use of the layer: its ``problem`` and the :class:`Continuation` on it; :meth:`destroy` frees both."""
+
+    def destroy(self):
+        self.continuation.destroy()
+        self.problem.destroy()
+
+
 class Continuation:
     """The continuation loop over a :class:`ContinuationProblem` with a :class:`Natural` or
     :class:`PseudoArclength` algorithm (module docstring). Collective over the problem's communicator."""

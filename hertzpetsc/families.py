@@ -23,7 +23,7 @@ import numpy as np
 from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
 from .assembly import gathered
 from .branch import BranchPoint
-from .continuation import Continuation, ContinuationError, LazyTests, Natural, PseudoArclength
+from .continuation import Continuation, ContinuationError, ContinuationUse, LazyTests, Natural, PseudoArclength
 from .errors import ConvergenceError, ParameterError, check_real
 from .stencil import full_period, lagrange_periodic
 
@@ -188,7 +188,7 @@ PATTERN_MAX_CORRECTOR = 0.25
 AROUND_FOLDS = 100
 
 
-class AmplitudeFamily:
+class AmplitudeFamily(ContinuationUse):
     """Travelling waves of ``model`` at fixed q, continued in s = log a from the linear wave (module docstring):
     the layer's natural algorithm (secant predictor on (w, lam), step halving on failure, at most
     ``max_halvings``). One SNES under ``prefix``. ``branch``: the acoustic or optical linear wave to start from;
@@ -219,10 +219,6 @@ class AmplitudeFamily:
         self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=max_corrector,
                                                                max_step=max_step, around_folds=around_folds),
                                          bisect=bisect, locate_step=locate_step)
-
-    def solve_at(self, a):
-        """The wave at amplitude a (:meth:`step_to`)."""
-        return self.step_to(a)
 
     def step_to(self, a_target):
         """The wave at amplitude a_target: the first from the linear wave at min(a_target, START_MAX delta0) continued
@@ -255,6 +251,7 @@ class AmplitudeFamily:
         self._gap = point.gap
         return point
 
+    solve_at = step_to                  # the wave at amplitude a, by its first name
     _gap = math.nan
 
     def _gap_events(self):
@@ -271,10 +268,6 @@ class AmplitudeFamily:
         ``tests``), each with its ``event`` and ``bracket``."""
         return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket)
                 for cp in self.continuation.take_events()]
-
-    def destroy(self):
-        self.continuation.destroy()
-        self.problem.destroy()
 
 
 def uncompressed_limit(model, q, grid, start, prefix=PRECOMP_PREFIX):
@@ -309,7 +302,7 @@ class MassPoint:
     event: str = None
 
 
-class MassFamily:
+class MassFamily(ContinuationUse):
     """Dimer waves (masses 1, epsilon) at fixed q and amplitude a, continued in epsilon from ``epsilon_start`` by
     the layer's pseudo-arclength algorithm (unknowns (w_0, w_1, lam, epsilon); inner product (h/pi) sum w^2 +
     lam^2 + epsilon^2; step ds from ``ds``, grown by 1.5 after easy steps up to ``ds_max``, halved on failure up to
@@ -398,10 +391,6 @@ class MassFamily:
             steps += 1
             if (p.epsilon - epsilon_end) * (self.model.masses[1] - epsilon_end) < 0 or p.epsilon <= 0:
                 return
-
-    def destroy(self):
-        self.continuation.destroy()
-        self.problem.destroy()
 
 
 def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start=1e-3, ds=0.25, solver=None):

@@ -23,7 +23,7 @@ import numpy as np
 from .advdelay import AdvanceDelayProblem, check_wavenumber
 from .binary import binary_oscillation
 from .branch import BranchPoint
-from .continuation import Continuation, ContinuationError, Natural
+from .continuation import Continuation, ContinuationError, ContinuationUse, Natural
 from .diagnostics import point_diagnostics
 from .errors import ConvergenceError, ParameterError, check_integer
 from .grid import ProfileGrid, check_cells_per_pi
@@ -129,7 +129,7 @@ def regrid_half_profile(u_half, K_new):
     return out
 
 
-class BranchContinuation:
+class BranchContinuation(ContinuationUse):
     """Continuation of eqs. ad-pbc in q on one grid: the paper's problem (:class:`AdvanceDelayProblem`, parameter
     q) driven by the continuation layer's :class:`~hertzpetsc.continuation.Natural` algorithm (secant predictor on
     the rescaled profile, step halving). Iterate :meth:`points` to get the branch point by point.
@@ -202,10 +202,6 @@ class BranchContinuation:
         for q in targets:
             if q < q_done * (1 - 1e-12):
                 yield self.step_to(q)
-
-    def destroy(self):
-        self.continuation.destroy()
-        self.problem.destroy()
 
 
 def continue_branch(params, targets, grids, comm, seeds=(), prefix=TW_PREFIX, solver=None):

@@ -256,6 +256,15 @@ class PseudoArclength:
 class ContinuationUse:
     """A use of the layer: its ``problem`` and the :class:`Continuation` on it; :meth:`destroy` frees both."""
 
+    def _use(self, problem, prefix, solver, algorithm, **options):
+        """Take ``problem`` (an :class:`~hertzpetsc.advdelay.AdvanceDelayProblem`) with its SNES under ``prefix`` built
+        now (``solver``: its linear solves; the Z layout for pseudo-arclength) and the layer on it (``options``:
+        those of :class:`Continuation`)."""
+        problem.prefix = prefix
+        problem.solver(isinstance(algorithm, PseudoArclength), prefix, solver)
+        self.problem = problem
+        self.continuation = Continuation(problem, algorithm, **options)
+
     def destroy(self):
         self.continuation.destroy()
         self.problem.destroy()

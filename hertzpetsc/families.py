@@ -23,7 +23,7 @@ import numpy as np
 from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
 from .assembly import gathered
 from .branch import BranchPoint
-from .continuation import Continuation, ContinuationError, ContinuationUse, LazyTests, Natural, PseudoArclength
+from .continuation import ContinuationError, ContinuationUse, LazyTests, Natural, PseudoArclength
 from .errors import ConvergenceError, ParameterError, check_real
 from .stencil import full_period, lagrange_periodic
 
@@ -206,19 +206,17 @@ class AmplitudeFamily(ContinuationUse):
             raise ParameterError("delta0", model.delta0, "the amplitude family starts from the linear wave: it needs "
                                  "a precompression > 0")
         self.model, self.grid, self.branch = model, grid, branch
-        self.problem = FamilyProblem(model, grid, q, amplitude=1.0, measure=measure, parameter="log_a")
-        self.problem.prefix = prefix
-        self.problem.solver(False, prefix, solver)
-        self.q = self.problem.q
-        self.problem.extra_tests = tests
+        problem = FamilyProblem(model, grid, q, amplitude=1.0, measure=measure, parameter="log_a")
+        self.q = problem.q
+        problem.extra_tests = tests
         pattern = len(model.masses) > 1
         if max_step is None:
             max_step = PATTERN_MAX_STEP if pattern else math.inf
         if max_corrector is None:
             max_corrector = PATTERN_MAX_CORRECTOR if pattern else math.inf
-        self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=max_corrector,
-                                                               max_step=max_step, around_folds=around_folds),
-                                         bisect=bisect, locate_step=locate_step)
+        self._use(problem, prefix, solver, Natural(max_halvings=max_halvings, max_corrector=max_corrector,
+                                                   max_step=max_step, around_folds=around_folds),
+                  bisect=bisect, locate_step=locate_step)
 
     def step_to(self, a_target):
         """The wave at amplitude a_target: the first from the linear wave at min(a_target, START_MAX delta0) continued
@@ -317,11 +315,8 @@ class MassFamily(ContinuationUse):
             raise ParameterError("delta0", model.delta0, "the dimer family is computed for a precompression > 0")
         self.model, self.grid, self.q, self.a = model, grid, check_wavenumber(q, grid.h), check_amplitude(a)
         self.prefix, self.branch, self.solver_kind = prefix, branch, solver
-        self.problem = FamilyProblem(model, grid, q, amplitude=self.a, parameter="epsilon")
-        self.problem.prefix = prefix
-        self.problem.solver(True, prefix, solver)
-        self.continuation = Continuation(self.problem, PseudoArclength(ds=min(ds, ds_max), ds_min=1e-10, ds_max=ds_max,
-                                                                       max_halvings=max_halvings))
+        self._use(FamilyProblem(model, grid, q, amplitude=self.a, parameter="epsilon"), prefix, solver,
+                  PseudoArclength(ds=min(ds, ds_max), ds_min=1e-10, ds_max=ds_max, max_halvings=max_halvings))
 
     def start(self, epsilon_start=1.0, first_step=-0.01):
         """Two natural points, at epsilon_start and epsilon_start + first_step (the direction of the path)."""

@@ -23,7 +23,7 @@ import numpy as np
 from .advdelay import AdvanceDelayProblem, check_wavenumber
 from .binary import binary_oscillation
 from .branch import BranchPoint
-from .continuation import Continuation, ContinuationError, ContinuationUse, Natural
+from .continuation import ContinuationError, ContinuationUse, Natural
 from .diagnostics import point_diagnostics
 from .errors import ConvergenceError, ParameterError, check_integer
 from .grid import ProfileGrid, check_cells_per_pi
@@ -145,10 +145,8 @@ class BranchContinuation(ContinuationUse):
         solver = tw_solver(prefix, solver)
         check_memory(K, comm, solver)
         self.grid = ProfileGrid(K, comm)
-        self.problem = AdvanceDelayProblem(self.model, self.grid, math.pi, parameter="q")
-        self.problem.prefix = prefix
-        self.problem.solver(False, prefix, solver)
-        self.continuation = Continuation(self.problem, Natural(params.max_halvings, params.max_corrector))
+        self._use(AdvanceDelayProblem(self.model, self.grid, math.pi, parameter="q"), prefix, solver,
+                  Natural(params.max_halvings, params.max_corrector))
 
     @property
     def history(self):

@@ -466,8 +466,7 @@ class Continuation:
         error names the fold), or it has not passed the target after ``around_folds`` steps."""
         alg = self.natural
         self.seed([Z for Z, _ in start], [s for _, s in start])
-        (Z0, _, _), (Z1, _, _) = self.history
-        chord, dist = self._chord(Z0, Z1)
+        chord, dist = self._chord(start[0][0], start[1][0])          # the history's two points (copies of them)
         chord.destroy()
         longest = max(abs(p_target - p_start), dist)
         known, folds = list(self.events), []

@@ -173,21 +173,33 @@ class ContinuationPoint:
     bracket: tuple = None      # a located root: ((p, value), (p, value)) of the last bracket, the root between them
 
 
+def _owns_last(Z):
+    """Whether this rank holds the last entry of Z (the parameter)."""
+    lo, hi = Z.getOwnershipRange()
+    return lo <= Z.getSize() - 1 < hi
+
+
 def _parameter(Z):
     """The last entry of Z on every rank."""
-    n = Z.getSize()
-    lo, hi = Z.getOwnershipRange()
-    local = float(Z.getArray(readonly=True)[-1]) if lo <= n - 1 < hi else 0.0
+    local = float(Z.getArray(readonly=True)[-1]) if _owns_last(Z) else 0.0
     comm = Z.getComm().tompi4py()
     return comm.allreduce(local) if comm.Get_size() > 1 else local
 
 
 def set_parameter(Z, value):
     """Set the last entry of Z (collective)."""
-    n = Z.getSize()
-    lo, hi = Z.getOwnershipRange()
-    if lo <= n - 1 < hi:
+    if _owns_last(Z):
         Z.getArray()[-1] = value
+
+
+def _check_algorithm(alg, positive, **integers):
+    """The checks of both algorithms' step control, in this order: the integers max_halvings (>= 0),
+    max_step_changes (>= 1) and ``integers`` (name: least value), then max_corrector and ``positive`` > 0."""
+    for name, least in dict(max_halvings=0, max_step_changes=1, **integers).items():
+        object.__setattr__(alg, name, check_integer(name, getattr(alg, name), least))
+    for name in ("max_corrector",) + positive:
+        if not getattr(alg, name) > 0:
+            raise ParameterError(name, getattr(alg, name), "must be > 0")
 
 
 @dataclass(frozen=True)
@@ -208,13 +220,7 @@ class Natural:
     around_folds: int = 0
 
     def __post_init__(self):
-        object.__setattr__(self, "max_halvings", check_integer("max_halvings", self.max_halvings, 0))
-        object.__setattr__(self, "max_step_changes", check_integer("max_step_changes", self.max_step_changes, 1))
-        object.__setattr__(self, "around_folds", check_integer("around_folds", self.around_folds, 0))
-        if not self.max_corrector > 0:
-            raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
-        if not self.max_step > 0:
-            raise ParameterError("max_step", self.max_step, "must be > 0")
+        _check_algorithm(self, ("max_step",), around_folds=0)
 
 
 @dataclass(frozen=True)
@@ -244,11 +250,24 @@ class PseudoArclength:
             raise ParameterError("ds", self.ds, f"must lie in [ds_min, ds_max] = [{self.ds_min:g}, {self.ds_max:g}]")
         if not self.growth >= 1:
             raise ParameterError("growth", self.growth, "must be >= 1")
-        object.__setattr__(self, "max_halvings", check_integer("max_halvings", self.max_halvings, 0))
-        object.__setattr__(self, "max_step_changes", check_integer("max_step_changes", self.max_step_changes, 1))
-        object.__setattr__(self, "max_iterations", check_integer("max_iterations", self.max_iterations, 1))
-        if not self.max_corrector > 0:
-            raise ParameterError("max_corrector", self.max_corrector, "must be > 0")
+        _check_algorithm(self, (), max_iterations=1)
+
+
+class ContinuationUse:
+    """A use of the layer: its ``problem`` and the :class:`Continuation` on it; :meth:`destroy` frees both."""
+
+    def _use(self, problem, prefix, solver, algorithm, **options):
+        """Take ``problem`` (an :class:`~hertzpetsc.advdelay.AdvanceDelayProblem`) with its SNES under ``prefix`` built
+        now (``solver``: its linear solves; the Z layout for pseudo-arclength) and the layer on it (``options``:
+        those of :class:`Continuation`)."""
+        problem.prefix = prefix
+        problem.solver(isinstance(algorithm, PseudoArclength), prefix, solver)
+        self.problem = problem
+        self.continuation = Continuation(problem, algorithm, **options)
+
+    def destroy(self):
+        self.continuation.destroy()
+        self.problem.destroy()
 
 
 class Continuation:
@@ -423,7 +442,7 @@ class Continuation:
             for name, value in point.tests.items():
                 g0 = previous[2].get(name)
                 if g0 is not None and g0 * value < 0:
-                    located = self._locate_natural(previous[0], Z, previous[1], name, g0, value)
+                    located = self._locate_root(previous[0], Z, previous[1], name, g0, value, natural=True)
                     if located is not None:
                         self.events.append(located)
             if p == p_target:
@@ -447,8 +466,7 @@ class Continuation:
         error names the fold), or it has not passed the target after ``around_folds`` steps."""
         alg = self.natural
         self.seed([Z for Z, _ in start], [s for _, s in start])
-        (Z0, _, _), (Z1, _, _) = self.history
-        chord, dist = self._chord(Z0, Z1)
+        chord, dist = self._chord(start[0][0], start[1][0])          # the history's two points (copies of them)
         chord.destroy()
         longest = max(abs(p_target - p_start), dist)
         known, folds = list(self.events), []
@@ -488,9 +506,7 @@ class Continuation:
         """||X - X_pred||_inf / ||X||_inf (the parameter left out): both norms from the local arrays, in one
         reduction."""
         z, zp = Z.getArray(readonly=True), pred.getArray(readonly=True)
-        n = Z.getSize()
-        lo, hi = Z.getOwnershipRange()
-        k = len(z) - 1 if lo <= n - 1 < hi else len(z)
+        k = len(z) - 1 if _owns_last(Z) else len(z)
         local = np.array([np.max(np.abs(z[:k] - zp[:k]), initial=0.0), np.max(np.abs(z[:k]), initial=0.0)])
         comm = Z.getComm().tompi4py()
         if comm.Get_size() > 1:
@@ -653,59 +669,51 @@ class Continuation:
             _discard(evals)
             c.destroy()
 
-    def _locate_natural(self, Z1, Z2, s_origin, name, g1, g2):
-        """The zero of the test function ``name`` between the natural points Z1 and Z2 (values g1, g2 of opposite
-        signs): Illinois rule in the parameter (bisection for the tests in ``bisect``), each trial solved from the
-        linear interpolation of Z1 and Z2; the located point keeps the last bracket."""
-        p1, p2 = _parameter(Z1), _parameter(Z2)
-        evals = {}
+    def _locate_root(self, Z1, Z2, s_origin, name, g1, g2, natural=False):
+        """The zero of the test function ``name`` between Z1 and Z2 (values g1, g2 of opposite signs) by the
+        Illinois rule: in the projection on the chord Z1 -> Z2, or, between ``natural`` points, in the parameter
+        (bisection for the tests in ``bisect``), each trial solved from the linear interpolation of Z1 and Z2, the
+        located point keeping the last bracket."""
+        evals, c = {}, None
+        if natural:
+            a, b = _parameter(Z1), _parameter(Z2)
+            tol = self.locate_step if self.locate_step is not None else self.locate_tol * abs(b - a)
 
-        def at(p):
-            Z = Z1.copy()
-            f = (p - p1) / (p2 - p1)
-            Z.scale(1 - f)
-            Z.axpy(f, Z2)
-            set_parameter(Z, p)
-            try:
-                its = self._solve(Z, None, p)
-                v = self.problem.test_functions(Z)[name]
-            except ConvergenceError:
-                Z.destroy()
-                raise
-            if p in evals:
-                evals[p][0].destroy()
-            evals[p] = (Z, its, v)
-            return v
-
-        tol = self.locate_step if self.locate_step is not None else self.locate_tol * abs(p2 - p1)
+            def at(p):
+                Z = Z1.copy()
+                f = (p - a) / (b - a)
+                Z.scale(1 - f)
+                Z.axpy(f, Z2)
+                set_parameter(Z, p)
+                try:
+                    its = self._solve(Z, None, p)
+                    v = self.problem.test_functions(Z)[name]
+                except ConvergenceError:
+                    Z.destroy()
+                    raise
+                if p in evals:
+                    evals[p][0].destroy()
+                evals[p] = (Z, its, v)
+                return v
+        else:
+            c, b = self._chord(Z1, Z2)
+            a, tol = 0.0, self.locate_tol * b
+            at = self._on_chord(Z1, c, evals, lambda Z: self.problem.test_functions(Z)[name])
         try:
-            x, bracket = illinois(at, p1, g1, p2, g2, tol, self.locate_max, bisect=name in self.bisect,
+            x, bracket = illinois(at, a, g1, b, g2, tol, self.locate_max, bisect=natural and name in self.bisect,
                                   bracket=True)
-            return self._located(evals, x, s_origin + abs(x - p1), name, bracket)
+            return self._located(evals, x, s_origin + abs(x - a), name, bracket if natural else None)
         except ConvergenceError:
             return None
         finally:
             _discard(evals)
+            if c is not None:
+                c.destroy()
 
     def take_events(self):
         """The points located by the natural steps since the last call (sorted by arclength)."""
         out, self.events = sorted(self.events, key=lambda p: p.s), []
         return out
-
-    def _locate_root(self, Z1, Z2, s_origin, name, g1, g2):
-        """The zero of the test function ``name`` between Z1 and Z2 (values g1, g2 of opposite signs): Illinois
-        rule in the projection on the chord Z1 -> Z2."""
-        c, length = self._chord(Z1, Z2)
-        evals = {}
-        at = self._on_chord(Z1, c, evals, lambda Z: self.problem.test_functions(Z)[name])
-        try:
-            x = illinois(at, 0.0, g1, length, g2, self.locate_tol * length, self.locate_max)
-            return self._located(evals, x, s_origin + x, name)
-        except ConvergenceError:
-            return None
-        finally:
-            _discard(evals)
-            c.destroy()
 
     def run(self, until=None, max_steps=1000):
         """Pseudo-arclength steps until the parameter passes ``until`` (or max_steps); yields each point."""

@@ -23,7 +23,7 @@ import numpy as np
 from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
 from .assembly import gathered
 from .branch import BranchPoint
-from .continuation import Continuation, ContinuationError, LazyTests, Natural, PseudoArclength
+from .continuation import ContinuationError, ContinuationUse, LazyTests, Natural, PseudoArclength
 from .errors import ConvergenceError, ParameterError, check_real
 from .stencil import full_period, lagrange_periodic
 
@@ -188,7 +188,7 @@ PATTERN_MAX_CORRECTOR = 0.25
 AROUND_FOLDS = 100
 
 
-class AmplitudeFamily:
+class AmplitudeFamily(ContinuationUse):
     """Travelling waves of ``model`` at fixed q, continued in s = log a from the linear wave (module docstring):
     the layer's natural algorithm (secant predictor on (w, lam), step halving on failure, at most
     ``max_halvings``). One SNES under ``prefix``. ``branch``: the acoustic or optical linear wave to start from;
@@ -206,23 +206,17 @@ class AmplitudeFamily:
             raise ParameterError("delta0", model.delta0, "the amplitude family starts from the linear wave: it needs "
                                  "a precompression > 0")
         self.model, self.grid, self.branch = model, grid, branch
-        self.problem = FamilyProblem(model, grid, q, amplitude=1.0, measure=measure, parameter="log_a")
-        self.problem.prefix = prefix
-        self.problem.solver(False, prefix, solver)
-        self.q = self.problem.q
-        self.problem.extra_tests = tests
+        problem = FamilyProblem(model, grid, q, amplitude=1.0, measure=measure, parameter="log_a")
+        self.q = problem.q
+        problem.extra_tests = tests
         pattern = len(model.masses) > 1
         if max_step is None:
             max_step = PATTERN_MAX_STEP if pattern else math.inf
         if max_corrector is None:
             max_corrector = PATTERN_MAX_CORRECTOR if pattern else math.inf
-        self.continuation = Continuation(self.problem, Natural(max_halvings=max_halvings, max_corrector=max_corrector,
-                                                               max_step=max_step, around_folds=around_folds),
-                                         bisect=bisect, locate_step=locate_step)
-
-    def solve_at(self, a):
-        """The wave at amplitude a (:meth:`step_to`)."""
-        return self.step_to(a)
+        self._use(problem, prefix, solver, Natural(max_halvings=max_halvings, max_corrector=max_corrector,
+                                                   max_step=max_step, around_folds=around_folds),
+                  bisect=bisect, locate_step=locate_step)
 
     def step_to(self, a_target):
         """The wave at amplitude a_target: the first from the linear wave at min(a_target, START_MAX delta0) continued
@@ -255,6 +249,7 @@ class AmplitudeFamily:
         self._gap = point.gap
         return point
 
+    solve_at = step_to                  # the wave at amplitude a, by its first name
     _gap = math.nan
 
     def _gap_events(self):
@@ -271,10 +266,6 @@ class AmplitudeFamily:
         ``tests``), each with its ``event`` and ``bracket``."""
         return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket)
                 for cp in self.continuation.take_events()]
-
-    def destroy(self):
-        self.continuation.destroy()
-        self.problem.destroy()
 
 
 def uncompressed_limit(model, q, grid, start, prefix=PRECOMP_PREFIX):
@@ -309,7 +300,7 @@ class MassPoint:
     event: str = None
 
 
-class MassFamily:
+class MassFamily(ContinuationUse):
     """Dimer waves (masses 1, epsilon) at fixed q and amplitude a, continued in epsilon from ``epsilon_start`` by
     the layer's pseudo-arclength algorithm (unknowns (w_0, w_1, lam, epsilon); inner product (h/pi) sum w^2 +
     lam^2 + epsilon^2; step ds from ``ds``, grown by 1.5 after easy steps up to ``ds_max``, halved on failure up to
@@ -324,11 +315,8 @@ class MassFamily:
             raise ParameterError("delta0", model.delta0, "the dimer family is computed for a precompression > 0")
         self.model, self.grid, self.q, self.a = model, grid, check_wavenumber(q, grid.h), check_amplitude(a)
         self.prefix, self.branch, self.solver_kind = prefix, branch, solver
-        self.problem = FamilyProblem(model, grid, q, amplitude=self.a, parameter="epsilon")
-        self.problem.prefix = prefix
-        self.problem.solver(True, prefix, solver)
-        self.continuation = Continuation(self.problem, PseudoArclength(ds=min(ds, ds_max), ds_min=1e-10, ds_max=ds_max,
-                                                                       max_halvings=max_halvings))
+        self._use(FamilyProblem(model, grid, q, amplitude=self.a, parameter="epsilon"), prefix, solver,
+                  PseudoArclength(ds=min(ds, ds_max), ds_min=1e-10, ds_max=ds_max, max_halvings=max_halvings))
 
     def start(self, epsilon_start=1.0, first_step=-0.01):
         """Two natural points, at epsilon_start and epsilon_start + first_step (the direction of the path)."""
@@ -365,12 +353,11 @@ class MassFamily:
         self.problem.normalised = int(snap["normalised"])
         states, vectors = [], np.asarray(snap["Z"])
         order = self.problem.natural_order(vectors.shape[1])
+        back = np.argsort(order)                     # the inverse permutation: Z's entries from the natural ones
         for natural in vectors:
-            full = np.empty_like(natural)
-            full[order] = natural
             Z = self.problem.create_vec()
             lo, hi = Z.getOwnershipRange()
-            Z.getArray()[:] = full[lo:hi]
+            Z.getArray()[:] = natural[back[lo:hi]]
             states.append(Z)
         self.continuation.seed(states, [float(v) for v in snap["s"]])
         self.continuation.ds = float(snap["ds"])
@@ -399,10 +386,6 @@ class MassFamily:
             steps += 1
             if (p.epsilon - epsilon_end) * (self.model.masses[1] - epsilon_end) < 0 or p.epsilon <= 0:
                 return
-
-    def destroy(self):
-        self.continuation.destroy()
-        self.problem.destroy()
 
 
 def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start=1e-3, ds=0.25, solver=None):

@@ -23,7 +23,7 @@ import numpy as np
 from .advdelay import AdvanceDelayProblem, check_wavenumber
 from .binary import binary_oscillation
 from .branch import BranchPoint
-from .continuation import Continuation, ContinuationError, Natural
+from .continuation import ContinuationError, ContinuationUse, Natural
 from .diagnostics import point_diagnostics
 from .errors import ConvergenceError, ParameterError, check_integer
 from .grid import ProfileGrid, check_cells_per_pi
@@ -129,7 +129,7 @@ def regrid_half_profile(u_half, K_new):
     return out
 
 
-class BranchContinuation:
+class BranchContinuation(ContinuationUse):
     """Continuation of eqs. ad-pbc in q on one grid: the paper's problem (:class:`AdvanceDelayProblem`, parameter
     q) driven by the continuation layer's :class:`~hertzpetsc.continuation.Natural` algorithm (secant predictor on
     the rescaled profile, step halving). Iterate :meth:`points` to get the branch point by point.
@@ -145,10 +145,8 @@ class BranchContinuation:
         solver = tw_solver(prefix, solver)
         check_memory(K, comm, solver)
         self.grid = ProfileGrid(K, comm)
-        self.problem = AdvanceDelayProblem(self.model, self.grid, math.pi, parameter="q")
-        self.problem.prefix = prefix
-        self.problem.solver(False, prefix, solver)
-        self.continuation = Continuation(self.problem, Natural(params.max_halvings, params.max_corrector))
+        self._use(AdvanceDelayProblem(self.model, self.grid, math.pi, parameter="q"), prefix, solver,
+                  Natural(params.max_halvings, params.max_corrector))
 
     @property
     def history(self):
@@ -202,10 +200,6 @@ class BranchContinuation:
         for q in targets:
             if q < q_done * (1 - 1e-12):
                 yield self.step_to(q)
-
-    def destroy(self):
-        self.continuation.destroy()
-        self.problem.destroy()
 
 
 def continue_branch(params, targets, grids, comm, seeds=(), prefix=TW_PREFIX, solver=None):

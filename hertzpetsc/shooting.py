@@ -146,12 +146,6 @@ class ShiftMapFixedPoint:
         return A, Q
 
 
-def gauss_newton_max_iterations(prefix=SHOOT_PREFIX, default=20):
-    """The refinement's iteration limit ``-<prefix>gn_max_it`` (an integer >= 1; ``default`` when not given), read
-    from the options database (so that a driver can read it before its first refinement)."""
-    return check_integer(f"-{prefix}gn_max_it", PETSc.Options().getInt(prefix + "gn_max_it", default), 1)
-
-
 class Refiner:
     """Gauss-Newton refinement of travelling-wave orbits, any mass pattern (flows built once per chain length,
     prefix ``shoot_``; the engine :class:`~hertzpetsc.gauss_newton.GaussNewton`); ``with Refiner(...) as r:``.
@@ -166,7 +160,8 @@ class Refiner:
         tol = check_real("tol", tol, "the target residual", 0.0)
         self.spec, self.tol, self.comm, self.symmetric = spec, tol, comm, symmetric
         self.tolerances, self.jacobian_tolerances, self.prefix = tolerances, jacobian_tolerances, prefix
-        self.max_iterations = gauss_newton_max_iterations(prefix, max_iterations)
+        limit = PETSc.Options().getInt(prefix + "gn_max_it", max_iterations)      # an option, else the argument
+        self.max_iterations = check_integer(f"-{prefix}gn_max_it", limit, 1)
         self.engine = GaussNewton(comm)
         self._flows = {}
         self.smap = self._maps(spec.N)[0]          # configures both flows (options read now)

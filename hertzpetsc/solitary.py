@@ -16,6 +16,7 @@ Then k_alpha = -sum_{k>=0} r(k + 1/2) (eq. kal2) and y(s) = sum_{k>=0} r(k+1/2-s
 """
 import math
 import time
+from contextlib import contextmanager
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -168,23 +169,17 @@ def _check_tail(wave):
 def _solve(params, comm, prefix):
     """The solve of :func:`solve_solitary_wave` at a given L, without the tail check."""
     t0 = time.perf_counter()
-    prob = SolitaryWaveProblem(params, comm)
-    grid = prob.grid
     s = np.arange(params.K + 1) / params.cells_per_unit
-    X = grid.vec_from_half_profile(continuum_compacton(params.alpha, s))
-    J = prob.assembler.create(prob._blocks(X))
     # round-off floor of the residual: ~4 eps |r| n^2 per row (|r| <= 1.5), times sqrt(K) in the 2-norm
     atol = 10 * 4 * np.finfo(float).eps * 1.5 * params.cells_per_unit ** 2 * math.sqrt(params.K + 1)
-    snes = create_snes(prob, J, prefix, dict(rtol=1e-13, atol=atol, stol=1e-14, max_it=100))
-    try:
-        snes.solve(None, X)
-        reason, its, fnorm = snes.getConvergedReason(), snes.getIterationNumber(), snes.getFunctionNorm()
-        r = grid.half_profile(X)
-    finally:
-        snes.destroy()
-        J.destroy()
-        X.destroy()
-        prob.destroy()
+    with _compacton_start(params, comm) as (prob, X, J):
+        snes = create_snes(prob, J, prefix, dict(rtol=1e-13, atol=atol, stol=1e-14, max_it=100))
+        try:
+            snes.solve(None, X)
+            reason, its, fnorm = snes.getConvergedReason(), snes.getIterationNumber(), snes.getFunctionNorm()
+            r = prob.grid.half_profile(X)
+        finally:
+            snes.destroy()
     what = "solitary-wave SNES (prefix -%s)" % prefix
     if reason <= 0:
         raise ConvergenceError(what, int(reason), alpha=params.alpha)
@@ -202,11 +197,19 @@ def _solve(params, comm, prefix):
 def configure_options(comm, prefix=SOL_PREFIX):
     """Read and check the options under ``prefix`` by configuring the SNES of a small solitary-wave problem, for
     studies that solve later (a bad value fails here, before any computation)."""
-    prob = SolitaryWaveProblem(SolitaryParameters(1.5, 2, 3.0), comm)
-    X = prob.grid.vec_from_half_profile(continuum_compacton(1.5, np.arange(prob.params.K + 1) / 2))
+    with _compacton_start(SolitaryParameters(1.5, 2, 3.0), comm) as (prob, X, J):
+        create_snes(prob, J, prefix).destroy()
+
+
+@contextmanager
+def _compacton_start(params, comm):
+    """(problem, X, J) of a solve: X the continuum compacton on the grid, J its Jacobian; freed on exit."""
+    prob = SolitaryWaveProblem(params, comm)
+    X = prob.grid.vec_from_half_profile(continuum_compacton(params.alpha, np.arange(params.K + 1)
+                                                            / params.cells_per_unit))
     J = prob.assembler.create(prob._blocks(X))
     try:
-        create_snes(prob, J, prefix).destroy()
+        yield prob, X, J
     finally:
         J.destroy()
         X.destroy()

@@ -230,10 +230,6 @@ class SlowInstabilityScan(Study):
                 self.refiner.tol = self.refine_tol
         return orbit, self.refiner.residual(orbit)
 
-    def monodromy(self, point):
-        """The monodromy route at a chain wavenumber: dict of the mono fields."""
-        return monodromy_fields(self.sectors, self.refiner, *self.refine(point))
-
     def verdict(self, row):
         """(resolution, verdict): slowly unstable (1) when the co-moving gamma exceeds the target on every grid
         and the last two agree to 10% (gamma = the Richardson value); stable within the largest gamma measured (0)
@@ -253,7 +249,7 @@ class SlowInstabilityScan(Study):
         row = dict(q=q, m=-1, **self.comoving(point), **dict.fromkeys(MONO_FIELDS, math.nan))
         if self.n_twist and fits_chain(q, self.N):
             row["m"] = int(round(q * self.N / (2 * math.pi)))
-            row.update(self.monodromy(point))
+            row.update(monodromy_fields(self.sectors, self.refiner, *self.refine(point)))     # the monodromy route
         row["slope_whitham"] = whitham_slope(point, PETSc.COMM_SELF) if q < math.pi * (1 - 1e-9) else math.nan
         row["resolution"], row["verdict"] = self.verdict(row)
         row["seconds"] = time.perf_counter() - t0

@@ -45,19 +45,14 @@ FIELDS = ("alpha", "q", "gap", "D", "residual", "residual_check", "iterations", 
           "slepc_change", "slepc_products", "slepc_nev", "core_first", "core_last", "seconds")
 
 
-def top_wavenumber(branch):
-    """The largest branch q with F(q) >= 1 (a compacton exists: eq. extens), and q_k."""
-    F = branch.column("F")
-    ok = F >= 1.0
+def scan_sequence(branch, qs, solitary=True):
+    """The q of one alpha in computing order: the branch start (its largest q with F(q) >= 1, where a compacton
+    exists: eq. extens), then ``qs`` (each <= q_k, else ParameterError) by decreasing q, then 0 (the solitary
+    wave)."""
+    ok = branch.column("F") >= 1.0
     if not ok.any():
         raise ParameterError("branch", "no point with F >= 1", "the branch must reach q <= q_k (F(q) >= 1)")
-    return float(branch.q[ok].max()), float(branch.q_k())
-
-
-def scan_sequence(branch, qs, solitary=True):
-    """The q of one alpha in computing order: the branch start, then ``qs`` (each <= q_k, else ParameterError)
-    by decreasing q, then 0 (the solitary wave)."""
-    q_top, q_k = top_wavenumber(branch)
+    q_top, q_k = float(branch.q[ok].max()), float(branch.q_k())
     for q in qs:
         if not (0 < q <= q_k):
             raise ParameterError("-q", q, f"a compacton needs 0 < q <= q_k = {q_k:.6f} at alpha = {branch.alpha:g} "

@@ -60,6 +60,7 @@ from ..model import ChainSpec
 from ..richardson import richardson
 from ..shooting import SHOOT_PREFIX, Refiner, relative_residual
 from ..slow import DeflatedSectors
+from ..stencil import full_period
 from ..symmetry import WaveSymmetry
 from ..waves import fits_chain, orbit_on_chain
 from .base import Study
@@ -89,7 +90,7 @@ def tracked_on_grids(point, grids, scan, solver, comm=PETSc.COMM_SELF):
 
 def mean_kinetic(u_half, h):
     """I = <u'^2>/2 over the period of an odd profile on [0, pi] (centred differences)."""
-    u = np.concatenate([u_half[:-1], -u_half[:0:-1]])
+    u = full_period(u_half)
     du = (np.roll(u, -1) - np.roll(u, 1)) / (2 * h)
     return 0.5 * float(np.mean(du ** 2))
 

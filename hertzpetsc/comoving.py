@@ -81,10 +81,6 @@ def cell_mean_stiffness(law, r, n_sub=8):
     return linear_piece_mean(law, sub[:-1], sub[1:]).mean(axis=0)
 
 
-def is_integer_shift(sigma):
-    return abs(sigma - round(sigma)) <= INTEGER_SHIFT_TOLERANCE
-
-
 def shift_csr(n, sigma):
     """(T w)_j = w(xi_j + sigma h) on n periodic points, with the package's shift stencil (scipy CSR)."""
     offsets, weights = shift_stencil(sigma)
@@ -115,7 +111,7 @@ class ComovingWave:
         u = full_period(self.u_half)
         rp = shifted(u, self.sigma) - u
         self.a = cell_mean_stiffness(law, rp, self.n_sub)
-        if is_integer_shift(self.sigma):
+        if abs(self.sigma - round(self.sigma)) <= INTEGER_SHIFT_TOLERANCE:
             self.b = np.roll(self.a, int(round(self.sigma)))
         else:
             self.b = cell_mean_stiffness(law, u - shifted(u, -self.sigma), self.n_sub)

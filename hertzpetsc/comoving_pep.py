@@ -6,8 +6,6 @@ The matrices are AIJ with rows distributed over the communicator. PETSc is real 
 pi the pencil is the real one of twice the size [[Re, -Im], [Im, Re]], whose spectrum is that of theta and -theta;
 the eigenvector (x1, x2) tells which (x1 + i x2 lies in the theta problem).
 """
-from dataclasses import dataclass
-
 import numpy as np
 import scipy.sparse as sp
 from petsc4py import PETSc
@@ -40,14 +38,6 @@ def aij(A, comm):
                                    local.data))
     M.assemble()
     return M
-
-
-@dataclass
-class PencilEigenpairs:
-    """Converged eigenvalues of a real z-pencil nearest a real target (with the full eigenvectors when asked)."""
-
-    z: np.ndarray
-    vectors: list
 
 
 class ComovingPEP:
@@ -87,8 +77,9 @@ class ComovingPEP:
 
     @PETSc.Log.EventDecorator("hz_comoving_pep")
     def solve(self, mats, target, nev, want_vectors=False):
-        """Eigenpairs of the real pencil sum z^i mats[i] (scipy CSR) nearest the real ``target``; at least ``nev``
-        must converge (ConvergenceError otherwise). Vectors, when asked, come complete on every rank."""
+        """(z, vectors): the converged eigenvalues of the real pencil sum z^i mats[i] (scipy CSR) nearest the real
+        ``target`` and, when asked, their eigenvectors complete on every rank (else []); at least ``nev`` must
+        converge (ConvergenceError otherwise)."""
         As = [aij(A, self.comm) for A in mats]
         with inserted_options(self.prefix, self.MUMPS_DEFAULTS):
             pep = self._create()
@@ -114,4 +105,4 @@ class ComovingPEP:
                 pep.destroy()
                 for A in As:
                     A.destroy()
-        return PencilEigenpairs(np.array(z), vecs)
+        return np.array(z), vecs

@@ -46,6 +46,15 @@ def sector_side(vectors, n):
     return np.array(out)
 
 
+def nearest_exponents(wave, pencil, solver, target, count):
+    """The ``count`` eigenvalues lambda = ln z / h of a :func:`real_pencil` nearest the real ``target`` (in Re lambda),
+    each with its side (:func:`sector_side`; a real pencil's: +1)."""
+    mats, n, real = pencil
+    z, vectors = solver.solve(mats, math.exp(target * wave.h), count, want_vectors=not real)
+    lam = np.log(z.astype(complex)) / wave.h
+    return lam, (np.ones(len(lam)) if real else sector_side(vectors, n))
+
+
 @dataclass
 class SectorWindow:
     """The eigenvalues lambda with Re lambda in the box and |Im lambda| <= 1/2 at Bloch parameter theta (each with
@@ -104,17 +113,15 @@ def sector_window(wave, theta, solver, box=DEFAULT_BOX, max_nev=192):
         raise ParameterError("box", box, "must be an interval (low, high) of Re lambda")
     centre = 0.5 * (box[0] + box[1]) + TARGET_OFFSET
     need = 1.05 * math.hypot(0.5 * (box[1] - box[0]) + TARGET_OFFSET, WINDOW_IM)
-    mats, n, real = real_pencil(wave, theta)
-    nev = solver.nev * (1 if real else 2)
+    pencil = real_pencil(wave, theta)
+    nev = solver.nev * (1 if pencil[2] else 2)
     while True:
-        res = solver.solve(mats, math.exp(centre * wave.h), nev, want_vectors=not real)
-        lam = np.log(res.z.astype(complex)) / wave.h
+        lam, side = nearest_exponents(wave, pencil, solver, centre, nev)
         dist = np.sort(np.abs(lam - centre))
         radius = float(dist[min(nev, len(dist)) - 1]) if len(dist) else 0.0
         if radius >= need or nev >= max_nev:
             break
         nev *= 2
-    side = np.ones(len(lam)) if real else sector_side(res.vectors, n)
     keep = (np.abs(lam.imag) <= WINDOW_IM) & (lam.real >= box[0]) & (lam.real <= box[1]) & \
            (np.abs(lam - centre) <= radius)
     lam, side = lam[keep], side[keep]
@@ -155,11 +162,7 @@ def tracked_exponent(wave, theta, guess, solver, nev=12):
     nev nearest cover |Im lambda| <= 1.5, about two eigenvalues per unit of Im lambda): Richardson sequences."""
     if not np.isfinite(guess):
         raise ParameterError("guess", guess, "the eigenvalue to track must be a finite complex number")
-    mats, n, real = real_pencil(wave, theta)
-    res = solver.solve(mats, math.exp((guess.real + TARGET_OFFSET) * wave.h), nev if real else 2 * nev,
-                       want_vectors=not real)
-    lam = np.log(res.z.astype(complex)) / wave.h
-    if not real:
-        side = sector_side(res.vectors, n)
-        lam = np.where(side < 0, np.conj(lam), lam)          # the theta problem's representatives
+    pencil = real_pencil(wave, theta)
+    lam, side = nearest_exponents(wave, pencil, solver, guess.real + TARGET_OFFSET, nev if pencil[2] else 2 * nev)
+    lam = np.where(side < 0, np.conj(lam), lam)          # the theta problem's representatives
     return complex(lam[int(np.argmin(np.abs(lam - guess)))])

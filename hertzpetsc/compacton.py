@@ -54,15 +54,16 @@ class CompactonTrain:
         """N(q) = 2 (pi - ell) / q (eq. defnq): the compacton width in beads."""
         return 2 * (math.pi - self.ell) / self.q
 
-    def bump(self, z, derivative=False):
-        """g(z) = U_q(z) - p z (or g'(z)): zero before the compression region, -2 pi p after it."""
+    def bump(self, z, derivative=False, u=None):
+        """g(z) = U_q(z) - p z (or g'(z)): zero before the compression region, -2 pi p after it. ``u``: the values
+        of u at the points z (grid points), instead of its interpolant."""
         z = np.asarray(z, dtype=float)
         inside = (z > self.ell) & (z < 2 * math.pi - self.ell)
         out = np.zeros_like(z) if derivative else np.where(z >= 2 * math.pi - self.ell, -2 * math.pi * self.p, 0.0)
         if np.any(inside):
             zi = z[inside]
-            u = lagrange_periodic(self.u_full, self.h, zi, derivative=derivative)
-            out[inside] = u - self.p if derivative else u - self.p * zi
+            ui = lagrange_periodic(self.u_full, self.h, zi, derivative=derivative) if u is None else u[inside]
+            out[inside] = ui - self.p if derivative else ui - self.p * zi
         return out
 
     def __call__(self, xi):
@@ -86,11 +87,7 @@ class CompactonTrain:
         n = len(self.u_full)
         U = self.p * self.h * j.astype(float)
         for k in (int(round(k)) for k in steps):
-            z = j - k
-            zf = z * self.h
-            inside = (zf > self.ell) & (zf < 2 * math.pi - self.ell)
-            U = U + np.where(inside, self.u_full[z % n] - self.p * zf, np.where(zf >= 2 * math.pi - self.ell,
-                                                                                -2 * math.pi * self.p, 0.0))
+            U = U + self.bump((j - k) * self.h, u=self.u_full[(j - k) % n])
         return U
 
 

@@ -90,6 +90,14 @@ def jordan_check(window, J, Y, gap):
                        v1, v2, u1, u2)
 
 
+def window_spectrum(window, Y, gap, multipliers=None):
+    """(J = D_Y G at Y, its multipliers (``multipliers(J)``; default :func:`sorted_eig`'s), the Jordan pair's mean and
+    split and the other multipliers (:func:`split_jordan_pair`), the :class:`JordanCheck`)."""
+    _, J, _ = window.jacobian(Y, gap)
+    lam = sorted_eig(J)[0] if multipliers is None else multipliers(J)
+    return (J, lam) + split_jordan_pair(lam) + (jordan_check(window, J, Y, gap),)
+
+
 def exponential_weight(M, eta, j_ref):
     """Diagonal of W = diag(exp(eta (j - j_ref))) on the bead-major state (heavier ahead)."""
     return np.repeat(np.exp(eta * (np.arange(M) - j_ref)), 2)

@@ -13,7 +13,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..chain import ChainIntegrator, IntegrationTolerances
-from ..compacton_spectrum import eigenvector, jordan_check, sorted_eig, split_jordan_pair
+from ..compacton_spectrum import eigenvector, window_spectrum
 from ..compacton_window import CompactonWindow, WindowChain, embed
 from ..errors import ParameterError
 from ..model import ChainSpec
@@ -95,10 +95,8 @@ class CompactonDynamics(Study):
 
     def _run_case(self, ex, kinds):
         w, M = self.window, ex.M
-        _, J, _ = w.jacobian(ex.Y, ex.gap)
-        _, _, rest_mu = split_jordan_pair(sorted_eig(J)[0])
+        J, _, _, _, rest_mu, jc = window_spectrum(w, ex.Y, ex.gap)
         v3 = eigenvector(J, rest_mu[0])
-        jc = jordan_check(w, J, ex.Y, ex.gap)
         scale = np.tile([ex.D, ex.v_peak], M)
         ystar = ex.Y.ravel()
         self.chain.gap = ex.gap

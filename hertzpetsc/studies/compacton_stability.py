@@ -22,7 +22,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..chain import IntegrationTolerances
-from ..compacton_spectrum import DEFAULT_ETA, WindowStability, jordan_check, sorted_eig, split_jordan_pair
+from ..compacton_spectrum import DEFAULT_ETA, WindowStability, sorted_eig, split_jordan_pair, window_spectrum
 from ..compacton_window import (DEFAULT_REAR, WINDOW_PREFIX, WINDOW_TOLERANCES, CompactonRefiner, CompactonWindow,
                                 ExactCompacton, embed, guess_from_branch)
 from ..continuation import Continuation, Natural
@@ -45,19 +45,14 @@ FIELDS = ("alpha", "q", "gap", "D", "residual", "residual_check", "iterations", 
           "slepc_change", "slepc_products", "slepc_nev", "core_first", "core_last", "seconds")
 
 
-def top_wavenumber(branch):
-    """The largest branch q with F(q) >= 1 (a compacton exists: eq. extens), and q_k."""
-    F = branch.column("F")
-    ok = F >= 1.0
+def scan_sequence(branch, qs, solitary=True):
+    """The q of one alpha in computing order: the branch start (its largest q with F(q) >= 1, where a compacton
+    exists: eq. extens), then ``qs`` (each <= q_k, else ParameterError) by decreasing q, then 0 (the solitary
+    wave)."""
+    ok = branch.column("F") >= 1.0
     if not ok.any():
         raise ParameterError("branch", "no point with F >= 1", "the branch must reach q <= q_k (F(q) >= 1)")
-    return float(branch.q[ok].max()), float(branch.q_k())
-
-
-def scan_sequence(branch, qs, solitary=True):
-    """The q of one alpha in computing order: the branch start, then ``qs`` (each <= q_k, else ParameterError)
-    by decreasing q, then 0 (the solitary wave)."""
-    q_top, q_k = top_wavenumber(branch)
+    q_top, q_k = float(branch.q[ok].max()), float(branch.q_k())
     for q in qs:
         if not (0 < q <= q_k):
             raise ParameterError("-q", q, f"a compacton needs 0 < q <= q_k = {q_k:.6f} at alpha = {branch.alpha:g} "
@@ -70,7 +65,39 @@ def _key(alpha, q):
     return (round(float(alpha), 10), round(float(q), 12))
 
 
-class CompactonStabilityScan(Study):
+class ContinuedScan(Study):
+    """Points continued per alpha through ``self.sequences`` ({alpha: the values of :attr:`PARAMETER` in computing
+    order}): round i computes the i-th point of every alpha not in the file from the records of the preceding ones,
+    each point on one rank and the alphas of a round dealt to the ranks, so the records do not depend on their
+    number."""
+
+    PARAMETER = "q"
+
+    def cost(self, value):
+        """The relative cost of the point at ``value`` (for dealing)."""
+        return 1.0
+
+    def run(self):
+        """Compute every (alpha, value) not in the file, by continuation steps; yields each record after saving it."""
+        self.open()
+        done = {_key(r["alpha"], r[self.PARAMETER]) for r in self.store.records}
+        for i in range(max(len(s) for s in self.sequences.values())):
+            items = [(a, i) for a, s in self.sequences.items() if i < len(s) and _key(a, s[i]) not in done]
+            for _, row in dealt(items, [self.cost(self.sequences[a][i]) for a, _ in items], self.comm, self.compute):
+                yield self.store.append(row)
+
+    def preceding(self, alpha, i):
+        """The records of the (up to two) points of ``alpha`` before its i-th."""
+        known = {_key(r["alpha"], r[self.PARAMETER]): r for r in self.store.records}
+        return [known[_key(alpha, v)] for v in self.sequences[alpha][max(0, i - 2):i]]
+
+    def by_alpha(self):
+        """(alpha, its rows in table order) for every alpha of the file, by increasing alpha."""
+        for a in sorted({float(r["alpha"]) for r in self.records}):
+            yield a, [r for r in self.rows() if float(r["alpha"]) == a]
+
+
+class CompactonStabilityScan(ContinuedScan):
     """Exact compactons and their window spectra against q for each branch (alpha) (module docstring).
 
     Each (alpha, q) is computed on one rank (COMM_SELF), the alphas of a continuation step dealt to the ranks, so
@@ -100,14 +127,8 @@ class CompactonStabilityScan(Study):
         # configure every solver now (bad options and bad sizes fail before any computation)
         for a, b in self.branches.items():
             guess_from_branch(b.point(self.sequences[a][0]), self.M, self.rear, b.q_k())
-        probe = CompactonWindow(branches[0].model, self.M, PETSc.COMM_SELF, tolerances, WINDOW_PREFIX)
-        try:
-            CompactonWindow(branches[0].model, self.M, PETSc.COMM_SELF, CHECK_TOLERANCES, CHECK_PREFIX,
-                            "7vr").destroy()
-            WindowStability(probe, self.nev, self.eta).destroy()
-        finally:
-            probe.destroy()
         self._tools = {}
+        WindowStability(self._solvers(next(iter(self.branches)))[0], self.nev, self.eta).destroy()
 
     def constants(self):
         return dict(M=self.M, rear=self.rear, eta=self.eta, nev=self.nev, tol_unstable=self.tol_unstable,
@@ -126,11 +147,6 @@ class CompactonStabilityScan(Study):
             self._tools[alpha] = (w, w2, chk, CompactonRefiner(w), CompactonRefiner(w2))
         return self._tools[alpha]
 
-    def _previous(self, alpha, i):
-        """The ExactCompactons of the (up to two) preceding q of this alpha, from the records."""
-        byq = {_key(r["alpha"], r["q"]): r for r in self.store.records}
-        return [exact_compacton(byq[_key(alpha, q)]) for q in self.sequences[alpha][max(0, i - 2):i]]
-
     def compute(self, item):
         """The record of (alpha, index in its sequence)."""
         alpha, i = item
@@ -142,7 +158,8 @@ class CompactonStabilityScan(Study):
             Y, gap = guess_from_branch(branch.point(q), self.M, self.rear, branch.q_k())
             exact = refiner.refine(Y, gap, q)
         else:
-            exact = continue_to(refiner, [refiner.pack(e) for e in self._previous(alpha, i)], q)["compacton"]
+            seeds = [refiner.pack(exact_compacton(r)) for r in self.preceding(alpha, i)]
+            exact = continue_to(refiner, seeds, q)["compacton"]
         Y, gap = exact.Y, exact.gap
         core = w.core(Y, gap)
         # a compacton's zone must leave resting beads on both sides; the solitary wave's doubly exponential tails
@@ -150,10 +167,7 @@ class CompactonStabilityScan(Study):
         if q > 0 and (core[0] < 1 or core[-1] > self.M - 3):
             raise ParameterError("-M", self.M, f"at alpha = {alpha:g}, q = {q:.6g} the compression zone reaches "
                                  f"beads {core[0]}..{core[-1]} of the window: enlarge -M or change -rear")
-        _, J, _ = w.jacobian(Y, gap)
-        lam, _ = sorted_eig(J)
-        mean, split, rest = split_jordan_pair(lam)
-        jc = jordan_check(w, J, Y, gap)
+        _, lam, mean, split, rest, jc = window_spectrum(w, Y, gap)
         dominant = rest[:NDOM]
         # M doubled: the same compacton, embedded and re-refined, its dominant multipliers
         e2 = refiner2.refine(embed(Y, 2 * self.M, self.M // 2), gap, q)
@@ -180,18 +194,9 @@ class CompactonStabilityScan(Study):
                     core_first=int(core[0]), core_last=int(core[-1]), seconds=time.perf_counter() - t0, multipliers=lam,
                     dominant=np.pad(dominant, (0, NDOM - len(dominant))), state=Y)
 
-    def run(self):
-        """Compute every (alpha, q) not in the file, by continuation steps; yields each record after saving it."""
-        self.open()
-        done = {_key(r["alpha"], r["q"]) for r in self.store.records}
-        depth = max(len(s) for s in self.sequences.values())
-        for i in range(depth):
-            items = [(a, i) for a, s in self.sequences.items() if i < len(s) and _key(a, s[i]) not in done]
-            if not items:
-                continue
-            costs = [1.0 + 4.0 * (self.sequences[a][i] == 0) for a, _ in items]
-            for _, row in dealt(items, costs, self.comm, self.compute):
-                yield self.store.append(row)
+    def cost(self, q):
+        """The solitary wave (q = 0) costs about five compactons."""
+        return 1.0 + 4.0 * (q == 0)
 
     def destroy(self):
         for tools in self._tools.values():
@@ -242,8 +247,7 @@ class CompactonStabilityScan(Study):
         lines = ["| alpha | q scanned | max nontrivial \\|mu\\| (at q) | at the largest q | at q = 0 (solitary) | "
                  "unstable multipliers | max residual / check | max 2M change | max SLEPc - dense |",
                  "|---|---|---|---|---|---|---|---|---|"]
-        for a in sorted({float(r["alpha"]) for r in self.store.records}):
-            rs = [r for r in self.rows() if float(r["alpha"]) == a]
+        for a, rs in self.by_alpha():
             qs = np.array([float(r["q"]) for r in rs])
             mu = np.array([float(r["max_nontrivial"]) for r in rs])
             top = rs[int(np.argmax(qs))]
@@ -267,8 +271,7 @@ class CompactonStabilityScan(Study):
         lines = ["| alpha | quantity | at the three smallest q | observed order | extrapolated to q = 0 (order 1) | "
                  "solitary wave (q = 0) | extrapolated - solitary | smallest q - solitary |",
                  "|---|---|---|---|---|---|---|---|"]
-        for a in sorted({float(r["alpha"]) for r in self.store.records}):
-            rs = [r for r in self.rows() if float(r["alpha"]) == a]
+        for a, rs in self.by_alpha():
             sol = [r for r in rs if float(r["q"]) == 0]
             small = sorted((r for r in rs if float(r["q"]) > 0), key=lambda r: -float(r["q"]))[-3:]
             if not sol or len(small) < 3:

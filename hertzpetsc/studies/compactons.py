@@ -74,11 +74,9 @@ class CompactonStudy:
             h = b.h
             for q in self.qs:
                 point = b.point(q)
-                single = compacton_train(point)
-                d = self.theta / single.q
-                for spacings in ((), (d,)):
+                for spacings in ((), (self.theta / point.q,)):
                     train = compacton_train(point, spacings)
-                    d_grid = round(self.theta / h) * h / single.q
+                    d_grid = round(self.theta / h) * h / point.q
                     res = extension_residuals(compacton_train(point, [d_grid] * len(spacings)))
                     scales = CompactonScales.for_velocity(train, self.c)
                     distance = self.travel + math.ceil(train_span(train))     # the whole train passes `travel`

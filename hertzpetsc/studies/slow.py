@@ -60,6 +60,7 @@ from ..model import ChainSpec
 from ..richardson import richardson
 from ..shooting import SHOOT_PREFIX, Refiner, relative_residual
 from ..slow import DeflatedSectors
+from ..stencil import full_period
 from ..symmetry import WaveSymmetry
 from ..waves import fits_chain, orbit_on_chain
 from .base import Study
@@ -76,9 +77,20 @@ SLOW_FIELDS = ("q", "m", "T", "theta_cm", "gamma_cm", "gamma_cm_extrapolated", "
 SLOW_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
 
 
+def tracked_on_grids(point, grids, scan, solver, comm=PETSc.COMM_SELF):
+    """The worst mode of a :func:`~hertzpetsc.comoving_window.theta_scan` followed onto the finer ``grids`` (each from
+    the previous grid's exponent, :func:`~hertzpetsc.comoving_window.tracked_exponent`): [(wave, lambda)] per grid."""
+    out, lam = [], scan.lam
+    for K in grids:
+        wave = ComovingWave.from_point(point, K, comm)
+        lam = tracked_exponent(wave, scan.theta, lam, solver)
+        out.append((wave, lam))
+    return out
+
+
 def mean_kinetic(u_half, h):
     """I = <u'^2>/2 over the period of an odd profile on [0, pi] (centred differences)."""
-    u = np.concatenate([u_half[:-1], -u_half[:0:-1]])
+    u = full_period(u_half)
     du = (np.roll(u, -1) - np.roll(u, 1)) / (2 * h)
     return 0.5 * float(np.mean(du ** 2))
 
@@ -192,13 +204,9 @@ class SlowInstabilityScan(Study):
         """The co-moving route at one branch point: dict of the cm fields."""
         wave = ComovingWave.from_point(point, self.grids[0], PETSc.COMM_SELF)
         scan = theta_scan(wave, np.linspace(0.0, math.pi, self.n_theta), self.pep)
-        gammas, lam, w1 = [scan.gamma], scan.lam, None
-        for K in self.grids[1:]:
-            w = ComovingWave.from_point(point, K, PETSc.COMM_SELF)
-            lam = tracked_exponent(w, scan.theta, lam, self.pep)
-            gammas.append(float(w.growth(lam)))
-            w1 = w if w1 is None else w1
-        lw = sector_window(w1, self.theta_longwave, self.pep, box=(-0.05, 0.05))
+        finer = tracked_on_grids(point, self.grids[1:], scan, self.pep)
+        gammas = [scan.gamma] + [float(w.growth(lam)) for w, lam in finer]
+        lw = sector_window(finer[0][0], self.theta_longwave, self.pep, box=(-0.05, 0.05))
         near = (np.abs(lw.lam) <= 1.5 * self.theta_longwave / point.q) & ~lw.band
         slope = float(np.max(lw.lam.real[near]) / self.theta_longwave) if near.any() else math.nan
         return dict(T=wave.T, theta_cm=scan.theta, gamma_cm=np.array(gammas),
@@ -223,10 +231,6 @@ class SlowInstabilityScan(Study):
                 self.refiner.tol = self.refine_tol
         return orbit, self.refiner.residual(orbit)
 
-    def monodromy(self, point):
-        """The monodromy route at a chain wavenumber: dict of the mono fields."""
-        return monodromy_fields(self.sectors, self.refiner, *self.refine(point))
-
     def verdict(self, row):
         """(resolution, verdict): slowly unstable (1) when the co-moving gamma exceeds the target on every grid
         and the last two agree to 10% (gamma = the Richardson value); stable within the largest gamma measured (0)
@@ -246,7 +250,7 @@ class SlowInstabilityScan(Study):
         row = dict(q=q, m=-1, **self.comoving(point), **dict.fromkeys(MONO_FIELDS, math.nan))
         if self.n_twist and fits_chain(q, self.N):
             row["m"] = int(round(q * self.N / (2 * math.pi)))
-            row.update(self.monodromy(point))
+            row.update(monodromy_fields(self.sectors, self.refiner, *self.refine(point)))     # the monodromy route
         row["slope_whitham"] = whitham_slope(point, PETSc.COMM_SELF) if q < math.pi * (1 - 1e-9) else math.nan
         row["resolution"], row["verdict"] = self.verdict(row)
         row["seconds"] = time.perf_counter() - t0
@@ -319,14 +323,11 @@ def comoving_validation(branch, qs, N, reference, comm=PETSc.COMM_SELF):
         scan = theta_scan(wave, [2 * math.pi * j / N for j in range(N // 2 + 1)], pep)
         if scan.lam != scan.lam:
             raise ParameterError("-validate", q, "has no mode outside the compacton band: validate at unstable q")
-        mus, lam, theta = [abs(wave.multiplier(scan.lam, scan.theta))], scan.lam, scan.theta
-        for K in grids[1:]:
-            w = ComovingWave.from_point(point, K, comm)
-            lam = tracked_exponent(w, theta, lam, pep)
-            mus.append(abs(w.multiplier(lam, theta)))
+        mus = [abs(wave.multiplier(scan.lam, scan.theta))] + [abs(w.multiplier(lam, scan.theta)) for w, lam in
+                                                              tracked_on_grids(point, grids[1:], scan, pep, comm)]
         mu = richardson(mus, 2.0, 2)[1]
         ref = reference.get(round(point.q, 12), math.nan)
-        rows.append(dict(q=point.q, theta=theta, grids=grids, mus=mus, order=richardson(mus, 2.0)[0], mu=mu,
+        rows.append(dict(q=point.q, theta=scan.theta, grids=grids, mus=mus, order=richardson(mus, 2.0)[0], mu=mu,
                          reference=ref, difference=mu - ref))
     return rows
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from petsc4py import PETSc
 
-from ..compacton_spectrum import jordan_check, split_jordan_pair
+from ..compacton_spectrum import window_spectrum
 from ..compacton_window import WINDOW_PREFIX, WINDOW_TOLERANCES, embed
 from ..errors import ParameterError
 from ..hertz import check_alpha
@@ -36,9 +36,8 @@ from ..solitary import SOL_PREFIX, SolitaryParameters, solve_solitary_wave
 from ..solitary_family import (PrecompressionContinuation, check_sound_speed, essential_radius, guess_from_solitary,
                                precompression_at_unit_speed, symplectic_product, tail_rate, unit_lattice,
                                weighted_multipliers, window_beads, window_energy)
-from .base import Study
-from .compacton_stability import CHECK_PREFIX, CHECK_TOLERANCES, NDOM, TOL_UNSTABLE, _key, continue_to, fmt_multiplier
-from .dealing import dealt
+from .compacton_stability import (CHECK_PREFIX, CHECK_TOLERANCES, NDOM, TOL_UNSTABLE, ContinuedScan, continue_to,
+                                  fmt_multiplier)
 
 FORMAT = "hertzpetsc-solitary-stability-1"
 FD_STEP = 1e-4                  # relative step in delta0 of the finite-difference slope (error ~ step^2 ~ 1e-8)
@@ -91,7 +90,7 @@ class SolitaryStabilityParameters:
             raise ParameterError("tol_unstable", self.tol_unstable, "must be > 0")
 
 
-class SolitaryStabilityScan(Study):
+class SolitaryStabilityScan(ContinuedScan):
     """Solitary waves (module docstring): each alpha on one rank (COMM_SELF), the alphas of a continuation step
     dealt to the ranks, so the records do not depend on the number of ranks. Prefixes: ``cwin_`` (window flows),
     ``ccheck_`` (independent residual flow), ``sol_`` (eq. adr)."""
@@ -101,10 +100,11 @@ class SolitaryStabilityScan(Study):
     DTYPES = {"multipliers": complex, "dominant": complex, "iterations": np.int64, "points": np.int64,
               "unstable": np.int64}
     ROLES = ROLES
-    WHAT = "solitary stability file"
+    WHAT, PARAMETER = "solitary stability file", "c0"
 
     def __init__(self, params, comm=None, output=None, mode="new"):
         super().__init__(params, comm, output, mode)
+        self.sequences = {a: params.c0 for a in params.alphas}
         self.SHAPES = {"multipliers": (2 * params.M,), "dominant": (NDOM,), "state": (params.M, 2)}
         self.configure()
         self._tools = {}
@@ -133,9 +133,7 @@ class SolitaryStabilityScan(Study):
         if i == 0:
             wave = solve_solitary_wave(SolitaryParameters(alpha, 40), PETSc.COMM_SELF)
             return cont_problem.refine(guess_from_solitary(wave, M, M // 2), 0.0)
-        byc = {_key(r["alpha"], r["c0"]): r for r in self.store.records}
-        prev = [byc[_key(alpha, c)] for c in self.params.c0[max(0, i - 2):i]]
-        seeds = [cont_problem.pack(r["state"], float(r["delta0"])) for r in prev]
+        seeds = [cont_problem.pack(r["state"], float(r["delta0"])) for r in self.preceding(alpha, i)]
         return continue_to(cont_problem, seeds, precompression_at_unit_speed(alpha, self.params.c0[i]))["wave"]
 
     def compute(self, item):
@@ -150,10 +148,7 @@ class SolitaryStabilityScan(Study):
         Y, w = ex.Y, family.window(d)
         model = w.model
         essential, eta = essential_radius(c0)
-        _, J, _ = w.jacobian(Y, 0.0)
-        lam = weighted_multipliers(J, eta)
-        mean, split, rest = split_jordan_pair(lam)
-        jc = jordan_check(w, J, Y, 0.0)
+        _, lam, mean, split, rest, jc = window_spectrum(w, Y, 0.0, lambda J: weighted_multipliers(J, eta))
         H = window_energy(model, Y)
         slope = symplectic_product(jc.v1, jc.v2) / H           # c dH/dc / H at c = 1: omega(v1, v2) = dH/dc
         slope_fd = math.nan
@@ -165,11 +160,7 @@ class SolitaryStabilityScan(Study):
         speed, H_unit, dHdc_unit = unit_lattice(alpha, d, H, slope * H) if d > 0 else (math.inf, math.inf, math.inf)
         # the same wave in a window of 2M beads (M/2 more at rest behind), re-refined: the truncation's effect
         e2 = doubled.refine(embed(Y, 2 * p.M, p.M // 2), d)
-        w2 = doubled.window(d)
-        _, J2, _ = w2.jacobian(e2.Y, 0.0)
-        lam2 = weighted_multipliers(J2, eta)
-        _, _, rest2 = split_jordan_pair(lam2)
-        jc2 = jordan_check(w2, J2, e2.Y, 0.0)
+        *_, rest2, jc2 = window_spectrum(doubled.window(d), e2.Y, 0.0, lambda J: weighted_multipliers(J, eta))
         H2 = window_energy(model, e2.Y)
         compared = [v for v in rest[:NDOM] if abs(v) > max(POINT_MARGIN * essential, 1e-3)]
         moved = [float(np.min(np.abs(rest2 - v))) for v in compared]
@@ -186,15 +177,6 @@ class SolitaryStabilityScan(Study):
                     tail_front=abs(float(r[-1])) / deepest, tail_rear=abs(float(r[0])) / deepest,
                     doubling_change=doubling, seconds=time.perf_counter() - t0, multipliers=lam,
                     dominant=np.pad(rest[:NDOM], (0, max(0, NDOM - len(rest)))), state=Y)
-
-    def run(self):
-        """Compute every (alpha, c0) not in the file, by continuation steps; yields each record after saving it."""
-        self.open()
-        done = {_key(r["alpha"], r["c0"]) for r in self.store.records}
-        for i, c0 in enumerate(self.params.c0):
-            items = [(a, i) for a in self.params.alphas if _key(a, c0) not in done]
-            for _, row in dealt(items, [1.0] * len(items), self.comm, self.compute):
-                yield self.store.append(row)
 
     def destroy(self):
         for tools in self._tools.values():
@@ -248,8 +230,7 @@ class SolitaryStabilityScan(Study):
         lines = ["| alpha | c0 scanned | d ln H / d ln c (min ... max) | sign of dH/dc | energy criterion | max "
                  "nontrivial \\|mu\\| (at c0) | unstable multipliers | spectral verdict | max \\|omega - FD\\| / FD | "
                  "max 2M change |", "|---|---|---|---|---|---|---|---|---|---|"]
-        for a in sorted({float(r["alpha"]) for r in self.records}):
-            rs = [r for r in self.rows() if float(r["alpha"]) == a]
+        for a, rs in self.by_alpha():
             s = np.array([float(r["log_slope"]) for r in rs])
             fd = np.array([float(r["log_slope_fd"]) for r in rs])
             ok = np.isfinite(fd)

@@ -267,9 +267,7 @@ class AppOptions:
     def record_table_figures(self, record, what, table, figures):
         """-output (a record file, default ``record``), -resume/-force, -table and -figures, for the drivers whose
         -output is their record store: (record path, mode, table path, figures directory)."""
-        output = self.path("output", record, f"{what} (record store)")
-        mode = self.mode()
-        return (output, mode, self.path("table", table, "table"),
+        return (self.path("output", record, f"{what} (record store)"), self.mode(), self.path("table", table, "table"),
                 self.path("figures", "", f"directory for {figures} (none if empty)"))
 
     def mode(self):

@@ -26,9 +26,8 @@ from .qbranch import ContinuationParameters
 from .shooting import Refinement
 from .shooting import refine as _refine
 from .studies.branch import BranchStudy
+from .studies.floquet import METHODS
 from .waves import Orbit, orbit_on_chain
-
-METHODS = ("symmetric", "dense", "slepc")
 
 
 def _comm(comm):

@@ -181,9 +181,9 @@ class AppOptions:
         try:
             value = int(raw)
         except ValueError:
-            raise ParameterError(f"-{name}", raw, f"must be an integer {rng}".strip()) from None
-        if (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
-            raise ParameterError(f"-{name}", raw, f"must be an integer {rng}")
+            value = None
+        if value is None or (minimum is not None and value < minimum) or (maximum is not None and value > maximum):
+            raise ParameterError(f"-{name}", raw, f"must be an integer {rng}".strip())
         return value
 
     def string(self, name, default, help="", choices=None):
@@ -233,13 +233,11 @@ class AppOptions:
         try:
             items = [v.strip() for v in text.split(",")] if text.strip() else []
             values = [self._number(v, expr) for v in items]
-            if kind is int and any(v != int(v) for v in values):
+            if (kind is int and any(v != int(v) for v in values)) or len(values) < minimum_count:
                 raise ValueError
             values = [kind(v) for v in values]
         except Exception:
             raise ParameterError(f"-{name}", text, f"must be {rule}") from None
-        if len(values) < minimum_count:
-            raise ParameterError(f"-{name}", text, f"must be {rule}")
         if valid is not None:
             bad = [v for v in values if not valid[0](v)]
             if bad:
@@ -269,9 +267,7 @@ class AppOptions:
     def record_table_figures(self, record, what, table, figures):
         """-output (a record file, default ``record``), -resume/-force, -table and -figures, for the drivers whose
         -output is their record store: (record path, mode, table path, figures directory)."""
-        output = self.path("output", record, f"{what} (record store)")
-        mode = self.mode()
-        return (output, mode, self.path("table", table, "table"),
+        return (self.path("output", record, f"{what} (record store)"), self.mode(), self.path("table", table, "table"),
                 self.path("figures", "", f"directory for {figures} (none if empty)"))
 
     def mode(self):

@@ -36,6 +36,16 @@ def available_memory():
     return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
 
 
+def _shared_memory(comm, available):
+    """(``comm`` or COMM_WORLD, ``available`` or rank 0's :func:`available_memory` on every rank). Collective."""
+    comm = comm if comm is not None else PETSc.COMM_WORLD
+    if available is None:
+        available = available_memory()
+        if comm.getSize() > 1:
+            available = comm.tompi4py().bcast(available, root=0)
+    return comm, available
+
+
 def estimate_memory(cells_per_pi, ranks, solver="nk", profiles=1):
     """(bytes per rank, bytes in total) for a travelling-wave solve with p (K - 1) unknowns (p = ``profiles``, the
     mass pattern's length) on ``ranks`` ranks."""
@@ -52,12 +62,8 @@ def check_memory(cells_per_pi, comm=None, solver="nk", available=None, profiles=
     All ranks of ``comm`` are assumed to share one machine's memory (the ranks of a run on this 2-core box);
     rank 0's figure of the available memory is used on every rank, so all ranks agree. Collective on ``comm``.
     """
-    comm = comm if comm is not None else PETSc.COMM_WORLD
+    comm, available = _shared_memory(comm, available)
     ranks = comm.getSize()
-    if available is None:
-        available = available_memory()
-        if ranks > 1:
-            available = comm.tompi4py().bcast(available, root=0)
     K = int(cells_per_pi)
     if profiles * (K - 1) + 2 > MAX_UNKNOWNS:
         limit = (MAX_UNKNOWNS - 2) // profiles + 1
@@ -84,11 +90,7 @@ BYTES_PER_BEAD_COLUMN = 2 * 8 * 24
 def check_chain_memory(N, comm=None, columns=1, name="N", available=None):
     """Raise :class:`ParameterError` naming ``name`` if a chain of N beads carrying ``columns`` state columns (the
     state plus tangents) would not fit in memory or in PETSc's index type. Collective on ``comm``."""
-    comm = comm if comm is not None else PETSc.COMM_WORLD
-    if available is None:
-        available = available_memory()
-        if comm.getSize() > 1:
-            available = comm.tompi4py().bcast(available, root=0)
+    comm, available = _shared_memory(comm, available)
     N, columns = int(N), int(columns)
     if 2 * N * columns > MAX_UNKNOWNS:
         raise ParameterError(name, N, f"gives {2 * N * columns} unknowns, more than PETSc's index type allows "

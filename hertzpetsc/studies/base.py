@@ -63,7 +63,9 @@ class Study:
         ``LABELS``, the options given under the study's solver roles that change numbers, and the content hashes of
         the input files."""
         out = {k: v for k, v in self.constants().items() if k not in self.LABELS}
-        out.update(provenance(self.comm, **self.inputs()), solver_options=solver_options(self.ROLES))
+        # an input path that names no file (e.g. the label of a branch computed in memory) has no hash
+        out.update({f"{name}_sha256": file_digest(path, self.comm) for name, path in self.inputs().items()
+                    if path and os.path.isfile(path)}, solver_options=solver_options(self.ROLES))
         return out
 
     def open(self):
@@ -181,18 +183,6 @@ def plain(params):
 
 # options that do not change numbers (what is printed or logged, not what is computed)
 _NON_NUMERIC = ("monitor", "view", "converged_reason", "log", "help", "draw")
-
-
-def provenance(comm, prefixes=(), **inputs):
-    """Identity entries of a record file made from input files and solvers: ``<name>_sha256`` for each input
-    file given (a path that names no file, e.g. the label of a branch computed in memory, is skipped) and the
-    number-changing options under the solver ``prefixes`` (collective; a resume with another input or other
-    solver settings is then refused, naming the entry)."""
-    out = {f"{name}_sha256": file_digest(path, comm) for name, path in inputs.items()
-           if path and os.path.isfile(path)}
-    if prefixes:
-        out["solver_options"] = solver_options(prefixes)
-    return out
 
 
 def solver_options(prefixes):

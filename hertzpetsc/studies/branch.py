@@ -163,8 +163,7 @@ class SmallQParameters:
         return self.grid(level).cells_per_pi(q)
 
     def identity(self):
-        return dict(alpha=self.alpha, q_stop=self.q_stop, q_first=self.q_first, per_halving=self.per_halving,
-                    cells_per_q=self.cells_per_q, levels=self.levels)
+        return asdict(self)
 
 
 def _legacy_smallq_progress(path, params):

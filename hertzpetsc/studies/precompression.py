@@ -146,15 +146,12 @@ class AmplitudeFamilies(Study):
         return dict(q=point.q, kind=kind, a=point.a, A=point.A, omega=point.omega, omega_lin=self.omega_lin(point.q),
                     Omega=point.Omega, lam=point.lam, gap=point.gap, iterations=point.iterations)
 
-    def _done(self, q):
-        return {(int(r["kind"]), round(float(r["a"]), 10)) for r in _at(self.store.records, q)}
-
     def run(self):
         """Compute every q not complete in the file; yields each new record after saving it."""
         self.open()
         grid = ProfileGrid(self.K, self.comm)
         for q in self.qs:
-            done = self._done(q)
+            done = {(int(r["kind"]), round(float(r["a"]), 10)) for r in _at(self.store.records, q)}
             if any(k == KIND_LIMIT for k, _ in done):
                 continue
             fam = AmplitudeFamily(self.model, q, grid, branch=self.branch)

@@ -216,13 +216,15 @@ def _same(a, b):
     return a == b
 
 
-def check_identity(stored, wanted, path):
-    """Every identity key in both must agree; keys the stored file lacks (older files) are not compared."""
+def check_identity(stored, wanted, path, names=None):
+    """Every identity key in both must agree; keys the stored file lacks (older files) are not compared. A
+    difference names the key and, where ``names`` has one, the parameter and option that set it."""
     for key, value in wanted.items():
         if key in stored and not _same(stored[key], value):
+            by = f", set by {names[key]}" if names and key in names else ""
             raise RecordFileError(f"{path!r} holds another computation: {key} = {stored[key]!r} there, {value!r} "
-                                  "requested (rerun with the same parameters, or without -resume and with -force "
-                                  "(mode 'force' in the API) to start afresh)")
+                                  f"requested{by} (rerun with the same parameters, or without -resume and with "
+                                  "-force (mode 'force' in the API) to start afresh)")
 
 
 class RecordStore:
@@ -286,12 +288,13 @@ class NpzRecords(RecordStore):
     metadata); ``fields``: the per-record entries, stacked along a first axis of length P; ``dtypes`` maps a
     field to its dtype (default float64) and ``shapes`` gives the per-record shape of array fields, so that an
     archive with P = 0 records still has the right shapes. ``added``: {field: value} of the fields added to the
-    format after files were written; a file without one loads with that value in every record.
+    format after files were written; a file without one loads with that value in every record. ``names``: how
+    the user sets an identity key whose name is not the parameter's (:func:`check_identity`).
     """
 
     def __init__(self, path, kind, constants, identity, fields, comm=None, mode="new", dtypes=None, shapes=None,
-                 what="record file", added=None):
-        self.constants, self.fields = dict(constants), tuple(fields)
+                 what="record file", added=None, names=None):
+        self.constants, self.fields, self.names = dict(constants), tuple(fields), names
         self.dtypes, self.shapes, self.added = dict(dtypes or {}), dict(shapes or {}), dict(added or {})
         self.what = what
         super().__init__(path, kind, identity, comm, mode)
@@ -306,7 +309,7 @@ class NpzRecords(RecordStore):
         data = load_npz(self.path, self.what)
         check_kind(data, self.path, self.kind, self.what)
         check_identity({k: data[k].item() if data[k].ndim == 0 else data[k].tolist() for k in self.identity
-                        if k in data}, self.identity, self.path)
+                        if k in data}, self.identity, self.path, self.names)
         missing = [f for f in self.fields if f not in data and f not in self.added]
         if missing:
             raise RecordFileError(f"{self.what} {self.path!r} is corrupt: missing {missing}")

@@ -423,7 +423,7 @@ def test_resume_refuses_other_amplitudes(tmp_path):
     for a in ((0.3, 3.0, 10.0), (0.3,), (0.3, 2.0)):
         study = small_map(a, path, "resume")
         try:
-            with pytest.raises(RecordFileError, match=r"amplitudes a \(-a.* are 0.3, 3 there"):
+            with pytest.raises(RecordFileError, match=r"amplitudes = \[0\.3, 3\.0\] there, .* requested, set by a \(-a"):
                 list(study.run())
         finally:
             study.destroy()

@@ -140,6 +140,21 @@ def test_state_arrays_are_replaced_and_resumed(tmp_path):
     assert [float(r["q"]) for r in again.records] == [1.0, 0.5] and np.array_equal(again.state["u"], np.arange(5.0))
 
 
+def test_identity_difference_names_the_parameter_that_sets_the_key(tmp_path):
+    """A key that is not the parameter's name (the solitary scan stores c0 as sound_speeds) is named with the
+    parameter and option that set it; other keys as they are."""
+    path = os.path.join(shared_tmp(tmp_path), "n.npz")
+    names = dict(sound_speeds="c0 (-c0)")
+    NpzRecords(path, "test-1", dict(sound_speeds=[0.0, 0.5], M=40), dict(sound_speeds=[0.0, 0.5], M=40), ("q",),
+               COMM, names=names).append(dict(q=1.0))
+    other_c0 = dict(sound_speeds=[0.0, 0.7], M=40)
+    other_M = dict(sound_speeds=[0.0, 0.5], M=42)
+    c0_said = r"sound_speeds = \[0\.0, 0\.5\] there, \[0\.0, 0\.7\] requested, set by c0 \(-c0\) \(rerun"
+    for identity, said in ((other_c0, c0_said), (other_M, r"M = 40 there, 42 requested \(rerun")):
+        with pytest.raises(RecordFileError, match=said):
+            NpzRecords(path, "test-1", identity, identity, ("q",), COMM, "resume", names=names)
+
+
 def test_append_records_survive_a_record_in_flight(tmp_path):
     d = os.path.join(shared_tmp(tmp_path), "run")
     store = AppendRecords(d, "test-log-1", dict(N=2), dict(N=2), 3, COMM)

@@ -37,6 +37,7 @@ class Study:
     WHAT = "record file"
     LABELS = ()                # constants that are not part of the identity (file names, notes)
     ADDED = {}                 # {field: value} of fields added after files were written (NpzRecords ``added``)
+    NAMES = {}                 # {identity key: "parameter (-option)"} where the key is not the parameter's name
     store = None
 
     def __init__(self, params, comm=None, output=None, mode="new"):
@@ -80,7 +81,7 @@ class Study:
             return MemoryRecords(self.FORMAT, self.constants(), self.FIELDS, self.comm, self.DTYPES, self.SHAPES)
         identity = self.identity()
         return NpzRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity, self.FIELDS,
-                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT, self.ADDED)
+                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT, self.ADDED, self.NAMES)
 
     def _todo(self, qs):
         """The wavenumbers of ``qs`` that the store holds no record of yet (to 12 decimals)."""

@@ -317,6 +317,8 @@ class StabilityMap(Study):
     ROLES = {"floquet_": ("the flow of the variational equations (the cells' maps)", ("ts",)),
              "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
     WHAT = "stability-map file"
+    NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="m or epsilon (-m, -epsilon)",
+                 cells_per_pi="cells_per_pi (-cells_per_pi)")
 
     def __init__(self, params, comm=None, output=None, mode="new"):
         super().__init__(params, comm, output, mode)
@@ -331,25 +333,6 @@ class StabilityMap(Study):
         return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses), N=self.N,
                     cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists,
                     locate=",".join(self.locate) or "none", locate_tol=self.locate_tol, amplitudes=self.a_values)
-
-    def _open(self):
-        """The record store; a resumed file whose map amplitudes differ is refused naming ``a`` (each q's family,
-        edges and limit depend on all of them: a q done with other amplitudes is another computation; files
-        written before the amplitudes were stored are not compared)."""
-        if self.output is not None and self.mode == "resume":
-            def stored():
-                if not os.path.exists(self.output):
-                    return None
-                z = load_npz(self.output, self.WHAT)
-                return z["amplitudes"].tolist() if "amplitudes" in z else None
-            there = on_rank0(self.comm, stored, what=self.WHAT)
-            if there is not None and not (len(there) == len(self.a_values)
-                                          and np.allclose(there, self.a_values, rtol=1e-12, atol=0)):
-                raise RecordFileError(f"{self.output!r} holds another computation: the map's amplitudes a (-a, with "
-                                      f"the -ds grid) are {', '.join(f'{x:g}' for x in there)} there, "
-                                      f"{', '.join(f'{x:g}' for x in self.a_values)} requested (rerun with the same "
-                                      "amplitudes, or without -resume and with -force to start afresh)")
-        return super()._open()
 
     def route(self, model):
         """The deflated sector route of ``model`` on one rank (built once per model, prefix ``floquet_``)."""
@@ -601,6 +584,7 @@ class QBoundary(Study):
     DTYPES = {"M": np.int64, "kind": np.int64, "grid": np.int64, "evaluations": np.int64}
     ROLES = StabilityMap.ROLES
     WHAT = "boundary-in-q file"
+    NAMES = dict(levels="A (-A)", grid_q="q (-q)", masses=StabilityMap.NAMES["masses"])
     locate, N = ("infinite",), 0
     route = StabilityMap.route
 

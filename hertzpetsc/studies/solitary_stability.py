@@ -101,6 +101,7 @@ class SolitaryStabilityScan(ContinuedScan):
               "unstable": np.int64}
     ROLES = ROLES
     WHAT, PARAMETER = "solitary stability file", "c0"
+    NAMES = dict(sound_speeds="c0 (-c0)", M="M (-M; 0: from tail, -tail, and the largest c0)")
 
     def __init__(self, params, comm=None, output=None, mode="new"):
         super().__init__(params, comm, output, mode)

@@ -14,7 +14,8 @@ A study is a loop over parameters whose records are written as they are computed
 It is built from its parameters, a communicator, and an output path: a record file (:class:`NpzRecords`,
 ``mode`` new/resume/force) or, with ``output=None``, an in-memory store (:class:`MemoryRecords`), so every study
 runs from a notebook. :meth:`Study.run` yields each record after saving it; :meth:`Study.arrays` gives the records
-as numpy arrays (the file's content) and :meth:`Study.table` the Markdown table.
+as numpy arrays (the file's content) and :meth:`Study.table` the Markdown table. :class:`ContinuedScan`: the
+studies whose points are continued per alpha, a round of steps at a time.
 """
 import os
 from dataclasses import fields, is_dataclass
@@ -23,6 +24,7 @@ from petsc4py import PETSc
 
 from ..errors import HertzPetscError, ParameterError
 from ..records import MODES, MemoryRecords, NpzRecords, file_digest, write_text
+from .dealing import dealt
 
 
 class Study:
@@ -193,3 +195,40 @@ def solver_options(prefixes):
     items = sorted((k, v) for k, v in PETSc.Options().getAll().items()
                    if k.startswith(tuple(prefixes)) and not any(w in k for w in _NON_NUMERIC))
     return " ".join(f"{k}={v}" for k, v in items)
+
+
+def point_key(alpha, value):
+    """(alpha, value) rounded: the key of a point of a :class:`ContinuedScan` in its records."""
+    return (round(float(alpha), 10), round(float(value), 12))
+
+
+class ContinuedScan(Study):
+    """Points continued per alpha through ``self.sequences`` ({alpha: the values of :attr:`PARAMETER` in computing
+    order}): round i computes the i-th point of every alpha not in the file from the records of the preceding ones,
+    each point on one rank and the alphas of a round dealt to the ranks, so the records do not depend on their
+    number."""
+
+    PARAMETER = "q"
+
+    def cost(self, value):
+        """The relative cost of the point at ``value`` (for dealing)."""
+        return 1.0
+
+    def run(self):
+        """Compute every (alpha, value) not in the file, by continuation steps; yields each record after saving it."""
+        self.open()
+        done = {point_key(r["alpha"], r[self.PARAMETER]) for r in self.store.records}
+        for i in range(max(len(s) for s in self.sequences.values())):
+            items = [(a, i) for a, s in self.sequences.items() if i < len(s) and point_key(a, s[i]) not in done]
+            for _, row in dealt(items, [self.cost(self.sequences[a][i]) for a, _ in items], self.comm, self.compute):
+                yield self.store.append(row)
+
+    def preceding(self, alpha, i):
+        """The records of the (up to two) points of ``alpha`` before its i-th."""
+        known = {point_key(r["alpha"], r[self.PARAMETER]): r for r in self.store.records}
+        return [known[point_key(alpha, v)] for v in self.sequences[alpha][max(0, i - 2):i]]
+
+    def by_alpha(self):
+        """(alpha, its rows in table order) for every alpha of the file, by increasing alpha."""
+        for a in sorted({float(r["alpha"]) for r in self.records}):
+            yield a, [r for r in self.rows() if float(r["alpha"]) == a]

@@ -29,8 +29,7 @@ from ..continuation import Continuation, Natural
 from ..errors import ParameterError
 from ..model import ChainSpec
 from ..richardson import richardson
-from .base import Study
-from .dealing import dealt
+from .base import ContinuedScan, point_key
 
 STABILITY_FORMAT = "hertzpetsc-compacton-stability-1"
 CHECK_PREFIX = "ccheck_"
@@ -59,42 +58,6 @@ def scan_sequence(branch, qs, solitary=True):
                                           "(F(q) = 2 ell/q >= 1, eq. extens; q = 0 is -solitary)")
     rest = sorted((q for q in qs if abs(q - q_top) > 1e-12), reverse=True)
     return [q_top] + rest + ([0.0] if solitary else [])
-
-
-def _key(alpha, q):
-    return (round(float(alpha), 10), round(float(q), 12))
-
-
-class ContinuedScan(Study):
-    """Points continued per alpha through ``self.sequences`` ({alpha: the values of :attr:`PARAMETER` in computing
-    order}): round i computes the i-th point of every alpha not in the file from the records of the preceding ones,
-    each point on one rank and the alphas of a round dealt to the ranks, so the records do not depend on their
-    number."""
-
-    PARAMETER = "q"
-
-    def cost(self, value):
-        """The relative cost of the point at ``value`` (for dealing)."""
-        return 1.0
-
-    def run(self):
-        """Compute every (alpha, value) not in the file, by continuation steps; yields each record after saving it."""
-        self.open()
-        done = {_key(r["alpha"], r[self.PARAMETER]) for r in self.store.records}
-        for i in range(max(len(s) for s in self.sequences.values())):
-            items = [(a, i) for a, s in self.sequences.items() if i < len(s) and _key(a, s[i]) not in done]
-            for _, row in dealt(items, [self.cost(self.sequences[a][i]) for a, _ in items], self.comm, self.compute):
-                yield self.store.append(row)
-
-    def preceding(self, alpha, i):
-        """The records of the (up to two) points of ``alpha`` before its i-th."""
-        known = {_key(r["alpha"], r[self.PARAMETER]): r for r in self.store.records}
-        return [known[_key(alpha, v)] for v in self.sequences[alpha][max(0, i - 2):i]]
-
-    def by_alpha(self):
-        """(alpha, its rows in table order) for every alpha of the file, by increasing alpha."""
-        for a in sorted({float(r["alpha"]) for r in self.records}):
-            yield a, [r for r in self.rows() if float(r["alpha"]) == a]
 
 
 class CompactonStabilityScan(ContinuedScan):
@@ -210,7 +173,7 @@ class CompactonStabilityScan(ContinuedScan):
 
     def record(self, alpha, q):
         for r in self.store.records:
-            if _key(r["alpha"], r["q"]) == _key(alpha, q):
+            if point_key(r["alpha"], r["q"]) == point_key(alpha, q):
                 return r
         raise ParameterError("q", q, f"not in the compacton stability file at alpha = {alpha:g}")
 

@@ -36,8 +36,8 @@ from ..solitary import SOL_PREFIX, SolitaryParameters, solve_solitary_wave
 from ..solitary_family import (PrecompressionContinuation, check_sound_speed, essential_radius, guess_from_solitary,
                                precompression_at_unit_speed, symplectic_product, tail_rate, unit_lattice,
                                weighted_multipliers, window_beads, window_energy)
-from .compacton_stability import (CHECK_PREFIX, CHECK_TOLERANCES, NDOM, TOL_UNSTABLE, ContinuedScan, continue_to,
-                                  fmt_multiplier)
+from .base import ContinuedScan
+from .compacton_stability import CHECK_PREFIX, CHECK_TOLERANCES, NDOM, TOL_UNSTABLE, continue_to, fmt_multiplier
 
 FORMAT = "hertzpetsc-solitary-stability-1"
 FD_STEP = 1e-4                  # relative step in delta0 of the finite-difference slope (error ~ step^2 ~ 1e-8)

@@ -317,8 +317,7 @@ class StabilityMap(Study):
     ROLES = {"floquet_": ("the flow of the variational equations (the cells' maps)", ("ts",)),
              "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
     WHAT = "stability-map file"
-    NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="m or epsilon (-m, -epsilon)",
-                 cells_per_pi="cells_per_pi (-cells_per_pi)")
+    NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="model's masses (-epsilon)")
 
     def __init__(self, params, comm=None, output=None, mode="new"):
         super().__init__(params, comm, output, mode)
@@ -584,7 +583,7 @@ class QBoundary(Study):
     DTYPES = {"M": np.int64, "kind": np.int64, "grid": np.int64, "evaluations": np.int64}
     ROLES = StabilityMap.ROLES
     WHAT = "boundary-in-q file"
-    NAMES = dict(levels="A (-A)", grid_q="q (-q)", masses=StabilityMap.NAMES["masses"])
+    NAMES = dict(levels="A (-A)", grid_q="q (-m with -N, and -q)")
     locate, N = ("infinite",), 0
     route = StabilityMap.route
 

@@ -56,18 +56,22 @@ def wave_at(model: LatticeModel, q: float, A: float, cells_per_pi: int = 400, br
     """The travelling wave of a precompressed ``model`` (any mass pattern) with per-bead wavenumber q and amplitude
     A = max |u| (A is a border row of eq. ad; reached from the linear wave by natural steps), on the grid h = pi /
     cells_per_pi: an :class:`~hertzpetsc.families.AmplitudePoint` (omega, the rescaled profiles, the gap
-    indicator). :func:`wave` puts such a wave on a chain. Collective."""
+    indicator). ``branch``: the linear wave the family starts from, 'acoustic' (the lowest frequency at q) or, for a
+    mass pattern, 'optical' (the highest); a family that folds below A raises
+    :class:`~hertzpetsc.families.FamilyFold` (the largest A it reaches, the other branch to try). :func:`wave` puts
+    such a wave on a chain. Collective."""
     grid = ProfileGrid(cells_per_pi, _comm(comm))
     return _wave_at(model, q, A, grid, branch=branch)
 
 
 def wave(model: LatticeModel, q: float, A: float, N: int, cells_per_pi: int = 400,
-         comm: Optional[PETSc.Comm] = None) -> Orbit:
+         comm: Optional[PETSc.Comm] = None, branch: str = "acoustic") -> Orbit:
     """The travelling wave of any ``model`` (Hertz exponent, precompression, mass pattern) with per-bead wavenumber
     q and amplitude A = max |u|, on a periodic chain of N beads (N q / 2 pi wavelengths, whole pattern cells): an
     :class:`~hertzpetsc.waves.Orbit` (state, script-T) ready for :func:`refine` and :func:`multipliers`.
-    Collective."""
-    point, scale = wave_of_amplitude(model, q, A, ProfileGrid(cells_per_pi, _comm(comm)))
+    ``branch``: the linear wave a precompressed pattern's family starts from ('acoustic' or 'optical', as in
+    :func:`wave_at`). Collective."""
+    point, scale = wave_of_amplitude(model, q, A, ProfileGrid(cells_per_pi, _comm(comm)), branch=branch)
     return orbit_on_chain(point, ChainSpec(model, N), scale=scale)
 
 

@@ -100,6 +100,17 @@ class ContinuationError(ConvergenceError):
         self.what, self.reason, self.where = "continuation", reason, {parameter: failed}
 
 
+class FoldError(ContinuationError):
+    """The curve turns back at a fold of the parameter before the step's target (:meth:`Continuation.step_to`
+    followed it by pseudo-arclength and came back past the step's start). ``fold``: the point of the curve farthest
+    towards the target (the located fold, or the farthest point reached when the fold could not be located), a
+    :class:`ContinuationPoint` with the problem's report."""
+
+    def __init__(self, parameter, last, failed, reason, fold):
+        super().__init__(parameter, last, failed, reason)
+        self.fold = fold
+
+
 class ContinuationProblem:
     """The hooks a problem gives the continuation layer (defaults where one makes sense, else NotImplementedError).
 
@@ -462,23 +473,27 @@ class Continuation:
         points' distance, and no step is longer than it or the natural step; the folds and the roots of the test
         functions located on the way join :attr:`events` (those the natural steps had located are not repeated).
         Raises :class:`ContinuationError` (the natural step's ``failure``, at ``p_failed`` from ``p_last``; the
-        continuation is then back at ``start``) when the steps fail, or the curve turns back past ``p_start`` (the
-        error names the fold), or it has not passed the target after ``around_folds`` steps."""
+        continuation is then back at ``start``) when the steps fail, or the curve turns back past ``p_start`` (a
+        :class:`FoldError` naming the fold, with the curve's farthest point), or it has not passed the target after
+        ``around_folds`` steps."""
         alg = self.natural
         self.seed([Z for Z, _ in start], [s for _, s in start])
         chord, dist = self._chord(start[0][0], start[1][0])          # the history's two points (copies of them)
         chord.destroy()
         longest = max(abs(p_target - p_start), dist)
-        known, folds = list(self.events), []
+        known, folds, furthest = list(self.events), [], None
         same = max(1e-6 * longest, self.locate_step or 0.0)      # a root the natural steps located
         saved = self.algorithm, self.ds, self._pending
         self.algorithm = PseudoArclength(ds=dist, ds_min=min(dist, 1e-12 * longest), ds_max=longest)
         self.ds, self._pending, self.changes, self._detouring = dist, [], 0, True
         direction = math.copysign(1.0, p_target - p_start)
         why = f"{failure}; then {alg.around_folds} pseudo-arclength steps did not pass it"
+        turned = None
         try:
             for _ in range(alg.around_folds):
                 point = self.step()
+                if furthest is None or (point.parameter - furthest.parameter) * direction > 0:
+                    furthest = point
                 if point.event is not None:
                     if point.event == "fold":
                         folds.append(point.parameter)
@@ -493,6 +508,7 @@ class Continuation:
                     at = f" = {folds[-1]:.12g}" if folds else ""
                     why = (f"{failure}; the curve turns back at a fold of {self.problem.parameter}{at} "
                            f"(pseudo-arclength steps came back past the step's start {p_start:.12g})")
+                    turned = furthest
                     break
         except ContinuationError as err:
             why = f"{failure}; then pseudo-arclength steps failed too ({err.reason})"
@@ -500,6 +516,8 @@ class Continuation:
             self.algorithm, self.ds, self._pending = saved
             self._detouring = False
         self.seed([Z for Z, _ in start], [s for _, s in start])      # back where the natural steps started
+        if turned is not None:
+            raise FoldError(self.problem.parameter, p_last, p_failed, why, turned)
         raise ContinuationError(self.problem.parameter, p_last, p_failed, why)
 
     def _corrector_size(self, Z, pred):

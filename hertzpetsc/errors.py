@@ -25,6 +25,11 @@ class HertzPetscError(Exception):
 
     exit_status = 2
 
+    def as_option(self, options):
+        """The same error as a driver reports it, naming its command-line ``options`` (the names it declares)
+        where the message names an argument of the API; this one says it the same way in both."""
+        return self
+
 
 class ParameterError(HertzPetscError, ValueError):
     """A parameter is outside its valid range."""

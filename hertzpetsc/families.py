@@ -23,7 +23,7 @@ import numpy as np
 from .advdelay import AdvanceDelayProblem, check_wavenumber, profile_sup
 from .assembly import gathered
 from .branch import BranchPoint
-from .continuation import ContinuationError, ContinuationUse, LazyTests, Natural, PseudoArclength
+from .continuation import ContinuationError, ContinuationUse, FoldError, LazyTests, Natural, PseudoArclength
 from .errors import ConvergenceError, ParameterError, check_real
 from .stencil import full_period, lagrange_periodic
 
@@ -116,6 +116,38 @@ class AmplitudePoint:
         """The wave as a :class:`~hertzpetsc.branch.BranchPoint` at its physical amplitude (u_c = a w_c, omega)."""
         prof = tuple(self.a * np.asarray(w) for w in self.profiles)
         return BranchPoint(q=self.q, u_half=prof[0], h=h, model=model, profiles=prof, omega=self.omega)
+
+
+class FamilyFold(ConvergenceError):
+    """An amplitude family that turns back at a fold before the amplitude asked for: followed through the fold by
+    pseudo-arclength, the curve returns to smaller amplitudes. ``fold``: the wave farthest along the family (an
+    :class:`AmplitudePoint`: the largest amplitude it reaches), ``branch``: the linear wave the family starts from,
+    ``target``: the amplitude asked for (``name``: 'A' = max |u|, or 'a' the first sine coefficient). The message
+    names the other branch of a mass pattern, which may have the wave (:meth:`as_option`: its driver option)."""
+
+    def __init__(self, q, branch, fold, target, name, cell):
+        self.q, self.branch, self.fold, self.target, self.name, self.cell = q, branch, fold, target, name, cell
+        self.other = {"acoustic": "optical", "optical": "acoustic"}[branch] if cell > 1 else None
+        at = (f"A = max |u| = {fold.A:.6g}" if name == "A" else
+              f"a = {fold.a:.6g} (first sine coefficient; A = max |u| = {fold.A:.6g})")
+        self.why = (f"the {branch} family at q = {q:.12g} (per bead) folds at {at}, omega = {fold.omega:.6g}: followed "
+                    f"through the fold by pseudo-arclength it turns back to smaller amplitudes and does not reach "
+                    f"{name} = {target:.6g}")
+        hint = (f"the {self.other} family may have it (hz.wave_at(..., branch=\"{self.other}\"), "
+                f"hz.wave(..., branch=\"{self.other}\"), or -branch {self.other} in wave.py and "
+                "precompressed_branch.py)" if self.other else
+                f"a monatomic chain has no other family here; amplitudes up to {fold.A:.6g} have waves")
+        self.what, self.reason, self.where = "amplitude continuation", "fold", dict(q=q, **{name: target})
+        RuntimeError.__init__(self, f"{self.why}; {hint}")
+
+    def as_option(self, options):
+        """In a driver with a ``-branch`` option: the same error naming that option only."""
+        if self.other is None or "branch" not in options:
+            return self
+        err = FamilyFold(self.q, self.branch, self.fold, self.target, self.name, self.cell)
+        RuntimeError.__init__(err, f"{self.why}; the {self.other} family may have it: run again with "
+                                   f"-branch {self.other}")
+        return err
 
 
 class FamilyProblem(AdvanceDelayProblem):
@@ -238,6 +270,10 @@ class AmplitudeFamily(ContinuationUse):
         located = self._gap_events()
         try:
             cp = self.continuation.step_to(math.log(a))
+        except FoldError as err:
+            fold = self.problem.located(err.fold, self.continuation.parameter)
+            raise FamilyFold(self.q, self.branch, fold, a, "A" if self.problem.measure == "sup" else "a",
+                             self.model.cell) from None
         except ContinuationError as err:
             raise ConvergenceError("amplitude continuation", err.reason, q=self.q, a=math.exp(err.failed)) from None
         point = self.problem.located(cp, cp.parameter)

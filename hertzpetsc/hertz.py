@@ -55,7 +55,9 @@ def compressed_force(x, delta0, alpha):
     k, half = power_recipe(alpha)
     if k < 0:
         ratio = np.minimum(x / delta0, 1.0)
-        with np.errstate(divide="ignore"):          # log1p(-1) = -inf: out of contact, V' = delta0^alpha
+        # log1p(-1) = -inf: out of contact, V' = delta0^alpha; a compression far beyond any wave's (a diverging
+        # Newton iterate, x ~ -1e300) gives an infinite force, which the solver rejects, without a warning
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
             return -delta0 ** alpha * np.expm1(alpha * np.log1p(-ratio))
     gap = np.maximum(delta0 - x, 0.0)
     if half:

@@ -496,7 +496,7 @@ def _report(err):
     elif os.environ.get("HZ_TRACEBACK"):          # for developers: the full traceback instead of one line
         raise err
     elif isinstance(err, HertzPetscError):
-        if isinstance(err, ParameterError) and AppOptions.current is not None:
+        if AppOptions.current is not None:
             err = err.as_option(AppOptions.current.known())
         _exit(err.exit_status, str(err), True)
     elif isinstance(err, PETSc.Error):

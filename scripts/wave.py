@@ -2,15 +2,16 @@
 """A travelling wave of a chain of your own choosing, refined, and its stability (hertzpetsc.studies.wave).
 
     mpiexec -n 2 python scripts/wave.py [-alpha 1.5] [-delta0 1] [-masses 1,0.5,0.333333] [-q 2*pi/15] [-A 0.5]
-        [-cells_per_pi 400] [-N 90] [-sizes 30000] [-tol 1e-10] [-tol_rho 1e-4]
+        [-branch acoustic|optical] [-cells_per_pi 400] [-N 90] [-sizes 30000] [-tol 1e-10] [-tol_rho 1e-4]
         [-output results/wave.npz] [-table results/wave.md] [-resume | -force]
 
-At each q (per bead; q N / (2 pi) whole): the wave with amplitude A = max |u| (eq. ad for the mass pattern, A a
-border row; from the linear wave for delta0 > 0, from the paper's branch for delta0 = 0 and one mass), put on a
+At each q (per bead: a pattern of p masses has the wavenumber p q per cell; q N / (2 pi) whole): the wave with
+amplitude A = max |u| (eq. ad for the mass pattern, A a border row; from the linear wave of -branch for delta0 > 0,
+the pattern's lowest or highest frequency at q, and from the paper's branch for delta0 = 0 and one mass), put on a
 periodic chain of N beads, refined by Gauss-Newton on its cell (E before and after), its Floquet multipliers
 modulo shift from the Bloch sectors of the wave's cell on N beads and on each longer chain of -sizes. One line
 and one table row per q; a q that does not converge is named below the table, the others go on, and the
-driver exits with status 3. Solver prefixes: -precomp_ (the precompressed wave), -tw_ (the branch), -shoot_ and
+driver exits with status 3; a family that folds before A says at which A and which branch to try. Solver prefixes: -precomp_ (the precompressed wave), -tw_ (the branch), -shoot_ and
 -shoot_jac_ (the refinement), -floquet_ (the sectors' flows).
 """
 import math
@@ -37,6 +38,8 @@ def main():
                       valid=(lambda q: 0 < q <= math.pi * (1 + 1e-14), "in (0, pi]"), distinct=True)
     A = opts.real("A", 0.5, "amplitude max |u| (delta0 > 0: at least delta0 max(sqrt(eps), eps^(1/(2(alpha-1)))))",
                   valid=(lambda x: x > 0, "> 0"))
+    branch = opts.string("branch", "acoustic", "the linear wave the family starts from (a mass pattern: the "
+                         "lowest frequency at q, or the highest)", choices=("acoustic", "optical"))
     K = opts.integer("cells_per_pi", 400, "grid h = pi / cells_per_pi", minimum=4)
     N = opts.integer("N", 90, "beads of the periodic chain of the refinement", minimum=2, maximum=MAX_BEADS)
     sizes = opts.numbers("sizes", "", "longer chains for the Bloch spectra (multiples of N; none if empty)",
@@ -51,12 +54,14 @@ def main():
     opts.done()
     comm = PETSc.COMM_WORLD
     model = LatticeModel.hertz(alpha, tuple(masses), delta0)
-    study = WaveStudy(WaveParameters(model, tuple(qs), A, K, N, tuple(sizes), tol, tol_rho), comm, output, mode)
+    study = WaveStudy(WaveParameters(model, tuple(qs), A, K, N, tuple(sizes), tol, tol_rho, branch), comm, output,
+                      mode)
     prepare_outputs(comm, table_path)
     study.configure()
     opts.check_unused()
     study.open()
-    print0(f"# chain {model.describe()}, A = {A:g}, h = pi/{K}, N = {N}" + (f", sizes {sizes}" if sizes else ""))
+    print0(f"# chain {model.describe()}, {branch} branch, A = {A:g}, h = pi/{K}, N = {N}"
+           + (f", sizes {sizes}" if sizes else ""))
     print0(f"# {'q':>9} {'omega':>12} {'E before':>9} {'E after':>9} {'rho - 1':>10} {'outside':>7} {'s':>6}")
     for r in study.run():
         print0(f"  {r['q']:9.6f} {r['omega']:12.8f} {r['E_profile']:9.1e} {r['E_refined']:9.1e} "

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from hertzpetsc.continuation import (Continuation, ContinuationError, ContinuationProblem, LazyTests, Natural,
-                                     PseudoArclength)
+from hertzpetsc.continuation import (Continuation, ContinuationError, ContinuationProblem, FoldError, LazyTests,
+                                     Natural, PseudoArclength)
 from hertzpetsc.errors import ConvergenceError, ParameterError
 
 
@@ -272,7 +272,8 @@ def test_natural_steps_go_around_an_s_shaped_pair_of_folds():
 
 
 def test_natural_steps_around_a_single_fold_stop_with_the_fold_named():
-    """Beyond the Bratu fold the curve turns back: the detour ends (bounded) with an error naming the fold."""
+    """Beyond the Bratu fold the curve turns back: the detour ends (bounded) with an error naming the fold, a
+    FoldError whose farthest point is the located fold (the largest lambda of the curve)."""
     prob, cont, Z = bratu_from_rest(49, Natural(max_halvings=6, around_folds=100), 1.0)
     try:
         cont.start(Z)
@@ -281,6 +282,8 @@ def test_natural_steps_around_a_single_fold_stop_with_the_fold_named():
             cont.step_to(4.0)
         fold = float(str(err.value).split("fold of lambda = ")[1].split(" ")[0])
         assert abs(fold - lambda_c()) < 1e-3 * lambda_c()           # the scheme's fold, O(h^2) from the continuum
+        assert isinstance(err.value, FoldError) and err.value.fold.event == "fold"
+        assert err.value.fold.parameter == pytest.approx(fold, rel=1e-11)           # the message's 12 digits
         assert prob.solves < 400
     finally:
         Z.destroy()

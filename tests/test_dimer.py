@@ -265,3 +265,58 @@ def test_every_q_resumes_from_its_own_end(tmp_path):
         mine, ref = d["q"] == q, full["q"] == q
         want = full["epsilon"][ref] if q == math.pi / 5 else short["epsilon"][short["q"] == q]
         assert np.array_equal(d["epsilon"][mine], want), q
+
+
+# issue 40's dimer: alpha 1.8, delta0 0.3, masses 1, 0.6, q = pi/4 per cell (pi/8 per bead), A = 0.8
+FOLD_DIMER, FOLD_Q, FOLD_A = LatticeModel.hertz(1.8, masses=(1.0, 0.6), delta0=0.3), math.pi / 8, 0.8
+
+
+def test_a_family_that_folds_says_its_largest_amplitude_and_the_other_branch():
+    """The acoustic family of the dimer turns back at a fold below A = 0.8: FamilyFold carries the farthest wave
+    (the largest A of the family) and names the optical branch. That A is the family's largest at this grid: 1 %
+    below it the acoustic wave exists, 1 % above it the family folds at the same A (to the fold location's
+    tolerance, 1e-3 relative). h = pi/200: q = 25 h, an integer shift (at h = pi/100, q = 12.5 h, the natural steps
+    land on another branch at A = 0.0028, a jump of omega by 2.4 % that nothing flags)."""
+    from hertzpetsc.api import wave_at
+    from hertzpetsc.families import FamilyFold
+    with pytest.raises(FamilyFold) as err:
+        wave_at(FOLD_DIMER, FOLD_Q, FOLD_A, cells_per_pi=200, comm=COMM)
+    fold = err.value.fold
+    assert err.value.branch == "acoustic" and err.value.other == "optical" and 0 < fold.A < FOLD_A
+    message = str(err.value)
+    assert len(message.splitlines()) == 1 and f"folds at A = max |u| = {fold.A:.6g}" in message
+    assert 'branch="optical"' in message and "-branch optical" in message and "-resume" not in message
+    assert err.value.as_option({"branch", "A"}).args[0].endswith("run again with -branch optical")
+    below = wave_at(FOLD_DIMER, FOLD_Q, 0.99 * fold.A, cells_per_pi=200, comm=COMM)
+    assert below.A == pytest.approx(0.99 * fold.A, rel=1e-9)
+    with pytest.raises(FamilyFold) as again:
+        wave_at(FOLD_DIMER, FOLD_Q, 1.01 * fold.A, cells_per_pi=200, comm=COMM)
+    assert again.value.fold.A == pytest.approx(fold.A, rel=1e-3)
+
+
+def test_the_optical_family_has_the_wave_the_acoustic_one_folds_before():
+    """The optical wave of the same dimer at A = 0.8 (hz.wave_at with branch="optical"): omega on h = pi/100 and
+    pi/200, Richardson-extrapolated (the scheme is O(h^2)), is the issue's 2.0675 to its four decimals; hz.wave puts
+    it on a chain of 16 beads (one wavelength) with the same frequency and amplitude."""
+    import hertzpetsc as hz
+    omega = [hz.wave_at(FOLD_DIMER, FOLD_Q, FOLD_A, cells_per_pi=K, branch="optical", comm=COMM).omega
+             for K in (100, 200)]
+    extrapolated = omega[1] + (omega[1] - omega[0]) / 3
+    assert abs(extrapolated - 2.0675) <= 5e-5
+    orbit = hz.wave(FOLD_DIMER, FOLD_Q, FOLD_A, 16, cells_per_pi=200, comm=COMM, branch="optical")
+    assert orbit.omega == pytest.approx(omega[1], rel=1e-12) and orbit.amplitude == pytest.approx(FOLD_A, rel=1e-9)
+
+
+@pytest.mark.serial
+def test_wave_driver_names_the_fold_and_the_branch_that_has_the_wave(tmp_path):
+    """wave.py on the dimer from the README's options: the acoustic family's fold is one error line (status 3)
+    with the largest A and the option that gives the wave; with -branch optical the wave is refined and tabled."""
+    args = ("-alpha", 1.8, "-delta0", 0.3, "-masses", "1,0.6", "-q", "pi/8", "-A", 0.8, "-N", 16, "-cells_per_pi",
+            200, "-output", tmp_path / "w.npz", "-table", tmp_path / "w.md")
+    line = one_error_line(run_script("wave.py", *args))
+    assert "acoustic family" in line and "folds at A = max |u| = " in line and line.endswith("-branch optical")
+    assert "Not computed:" in (tmp_path / "w.md").read_text()
+    r = run_script("wave.py", *args, "-branch", "optical", "-force")
+    assert r.returncode == 0, r.stderr
+    row = [x.strip() for x in (tmp_path / "w.md").read_text().splitlines()[-1].split("|")]
+    assert float(row[1]) == pytest.approx(FOLD_Q, abs=1e-6) and abs(float(row[3]) - 2.0675) < 1e-4

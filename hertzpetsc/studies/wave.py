@@ -8,7 +8,8 @@ cells_per_pi, N, sizes (the longer chains), tol, tol_rho, solver_options; per re
 beads), omega (of the refined wave), E_profile (E(q) of the wave interpolated from the grid), E_refined,
 iterations (Gauss-Newton), rho (the largest multiplier modulus, trivial ones excluded), outside (multipliers with
 |mu| > 1 + tol_rho), spread (of the trivial multipliers), unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on
-each longer chain, in the order of ``sizes``), seconds.
+each longer chain, in the order of ``sizes``), seconds. A wave of the optical branch of a mass pattern has the
+constant branch = 'optical' (the acoustic waves' files have none, as before it).
 """
 import math
 import time
@@ -19,7 +20,7 @@ import numpy as np
 from ..advdelay import check_branch
 from ..bloch import SymmetricFloquet
 from ..errors import ConvergenceError, ParameterError
-from ..families import check_amplitude, check_family_amplitude, wave_of_amplitude
+from ..families import FamilyFold, check_amplitude, check_family_amplitude, wave_of_amplitude
 from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
@@ -42,7 +43,8 @@ class WaveParameters:
     """The chain (``model``), wavenumbers ``q`` (per bead; one number or a sequence), amplitude A = max |u| (with
     delta0 = 0 and one mass: any A, the waves scale), grid h = pi / cells_per_pi, N beads of the periodic chain (a
     whole number of wavelengths and of pattern cells), longer chains ``sizes`` (multiples of N), the refinement's
-    target E ``tol`` and the verdict's threshold ``tol_rho``."""
+    target E ``tol``, the verdict's threshold ``tol_rho`` and the ``branch`` of a mass pattern (the linear wave
+    its family starts from: 'acoustic', the lowest frequency, or 'optical', the highest)."""
 
     model: LatticeModel
     q: tuple
@@ -52,6 +54,7 @@ class WaveParameters:
     sizes: tuple = ()
     tol: float = 1e-10
     tol_rho: float = TOL_RHO
+    branch: str = "acoustic"
 
     def __post_init__(self):
         m = self.model
@@ -68,7 +71,7 @@ class WaveParameters:
         qs = _check_qs(self.q, math.pi / self.cells_per_pi)
         for q in qs:
             check_chain_wavenumber(q, self.N)
-            check_branch(m, q, "acoustic")
+            check_branch(m, q, self.branch)
         object.__setattr__(self, "q", qs)
         sizes = tuple(int(L) for L in self.sizes)
         for L in sizes:
@@ -111,13 +114,13 @@ class WaveStudy(Study):
     def constants(self):
         p = self.params
         return dict(p.model.describe(), A=p.A, cells_per_pi=p.cells_per_pi, N=p.N, sizes=list(p.sizes), tol=p.tol,
-                    tol_rho=p.tol_rho)
+                    tol_rho=p.tol_rho, **({} if p.branch == "acoustic" else dict(branch=p.branch)))
 
     def compute(self, q):
         """The wave at q (:func:`~hertzpetsc.families.wave_of_amplitude`) refined on N beads, its spectra."""
         p = self.params
         t0 = time.perf_counter()
-        point, scale = wave_of_amplitude(p.model, q, p.A, ProfileGrid(p.cells_per_pi, self.comm))
+        point, scale = wave_of_amplitude(p.model, q, p.A, ProfileGrid(p.cells_per_pi, self.comm), branch=p.branch)
         spec = ChainSpec(p.model, p.N)
         orbit = orbit_on_chain(point, spec, scale=scale)
         with Refiner(spec, self.comm, p.tol) as refiner:
@@ -145,7 +148,8 @@ class WaveStudy(Study):
 
     def table(self):
         p = self.params
-        lines = [f"schema: {WAVE_FORMAT}; chain {p.model.describe()}, amplitude A = max |u| = {p.A:g}, h = pi/"
+        optical = ", the optical branch" if p.branch == "optical" else ""
+        lines = [f"schema: {WAVE_FORMAT}; chain {p.model.describe()}{optical}, amplitude A = max |u| = {p.A:g}, h = pi/"
                  f"{p.cells_per_pi}; refined on N = {p.N} beads (target E {p.tol:g}); multipliers modulo shift from "
                  f"the Bloch sectors of the wave's cell; unstable when rho - 1 > {p.tol_rho:g}.\n",
                  "| " + " | ".join(["q", "m", "omega", "E (profile)", "E (refined)", "rho - 1", "outside",
@@ -158,6 +162,6 @@ class WaveStudy(Study):
                          f"{int(r['outside'])} | {float(r['spread']):.1e} | "
                          f"{'unstable' if int(r['unstable']) else 'stable within ' + format(p.tol_rho, 'g')} |"
                          + extra)
-        lines += [f"\nNot computed (-resume retries it): q = {q:.6f}: {err}" for q, err in
-                  sorted(getattr(self, "failed", {}).items())]
+        lines += [f"\nNot computed{'' if isinstance(err, FamilyFold) else ' (-resume retries it)'}: q = {q:.6f}: "
+                  f"{err}" for q, err in sorted(getattr(self, "failed", {}).items())]
         return "\n".join(lines) + "\n"

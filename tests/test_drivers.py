@@ -1,11 +1,12 @@
 """Every driver in scripts/ run once as a subprocess on tiny inputs (the library's studies are tested in-process):
 it reads its options, runs, writes its files, and the paper's numbers come out of the main command."""
 import math
+import os
 
 import numpy as np
 import pytest
 
-from conftest import RESULTS, run_script
+from conftest import RESULTS, SCRIPTS, run_script
 from hertzpetsc.branch import Branch
 from hertzpetsc.studies.refinement import RefinedStates
 
@@ -145,3 +146,18 @@ def test_a_resume_continues_the_same_branch(tmp_path):
     r = run_script("continuation.py", *args, "-resume")
     assert r.returncode == 0 and "resuming" in r.stdout, r.stderr
     assert len(Branch.load(str(out))) == 10 and math.isclose(Branch.load(str(out)).q[-1], math.pi / 10)
+
+
+DRIVERS = sorted(f for f in os.listdir(SCRIPTS) if f.endswith(".py") and not f.startswith("bench"))
+
+
+@pytest.mark.parametrize("script", DRIVERS)
+def test_h_and_double_dash_help_are_help(script, tmp_path):
+    """-h and --help, the spellings people try first, print the driver's -help (the same text), exit 0 and write
+    nothing."""
+    texts = []
+    for flag in ("-h", "--help"):
+        r = run_script(script, flag, cwd=tmp_path)
+        assert r.returncode == 0 and not r.stderr and "Application options" in r.stdout, (flag, r.stderr)
+        texts.append(r.stdout)
+    assert texts[0] == texts[1] and list(tmp_path.iterdir()) == []

@@ -18,7 +18,7 @@ with the same arguments and gets the same result. docs/api.md lists the names an
 """
 import importlib
 
-__version__ = "0.2.0"
+__version__ = "0.3.0"
 
 # module (relative to the package) -> the names it defines that the package exports
 _MODULES = {

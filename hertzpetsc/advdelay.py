@@ -28,8 +28,11 @@ otherwise on Z with the continuation layer's row appended (pseudo-arclength). Th
 for omega and the masses, a finite difference otherwise. Solvers: :mod:`hertzpetsc.twsolver` (SNES prefix ``tw_``,
 direct LU or Newton-Krylov for every p and every border).
 """
+from __future__ import annotations
+
 import math
 import weakref
+from typing import TYPE_CHECKING, Optional, Sequence
 
 import numpy as np
 from petsc4py import PETSc
@@ -40,6 +43,11 @@ from .diagnostics import sup_norm
 from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .model import LatticeModel
 from .stencil import shift_stencil
+
+if TYPE_CHECKING:
+    from .branch import SolveStats
+    from .grid import ProfileGrid
+    from .twsolver import TravellingWaveSolver
 
 MEASURES = ("a1", "sup")
 
@@ -182,7 +190,9 @@ class AdvanceDelayProblem(ContinuationProblem):
     parameter (default q).
     """
 
-    def __init__(self, model, grid, q, omega=1.0, amplitude=None, measure="a1", normalised=0, parameter="q"):
+    def __init__(self, model: LatticeModel, grid: ProfileGrid, q: float, omega: float = 1.0,
+                 amplitude: Optional[float] = None, measure: str = "a1", normalised: int = 0,
+                 parameter: str = "q") -> None:
         if not isinstance(model, LatticeModel):
             raise ParameterError("model", model, "must be a LatticeModel")
         model.require_conservative("the travelling-wave problem (eq. ad)")
@@ -250,7 +260,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.q, self.sigma = self.stencils.q, self.stencils.sigma
         self._assembler = None
 
-    def set_parameter(self, name, value):
+    def set_parameter(self, name: str, value: float) -> None:
         """Set one parameter of the problem (any of those it continues in)."""
         value = float(value)
         if name == "q":
@@ -271,7 +281,7 @@ class AdvanceDelayProblem(ContinuationProblem):
                 self.masses = np.array(self.model.masses)
             self.lattice = self.model.rescaled(self.amplitude) if self.bordered else self.model
 
-    def get_parameter(self, name):
+    def get_parameter(self, name: str) -> float:
         if name in ("q", "omega"):
             return getattr(self, name)
         if name == "a":
@@ -283,22 +293,23 @@ class AdvanceDelayProblem(ContinuationProblem):
         return float(self.masses[1 if name == "epsilon" else int(name[1:])])
 
     # --- layout: X = (profiles, [lam]), Z = (X, parameter) ------------------------------------------------------
-    def sizes(self, extended=False):
+    def sizes(self, extended: bool = False) -> tuple[int, int]:
         """(local, global) size of X (or of Z)."""
         extra = self.nsc + (1 if extended else 0)
         return (self.p * self.nloc + (extra if self.last else 0), self.p * self.grid.size + extra)
 
-    def create_state(self):
+    def create_state(self) -> PETSc.Vec:
         """A new X Vec."""
         if self.simple:
             return self.grid.create_vec()
         return PETSc.Vec().createMPI(self.sizes(), comm=self.comm)
 
-    def create_vec(self):
+    def create_vec(self) -> PETSc.Vec:
         """A new extended Vec Z = (X, parameter)."""
         return PETSc.Vec().createMPI(self.sizes(True), comm=self.comm)
 
-    def global_index(self, c, i, extended=False, counts=None):
+    def global_index(self, c: int, i: np.ndarray, extended: bool = False,
+                     counts: Optional[Sequence[int]] = None) -> np.ndarray:
         """Index in X (or Z) of grid unknown i of profile c (``counts``: the grid rows per rank of another split
         than this run's, e.g. the one a saved vector was written with)."""
         starts, counts = (self._starts, self._counts) if counts is None else (np.cumsum(counts) - counts, counts)
@@ -308,18 +319,19 @@ class AdvanceDelayProblem(ContinuationProblem):
         # each rank holds its rows of u_0 .. u_{p-1} one after the other; the scalars sit after them on the last
         return self.p * start + c * count + (i - start)
 
-    def natural_order(self, size, counts=None):
+    def natural_order(self, size: int, counts: Optional[Sequence[int]] = None) -> np.ndarray:
         """The positions in an X or Z Vec of ``size`` entries of its values in an order that does not depend on the
         ranks (u_0 whole, ..., u_{p-1} whole, then the scalars): ``V_natural = gathered(V)[order]``."""
         i = np.arange(self.grid.size)
         return np.concatenate([self.global_index(c, i, counts=counts) for c in range(self.p)]
                               + [np.arange(self.p * self.grid.size, size)])
 
-    def scalar_index(self, k, extended=False):
+    def scalar_index(self, k: int, extended: bool = False) -> int:
         """Index of scalar k (0: lam; with ``extended``, the parameter after the scalars of X)."""
         return self.p * self.grid.size + k
 
-    def pack(self, profiles_half, lam=None, parameter=None):
+    def pack(self, profiles_half: Sequence[np.ndarray], lam: Optional[float] = None,
+             parameter: Optional[float] = None) -> PETSc.Vec:
         """An X Vec (or a Z Vec if ``parameter`` is given) from p half profiles (K+1 values on [0, pi]) and, in the
         fixed-amplitude form, lam."""
         extended = parameter is not None
@@ -348,12 +360,12 @@ class AdvanceDelayProblem(ContinuationProblem):
         """The sum of ``local`` (a number or an array) over the ranks (collective)."""
         return self.mpi.allreduce(local) if self.mpi is not None else local
 
-    def half_profiles(self, V):
+    def half_profiles(self, V: PETSc.Vec) -> list[np.ndarray]:
         """The p half profiles (K+1 values each, on every rank) of an X or Z Vec."""
         a, n = V.getArray(readonly=True), self.nloc
         return [self._gathered_profile(a[c * n:(c + 1) * n]) for c in range(self.p)]
 
-    def frequency(self, V):
+    def frequency(self, V: PETSc.Vec) -> float:
         """omega of the wave held by V (fixed frequency: self.omega; fixed amplitude: a^((d-1)/2) sqrt(lam))."""
         if not self.bordered:
             return self.omega
@@ -409,7 +421,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         u0 = profiles_local[0]
         return self._sum(np.array([np.sum(u0) / (2 * self.grid.K), np.dot(np.cos(xi), u0) / self.grid.K]))
 
-    def set_gauge(self, V):
+    def set_gauge(self, V: PETSc.Vec) -> None:
         """The translation column of the gauge border: u_c' of V's profiles (centred differences), fixed for a
         solve (a whole-period problem only)."""
         if not self.full:
@@ -428,7 +440,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         finally:
             w.resetArray()
 
-    def formFunction(self, snes, X, F):
+    def formFunction(self, snes: PETSc.SNES, X: PETSc.Vec, F: PETSc.Vec) -> None:
         if self.simple and X.getSize() == self.grid.size:
             dplus, dminus, d2u = self.shift_differences(X)
             force, lat = self.lattice.force, self.lattice
@@ -470,7 +482,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         lo, hi = V.getOwnershipRange()
         return self._sum(float(np.dot(self.arclength[0][lo:hi], V.getArray(readonly=True))))
 
-    def shift_differences(self, X):
+    def shift_differences(self, X: PETSc.Vec) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """d+ = tau_q u - u, d- = u - tau_{-q} u and D2 u on the owned rows (p = 1, X the grid Vec)."""
         w = self.stencils.stacked(X).getArray(readonly=True)
         u = X.getArray(readonly=True)
@@ -479,7 +491,7 @@ class AdvanceDelayProblem(ContinuationProblem):
 
     # --- the Jacobian -----------------------------------------------------------------------------------------
     @property
-    def assembler(self):
+    def assembler(self) -> RowAssembler:
         """The CSR pattern of the paper problem's assembled Jacobian (built on first use)."""
         if self._assembler is None:
             st = self.stencils
@@ -507,7 +519,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         d2 = c["d2"] if lam == 1.0 else lam * c["d2"]
         return [d2, a + b, -a * c["plus"], -b * c["minus"]]
 
-    def create_jacobian(self, X, kind="aij"):
+    def create_jacobian(self, X: PETSc.Vec, kind: str = "aij") -> PETSc.Mat:
         """J(X) as a new parallel AIJ matrix with this q's pattern (``kind='aij'``), or as a matrix-free operator
         (``kind='shell'``); X is an X Vec or, while continuing in a free parameter, a Z Vec."""
         if kind not in ("aij", "shell"):
@@ -528,7 +540,7 @@ class AdvanceDelayProblem(ContinuationProblem):
             self._border_columns(X)
         return J
 
-    def formJacobian(self, snes, X, J, P):
+    def formJacobian(self, snes: PETSc.SNES, X: PETSc.Vec, J: PETSc.Mat, P: PETSc.Mat) -> None:
         self._coefficients(X)
         simple = self.simple and X.getSize() == self.grid.size
         if P.getType() != PETSc.Mat.Type.PYTHON:
@@ -643,7 +655,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         return indptr, indices, values
 
     # --- the linear wave (start of the amplitude families) -------------------------------------------------
-    def linear_guess(self, branch="acoustic"):
+    def linear_guess(self, branch: str = "acoustic") -> tuple[list[np.ndarray], float]:
         """Half profiles and lam of the discrete linear wave of the fixed-amplitude form (the law's linear
         stiffness K = V''(0) > 0): the eigenvector of the scheme's p x p Bloch matrix L_cc = 2K, L_{c,c+1} = -K mu+,
         L_{c,c-1} = -K mu- (:meth:`~hertzpetsc.model.LatticeModel.bloch_matrix`) against diag(m) sigma_h, mu+- and
@@ -689,12 +701,13 @@ class AdvanceDelayProblem(ContinuationProblem):
         return [vec[c] * s for c in range(p)], float(lams[k])
 
     # --- solving --------------------------------------------------------------------------------------------
-    def tolerance_scale(self, V):
+    def tolerance_scale(self, V: PETSc.Vec) -> float:
         """max(m lam) ||u||_inf: the scale of the field rows' round-off (4 eps scale / h^2 per row)."""
         lam = abs(self._scalars(V)[0]) if self.bordered else self.lam
         return max(float(np.max(self.masses)) * lam, 1e-300) * max(V.norm(PETSc.NormType.NORM_INFINITY), 1e-300)
 
-    def solver(self, extended, prefix=None, solver=None):
+    def solver(self, extended: bool, prefix: Optional[str] = None,
+               solver: Optional[str] = None) -> TravellingWaveSolver:
         """The SNES of this problem's X (or Z) layout under ``prefix`` (built once)."""
         from .resources import check_memory
         from .twsolver import TW_PREFIX, TravellingWaveSolver, tw_solver
@@ -704,7 +717,7 @@ class AdvanceDelayProblem(ContinuationProblem):
             self.solvers[extended] = TravellingWaveSolver(self.grid, prefix, solver, layout=self, extended=extended)
         return self.solvers[extended]
 
-    def solve_state(self, X, tolerances=None):
+    def solve_state(self, X: PETSc.Vec, tolerances: Optional[dict] = None) -> SolveStats:
         """Solve for X at the current parameters (SolveStats); ConvergenceError when SNES fails. With the 'sup'
         measure, the normalised profile is the largest one (max_c ||u_c||_inf = A): solved again on the
         largest profile if the solution's largest is another."""
@@ -723,7 +736,7 @@ class AdvanceDelayProblem(ContinuationProblem):
                 self.stats = self.solver(extended).solve(self, V, tolerances)
         return self.stats
 
-    def solve(self, Z, row=None, value=None):
+    def solve(self, Z: PETSc.Vec, row: Optional[PETSc.Vec] = None, value: Optional[float] = None) -> int:
         """The continuation layer's corrector (:meth:`ContinuationProblem.solve`)."""
         if row is None:
             self.set_parameter(self.parameter, self._scalars(Z)[-1] if value is None else value)
@@ -746,7 +759,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.set_parameter(self.parameter, self._scalars(Z)[-1])
         return self.stats.iterations
 
-    def predictor_ratio(self, p_from, p_to):
+    def predictor_ratio(self, p_from: float, p_to: float) -> float:
         """(q_from / q_to)^(2/(d-1)) for the paper's continuation in q: the rescaled profile q^(2/(d-1)) u stays
         O(1) (eq. normscaling); a ratio, so that exponents 2/(d-1) in the hundreds (alpha near 1) neither
         overflow nor underflow."""
@@ -755,7 +768,7 @@ class AdvanceDelayProblem(ContinuationProblem):
             return (p_from / p_to) ** (2.0 / (d - 1.0)) if d > 1 else 1.0
         return 1.0
 
-    def weights(self):
+    def weights(self) -> PETSc.Vec:
         """The arclength inner product: (h/pi) sum over the profiles' grid values (the integral over a period)
         plus the scalars' squares."""
         W = self.create_vec()
@@ -764,12 +777,12 @@ class AdvanceDelayProblem(ContinuationProblem):
             W.getArray()[self.p * self.nloc:] = 1.0
         return W
 
-    def report(self, Z):
+    def report(self, Z: PETSc.Vec) -> dict:
         profiles = self.half_profiles(Z)
         lam = float(self._scalars(Z)[0]) if self.bordered else self.lam
         return dict(profiles=profiles, lam=lam, omega=self.frequency(Z))
 
-    def destroy(self):
+    def destroy(self) -> None:
         for s in self.solvers.values():
             s.destroy()
         self.solvers = {}

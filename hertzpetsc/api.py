@@ -8,7 +8,7 @@ pipeline in these calls.
 from __future__ import annotations
 
 import math
-from typing import Optional, Union
+from typing import TYPE_CHECKING, Optional, Union
 
 import numpy as np
 from petsc4py import PETSc
@@ -28,6 +28,9 @@ from .shooting import refine as _refine
 from .studies.branch import BranchStudy
 from .studies.floquet import METHODS
 from .waves import Orbit, orbit_on_chain
+
+if TYPE_CHECKING:
+    import matplotlib.axes
 
 
 def _comm(comm):
@@ -126,7 +129,8 @@ def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = No
         return solver.spectrum(orbit, tol_rho, nev)
 
 
-def plot_spectrum(spectrum: Union[Spectrum, np.ndarray], ax=None, title: Optional[str] = None):
+def plot_spectrum(spectrum: Union[Spectrum, np.ndarray], ax: Optional[matplotlib.axes.Axes] = None,
+                  title: Optional[str] = None) -> matplotlib.axes.Axes:
     """The multipliers in the complex plane with the unit circle (fig. eigen of the paper), on the matplotlib axes
     ``ax`` (a new figure if None); returns the axes. Local: call it on one rank."""
     from .plotting import draw_multipliers

@@ -18,7 +18,10 @@ and Krylov-Schur on the shell does not separate them, even started from the Bloc
 (:func:`seeded_dominant_multipliers`: it confirms them up to a few hundred beads). The dominant sector multipliers
 are checked on the full chain by the residuals ||F Y - lambda Y|| of the tiled modes (:func:`bloch_residuals`).
 """
+from __future__ import annotations
+
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from petsc4py import PETSc
@@ -29,6 +32,10 @@ from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, DominantFloquet, Floque
 from .model import ChainSpec
 from .symmetry import real_sector
 from .tangent import LOCAL_RESPONSE, CellPropagator, MonodromyModShift, TangentFlow, twisted_resolvent
+
+if TYPE_CHECKING:
+    from .chain import IntegrationTolerances
+    from .model import LatticeModel
 
 
 class TwistedChain(Chain):
@@ -145,8 +152,8 @@ class SymmetricFloquet(FloquetSolver):
     ``n_modes``: keep the cell eigenvectors of that many dominant multipliers (``Spectrum.modes``). Sector flows are
     built once per cell size (prefix ``floquet_``); the spectrum is the same on every rank."""
 
-    def __init__(self, model, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, split="sectors",
-                 n_modes=0):
+    def __init__(self, model: LatticeModel, comm: PETSc.Comm, tolerances: IntegrationTolerances = FLOQUET_TOLERANCES,
+                 prefix: str = FLOQUET_PREFIX, split: str = "sectors", n_modes: int = 0) -> None:
         if split not in ("sectors", "beads"):
             raise ParameterError("split", split, "must be 'sectors' or 'beads'")
         self.comm, self.split, self.n_modes = comm, split, check_integer("n_modes", n_modes, 0)
@@ -187,7 +194,7 @@ class SymmetricFloquet(FloquetSolver):
                         modes=modes[:self.n_modes], work=dict(runs=len(thetas), columns=2 * M * len(thetas),
                                                               time=delta, propagated=bool(propagated)))
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.sectors.destroy()
 
 

@@ -38,9 +38,12 @@ meta               ()           JSON string: software versions, ranks, options, 
 
 A resumed file must have the same alpha, cells_per_pi and M (its identity).
 """
+from __future__ import annotations
+
 import json
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Mapping, Optional
 
 import numpy as np
 
@@ -49,6 +52,9 @@ from .errors import ParameterError, RecordFileError
 from .model import LatticeModel
 from .records import MemoryRecords, NpzRecords, check_kind, load_npz, on_rank0
 from .stencil import full_period
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
 
 BRANCH_FORMAT = "hertzpetsc-branch-1"
 SCALARS = ("alpha", "cells_per_pi", "h", "M")
@@ -96,11 +102,11 @@ class BranchPoint:
             raise ValueError(f"{len(self.profiles)} profiles for a mass pattern of {self.model.cell} beads")
 
     @property
-    def u_full(self):
+    def u_full(self) -> np.ndarray:
         """The profile on the whole period [0, 2 pi) (2K values, by oddness)."""
         return full_period(self.u_half)
 
-    def record(self):
+    def record(self) -> dict:
         """The row of the branch file (:data:`POINT_FIELDS` and the profile ``u``)."""
         s = self.solve
         return dict(q=self.q, u=self.u_half, **self.diagnostics.as_dict(), snes_iterations=s.iterations,
@@ -108,7 +114,7 @@ class BranchPoint:
                     substeps=self.substeps, wall_time=self.wall_time)
 
     @classmethod
-    def from_record(cls, row, h, model):
+    def from_record(cls, row: Mapping, h: float, model: LatticeModel) -> BranchPoint:
         diag = WaveDiagnostics(**{k: float(row[k]) for k in WaveDiagnostics.names()})
         stats = SolveStats(reason=int(row["snes_reason"]), iterations=int(row["snes_iterations"]),
                            linear_iterations=int(row["ksp_iterations"]), residual_norm=float(row["residual_norm"]),
@@ -128,23 +134,23 @@ class Branch:
     meta: dict = field(default_factory=dict)
 
     @property
-    def alpha(self):
+    def alpha(self) -> float:
         return self.model.alpha
 
     @property
-    def h(self):
+    def h(self) -> float:
         return math.pi / self.cells_per_pi
 
     @property
-    def xi(self):
+    def xi(self) -> np.ndarray:
         return np.arange(self.cells_per_pi + 1) * self.h
 
     @property
-    def q(self):
+    def q(self) -> np.ndarray:
         return np.array([p.q for p in self.points])
 
     @property
-    def u(self):
+    def u(self) -> np.ndarray:
         return np.array([p.u_half for p in self.points]).reshape(len(self.points), self.cells_per_pi + 1)
 
     def column(self, name: str) -> np.ndarray:
@@ -172,17 +178,17 @@ class Branch:
             raise RecordFileError(f"the branch has no point at q = {q:.12g} ({have})")
         return self.points[i]
 
-    def q_k(self):
+    def q_k(self) -> float:
         """q_k where F(q_k) = 1 (paper: q_k ~ 1.8)."""
         return crossing(self.q, self.column("F"), 1.0)
 
-    def constants(self):
+    def constants(self) -> dict:
         """The per-file entries of the branch file (its identity among them)."""
         return dict(alpha=self.alpha, cells_per_pi=self.cells_per_pi, h=self.h, M=self.M, xi=self.xi,
                     meta=json.dumps(self.meta))
 
     @classmethod
-    def load(cls, path: str, comm=None, min_points: int = 1) -> "Branch":
+    def load(cls, path: str, comm: Optional[PETSc.Comm] = None, min_points: int = 1) -> Branch:
         """Read a branch file; :class:`RecordFileError` if it is missing, corrupt, of another kind, or holds fewer
         than ``min_points`` points (an interrupted continuation's file may hold none: resume it first). With a
         communicator, rank 0 reads it and every rank gets the branch (or the error)."""

@@ -24,8 +24,11 @@ round-off are computed without cancellation).
 The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law; :meth:`Chain.rhs_reference`
 is the same arithmetic in numpy (any law; the reference the kernel is tested against).
 """
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -56,7 +59,7 @@ class IntegrationTolerances:
 class Chain:
     """eq. nc on a DMDA; the methods ``rhs`` and ``rhs_jacobian`` are TS callbacks."""
 
-    def __init__(self, spec, comm, n_tangent=0):
+    def __init__(self, spec: ChainSpec, comm: PETSc.Comm, n_tangent: int = 0) -> None:
         if not isinstance(spec, ChainSpec):
             raise ParameterError("spec", spec, "must be a ChainSpec")
         self.comm = comm
@@ -96,7 +99,7 @@ class Chain:
         self.inverse_mass = None if self.model.uniform_masses else \
             1.0 / self.model.mass(np.arange(self.xs, self.xe))
 
-    def set_spec(self, spec):
+    def set_spec(self, spec: ChainSpec) -> None:
         """Take another chain of the same layout (same N, boundary and kinds of ends; the Hertz parameters, masses,
         damping and the actuators' signals may differ): a continuation in a driving frequency, amplitude or damping
         changes the chain this way, without a new DMDA; the compiled kernel's context is updated in place (a TS
@@ -118,7 +121,7 @@ class Chain:
 
     # --- the ghost rows of the Bloch cell and of the gap lattice ------------------------------------------------
     @property
-    def theta(self):
+    def theta(self) -> float:
         """Bloch twist of the tangents across the seam of a periodic chain: y_{n+N} = e^{i theta} y_n (0: none)."""
         return self._theta
 
@@ -128,7 +131,7 @@ class Chain:
         self._sync()
 
     @property
-    def complex_modes(self):
+    def complex_modes(self) -> bool:
         """True: tangent 2p is the real part u, tangent 2p + 1 the imaginary part w of complex mode p (any theta);
         False: real tangents, twisted by cos theta (theta = 0 or pi)."""
         return self._complex_modes
@@ -141,7 +144,7 @@ class Chain:
         self._sync()
 
     @property
-    def gap(self):
+    def gap(self) -> float:
         """Gap-lattice offset: bond n is r = gap + x_{n+1} - x_n (0: the lab frame)."""
         return self._gap
 
@@ -151,7 +154,7 @@ class Chain:
         self._sync()
 
     @property
-    def step(self):
+    def step(self) -> tuple[int, float]:
         """(bond b, length s): bond b (joining beads b, b + 1) is r = s + gap + x_{b+1} - x_b, i.e. beads 0..b are
         stored relative to a position s further back (b = -1: no step)."""
         return self._step
@@ -177,7 +180,7 @@ class Chain:
             r[i] = r[i] + self._step[1]
         return r
 
-    def bonds(self, values):
+    def bonds(self, values: np.ndarray) -> np.ndarray:
         """Bond lengths (N - 1) of a gathered state ``values`` (N, dof): gap + x_{n+1} - x_n, the step added."""
         r = self.gap + np.diff(np.asarray(values)[:, 0])
         if self._step[0] >= 0:
@@ -189,7 +192,7 @@ class Chain:
             self.kernel.sync(self)
 
     # --- layout helpers ---------------------------------------------------------------------------------------
-    def create_state(self):
+    def create_state(self) -> PETSc.Vec:
         return self.da.createGlobalVec()
 
     def _ghosted(self, X, t=None):
@@ -237,7 +240,7 @@ class Chain:
         return m
 
     # --- eq. nc and its variational equations -------------------------------------------------------------
-    def rhs(self, ts, t, X, F):
+    def rhs(self, ts: Optional[PETSc.TS], t: float, X: PETSc.Vec, F: PETSc.Vec) -> None:
         """F = f(t, X): eq. nc and, with tangents, its variational equations (a TS callback); compiled when the
         kernel is available (:mod:`hertzpetsc.kernels`), else :meth:`rhs_reference`."""
         if self.kernel is None:
@@ -246,7 +249,7 @@ class Chain:
         self.kernel.set_time(t)                       # the actuators whose signals are evaluated in Python
         self.kernel(X, F, t)
 
-    def rhs_reference(self, ts, t, X, F):
+    def rhs_reference(self, ts: Optional[PETSc.TS], t: float, X: PETSc.Vec, F: PETSc.Vec) -> None:
         """:meth:`rhs` in numpy, for any law: the reference of the compiled kernel (the same operations in the same
         order)."""
         a = self._ghosted(X, t)
@@ -278,7 +281,7 @@ class Chain:
             out = out + eta * (dv[1:] - dv[:-1])
         return out
 
-    def rhs_jacobian(self, ts, t, X, J, P):
+    def rhs_jacobian(self, ts: Optional[PETSc.TS], t: float, X: PETSc.Vec, J: PETSc.Mat, P: PETSc.Mat) -> None:
         """Exact Jacobian Df(X) of the chain (for implicit integrators); only for the chain without tangents.
         Assembled entry by entry: adequate for the chain lengths where implicit integration is used."""
         a = self._ghosted(X, t)
@@ -311,13 +314,13 @@ class Chain:
         if J.handle != P.handle:
             J.assemble()
 
-    def create_jacobian(self):
+    def create_jacobian(self) -> PETSc.Mat:
         J = self.da.createMatrix()
         J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         return J
 
     # --- diagnostics --------------------------------------------------------------------------------------
-    def energy(self, X, t=None):
+    def energy(self, X: PETSc.Vec, t: Optional[float] = None) -> float:
         """Total energy (eq. ham): sum of m v^2/2 and of V over the bonds, the bonds to walls and actuators
         included (their positions at time t)."""
         a = self._ghosted(X, t)
@@ -330,7 +333,7 @@ class Chain:
             local += Vb[0]
         return self.comm.tompi4py().allreduce(float(local))
 
-    def power(self, X, t=None):
+    def power(self, X: PETSc.Vec, t: Optional[float] = None) -> tuple[float, float]:
         """(input power of the actuators, dissipation rate) at the state X and time t, so that
         dE/dt = input - dissipation: input = -f_0 x_0' + f_N x_{N+1}' (f the bond forces V' + eta dv of the bonds
         to the actuators; f < 0 in compression), dissipation = gamma sum v^2 + eta sum over bonds dv^2."""
@@ -353,7 +356,7 @@ class Chain:
         return mpi.allreduce(float(power_in)), mpi.allreduce(float(dissipation))
 
     # --- the spatial shift S X = (X_2, ..., X_N, X_1) of section 3.5 -------------------------------------------
-    def shift(self, X, out):
+    def shift(self, X: PETSc.Vec, out: PETSc.Vec) -> None:
         """out = S X (periodic chains): bead n of ``out`` holds bead n+c of ``X``, all dof, c the mass pattern's
         length (one bead for the paper's chain: S moves bead n+1 to bead n)."""
         if self.spec.boundary != "periodic":
@@ -369,16 +372,16 @@ class Chain:
             ist.destroy()
         self._shift.scatter(X, out, PETSc.InsertMode.INSERT_VALUES, PETSc.ScatterMode.FORWARD)
 
-    def gather(self, X):
+    def gather(self, X: PETSc.Vec) -> np.ndarray:
         """The whole state as a numpy array of shape (N, dof) on every rank."""
         return gathered(X).reshape(self.spec.N, self.dof)
 
-    def set_from_array(self, X, values):
+    def set_from_array(self, X: PETSc.Vec, values: np.ndarray) -> None:
         """Set X from a (N, dof) array given on every rank."""
         values = np.asarray(values, dtype=float).reshape(self.spec.N, self.dof)
         X.getArray()[:] = values[self.xs:self.xe].ravel()
 
-    def destroy(self):
+    def destroy(self) -> None:
         if self._shift is not None:
             self._shift.destroy()
         if self.kernel is not None:
@@ -393,7 +396,8 @@ class ChainIntegrator:
     paper, steps matched to the final time. The right-hand side is the chain's compiled one; ``-chain_rhs_compiled
     0`` makes the TS call :meth:`Chain.rhs_reference` (numpy, the same numbers) instead."""
 
-    def __init__(self, chain, tolerances=None, prefix=CHAIN_PREFIX, rk_type="8vr"):
+    def __init__(self, chain: Chain, tolerances: Optional[IntegrationTolerances] = None, prefix: str = CHAIN_PREFIX,
+                 rk_type: str = "8vr") -> None:
         self.chain = chain
         tol = tolerances or IntegrationTolerances()
         ts = PETSc.TS().create(comm=chain.comm)
@@ -429,7 +433,8 @@ class ChainIntegrator:
         self.ts = ts
         self.steps = 0
 
-    def control_components(self, state=None, tangents=(0.0, 0.0)):
+    def control_components(self, state: Optional[tuple[float, float]] = None,
+                           tangents: tuple[float, float] = (0.0, 0.0)) -> None:
         """Per-component tolerances (rtol, atol): ``state`` on x, x' (None: the TS's own), ``tangents`` on the tangent
         columns. Zeros leave the columns out of PETSc's weighted error norm: they are still the exact derivative of
         the steps taken (they move with the same Runge-Kutta formula), resolved as far as the state's steps resolve
@@ -447,7 +452,7 @@ class ChainIntegrator:
         va.destroy()
 
     @PETSc.Log.EventDecorator("hz_chain_integrate")
-    def integrate(self, X, t0, t1, dt=None):
+    def integrate(self, X: PETSc.Vec, t0: float, t1: float, dt: Optional[float] = None) -> int:
         """Advance X (in place) from t0 to t1; returns the number of steps. Raises ConvergenceError on failure.
 
         ``dt``: the first step (the integrator's :attr:`initial_step` for a measurement that must not depend on what
@@ -468,7 +473,7 @@ class ChainIntegrator:
         self.steps += n
         return n
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.ts.destroy()
         self._F.destroy()
         if self._J is not None:

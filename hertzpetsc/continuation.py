@@ -22,13 +22,19 @@ as the local coordinate (successive parabolic interpolation for a fold, the Illi
 control is bounded: at most ``max_halvings`` reductions per step and ``max_step_changes`` in all, so it cannot cycle
 without progress. Resume: :meth:`Continuation.seed` with the last two stored points.
 """
+from __future__ import annotations
+
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Collection, Iterator, Optional, Sequence, Union
 
 import numpy as np
 
 from .errors import ConvergenceError, ParameterError, check_integer
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
 
 
 def illinois(f, a, fa, b, fb, tol, max_iter, bisect=False, bracket=False):
@@ -106,7 +112,7 @@ class FoldError(ContinuationError):
     towards the target (the located fold, or the farthest point reached when the fold could not be located), a
     :class:`ContinuationPoint` with the problem's report."""
 
-    def __init__(self, parameter, last, failed, reason, fold):
+    def __init__(self, parameter: str, last: float, failed: float, reason: str, fold: ContinuationPoint) -> None:
         super().__init__(parameter, last, failed, reason)
         self.fold = fold
 
@@ -118,31 +124,31 @@ class ContinuationProblem:
 
     parameter = "p"
 
-    def create_vec(self):
+    def create_vec(self) -> PETSc.Vec:
         """A new extended Vec Z = (X, p) (parameter last, on the last rank)."""
         raise NotImplementedError
 
-    def solve(self, Z, row=None, value=None):
+    def solve(self, Z: PETSc.Vec, row: Optional[PETSc.Vec] = None, value: Optional[float] = None) -> int:
         """Correct Z in place so that F(X; p) = 0 and row . Z = value; row None: the parameter is fixed at its
         entry of Z (natural continuation; ``value``, when given, is that entry, which the caller set: the problem
         need not read it from Z, a reduction). Returns the number of Newton iterations (>= 1); raises
         :class:`~hertzpetsc.errors.ConvergenceError` when it fails."""
         raise NotImplementedError
 
-    def weights(self):
+    def weights(self) -> Optional[PETSc.Vec]:
         """Diagonal weights W of the arclength inner product (a Vec like Z), or None for the Euclidean one."""
         return None
 
-    def predictor_ratio(self, p_from, p_to):
+    def predictor_ratio(self, p_from: float, p_to: float) -> float:
         """s(p_from) / s(p_to) for a factor s(p) such that s(p) X varies slowly with p (the secant predictor
         extrapolates s X): 1 (no rescaling)."""
         return 1.0
 
-    def test_functions(self, Z):
+    def test_functions(self, Z: PETSc.Vec) -> Mapping[str, float]:
         """{name: value} of functions whose sign changes mark events on the curve (none by default)."""
         return {}
 
-    def report(self, Z):
+    def report(self, Z: PETSc.Vec) -> dict:
         """What a point reports (plain data on every rank); the layer adds the parameter and arclength."""
         return {}
 
@@ -276,7 +282,7 @@ class ContinuationUse:
         self.problem = problem
         self.continuation = Continuation(problem, algorithm, **options)
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.continuation.destroy()
         self.problem.destroy()
 
@@ -285,8 +291,9 @@ class Continuation:
     """The continuation loop over a :class:`ContinuationProblem` with a :class:`Natural` or
     :class:`PseudoArclength` algorithm (module docstring). Collective over the problem's communicator."""
 
-    def __init__(self, problem, algorithm, detect_folds=True, locate_tol=1e-9, locate_max=40, bisect=(),
-                 locate_step=None):
+    def __init__(self, problem: ContinuationProblem, algorithm: Union[Natural, PseudoArclength],
+                 detect_folds: bool = True, locate_tol: float = 1e-9, locate_max: int = 40,
+                 bisect: Collection[str] = (), locate_step: Optional[float] = None) -> None:
         if not isinstance(algorithm, (Natural, PseudoArclength)):
             raise ParameterError("algorithm", algorithm, "must be Natural(...) or PseudoArclength(...)")
         if locate_step is not None and not (locate_step > 0 and math.isfinite(locate_step)):
@@ -351,13 +358,13 @@ class Continuation:
         return its
 
     # --- start, resume --------------------------------------------------------------------------------------
-    def start(self, Z0):
+    def start(self, Z0: PETSc.Vec) -> ContinuationPoint:
         """Correct the first point at its parameter (natural); Z0 is copied. Returns its ContinuationPoint."""
         Z = Z0.copy()
         its = self._solve(Z)
         return self._accept(Z, its)
 
-    def seed(self, states, arclengths=None):
+    def seed(self, states: Sequence[PETSc.Vec], arclengths: Optional[Sequence[float]] = None) -> None:
         """Resume from stored points: ``states`` are the last (up to two) extended Vecs, oldest first, already
         solutions (copied, not corrected)."""
         for k, Z in enumerate(states[-2:]):
@@ -367,11 +374,11 @@ class Continuation:
             self.s = self.history[-1][1]
 
     @property
-    def parameter(self):
+    def parameter(self) -> float:
         return self._p(self.history[-1][0]) if self.history else math.nan
 
     @property
-    def previous(self):
+    def previous(self) -> float:
         """The parameter of the point accepted before the last (nan if none)."""
         return self._p(self.history[0][0]) if len(self.history) == 2 else math.nan
 
@@ -392,7 +399,7 @@ class Continuation:
         set_parameter(Z, p_new)
         return Z
 
-    def step_to(self, p_target):
+    def step_to(self, p_target: float) -> ContinuationPoint:
         """Natural continuation from the last point to ``p_target`` (intermediate steps are not reported)."""
         alg = self.natural
         p_start = self.parameter
@@ -559,7 +566,7 @@ class Continuation:
             return None, 0
         return Zp, its
 
-    def step(self):
+    def step(self) -> ContinuationPoint:
         """One pseudo-arclength step (needs two points: :meth:`start` then :meth:`step_to` or :meth:`seed`);
         returns the new ContinuationPoint, or first the fold or event points located in the step (the regular
         point then follows at the next calls)."""
@@ -728,12 +735,12 @@ class Continuation:
             if c is not None:
                 c.destroy()
 
-    def take_events(self):
+    def take_events(self) -> list[ContinuationPoint]:
         """The points located by the natural steps since the last call (sorted by arclength)."""
         out, self.events = sorted(self.events, key=lambda p: p.s), []
         return out
 
-    def run(self, until=None, max_steps=1000):
+    def run(self, until: Optional[float] = None, max_steps: int = 1000) -> Iterator[ContinuationPoint]:
         """Pseudo-arclength steps until the parameter passes ``until`` (or max_steps); yields each point."""
         for _ in range(max_steps):
             point = self.step()
@@ -741,7 +748,7 @@ class Continuation:
             if until is not None and point.event is None and (point.parameter - until) * (self.previous - until) <= 0:
                 return
 
-    def destroy(self):
+    def destroy(self) -> None:
         for Z, _, _ in self.history:
             Z.destroy()
         self.history = []

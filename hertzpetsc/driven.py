@@ -40,12 +40,16 @@ each reported as sign(tau) times its smallest factor's modulus (same zeros, line
 are the layer's (dp/ds changes sign). :func:`crossing` compares the multipliers on both sides of an event (what
 crossed where).
 """
+from __future__ import annotations
+
 import math
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from typing import Iterator, Optional
 
 import numpy as np
 from mpi4py import MPI
+from numpy.typing import ArrayLike
 from petsc4py import PETSc
 
 from .assembly import gathered
@@ -102,10 +106,10 @@ class Waveform:
 
     name = "waveform"
 
-    def signal(self, amplitude, omega, phase=0.0):
+    def signal(self, amplitude: float, omega: float, phase: float = 0.0) -> Signal:
         raise NotImplementedError
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(waveform=self.name)
 
 
@@ -115,7 +119,7 @@ class HarmonicWave(Waveform):
 
     name = "harmonic"
 
-    def signal(self, amplitude, omega, phase=0.0):
+    def signal(self, amplitude: float, omega: float, phase: float = 0.0) -> Harmonic:
         return Harmonic(amplitude, omega, phase)
 
 
@@ -157,10 +161,10 @@ class HalfSinePulses(Waveform):
         object.__setattr__(self, "width", check_real("width", self.width, "the pulse width (a fraction of the period)",
                                                 0.0, 1.0, hi_open=False))
 
-    def signal(self, amplitude, omega, phase=0.0):
+    def signal(self, amplitude: float, omega: float, phase: float = 0.0) -> HalfSineSignal:
         return HalfSineSignal(amplitude, omega, self.width, phase)
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(waveform=self.name, width=self.width)
 
 
@@ -186,12 +190,12 @@ class SampledWave(Waveform):
                                  "period: the last sample closes the period and must equal the first")
         object.__setattr__(self, "samples", tuple(float(v) for v in s))
 
-    def signal(self, amplitude, omega, phase=0.0):
+    def signal(self, amplitude: float, omega: float, phase: float = 0.0) -> SampledSignal:
         if phase != 0.0:
             raise ParameterError("phase", phase, "a sampled waveform starts at its first sample (phase 0)")
         return SampledSignal(tuple(amplitude * v for v in self.samples[:-1]), 2 * math.pi / omega)
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(waveform=self.name, samples=list(self.samples))
 
 
@@ -243,7 +247,7 @@ class ProfileWave(Waveform):
 
     name = "profile"
 
-    def __init__(self, values, label="profile"):
+    def __init__(self, values: ArrayLike, label: str = "profile") -> None:
         u = np.asarray(values, dtype=float).ravel()
         if len(u) < 6 or not np.all(np.isfinite(u)):
             raise ParameterError("profile", len(u), "at least 6 finite values over one period")
@@ -252,10 +256,10 @@ class ProfileWave(Waveform):
         idx = (np.arange(len(u))[:, None] + _NODES[None, :]) % len(u)
         self.coefficients = u[idx] @ _VINV.T
 
-    def signal(self, amplitude, omega, phase=0.0):
+    def signal(self, amplitude: float, omega: float, phase: float = 0.0) -> ProfileSignal:
         return ProfileSignal(self.coefficients, self.h, amplitude, omega, float(phase))
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(waveform=self.name, label=self.label, cells=len(self.values))
 
 
@@ -288,33 +292,33 @@ class Drive:
             raise ParameterError("right", self.right, "the far end is 'wall', 'free' or a Waveform (second actuator)")
 
     @property
-    def period(self):
+    def period(self) -> float:
         return 2 * math.pi / self.omega
 
     @property
-    def gamma(self):
+    def gamma(self) -> float:
         return self.model.damping.gamma
 
-    def spec(self):
+    def spec(self) -> ChainSpec:
         """The :class:`~hertzpetsc.model.ChainSpec` of this drive (actuators with their signals)."""
         left = Actuator(self.waveform.signal(self.amplitude, self.omega, self.left_phase))
         right = self.right if isinstance(self.right, str) else \
             Actuator(self.right.signal(self.amplitude, self.omega, self.right_phase))
         return ChainSpec(self.model, int(self.N), "fixed", left=left, right=right)
 
-    def value(self, name):
+    def value(self, name: str) -> float:
         """The parameter ``name`` (omega, amplitude, gamma)."""
         _check_parameter(name)
         return self.gamma if name == "gamma" else getattr(self, name)
 
-    def with_parameter(self, name, value):
+    def with_parameter(self, name: str, value: float) -> Drive:
         """The same drive with parameter ``name`` (omega, amplitude or gamma) set to ``value``."""
         _check_parameter(name)
         if name == "gamma":
             return replace(self, model=self.model.with_damping(value, self.model.damping.eta))
         return replace(self, **{name: value})
 
-    def describe(self):
+    def describe(self) -> dict:
         out = dict(self.model.describe(), N=int(self.N), amplitude=self.amplitude, omega=self.omega,
                    **self.waveform.describe())
         out["right"] = self.right if isinstance(self.right, str) else dict(self.right.describe(),
@@ -349,12 +353,12 @@ class Response:
     iterations: int = 0
 
     @property
-    def T(self):
+    def T(self) -> float:
         """The response's period k 2 pi / omega (the time of the monodromy)."""
         return self.periods * self.drive.period
 
     @property
-    def N(self):
+    def N(self) -> int:
         """The chain's number of beads."""
         return self.drive.N
 
@@ -437,9 +441,11 @@ class PeriodicShooting(ContinuationProblem):
     ``inexact``: the residuals of iterates far from the response from a looser state flow (:meth:`_evaluation_rtol`).
     """
 
-    def __init__(self, drive, comm, parameter="omega", periods=1, jacobian="dense", floquet="dense", nev=8,
-                 tol=1e-10, tolerances=RESPONSE_TOLERANCES, floquet_tolerances=None, prefix=DRIVE_PREFIX,
-                 floquet_prefix=FLOQUET_PREFIX, inexact=True):
+    def __init__(self, drive: Drive, comm: PETSc.Comm, parameter: str = "omega", periods: int = 1,
+                 jacobian: str = "dense", floquet: str = "dense", nev: int = 8, tol: float = 1e-10,
+                 tolerances: IntegrationTolerances = RESPONSE_TOLERANCES,
+                 floquet_tolerances: Optional[IntegrationTolerances] = None, prefix: str = DRIVE_PREFIX,
+                 floquet_prefix: str = FLOQUET_PREFIX, inexact: bool = True) -> None:
         if not isinstance(drive, Drive):
             raise ParameterError("drive", drive, "must be a Drive")
         _check_parameter(parameter)
@@ -499,10 +505,10 @@ class PeriodicShooting(ContinuationProblem):
         self._snes = self._make_snes(prefix)
 
     # --- layout ---------------------------------------------------------------------------------------------------
-    def create_vec(self):
+    def create_vec(self) -> PETSc.Vec:
         return PETSc.Vec().createMPI((self.nloc + (1 if self.last_rank else 0), self.size), comm=self.comm)
 
-    def pack(self, x, p=None):
+    def pack(self, x: ArrayLike, p: Optional[float] = None) -> PETSc.Vec:
         """A new Z from the state ``x`` ((N, 2), on every rank) and the parameter (default: the drive's)."""
         Z = self.create_vec()
         a = Z.getArray()
@@ -511,12 +517,12 @@ class PeriodicShooting(ContinuationProblem):
         set_parameter(Z, self.drive.value(self.parameter) if p is None else p)
         return Z
 
-    def state(self, Z):
+    def state(self, Z: PETSc.Vec) -> tuple[np.ndarray, float]:
         """(x as (N, 2) on every rank, p) of an extended vector."""
         self.X.getArray()[:] = Z.getArray(readonly=True)[:self.nloc]
         return self.chain.gather(self.X), _parameter(Z)
 
-    def weights(self):
+    def weights(self) -> PETSc.Vec:
         """RMS over the 2N state entries, the parameter as it is."""
         W = self.create_vec()
         W.set(1.0 / (2 * self.N))
@@ -524,7 +530,7 @@ class PeriodicShooting(ContinuationProblem):
         return W
 
     # --- the drive's parameter --------------------------------------------------------------------------------
-    def set_drive(self, drive):
+    def set_drive(self, drive: Drive) -> None:
         """Move every chain of the problem to ``drive`` (same N and ends' kinds)."""
         if drive == self.drive:
             return
@@ -541,7 +547,7 @@ class PeriodicShooting(ContinuationProblem):
         if p != self.drive.value(self.parameter):
             self.set_drive(self.drive.with_parameter(self.parameter, p))
 
-    def scale(self, x=None):
+    def scale(self, x: Optional[np.ndarray] = None) -> float:
         """The size the residual is measured against: max(||X||_inf, amplitude), 1 if both vanish."""
         return self._scale(float(np.max(np.abs(x))) if x is not None else 0.0)
 
@@ -551,27 +557,27 @@ class PeriodicShooting(ContinuationProblem):
         return s if s > 0 else 1.0
 
     @property
-    def T(self):
+    def T(self) -> float:
         return self.periods * self.drive.period
 
     # --- the map ----------------------------------------------------------------------------------------------
-    def flow(self, X):
+    def flow(self, X: PETSc.Vec) -> int:
         """X <- P(X) (in place, the chain's layout) at the current drive; returns the steps taken."""
         steps = self.integrator.integrate(X, 0.0, self.T, dt=self.integrator.initial_step)
         self.counters["state_flows"] += 1
         return steps
 
-    def map(self, x):
+    def map(self, x: ArrayLike) -> np.ndarray:
         """P(x) as (N, 2) on every rank."""
         self.chain.set_from_array(self.X, x)
         self.flow(self.X)
         return self.chain.gather(self.X)
 
-    def residual(self, x):
+    def residual(self, x: np.ndarray) -> float:
         """||P(x) - x||_inf / scale at the current drive."""
         return float(np.max(np.abs(self.map(x) - x))) / self.scale(x)
 
-    def run_in(self, x, periods):
+    def run_in(self, x: ArrayLike, periods: int) -> np.ndarray:
         """The state after ``periods`` driving periods from ``x`` (a transient, e.g. from rest)."""
         self.chain.set_from_array(self.X, x)
         T = self.drive.period
@@ -580,7 +586,7 @@ class PeriodicShooting(ContinuationProblem):
         self.counters["state_flows"] += int(periods)
         return self.chain.gather(self.X)
 
-    def trajectory(self, x, samples=64):
+    def trajectory(self, x: ArrayLike, samples: int = 64) -> tuple[np.ndarray, np.ndarray]:
         """(times (J+1,), states (J+1, N, 2)) at J = ``samples`` equal steps over one response period from x, on
         every rank (one state flow stopped J times)."""
         J = int(samples)
@@ -595,7 +601,7 @@ class PeriodicShooting(ContinuationProblem):
         self.counters["state_flows"] += 1
         return t, np.array(out)
 
-    def diagnostics(self, x, samples=64):
+    def diagnostics(self, x: ArrayLike, samples: int = 64) -> dict:
         """What a response does over its period (plain data): per bead the amplitude (max - min)/2 and mean of
         x_n; the largest compressive force of the bond to the right end (the force transmitted to the wall, the
         observable of Pozharskiy et al. 2015) and to the left end (the actuator), each from the samples with a
@@ -720,7 +726,7 @@ class PeriodicShooting(ContinuationProblem):
         self.mpi.Allreduce(MPI.IN_PLACE, local, op=MPI.MAX)
         return local[0] / self._scale(local[1])
 
-    def formFunction(self, snes, Z, F):
+    def formFunction(self, snes: PETSc.SNES, Z: PETSc.Vec, F: PETSc.Vec) -> None:
         z = Z.getArray(readonly=True)
         p = _parameter(Z)
         try:
@@ -756,7 +762,7 @@ class PeriodicShooting(ContinuationProblem):
         xs = self.chain.xs
         return ((xh - x).ravel()[2 * xs:2 * xs + self.nloc] - G) / h
 
-    def monodromy(self, x, p, accurate=True):
+    def monodromy(self, x: np.ndarray, p: float, accurate: bool = True) -> np.ndarray:
         """Dense R(kT; 0) at (x, p), on every rank (cached for the last point): ``accurate``, the tangents resolved
         to the Floquet flow's tolerance (multipliers, branch switching), else the Newton Jacobian's (the steps of
         the state's error to JACOBIAN_RTOL, :meth:`~hertzpetsc.chain.ChainIntegrator.control_components`)."""
@@ -771,7 +777,7 @@ class PeriodicShooting(ContinuationProblem):
         self._mono = (np.array(x, copy=True), p, R, self._mono_version, accurate)
         return R
 
-    def formJacobian(self, snes, Z, J, P):
+    def formJacobian(self, snes: PETSc.SNES, Z: PETSc.Vec, J: PETSc.Mat, P: PETSc.Mat) -> None:
         """The bordered Jacobian at Z. dG/dp is computed once per corrector solve. Dense route: the monodromy of
         the last point where one was computed (e.g. the previous response's multipliers) is reused while Newton
         contracts the residual by CHORD_CONTRACTION per iteration (a chord step), and recomputed otherwise."""
@@ -820,7 +826,7 @@ class PeriodicShooting(ContinuationProblem):
             np.max(np.abs(x - xm)) <= 0.05 * max(float(np.max(np.abs(x))), 1e-300)
 
     # --- the corrector -------------------------------------------------------------------------------------------
-    def solve(self, Z, row=None, value=None):
+    def solve(self, Z: PETSc.Vec, row: Optional[PETSc.Vec] = None, value: Optional[float] = None) -> int:
         """Newton (SNES ``drive_``) on G(X; p) = 0 with row . Z = value (row None: p fixed at Z's). Returns the
         iterations (at least 1: a Z that is already a response counts as one); ConvergenceError naming p."""
         self._row, self._value, self._dGdp = row, value, None
@@ -869,7 +875,7 @@ class PeriodicShooting(ContinuationProblem):
         return max(its, 1)
 
     @contextmanager
-    def detour(self):
+    def detour(self) -> Iterator[PeriodicShooting]:
         """Solves made inside (e.g. checking an event on nearby responses) leave the problem as it was: the drive, the
         cached monodromy a chord step may reuse and the last converged residual are restored on exit."""
         kept = self.drive, self._mono, self._residuals
@@ -879,11 +885,11 @@ class PeriodicShooting(ContinuationProblem):
             self.set_drive(kept[0])
             self._mono, self._residuals = kept[1], kept[2]
 
-    def known_residual(self, x, p):
+    def known_residual(self, x: np.ndarray, p: float) -> Optional[float]:
         """The relative residual of the last converged point if (x, p) is it, else None."""
         return self._residuals.get((float(p), hash(np.asarray(x).tobytes())))
 
-    def solve_response(self, x, p=None):
+    def solve_response(self, x: ArrayLike, p: Optional[float] = None) -> Response:
         """Newton at fixed parameter from the state ``x``: the converged :class:`Response` (its residual measured
         again with one state flow)."""
         Z = self.pack(x, p)
@@ -895,7 +901,8 @@ class PeriodicShooting(ContinuationProblem):
         return Response(self.drive, self.periods, x, self.residual(x), its)
 
     # --- multipliers, test functions, report -----------------------------------------------------------------------
-    def multipliers(self, Z=None, x=None, p=None):
+    def multipliers(self, Z: Optional[PETSc.Vec] = None, x: Optional[np.ndarray] = None,
+                    p: Optional[float] = None) -> np.ndarray:
         """The Floquet multipliers at Z (or at the state x and parameter p): all 2N ('dense') or the dominant
         ('slepc'), sorted by decreasing modulus; cached per point."""
         if Z is not None:
@@ -915,12 +922,12 @@ class PeriodicShooting(ContinuationProblem):
         self._spectra = {key: mu}
         return mu
 
-    def test_functions(self, Z):
+    def test_functions(self, Z: PETSc.Vec) -> dict[str, float]:
         if self.floquet_kind == "none":
             return {}
         return test_functions(self.multipliers(Z))
 
-    def report(self, Z):
+    def report(self, Z: PETSc.Vec) -> dict:
         x, p = self.state(Z)
         out = dict(x=x, periods=self.periods)
         if self.floquet_kind != "none":
@@ -929,7 +936,7 @@ class PeriodicShooting(ContinuationProblem):
             out.update(multipliers=mu, rho=rho, verdict=verdict(rho), **counts(mu))
         return out
 
-    def destroy(self):
+    def destroy(self) -> None:
         for obj in (self._snes, self.J, self.F, self.X, self.integrator, self.chain, *self._engines()):
             obj.destroy()
 
@@ -1036,7 +1043,8 @@ class _BorderedProduct:
 
 
 # --- branch switching at a period doubling ---------------------------------------------------------------------
-def switch_to_doubled(single, double, x, p, step=None):
+def switch_to_doubled(single: PeriodicShooting, double: PeriodicShooting, x: np.ndarray, p: float,
+                      step: Optional[float] = None) -> tuple[PETSc.Vec, PETSc.Vec]:
     """(Z0, Z1) to start the period-doubled branch at the period doubling (x, p) of ``single`` (period k T), on
     ``double`` (period 2 k T, the same drive and parameter): Z0 is the doubling point itself (a fixed point of P^2
     on both branches), Z1 the first point of the new branch, from the pseudo-arclength corrector of ``double`` along

@@ -16,8 +16,11 @@ status   class
 Errors are raised on every rank at once: parameters and input files are checked on all ranks (or on rank 0 and
 the verdict broadcast), and solver verdicts are collective, so a driver can print on rank 0 and exit on all.
 """
+from __future__ import annotations
+
 import math
 import numbers
+from typing import Any, Collection, Optional, Union
 
 
 class HertzPetscError(Exception):
@@ -25,7 +28,7 @@ class HertzPetscError(Exception):
 
     exit_status = 2
 
-    def as_option(self, options):
+    def as_option(self, options: Collection[str]) -> HertzPetscError:
         """The same error as a driver reports it, naming its command-line ``options`` (the names it declares)
         where the message names an argument of the API; this one says it the same way in both."""
         return self
@@ -34,11 +37,11 @@ class HertzPetscError(Exception):
 class ParameterError(HertzPetscError, ValueError):
     """A parameter is outside its valid range."""
 
-    def __init__(self, name, value, valid):
+    def __init__(self, name: Optional[str], value: Any, valid: str) -> None:
         self.name, self.value, self.valid = name, value, valid
         super().__init__(f"invalid {name} = {value!r}: {valid}")
 
-    def as_option(self, options):
+    def as_option(self, options: Collection[str]) -> ParameterError:
         """The same error naming the command-line option ``-name`` when ``name`` (a Python argument of the API)
         is one of the driver's ``options``; else itself."""
         name = self.name
@@ -87,7 +90,7 @@ class ConvergenceError(HertzPetscError, RuntimeError):
 
     exit_status = 3
 
-    def __init__(self, what, reason, **where):
+    def __init__(self, what: str, reason: Union[int, str], **where: float) -> None:
         if isinstance(reason, str) and reason.startswith("reason "):       # a nested failure's own reason
             reason = reason[len("reason "):]
         self.what, self.reason, self.where = what, reason, where

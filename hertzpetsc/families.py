@@ -15,8 +15,11 @@ precompression, mass pattern) in its fixed-amplitude form (u_c = a w_c, lam = om
 Closed forms live with the model: the linear frequencies (:meth:`~hertzpetsc.model.LatticeModel.linear_frequencies`)
 and the Hertz law's weakly nonlinear coefficient (:meth:`~hertzpetsc.hertz.HertzLaw.stokes_coefficient`).
 """
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Callable, Collection, Iterable, Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -26,6 +29,10 @@ from .branch import BranchPoint
 from .continuation import ContinuationError, ContinuationUse, FoldError, LazyTests, Natural, PseudoArclength
 from .errors import ConvergenceError, ParameterError, check_real
 from .stencil import full_period, lagrange_periodic
+
+if TYPE_CHECKING:
+    from .grid import ProfileGrid
+    from .model import LatticeModel
 
 PRECOMP_PREFIX = "precomp_"
 DIMER_PREFIX = "dimer_"
@@ -109,10 +116,10 @@ class AmplitudePoint:
     normalised: int = 0        # the profile c* whose measure is 1 (the family's normalisation)
 
     @property
-    def s(self):
+    def s(self) -> float:
         return math.log(self.a)
 
-    def branch_point(self, model, h):
+    def branch_point(self, model: LatticeModel, h: float) -> BranchPoint:
         """The wave as a :class:`~hertzpetsc.branch.BranchPoint` at its physical amplitude (u_c = a w_c, omega)."""
         prof = tuple(self.a * np.asarray(w) for w in self.profiles)
         return BranchPoint(q=self.q, u_half=prof[0], h=h, model=model, profiles=prof, omega=self.omega)
@@ -125,7 +132,7 @@ class FamilyFold(ConvergenceError):
     ``target``: the amplitude asked for (``name``: 'A' = max |u|, or 'a' the first sine coefficient). The message
     names the other branch of a mass pattern, which may have the wave (:meth:`as_option`: its driver option)."""
 
-    def __init__(self, q, branch, fold, target, name, cell):
+    def __init__(self, q: float, branch: str, fold: AmplitudePoint, target: float, name: str, cell: int) -> None:
         self.q, self.branch, self.fold, self.target, self.name, self.cell = q, branch, fold, target, name, cell
         self.other = {"acoustic": "optical", "optical": "acoustic"}[branch] if cell > 1 else None
         at = (f"A = max |u| = {fold.A:.6g}" if name == "A" else
@@ -140,7 +147,7 @@ class FamilyFold(ConvergenceError):
         self.what, self.reason, self.where = "amplitude continuation", "fold", dict(q=q, **{name: target})
         RuntimeError.__init__(self, f"{self.why}; {hint}")
 
-    def as_option(self, options):
+    def as_option(self, options: Collection[str]) -> FamilyFold:
         """In a driver with a ``-branch`` option: the same error naming that option only."""
         if self.other is None or "branch" not in options:
             return self
@@ -231,9 +238,11 @@ class AmplitudeFamily(ContinuationUse):
     its families were computed). ``around_folds``: the layer's pseudo-arclength steps through a fold of a where the
     natural steps stall (0: none, the step fails)."""
 
-    def __init__(self, model, q, grid, prefix=PRECOMP_PREFIX, branch="acoustic", max_halvings=6, measure="a1",
-                 solver=None, tests=None, bisect=(), locate_step=None, max_step=None, max_corrector=None,
-                 around_folds=AROUND_FOLDS):
+    def __init__(self, model: LatticeModel, q: float, grid: ProfileGrid, prefix: str = PRECOMP_PREFIX,
+                 branch: str = "acoustic", max_halvings: int = 6, measure: str = "a1", solver: Optional[str] = None,
+                 tests: Optional[Callable[[AmplitudePoint], dict]] = None, bisect: Sequence[str] = (),
+                 locate_step: Optional[float] = None, max_step: Optional[float] = None,
+                 max_corrector: Optional[float] = None, around_folds: int = AROUND_FOLDS) -> None:
         if not model.law.linear_stiffness > 0:
             raise ParameterError("delta0", model.delta0, "the amplitude family starts from the linear wave: it needs "
                                  "a precompression > 0")
@@ -250,7 +259,7 @@ class AmplitudeFamily(ContinuationUse):
                                                    max_step=max_step, around_folds=around_folds),
                   bisect=bisect, locate_step=locate_step)
 
-    def step_to(self, a_target):
+    def step_to(self, a_target: float) -> AmplitudePoint:
         """The wave at amplitude a_target: the first from the linear wave at min(a_target, START_MAX delta0) continued
         to a_target, the next by continuation from the last point (intermediate steps halved on failure)."""
         a = check_amplitude(a_target)
@@ -292,19 +301,20 @@ class AmplitudeFamily(ContinuationUse):
         """The number of gap openings the layer has located and not handed out yet."""
         return sum(1 for cp in self.continuation.events if cp.event == "gap")
 
-    def points(self, amplitudes):
+    def points(self, amplitudes: Iterable[float]) -> Iterator[AmplitudePoint]:
         """Yield the waves at the increasing amplitudes ``amplitudes``."""
         for a in amplitudes:
             yield self.step_to(a)
 
-    def events(self):
+    def events(self) -> list[AmplitudePoint]:
         """The points located since the last call (AmplitudePoints: the gap openings, and the roots of the caller's
         ``tests``), each with its ``event`` and ``bracket``."""
         return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket)
                 for cp in self.continuation.take_events()]
 
 
-def uncompressed_limit(model, q, grid, start, prefix=PRECOMP_PREFIX):
+def uncompressed_limit(model: LatticeModel, q: float, grid: ProfileGrid, start: AmplitudePoint,
+                       prefix: str = PRECOMP_PREFIX) -> dict:
     """The delta0 / a = 0 wave on ``grid`` from the AmplitudePoint ``start`` (a large-amplitude wave of the family,
     normalised as it is): Omega(q, 0) = ||u(.;q)||^((1-alpha)/2) of eq. dispers on the same grid, with ||u|| =
     max_c ||u_c||_inf over a mass pattern's profiles (the amplitude A of the family's points)."""
@@ -343,8 +353,9 @@ class MassFamily(ContinuationUse):
     ``max_halvings``). The two starting points are natural: the amplitude family at epsilon_start and
     epsilon_start + first_step (prefix ``<prefix>natural_``). One SNES (``prefix``) for the arclength steps."""
 
-    def __init__(self, model, q, grid, a, prefix=DIMER_PREFIX, ds=0.02, ds_max=0.1, max_halvings=8, branch="acoustic",
-                 solver=None):
+    def __init__(self, model: LatticeModel, q: float, grid: ProfileGrid, a: float, prefix: str = DIMER_PREFIX,
+                 ds: float = 0.02, ds_max: float = 0.1, max_halvings: int = 8, branch: str = "acoustic",
+                 solver: Optional[str] = None) -> None:
         if model.cell != 2:
             raise ParameterError("masses", list(model.masses), "must be a pattern of two masses (a dimer)")
         if not model.law.linear_stiffness > 0:
@@ -354,7 +365,7 @@ class MassFamily(ContinuationUse):
         self._use(FamilyProblem(model, grid, q, amplitude=self.a, parameter="epsilon"), prefix, solver,
                   PseudoArclength(ds=min(ds, ds_max), ds_min=1e-10, ds_max=ds_max, max_halvings=max_halvings))
 
-    def start(self, epsilon_start=1.0, first_step=-0.01):
+    def start(self, epsilon_start: float = 1.0, first_step: float = -0.01) -> list[MassPoint]:
         """Two natural points, at epsilon_start and epsilon_start + first_step (the direction of the path)."""
         out, states = [], []
         for e in (epsilon_start, epsilon_start + first_step):
@@ -375,7 +386,7 @@ class MassFamily(ContinuationUse):
             Z.destroy()
         return out
 
-    def snapshot(self):
+    def snapshot(self) -> dict:
         """What a resume needs (collective; plain arrays, the same on every rank): the last two points' extended
         vectors in the ranks' independent order (:meth:`~hertzpetsc.advdelay.AdvanceDelayProblem.natural_order`;
         ``layout`` says so), their arclengths, the next step and the normalised profile."""
@@ -384,7 +395,7 @@ class MassFamily(ContinuationUse):
         return dict(Z=np.array([gathered(Z)[order] for Z, _, _ in hist]), s=np.array([s for _, s, _ in hist]),
                     ds=float(self.continuation.ds), normalised=int(self.problem.normalised), layout="natural")
 
-    def restore(self, snap):
+    def restore(self, snap: Mapping) -> None:
         """Continue from a :meth:`snapshot` (instead of :meth:`start`), on any number of ranks."""
         self.problem.normalised = int(snap["normalised"])
         states, vectors = [], np.asarray(snap["Z"])
@@ -401,7 +412,7 @@ class MassFamily(ContinuationUse):
             Z.destroy()
         self.problem.set_parameter("epsilon", self.continuation.parameter)
 
-    def step(self):
+    def step(self) -> MassPoint:
         """One pseudo-arclength step (or a located fold first); returns the MassPoint."""
         try:
             cp = self.continuation.step()
@@ -410,7 +421,7 @@ class MassFamily(ContinuationUse):
         wave = self.problem.located(cp, self.continuation.parameter)
         return MassPoint(cp.parameter, wave, cp.s, cp.dp_ds, cp.event)
 
-    def run(self, epsilon_end, max_steps=400):
+    def run(self, epsilon_end: float, max_steps: int = 400) -> Iterator[MassPoint]:
         """Yield MassPoints (and the located events) until epsilon passes epsilon_end, or after max_steps regular
         points, or at epsilon <= 0."""
         steps = 0
@@ -424,7 +435,9 @@ class MassFamily(ContinuationUse):
                 return
 
 
-def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start=1e-3, ds=0.25, solver=None):
+def wave_at(model: LatticeModel, q: float, A: float, grid: ProfileGrid, prefix: str = PRECOMP_PREFIX,
+            branch: str = "acoustic", a_start: float = 1e-3, ds: float = 0.25,
+            solver: Optional[str] = None) -> AmplitudePoint:
     """The travelling wave of ``model`` with per-bead wavenumber q and amplitude A = max_c ||u_c||_inf: A is a
     border row of the problem (measure 'sup'), reached by natural steps in log A of size ``ds`` from the linear wave
     at ``a_start`` delta0 (precompressed lattices; at least :func:`amplitude_floor`, as A must be). Returns the
@@ -439,7 +452,8 @@ def wave_at(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic", a_start
         fam.destroy()
 
 
-def wave_of_amplitude(model, q, A, grid, prefix=PRECOMP_PREFIX, branch="acoustic"):
+def wave_of_amplitude(model: LatticeModel, q: float, A: float, grid: ProfileGrid, prefix: str = PRECOMP_PREFIX,
+                      branch: str = "acoustic") -> tuple[BranchPoint, float]:
     """The wave of any ``model`` at per-bead wavenumber q and amplitude A = max_c ||u_c||_inf, as (``BranchPoint``,
     scale) for :func:`~hertzpetsc.waves.orbit_on_chain` (``scale=``): with precompression, :func:`wave_at` (A
     imposed, the point at its physical amplitude, scale 1); without (eq. ad is scale-invariant), the q-branch from

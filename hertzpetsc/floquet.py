@@ -15,16 +15,24 @@ epsilon splits by about sqrt(epsilon): :func:`trivial_multipliers` identifies th
 Options: the prefix ``floquet_`` holds the flow of the variational equations (``-floquet_ts_rtol`` ...) and the
 eigensolver (``-floquet_eps_nev`` ...).
 """
+from __future__ import annotations
+
 import math
 import time
 from dataclasses import dataclass, field, replace
-from typing import Optional
+from typing import TYPE_CHECKING, Optional, Sequence
 
 import numpy as np
 
 from .chain import IntegrationTolerances
 from .errors import ConvergenceError, ParameterError
 from .tangent import MonodromyModShift, TangentFlow
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
+
+    from .model import ChainSpec
+    from .waves import Orbit
 
 FLOQUET_PREFIX = "floquet_"
 N_TRIVIAL = 4
@@ -79,7 +87,7 @@ class Spectrum:
                 setattr(self, name, np.asarray(getattr(self, name))[order])
 
     @property
-    def trivial(self):
+    def trivial(self) -> np.ndarray:
         if self.known is not None:
             return np.nonzero(self.known)[0]
         if not (self.complete and self.n_trivial):
@@ -87,23 +95,23 @@ class Spectrum:
         return trivial_multipliers(self.multipliers, self.n_trivial)
 
     @property
-    def rho(self):
+    def rho(self) -> float:
         t = self.trivial
         lam = np.delete(self.multipliers, t) if len(self.multipliers) > len(t) else self.multipliers
         return float(np.max(np.abs(lam)))
 
     @property
-    def trivial_spread(self):
+    def trivial_spread(self) -> float:
         """max |mu - 1| over the trivial multipliers (their numerical splitting), nan if not identified."""
         t = self.trivial
         return float(np.max(np.abs(self.multipliers[t] - 1))) if len(t) else math.nan
 
     @property
-    def outside(self):
+    def outside(self) -> int:
         """Multipliers with |mu| > 1 + tol_rho."""
         return int(np.sum(np.abs(self.multipliers) > 1 + self.tol_rho))
 
-    def growth(self, T):
+    def growth(self, T: float) -> float:
         """ln(rho) / script-T, the growth per unit time of the most unstable mode."""
         return math.log(self.rho) / T
 
@@ -125,7 +133,7 @@ class FloquetSolver:
         return replace(spec, multipliers=spec.multipliers[:nev], complete=False, known=None if spec.known is None
                        else spec.known[:nev], sector=None if spec.sector is None else spec.sector[:nev])
 
-    def destroy(self):
+    def destroy(self) -> None:
         pass
 
     def __enter__(self):
@@ -139,10 +147,11 @@ class DenseFloquet(FloquetSolver):
     """The dense monodromy of orbits on one chain: one TS with 2N tangent vectors, configured once (prefix
     ``floquet_``), serving every orbit of a scan; ``with DenseFloquet(...) as d:`` frees it."""
 
-    def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+    def __init__(self, spec: ChainSpec, comm: PETSc.Comm, tolerances: IntegrationTolerances = FLOQUET_TOLERANCES,
+                 prefix: str = FLOQUET_PREFIX) -> None:
         self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
 
-    def monodromy(self, orbit, shift=True, T=None):
+    def monodromy(self, orbit: Orbit, shift: bool = True, T: Optional[float] = None) -> np.ndarray:
         """Assembled S R(T; 0) (``shift``) or R(T; 0), 2N x 2N, on every rank; T defaults to script-T."""
         T = orbit.T if T is None else T
         return self.flow.monodromy_mod_shift(orbit.x, T)[0] if shift else self.flow.resolvent(orbit.x, T)[0]
@@ -150,11 +159,11 @@ class DenseFloquet(FloquetSolver):
     def _spectrum(self, orbit, tol_rho, nev):
         return Spectrum(np.linalg.eigvals(self.monodromy(orbit)), True, tol_rho, work=dict(columns=2 * orbit.N))
 
-    def set_spec(self, spec):
+    def set_spec(self, spec: ChainSpec) -> None:
         """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
         self.flow.set_spec(spec)
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.flow.destroy()
 
 
@@ -169,8 +178,9 @@ class DominantFloquet(FloquetSolver):
     ``shift``: the shift S in beads (1: F_q of a travelling wave; 0: the plain monodromy R(T; 0) of a driven chain).
     """
 
-    def __init__(self, spec, comm, nev=10, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, ncv=None,
-                 tol=1e-10, warm=False, shift=1):
+    def __init__(self, spec: ChainSpec, comm: PETSc.Comm, nev: int = 10,
+                 tolerances: IntegrationTolerances = FLOQUET_TOLERANCES, prefix: str = FLOQUET_PREFIX,
+                 ncv: Optional[int] = None, tol: float = 1e-10, warm: bool = False, shift: int = 1) -> None:
         dim = 2 * spec.N
         if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
@@ -184,11 +194,11 @@ class DominantFloquet(FloquetSolver):
             self.destroy()
             raise ParameterError("-%seps_nev" % prefix, self.nev, f"must not exceed the dimension 2N = {dim}")
 
-    def set_spec(self, spec):
+    def set_spec(self, spec: ChainSpec) -> None:
         """Follow the chain to another of the same layout (e.g. a driven chain at another driving frequency)."""
         self.op.set_spec(spec)
 
-    def start_from(self, vectors):
+    def start_from(self, vectors: Sequence[PETSc.Vec]) -> None:
         """PETSc Vecs of the chain's layout (e.g. Bloch modes) to start the next solve from (owned by the caller)."""
         self.start = list(vectors)
 
@@ -222,7 +232,7 @@ class DominantFloquet(FloquetSolver):
         return Spectrum(values, False, tol_rho, work=dict(converged=nconv, iterations=eps.getIterationNumber(),
                                                           products=op.products - products0))
 
-    def destroy(self):
+    def destroy(self) -> None:
         self._release()
         self.eps.destroy()
         self.A.destroy()

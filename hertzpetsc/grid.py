@@ -10,10 +10,13 @@ A shift u(xi_j + sigma h) spans up to half the domain, so it cannot be a DMDA st
 maps any grid index to an unknown and a sign, and :mod:`hertzpetsc.assembly` gathers and assembles the
 long-range stencils (:mod:`hertzpetsc.stencil`) on this layout.
 """
+from __future__ import annotations
+
 import math
 
 import numpy as np
 from petsc4py import PETSc
+from numpy.typing import ArrayLike
 
 from .assembly import gathered
 from .errors import ParameterError, check_integer
@@ -35,7 +38,8 @@ class ProfileGrid:
     singular).
     """
 
-    def __init__(self, cells_per_pi, comm, parity=-1, length=2 * math.pi, dirichlet=False):
+    def __init__(self, cells_per_pi: int, comm: PETSc.Comm, parity: int = -1, length: float = 2 * math.pi,
+                 dirichlet: bool = False) -> None:
         self.K = check_cells_per_pi(cells_per_pi)
         if parity not in (-1, 0, 1):
             raise ParameterError("parity", parity, "must be -1 (odd profiles), +1 (even) or 0 (no symmetry)")
@@ -50,19 +54,19 @@ class ProfileGrid:
         self._template = PETSc.Vec().createMPI(self.size, comm=self.comm)
         self.rstart, self.rend = self._template.getOwnershipRange()
 
-    def xi_half(self):
+    def xi_half(self) -> np.ndarray:
         """Points xi_j = j h, j = 0..K (the half period [0, pi] on which profiles are stored); the whole period
         (j = 0 .. 2K-1) when the profiles have no symmetry."""
         return np.arange(self.n_half) * self.h
 
-    def create_vec(self):
+    def create_vec(self) -> PETSc.Vec:
         return self._template.duplicate()
 
-    def owned_points(self):
+    def owned_points(self) -> np.ndarray:
         """Grid indices j of the unknowns owned by this rank."""
         return np.arange(self.rstart, self.rend, dtype=np.int64) + self.offset
 
-    def fold(self, g):
+    def fold(self, g: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         """Map full-grid indices g (any integers) to (unknown index, sign); for odd profiles sign 0 where u
         vanishes (xi = 0, pi), -1 on the second half period."""
         if self.dirichlet:
@@ -79,14 +83,14 @@ class ProfileGrid:
         idx = np.where(sign != 0.0, j - 1, 0)
         return idx.astype(np.int64), sign
 
-    def half_profile(self, vec):
+    def half_profile(self, vec: PETSc.Vec) -> np.ndarray:
         """The profile on the half period (K+1 values; zeros at both ends if odd; the whole period's 2K values
         without symmetry) as a numpy array on every rank."""
         out = np.zeros(self.n_half)
         out[self.offset:self.offset + self.size] = gathered(vec)
         return out
 
-    def vec_from_half_profile(self, values):
+    def vec_from_half_profile(self, values: ArrayLike) -> PETSc.Vec:
         """A distributed Vec holding the odd profile whose values on [0, pi] are ``values`` (K+1 numbers)."""
         values = np.asarray(values, dtype=float)
         if values.shape != (self.n_half,):

@@ -3,10 +3,13 @@
 Pure numpy, no PETSc. ``x`` may be a scalar or an array everywhere. :class:`HertzLaw` implements the law protocol
 of :mod:`hertzpetsc.law`; :class:`hertzpetsc.model.LatticeModel` puts it together with the masses and damping.
 """
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import ParameterError, check_real
 from .law import InteractionLaw, check_scale
@@ -90,18 +93,18 @@ class HertzLaw(InteractionLaw):
         object.__setattr__(self, "delta0", check_delta0(self.delta0))
 
     @property
-    def degree(self):
+    def degree(self) -> float:
         """V'_delta0(a r) = a^alpha V'_(delta0/a)(r): homogeneous of degree alpha up to the precompression."""
         return self.alpha
 
-    def rescaled(self, a):
+    def rescaled(self, a: float) -> HertzLaw:
         """r -> a^(-alpha) V'(a r), in closed form: the same exponent with the precompression delta0 / a (a = inf:
         the uncompressed limit delta0 / a = 0)."""
         if a == math.inf:
             return HertzLaw(self.alpha, 0.0)
         return HertzLaw(self.alpha, self.delta0 / check_scale(a))
 
-    def stokes_coefficient(self, q):
+    def stokes_coefficient(self, q: ArrayLike) -> np.ndarray:
         """C(q) in omega / omega_lin - 1 = C(q) a^2 + O(a^4) for the monatomic precompressed chain (a: first sine
         coefficient, or ||u||_inf, of the wave): C = (alpha-1)(alpha-1-sin^2(q/2)) / (4 delta0^2), from the cubic
         Taylor term of V' directly and the quadratic one through the second harmonic (Lindstedt-Poincare at fixed
@@ -111,24 +114,24 @@ class HertzLaw(InteractionLaw):
         s2 = np.sin(np.asarray(q, dtype=float) / 2) ** 2
         return (self.alpha - 1) * (self.alpha - 1 - s2) / (4 * self.delta0 ** 2)
 
-    def contact(self, r):
+    def contact(self, r: ArrayLike) -> np.ndarray:
         """Bonds in contact (r < 0) for the uncompressed law, whose V' and V'' vanish elsewhere; every bond with
         precompression (V' = delta0^alpha once contact is lost)."""
         if self.delta0 > 0.0:
             return np.ones(np.shape(r), dtype=bool)
         return np.asarray(r) < 0.0
 
-    def describe(self):
+    def describe(self) -> dict:
         """alpha, and delta0 when nonzero (so that the uncompressed chain's record identities are unchanged)."""
         return dict(alpha=self.alpha, **({"delta0": self.delta0} if self.delta0 > 0.0 else {}))
 
     @property
-    def linear_stiffness(self):
+    def linear_stiffness(self) -> float:
         """K = V''(0) = alpha delta0^(alpha-1) (0 for the uncompressed chain)."""
         return self.alpha * self.delta0 ** (self.alpha - 1.0)
 
     # --- V and its derivatives (eq. vhertz); H(-x) makes them vanish for x >= 0 (no contact) ---
-    def V(self, x):
+    def V(self, x: ArrayLike) -> np.ndarray:
         """V(x), normalised by V(0) = 0 (with precompression: delta0^alpha x + ((delta0-x)_+^(1+alpha) -
         delta0^(1+alpha)) / (1+alpha), whose linear part sums to zero over a periodic chain)."""
         if self.delta0 > 0.0:
@@ -136,14 +139,14 @@ class HertzLaw(InteractionLaw):
             return d ** a * x + (abs_power(np.maximum(d - x, 0.0), 1.0 + a) - d ** (1.0 + a)) / (1.0 + a)
         return abs_power(-np.minimum(x, 0.0), 1.0 + self.alpha) / (1.0 + self.alpha)
 
-    def dV(self, x):
+    def dV(self, x: ArrayLike) -> np.ndarray:
         """V'(x) = -|x|^alpha H(-x): the contact force, non-positive; with precompression
         delta0^alpha - (delta0 - x)_+^alpha, without cancellation when |x| << delta0 (:func:`compressed_force`)."""
         if self.delta0 > 0.0:
             return compressed_force(np.asarray(x, dtype=float), self.delta0, self.alpha)
         return -abs_power(-np.minimum(x, 0.0), self.alpha)
 
-    def d2V(self, x):
+    def d2V(self, x: ArrayLike) -> np.ndarray:
         """V''(x) = alpha |x|^(alpha-1) H(-x), continuous for alpha > 1 (alpha (delta0 - x)_+^(alpha-1) with
         precompression)."""
         if self.delta0 > 0.0:
@@ -152,38 +155,38 @@ class HertzLaw(InteractionLaw):
         return self.alpha * abs_power(-np.minimum(x, 0.0), self.alpha - 1.0)
 
     # --- symmetrised potential W(x) = V(-2|x|)/2 = 2^alpha |x|^(1+alpha)/(1+alpha) (theorem 1) ---
-    def W(self, x):
+    def W(self, x: ArrayLike) -> np.ndarray:
         return 2.0 ** self.alpha * np.abs(x) ** (1.0 + self.alpha) / (1.0 + self.alpha)
 
-    def dW(self, x):
+    def dW(self, x: ArrayLike) -> np.ndarray:
         return 2.0 ** self.alpha * np.abs(x) ** self.alpha * np.sign(x)
 
     # --- closed forms of lemma binary ---
     @property
-    def c_alpha(self):
+    def c_alpha(self) -> float:
         """c_alpha of the period law (eq. period)."""
         a = self.alpha
         z = 1.0 / (1.0 + a)
         return 2.0 * math.sqrt(math.pi) * (1.0 + a) ** (-a / (1.0 + a)) * math.gamma(z) / math.gamma(z + 0.5)
 
-    def period(self, p):
+    def period(self, p: ArrayLike) -> np.ndarray:
         """Period T(p) = c_alpha p^((1-alpha)/(1+alpha)) of u'' + W'(u) = 0, u(0) = 0, u'(0) = p (eq. period)."""
         return self.c_alpha * np.asarray(p, dtype=float) ** ((1.0 - self.alpha) / (1.0 + self.alpha))
 
     @property
-    def p0(self):
+    def p0(self) -> float:
         """Initial slope p0 of the binary oscillation, T(p0) = 2 pi (eq. ci)."""
         a = self.alpha
         z = 1.0 / (1.0 + a)
         g = math.sqrt(math.pi) * math.gamma(z + 0.5) / math.gamma(z)
         return (1.0 + a) ** (a / (1.0 - a)) * g ** ((1.0 + a) / (1.0 - a))
 
-    def amplitude(self, p):
+    def amplitude(self, p: ArrayLike) -> np.ndarray:
         """u_max = [p^2 (1+alpha)]^(1/(1+alpha)) / 2, the maximum of the solution with slope p at 0 (lemma binary)."""
         return 0.5 * (np.asarray(p, dtype=float) ** 2 * (1.0 + self.alpha)) ** (1.0 / (1.0 + self.alpha))
 
     @property
-    def rescaling_exponent(self):
+    def rescaling_exponent(self) -> float:
         """2/(alpha-1): u ~ k_alpha q^(-2/(alpha-1)) as q -> 0 (eq. normscaling)."""
         return 2.0 / (self.alpha - 1.0)
 

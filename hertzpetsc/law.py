@@ -16,7 +16,10 @@ Closed forms a law may provide (the defaults say what they cost when it does not
 * :meth:`contact`: where V'' may be non-zero (the rest of the bonds carry no force: the solvers skip them).
 * ``linear_stiffness``: V''(0), the stiffness of small oscillations about the equilibrium (0 in a sonic vacuum).
 """
+from __future__ import annotations
+
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import check_real
 
@@ -27,38 +30,38 @@ class InteractionLaw:
     #: exponent d of V'(a r) = a^d V'(r) used for the rescaled unknowns of the wave problems (None: no scaling)
     degree = None
 
-    def V(self, r):
+    def V(self, r: ArrayLike) -> np.ndarray:
         """V(r), normalised by V(0) = 0."""
         raise NotImplementedError
 
-    def dV(self, r):
+    def dV(self, r: ArrayLike) -> np.ndarray:
         """V'(r), the force of a bond of length r."""
         raise NotImplementedError
 
-    def d2V(self, r):
+    def d2V(self, r: ArrayLike) -> np.ndarray:
         """V''(r), the bond's linearised stiffness."""
         raise NotImplementedError
 
-    def contact(self, r):
+    def contact(self, r: ArrayLike) -> np.ndarray:
         """Boolean mask of the bonds that may carry a force or a stiffness (all of them by default)."""
         return np.ones(np.shape(r), dtype=bool)
 
     @property
-    def linear_stiffness(self):
+    def linear_stiffness(self) -> float:
         """V''(0)."""
         return float(self.d2V(np.zeros(1))[0])
 
     @property
-    def scale_degree(self):
+    def scale_degree(self) -> float:
         """The exponent used by the rescaled wave problems: ``degree`` if the law has one, else 1."""
         return 1.0 if self.degree is None else float(self.degree)
 
-    def rescaled(self, a):
+    def rescaled(self, a: float) -> InteractionLaw:
         """The law r -> a^(-d) V'(a r) (d = :attr:`scale_degree`): u = a w turns m omega^2 u'' = V'(...) into
         m lam w'' = V'_a(...), lam = omega^2 a^(1-d)."""
         return RescaledLaw(self, check_scale(a), self.scale_degree)
 
-    def describe(self):
+    def describe(self) -> dict:
         """The law as plain data (record identities)."""
         raise NotImplementedError
 

@@ -14,10 +14,14 @@ and energy balance, the waves) takes one of these and asks it for forces, stiffn
 masses. Adding a law or a term is a change in this module (and the law's own) and nowhere else; the model also
 knows the closed forms of its linear waves (:meth:`LatticeModel.linear_frequencies`).
 """
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass, field
+from typing import Callable, Sequence, Union
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import ParameterError, check_integer, check_real
 from .hertz import HertzLaw
@@ -72,88 +76,88 @@ class LatticeModel:
 
     # --- the parameters the studies continue in (one place each) ----------------------------------------------
     @property
-    def alpha(self):
+    def alpha(self) -> float:
         """The law's exponent (Hertz: alpha; any law: its homogeneity degree)."""
         return getattr(self.law, "alpha", self.law.scale_degree)
 
     @property
-    def delta0(self):
+    def delta0(self) -> float:
         """The precompression (static overlap between neighbours), 0 for the paper's chain."""
         return getattr(self.law, "delta0", 0.0)
 
-    def with_law(self, law):
+    def with_law(self, law: InteractionLaw) -> LatticeModel:
         """The same masses and damping with another law."""
         return LatticeModel(law, self.masses, self.damping)
 
-    def with_masses(self, masses):
+    def with_masses(self, masses: Sequence[float]) -> LatticeModel:
         """The same law with another mass pattern."""
         return LatticeModel(self.law, masses, self.damping)
 
-    def with_delta0(self, delta0):
+    def with_delta0(self, delta0: float) -> LatticeModel:
         """The same lattice with the Hertz law's precompression replaced by delta0."""
         return self.with_law(HertzLaw(self.alpha, delta0))
 
-    def with_alpha(self, alpha):
+    def with_alpha(self, alpha: float) -> LatticeModel:
         """The same lattice with the Hertz law's exponent replaced by alpha."""
         return self.with_law(HertzLaw(alpha, self.delta0))
 
-    def with_damping(self, gamma=0.0, eta=0.0):
+    def with_damping(self, gamma: float = 0.0, eta: float = 0.0) -> LatticeModel:
         return LatticeModel(self.law, self.masses, Damping(gamma, eta))
 
-    def rescaled(self, a):
+    def rescaled(self, a: float) -> LatticeModel:
         """The model whose law is r -> a^(-d) V'(a r) (:meth:`~hertzpetsc.law.InteractionLaw.rescaled`): the
         lattice seen by the rescaled profiles w = u / a of the wave problems."""
         return self.with_law(self.law.rescaled(a))
 
     @property
-    def scale_invariant(self):
+    def scale_invariant(self) -> bool:
         """True when x -> a x, t -> a^(-(d-1)/2) t maps the chain's motions to motions (eq. twper): a law
         homogeneous of degree d (no precompression) and no damping."""
         return not self.damped and self.rescaled(2.0) == self
 
     @property
-    def cell(self):
+    def cell(self) -> int:
         """Beads in the repeating mass pattern."""
         return len(self.masses)
 
     @property
-    def uniform_masses(self):
+    def uniform_masses(self) -> bool:
         """True when every bead has mass 1 (the paper's chain)."""
         return all(m == 1.0 for m in self.masses)
 
     @property
-    def damped(self):
+    def damped(self) -> bool:
         return self.damping.gamma > 0.0 or self.damping.eta > 0.0
 
     # --- the forces, as every solver evaluates them ------------------------------------------------------------
-    def force(self, r):
+    def force(self, r: ArrayLike) -> np.ndarray:
         """V'(r), the force a bond of length r exerts (eq. vhertz)."""
         return self.law.dV(r)
 
-    def stiffness(self, r):
+    def stiffness(self, r: ArrayLike) -> np.ndarray:
         """V''(r), the bond's linearised stiffness."""
         return self.law.d2V(r)
 
-    def potential(self, r):
+    def potential(self, r: ArrayLike) -> np.ndarray:
         """V(r), the bond's energy (eq. ham)."""
         return self.law.V(r)
 
-    def contact(self, r):
+    def contact(self, r: ArrayLike) -> np.ndarray:
         """Bonds whose force or stiffness may be nonzero (the law's :meth:`contact`)."""
         return self.law.contact(r)
 
-    def mass(self, n):
+    def mass(self, n: ArrayLike) -> np.ndarray:
         """m_n for bead indices n (any integers: the pattern repeats)."""
         return np.asarray(self.masses)[np.mod(np.asarray(n), self.cell)]
 
-    def require_conservative(self, what):
+    def require_conservative(self, what: str) -> None:
         """ParameterError if the model is damped (for computations of the Hamiltonian chain: travelling waves)."""
         if self.damped:
             raise ParameterError("damping", (self.damping.gamma, self.damping.eta),
                                  f"{what} needs the undamped chain (gamma = eta = 0)")
 
     # --- closed forms of the linear lattice ----------------------------------------------------------------
-    def linear_frequencies(self, q):
+    def linear_frequencies(self, q: float) -> np.ndarray:
         """The p frequencies omega_1 <= ... <= omega_p of the linearised lattice (stiffness K = V''(0), no damping)
         at the per-bead wavenumber q: the eigenvalues of M^-1 B, B_cc = 2K, B_{c,c+-1} = -K e^{+-iq} (indices of
         the mass pattern, cyclic). p = 1: omega = 2 sqrt(K) sin(q/2) (the acoustic dispersion relation); p = 2:
@@ -162,7 +166,7 @@ class LatticeModel:
         w2 = np.sort(np.linalg.eigvals(B / np.asarray(self.masses)[:, None]).real)
         return np.sqrt(np.maximum(w2, 0.0))
 
-    def bloch_matrix(self, mu_plus, mu_minus):
+    def bloch_matrix(self, mu_plus: complex, mu_minus: complex) -> np.ndarray:
         """The p x p stiffness matrix of the linearised lattice on a wave with shift symbols mu+- (the lattice's:
         e^{+-iq}; a scheme's: its stencils' symbols): B_cc = 2K, B_{c,c+-1} = -K mu+- (K = V''(0), indices of the
         mass pattern, cyclic); real when both symbols are."""
@@ -175,7 +179,7 @@ class LatticeModel:
             B[c, (c - 1) % p] -= K * mu_minus
         return B
 
-    def describe(self):
+    def describe(self) -> dict:
         """The model as plain data (for record identities and file metadata); delta0 and damping only when
         nonzero, so that the identities of the uncompressed chain's records are unchanged."""
         out = dict(self.law.describe())
@@ -193,13 +197,13 @@ class Signal:
 
     period = None
 
-    def position(self, t):
+    def position(self, t: ArrayLike) -> np.ndarray:
         raise NotImplementedError
 
-    def velocity(self, t):
+    def velocity(self, t: ArrayLike) -> np.ndarray:
         raise NotImplementedError
 
-    def describe(self):
+    def describe(self) -> dict:
         raise NotImplementedError
 
 
@@ -226,16 +230,16 @@ class Harmonic(Signal):
             object.__setattr__(self, name, check_real(name, getattr(self, name), f"the actuator's {name}"))
 
     @property
-    def period(self):
+    def period(self) -> float:
         return 2 * math.pi / self.omega
 
-    def position(self, t):
+    def position(self, t: ArrayLike) -> np.ndarray:
         return self.offset + self.amplitude * _cos(self.omega * np.asarray(t, float) + self.phase)
 
-    def velocity(self, t):
+    def velocity(self, t: ArrayLike) -> np.ndarray:
         return -self.amplitude * self.omega * _sin(self.omega * np.asarray(t, float) + self.phase)
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(signal="harmonic", amplitude=self.amplitude, omega=self.omega, phase=self.phase,
                     offset=self.offset)
 
@@ -266,22 +270,23 @@ class SampledSignal(Signal):
         c = c * np.where((k == 0) | ((n % 2 == 0) & (k == n // 2)), 1.0, 2.0)
         return np.exp(2j * math.pi * np.multiply.outer(np.asarray(t, float) / self.period, k)), c, k
 
-    def position(self, t):
+    def position(self, t: ArrayLike) -> np.ndarray:
         ph, c, _ = self._series(t)
         return (ph @ c).real
 
-    def velocity(self, t):
+    def velocity(self, t: ArrayLike) -> np.ndarray:
         ph, c, k = self._series(t)
         return (ph @ (c * 2j * math.pi * k / self.period)).real
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(signal="samples", period=self.period, samples=list(self.samples))
 
 
 class FunctionSignal(Signal):
     """x(t) = f(t) with velocity df(t), both periodic of ``period``; checked periodic at 64 points on creation."""
 
-    def __init__(self, f, df, period, name="function"):
+    def __init__(self, f: Callable[[np.ndarray], ArrayLike], df: Callable[[np.ndarray], ArrayLike], period: float,
+                 name: str = "function") -> None:
         self.f, self.df, self.name = f, df, name
         self.period = check_real("period", period, "the signal's period", 0.0)
         t = np.linspace(0.0, self.period, 64, endpoint=False)
@@ -292,13 +297,13 @@ class FunctionSignal(Signal):
                 raise ParameterError("signal", name, f"its {what} is not periodic with the stated period "
                                      f"{self.period:g} (or not a finite vectorised function of t)")
 
-    def position(self, t):
+    def position(self, t: ArrayLike) -> np.ndarray:
         return np.asarray(self.f(np.asarray(t, float)), float)
 
-    def velocity(self, t):
+    def velocity(self, t: ArrayLike) -> np.ndarray:
         return np.asarray(self.df(np.asarray(t, float)), float)
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(signal=self.name, period=self.period)
 
 
@@ -312,7 +317,7 @@ class Actuator:
         if not isinstance(self.signal, Signal):
             raise ParameterError("signal", self.signal, "must be a Signal (Harmonic, SampledSignal, FunctionSignal)")
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(actuator=self.signal.describe())
 
 
@@ -351,21 +356,23 @@ class ChainSpec:
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {self.model.cell}")
 
     @classmethod
-    def hertz(cls, alpha=1.5, N=100, boundary="periodic", masses=(1.0,), delta0=0.0, **ends):
+    def hertz(cls, alpha: float = 1.5, N: int = 100, boundary: str = "periodic", masses: Sequence[float] = (1.0,),
+              delta0: float = 0.0, left: Union[str, Actuator, None] = None,
+              right: Union[str, Actuator, None] = None) -> ChainSpec:
         """N beads of the Hertzian chain with exponent alpha (the paper's, with unit masses and no
         precompression, by default)."""
-        return cls(LatticeModel.hertz(alpha, masses, delta0), N, boundary, **ends)
+        return cls(LatticeModel.hertz(alpha, masses, delta0), N, boundary, left, right)
 
     @property
-    def driven(self):
+    def driven(self) -> bool:
         """True when an end is an actuator (the chain's equations depend on time)."""
         return isinstance(self.left, Actuator) or isinstance(self.right, Actuator)
 
-    def with_length(self, N):
+    def with_length(self, N: int) -> ChainSpec:
         """The same lattice and ends on N beads."""
         return ChainSpec(self.model, N, self.boundary, self.left, self.right)
 
-    def describe(self):
+    def describe(self) -> dict:
         out = dict(self.model.describe(), N=self.N, boundary=self.boundary)
         for side in ("left", "right"):
             end = getattr(self, side)

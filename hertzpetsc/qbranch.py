@@ -14,9 +14,12 @@ least ``cells_per_q`` cells per unit of q below ``q_first`` by doubling the grid
 grid changes, the last two profiles are interpolated (degree-5 Lagrange, below the scheme's O(h^2)) onto the new
 grid and the secant predictor goes on there (section 3.2, small q).
 """
+from __future__ import annotations
+
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Iterator, Optional, Sequence
 
 import numpy as np
 
@@ -32,6 +35,11 @@ from .model import LatticeModel
 from .resources import check_memory
 from .stencil import full_period, lagrange_periodic
 from .twsolver import TW_PREFIX, tw_solver
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
+
+    from .twsolver import TravellingWaveSolver
 
 
 @dataclass(frozen=True)
@@ -72,10 +80,10 @@ class ContinuationParameters:
         Natural(self.max_halvings, self.max_corrector)         # their checks
 
     @property
-    def h(self):
+    def h(self) -> float:
         return math.pi / self.cells_per_pi
 
-    def targets(self):
+    def targets(self) -> list[float]:
         """The wavenumbers to report: m pi / M from pi down to q_stop, then q_stop itself if it is off that grid."""
         return paper_targets(self.M, self.q_stop)
 
@@ -137,7 +145,8 @@ class BranchContinuation(ContinuationUse):
     One SNES (and KSP/PC) serves the whole branch; its options (prefix ``tw_``) are read once, here.
     """
 
-    def __init__(self, params, comm, prefix=TW_PREFIX, solver=None, cells_per_pi=None):
+    def __init__(self, params: ContinuationParameters, comm: PETSc.Comm, prefix: str = TW_PREFIX,
+                 solver: Optional[str] = None, cells_per_pi: Optional[int] = None) -> None:
         self.params = params
         self.model = params.model
         self.prefix = prefix
@@ -149,15 +158,15 @@ class BranchContinuation(ContinuationUse):
                   Natural(params.max_halvings, params.max_corrector))
 
     @property
-    def history(self):
+    def history(self) -> list:
         return self.continuation.history
 
     @property
-    def solver(self):
+    def solver(self) -> TravellingWaveSolver:
         """The travelling-wave SNES of the branch (:class:`~hertzpetsc.twsolver.TravellingWaveSolver`)."""
         return self.problem.solver(False)
 
-    def resume_from(self, qs, profiles):
+    def resume_from(self, qs: Sequence[float], profiles: Sequence[np.ndarray]) -> None:
         """Seed the predictor with already computed points (the last two), given on any grid."""
         seeds = [self.problem.pack([regrid_half_profile(prof, self.grid.K)], parameter=float(q))
                  for q, prof in zip(list(qs)[-2:], list(profiles)[-2:])]
@@ -172,7 +181,7 @@ class BranchContinuation(ContinuationUse):
         return BranchPoint(q=q, u_half=u_half, h=self.grid.h, model=self.model, diagnostics=diag,
                            solve=self.problem.stats, substeps=cp.substeps, wall_time=wall)
 
-    def start(self):
+    def start(self) -> BranchPoint:
         """Solve at q = pi from the sampled binary oscillation u0 (lemma binary)."""
         t0 = time.perf_counter()
         Z = self.problem.pack([binary_oscillation(self.model.law, self.grid.xi_half())], parameter=math.pi)
@@ -184,13 +193,13 @@ class BranchContinuation(ContinuationUse):
             Z.destroy()
         return self._point(cp, time.perf_counter() - t0)
 
-    def step_to(self, q_target):
+    def step_to(self, q_target: float) -> BranchPoint:
         """Continue from the last converged point to ``q_target``, halving the step on failure."""
         t0 = time.perf_counter()
         cp = self.continuation.step_to(q_target)
         return self._point(cp, time.perf_counter() - t0)
 
-    def points(self, targets=None):
+    def points(self, targets: Optional[Sequence[float]] = None) -> Iterator[BranchPoint]:
         """Yield the branch points at the targets not yet computed (all of them, from u0 at q = pi, unless
         :meth:`resume_from` seeded the continuation)."""
         targets = self.params.targets() if targets is None else targets

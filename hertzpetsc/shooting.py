@@ -26,8 +26,11 @@ Options: the refinement's flows and Gauss-Newton live under the prefix ``shoot_`
 ``-shoot_gn_max_it``), its Jacobian's flow under ``shoot_jac_``; E(q) measured with the paper's flow uses the
 simulations' prefix ``chain_``.
 """
+from __future__ import annotations
+
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from petsc4py import PETSc
@@ -36,6 +39,10 @@ from .chain import IntegrationTolerances
 from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .gauss_newton import GaussNewton
 from .tangent import TangentFlow
+
+if TYPE_CHECKING:
+    from .model import ChainSpec
+    from .waves import Orbit
 
 SHOOT_PREFIX = "shoot_"
 
@@ -89,7 +96,7 @@ class Refinement:
     wall_time: float = 0.0
 
     @property
-    def x(self):
+    def x(self) -> np.ndarray:
         return self.orbit.x
 
 
@@ -155,8 +162,9 @@ class Refiner:
     shortest time symmetry.
     """
 
-    def __init__(self, spec, comm, tol=1e-10, max_iterations=20, tolerances=MEASURE_TOLERANCES,
-                 prefix=SHOOT_PREFIX, symmetric=True, jacobian_tolerances=JACOBIAN_TOLERANCES):
+    def __init__(self, spec: ChainSpec, comm: PETSc.Comm, tol: float = 1e-10, max_iterations: int = 20,
+                 tolerances: IntegrationTolerances = MEASURE_TOLERANCES, prefix: str = SHOOT_PREFIX,
+                 symmetric: bool = True, jacobian_tolerances: IntegrationTolerances = JACOBIAN_TOLERANCES) -> None:
         tol = check_real("tol", tol, "the target residual", 0.0)
         self.spec, self.tol, self.comm, self.symmetric = spec, tol, comm, symmetric
         self.tolerances, self.jacobian_tolerances, self.prefix = tolerances, jacobian_tolerances, prefix
@@ -181,11 +189,11 @@ class Refiner:
                               TangentFlow(cell, 2 * N, self.comm, self.jacobian_tolerances, self.prefix + "jac_"))
         return self._flows[N]
 
-    def shift_map(self, N):
+    def shift_map(self, N: int) -> ShiftMap:
         """The refinement's own state flow (:class:`ShiftMap`) on N beads of the lattice."""
         return self._maps(N)[0]
 
-    def residual(self, orbit):
+    def residual(self, orbit: Orbit) -> float:
         """E(q) of ``orbit`` with the refinement's own flow."""
         return self.smap.residual(orbit)
 
@@ -230,7 +238,7 @@ class Refiner:
                           jacobians=jacobians, history=history, sigma_min=sigma_min,
                           wall_time=time.perf_counter() - t0)
 
-    def destroy(self):
+    def destroy(self) -> None:
         for smap, flow in self._flows.values():
             smap.destroy()
             flow.destroy()

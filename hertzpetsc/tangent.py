@@ -10,12 +10,16 @@ integration with k = 1) for SLEPc.
 :class:`CellPropagator`: for an orbit that repeats every M beads, the flow of the infinite chain in three cell
 blocks, from one run on three cells; every Bloch sector's map of the cell follows from them (section 3.5).
 """
+from __future__ import annotations
+
 import math
+from typing import Callable, Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 from petsc4py import PETSc
 
-from .chain import Chain, ChainIntegrator
+from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .errors import ParameterError
 from .model import ChainSpec
 from .symmetry import real_sector
@@ -27,20 +31,22 @@ class TangentFlow:
     the compacton window), the chain built by ``chain`` (e.g. the Bloch cell's) and the Runge-Kutta pair
     ``rk_type``."""
 
-    def __init__(self, spec, n_tangent, comm, tolerances, prefix, chain=Chain, rk_type="8vr"):
+    def __init__(self, spec: ChainSpec, n_tangent: int, comm: PETSc.Comm, tolerances: Optional[IntegrationTolerances],
+                 prefix: str, chain: type[Chain] = Chain, rk_type: str = "8vr") -> None:
         self.spec = spec
         self.k = int(n_tangent)
         self.aug = chain(spec, comm, n_tangent=self.k)
         self.integrator = ChainIntegrator(self.aug, tolerances, prefix, rk_type)
         self.Z = self.aug.create_state()
 
-    def set_spec(self, spec):
+    def set_spec(self, spec: ChainSpec) -> None:
         """Move the flow to another chain of the same layout (:meth:`~hertzpetsc.chain.Chain.set_spec`: e.g. an
         actuator's signal at another driving frequency)."""
         self.aug.set_spec(spec)
         self.spec = spec
 
-    def run(self, x0, T, Y0, monitor=None):
+    def run(self, x0: ArrayLike, T: float, Y0: ArrayLike,
+            monitor: Optional[Callable[[Chain, PETSc.Vec], None]] = None) -> tuple[np.ndarray, np.ndarray]:
         """Integrate from the state ``x0`` (N, 2) and tangent columns ``Y0`` (N, 2, k), both given on every rank;
         ``monitor(chain, X)`` is called at every step.
 
@@ -61,7 +67,7 @@ class TangentFlow:
         z = self.aug.gather(self.Z)
         return z[:, :2].copy(), z[:, 2:].reshape(N, k, 2).transpose(0, 2, 1).copy()
 
-    def resolvent(self, x0, T):
+    def resolvent(self, x0: ArrayLike, T: float) -> tuple[np.ndarray, np.ndarray]:
         """Dense R(T; 0) (2N x 2N, index 2n + c for bead n, component c) and X(T), on every rank.
 
         Requires k = 2N; the columns are the images of the unit vectors e_{2n+c}.
@@ -72,14 +78,14 @@ class TangentFlow:
         xT, RY = self.run(x0, T, np.eye(2 * N).reshape(N, 2, 2 * N))
         return RY.reshape(2 * N, 2 * N), xT
 
-    def monodromy_mod_shift(self, x0, T, shift=1):
+    def monodromy_mod_shift(self, x0: ArrayLike, T: float, shift: int = 1) -> tuple[np.ndarray, np.ndarray]:
         """Dense S^shift R(T; 0) and S^shift X(T), on every rank (S moves bead n+c to bead n, c the mass pattern's
         length)."""
         R, xT = self.resolvent(x0, T)
         c = self.spec.model.cell * shift
         return np.roll(R, -2 * c, axis=0), np.roll(xT, -c, axis=0)
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.Z.destroy()
         self.integrator.destroy()
         self.aug.destroy()

@@ -9,11 +9,14 @@ discretisation error.
 An :class:`Orbit` is what the chain-side analyses take: the chain, the initial state, the wavenumber, script-T with
 S X(script-T) = X(0) (eq. invv), and the state's source (the branch profile, or its refinement).
 """
+from __future__ import annotations
+
 import math
 from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .errors import ParameterError, check_real
 from .diagnostics import sup_norm
@@ -36,15 +39,15 @@ class Orbit:
     amplitude: float = 1.0  # the wave's size s max_c ||u_c||_inf (eq. twper; 1: the paper's normalisation)
 
     @property
-    def N(self):
+    def N(self) -> int:
         return self.spec.N
 
     @property
-    def symmetry(self):
+    def symmetry(self) -> WaveSymmetry:
         """The wave's :class:`~hertzpetsc.symmetry.WaveSymmetry` (cell, short map, Bloch sectors)."""
         return WaveSymmetry(self.N, self.m, self.spec.model.cell)
 
-    def with_state(self, x, source, T=None):
+    def with_state(self, x: ArrayLike, source: str, T: Optional[float] = None) -> Orbit:
         """The same wave with another initial state (e.g. the refined one) and, given, another script-T (omega
         = p q / T)."""
         x = np.asarray(x, dtype=float)

@@ -17,14 +17,20 @@ runs from a notebook. :meth:`Study.run` yields each record after saving it; :met
 as numpy arrays (the file's content) and :meth:`Study.table` the Markdown table. :class:`ContinuedScan`: the
 studies whose points are continued per alpha, a round of steps at a time.
 """
+from __future__ import annotations
+
 import os
 from dataclasses import fields, is_dataclass
+from typing import TYPE_CHECKING, Any, Callable, Iterator, Optional
 
 from petsc4py import PETSc
 
 from ..errors import HertzPetscError, ParameterError
 from ..records import MODES, MemoryRecords, NpzRecords, file_digest, write_text
 from .dealing import dealt
+
+if TYPE_CHECKING:
+    import numpy as np
 
 
 class Study:
@@ -42,7 +48,8 @@ class Study:
     NAMES = {}                 # {identity key: "parameter (-option)"} where the key is not the parameter's name
     store = None
 
-    def __init__(self, params, comm=None, output=None, mode="new"):
+    def __init__(self, params: Any, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new") -> None:
         if self.Parameters is not None and not isinstance(params, self.Parameters):
             raise ParameterError("params", type(params).__name__, f"must be {self.Parameters.__name__}(...)")
         if mode not in MODES:
@@ -52,16 +59,16 @@ class Study:
         self.output, self.mode = output, mode
 
     # --- what identifies the records -------------------------------------------------------------------------
-    def constants(self):
+    def constants(self) -> dict:
         """Arrays written once per file; by default the parameters (plain data)."""
         return plain(self.params)
 
-    def inputs(self):
+    def inputs(self) -> dict[str, str]:
         """{name: path} of the files the records are computed from (none by default): their content hashes
         (``<name>_sha256``) are part of the identity."""
         return {}
 
-    def identity(self):
+    def identity(self) -> dict:
         """What a resumed file must agree with (a difference is named): by default the constants but the
         ``LABELS``, the options given under the study's solver roles that change numbers, and the content hashes of
         the input files."""
@@ -71,7 +78,7 @@ class Study:
                     if path and os.path.isfile(path)}, solver_options=solver_options(self.ROLES))
         return out
 
-    def open(self):
+    def open(self) -> Study:
         """Open the record store once (collective)."""
         if self.store is None:
             self.store = self._open()
@@ -91,33 +98,34 @@ class Study:
         return [q for q in qs if round(q, 12) not in done]
 
     @property
-    def records(self):
+    def records(self) -> list[dict]:
         """The records computed so far (a list of dicts, one per record)."""
         return self.open().store.records
 
-    def arrays(self):
+    def arrays(self) -> dict[str, np.ndarray]:
         """The records as numpy arrays, as the file holds them (``format``, constants, one array per field)."""
         return self.open().store.arrays()
 
     # --- the hooks ---------------------------------------------------------------------------------------------
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Compute what the store does not hold yet; yield each new record after saving it."""
         raise NotImplementedError
 
-    def table(self):
+    def table(self) -> str:
         """The Markdown table of the records."""
         raise NotImplementedError
 
-    def run_to_table(self, path, show=None, text=None):
+    def run_to_table(self, path: str, show: Optional[Callable[[Any], None]] = None,
+                     text: Optional[Callable[[], str]] = None) -> str:
         """:func:`run_to_table` of this study."""
         return run_to_table(self, path, show, text)
 
-    def configure(self):
+    def configure(self) -> None:
         """Read and check the options of every solver role now, so that a bad value fails before any computation
         (:func:`configure_roles`)."""
         configure_roles(self.ROLES, self.comm)
 
-    def destroy(self):
+    def destroy(self) -> None:
         """Free the PETSc objects the study holds (none by default)."""
 
 
@@ -210,11 +218,11 @@ class ContinuedScan(Study):
 
     PARAMETER = "q"
 
-    def cost(self, value):
+    def cost(self, value: float) -> float:
         """The relative cost of the point at ``value`` (for dealing)."""
         return 1.0
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Compute every (alpha, value) not in the file, by continuation steps; yields each record after saving it."""
         self.open()
         done = {point_key(r["alpha"], r[self.PARAMETER]) for r in self.store.records}
@@ -223,12 +231,12 @@ class ContinuedScan(Study):
             for _, row in dealt(items, [self.cost(self.sequences[a][i]) for a, _ in items], self.comm, self.compute):
                 yield self.store.append(row)
 
-    def preceding(self, alpha, i):
+    def preceding(self, alpha: float, i: int) -> list[dict]:
         """The records of the (up to two) points of ``alpha`` before its i-th."""
         known = {point_key(r["alpha"], r[self.PARAMETER]): r for r in self.store.records}
         return [known[point_key(alpha, v)] for v in self.sequences[alpha][max(0, i - 2):i]]
 
-    def by_alpha(self):
+    def by_alpha(self) -> Iterator[tuple[float, list[dict]]]:
         """(alpha, its rows in table order) for every alpha of the file, by increasing alpha."""
         for a in sorted({float(r["alpha"]) for r in self.records}):
             yield a, [r for r in self.rows() if float(r["alpha"]) == a]

@@ -1,8 +1,11 @@
 """Branch studies: the continuation of section 3.1 written to a branch file, its convergence in h, and the
 branch to small q with grids refined as q decreases (section 3.2)."""
+from __future__ import annotations
+
 import json
 import math
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Iterator, Mapping, Optional
 
 import numpy as np
 
@@ -16,6 +19,11 @@ from ..resources import check_memory
 from ..richardson import richardson
 from ..twsolver import TW_PREFIX
 from .base import Study, configure_roles
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
+
+    from ..diagnostics import WaveDiagnostics
 
 TW_ROLE = {TW_PREFIX: ("the travelling-wave SNES (-tw_solver direct|nk, -tw_jacobian aij|shell)", ("snes",))}
 
@@ -34,7 +42,9 @@ class BranchStudy(Study):
     ROLES = TW_ROLE
     WHAT = "branch file"
 
-    def __init__(self, params, output=None, comm=None, mode="new", meta=None, prefix=TW_PREFIX, solver=None):
+    def __init__(self, params: ContinuationParameters, output: Optional[str] = None,
+                 comm: Optional[PETSc.Comm] = None, mode: str = "new", meta: Optional[Mapping] = None,
+                 prefix: str = TW_PREFIX, solver: Optional[str] = None) -> None:
         super().__init__(params, comm, output, mode)
         self.branch = Branch(params.model, params.cells_per_pi, params.M, [], dict(meta or {}))
         self.continuation = BranchContinuation(params, self.comm, prefix, solver)
@@ -49,7 +59,7 @@ class BranchStudy(Study):
             self.continuation.resume_from([p.q for p in pts], [p.u_half for p in pts])
         return store
 
-    def run(self):
+    def run(self) -> Iterator[BranchPoint]:
         self.open()
         try:
             for point in self.continuation.points():
@@ -140,10 +150,10 @@ class SmallQParameters:
         RefiningGrid(self.q_first, self.cells_per_q)          # validates cells_per_q
 
     @property
-    def model(self):
+    def model(self) -> LatticeModel:
         return LatticeModel.hertz(self.alpha)
 
-    def targets(self):
+    def targets(self) -> list[float]:
         """q_first 2^(-i/per_halving), i = 0, 1, ..., with q_stop appended if it falls between."""
         qs, i = [], 0
         while True:
@@ -156,13 +166,13 @@ class SmallQParameters:
             qs.append(self.q_stop)
         return qs
 
-    def grid(self, level):
+    def grid(self, level: int) -> RefiningGrid:
         return RefiningGrid(self.q_first, self.cells_per_q, level)
 
-    def cells_per_pi(self, q, level):
+    def cells_per_pi(self, q: float, level: int) -> int:
         return self.grid(level).cells_per_pi(q)
 
-    def identity(self):
+    def identity(self) -> dict:
         return asdict(self)
 
 
@@ -205,7 +215,8 @@ class SmallQStudy(Study):
     ROLES = TW_ROLE
     WHAT = "progress file"
 
-    def __init__(self, params, progress=None, comm=None, mode="new", prefix=TW_PREFIX):
+    def __init__(self, params: SmallQParameters, progress: Optional[str] = None, comm: Optional[PETSc.Comm] = None,
+                 mode: str = "new", prefix: str = TW_PREFIX) -> None:
         super().__init__(params, comm, progress, mode)
         self._check_memory(params)
         self.prefix, self.progress = prefix, progress
@@ -233,7 +244,7 @@ class SmallQStudy(Study):
             raise ParameterError("q_stop", params.q_stop, f"{bound} on this machine: the finest level's grid, "
                                  f"K = {K} cells per pi, {e.valid.rsplit(': ', 1)[0]}") from None
 
-    def constants(self):
+    def constants(self) -> dict:
         return self.params.identity()
 
     identity = constants             # the progress files hold no solver options
@@ -245,7 +256,7 @@ class SmallQStudy(Study):
                      what=f"cannot read progress file {self.progress!r}")
         return super()._open()
 
-    def rows(self, level):
+    def rows(self, level: int) -> list[dict]:
         return [r for r in self.store.records if int(r["level"]) == level]
 
     def _seeds(self, level):
@@ -257,7 +268,7 @@ class SmallQStudy(Study):
                 out.append((float(st[key + "q"]), np.asarray(st[key + "u"], dtype=float)))
         return out
 
-    def run(self):
+    def run(self) -> Iterator[tuple[int, float, int, WaveDiagnostics]]:
         """Yield (level, q, K, diagnostics) for every new target point, each saved before the next is tried."""
         self.open()
         p = self.params
@@ -281,7 +292,7 @@ class SmallQStudy(Study):
                 self.store.append(dict(level=level, q=point.q, K=K, **{f: d[f] for f in SMALLQ_FIELDS}), state)
                 yield level, point.q, K, d
 
-    def extrapolations(self):
+    def extrapolations(self) -> tuple[dict, dict, dict]:
         """{field: [(order, extrapolated) per target]} and the table of values [field][level, target]."""
         p = self.params
         targets = p.targets()
@@ -295,7 +306,7 @@ class SmallQStudy(Study):
         K_fine = {round(q, 12): int(lookup[-1][round(q, 12)]["K"]) for q in targets}
         return table, ext, K_fine
 
-    def table(self, k_alpha, half_length=8.0):
+    def table(self, k_alpha: float, half_length: float = 8.0) -> str:
         p = self.params
         targets = p.targets()
         table, ext, K_fine = self.extrapolations()
@@ -315,7 +326,7 @@ class SmallQStudy(Study):
                          f"{ext['slope'][i][1]:.6e} | {ext['N'][i][1]:.5f} | {ext['N'][i][0]:.2f} |")
         return "\n".join(lines) + "\n"
 
-    def summary(self, k_alpha, half_length=8.0):
+    def summary(self, k_alpha: float, half_length: float = 8.0) -> dict:
         """The extrapolated products and N(q) against q (the JSON beside the table)."""
         _, ext, _ = self.extrapolations()
         return dict(k_alpha=k_alpha, half_length=half_length, q=self.params.targets(),

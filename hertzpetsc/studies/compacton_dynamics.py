@@ -6,8 +6,11 @@ mu3, rate (fitted decay of |rest| per bead), rate_first, rate_last, rest_floor, 
 a_predicted, b_start, b_end, dist_end, behind_v, seconds, steps, and the series rest, a, b, dist (travel + 1)
 and deviation (travel + 1, M).
 """
+from __future__ import annotations
+
 import math
 import time
+from typing import Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 from petsc4py import PETSc
@@ -16,7 +19,7 @@ from ..chain import ChainIntegrator, IntegrationTolerances
 from ..compacton_spectrum import eigenvector, window_spectrum
 from ..compacton_window import CompactonWindow, WindowChain, embed
 from ..errors import ParameterError
-from ..model import ChainSpec
+from ..model import ChainSpec, LatticeModel
 from ..options import inserted_options
 from .base import Study
 from .compacton_stability import exact_compacton, fmt_multiplier, q_text
@@ -52,8 +55,10 @@ class CompactonDynamics(Study):
     ROLES = {"cdyn_": ("the long free chain's TS", ("ts",)), "cwin_": ("the window flows", ("ts",))}
     WHAT = "compacton dynamics file"
 
-    def __init__(self, records, model, comm=None, output=None, mode="new", N=2100, n0=50, travel=1000,
-                 amplitude=1e-8, kinds=("mode", "noise"), seed=12345, tolerances=DYNAMICS_TOLERANCES):
+    def __init__(self, records: Sequence[Mapping], model: LatticeModel, comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new", N: int = 2100, n0: int = 50, travel: int = 1000,
+                 amplitude: float = 1e-8, kinds: Sequence[str] = ("mode", "noise"), seed: int = 12345,
+                 tolerances: IntegrationTolerances = DYNAMICS_TOLERANCES) -> None:
         if not records:
             raise ParameterError("-q", "", "no compacton to run")
         self.cases = [exact_compacton(r) for r in records]
@@ -73,11 +78,11 @@ class CompactonDynamics(Study):
         self.chain, self.integ = chain, dynamics_integrator(chain, tolerances)
         self.SHAPES = dict({k: (self.travel + 1,) for k in ("rest", "a", "b", "dist")}, deviation=(self.travel + 1, M))
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(alpha=self.alpha, N=self.N, n0=self.n0, travel=self.travel, amplitude=self.amplitude,
                     rtol=self.tolerances.rtol, M=self.cases[0].M)
 
-    def perturbation(self, kind, scale, V):
+    def perturbation(self, kind: str, scale: np.ndarray, V: np.ndarray) -> np.ndarray:
         M = len(scale) // 2
         if kind == "noise":
             p = np.random.default_rng(self.seed).standard_normal(2 * M) * scale
@@ -85,7 +90,7 @@ class CompactonDynamics(Study):
             p = np.real(V)
         return (self.amplitude * p / np.max(np.abs(p / scale))).reshape(M, 2)
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         self.open()
         done = {(round(float(r["q"]), 12), str(r["kind"])) for r in self.store.records}
         for ex in self.cases:
@@ -127,7 +132,7 @@ class CompactonDynamics(Study):
                        steps=steps, deviation=deviation, **series, **self.fit(series))
             yield self.store.append(row)
 
-    def fit(self, s):
+    def fit(self, s: Mapping[str, np.ndarray]) -> dict:
         """Decay rate of |rest| over k >= 1 while it stays above 30 x its floor (median over k in [T/2, T]), at most
         25 points; the late maximum of |rest|; the phase a(T) against a_10 + (T - 10) b_10."""
         rest, a, b, T = s["rest"], s["a"], s["b"], self.travel
@@ -142,7 +147,7 @@ class CompactonDynamics(Study):
                     a_predicted=float(a[k10] + (T - k10) * b[k10]), b_start=float(b[k10]), b_end=float(b[-1]),
                     dist_end=float(s["dist"][-1]))
 
-    def table(self):
+    def table(self) -> str:
         M = self.cases[0].M
         lines = [f"alpha = {self.alpha:g}: exact compactons (M = {M} window) on a free chain of {self.N} beads at "
                  f"bead {self.n0}, perturbed by {self.amplitude:g} x (mode: the eigenvector of the dominant "
@@ -168,7 +173,7 @@ class CompactonDynamics(Study):
                          f"{int(r['steps'])} | {float(r['seconds']):.1f} |")
         return "\n".join(lines) + "\n"
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.integ.destroy()
         self.chain.destroy()
         self.window.destroy()

@@ -1,8 +1,11 @@
 """The two-compacton test of section 3.3 (eq. extens2), each compacton unrefined or refined at the same gap, to
 locate the source of the 2-compacton error. File ``hertzpetsc-compacton-pairs-1``: constants alpha, q, h, spacing,
 travel, M, N, gap; per record: case, rear, front, error_x, error_v, debris_v, seconds."""
+from __future__ import annotations
+
 import math
 import time
+from typing import TYPE_CHECKING, Iterator, Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -13,6 +16,10 @@ from ..model import ChainSpec
 from .base import Study
 from .compacton_dynamics import DYNAMICS_TOLERANCES, CompactonDynamics, dynamics_integrator
 from .compacton_stability import q_text
+
+if TYPE_CHECKING:
+    from ..branch import Branch
+    from ..chain import IntegrationTolerances
 
 PAIRS_FORMAT = "hertzpetsc-compacton-pairs-1"
 PAIR_FIELDS = ("case", "rear", "front", "error_x", "error_v", "debris_v", "seconds")
@@ -31,8 +38,9 @@ class CompactonPairs(Study):
     ROLES = CompactonDynamics.ROLES
     WHAT, LABELS = "compacton pairs file", ("N", "gap")
 
-    def __init__(self, branch, q, comm=None, output=None, mode="new", spacing=132, travel=100, M=18,
-                 rear=DEFAULT_REAR, margin=10, tolerances=DYNAMICS_TOLERANCES):
+    def __init__(self, branch: Branch, q: float, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new", spacing: int = 132, travel: int = 100, M: int = 18, rear: int = DEFAULT_REAR,
+                 margin: int = 10, tolerances: IntegrationTolerances = DYNAMICS_TOLERANCES) -> None:
         super().__init__(None, comm, output, mode)
         self.branch, self.q = branch, float(q)
         self.spacing, self.travel, self.M, self.rear, self.margin = int(spacing), int(travel), int(M), int(rear), \
@@ -48,11 +56,11 @@ class CompactonPairs(Study):
         self.chain = WindowChain(ChainSpec(self.model, self.N, "free"), self.comm, gap)
         self.integ = dynamics_integrator(self.chain, tolerances)
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(alpha=self.branch.alpha, q=self.q, h=self.branch.h, spacing=self.spacing, travel=self.travel,
                     M=self.M, N=self.N, gap=self.gap)
 
-    def initial(self, rear, front):
+    def initial(self, rear: Optional[str], front: str) -> np.ndarray:
         """(N, 2) gap-lattice chain: the front window at bead margin + spacing, the rear one spacing beads behind."""
         nf = self.margin + self.spacing
         X = embed(self.states[front], self.N, nf)
@@ -60,7 +68,7 @@ class CompactonPairs(Study):
             X[:nf] += embed(self.states[rear], nf, self.margin)
         return X
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         self.open()
         w = CompactonWindow(self.model, self.M, PETSc.COMM_SELF)
         try:
@@ -96,7 +104,7 @@ class CompactonPairs(Study):
                        debris_v=float(np.max(np.abs(XT[behind, 1]))) / v_peak, seconds=time.perf_counter() - t0)
             yield self.store.append(row)
 
-    def table(self):
+    def table(self) -> str:
         lines = [f"alpha = {self.branch.alpha:g}, q = {q_text(self.q)}, branch h = "
                  f"pi/{round(math.pi / self.branch.h)}; c = 1, gap Delta = {self.gap:.6g} (the branch's a p q, "
                  "shared by all cases; 'refined' = the window map's fixed point at this gap). Unrefined window "
@@ -113,6 +121,6 @@ class CompactonPairs(Study):
                          f"{float(r['error_v']):.1e} | {float(r['debris_v']):.1e} | {float(r['seconds']):.1f} |")
         return "\n".join(lines) + "\n"
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.integ.destroy()
         self.chain.destroy()

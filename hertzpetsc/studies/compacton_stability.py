@@ -15,8 +15,11 @@ nontrivial), state (M, 2). :func:`ring_spectrum`: the same compacton on the ring
 of perturbed compactons and the two-compacton test: :mod:`~hertzpetsc.studies.compacton_dynamics`,
 :mod:`~hertzpetsc.studies.compacton_pairs`.
 """
+from __future__ import annotations
+
 import math
 import time
+from typing import TYPE_CHECKING, Optional, Sequence
 
 import numpy as np
 from petsc4py import PETSc
@@ -30,6 +33,9 @@ from ..errors import ParameterError
 from ..model import ChainSpec
 from ..richardson import richardson
 from .base import ContinuedScan, point_key
+
+if TYPE_CHECKING:
+    from ..branch import Branch
 
 STABILITY_FORMAT = "hertzpetsc-compacton-stability-1"
 CHECK_PREFIX = "ccheck_"
@@ -75,8 +81,10 @@ class CompactonStabilityScan(ContinuedScan):
              "cstab_": ("the window map's dominant multipliers (Krylov-Schur on the weighted shell)", ("eps",))}
     WHAT, LABELS = "compacton stability file", ("nev",)
 
-    def __init__(self, branches, qs, comm=None, output=None, mode="new", M=18, rear=DEFAULT_REAR, nev=3,
-                 eta=DEFAULT_ETA, solitary=True, tol_unstable=TOL_UNSTABLE, tolerances=WINDOW_TOLERANCES):
+    def __init__(self, branches: Sequence[Branch], qs: Sequence[float], comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new", M: int = 18, rear: int = DEFAULT_REAR, nev: int = 3,
+                 eta: float = DEFAULT_ETA, solitary: bool = True, tol_unstable: float = TOL_UNSTABLE,
+                 tolerances: IntegrationTolerances = WINDOW_TOLERANCES) -> None:
         if not branches:
             raise ParameterError("-branches", "", "give at least one branch file")
         self.branches = {round(b.alpha, 10): b for b in branches}
@@ -93,11 +101,11 @@ class CompactonStabilityScan(ContinuedScan):
         self._tools = {}
         WindowStability(self._solvers(next(iter(self.branches)))[0], self.nev, self.eta).destroy()
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(M=self.M, rear=self.rear, eta=self.eta, nev=self.nev, tol_unstable=self.tol_unstable,
                     rtol=self.tolerances.rtol)
 
-    def inputs(self):
+    def inputs(self) -> dict[str, str]:
         return {f"branch_alpha{a:g}": getattr(b, "path", "") for a, b in self.branches.items()}
 
     # --- per-rank solvers (COMM_SELF), one set per alpha ---------------------------------------------------------
@@ -110,7 +118,7 @@ class CompactonStabilityScan(ContinuedScan):
             self._tools[alpha] = (w, w2, chk, CompactonRefiner(w), CompactonRefiner(w2))
         return self._tools[alpha]
 
-    def compute(self, item):
+    def compute(self, item: tuple[float, int]) -> dict:
         """The record of (alpha, index in its sequence)."""
         alpha, i = item
         t0 = time.perf_counter()
@@ -157,27 +165,27 @@ class CompactonStabilityScan(ContinuedScan):
                     core_first=int(core[0]), core_last=int(core[-1]), seconds=time.perf_counter() - t0, multipliers=lam,
                     dominant=np.pad(dominant, (0, NDOM - len(dominant))), state=Y)
 
-    def cost(self, q):
+    def cost(self, q: float) -> float:
         """The solitary wave (q = 0) costs about five compactons."""
         return 1.0 + 4.0 * (q == 0)
 
-    def destroy(self):
+    def destroy(self) -> None:
         for tools in self._tools.values():
             for t in tools[:3]:
                 t.destroy()
         self._tools = {}
 
     # --- output ---------------------------------------------------------------------------------------------
-    def rows(self):
+    def rows(self) -> list[dict]:
         return sorted(self.store.records, key=lambda r: (float(r["alpha"]), -float(r["q"]) if r["q"] else 1.0))
 
-    def record(self, alpha, q):
+    def record(self, alpha: float, q: float) -> dict:
         for r in self.store.records:
             if point_key(r["alpha"], r["q"]) == point_key(alpha, q):
                 return r
         raise ParameterError("q", q, f"not in the compacton stability file at alpha = {alpha:g}")
 
-    def table(self):
+    def table(self) -> str:
         lines = [f"Exact compactons (c = 1) on a window of M = {self.M} beads ({self.rear} at rest behind the "
                  f"compression zone at the start), window map G = shift o Phi_1 (hertzpetsc.compacton_window). "
                  f"Residual: max|G(Y) - Y| under the refinement's flow (8vr, rtol {self.tolerances.rtol:g}) / under "
@@ -204,7 +212,7 @@ class CompactonStabilityScan(ContinuedScan):
                          f"({int(r['slepc_nev'])}, {int(r['slepc_products'])}) | {float(r['seconds']):.1f} |")
         return "\n".join(lines) + "\n"
 
-    def summary(self):
+    def summary(self) -> str:
         """One line per alpha: max nontrivial |mu| over the scan, at the largest q and at q = 0, unstable count,
         worst residual and worst convergence checks."""
         lines = ["| alpha | q scanned | max nontrivial \\|mu\\| (at q) | at the largest q | at q = 0 (solitary) | "
@@ -227,7 +235,7 @@ class CompactonStabilityScan(ContinuedScan):
                          f"{max(float(r['slepc_change']) for r in rs):.1e} |")
         return "\n".join(lines) + "\n"
 
-    def limit_table(self):
+    def limit_table(self) -> str:
         """The q -> 0 limit of the compacton family against the solitary wave (q = 0), per alpha: D and the dominant
         multipliers mu_3, mu_4, mu_5 at the three smallest q, the observed order, the value extrapolated in q with
         the leading order 1 (the gap Delta = q D / 2 pi opens every bond by O(q)) and the solitary wave's."""

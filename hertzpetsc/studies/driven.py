@@ -47,10 +47,13 @@ Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, 
   (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic (median
   (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
 """
+from __future__ import annotations
+
 import json
 import math
 import sys
 from dataclasses import MISSING, dataclass, fields
+from typing import TYPE_CHECKING, Any, Iterator, Optional, Sequence, overload
 
 import numpy as np
 from petsc4py import PETSc
@@ -67,6 +70,11 @@ from ..model import LatticeModel
 from ..resources import MAX_DENSE_BEADS, check_chain_memory
 from .base import Study
 from .dealing import dealt
+
+if TYPE_CHECKING:
+    from ..branch import Branch
+    from ..waves import Orbit
+    from .refinement import RefinedStates
 
 GOLDEN = (math.sqrt(5) - 1) / 2     # the interval of a golden-section search shrinks by this per evaluation
 
@@ -137,13 +145,13 @@ class DrivenStudy(Study):
     """Common part of the driven studies (:class:`~hertzpetsc.studies.base.Study`; the call of before and the
     identity: module docstring)."""
 
-    def __init__(self, *args, **kwargs):
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         if not ((args and isinstance(args[0], self.Parameters)) or "params" in kwargs):
             args, kwargs = self.legacy(*args, **kwargs), {}
         super().__init__(*args, **kwargs)
 
     @classmethod
-    def legacy(cls, *args, **kwargs):
+    def legacy(cls, *args: Any, **kwargs: Any) -> tuple[Any, Optional[PETSc.Comm], Optional[str], str]:
         """(params, comm, output, mode) from the call of before the protocol: the parameters without a default,
         comm, output, mode ("new"), then the others, by position or by name (the names of before in ``RENAMED``)."""
         fs = fields(cls.Parameters)
@@ -155,11 +163,11 @@ class DrivenStudy(Study):
 
     RENAMED = {}
 
-    def identity(self):
+    def identity(self) -> dict:
         """What a resumed file must agree with: the constants but the ``LABELS``."""
         return {k: v for k, v in self.constants().items() if k not in self.LABELS}
 
-    def configure(self):
+    def configure(self) -> None:
         """Nothing left to check: the options of ``drive_`` and ``floquet_`` are read when the study is built (its
         shooting problem, or :func:`~hertzpetsc.driven.configure_options`)."""
 
@@ -269,7 +277,15 @@ class ResponseCurve(DrivenStudy):
              "floquet_": ("the tangent flow (Jacobian, multipliers) and SLEPc's eigensolver", ("ts", "eps"))}
     WHAT = "driven-response file"
 
-    def __init__(self, *args, **kwargs):
+    @overload
+    def __init__(self, params: ResponseParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new") -> None: ...
+
+    @overload
+    def __init__(self, drive: Drive, parameter: str, p_end: float, comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new", **others: Any) -> None: ...
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         p = self.params
         self.drive, self.parameter, self.p_end = p.drive, p.parameter, p.p_end
@@ -282,7 +298,7 @@ class ResponseCurve(DrivenStudy):
                        tol=p.tol, tolerances=tolerances_of(p.rtol, p.drive.amplitude))
         self.problem = PeriodicShooting(p.drive, self.comm, **self.kw)       # configures drive_ and floquet_ now
 
-    def constants(self):
+    def constants(self) -> dict:
         """The constants of the files written before the protocol (their identity: all of them)."""
         p = self.params
         return dict(drive=json.dumps(p.drive.describe(), sort_keys=True, default=str), parameter=p.parameter,
@@ -320,7 +336,7 @@ class ResponseCurve(DrivenStudy):
                     power_in=diag.get("power_in", math.nan), dissipation=diag.get("dissipation", math.nan),
                     half_residual=half, multipliers=_padded(mu, self.nmult), x=x)
 
-    def branch_records(self, branch=0):
+    def branch_records(self, branch: int = 0) -> list[dict]:
         return [r for r in self.store.records if int(r["branch"]) == branch]
 
     def _regular(self, r):
@@ -356,7 +372,7 @@ class ResponseCurve(DrivenStudy):
     def _same_event(rec, point, code):
         return int(rec["event"]) == code and abs(float(rec["s"]) - point.s) <= 1e-12 * max(1.0, abs(point.s))
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Compute what the file lacks: the main branch, then the period-doubled branches. Yields each record."""
         self.open()
         yield from self._main()
@@ -575,11 +591,11 @@ class ResponseCurve(DrivenStudy):
                 cont.destroy()
                 double.destroy()
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.problem.destroy()
 
     # --- tables ---------------------------------------------------------------------------------------------
-    def table(self):
+    def table(self) -> str:
         recs = self.store.records
         d = json.loads(str(self.store.constants["drive"]))
         lines = [f"schema: {RESPONSE_FORMAT}; drive {d}; continuation in {self.parameter} towards {self.p_end:g}; "
@@ -720,7 +736,15 @@ class LinearResonances(DrivenStudy):
     ROLES = {"drive_": _DRIVE_ROLE, "floquet_": ("the tangent flow (Jacobian, multipliers)", ("ts",))}
     WHAT = "driven-resonances file"
 
-    def __init__(self, *args, **kwargs):
+    @overload
+    def __init__(self, params: ResonanceParameters, comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new") -> None: ...
+
+    @overload
+    def __init__(self, drive: Drive, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new", **others: Any) -> None: ...
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         p = self.params
         self.drive = p.drive
@@ -731,19 +755,19 @@ class LinearResonances(DrivenStudy):
                                         tolerances=tolerances_of(p.rtol, p.drive.amplitude))
         self._x = None
 
-    def constants(self):
+    def constants(self) -> dict:
         """The constants of the files written before the protocol (their identity: all of them)."""
         p = self.params
         return dict(drive=json.dumps(p.drive.describe(), sort_keys=True, default=str), modes=self.modes, tol=p.tol,
                     rtol=p.rtol)
 
-    def window(self, k):
+    def window(self, k: int) -> tuple[float, float]:
         w = self.omega_k
         lo = w[k - 2] if k >= 2 else 0.0
         hi = w[k] if k < len(w) else w[k - 1] + (w[k - 1] - lo)
         return w[k - 1] - 0.4 * (w[k - 1] - lo), w[k - 1] + 0.4 * (hi - w[k - 1])
 
-    def shooting_amplitude(self, omega):
+    def shooting_amplitude(self, omega: float) -> float:
         """|X_N| / a of the response at omega: the first harmonic of the last bead from x_N(0), x_N'(0)."""
         prob = self.problem
         prob.set_drive(prob.drive.with_parameter("omega", omega))
@@ -754,7 +778,7 @@ class LinearResonances(DrivenStudy):
         xN, vN = r.x[-1]
         return math.hypot(xN, vN / omega) / self.drive.amplitude
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         self.open()
         done = {int(r["k"]) for r in self.store.records}
         for k in self.modes:
@@ -774,7 +798,7 @@ class LinearResonances(DrivenStudy):
                        evaluations=self._evals)
             yield self.store.append(rec)
 
-    def table(self):
+    def table(self) -> str:
         d = self.drive
         lines = [f"schema: {RESONANCE_FORMAT}; precompressed chain alpha = {d.model.alpha:g}, delta0 = "
                  f"{d.model.delta0:g} (K = V''(0) = {d.model.law.linear_stiffness:.6g}), N = {d.N}, masses "
@@ -794,7 +818,7 @@ class LinearResonances(DrivenStudy):
                          f"{float(r['amp_shooting']):.6g} | {float(r['mu_error']):.1e} | {int(r['evaluations'])} |")
         return "\n".join(lines) + "\n"
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.problem.destroy()
 
 
@@ -854,7 +878,16 @@ class WaveEnds(DrivenStudy):
     WHAT, RENAMED = "driven wave-ends file", {"qs": "q"}
     LABELS = ("branch", "refined", "rtols")         # not the file names, nor rtols: a resume may add tolerances
 
-    def __init__(self, *args, **kwargs):
+    @overload
+    def __init__(self, params: WaveEndsParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new") -> None: ...
+
+    @overload
+    def __init__(self, branch: Branch, refined: RefinedStates, qs: Sequence[float], sizes: Sequence[int],
+                 comm: Optional[PETSc.Comm] = None, output: Optional[str] = None, mode: str = "new",
+                 **others: Any) -> None: ...
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         p = self.params
         self.branch, self.refined = p.branch, p.refined
@@ -864,19 +897,19 @@ class WaveEnds(DrivenStudy):
         configure_options(self.comm)
         self._rho_periodic = {}
 
-    def constants(self):
+    def constants(self) -> dict:
         p = self.params
         return dict(alpha=p.branch.alpha, P=p.refined.N, branch=p.branch_path, refined=p.refined_path,
                     samples=p.samples, rtols=list(p.rtols))
 
-    def periodic_rho(self, orbit, rtol):
+    def periodic_rho(self, orbit: Orbit, rtol: float) -> float:
         key = (round(orbit.q, 12), rtol)
         if key not in self._rho_periodic:
             with DenseFloquet(orbit.spec, self.comm, tolerances_of(rtol)) as dense:
                 self._rho_periodic[key] = dense.spectrum(orbit).rho ** (orbit.N / orbit.m)
         return self._rho_periodic[key]
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         self.open()
         done = {(round(float(r["q"]), 12), int(r["N"]), float(r["rtol"])) for r in self.store.records}
         for q in self.qs:
@@ -903,7 +936,7 @@ class WaveEnds(DrivenStudy):
                                rho_periodic=self.periodic_rho(orbit, rtol), multipliers=_padded(mu, self.nmult))
                     yield self.store.append(rec)
 
-    def table(self):
+    def table(self) -> str:
         from .floquet import q_label
         recs = sorted(self.store.records, key=lambda r: (-float(r["q"]), int(r["N"]), -float(r["rtol"])))
         P = self.refined.N
@@ -994,7 +1027,16 @@ class Generation(DrivenStudy):
     WHAT, RENAMED = "driven-generation file", {"waveforms": "signals"}
     LABELS = ("branch",)
 
-    def __init__(self, *args, **kwargs):
+    @overload
+    def __init__(self, params: GenerationParameters, comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new") -> None: ...
+
+    @overload
+    def __init__(self, branch: Branch, model: LatticeModel, N: int, waveforms: Sequence[str], omegas: Sequence[float],
+                 amplitudes: Sequence[float], gammas: Sequence[float], comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new", **others: Any) -> None: ...
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
         super().__init__(*args, **kwargs)
         p = self.params
         self.branch, self.model, self.N = p.branch, p.model, p.N
@@ -1007,7 +1049,7 @@ class Generation(DrivenStudy):
         self.SHAPES = {"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)}
         configure_options(PETSc.COMM_SELF)
 
-    def constants(self):
+    def constants(self) -> dict:
         p = self.params
         return dict(model=json.dumps(p.model.describe(), sort_keys=True), N=p.N, branch=p.branch_path,
                     bulk=list(p.bulk), run_in=p.run_in, width=p.width)
@@ -1015,7 +1057,7 @@ class Generation(DrivenStudy):
     def _key(self, w, om, a, g):
         return (WAVEFORMS.index(w), round(om, 12), round(a, 12), round(g, 12))
 
-    def case(self, w, om, a, g):
+    def case(self, w: str, om: float, a: float, g: float) -> dict:
         """One case on this rank (COMM_SELF): the record."""
         drive = Drive(self.model.with_damping(g, self.model.damping.eta), self.N, make_waveform(w, self.width), a, om)
         rec = dict(waveform=WAVEFORMS.index(w), omega=om, amplitude=a, gamma=g)
@@ -1064,7 +1106,7 @@ class Generation(DrivenStudy):
                    A_n=A, q_n=q, D_n=D)
         return rec
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         self.open()
         done = {self._key(WAVEFORMS[int(r["waveform"])], float(r["omega"]), float(r["amplitude"]), float(r["gamma"]))
                 for r in self.store.records}
@@ -1073,7 +1115,7 @@ class Generation(DrivenStudy):
         for _, rec in dealt(todo, costs, self.comm, lambda c: self.case(*c)):
             yield self.store.append(rec)
 
-    def linear_wavenumber(self, omega, strain):
+    def linear_wavenumber(self, omega: float, strain: float) -> float:
         """q of the linear wave at omega of the chain compressed by the static strain (nan above the band edge)."""
         K = float(self.model.law.d2V(strain))           # V'' at the static strain (alpha |s|^(alpha-1), delta0 = 0)
         if not K > 0:
@@ -1081,7 +1123,7 @@ class Generation(DrivenStudy):
         edge = 2 * math.sqrt(K)
         return 2 * math.asin(omega / edge) if omega < edge else math.nan
 
-    def table(self):
+    def table(self) -> str:
         lines = [f"schema: {GENERATION_FORMAT}; chain {json.loads(str(self.store.constants['model']))}, N = {self.N}, "
                  f"actuator at bead 0, wall at bead N + 1; periodic response after {self.run_in} periods of run-in "
                  f"from rest and Newton; bulk = beads {self.bulk[0]:g} N .. {self.bulk[1]:g} N.\n",

@@ -13,9 +13,12 @@ be in it (a list naming an unrefined q is an error; without a list the scan is r
 and the table says so); the unrefined branch waves are only used when asked for explicitly, and a wave whose trivial
 multipliers spread by more than tol_rho is not judged (named below the table, left out of q_c).
 """
+from __future__ import annotations
+
 import math
 import time
 from fractions import Fraction
+from typing import TYPE_CHECKING, Collection, Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 from petsc4py import PETSc
@@ -29,6 +32,12 @@ from ..waves import orbit_on_chain
 from .base import Study
 from .dealing import dealt
 from .refinement import scan_wavenumbers
+
+if TYPE_CHECKING:
+    from ..branch import Branch
+    from ..chain import IntegrationTolerances
+    from ..waves import Orbit
+    from .refinement import RefinedStates
 
 FLOQUET_FORMAT = "hertzpetsc-floquet-1"
 FLOQUET_FIELDS = ("q", "rho", "outside", "trivial_spread", "growth", "refined", "seconds")
@@ -105,8 +114,10 @@ class FloquetScan(Study):
     ROLES = {"floquet_": ("Floquet spectra: the variational flow and the eigensolver", ("ts", "eps"))}
     WHAT = "Floquet file"
 
-    def __init__(self, branch, N, comm=None, output=None, mode="new", refined=None, qs=None, method="symmetric",
-                 nev=10, tol_rho=TOL_RHO, tolerances=FLOQUET_TOLERANCES):
+    def __init__(self, branch: Branch, N: int, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new", refined: Optional[RefinedStates] = None, qs: Optional[Sequence[float]] = None,
+                 method: str = "symmetric", nev: int = 10, tol_rho: float = TOL_RHO,
+                 tolerances: IntegrationTolerances = FLOQUET_TOLERANCES) -> None:
         if method not in METHODS:
             raise ParameterError("-method", method, "must be one of " + ", ".join(METHODS))
         super().__init__(None, comm, output, mode)
@@ -122,14 +133,14 @@ class FloquetScan(Study):
 
     LABELS = ("note",)
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(N=self.N, alpha=self.branch.alpha, tol_rho=self.tol_rho, method=self.method,
                     refined_file=_path(self.refined), note=self.restriction)
 
-    def inputs(self):
+    def inputs(self) -> dict[str, str]:
         return dict(branch=_path(self.branch), refined=_path(self.refined))
 
-    def orbit(self, q):
+    def orbit(self, q: float) -> Orbit:
         point = self.branch.point(q)
         if self.refined is not None:
             return self.refined.orbit(point, self.spec)
@@ -144,7 +155,7 @@ class FloquetScan(Study):
                     growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
                     multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Compute the spectrum at every q not yet in the file; yields the record after saving it. The symmetric
         route deals the q to the ranks (each on one rank); the others distribute each q over the ranks, in order
         (the SLEPc route starts from the previous q's eigenvectors)."""
@@ -154,10 +165,10 @@ class FloquetScan(Study):
         for _, row in rows:
             yield self.store.append(row)
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.solver.destroy()
 
-    def consistency(self, q):
+    def consistency(self, q: float) -> str:
         """rho(Phi_q) of the full-period monodromy against rho(F_q)^(N/m) at q (dense route): text for the table."""
         row = next(r for r in self.store.records if abs(float(r["q"]) - q) <= 1e-12 * q)
         orbit = self.orbit(q)
@@ -173,7 +184,7 @@ class FloquetScan(Study):
                 f"rho(F_q)^(N/m) = {rho ** (orbit.N / orbit.m):.6f}, relative difference "
                 f"{abs(rho_phi - rho ** (orbit.N / orbit.m)) / rho_phi:.1e}")
 
-    def table(self, check_q=None):
+    def table(self, check_q: Optional[float] = None) -> str:
         rows = sorted(self.store.records, key=lambda r: -float(r["q"]))
         q = np.array([float(r["q"]) for r in rows])
         rho = np.array([float(r["rho"]) for r in rows])
@@ -219,7 +230,7 @@ class FloquetScan(Study):
             lines.append(self.consistency(float(q[int(np.argmin(np.abs(q - check_q)))])))
         return "\n".join(lines) + "\n"
 
-    def eigen_panels(self, labels):
+    def eigen_panels(self, labels: Sequence[tuple[str, float]]) -> list[tuple[str, np.ndarray]]:
         """[(label, multipliers)] of the records at the (label, q) pairs that were scanned (fig. eigen)."""
         return [(label, np.asarray(r["multipliers"])) for label, q in labels for r in self.store.records
                 if abs(float(r["q"]) - q) < 1e-9]
@@ -245,8 +256,11 @@ class BlochScan(Study):
                           ("ts", "eps"))}
     WHAT, LABELS, ADDED = "Bloch file", ("split", "refined_file"), BLOCH_DETAIL
 
-    def __init__(self, branch, refined, sizes, qs, comm=None, output=None, mode="new", nev=10, tol_rho=TOL_RHO,
-                 slepc_sizes=(), split="sectors", tolerances=FLOQUET_TOLERANCES, reference=None):
+    def __init__(self, branch: Branch, refined: RefinedStates, sizes: Sequence[int], qs: Sequence[float],
+                 comm: Optional[PETSc.Comm] = None, output: Optional[str] = None, mode: str = "new", nev: int = 10,
+                 tol_rho: float = TOL_RHO, slepc_sizes: Collection[int] = (), split: str = "sectors",
+                 tolerances: IntegrationTolerances = FLOQUET_TOLERANCES,
+                 reference: Optional[Mapping[float, float]] = None) -> None:
         super().__init__(None, comm, output, mode)
         self.branch, self.refined = branch, refined
         self.M = refined.N
@@ -268,13 +282,13 @@ class BlochScan(Study):
         self.SHAPES = {"dominant": (nev,), "dominant_theta": (nev,)}
         self.extra = {}
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(alpha=self.branch.alpha, M=self.M, nev=self.nev, tol_rho=self.tol_rho, split=self.split,
                     rtol=self.tolerances.rtol, refined_file=_path(self.refined))
 
     inputs = FloquetScan.inputs          # the branch and the refinement file
 
-    def run(self):
+    def run(self) -> Iterator[tuple[dict, dict]]:
         self.open()
         done = {(int(r["N"]), round(float(r["q"]), 12)) for r in self.store.records}
         for N in self.sizes:
@@ -316,10 +330,10 @@ class BlochScan(Study):
                 self.store.append(row)
                 yield row, self.extra[key]
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.solver.destroy()
 
-    def table(self, ranks):
+    def table(self, ranks: int) -> str:
         M = self.M
         lines = [f"Floquet multipliers modulo shifts on N = L x {M} beads (the refined {M}-bead wave tiled), by Bloch "
                  f"sectors theta_j = 2 pi j / L of the {M}-bead cell (hertzpetsc.bloch), {ranks} rank(s), sectors "

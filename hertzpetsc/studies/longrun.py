@@ -5,10 +5,13 @@ D(t) = ||S^k X(k script-T) - X(0)||_inf / ||X(0)||_inf is the distance to the ex
 multiples of script-T; the wave counts as destroyed when D > 0.1 (paper: stable at q = 3pi/10 over t ~ 4000,
 destroyed near t ~ 360 at q = 7pi/25).
 """
+from __future__ import annotations
+
 import math
 import os
 import time
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING, Callable, Optional
 
 import numpy as np
 
@@ -18,6 +21,11 @@ from ..records import write_json
 from ..simulation import (check_times, decode, first_crossing, snapshot_record, snapshot_store, state_digest,
                           wave_deviation)
 from .base import Study
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
+
+    from ..waves import Orbit
 
 DESTRUCTION_LEVEL = 0.1
 
@@ -56,7 +64,8 @@ class LongRun(Study):
     ROLES = {CHAIN_PREFIX: ("the chain's integrator", ("ts",))}
     WHAT = "run directory"
 
-    def __init__(self, orbit, t_final, snapshots_per_T, output, comm=None, mode="new", prefix=CHAIN_PREFIX):
+    def __init__(self, orbit: Orbit, t_final: float, snapshots_per_T: int, output: str,
+                 comm: Optional[PETSc.Comm] = None, mode: str = "new", prefix: str = CHAIN_PREFIX) -> None:
         super().__init__(None, comm, output, mode)
         self.orbit = orbit
         self.dt_snap = orbit.T / snapshots_per_T
@@ -81,11 +90,12 @@ class LongRun(Study):
         return snapshot_store(self.output, self.header, self.comm, self.mode)
 
     @property
-    def resumed_at(self):
+    def resumed_at(self) -> float:
         """The time of the last snapshot found when the run was opened (nan for a new run)."""
         return float(self.store.records[-1][0]) if self.store.records else math.nan
 
-    def run(self, progress=None, every=50):
+    def run(self, progress: Optional[Callable[[float, float, int], None]] = None,
+            every: int = 50) -> None:
         """Integrate from the last snapshot to t_final; ``progress(t, energy_drift, steps)`` is called every
         ``every`` script-T."""
         self.open()
@@ -118,7 +128,7 @@ class LongRun(Study):
         finally:
             X.destroy()
 
-    def summary(self):
+    def summary(self) -> LongRunSummary:
         times, energies, _, states = decode(np.array(self.store.records), self.orbit.N)
         tD, D = wave_deviation(times, states, states[0], self.orbit.T)
         h = self.header
@@ -131,11 +141,11 @@ class LongRun(Study):
                               time_D_above_1em6=first_crossing(tD, D, 1e-6),
                               time_D_above_1em3=first_crossing(tD, D, 1e-3), ts=h["ts"], rtol=h["rtol"], atol=h["atol"])
 
-    def write_summary(self):
+    def write_summary(self) -> LongRunSummary:
         summary = self.summary()
         write_json(os.path.join(self.output, "summary.json"), summary.as_dict(), self.comm)
         return summary
 
-    def destroy(self):
+    def destroy(self) -> None:
         self.integrator.destroy()
         self.chain.destroy()

@@ -29,6 +29,8 @@ chain, 3 the uncompressed limit, 4 the gap opening, 5 a Krein crossing. Files of
 located boundary) are read for their tables and figure (:func:`read_map`, :func:`map_table`); they cannot be resumed
 by this study.
 """
+from __future__ import annotations
+
 import math
 import os
 import sys
@@ -36,6 +38,7 @@ import time
 from dataclasses import dataclass
 from fractions import Fraction
 from types import SimpleNamespace
+from typing import TYPE_CHECKING, Iterator, Mapping, Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -59,6 +62,9 @@ from .base import Study
 from .dealing import dealt
 from .floquet import q_label
 from .precompression import _check_delta0_positive, _check_qs, amplitude_grid, wave_orbit
+
+if TYPE_CHECKING:
+    from ..model import LatticeModel
 
 MAP_FORMAT = "hertzpetsc-precompression-map-2"
 MAP_FORMAT_V1 = "hertzpetsc-precompression-map-1"
@@ -319,7 +325,8 @@ class StabilityMap(Study):
     WHAT = "stability-map file"
     NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="model's masses (-epsilon)")
 
-    def __init__(self, params, comm=None, output=None, mode="new"):
+    def __init__(self, params: MapParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new") -> None:
         super().__init__(params, comm, output, mode)
         p = params
         self.model, self.N, self.qs, self.a_values = p.model, p.N, list(p.q), list(p.a)
@@ -328,12 +335,12 @@ class StabilityMap(Study):
         check_memory(2 * self.K, PETSc.COMM_SELF, tw_solver(PRECOMP_PREFIX), profiles=self.model.cell)
         self._routes = {}
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses), N=self.N,
                     cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists,
                     locate=",".join(self.locate) or "none", locate_tol=self.locate_tol, amplitudes=self.a_values)
 
-    def route(self, model):
+    def route(self, model: LatticeModel) -> DeflatedSectors:
         """The deflated sector route of ``model`` on one rank (built once per model, prefix ``floquet_``)."""
         key = repr(model.describe())
         if key not in self._routes:
@@ -379,7 +386,7 @@ class StabilityMap(Study):
                    theta_unstable=get(unstable)["sector" if name == "chain" else "theta"], seconds=seconds)
         return row
 
-    def compute(self, q):
+    def compute(self, q: float) -> list[dict]:
         """Every record of one q (on this rank), in order of amplitude; the uncompressed limit last."""
         grid = ProfileGrid(self.K, PETSc.COMM_SELF)
         probe = MapProbe(self, q)
@@ -484,14 +491,14 @@ class StabilityMap(Study):
         return any(int(r["kind"]) == KIND_LIMIT for r in mine) if self.limit else \
             sum(1 for r in mine if int(r["kind"]) == KIND_POINT) >= len(self.a_values)
 
-    def cost(self, q):
+    def cost(self, q: float) -> float:
         """Estimated work of one q (for dealing): the chain's sectors and the infinite chain's scan."""
         chain = WaveSymmetry(self.N, check_chain_wavenumber(q, self.N), self.model.cell).cost() * 50 \
             if fits_chain(q, self.N) else 0.0
         M = wave_cell(q, self.model.cell).M
         return 1.0 + chain + (math.ceil(self.twists / M) * (M / 20) ** 3 / 20 if self.twists else 0.0)
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Compute every q not complete in the file (a q in progress is recomputed: its records are the same);
         yields each new record after saving it."""
         self.open()
@@ -500,13 +507,13 @@ class StabilityMap(Study):
                                   lambda r: (int(r["kind"]), round(float(r["a"]), 10)),
                                   lambda r, q: abs(float(r["q"]) - q) <= 1e-12 * q)
 
-    def destroy(self):
+    def destroy(self) -> None:
         for route in self._routes.values():
             route.destroy()
         self._routes = {}
 
     # --- tables and figures ------------------------------------------------------------------------------------
-    def table(self):
+    def table(self) -> str:
         return map_table(self.arrays())
 
 
@@ -587,7 +594,8 @@ class QBoundary(Study):
     locate, N = ("infinite",), 0
     route = StabilityMap.route
 
-    def __init__(self, params, comm=None, output=None, mode="new"):
+    def __init__(self, params: QBoundaryParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new") -> None:
         super().__init__(params, comm, output, mode)
         p = params
         self.model, self.K, self.tolerances, self.tol_rho, self.twists = (p.model, p.cells_per_pi, p.tolerances,
@@ -595,13 +603,13 @@ class QBoundary(Study):
         check_memory(2 * self.K, PETSc.COMM_SELF, tw_solver(PRECOMP_PREFIX), profiles=1)
         self._routes = {}
 
-    def constants(self):
+    def constants(self) -> dict:
         p = self.params
         return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses),
                     levels=list(p.A), grid_q=list(p.q), cells_per_pi=self.K, rtol=self.tolerances.rtol,
                     tol_rho=self.tol_rho, twists=self.twists, locate_tol=p.locate_tol, max_cell=p.max_cell)
 
-    def evaluate(self, x, A):
+    def evaluate(self, x: Fraction, A: float) -> dict:
         """The record of the wave at q = 2 pi x (x a Fraction), amplitude A, on the infinite chain."""
         t0 = time.perf_counter()
         q = 2 * math.pi * float(x)
@@ -624,10 +632,10 @@ class QBoundary(Study):
                     omega=entry.get("omega", math.nan), rho_inf=scan["rho"], theta_inf=scan["theta"],
                     cluster_inf=scan["cluster"], evaluations=1, seconds=time.perf_counter() - t0)
 
-    def unstable(self, row):
+    def unstable(self, row: Mapping) -> bool:
         return row["rho_inf"] - 1 > self.tol_rho
 
-    def compute(self, A):
+    def compute(self, A: float) -> list[dict]:
         """Every record of the level A (on this rank): the grid q, then each located edge after its samples."""
         p = self.params
         cells = [Fraction(c.m, c.M) for c in map(wave_cell, p.q)]
@@ -672,7 +680,7 @@ class QBoundary(Study):
         changes = sum(self.unstable(a) != self.unstable(b) for a, b in zip(rows, rows[1:]))
         return sum(1 for r in mine if int(r["kind"]) == KIND_EDGE_INF) >= changes
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Compute every level A not complete in the file (a level in progress is recomputed: its records are the
         same); yields each new record after saving it."""
         self.open()
@@ -683,7 +691,7 @@ class QBoundary(Study):
 
     destroy = StabilityMap.destroy
 
-    def table(self):
+    def table(self) -> str:
         return q_boundary_table(self.arrays())
 
 

@@ -23,9 +23,12 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
 The stability map in (q, A) (record kind ``hertzpetsc-precompression-map-2``) is :mod:`hertzpetsc.studies.maps`,
 on the waves of :func:`richardson_wave` / :func:`wave_orbit` here.
 """
+from __future__ import annotations
+
 import math
 import numbers
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Iterator, Optional
 
 import numpy as np
 
@@ -42,6 +45,9 @@ from ..richardson import extrapolate
 from ..branch import BranchPoint
 from ..waves import orbit_on_chain
 from .floquet import q_label
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
 
 PRECOMPRESSED_FORMAT = "hertzpetsc-precompressed-1"
 PRECOMPRESSED_FIELDS = ("q", "kind", "a", "A", "omega", "omega_lin", "Omega", "lam", "gap", "iterations")
@@ -125,20 +131,21 @@ class AmplitudeFamilies(Study):
     ROLES = {"precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
     WHAT = "precompressed-wave file"
 
-    def __init__(self, params, comm=None, output=None, mode="new"):
+    def __init__(self, params: AmplitudeParameters, comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new") -> None:
         super().__init__(params, comm, output, mode)
         self.model, self.qs, self.K, self.branch = params.model, list(params.q), params.cells_per_pi, params.branch
         self.amplitudes = amplitude_grid(params.a_min, params.a_max, params.ds)
         check_memory(self.K, self.comm, tw_solver("precomp_"))
 
-    def constants(self):
+    def constants(self) -> dict:
         p = self.params
         pattern = {} if self.model.cell == 1 and self.branch == "acoustic" else dict(
             masses=list(self.model.masses), branch=self.branch)            # monatomic files keep their identity
         return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a_min=p.a_min,
                     a_max=p.a_max, ds=p.ds, **pattern)
 
-    def omega_lin(self, q):
+    def omega_lin(self, q: float) -> float:
         """The linear frequency of the family's branch at q (closed form, :meth:`LatticeModel.linear_frequencies`)."""
         return float(self.model.linear_frequencies(q)[0 if self.branch == "acoustic" else -1])
 
@@ -146,7 +153,7 @@ class AmplitudeFamilies(Study):
         return dict(q=point.q, kind=kind, a=point.a, A=point.A, omega=point.omega, omega_lin=self.omega_lin(point.q),
                     Omega=point.Omega, lam=point.lam, gap=point.gap, iterations=point.iterations)
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Compute every q not complete in the file; yields each new record after saving it."""
         self.open()
         grid = ProfileGrid(self.K, self.comm)
@@ -172,7 +179,7 @@ class AmplitudeFamilies(Study):
                        Omega=limit["Omega0"], lam=limit["lam"], gap=math.inf, iterations=limit["iterations"])
             yield self.store.append(row)
 
-    def rows(self, q):
+    def rows(self, q: float) -> tuple[list[dict], Optional[dict], Optional[dict]]:
         """(grid points sorted by a, gap record or None, limit record or None) at q."""
         recs = _at(self.store.records, q)
         grid = sorted((r for r in recs if int(r["kind"]) == KIND_GRID), key=lambda r: float(r["a"]))
@@ -180,7 +187,7 @@ class AmplitudeFamilies(Study):
         limit = next((r for r in recs if int(r["kind"]) == KIND_LIMIT), None)
         return grid, gap, limit
 
-    def summary(self, q):
+    def summary(self, q: float) -> dict:
         """Per q: the small-amplitude coefficient (fit of omega/omega_lin - 1 on the smallest amplitudes, on this
         grid against the closed form's omega_lin: includes the O(h^2) offset of the scheme), A_gap, Omega at the
         largest A, Omega0 and c1 = (Omega - Omega0) A / delta0 at the largest two A."""
@@ -213,7 +220,7 @@ class AmplitudeFamilies(Study):
             out["Omega0_fit"] = float(np.linalg.lstsq(np.stack([np.ones_like(x), x, x ** 2], 1), y, rcond=None)[0][0])
         return out
 
-    def table(self):
+    def table(self) -> str:
         alpha, d0 = self.model.alpha, self.model.delta0
         chain = "monatomic chain" if self.model.cell == 1 else (
             f"chain of masses {', '.join(f'{m:g}' for m in self.model.masses)} (repeated), {self.branch} family")
@@ -242,7 +249,7 @@ class AmplitudeFamilies(Study):
                          + f" | {fmt('rate', '{:.4f}')} |")
         return "\n".join(lines) + "\n"
 
-    def curves(self):
+    def curves(self) -> dict[float, tuple]:
         """{q: (A, omega, omega_lin, Omega0, (A_gap, omega_gap) or nans)} for the figure."""
         out = {}
         for q in self.qs:
@@ -314,7 +321,8 @@ class DimerFamilies(Study):
                                 ("snes",))}
     WHAT = "dimer file"
 
-    def __init__(self, params, comm=None, output=None, mode="new"):
+    def __init__(self, params: DimerParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new") -> None:
         super().__init__(params, comm, output, mode)
         p = params
         self.model = LatticeModel(p.model.law, (1.0, 1.0))
@@ -323,7 +331,7 @@ class DimerFamilies(Study):
         check_memory(self.K, self.comm, tw_solver("dimer_"), profiles=2)
         self.stopped = {}
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a=self.a,
                     epsilon_end=self.epsilon_end, ds=self.ds, ds_max=self.ds_max)
 
@@ -399,7 +407,7 @@ class DimerFamilies(Study):
         self._ends[round(q, 12)] = dict(mc.snapshot(), q=q)
         return self.store.append(row, state=self._state_arrays())
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Continue every q not finished in the file: a q in progress resumes from its saved end state (the last
         two points and the step), a larger -max_steps extends a finished path; yields each new record after saving
         it (with the end state of its q for a resume). A file that lacks the end state of a q to continue (one
@@ -455,7 +463,7 @@ class DimerFamilies(Study):
             finally:
                 mc.destroy()
 
-    def table(self):
+    def table(self) -> str:
         lines = [f"schema: {DIMER_FORMAT}; precompressed dimer (masses 1, epsilon), alpha = {self.model.alpha:g}, "
                  f"delta0 = {self.model.delta0:g}, h = pi/{self.K}, fixed amplitude a = {self.a:g} (first sine "
                  "coefficient of the heavy bead's profile u); pseudo-arclength in epsilon from 1. v1, v2: first and "
@@ -490,7 +498,7 @@ class DimerFamilies(Study):
                              "with a larger -max_steps goes on)")
         return "\n".join(lines) + "\n"
 
-    def curves(self):
+    def curves(self) -> dict[float, tuple]:
         out = {}
         for q in self.qs:
             rows = self._regular(q)

@@ -21,7 +21,10 @@ wall_time              (P,)       seconds
 sigma_min              (P,)       smallest singular value of the phase-conditioned Jacobian
 =====================  =========  ======================================================================
 """
+from __future__ import annotations
+
 import math
+from typing import TYPE_CHECKING, Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 from petsc4py import PETSc
@@ -36,6 +39,10 @@ from ..waves import chain_wavenumbers, check_chain_wavenumber, orbit_on_chain
 from .base import Study
 from .dealing import dealt
 
+if TYPE_CHECKING:
+    from ..branch import Branch, BranchPoint
+    from ..waves import Orbit
+
 REFINED_FORMAT = "hertzpetsc-refined-1"
 REFINED_FIELDS = ("q", "E_before_paper_flow", "E_before", "E_after", "E_after_paper_flow", "r", "iterations",
                   "jacobians", "wall_time", "sigma_min")
@@ -44,13 +51,13 @@ REFINED_FIELDS = ("q", "E_before_paper_flow", "E_before", "E_after", "E_after_pa
 class RefinedStates:
     """The refined waves of a refinement file (N beads), looked up by q."""
 
-    def __init__(self, path, data):
+    def __init__(self, path: str, data: Mapping[str, np.ndarray]) -> None:
         self.path, self.data = path, data
         self.N, self.alpha = int(data["N"]), float(data["alpha"])
         self.q = np.asarray(data["q"], dtype=float)
 
     @classmethod
-    def load(cls, path, comm=None):
+    def load(cls, path: str, comm: Optional[PETSc.Comm] = None) -> RefinedStates:
         """Read a refinement file (with a communicator: on rank 0, the result or the error on every rank)."""
         if comm is not None:
             return on_rank0(comm, cls.load, path, what=f"cannot read refinement file {path!r}")
@@ -61,18 +68,18 @@ class RefinedStates:
             raise RecordFileError(f"refinement file {path!r} is corrupt: missing {sorted(missing)}")
         return cls(path, data)
 
-    def column(self, name):
+    def column(self, name: str) -> np.ndarray:
         return np.asarray(self.data[name])
 
-    def has(self, q):
+    def has(self, q: float) -> bool:
         return self.state(q) is not None
 
-    def state(self, q):
+    def state(self, q: float) -> Optional[np.ndarray]:
         """The refined (N, 2) state at q, or None."""
         i = np.nonzero(np.abs(self.q - q) <= 1e-12 * max(1.0, q))[0]
         return self.data["x"][i[0]] if len(i) else None
 
-    def orbit(self, point, spec=None):
+    def orbit(self, point: BranchPoint, spec: Optional[ChainSpec] = None) -> Orbit:
         """The refined orbit of branch point ``point`` on the file's chain (RecordFileError if it lacks q)."""
         spec = spec or ChainSpec(point.model, self.N)
         if spec.N != self.N:
@@ -115,8 +122,9 @@ class RefinementScan(Study):
              "chain_": ("the paper's flow (rtol 1e-12) for E before and after", ("ts",))}
     WHAT, LABELS = "refinement file", ("branch",)
 
-    def __init__(self, branch, branch_path, N, comm=None, output=None, mode="new", qs=None, tol=1e-10,
-                 symmetric=True):
+    def __init__(self, branch: Branch, branch_path: str, N: int, comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new", qs: Optional[Sequence[float]] = None,
+                 tol: float = 1e-10, symmetric: bool = True) -> None:
         super().__init__(None, comm, output, mode)
         self.branch, self.branch_path, self.N, self.tol = branch, branch_path, N, tol
         self.spec = ChainSpec(branch.model, N)
@@ -125,10 +133,10 @@ class RefinementScan(Study):
         self.refiner = Refiner(self.spec, PETSc.COMM_SELF, tol, prefix=SHOOT_PREFIX, symmetric=symmetric)
         self.paper_flow = ShiftMap(self.spec, PETSc.COMM_SELF, PAPER_TOLERANCES, CHAIN_PREFIX)
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(alpha=self.branch.alpha, N=self.N, branch=self.branch_path, tol=self.tol)
 
-    def inputs(self):
+    def inputs(self) -> dict[str, str]:
         return dict(branch=self.branch_path)
 
     def _refine(self, q):
@@ -140,7 +148,7 @@ class RefinementScan(Study):
                     E_after_paper_flow=E_after_paper, r=res.r, iterations=res.iterations, jacobians=res.jacobians,
                     wall_time=res.wall_time, sigma_min=res.sigma_min)
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Refine every q not yet in the file; yields the record (a dict of the fields) after saving it."""
         todo = self.open()._todo(self.qs)
         costs = [WaveSymmetry(self.N, check_chain_wavenumber(q, self.N)).cost() for q in todo]
@@ -151,7 +159,7 @@ class RefinementScan(Study):
             self.refiner.destroy()
             self.paper_flow.destroy()
 
-    def table(self):
+    def table(self) -> str:
         rows = sorted(self.store.records, key=lambda r: -float(r["q"]))
         N = self.N
         lines = [f"N = {N} beads. E(q) = ||S X(script-T) - X(0)||_inf / ||X(0)||_inf. 'paper flow': adaptive RK "

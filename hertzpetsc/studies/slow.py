@@ -45,8 +45,11 @@ resolution, verdict    the bound (per unit time) and 1 = slowly unstable, 0 = st
 seconds                wall time of the point
 =====================  ======================================================================================
 """
+from __future__ import annotations
+
 import math
 import time
+from typing import TYPE_CHECKING, Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 from petsc4py import PETSc
@@ -66,6 +69,11 @@ from ..waves import fits_chain, orbit_on_chain
 from .base import Study
 from .dealing import dealt
 from .floquet import _path, q_label
+
+if TYPE_CHECKING:
+    from ..branch import Branch, BranchPoint
+    from ..waves import Orbit
+    from .refinement import RefinedStates
 
 SLOW_FORMAT = "hertzpetsc-slow-1"
 TARGET = 1e-9                       # the resolution asked for, per unit time
@@ -159,9 +167,12 @@ class SlowInstabilityScan(Study):
              "floquet_": ("the flow of the cell's sector maps", ("ts",))}
     WHAT, LABELS = "slow-instability file", ("branch",)
 
-    def __init__(self, branch, branch_path, N, comm=None, output=None, mode="new", qs=None, refined=None,
-                 grids=(1000, 2000, 4000), n_theta=41, n_twist=3, refine_tol=1e-12, tolerances=SLOW_TOLERANCES,
-                 target=TARGET, theta_longwave=0.05):
+    def __init__(self, branch: Branch, branch_path: str, N: int, comm: Optional[PETSc.Comm] = None,
+                 output: Optional[str] = None, mode: str = "new", qs: Optional[Sequence[float]] = None,
+                 refined: Optional[RefinedStates] = None, grids: Sequence[int] = (1000, 2000, 4000),
+                 n_theta: int = 41, n_twist: int = 3, refine_tol: float = 1e-12,
+                 tolerances: IntegrationTolerances = SLOW_TOLERANCES, target: float = TARGET,
+                 theta_longwave: float = 0.05) -> None:
         if len(grids) < 3 or any(b != 2 * a for a, b in zip(grids, grids[1:])):
             raise ParameterError("-grids", ",".join(map(str, grids)), "must be at least 3 grids K, each twice the "
                                  "previous (Richardson of order 2)")
@@ -191,16 +202,16 @@ class SlowInstabilityScan(Study):
                                 symmetric=True) if n_twist else None)
         self.SHAPES = {"gamma_cm": (len(grids),)}
 
-    def constants(self):
+    def constants(self) -> dict:
         return dict(alpha=self.branch.alpha, N=self.N, branch=self.branch_path, grids=list(self.grids),
                     n_theta=self.n_theta, n_twist=self.n_twist, refine_tol=self.refine_tol,
                     rtol=self.tolerances.rtol, target=self.target, theta_longwave=self.theta_longwave)
 
-    def inputs(self):
+    def inputs(self) -> dict[str, str]:
         return dict(branch=self.branch_path, refined=_path(self.refined))
 
     # --- the two routes ---------------------------------------------------------------------------------------
-    def comoving(self, point):
+    def comoving(self, point: BranchPoint) -> dict:
         """The co-moving route at one branch point: dict of the cm fields."""
         wave = ComovingWave.from_point(point, self.grids[0], PETSc.COMM_SELF)
         scan = theta_scan(wave, np.linspace(0.0, math.pi, self.n_theta), self.pep)
@@ -213,7 +224,7 @@ class SlowInstabilityScan(Study):
                     gamma_cm_extrapolated=richardson(gammas, 2.0, 2)[1], order_cm=richardson(gammas, 2.0)[0],
                     band_cm=scan.band_mu, separation_cm=scan.min_separation, slope_cm=slope)
 
-    def refine(self, point):
+    def refine(self, point: BranchPoint) -> tuple[Orbit, float]:
         """The wave on N beads refined on its cell with the tight flow: (orbit, E over script-T). Starts from the
         refinement file's state when it has this q. E stalls above refine_tol at the flow's floor (e.g. long
         cells): then within 10 refine_tol, else the starting state as it is (E_orbit and E_short say what the
@@ -231,7 +242,7 @@ class SlowInstabilityScan(Study):
                 self.refiner.tol = self.refine_tol
         return orbit, self.refiner.residual(orbit)
 
-    def verdict(self, row):
+    def verdict(self, row: Mapping) -> tuple[float, int]:
         """(resolution, verdict): slowly unstable (1) when the co-moving gamma exceeds the target on every grid
         and the last two agree to 10% (gamma = the Richardson value); stable within the largest gamma measured (0)
         when that is below the target; else unresolved (2): the resolution shown is not below what it would
@@ -244,7 +255,7 @@ class SlowInstabilityScan(Study):
             measured.append(abs(float(row["gamma_mono"])))
         return max(measured), 0 if max(measured) <= self.target else 2
 
-    def point(self, q):
+    def point(self, q: float) -> dict:
         t0 = time.perf_counter()
         point = self.branch.point(q)
         row = dict(q=q, m=-1, **self.comoving(point), **dict.fromkeys(MONO_FIELDS, math.nan))
@@ -256,7 +267,7 @@ class SlowInstabilityScan(Study):
         row["seconds"] = time.perf_counter() - t0
         return row
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """Compute every q not yet in the file; yields each record after saving it."""
         todo = self.open()._todo(self.qs)
         costs = [1.0 + (WaveSymmetry(self.N, int(round(q * self.N / (2 * math.pi)))).cost() * 50
@@ -264,14 +275,14 @@ class SlowInstabilityScan(Study):
         for q, row in dealt(todo, costs, self.comm, self.point):
             yield self.store.append(row)
 
-    def destroy(self):
+    def destroy(self) -> None:
         if self.sectors is not None:
             self.sectors.destroy()
         if self.refiner is not None:
             self.refiner.destroy()
 
     # --- the table --------------------------------------------------------------------------------------------
-    def table(self):
+    def table(self) -> str:
         rows = sorted(self.store.records, key=lambda r: float(r["q"]))
         K = self.grids
         lines = [f"alpha = {self.branch.alpha}; gamma = max ln|mu| / script-T over the infinite chain (per unit time "

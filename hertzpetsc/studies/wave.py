@@ -11,9 +11,12 @@ iterations (Gauss-Newton), rho (the largest multiplier modulus, trivial ones exc
 each longer chain, in the order of ``sizes``), seconds. A wave of the optical branch of a mass pattern has the
 constant branch = 'optical' (the acoustic waves' files have none, as before it).
 """
+from __future__ import annotations
+
 import math
 import time
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Iterator, Optional
 
 import numpy as np
 
@@ -30,6 +33,9 @@ from ..twsolver import tw_solver
 from ..waves import check_chain_wavenumber, orbit_on_chain
 from .base import Study
 from .precompression import _check_qs
+
+if TYPE_CHECKING:
+    from petsc4py import PETSc
 
 WAVE_FORMAT = "hertzpetsc-wave-1"
 WAVE_FIELDS = ("q", "m", "omega", "E_profile", "E_refined", "iterations", "rho", "outside", "spread", "unstable",
@@ -100,23 +106,24 @@ class WaveStudy(Study):
              "floquet_": ("the Bloch sectors' variational flows", ("ts",))}
     WHAT = "wave file"
 
-    def __init__(self, params, comm=None, output=None, mode="new"):
+    def __init__(self, params: WaveParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
+                 mode: str = "new") -> None:
         super().__init__(params, comm, output, mode)
         self.SHAPES = {"rho_sizes": (len(params.sizes),)}
         check_memory(params.cells_per_pi, self.comm, tw_solver("precomp_"), profiles=params.model.cell)
 
-    def configure(self):
+    def configure(self) -> None:
         """The solver roles' options, and the refiner's (-shoot_gn_max_it, tol against the flow's rtol), now."""
         super().configure()
         with Refiner(ChainSpec(self.params.model, self.params.N), self.comm, self.params.tol):
             pass
 
-    def constants(self):
+    def constants(self) -> dict:
         p = self.params
         return dict(p.model.describe(), A=p.A, cells_per_pi=p.cells_per_pi, N=p.N, sizes=list(p.sizes), tol=p.tol,
                     tol_rho=p.tol_rho, **({} if p.branch == "acoustic" else dict(branch=p.branch)))
 
-    def compute(self, q):
+    def compute(self, q: float) -> dict:
         """The wave at q (:func:`~hertzpetsc.families.wave_of_amplitude`) refined on N beads, its spectra."""
         p = self.params
         t0 = time.perf_counter()
@@ -134,7 +141,7 @@ class WaveStudy(Study):
                     unstable=int(s.rho - 1 > p.tol_rho), rho_sizes=np.array(longer, dtype=float),
                     seconds=time.perf_counter() - t0)
 
-    def run(self):
+    def run(self) -> Iterator[dict]:
         """The records of the q not yet in the file; a q whose wave or refinement does not converge is left out
         (its error kept in ``failed``, by q, for the table and the driver's exit status) and the next q goes on."""
         self.failed = {}
@@ -146,7 +153,7 @@ class WaveStudy(Study):
                 continue
             yield self.store.append(record)
 
-    def table(self):
+    def table(self) -> str:
         p = self.params
         optical = ", the optical branch" if p.branch == "optical" else ""
         lines = [f"schema: {WAVE_FORMAT}; chain {p.model.describe()}{optical}, amplitude A = max |u| = {p.A:g}, h = pi/"

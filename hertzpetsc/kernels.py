@@ -60,19 +60,24 @@ class KernelContext(ctypes.Structure):
 def petsc_library():
     """The path of the libpetsc this process has loaded (through petsc4py)."""
     from petsc4py import PETSc  # noqa: F401  (loads libpetsc)
-    with open("/proc/self/maps") as maps:
-        for line in maps:
-            path = line.split()[-1]
-            if "/libpetsc" in path and ".so" in path:
-                return path
+    try:
+        with open("/proc/self/maps") as maps:
+            for line in maps:
+                path = line.split()[-1]
+                if "/libpetsc" in path and ".so" in path:
+                    return path
+    except OSError as err:
+        raise RuntimeError(f"cannot read the libraries of this process: {err}") from None
     raise RuntimeError("libpetsc is not loaded in this process")
 
 
 def source_digest():
-    """SHA-256 of the kernel's source (compiled into the library: a library built from another source is not
-    used)."""
+    """SHA-256 of the kernel's source and of the path of the libpetsc this process uses (compiled into the library:
+    a library built from another source, or against another PETSc, is not used)."""
     with open(SOURCE, "rb") as f:
-        return hashlib.sha256(f.read()).hexdigest()[:16]
+        digest = hashlib.sha256(f.read())
+    digest.update(petsc_library().encode())
+    return digest.hexdigest()[:16]
 
 
 def built_digest():
@@ -117,13 +122,19 @@ def library():
     global _lib, _status
     if _status is None:
         from petsc4py import PETSc
-        built = built_digest()
-        if np.dtype(PETSc.ScalarType) != np.float64 or np.dtype(PETSc.RealType) != np.float64:
+        why = None
+        try:
+            built = built_digest()
+        except RuntimeError as err:                   # libpetsc not located (no /proc/self/maps: not Linux)
+            built, why = None, f"not usable here ({err})"
+        if why is not None:
+            _status = why
+        elif np.dtype(PETSc.ScalarType) != np.float64 or np.dtype(PETSc.RealType) != np.float64:
             _status = "PETSc is not a real double-precision build (the kernel's PetscScalar is double)"
         elif built is None:
             _status = "not built (run: python -m hertzpetsc.kernels, or bash scripts/hz.sh setup)"
         elif built != source_digest():
-            _status = "built from another source (run: python -m hertzpetsc.kernels)"
+            _status = "built from another source or against another PETSc (run: python -m hertzpetsc.kernels)"
             if PETSc.COMM_WORLD.getRank() == 0:       # same numbers, much slower: say so once
                 print(f"note: the compiled chain kernel {LIBRARY} is {_status}; using the numpy right-hand side",
                       file=sys.stderr, flush=True)
@@ -263,10 +274,17 @@ def end_kind(end):
 
 
 def main(argv):
-    """python -m hertzpetsc.kernels [--force]: build the library if it is missing or older than its source."""
+    """python -m hertzpetsc.kernels [--force]: build the library if it is missing or older than its source; without
+    a compiler (or where the library cannot be built) one line says so and the status is 1: the chains then use
+    the numpy right-hand side."""
     import petsc4py
     petsc4py.init([argv[0]])
-    path = build(force="--force" in argv[1:])
+    try:
+        path = build(force="--force" in argv[1:])
+    except (OSError, RuntimeError, subprocess.CalledProcessError) as err:
+        print(f"hertzpetsc kernel: not built ({err}); the chains use the numpy right-hand side (same arithmetic, "
+              "slower)", file=sys.stderr)
+        sys.exit(1)
     print(f"hertzpetsc kernel: {path}")
 
 

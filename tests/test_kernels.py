@@ -232,3 +232,21 @@ def test_a_stale_kernel_is_said_once_and_the_numpy_route_taken(monkeypatch, caps
         assert len(notes) == 1 and "built from another source" in notes[0], notes
     else:
         assert not notes, notes
+
+
+
+def test_a_kernel_built_against_another_petsc_is_not_used(monkeypatch):
+    """The library's digest covers the libpetsc it was linked against: seen from a process whose PETSc is another
+    (an environment's own PETSc, the clone's library built against Debian's), it is not called and the chain takes
+    the numpy right-hand side."""
+    built = kernels.built_digest()
+    assert built == kernels.source_digest()                    # this process's PETSc: the library is used
+    monkeypatch.setattr(kernels, "_lib", None)
+    monkeypatch.setattr(kernels, "_status", None)
+    monkeypatch.setattr(kernels, "petsc_library", lambda: "/another/prefix/lib/libpetsc.so.3.22")
+    assert kernels.source_digest() != built
+    chain = Chain(ChainSpec(H(1.5), 6), COMM)
+    try:
+        assert chain.kernel is None and kernels.library() is None and "another PETSc" in kernels.status()
+    finally:
+        chain.destroy()

@@ -73,13 +73,16 @@ def cff_fields(text):
 
 def test_citation_file_names_this_version_and_the_paper():
     """CITATION.cff: the keys CFF 1.2.0 requires, this version, the licence of LICENSE, and the reference paper with
-    the title the README's BibTeX gives (the paper's LaTeX source's)."""
+    the title the README's BibTeX gives (the paper's LaTeX source's); the README cites this version too."""
     top, titles, authors = cff_fields(read("CITATION.cff"))
     assert top["cff-version"] == "1.2.0" and top["message"] and top["title"] and authors == ["hertzpetsc developers"]
     assert top["version"] == hertzpetsc.__version__
     assert top["license"] == "BSD-2-Clause" and read("LICENSE").startswith("BSD 2-Clause License")
-    bibtex_title = re.search(r"title\s*=\s*\{(.*)\}", read("README.md")).group(1)
-    assert titles == [bibtex_title] == ["Periodic travelling waves and compactons in granular chains"]
+    readme = read("README.md")
+    paper = re.search(r"@article\{James2012granular,.*?title\s*=\s*\{(.*?)\}", readme, re.S).group(1)
+    assert titles == [paper] == ["Periodic travelling waves and compactons in granular chains"]
+    software = re.search(r"@software\{hertzpetsc,.*?version\s*=\s*\{(.*?)\}", readme, re.S).group(1)
+    assert software == hertzpetsc.__version__                  # the README's "How to cite"
 
 
 def test_changelog_has_a_section_for_this_version():

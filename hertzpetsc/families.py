@@ -281,10 +281,10 @@ class AmplitudeFamily(ContinuationUse):
             cp = self.continuation.step_to(math.log(a))
         except FoldError as err:
             fold = self.problem.located(err.fold, self.continuation.parameter)
-            raise FamilyFold(self.q, self.branch, fold, a, "A" if self.problem.measure == "sup" else "a",
-                             self.model.cell) from None
+            raise FamilyFold(self.q, self.branch, fold, a, self._name, self.model.cell) from None
         except ContinuationError as err:
-            raise ConvergenceError("amplitude continuation", err.reason, q=self.q, a=math.exp(err.failed)) from None
+            raise ConvergenceError("amplitude continuation", err.reason, q=self.q,
+                                   **{self._name: math.exp(err.failed)}) from None
         point = self.problem.located(cp, cp.parameter)
         if (point.gap > 0) != (self._gap > 0) and self._gap_events() == located:
             # the gap indicator changed sign but the layer found no root between: the step crossed to another
@@ -295,6 +295,11 @@ class AmplitudeFamily(ContinuationUse):
         return point
 
     solve_at = step_to                  # the wave at amplitude a, by its first name
+
+    @property
+    def _name(self):
+        """What the family's amplitude is called in messages: A (= max |u|, the 'sup' measure) or a."""
+        return "A" if self.problem.measure == "sup" else "a"
     _gap = math.nan
 
     def _gap_events(self):

@@ -28,7 +28,7 @@ _MODULES = {
     # travelling waves: the advance-delay problem, branches, families
     "grid": "ProfileGrid", "advdelay": "AdvanceDelayProblem", "branch": "Branch BranchPoint",
     "qbranch": "BranchContinuation ContinuationParameters",
-    "families": "AmplitudeFamily MassFamily AmplitudePoint uncompressed_limit wave_of_amplitude",
+    "families": "AmplitudeFamily MassFamily AmplitudePoint FamilyFold uncompressed_limit wave_of_amplitude",
     # the continuation layer
     "continuation": "Continuation ContinuationProblem Natural PseudoArclength ContinuationPoint",
     # the chain, its flows and orbits

@@ -162,7 +162,7 @@ for name in ("petsc4py", "slepc4py", "mpi4py", "numpy", "scipy", "matplotlib", "
 need_kernels() {
     if [ -n "$OWN" ]; then
         "$PY" -m hertzpetsc.kernels >/dev/null \
-            || log "the chains will use the numpy right-hand side (same results, slower): a C compiler (\$CC or gcc) builds the compiled one"
+            || log "the chains will use the numpy right-hand side (same results, slower); a C compiler builds the other"
     else
         "$PY" -m hertzpetsc.kernels >/dev/null || { log "could not build the chain kernel (gcc, libc6-dev)"; exit 1; }
     fi
@@ -197,7 +197,8 @@ case "$cmd" in
     test)
         setup
         cd "$ROOT"
-        "$PY" -c 'import pytest' 2>/dev/null || { log "the tests need pytest in $VENV's environment (conda install -c conda-forge pytest)"; exit 1; }
+        "$PY" -c 'import pytest' 2>/dev/null \
+            || { log "the tests need pytest in the environment of $VENV (conda install pytest)"; exit 1; }
         "$PY" -m pytest -p no:cacheprovider -q --color=no tests "$@"
         log "re-running the parallel-capable tests under mpiexec -n 2"
         timeout 900 mpiexec -n 2 "$PY" -m pytest -p no:cacheprovider -q --color=no -m "not serial" tests "$@" ;;

@@ -693,6 +693,17 @@ def longwave_limit(sector, theta1):
     return theta
 
 
+# The certification's default budget: 64 twists per grid interval on cells of up to CERT_CELL beads, scaled by
+# (CERT_CELL / M)^3 beyond (a twist costs dense algebra of order M^3 on a cell of M beads): longer cells are left
+# unresolved rather than run for hours (their matrix-free sectors are issue 41's).
+CERT_CELL = 100
+
+
+def certification_budget(n_grid, M):
+    """The twists :func:`certify_twists` may add to a scan of ``n_grid`` intervals on a cell of M beads."""
+    return int(64 * n_grid * min(1.0, (CERT_CELL / M) ** 3))
+
+
 @PETSc.Log.EventDecorator("hz_twist_scan")
 def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution=1e-3, budget=None):
     """rho over the cell twists of ``orbit`` (a :class:`~hertzpetsc.waves.Orbit` on its cell; the infinite chain's
@@ -702,8 +713,8 @@ def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution
     neighbours, to ``resolution`` of the grid step. ``sectors``: a :class:`DeflatedSectors` (symmetry multipliers
     deflated at Theta = 0, and at every Theta when the zones are decoupled). With Krein signatures
     (``sectors.krein``), a scan whose samples are all stable is certified between them (:func:`certify_twists`, at
-    most ``budget`` twists added, default 64 n_grid): a band of instability narrower than the grid is found there,
-    or bounded below CERT_MARGIN ``floor``.
+    most ``budget`` twists added, default :func:`certification_budget`): a band of instability narrower than the
+    grid is found there, or bounded below CERT_MARGIN ``floor``.
 
     Below the grid's first twist pi / n_grid the scan halves the twist down to :func:`longwave_limit`, where the
     long-wave multipliers stop being resolved (their crossings there are artefacts of the orbit's error); the
@@ -752,7 +763,8 @@ def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution
     certificate = None
     if certify and max(s.rho for s in seen.values()) - 1 <= floor:
         certificate = certify_twists(sector, [x for x in sorted(seen) if x >= step], floor,
-                                     64 * n_grid if budget is None else budget, longwave=grid[1])
+                                     certification_budget(n_grid, len(orbit.x[:orbit.symmetry.M]))
+                                     if budget is None else budget, longwave=grid[1])
         if certificate.status == "unstable":
             refine_peaks([certificate.theta])
             certificate = None

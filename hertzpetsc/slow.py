@@ -144,8 +144,11 @@ def deflate(P, known, partners_of, extra=(), vectors=False, nearest=0):
     # (A11 - lam) z = -A12 y (lam is no cluster eigenvalue)
     A12 = U.conj().T @ P @ Uperp
     k = len(A11)
-    Z = np.column_stack([np.linalg.solve(A11 - lam * np.eye(k), -A12 @ y) for lam, y in zip(values, Y.T)]) \
-        if k and len(values) else np.zeros((k, len(values)))
+    if k and len(values):
+        shifted = A11[None, :, :] - values[:, None, None] * np.eye(k)[None, :, :]
+        Z = np.linalg.solve(shifted, -(A12 @ Y).T[:, :, None])[:, :, 0].T
+    else:
+        Z = np.zeros((k, len(values)))
     return values, cluster, partner_res, invariance, r, Uperp @ Y + U @ Z
 
 

@@ -1010,7 +1010,8 @@ def map_table(z):
         gap = np.nonzero(r["kind"] == KIND_GAP)[0]
         gap_A = f"{float(r['A'][gap[0]]):.4f}" if len(gap) else "n/a"
         cert = r.get("cert_inf", np.full(len(r["kind"]), CERT_NONE))
-        covered = r["modulation_inf"][cert == CERT_STABLE] if "modulation_inf" in r else []
+        points = (r["kind"] == KIND_POINT) | (r["kind"] == KIND_LIMIT)
+        covered = r["modulation_inf"][points & (cert == CERT_STABLE)] if "modulation_inf" in r else []
         longest = f"{float(np.min(covered)):.3g}" if len(covered) else "n/a"
         intervals.append(f"| {q_label(q)} | {gap_A} | {shown('rho', q)} | {shown('rho_inf', q)} | {longest} |")
         verdicts.append(f"| {q_label(q)} | {gap_A} | {marks(r['rho'], pts, lim)} | "

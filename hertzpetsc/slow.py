@@ -21,6 +21,7 @@ cluster (exactly 1 for an exact orbit: its distance from 1 and ||P U - U U^H P U
 import math
 import time
 from dataclasses import dataclass
+from types import SimpleNamespace
 
 import numpy as np
 from petsc4py import PETSc
@@ -93,6 +94,7 @@ class DeflatedSector:
     seconds: float
     decoupled: bool = True
     signatures: np.ndarray = None     # Krein signatures of ``values`` (DeflatedSectors(krein=True))
+    slopes: np.ndarray = None         # d arg(mu)/dTheta of ``values`` on the unit circle (nan elsewhere; with krein)
 
     def pattern(self):
         """The sector's :func:`krein_pattern`; () without signatures (DeflatedSectors(krein=None))."""
@@ -136,7 +138,18 @@ def deflate(P, known, partners_of, extra=(), vectors=False, nearest=0):
         values = np.delete(values, near)
         Y = None if Y is None else np.delete(Y, near, axis=1)
         r += len(near)
-    return values, cluster, partner_res, invariance, r, None if Y is None else Uperp @ Y
+    if Y is None:
+        return values, cluster, partner_res, invariance, r, None
+    # P [U, Uperp] = [U, Uperp] [[A11, A12], [0, D]]: the eigenvector of P for (lam, y) of D is Uperp y + U z with
+    # (A11 - lam) z = -A12 y (lam is no cluster eigenvalue)
+    A12 = U.conj().T @ P @ Uperp
+    k = len(A11)
+    if k and len(values):
+        shifted = A11[None, :, :] - values[:, None, None] * np.eye(k)[None, :, :]
+        Z = np.linalg.solve(shifted, -(A12 @ Y).T[:, :, None])[:, :, 0].T
+    else:
+        Z = np.zeros((k, len(values)))
+    return values, cluster, partner_res, invariance, r, Uperp @ Y + U @ Z
 
 
 def symplectic_form(model, M):
@@ -157,6 +170,46 @@ def krein_signatures(values, V, J, tol):
     size = np.sum(np.abs(V) ** 2, axis=0) * float(np.max(np.abs(J)))
     on = np.abs(np.log(np.abs(values))) <= tol
     return np.where(on & (np.abs(form) > 1e-8 * size), np.sign(form), 0).astype(int)
+
+
+def twist_slopes(values, V, G, dG, J, m_cell, j, theta, tol):
+    """Krein signatures and d arg(mu)/dTheta of the multipliers ``values`` mu = e^{-i j Theta} lambda^{m'} of
+    P_Theta = e^{-i j Theta} G_Theta^{m'} (columns of ``V``: their eigenvectors), by first-order perturbation: J v is
+    the left eigenvector of a multiplier on the circle (G^H J G = J), so
+
+        d arg(mu)/dTheta = -j + m' Im( v^H J G' v / (lambda v^H J v) ),     G' = dG_Theta/dTheta,
+
+    with v an eigenvector of G. Where two eigenvalues of G give (nearly) one of P, P's eigenvectors mix them: there
+    the eigenvectors of G on their span are used (signatures and slopes of each). Slopes are nan off the circle."""
+    V = np.array(V, dtype=complex)
+    GV = G @ V
+    norm = np.sum(np.abs(V) ** 2, axis=0)
+    lam = np.sum(V.conj() * GV, axis=0) / norm
+    scale = max(np.linalg.norm(G, 2), 1e-300)
+    mixed = np.linalg.norm(GV - V * lam, axis=0) / (np.sqrt(norm) * scale) > 1e-8
+    done = np.zeros(len(values), bool)
+    for i in np.nonzero(mixed)[0]:
+        if done[i]:
+            continue
+        group = np.nonzero(np.abs(values - values[i]) <= 1e-4 * max(1.0, abs(values[i])))[0]
+        Q = np.linalg.qr(V[:, group])[0]
+        mu, Y = np.linalg.eig(Q.conj().T @ G @ Q)
+        # each P value of the group takes the G eigenvector whose power predicts it best
+        predicted = np.exp(-1j * j * theta) * mu ** m_cell
+        cost = np.abs(predicted[None, :] - values[group][:, None])
+        taken = set()
+        for g in np.argsort(np.min(cost, axis=1)):
+            k = min((k for k in range(len(mu)) if k not in taken), key=lambda k: cost[g, k])
+            taken.add(k)
+            V[:, group[g]], lam[group[g]] = Q @ Y[:, k], mu[k]
+        done[group] = True
+    form = np.sum(V.conj() * (J @ V), axis=0)
+    size = np.sum(np.abs(V) ** 2, axis=0) * float(np.max(np.abs(J)))
+    on = np.abs(np.log(np.abs(values))) <= tol
+    signatures = np.where(on & (np.abs(form.imag) > 1e-8 * size), np.sign(form.imag), 0).astype(int)
+    with np.errstate(divide="ignore", invalid="ignore"):          # the form vanishes only off the circle
+        rate = np.sum(V.conj() * (J @ (dG @ V)), axis=0) / (lam * form)
+    return signatures, np.where(signatures != 0, -j + m_cell * rate.imag, np.nan)
 
 
 def krein_pattern(values, signatures):
@@ -231,13 +284,19 @@ class DeflatedSectors(FloquetSolver):
         self.sectors = BlochSectors(model, comm, tolerances, prefix)
         self.sectors.configure()
 
-    def _deflated(self, orbit, P, theta, decoupled=None, raw=True):
+    def _deflated(self, orbit, P, theta, decoupled=None, raw=True, G=None, dG=None):
         t0 = time.perf_counter()
         known, partners, extra, nearest, eig_res, v, decoupled = known_vectors(self.model, orbit, P, theta, decoupled)
         values, cluster, partner_res, invariance, r, V = deflate(P, known, partners, extra, self.krein is not None,
                                                                  nearest)
-        signatures = None if self.krein is None else \
-            krein_signatures(values, V, symplectic_form(self.model, len(P) // 2), self.krein)
+        signatures = slopes = None
+        if self.krein is not None:
+            J = symplectic_form(self.model, len(P) // 2)
+            if dG is None:
+                signatures = krein_signatures(values, V, J, self.krein)
+            else:
+                sym = orbit.symmetry
+                signatures, slopes = twist_slopes(values, V, G, dG, J, sym.m_cell, sym.j, theta, self.krein)
         if r and raw:
             lam = np.linalg.eigvals(P)
             nearest_one = lam[np.argsort(np.abs(lam - 1.0))[:r]]
@@ -246,7 +305,7 @@ class DeflatedSectors(FloquetSolver):
         else:
             lam, nearest_one = values, np.zeros(0, dtype=complex)
         return DeflatedSector(theta, len(P) // 2, r, values, cluster, nearest_one, lam, eig_res, partner_res,
-                              invariance, v, time.perf_counter() - t0, decoupled, signatures)
+                              invariance, v, time.perf_counter() - t0, decoupled, signatures, slopes)
 
     @PETSc.Log.EventDecorator("hz_deflated_sector")
     def sector(self, orbit, theta):
@@ -255,12 +314,13 @@ class DeflatedSectors(FloquetSolver):
         return self.scan(orbit, [theta], propagate=False)[1][0]
 
     @PETSc.Log.EventDecorator("hz_deflated_scan")
-    def scan(self, orbit, thetas, propagate=None, raw=True):
+    def scan(self, orbit, thetas, propagate=None, raw=True, slopes=False):
         """A function theta -> :class:`DeflatedSector` of ``orbit`` (every twist from the same cell maps: one
         propagator run when the response stays within a cell, :meth:`~hertzpetsc.bloch.BlochSectors.sector_maps`;
         ``propagate`` None: when ``thetas`` holds two complex twists or more; ``raw``: also P's own eigenvalues,
-        the raw cluster), the zones' decoupling decided once, at the first informative twist of ``thetas``
-        (Theta = 0 if the cell holds several zones); and the sectors at ``thetas``."""
+        the raw cluster; ``slopes``: also the multipliers' twist derivatives, :func:`twist_slopes`, with Krein
+        signatures), the zones' decoupling decided once, at the first informative twist of ``thetas`` (Theta = 0 if
+        the cell holds several zones); and the sectors at ``thetas``."""
         sym = orbit.symmetry
         if propagate is None:
             propagate = sum(1 for theta in thetas if not real_sector(theta)) >= 2
@@ -274,7 +334,8 @@ class DeflatedSectors(FloquetSolver):
             P = np.linalg.matrix_power(G, sym.m_cell)
             if theta != 0.0:
                 P = np.exp(-1j * sym.j * theta) * P
-            s = self._deflated(orbit, P, theta, state["decoupled"], raw)
+            dG = maps.derivative(theta) if slopes and self.krein is not None else None
+            s = self._deflated(orbit, P, theta, state["decoupled"], raw, G, dG)
             if state["decoupled"] is None and (sym.m_cell > 1 or abs(theta) > 1e-14):
                 state["decoupled"] = s.decoupled
             return s
@@ -309,14 +370,254 @@ class DeflatedSectors(FloquetSolver):
         self.sectors.destroy()
 
 
+# --- stability over the whole twist circle ----------------------------------------------------------------------------
+# A verdict 'stable' claims rho - 1 <= tol_rho at every twist of [theta_min, pi], not only at the samples. Between two
+# stable samples the multipliers of each Krein signature are matched by their twist slopes (twist_slopes) and each
+# curve arg mu(Theta) is the cubic Hermite interpolant of its values and slopes, with the error estimate
+# |trapezoid defect| + h |slope change| / 8 (the defect is h^3 |phi'''| / 12, the second term the largest departure
+# from the chord that the end slopes allow). Multipliers leave the circle only by colliding with one of the opposite
+# signature (Krein); in the 2 x 2 normal form of such a collision, with relative angular speed s of the pair, a
+# bubble of instability of height c (log |mu|) has width 4 c / s. So a pair whose interpolated gap keeps its sign by
+# more than the error estimate cannot collide in the interval, and a pair that crosses (or nearly touches) inside an
+# interval of width h between stable ends holds at most a bubble of height s h / 4. CERT_MARGIN tol_rho is the
+# height certified; pairs above it are refined (the predicted crossing bracketed to that width, the near miss sampled
+# at its closest approach) until they are certified, a sample is unstable, or the budget ends: 'unresolved'.
+CERT_MARGIN = 0.1
+# the matching of one interval is refused (the interval halved) when a curve's interpolation error estimate exceeds
+# this fraction of its distance to the nearest multiplier of the other signature at either end
+MATCH_FRACTION = 0.25
+
+
+def _wrap(x):
+    """x in (-pi, pi]."""
+    return np.angle(np.exp(1j * np.asarray(x)))
+
+
+def _hermite_extremes(g0, g1, d0, d1, h):
+    """For cubic Hermite interpolants on [0, h] (arrays of end values g, slopes d): the smallest |g| over the
+    interval, the point where it is reached, and whether g changes sign (a root)."""
+    # H(t) = g0 + d0 t + c2 t^2 + c3 t^3
+    c2 = (3 * (g1 - g0) / h - 2 * d0 - d1) / h
+    c3 = (d0 + d1 - 2 * (g1 - g0) / h) / h ** 2
+    cand = [np.zeros_like(g0), np.full_like(g0, h)]
+    disc = (2 * c2) ** 2 - 12 * c3 * d0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sq = np.sqrt(np.where(disc >= 0, disc, np.nan))
+        for sign in (1.0, -1.0):
+            t = np.where(np.abs(c3) > 1e-300, (-2 * c2 + sign * sq) / (6 * c3),
+                         np.where(np.abs(c2) > 1e-300, -d0 / (2 * c2), np.nan))
+            cand.append(np.where((t > 0) & (t < h), t, np.nan))
+    T = np.stack(cand)
+    H = g0 + d0 * T + c2 * T ** 2 + c3 * T ** 3
+    Habs = np.where(np.isnan(H), np.inf, np.abs(H))
+    k = np.argmin(Habs, axis=0)
+    idx = np.arange(len(g0))
+    sign_change = (np.sign(g0) != np.sign(g1)) | np.any(np.where(np.isnan(H), False, np.sign(H) != np.sign(g0)), axis=0)
+    return Habs[k, idx], T[k, idx], sign_change
+
+
+def _hermite_root(g0, g1, d0, d1, h):
+    """A root in (0, h) of the cubic Hermite interpolant of (g0, d0), (g1, d1), g0 g1 < 0 (bisection safeguarding
+    Newton, to 1e-12 h)."""
+    c2 = (3 * (g1 - g0) / h - 2 * d0 - d1) / h
+    c3 = (d0 + d1 - 2 * (g1 - g0) / h) / h ** 2
+    lo, hi = 0.0, h
+    t = -g0 * h / (g1 - g0)
+    for _ in range(60):
+        H = g0 + t * (d0 + t * (c2 + t * c3))
+        if abs(H) <= 1e-15 * (abs(g0) + abs(g1)):
+            break
+        if np.sign(H) == np.sign(g0):
+            lo = t
+        else:
+            hi = t
+        dH = d0 + t * (2 * c2 + 3 * t * c3)
+        t = t - H / dH if dH != 0 else 0.5 * (lo + hi)
+        if not lo < t < hi:
+            t = 0.5 * (lo + hi)
+        if hi - lo < 1e-12 * h:
+            break
+    return t
+
+
+def _match(sa, sb, h, sign):
+    """Indices (i, j) matching the multipliers of Krein signature ``sign`` at the two ends of an interval by their
+    predicted positions (slopes), the lifted increments of arg mu, and each curve's interpolation error estimate;
+    None if the counts differ or a slope is missing."""
+    ia, ib = np.nonzero(sa.signatures == sign)[0], np.nonzero(sb.signatures == sign)[0]
+    if len(ia) != len(ib):
+        return None
+    pa, pb = np.angle(sa.values[ia]), np.angle(sb.values[ib])
+    da, db = sa.slopes[ia], sb.slopes[ib]
+    if not (np.all(np.isfinite(da)) and np.all(np.isfinite(db))):
+        return None
+    if not len(ia):
+        return ia, ib, np.zeros(0), np.zeros(0)
+    # the defect of the trapezoid rule for each candidate pair: small for the right partner
+    mean = 0.5 * h * (da[:, None] + db[None, :])
+    cost = np.abs(_wrap(pb[None, :] - pa[:, None] - mean))
+    order = np.argsort(cost, axis=None, kind="stable")
+    row, col = np.full(len(ia), -1), np.full(len(ib), -1)
+    for flat in order:
+        i, j = divmod(int(flat), len(ib))
+        if row[i] < 0 and col[j] < 0:
+            row[i], col[j] = j, i
+    j = row
+    defect = _wrap(pb[j] - pa - mean[np.arange(len(ia)), j])
+    increment = mean[np.arange(len(ia)), j] + defect
+    error = np.abs(defect) + h * np.abs(db[j] - da) / 8
+    return ia, ib[j], increment, error
+
+
+@dataclass
+class TwistCertificate:
+    """What the samples of a twist scan certify over [theta_min, pi] (module note above :data:`CERT_MARGIN`):
+    ``status`` 'stable' (rho - 1 <= ``bound`` at every twist between the samples, bound <= CERT_MARGIN tol_rho),
+    'unstable' (a sample with rho - 1 > tol_rho: ``theta``), or 'unresolved' (``unresolved`` intervals left when
+    the budget ended); ``pairs``: collisions bounded by their bubble's height, ``samples``: twists added."""
+
+    status: str
+    bound: float
+    theta_min: float
+    samples: int
+    pairs: int = 0
+    theta: float = math.nan
+    unresolved: tuple = ()
+
+
+def _curves(s, other):
+    """The multipliers of sample ``s`` on the unit circle that the curve analysis follows: those with a Krein
+    signature, less, for each pair inside a (weak) bubble at the ``other`` end (signature 0 there), the multipliers
+    of each signature nearest to that pair's angle (the bubble's pair, still on the circle at this end)."""
+    keep = s.signatures != 0
+    off = np.angle(other.values[other.signatures == 0])
+    for angle in off[::2]:
+        for sign in (1, -1):
+            cand = np.nonzero(keep & (s.signatures == sign))[0]
+            if len(cand):
+                keep[cand[np.argmin(np.abs(_wrap(np.angle(s.values[cand]) - angle)))]] = False
+    return SimpleNamespace(theta=s.theta, values=s.values[keep], signatures=s.signatures[keep],
+                           slopes=s.slopes[keep])
+
+
+def _interval(sa, sb, h, height):
+    """One interval between two stable samples: (bound, offsets) -- the largest bubble height that its colliding or
+    nearly colliding pairs allow (0 if none), and the offsets in (0, h) of the samples that would resolve the pairs
+    above ``height`` (none when the interval is certified); None if its ends cannot be matched (halve it). A pair
+    inside a bubble at either end (bounded by the caller) is left out at both ends (:func:`_curves`)."""
+    sa, sb = _curves(sa, sb), _curves(sb, sa)
+    plus, minus = _match(sa, sb, h, 1), _match(sa, sb, h, -1)
+    if plus is None or minus is None:
+        return None
+    ip, jp, incp, errp = plus
+    im, jm, incm, errm = minus
+    if not len(ip) or not len(im):
+        return 0.0, []
+    arg = np.angle(sa.values)
+    ga = _wrap(arg[ip][:, None] - arg[im][None, :])              # gap of each (+, -) pair at both ends, lifted
+    gb = ga + incp[:, None] - incm[None, :]
+    da = sa.slopes[ip][:, None] - sa.slopes[im][None, :]
+    db = sb.slopes[jp][:, None] - sb.slopes[jm][None, :]
+    err = errp[:, None] + errm[None, :]
+    # a curve is followed reliably when its error estimate is a small part of its distance to the other signature
+    dist_p = np.minimum(np.min(np.abs(ga), axis=1), np.min(np.abs(gb), axis=1))
+    dist_m = np.minimum(np.min(np.abs(ga), axis=0), np.min(np.abs(gb), axis=0))
+    suspect = ((errp > MATCH_FRACTION * dist_p)[:, None] | (errm > MATCH_FRACTION * dist_m)[None, :]).ravel()
+    g0, g1, d0, d1 = (x.ravel() for x in (ga, gb, da, db))
+    low, where, crosses = _hermite_extremes(g0, g1, d0, d1, h)
+    safe = ~suspect & ~crosses & (low > err.ravel() + 1e-12)
+    s = np.maximum(np.maximum(np.abs(d0), np.abs(d1)), np.abs(g1 - g0) / h)
+    bubble = s * h / 4
+    bounded = ~safe & ~suspect & (bubble <= height)
+    open_ = ~safe & ~bounded
+    bound = float(np.max(bubble[bounded], initial=0.0))
+    offsets = set()
+    for k in np.nonzero(open_)[0]:
+        t = where[k] if (0 < where[k] < h and not suspect[k]) else 0.5 * h
+        if crosses[k] and not suspect[k] and np.sign(g0[k]) != np.sign(g1[k]):
+            t = _hermite_root(g0[k], g1[k], d0[k], d1[k], h)
+            # bracket the predicted crossing to the width whose bubble bound is the certified height
+            w = 0.9 * 4 * height / max(s[k], 1e-300)
+            offsets.update((t - w / 2, t + w / 2))
+        else:
+            offsets.add(t)
+    return bound, sorted({min(max(t, 0.02 * h), 0.98 * h) for t in offsets})
+
+
+def certify_twists(sector, thetas, tol_rho, budget=4000, min_width=1e-12, margin=CERT_MARGIN, longwave=0.0,
+                   longwave_budget=32):
+    """:class:`TwistCertificate` of the stable samples ``thetas`` (sorted, the first is theta_min) of one scan:
+    ``sector(theta)`` a :class:`DeflatedSector` with Krein signatures and slopes; at most ``budget`` twists added;
+    intervals narrower than ``min_width`` are not split further. The intervals below ``longwave`` (the grid's first
+    twist: the long-wave twists) are certified downwards, each with at most ``longwave_budget`` twists: the first
+    that does not close ends the certified range there (theta_min rises to its upper end) instead of leaving the
+    verdict unresolved."""
+    height = margin * tol_rho
+    xs = sorted(set(float(t) for t in thetas))
+    state = dict(added=0, bound=0.0, pairs=0, bubbles={})
+
+    def close(a, b, allowed):
+        """Certify [a, b] with at most ``allowed`` added twists: (the intervals left, the unstable twist or None)."""
+        stack, left, start = [(a, b)], [], state["added"]
+        while stack:
+            a, b = stack.pop()
+            sa, sb = sector(a), sector(b)
+            for s in (sa, sb):
+                if s.rho - 1 > tol_rho:
+                    return left, s.theta
+                if np.any(s.signatures == 0) and s.theta not in state["bubbles"]:
+                    # inside a weak bubble (a pair off the circle by less than tol_rho): its maximum over the twists
+                    # around (unimodal: the 2 x 2 normal form), evaluated as a sample
+                    lo, hi = max(xs[0], s.theta - (b - a)), min(math.pi, s.theta + (b - a))
+                    top, value = golden_maximum(lambda t: sector(t).rho, lo, hi, 1e-3 * (hi - lo))
+                    state["bubbles"][s.theta] = value - 1
+                    if value - 1 > tol_rho:
+                        return left, top
+                    state["bound"] = max(state["bound"], value - 1)
+            out = _interval(sa, sb, b - a, height)
+            if out is not None and not out[1]:
+                state["bound"] = max(state["bound"], out[0])
+                state["pairs"] += int(out[0] > 0)
+                continue
+            cuts = [0.5 * (b - a)] if out is None else out[1]
+            if b - a < min_width or state["added"] - start + len(cuts) > allowed:
+                left.append((a, b))
+                continue
+            points = [a] + [a + c for c in cuts] + [b]
+            state["added"] += len(cuts)
+            stack.extend(list(zip(points[:-1], points[1:]))[::-1])
+        return left, None
+
+    def result(status, theta_min, theta=math.nan, unresolved=()):
+        return TwistCertificate(status, math.inf if status == "unstable" else state["bound"], theta_min,
+                                state["added"], state["pairs"], theta, tuple(unresolved))
+
+    unresolved = []
+    upper = [(a, b) for a, b in zip(xs[:-1], xs[1:]) if a >= longwave]
+    for a, b in upper:
+        left, bad = close(a, b, max(budget - state["added"], 0))
+        if bad is not None:
+            return result("unstable", xs[0], bad)
+        unresolved += left
+    theta_min = xs[0]
+    for a, b in reversed([(a, b) for a, b in zip(xs[:-1], xs[1:]) if a < longwave]):
+        left, bad = close(a, b, longwave_budget)
+        if bad is not None:
+            return result("unstable", xs[0], bad)
+        if left:
+            theta_min = b
+            break
+    return result("unresolved" if unresolved else "stable", theta_min, unresolved=unresolved)
+
+
 @dataclass
 class TwistScan:
     """The infinite chain's multipliers around one wave, over the Bloch parameters Theta in [0, pi] of its cell:
-    the grid of ``n_grid`` + 1 twists, the hints, the bisections of Krein crossings and the refinements around the
-    largest local maxima of rho (``thetas``, ``rho`` sorted by Theta); the worst twist and its rho, the crossings of
-    multipliers of opposite Krein signatures seen between two stable grid twists (``crossings``) and those whose
-    bubble of instability was found (``bubbles``), the deflated cluster's largest |mu - 1| over the scan, whether
-    the zones were decoupled."""
+    the grid of ``n_grid`` + 1 twists, the hints, the refinements around the largest local maxima of rho and the
+    certification's samples (``thetas``, ``rho`` sorted by Theta); the worst twist and its rho, the deflated
+    cluster's largest |mu - 1| over the scan, whether the zones were decoupled, and the
+    :class:`TwistCertificate` of a scan whose samples are all stable (None when it found an unstable twist, or was
+    run without Krein signatures)."""
 
     thetas: np.ndarray
     rho: np.ndarray
@@ -326,8 +627,18 @@ class TwistScan:
     cluster: float
     eigenvector_residual: float
     decoupled: bool
-    crossings: int = 0
-    bubbles: int = 0
+    certificate: TwistCertificate = None
+    floor: float = 0.0
+    theta_min: float = 0.0
+
+    @property
+    def verdict(self):
+        """'unstable' (a twist with rho - 1 above the scan's floor), 'stable' (certified between the samples),
+        'unresolved' (stable samples, not certified between them), or 'sampled' (no certification asked)."""
+        if self.rho_max - 1 > self.floor:
+            return "unstable"
+        c = self.certificate
+        return c.status if c is not None else "sampled"
 
 
 def crossing_search(evaluate, unstable, pattern, a, b, pa, min_width):
@@ -348,19 +659,74 @@ def crossing_search(evaluate, unstable, pattern, a, b, pa, min_width):
     return None
 
 
+# The long-wave multipliers of a cell twist Theta -> 0 (those that the deflation leaves of the symmetry cluster at 1)
+# tend to 1 linearly: |mu - 1| / Theta tends to a constant while they are resolved; below, the orbit's and the flow's
+# errors split them as they split the Jordan blocks at Theta = 0, and their crossings (pairs off the circle) are
+# artefacts. A scan identifies them at a quarter and an eighth of its grid's first twist (the multipliers nearest 1
+# whose |mu - 1| halves with Theta, to 10 %), then halves the twist while they keep |mu - 1| / Theta within
+# LONGWAVE_DRIFT of its value at the twice larger twist and stay on the circle with a Krein signature, at most
+# LONGWAVE_DEPTH times; the last such twist is theta_min (without long-wave multipliers: the grid's first twist).
+LONGWAVE_DRIFT = 0.02
+LONGWAVE_DEPTH = 24
+
+
+def _nearest_one(s, theta, k):
+    """|mu - 1| / theta of the k multipliers of sector ``s`` nearest 1, and whether each has a Krein signature."""
+    i = np.argsort(np.abs(s.values - 1))[:k]
+    signed = np.ones(len(i), bool) if s.signatures is None else s.signatures[i] != 0
+    return np.abs(s.values[i] - 1) / theta, signed
+
+
+def longwave_limit(sector, theta1):
+    """The smallest cell twist a scan resolves (module note above :data:`LONGWAVE_DRIFT`): ``sector(theta)`` the
+    deflated sector, ``theta1`` the grid's first twist."""
+    theta = theta1 / 4
+    ra, _ = _nearest_one(sector(2 * theta), 2 * theta, 4)
+    ref, _ = _nearest_one(sector(theta), theta, 4)
+    k = 0
+    while k < min(len(ra), len(ref)) and abs(ref[k] - ra[k]) <= 0.1 * ra[k]:
+        k += 1
+    if not k:
+        return theta1
+    ref = ref[:k]
+    for _ in range(LONGWAVE_DEPTH):
+        rates, signed = _nearest_one(sector(theta / 2), theta / 2, k)
+        if np.any(np.abs(rates - ref) > LONGWAVE_DRIFT * ref) or not np.all(signed):
+            break
+        theta, ref = theta / 2, rates
+    return theta
+
+
+# The certification's default budget: 64 twists per grid interval on cells of up to CERT_CELL beads, scaled by
+# (CERT_CELL / M)^3 beyond (a twist costs dense algebra of order M^3 on a cell of M beads): longer cells are left
+# unresolved rather than run for hours (their matrix-free sectors are issue 41's).
+CERT_CELL = 100
+
+
+def certification_budget(n_grid, M):
+    """The twists :func:`certify_twists` may add to a scan of ``n_grid`` intervals on a cell of M beads."""
+    return int(64 * n_grid * min(1.0, (CERT_CELL / M) ** 3))
+
+
 @PETSc.Log.EventDecorator("hz_twist_scan")
-def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution=1e-3):
+def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution=1e-3, budget=None):
     """rho over the cell twists of ``orbit`` (a :class:`~hertzpetsc.waves.Orbit` on its cell; the infinite chain's
     Bloch parameters Theta in [0, pi]): the grid Theta_j = j pi / n_grid, the ``hints`` (twists where an unstable
     mode was seen before: a narrow band near its onset is followed there), then a golden-section refinement of rho
     around the ``refine`` largest local maxima with rho - 1 > ``floor`` and around every hint, between its
     neighbours, to ``resolution`` of the grid step. ``sectors``: a :class:`DeflatedSectors` (symmetry multipliers
-    deflated at Theta = 0, and at every Theta when the zones are decoupled).
+    deflated at Theta = 0, and at every Theta when the zones are decoupled). With Krein signatures
+    (``sectors.krein``), a scan whose samples are all stable is certified between them (:func:`certify_twists`, at
+    most ``budget`` twists added, default :func:`certification_budget`): a band of instability narrower than the
+    grid is found there, or bounded below CERT_MARGIN ``floor``.
 
-    Twists in (0, pi / n_grid) are not searched: as Theta -> 0 the four long-wave multipliers tend to the deflated
-    symmetry cluster, and below a few times its numerical splitting (sqrt of the orbit's error) their crossings are
-    artefacts; a long-wave (modulational) instability shows at the first grid twist when its band reaches it."""
-    at, first = sectors.scan(orbit, [0.0], propagate=True, raw=False)
+    Below the grid's first twist pi / n_grid the scan halves the twist down to :func:`longwave_limit`, where the
+    long-wave multipliers stop being resolved (their crossings there are artefacts of the orbit's error); the
+    certification closes these long-wave intervals downwards and stops at the first it cannot close. The scan
+    covers [theta_min, pi] (``theta_min``; Theta = 0 too): modulations of at most 2 pi M / theta_min beads, M the
+    cell; the samples below theta_min do not count."""
+    certify = sectors.krein is not None
+    at, first = sectors.scan(orbit, [0.0], propagate=True, raw=False, slopes=certify)
     seen = {0.0: first[0]}
 
     def sector(theta):
@@ -372,41 +738,47 @@ def twist_scan(sectors, orbit, n_grid, hints=(), refine=3, floor=0.0, resolution
     def rho(theta):
         return sector(theta).rho
 
-    step = math.pi / n_grid
-    hints = [float(h) for h in hints if step <= h <= math.pi]
+    def refine_peaks(hints):
+        xs = sorted(seen)
+        ys = [seen[x].rho for x in xs]
+        peaks = [i for i in range(1, len(xs)) if ys[i] - 1 > floor and ys[i] >= ys[i - 1]
+                 and (i == len(xs) - 1 or ys[i] >= ys[i + 1])]
+        peaks = sorted(peaks, key=lambda i: -ys[i])[:refine] + [xs.index(h) for h in hints if h in seen]
+        for i in sorted(set(peaks)):
+            # not below theta_min: there the long-wave modes (the symmetry modes' continuation) are split by the
+            # orbit's error as the time shift's Jordan block is (longwave_limit)
+            lo, hi = max(xs[i - 1], step), xs[min(i + 1, len(xs) - 1)]
+            if hi > lo:
+                golden_maximum(rho, lo, hi, resolution * (hi - lo))
+
     grid = list(np.linspace(0.0, math.pi, n_grid + 1))
+    # the zones' decoupling is decided at the first twist after 0 (DeflatedSectors.scan): at pi, where a contact
+    # across the cell's edge shows most (a small twist would take nearly decoupled zones for decoupled ones)
+    rho(math.pi)
+    # the long-wave twists below the grid, halved down to where the long-wave multipliers are resolved; the sample
+    # below (the first unresolved) does not count
+    step = longwave_limit(sector, grid[1])
+    for x in [x for x in seen if 0.0 < x < step]:
+        del seen[x]
+    hints = [float(h) for h in hints if step <= h <= math.pi]
     for theta in grid + hints:
         rho(theta)
-    crossings = bubbles = 0
-    if sectors.krein is not None:
-        # between stable grid twists (from the first: below it the long-wave modes), a change of the Krein pattern
-        # is a crossing of opposite signatures: its bubble is searched by bisection
-        for t1, t2 in zip(grid[1:-1], grid[2:]):
-            s1, s2 = sector(t1), sector(t2)
-            if s1.rho - 1 > floor or s2.rho - 1 > floor or s1.pattern() == s2.pattern():
-                continue
-            crossings += 1
-            found = crossing_search(sector, lambda s: s.rho - 1 > floor, lambda s: s.pattern(), t1, t2,
-                                    s1.pattern(), max(0.1 * floor, 1e-12))
-            if found is not None:
-                bubbles += 1
-                hints.append(found[0])
-    xs = sorted(seen)
-    ys = [seen[x].rho for x in xs]
-    peaks = [i for i in range(1, len(xs)) if ys[i] - 1 > floor and ys[i] >= ys[i - 1]
-             and (i == len(xs) - 1 or ys[i] >= ys[i + 1])]
-    peaks = sorted(peaks, key=lambda i: -ys[i])[:refine] + [xs.index(h) for h in hints]
-    for i in sorted(set(peaks)):
-        # not below the first grid twist: there the long-wave modes (the symmetry modes' continuation) are split
-        # by the orbit's error as the time shift's Jordan block is (module docstring)
-        lo, hi = max(xs[i - 1], step), xs[min(i + 1, len(xs) - 1)]
-        if hi > lo:
-            golden_maximum(rho, lo, hi, resolution * step)
+    refine_peaks(hints)
+    certificate = None
+    if certify and max(s.rho for s in seen.values()) - 1 <= floor:
+        certificate = certify_twists(sector, [x for x in sorted(seen) if x >= step], floor,
+                                     certification_budget(n_grid, len(orbit.x[:orbit.symmetry.M]))
+                                     if budget is None else budget, longwave=grid[1])
+        if certificate.status == "unstable":
+            refine_peaks([certificate.theta])
+            certificate = None
+    if certificate is not None:
+        step = certificate.theta_min                  # the long-wave twists that the certification closed
     xs = np.array(sorted(seen))
     ys = np.array([seen[x].rho for x in xs])
-    k = int(np.argmax(ys))
+    k = int(np.argmax(np.where((xs == 0.0) | (xs >= step), ys, -np.inf)))
     every = list(seen.values())
-    return TwistScan(thetas=xs, rho=ys, theta=float(xs[k]), rho_max=float(ys[k]), n_grid=n_grid,
+    return TwistScan(thetas=xs, rho=ys, theta=float(xs[k]), rho_max=float(ys[k]), n_grid=n_grid, theta_min=step,
                      cluster=max((float(np.max(np.abs(s.cluster - 1))) for s in every if s.r), default=0.0),
                      eigenvector_residual=max(s.eigenvector_residual for s in every),
-                     decoupled=any(s.decoupled for s in every), crossings=crossings, bubbles=bubbles)
+                     decoupled=any(s.decoupled for s in every), certificate=certificate, floor=floor)

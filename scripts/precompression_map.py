@@ -41,7 +41,7 @@ from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.errors import ParameterError, RecordFileError  # noqa: E402
-from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MapParameters, StabilityMap, TESTS,  # noqa: E402
+from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MAP_FORMAT_V2, MapParameters, StabilityMap, TESTS,  # noqa: E402
                                      check_comparable, compare_v1, map_format, map_table, map_v1_as_v2, read_map)
 from hertzpetsc.studies.precompression import amplitude_grid  # noqa: E402
 
@@ -103,10 +103,12 @@ def main():
         prepare_outputs(comm, table_path, figures=figures)
         write_figure_and_table(comm, z, table_path, figures, compare)
         return
-    if mode == "resume" and map_format(output, comm) == MAP_FORMAT_V1:
-        raise RecordFileError(f"-output {output!r} is a stability map of the route before issue 23 ({MAP_FORMAT_V1}, "
-                              "no located boundary): it cannot be resumed; -render rewrites its table and figure, "
-                              "-force recomputes it (or give another -output)")
+    if mode == "resume" and map_format(output, comm) in (MAP_FORMAT_V1, MAP_FORMAT_V2):
+        before = ("the route before issue 23 ({}, no located boundary)" if map_format(output, comm) == MAP_FORMAT_V1
+                  else "the twist sampling before the certification of issue 37 ({})")
+        raise RecordFileError(f"-output {output!r} is a stability map of " + before.format(map_format(output, comm))
+                              + ": it cannot be resumed; -render rewrites its table and figure, -force recomputes it "
+                              "(or give another -output)")
     prepare_outputs(comm, table_path, figures=figures)
     qs = [2 * math.pi * m / N for m in ms] + list(extra_q)
     grid = amplitude_grid(a_min, a_max, ds) if ds > 0 else []

@@ -80,23 +80,21 @@ def test_located_bubble_is_confirmed_by_the_multipliers_on_both_sides():
 def test_twist_scan_finds_a_bubble_narrower_than_its_grid():
     """On the infinite chain the small waves of 3 pi/10 are unstable in a band of twists about 1e-4 wide at A = 0.02
     (a resonance of the linear spectrum, opening as A^2): the grid of 53 twists misses it (all its rho - 1 are
-    round-off), the Krein crossing between two grid twists leads the bisection into it; a direct twisted run (no
-    cell propagator) at the twist found confirms the growth."""
+    round-off); the certification between the samples follows the multipliers of each Krein signature by their
+    twist slopes, sees a pair of opposite signatures cross between two grid twists and brackets the crossing, which
+    lands in the band; a direct twisted run (no cell propagator) at the twist found confirms the growth."""
     model = LatticeModel.hertz(1.5, (1.0,), 1.0)
     [(a, w, lam)] = richardson_waves(model, Q, [0.02])
     cell = wave_orbit(model, Q, a, w, lam, 20, math.pi / K)
-    sectors = DeflatedSectors(model, SELF, TOL, twists=None, krein=1e-8)
+    sectors = DeflatedSectors(model, SELF, TOL, twists=None, krein=None)
     try:
-        grid_only = twist_scan(sectors, cell, 52, floor=1e-8, refine=0)
-        sectors.krein = None
         without = twist_scan(sectors, cell, 52, floor=1e-8)
         sectors.krein = 1e-8
         scan = twist_scan(sectors, cell, 52, floor=1e-8)
     finally:
         sectors.destroy()
-    assert without.rho_max - 1 < 1e-10 and without.bubbles == 0        # measured 3e-15: the grid misses it
-    assert grid_only.crossings >= 1
-    assert scan.bubbles >= 1 and scan.rho_max - 1 > 1e-6                 # measured 4.9e-6
+    assert without.rho_max - 1 < 1e-10 and without.verdict == "sampled"   # measured 3e-15: the grid misses it
+    assert scan.verdict == "unstable" and scan.rho_max - 1 > 1e-6          # measured 4.9e-6
     assert abs(scan.theta / math.pi - 0.807) < 0.002
     sym = cell.symmetry
     direct = BlochSectors(model, SELF, TOL)
@@ -107,6 +105,49 @@ def test_twist_scan_finds_a_bubble_narrower_than_its_grid():
     mu = np.exp(-1j * sym.j * scan.theta) * np.linalg.eigvals(G) ** sym.m_cell
     # the propagator's blocks against a twisted run: the flows' error (rtol 1e-11)
     assert abs(np.max(np.abs(mu)) - scan.rho_max) < 1e-9
+
+
+def test_twist_slopes_are_the_derivatives_of_the_multipliers():
+    """The first-order twist derivative of every multiplier on the circle (slow.twist_slopes, J v as left
+    eigenvector, the exact dG/dTheta of the cell propagator) against central differences of the sectors at
+    Theta +- 1e-6 (error O(1e-12) + the flows' 1e-11 / 1e-6), both routes of the sector maps, and the zone modes'
+    deflation: the eigenvectors of P are those of the deflated block lifted with their component in the deflated
+    space (at A = 3 the zones are decoupled and that component is O(1))."""
+    model = LatticeModel.hertz(1.5, (1.0,), 1.0)
+    for A in (0.02, 3.0):
+        [(a, w, lam)] = richardson_waves(model, Q, [A])
+        cell = wave_orbit(model, Q, a, w, lam, 20, math.pi / K)
+        with DeflatedSectors(model, SELF, TOL, twists=None, krein=1e-6) as sectors:
+            for propagate in (True, False):
+                at, _ = sectors.scan(cell, [0.0], propagate=propagate, raw=False, slopes=True)
+                theta, e = 1.1, 1e-6
+                s0, s1, s2 = at(theta), at(theta - e), at(theta + e)
+                on = np.nonzero(s0.signatures != 0)[0]
+                assert len(on) >= 10 and np.all(np.isfinite(s0.slopes[on]))     # A = 3: some are off the circle
+                for i in on:
+                    j1 = np.argmin(np.abs(s1.values - s0.values[i]))
+                    j2 = np.argmin(np.abs(s2.values - s0.values[i]))
+                    fd = np.angle(s2.values[j2] / s1.values[j1]) / (2 * e)
+                    assert abs(fd - s0.slopes[i]) < 1e-6, (A, propagate, fd, s0.slopes[i])
+
+
+def test_certified_stable_verdict_bounds_every_twist_between_samples():
+    """At A = 0.005 the band of 3 pi/10 (rho - 1 = 3.1e-7) lies below tol_rho = 1e-6: the verdict is 'stable',
+    certified between the samples with the bound its weak bubble reaches, and a dense scan of 1500 twists over the
+    band's neighbourhood and 1500 over [pi/52, pi] finds nothing above that bound (nor above tol_rho)."""
+    model = LatticeModel.hertz(1.5, (1.0,), 1.0)
+    [(a, w, lam)] = richardson_waves(model, Q, [0.005])
+    cell = wave_orbit(model, Q, a, w, lam, 20, math.pi / K)
+    with DeflatedSectors(model, SELF, TOL, twists=None, krein=1e-6) as sectors:
+        scan = twist_scan(sectors, cell, 52, floor=1e-6)
+        cert = scan.certificate
+        assert scan.verdict == "stable" and cert.status == "stable" and not cert.unresolved
+        assert 2e-7 < cert.bound < 1e-6                                    # measured 3.09e-7: the weak bubble
+        at, _ = sectors.scan(cell, [0.0], propagate=True, raw=False)
+        dense = np.concatenate([np.linspace(math.pi / 52, math.pi, 1500),
+                                np.linspace(scan.theta - 2e-3, scan.theta + 2e-3, 1500)])
+        worst = max(at(t).rho for t in dense) - 1
+    assert worst <= cert.bound * (1 + 1e-6) + 1e-12 and worst > 0.9 * cert.bound
 
 
 def test_trivial_multipliers_of_a_dimer_are_deflated_exactly():
@@ -160,7 +201,7 @@ def test_driver_on_one_and_two_ranks_resumes_and_refuses_bad_input(tmp_path):
                    tmp_path / "one.md", "-resume")
     assert r.returncode == 0, r.stderr
     with np.load(tmp_path / "two.npz") as two, np.load(tmp_path / "one.npz") as one:
-        assert str(two["format"]) == "hertzpetsc-precompression-map-2"
+        assert str(two["format"]) == "hertzpetsc-precompression-map-3"
         k2 = np.lexsort((two["a"], two["kind"], two["q"]))
         k1 = np.lexsort((one["a"], one["kind"], one["q"]))
         assert np.array_equal(two["kind"][k2], one["kind"][k1]) and np.array_equal(two["q"][k2], one["q"][k1])
@@ -202,6 +243,34 @@ def test_maps_before_issue_23_are_rendered_not_resumed_and_the_old_import_path_w
     r = run_script("precompression_map.py", "-epsilon", 0.4, "-m", "10,14,15,20", "-a", "0.1,0.3,1,3,10,100",
                    "-output", tmp_path / "old.npz", "-table", tmp_path / "old.md", "-resume")
     assert "-render" in one_error_line(r) and "-force" in one_error_line(r)
+
+
+@pytest.mark.serial
+def test_files_before_the_twist_certification_render_and_are_not_resumed(tmp_path):
+    """Files of the kinds before issue 37's certification (tests/data: a map of kind -2 and a boundary in q of kind
+    -1, made by the release before it with `precompression_map.py -N 20 -a 0.3,3 -cells_per_pi 100 -rtol 1e-10
+    -twists 64 -locate chain,infinite -m 3` and `boundary_in_q.py -A 3 -m 18,20 -cells_per_pi 100 -rtol 1e-10
+    -twists 64 -locate_tol 0.1`): -render rewrites their tables, which say that the infinite chain's verdicts are
+    the samples' ('s' where stable, 'samples only' at an edge's stable side); -resume refuses the map with one error
+    line that names -render and -force."""
+    import shutil
+    data = pathlib.Path(__file__).resolve().parent / "data"
+    shutil.copy(data / "map_v2_small.npz", tmp_path / "map.npz")
+    shutil.copy(data / "boundary_q_v1_small.npz", tmp_path / "bq.npz")
+    r = run_script("precompression_map.py", "-render", "-output", tmp_path / "map.npz", "-table", tmp_path / "map.md")
+    assert r.returncode == 0, r.stderr
+    text = (tmp_path / "map.md").read_text()
+    assert "hertzpetsc-precompression-map-2" in text and "verdicts at the twist samples only" in text
+    assert "`UU|s`" in text and "samples only" in text
+    r = run_script("boundary_in_q.py", "-render", "-output", tmp_path / "bq.npz", "-table", tmp_path / "bq.md")
+    assert r.returncode == 0, r.stderr
+    text = (tmp_path / "bq.md").read_text()
+    assert "hertzpetsc-boundary-q-1" in text and "samples only" in text
+    r = run_script("precompression_map.py", "-N", 20, "-a", "0.3,3", "-cells_per_pi", 100, "-rtol", "1e-10",
+                   "-twists", 64, "-locate", "chain,infinite", "-m", 3, "-output", tmp_path / "map.npz", "-table",
+                   tmp_path / "again.md", "-resume")
+    line = one_error_line(r)
+    assert r.returncode == 4 and "certification" in line and "-render" in line and "-force" in line
 
 
 def test_unstable_intervals_pair_the_located_edges():
@@ -369,7 +438,7 @@ def test_boundary_in_q_driver_on_one_and_two_ranks(tmp_path):
     r = run_script("boundary_in_q.py", *args, "-output", tmp_path / "one.npz", "-table", tmp_path / "one.md")
     assert r.returncode == 0, r.stderr
     with np.load(tmp_path / "two.npz") as two, np.load(tmp_path / "one.npz") as one:
-        assert str(two["format"]) == "hertzpetsc-boundary-q-1"
+        assert str(two["format"]) == "hertzpetsc-boundary-q-2"
         k2, k1 = np.lexsort((two["q"], two["kind"], two["A"])), np.lexsort((one["q"], one["kind"], one["A"]))
         assert np.array_equal(two["kind"][k2], one["kind"][k1]) and np.array_equal(two["q"][k2], one["q"][k1])
         assert np.allclose(two["rho_inf"][k2], one["rho_inf"][k1], rtol=1e-12, atol=1e-12)

@@ -12,7 +12,9 @@ layer, each the margin ln(rho) - ln(1 + tol_rho) of a verdict:
 * ``infinite``: rho over every Bloch parameter of the infinite chain: the cell twists Theta in [0, pi] of the wave's
   cell of M beads (:func:`~hertzpetsc.slow.twist_scan`: a grid of ceil(twists / M) steps, i.e. a bead-level Bloch
   step of at most pi / twists, the largest local maxima refined by golden section, and the twists where an unstable
-  mode was last seen: a band of instability narrows to a point at its onset, and is followed there).
+  mode was last seen: a band of instability narrows to a point at its onset, and is followed there). A stable
+  verdict is certified between the samples (:func:`~hertzpetsc.slow.certify_twists`: no band with rho - 1 above
+  0.1 tol_rho between them, for modulations up to :func:`longest_modulation` beads) or recorded as unresolved.
 
 Where a verdict changes between two amplitudes of the map, the layer locates the root by bisection in s until the
 bracket is at most ``locate_tol`` / 2 long (:class:`~hertzpetsc.continuation.Continuation`, ``bisect``): the located
@@ -22,12 +24,12 @@ of the h = pi/K wave of the family and the h = pi/(2K) one solved at the same am
 O(h^4) error). The uncompressed limit (delta0 / A = 0) closes each q. The q are dealt to the ranks, each computed on
 one rank (:mod:`hertzpetsc.studies.dealing`): the records do not depend on the number of ranks.
 
-Record file (npz, record store, kind ``hertzpetsc-precompression-map-2``; its constants and fields :data:`MAP_FIELDS`
+Record file (npz, record store, kind ``hertzpetsc-precompression-map-3``; its constants and fields :data:`MAP_FIELDS`
 in docs/schemas.md); a record's kind: 0 a point of the map, 1 a located boundary point on N beads, 2 on the infinite
 chain, 3 the uncompressed limit, 4 the gap opening, 5 a Krein crossing. Files of kind
 ``hertzpetsc-precompression-map-1`` (the dense route before issue 23, trivial multipliers the four nearest 1, no
-located boundary) are read for their tables and figure (:func:`read_map`, :func:`map_table`); they cannot be resumed
-by this study.
+located boundary) and ``-2`` (before the twist certification: the infinite chain's verdicts are its samples') are read
+for their tables and figure (:func:`read_map`, :func:`map_table`); they cannot be resumed by this study.
 """
 from __future__ import annotations
 
@@ -54,7 +56,7 @@ from ..qbranch import regrid_half_profile
 from ..records import RecordFileError, check_kind, load_npz, on_rank0
 from ..resources import check_memory
 from ..richardson import extrapolate
-from ..slow import DeflatedSectors, crossing_search, twist_scan
+from ..slow import CERT_MARGIN, DeflatedSectors, crossing_search, twist_scan
 from ..symmetry import WaveSymmetry
 from ..twsolver import tw_solver
 from ..waves import check_chain_wavenumber, fits_chain
@@ -66,14 +68,20 @@ from .precompression import _check_delta0_positive, _check_qs, amplitude_grid, w
 if TYPE_CHECKING:
     from ..model import LatticeModel
 
-MAP_FORMAT = "hertzpetsc-precompression-map-2"
+MAP_FORMAT = "hertzpetsc-precompression-map-3"
+MAP_FORMAT_V2 = "hertzpetsc-precompression-map-2"
 MAP_FORMAT_V1 = "hertzpetsc-precompression-map-1"
 # largest eigenvector residual of the deflated symmetry vectors that leaves a verdict standing (the valid orbits of
 # the committed maps stay below 1e-6; a wrong orbit or symmetry group gives O(1))
 EIGVEC_MAX = 1e-4
 MAP_FIELDS = ("q", "m", "kind", "a", "A", "omega", "rho", "outside", "sector", "cluster", "raw_cluster", "eigvec",
               "decoupled", "rho_inf", "theta_inf", "cluster_inf", "a_stable", "a_unstable", "A_stable", "A_unstable",
-              "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds")
+              "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds", "cert_inf", "bound_inf",
+              "cert_stable", "modulation_inf")
+# the infinite chain's certification of a record (cert_inf; cert_stable: of an edge's stable side): 1 stable between
+# the twist samples (slow.certify_twists), 0 stable samples not certified between them (unresolved), -1 none
+# (unstable, no verdict, or a file of kind -2, whose verdicts are the samples')
+CERT_STABLE, CERT_UNRESOLVED, CERT_NONE = 1, 0, -1
 KIND_POINT, KIND_EDGE, KIND_EDGE_INF, KIND_LIMIT, KIND_GAP, KIND_CROSSING = 0, 1, 2, 3, 4, 5
 TESTS = ("chain", "infinite")
 EDGE_KIND = {"chain": KIND_EDGE, "infinite": KIND_EDGE_INF}
@@ -81,6 +89,11 @@ MAX_MAP_BEADS = 2000
 # deflated spectra of Richardson waves keep rho - 1 below 1e-8 where the wave is stable (the orbit's error after
 # deflation); the verdict's margin keeps a factor 100
 MAP_TOL_RHO = 1e-6
+
+
+def certification(scan):
+    """The record's code (:data:`CERT_STABLE`, ...) of a :class:`~hertzpetsc.slow.TwistScan`."""
+    return {"stable": CERT_STABLE, "unresolved": CERT_UNRESOLVED}.get(scan.verdict, CERT_NONE)
 
 
 def wave_cell(q, p=1):
@@ -271,8 +284,11 @@ class MapProbe:
             if scan.rho_max - 1 > st.tol_rho:
                 self.hints = ([scan.theta] + [h for h in self.hints if abs(h - scan.theta) > 1e-9])[:3]
             entry["omega"] = cell.omega
+            c = scan.certificate
             entry["infinite"] = dict(rho=scan.rho_max, theta=scan.theta, cluster=scan.cluster, M=sym.M,
-                                     decoupled=scan.decoupled)
+                                     decoupled=scan.decoupled, cert=certification(scan),
+                                     bound=c.bound if c is not None else math.nan,
+                                     modulation=2 * math.pi * sym.M / scan.theta_min)
             self.evaluations["infinite"] += 1
         return entry["infinite"]
 
@@ -319,7 +335,8 @@ class StabilityMap(Study):
 
     Parameters = MapParameters
     FORMAT, FIELDS = MAP_FORMAT, MAP_FIELDS
-    DTYPES = {"m": np.int64, "kind": np.int64, "outside": np.int64, "decoupled": np.int64, "evaluations": np.int64}
+    DTYPES = {"m": np.int64, "kind": np.int64, "outside": np.int64, "decoupled": np.int64, "evaluations": np.int64,
+              "cert_inf": np.int64, "cert_stable": np.int64}
     ROLES = {"floquet_": ("the flow of the variational equations (the cells' maps)", ("ts",)),
              "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
     WHAT = "stability-map file"
@@ -346,7 +363,7 @@ class StabilityMap(Study):
         if key not in self._routes:
             # Krein signatures where crossings are searched: along a (chain) and over the twists (infinite chain)
             self._routes[key] = DeflatedSectors(model, PETSc.COMM_SELF, self.tolerances, FLOQUET_PREFIX, twists=None,
-                                                krein=self.tol_rho if self.locate else None)
+                                                krein=self.tol_rho if self.locate or self.twists else None)
         return self._routes[key]
 
     # --- one q -------------------------------------------------------------------------------------------------
@@ -354,7 +371,8 @@ class StabilityMap(Study):
         nan = math.nan
         row = dict.fromkeys(MAP_FIELDS, nan)
         row.update(q=q, m=check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1, kind=kind, a=a, A=A,
-                   omega=omega, outside=-1, decoupled=-1, evaluations=0, seconds=0.0)
+                   omega=omega, outside=-1, decoupled=-1, evaluations=0, seconds=0.0, cert_inf=CERT_NONE,
+                   cert_stable=CERT_NONE)
         if entry is not None:
             if fits_chain(q, self.N):
                 c = probe.chain(entry)
@@ -368,7 +386,8 @@ class StabilityMap(Study):
                           f"exceeds {EIGVEC_MAX:g}; no verdict recorded (rho = nan)", file=sys.stderr, flush=True)
             if self.twists:
                 i = probe.infinite(entry)
-                row.update(rho_inf=i["rho"], theta_inf=i["theta"], cluster_inf=i["cluster"],
+                row.update(rho_inf=i["rho"], theta_inf=i["theta"], cluster_inf=i["cluster"], cert_inf=i["cert"],
+                           bound_inf=i["bound"], modulation_inf=i["modulation"],
                            decoupled=int(i["decoupled"]) if row["decoupled"] < 0 else row["decoupled"])
             row["omega"] = entry.get("omega", omega)
         return row
@@ -383,7 +402,8 @@ class StabilityMap(Study):
         row.update(a_stable=stable["point"].a, a_unstable=unstable["point"].a, A_stable=probe.wave(stable)["A"],
                    A_unstable=probe.wave(unstable)["A"], rho_stable=get(stable)["rho"] - 1,
                    rho_unstable=get(unstable)["rho"] - 1,
-                   theta_unstable=get(unstable)["sector" if name == "chain" else "theta"], seconds=seconds)
+                   theta_unstable=get(unstable)["sector" if name == "chain" else "theta"], seconds=seconds,
+                   cert_stable=get(stable)["cert"] if name == "infinite" else CERT_NONE)
         return row
 
     def compute(self, q: float) -> list[dict]:
@@ -518,9 +538,11 @@ class StabilityMap(Study):
 
 
 # --- the boundary located in q at fixed amplitude (the infinite chain) ----------------------------------------------
-QMAP_FORMAT = "hertzpetsc-boundary-q-1"
+QMAP_FORMAT = "hertzpetsc-boundary-q-2"
+QMAP_FORMAT_V1 = "hertzpetsc-boundary-q-1"
 QMAP_FIELDS = ("A", "q", "M", "kind", "grid", "omega", "rho_inf", "theta_inf", "cluster_inf", "q_stable",
-               "q_unstable", "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds")
+               "q_unstable", "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds", "cert_inf",
+               "bound_inf", "cert_stable", "modulation_inf")
 # the uncompressed limit of a level A = inf is reached from the family's wave at this amplitude (delta0 units)
 LIMIT_FROM_A = 1000.0
 # the largest cell of a bisection wavenumber by default: the twist scans' dense 2M x 2M sector maps grow as M^2 in
@@ -587,7 +609,8 @@ class QBoundary(Study):
 
     Parameters = QBoundaryParameters
     FORMAT, FIELDS = QMAP_FORMAT, QMAP_FIELDS
-    DTYPES = {"M": np.int64, "kind": np.int64, "grid": np.int64, "evaluations": np.int64}
+    DTYPES = {"M": np.int64, "kind": np.int64, "grid": np.int64, "evaluations": np.int64, "cert_inf": np.int64,
+              "cert_stable": np.int64}
     ROLES = StabilityMap.ROLES
     WHAT = "boundary-in-q file"
     NAMES = dict(levels="A (-A)", grid_q="q (-m with -N, and -q)")
@@ -630,7 +653,9 @@ class QBoundary(Study):
                 limit.destroy()
         return dict(dict.fromkeys(QMAP_FIELDS, math.nan), A=A, q=q, M=scan["M"], kind=KIND_POINT, grid=0,
                     omega=entry.get("omega", math.nan), rho_inf=scan["rho"], theta_inf=scan["theta"],
-                    cluster_inf=scan["cluster"], evaluations=1, seconds=time.perf_counter() - t0)
+                    cluster_inf=scan["cluster"], cert_inf=scan["cert"], bound_inf=scan["bound"],
+                    modulation_inf=scan["modulation"],
+                    cert_stable=CERT_NONE, evaluations=1, seconds=time.perf_counter() - t0)
 
     def unstable(self, row: Mapping) -> bool:
         return row["rho_inf"] - 1 > self.tol_rho
@@ -666,7 +691,8 @@ class QBoundary(Study):
             edge.update(kind=KIND_EDGE_INF, grid=0, q=math.pi * float(xs_ + xu), M=0,
                         q_stable=2 * math.pi * float(xs_), q_unstable=2 * math.pi * float(xu),
                         rho_stable=rs["rho_inf"] - 1, rho_unstable=ru["rho_inf"] - 1,
-                        theta_unstable=ru["theta_inf"], evaluations=n, seconds=sum(
+                        theta_unstable=ru["theta_inf"], cert_stable=rs["cert_inf"],
+                        modulation_inf=rs["modulation_inf"], evaluations=n, seconds=sum(
                             r["seconds"] for r in rows[-n:]) if n else 0.0)
             rows.append(edge)
         return rows
@@ -697,44 +723,75 @@ class QBoundary(Study):
 
 def q_boundary_table(z):
     """The Markdown table of a boundary-in-q file's arrays: the located edges per amplitude, then the grid's
-    verdicts."""
+    verdicts (each stable one certified between its twist samples, or unresolved; a file of kind -1 holds the
+    verdicts at its samples only)."""
     tol = float(z["tol_rho"])
     A, q, kind, grid = (np.asarray(z[k], float) for k in ("A", "q", "kind", "grid"))
     rho = np.asarray(z["rho_inf"], float)
-    lines = [f"schema: {QMAP_FORMAT}; alpha = {float(z['alpha']):g}, delta0 = {float(z['delta0']):g}; the infinite "
-             f"chain (cell twists, bead-level Bloch step <= pi/{int(z['twists'])}, maxima refined; symmetry multipliers "
-             f"deflated); waves at A = ||u||_inf (border row), Richardson of h = pi/{int(z['cells_per_pi'])} and "
+    certified = "cert_inf" in z
+    cert = np.asarray(z["cert_inf"]) if certified else np.full(len(A), CERT_NONE)
+    edges = np.nonzero(kind == KIND_EDGE_INF)[0]
+    qs_, qu_ = np.asarray(z["q_stable"], float), np.asarray(z["q_unstable"], float)
+    widths = np.abs(qu_[edges] - qs_[edges]) / np.minimum(qs_[edges], qu_[edges])
+    shown = (f"edges located by bisection in q through the simplest q / 2 pi of the middle third (cells of at most "
+             f"{int(z['max_cell'])} beads) to a bracket of {float(z['locate_tol']) / 2:g} (relative) where such a "
+             f"cell exists: the widest bracket below is {float(np.max(widths)):.1e}" if len(edges) else "no edge")
+    lines = [f"schema: {z.get('format', QMAP_FORMAT)}; alpha = {float(z['alpha']):g}, delta0 = "
+             f"{float(z['delta0']):g}; the infinite chain (cell twists, bead-level Bloch step <= pi/{int(z['twists'])}, "
+             f"maxima refined; symmetry multipliers deflated"
+             + (f"; a stable verdict certified between its twist samples: any band of instability there has rho - 1 "
+                f"<= {CERT_MARGIN * tol:g} or the located maximum of a weaker band, for modulations up to the beads "
+                f"of the column 'modulations'"
+                if certified else "; verdicts at the twist samples only, before the twist certification")
+             + f"); waves at A = ||u||_inf (border row), Richardson of h = pi/{int(z['cells_per_pi'])} and "
              f"pi/{2 * int(z['cells_per_pi'])}; flow rtol {float(z['rtol']):g}; unstable when rho - 1 > {tol:g}; "
-             f"edges located by bisection in q through the simplest q / 2 pi of the middle third (cells of at most "
-             f"{int(z['max_cell'])} beads) to a bracket of {float(z['locate_tol']) / 2:g} (relative).\n",
+             f"{shown}.\n",
              "### Located edges\n",
              "Each row: at amplitude A, the wavenumber where the verdict changes, between q (stable side) and q "
-             "(unstable side), with rho - 1 on both sides (the multipliers' distance to the unit circle) and the cell "
-             "twist Theta of the unstable mode.\n",
+             "(unstable side), with rho - 1 on both sides (the multipliers' distance to the unit circle), the cell "
+             "twist Theta of the unstable mode, and whether the stable side is certified between its twist samples.\n",
              "| A | q stable | q unstable | relative width | rho - 1 stable side | rho - 1 unstable side | Theta | "
-             "evaluations |", "|---|---|---|---|---|---|---|---|"]
-    edges = np.nonzero(kind == KIND_EDGE_INF)[0]
+             "evaluations | stable side between twists | modulations (beads) |", "|---|---|---|---|---|---|---|---|---|---|"]
     for i in edges[np.lexsort((q[edges], A[edges]))]:
-        qs, qu = float(z["q_stable"][i]), float(z["q_unstable"][i])
+        qs, qu = float(qs_[i]), float(qu_[i])
+        side = ({CERT_STABLE: "certified", CERT_UNRESOLVED: "unresolved"}.get(int(z["cert_stable"][i]), "n/a")
+                if certified else "samples only")
         lines.append(f"| {A[i]:g} | {qs:.6f} | {qu:.6f} | {abs(qu - qs) / min(qs, qu):.1e} | "
                      f"{float(z['rho_stable'][i]):.1e} | {float(z['rho_unstable'][i]):.1e} | "
-                     f"{float(z['theta_unstable'][i]):.4f} | {int(z['evaluations'][i])} |")
+                     f"{float(z['theta_unstable'][i]):.4f} | {int(z['evaluations'][i])} | {side} | "
+                     f"{_modulation(z, i)} |")
     gq = sorted(set(q[grid == 1].tolist()))
     lines += ["\n### Verdicts at the grid wavenumbers\n",
-              "rho - 1 on the infinite chain per amplitude (rows) and grid q (columns); U: unstable.\n",
+              "rho - 1 on the infinite chain per amplitude (rows) and grid q (columns); U: unstable"
+              + ("; u: unresolved (stable at every twist sample, not certified between them)" if certified else "")
+              + ".\n",
               "| A | " + " | ".join(q_label(x) for x in gq) + " |", "|---|" + "---|" * len(gq)]
     for level in sorted(set(A.tolist())):
-        cells = (_rho_cell(rho, np.nonzero((A == level) & (grid == 1) & (q == x))[0], tol) for x in gq)
+        cells = []
+        for x in gq:
+            i = np.nonzero((A == level) & (grid == 1) & (q == x))[0]
+            cell = _rho_cell(rho, i, tol)
+            if len(i) and certified and cert[i[0]] == CERT_UNRESOLVED:
+                cell += " u"
+            cells.append(cell)
         lines.append(f"| {level:g} | " + " | ".join(cells) + " |")
     return "\n".join(lines) + "\n"
 
 
+def _modulation(z, i):
+    """The longest modulation (beads) covered by the certified stable verdict of record i ('n/a' without one)."""
+    if "modulation_inf" not in z or not math.isfinite(float(z["modulation_inf"][i])):
+        return "n/a"
+    return f"{float(z['modulation_inf'][i]):.3g}"
+
+
 def read_map(path, comm=None):
-    """The arrays of a stability-map file of either kind (``format``: :data:`MAP_FORMAT` or :data:`MAP_FORMAT_V1`),
-    read on rank 0 and given to every rank; :class:`~hertzpetsc.errors.RecordFileError` for any other file."""
+    """The arrays of a stability-map file of any kind (``format``: :data:`MAP_FORMAT`, :data:`MAP_FORMAT_V2` or
+    :data:`MAP_FORMAT_V1`), read on rank 0 and given to every rank; :class:`~hertzpetsc.errors.RecordFileError` for
+    any other file."""
     def load():
         z = load_npz(path, "stability-map file")
-        if str(z.get("format", "")) != MAP_FORMAT_V1:
+        if str(z.get("format", "")) not in (MAP_FORMAT_V1, MAP_FORMAT_V2):
             check_kind(z, path, MAP_FORMAT, "stability-map file")
         return z
     return on_rank0(comm, load, what="stability-map file")
@@ -894,6 +951,16 @@ def compare_v1(z, old, tol=None, path="the other map"):
     return "\n".join(lines) + "\n"
 
 
+def _side(r, i, certified):
+    """The edges tables' last cell: whether an infinite-chain edge's stable side is certified between its twist
+    samples (certified, unresolved; 'samples' for a file before the certification; n/a for an N-bead edge)."""
+    if int(r["kind"][i]) != KIND_EDGE_INF:
+        return "n/a"
+    if not certified or "cert_stable" not in r:
+        return "samples only"
+    return {CERT_STABLE: "certified", CERT_UNRESOLVED: "unresolved"}.get(int(r["cert_stable"][i]), "n/a")
+
+
 def _largest(values):
     """The largest finite value (nan when there is none: a q of the infinite chain only has no chain spectra)."""
     finite = np.asarray(values, float)
@@ -917,11 +984,21 @@ def map_table(z):
         return "none" if not spans[key][q] else ", ".join(f"[{lo:.5g}, {hi:.5g}]".replace("nan", "?")
                                                           for lo, hi in spans[key][q])
 
-    def mark(x):                               # '?': no verdict (rho nan: the deflation did not hold)
-        return "?" if not math.isfinite(float(x)) else "U" if float(x) - 1 > tol else "."
+    certified = str(z.get("format", "")) != MAP_FORMAT_V2
 
-    def marks(rho, pts, lim):                  # the map's amplitudes in order, then the limit after '|'
-        return "`" + "".join(mark(x) for x in rho[pts]) + ("|" + mark(rho[lim[0]]) if len(lim) else "") + "`"
+    def mark(x, cert=None):                    # '?': no verdict (rho nan: the deflation did not hold)
+        if not math.isfinite(float(x)):
+            return "?"
+        if float(x) - 1 > tol:
+            return "U"
+        if cert is None:
+            return "."
+        return ("." if int(cert) == CERT_STABLE else "u") if certified else "s"
+
+    def marks(rho, pts, lim, cert=None):       # the map's amplitudes in order, then the limit after '|'
+        c = (lambda i: None) if cert is None else (lambda i: cert[i])
+        return "`" + "".join(mark(rho[i], c(i)) for i in pts) + ("|" + mark(rho[lim[0]], c(lim[0])) if len(lim)
+                                                                     else "") + "`"
 
     # one row of each table per q: the located edges, the unstable intervals, the verdicts
     edges, intervals, verdicts = [], [], []
@@ -933,15 +1010,20 @@ def map_table(z):
             edges.append(f"| {q_label(q)} | {'N' if r['kind'][i] == KIND_EDGE else 'inf'} | {As:.6g} | {Au:.6g} | "
                          f"{abs(Au - As) / min(As, Au):.1e} | {float(r['rho_stable'][i]):.1e} | "
                          f"{float(r['rho_unstable'][i]):.1e} | {float(r['theta_unstable'][i]):.4f} | "
-                         f"{'onset' if Au > As else 'offset'} | {int(r['evaluations'][i])} |")
+                         f"{'onset' if Au > As else 'offset'} | {int(r['evaluations'][i])} | "
+                         f"{_side(r, i, certified)} |")
         pts = np.nonzero(r["kind"] == KIND_POINT)[0]
         pts = pts[np.argsort(r["a"][pts])]
         lim = np.nonzero(r["kind"] == KIND_LIMIT)[0]
         gap = np.nonzero(r["kind"] == KIND_GAP)[0]
         gap_A = f"{float(r['A'][gap[0]]):.4f}" if len(gap) else "n/a"
-        intervals.append(f"| {q_label(q)} | {gap_A} | {shown('rho', q)} | {shown('rho_inf', q)} |")
+        cert = r.get("cert_inf", np.full(len(r["kind"]), CERT_NONE))
+        points = (r["kind"] == KIND_POINT) | (r["kind"] == KIND_LIMIT)
+        covered = r["modulation_inf"][points & (cert == CERT_STABLE)] if "modulation_inf" in r else []
+        longest = f"{float(np.min(covered)):.3g}" if len(covered) else "n/a"
+        intervals.append(f"| {q_label(q)} | {gap_A} | {shown('rho', q)} | {shown('rho_inf', q)} | {longest} |")
         verdicts.append(f"| {q_label(q)} | {gap_A} | {marks(r['rho'], pts, lim)} | "
-                        + (marks(r["rho_inf"], pts, lim) if twists else "n/a")
+                        + (marks(r["rho_inf"], pts, lim, cert) if twists else "n/a")
                         + f" | {_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |")
     amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), kinds) if k == KIND_POINT))
     unresolved = bool(np.any(((kinds == KIND_POINT) | (kinds == KIND_LIMIT)) & ~np.isfinite(np.asarray(z["rho"], float))))
@@ -949,26 +1031,35 @@ def map_table(z):
              f"{', '.join(f'{m:g}' for m in np.asarray(z['masses']))} (repeated), N = {int(z['N'])}; waves: "
              f"Richardson of h = pi/{int(z['cells_per_pi'])} and pi/{2 * int(z['cells_per_pi'])}; flow rtol "
              f"{float(z['rtol']):g}; symmetry multipliers deflated; unstable when rho - 1 > {tol:g}; infinite chain: "
-             + (f"cell twists with a bead-level Bloch step <= pi/{twists}, maxima refined" if twists else "not "
-                "computed") + f"; boundary located by bisection in log a to a bracket of {float(z['locate_tol']):g} "
-             "(relative).\n",
+             + ((f"cell twists with a bead-level Bloch step <= pi/{twists}, maxima refined; " + (
+                 f"a stable verdict certified between its twist samples (any band of instability there has rho - 1 "
+                 f"<= {CERT_MARGIN * tol:g} or the located maximum of a weaker band: slow.certify_twists) for "
+                 f"modulations up to the beads of the column 'longest modulation' (the shortest coverage of the q's "
+                 f"stable verdicts)" if certified else "verdicts at the twist samples only (a file of kind "
+                 f"{MAP_FORMAT_V2}, before the twist certification)")) if twists else "not computed")
+             + f"; boundary located by bisection in log a to a bracket of {float(z['locate_tol']):g} (relative).\n",
              "### Located boundary\n",
              "Each row: an amplitude where the verdict changes, between A (stable side) and A (unstable side); "
              "rho - 1 of the chain (N beads or the infinite chain) at both ends: the multipliers' distance to the unit "
              "circle on each side; Theta: the sector angle (N) or cell twist (infinite chain) of the unstable mode; "
              "the edge is an onset (stable below, unstable above) or an offset.\n",
              "| q | chain | A stable | A unstable | relative width | rho - 1 stable side | rho - 1 unstable side | "
-             "Theta | edge | bisections |",
-             "|---|---|---|---|---|---|---|---|---|---|", *edges,
+             "Theta | edge | bisections | stable side between twists |",
+             "|---|---|---|---|---|---|---|---|---|---|---|", *edges,
              "\n### Unstable intervals\n",
              "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within "
              "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
              "limit; ?: an edge not located (a window found between two edges of the same kind, or a change of the "
              "verdict between the largest map amplitude and the uncompressed limit).\n",
-             "| q | A_gap | N beads | infinite chain |", "|---|---|---|---|", *intervals,
+             "| q | A_gap | N beads | infinite chain | longest modulation of the stable verdicts (beads) |",
+             "|---|---|---|---|---|",
+             *intervals,
              "\n### Verdicts on the map\n",
              f"Amplitudes a (first sine coefficient) of the map: {', '.join(f'{a:.4g}' for a in amps)}. Per q, one "
              "character per amplitude, increasing: '.' stable, 'U' unstable (rho - 1 > tol_rho)"
+             + (("; infinite chain: '.' stable and certified between the twist samples, 'u' unresolved (stable at "
+                 "every twist sample, the certification did not close)") if certified and twists else
+                "; infinite chain: 's' stable at the twist samples (not certified between them)" if twists else "")
              + (f", '?' no verdict (the deflation's eigenvector residual above {EIGVEC_MAX:g})" if unresolved else "")
              + ", then the uncompressed limit after '|'; A_gap: the located gap opening; largest deflated cluster |mu - 1| and "
              "eigenvector residual over the row (what the deflation removed, and how exact it was).\n",

@@ -743,7 +743,8 @@ def test_distinct_numbers_are_told_apart_relative_to_their_size():
         opts = AppOptions()
         assert opts.numbers("hz_test_rtols", "1e-12,1e-14", expr=False, distinct=True) == [1e-12, 1e-14]
         assert opts.numbers("hz_test_q", "pi/10,pi/10+1e-9", distinct=True)[1] > math.pi / 10
-        for text in ("1e-14,1e-14", "1e-14,1.0000000000001e-14", "0,0"):
+        assert opts.numbers("hz_test_levels", "100,inf", expr=False, distinct=True) == [100.0, math.inf]
+        for text in ("1e-14,1e-14", "1e-14,1.0000000000001e-14", "0,0", "inf,inf"):
             with pytest.raises(ParameterError, match="twice"):
                 opts.numbers("hz_test_same", text, expr=False, distinct=True)
     finally:

@@ -35,13 +35,18 @@ from petsc4py import PETSc
 
 from . import kernels
 from .assembly import gathered
-from .errors import ConvergenceError, ParameterError, check_real
+from .errors import ConvergenceError, ParameterError, PetscFailure, check_real
 from .hertz import HertzLaw
 from .model import Actuator, ChainSpec
 
 # The options prefix of the TS of simulations (long runs, compactons on the chain); the refinement's and the
 # Floquet analysis' flows have their own (shoot_, floquet_).
 CHAIN_PREFIX = "chain_"
+# The steps of a driven chain's flows are at most its actuators' time scale (ChainSpec.time_scale: a push's
+# duration) over this: every push is sampled by several steps of 13 stages, so the error estimate sees it even
+# when no bead touches the actuator before it starts (free flight is integrated exactly, and a step may otherwise
+# grow across the whole push).
+STEPS_PER_PUSH = 4
 
 
 @dataclass(frozen=True)
@@ -432,6 +437,16 @@ class ChainIntegrator:
                 raise ParameterError(f"-{prefix}ts_{name}", value, "the integration tolerance must be positive")
         self.ts = ts
         self.steps = 0
+        # the largest step: -<prefix>ts_adapt_dt_max, or less on a driven chain (max_step)
+        self._adapt = _TSAdapt(ts)
+        self._dt_max = self._given_dt_max = self._adapt.dt_max()
+
+    @property
+    def max_step(self) -> float:
+        """The largest step of the next integration: the chain's time scale (its actuators' shortest push,
+        :attr:`~hertzpetsc.model.ChainSpec.time_scale`) over STEPS_PER_PUSH, or -<prefix>ts_adapt_dt_max if
+        smaller; read at each integration (the chain's spec may have changed, :meth:`Chain.set_spec`)."""
+        return min(self._given_dt_max, self.chain.spec.time_scale / STEPS_PER_PUSH)
 
     def control_components(self, state: Optional[tuple[float, float]] = None,
                            tangents: tuple[float, float] = (0.0, 0.0)) -> None:
@@ -459,6 +474,12 @@ class ChainIntegrator:
         ran before); None carries on with the step the last integration ended with (a simulation in intervals)."""
         if not t1 > t0:
             raise ParameterError("time", t1, f"the final time must exceed the initial time {t0}")
+        hmax = self.max_step
+        if hmax != self._dt_max:
+            self._adapt.set_dt_max(hmax)
+            self._dt_max = hmax
+        if (self.ts.getTimeStep() if dt is None else dt) > hmax:     # the first step too
+            dt = hmax
         ts = self.ts
         ts.setTime(t0)
         ts.setMaxTime(t1)
@@ -478,6 +499,39 @@ class ChainIntegrator:
         self._F.destroy()
         if self._J is not None:
             self._J.destroy()
+
+
+class _TSAdapt:
+    """The step limits of a TS's TSAdapt (TSAdaptGet/SetStepLimits of libpetsc by ctypes: petsc4py 3.18 does not
+    wrap TSAdapt). Adaptive steps are clipped to dt_max after every step, accepted or rejected."""
+
+    _lib = None
+
+    def __init__(self, ts):
+        import ctypes
+        if _TSAdapt._lib is None:
+            lib = ctypes.CDLL(kernels.petsc_library())
+            vp, dp = ctypes.c_void_p, ctypes.POINTER(ctypes.c_double)
+            lib.TSGetAdapt.argtypes = [vp, ctypes.POINTER(vp)]
+            lib.TSAdaptGetStepLimits.argtypes = [vp, dp, dp]
+            lib.TSAdaptSetStepLimits.argtypes = [vp, ctypes.c_double, ctypes.c_double]
+            _TSAdapt._lib = lib
+        self._ctypes = ctypes
+        self.handle = ctypes.c_void_p()
+        self._call("TSGetAdapt", ctypes.c_void_p(ts.handle), ctypes.byref(self.handle))
+
+    def _call(self, name, *args):
+        ierr = getattr(self._lib, name)(*args)
+        if ierr:
+            raise PetscFailure(f"{name} failed (PETSc error code {ierr})")
+
+    def dt_max(self):
+        lo, hi = self._ctypes.c_double(), self._ctypes.c_double()
+        self._call("TSAdaptGetStepLimits", self.handle, self._ctypes.byref(lo), self._ctypes.byref(hi))
+        return hi.value
+
+    def set_dt_max(self, hmax):
+        self._call("TSAdaptSetStepLimits", self.handle, float(PETSc.DEFAULT), float(hmax))
 
 
 def configure_options(spec, comm, prefix=CHAIN_PREFIX, tolerances=None):

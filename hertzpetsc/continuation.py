@@ -246,7 +246,8 @@ class PseudoArclength:
     t . (Z - Z_pred) = 0; the step ds grows by ``growth`` after steps of at most ``easy`` Newton iterations, up to
     ``ds_max``, and is halved on failure (at most ``max_halvings`` times per step, never below ``ds_min``). A
     corrector that needs more than ``max_iterations`` or lands farther than ``max_corrector`` ds from the
-    prediction is a failure (it may have jumped to another part of the curve)."""
+    prediction is a failure (it may have jumped to another part of the curve), and so is a point whose test
+    functions raise ConvergenceError (e.g. multipliers that fail their closed-form checks)."""
 
     ds: float = 0.02
     ds_min: float = 1e-8
@@ -584,7 +585,13 @@ class Continuation:
         while True:
             Z, its = self._arclength_solve(t, Z1, ds)
             if Z is not None:
-                break
+                try:                   # as in natural steps: a point whose test functions fail is not accepted
+                    tests = self.problem.test_functions(Z)
+                    for name in tests:
+                        tests[name]
+                    break
+                except ConvergenceError:
+                    Z.destroy()
             halvings += 1
             self.changes += 1
             if halvings > alg.max_halvings or ds * 0.5 < alg.ds_min or self.changes > alg.max_step_changes:
@@ -596,7 +603,7 @@ class Continuation:
         self.changes = 0
         Zm = Zm.copy()                 # _accept destroys the oldest point of the history (Z1 stays in it)
         self.s = s1 + ds
-        point = self._accept(Z, its)
+        point = self._accept(Z, its, tests=tests)
         t_new = self._chord(Z1, Z)[0]
         point.dp_ds = _parameter(t_new)
         t_new.destroy()

@@ -29,7 +29,12 @@ Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by 
 (:class:`~hertzpetsc.floquet.DenseFloquet`, the tangents resolved too, the Newton Jacobian's where it is one) or the
 dominant ones by SLEPc Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A
 driven chain has no symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
-exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`). The test functions of the layer are
+exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`), and without dashpots R^T J R = e^{-c kT} J
+(:func:`conformal_rate`): checked on every monodromy before its multipliers are used (:func:`check_monodromy`; the
+dominant pairs against an independent flow, :func:`check_eigenpairs`), a failure a ConvergenceError. Every flow's
+steps are at most a quarter of the drive's shortest push (:attr:`Waveform` signals' ``time_scale``,
+:attr:`~hertzpetsc.chain.ChainIntegrator.max_step`): a push that no bead feels yet is invisible to a step's error
+estimate. The test functions of the layer are
 
     period doubling:   tau_PD = prod (1 + mu_i)              (a real multiplier through -1)
     Neimark-Sacker:    tau_NS = prod_{i<j} (mu_i mu_j - 1)   (a complex pair through the unit circle; also
@@ -131,6 +136,11 @@ class HalfSineSignal(Signal):
         self.period = 2 * math.pi / omega
         self._w = 2 * math.pi * width          # the pulse's duration in phase
 
+    @property
+    def time_scale(self):
+        """The pulse's duration."""
+        return self.width * self.period
+
     def _pulse(self, t):
         """(whether the times t fall in a pulse, the pulse's phase pi s / w there)."""
         th = np.mod(self.omega * np.asarray(t, float) + self.phase, 2 * math.pi)
@@ -202,13 +212,20 @@ class SampledWave(Waveform):
 class ProfileSignal(Signal):
     """x(t) = a U(phase - omega t) for a 2 pi-periodic profile U tabulated on a uniform grid, by the degree-5
     piecewise Lagrange interpolant of :func:`~hertzpetsc.stencil.lagrange_periodic` held as per-cell polynomial
-    coefficients (one cell lookup and Horner's rule per call: the right-hand side evaluates it at every stage)."""
+    coefficients (one cell lookup and Horner's rule per call: the right-hand side evaluates it at every stage);
+    ``push``: the phase interval of the profile's shortest push (:func:`push_width`)."""
 
-    def __init__(self, coefficients, h, amplitude, omega, phase=0.0):
+    def __init__(self, coefficients, h, amplitude, omega, phase=0.0, push=2 * math.pi):
         self.c, self.h = coefficients, h
         self.amplitude, self.omega, self.phase = amplitude, omega, phase
         self.period = 2 * math.pi / omega
         self.n = len(coefficients)
+        self.push = push
+
+    @property
+    def time_scale(self):
+        """The duration of the profile's shortest push."""
+        return self.push / self.omega
 
     def _cell(self, t):
         xi = np.mod(self.phase - self.omega * np.asarray(t, float), 2 * math.pi) / self.h
@@ -238,6 +255,24 @@ class ProfileSignal(Signal):
 # Coefficients of the degree-5 interpolant through the nodes s = -2..3 of a cell (s in [0, 1)): c = V^-1 values.
 _NODES = np.arange(-2, 4)
 _VINV = np.linalg.inv(np.vander(_NODES, 6, increasing=True))
+# A profile pushes where its acceleration |U''| exceeds this fraction of its largest (a wave of the uncompressed
+# chain: zero in free flight, the bonds' forces in contact; the profile's own noise is some 1e-6 of it).
+PUSH_THRESHOLD = 1e-3
+
+
+def push_width(values):
+    """The phase length of the shortest interval where the 2 pi-periodic profile ``values`` (uniform grid) pushes:
+    |U''| > PUSH_THRESHOLD max |U''| (second differences); a half period for a profile whose acceleration changes
+    sign as a sinusoid's, 2 pi if it never falls below the threshold."""
+    u = np.asarray(values, float)
+    n = len(u)
+    d2 = np.abs(np.roll(u, -1) - 2 * u + np.roll(u, 1))
+    on = d2 > PUSH_THRESHOLD * np.max(d2)
+    if on.all() or not on.any():
+        return 2 * math.pi
+    on = np.roll(on, -int(np.argmin(on)))          # start outside a push: no run wraps around
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], on.astype(np.int8), [0]))))
+    return 2 * math.pi / n * float(np.min(edges[1::2] - edges[::2]))
 
 
 class ProfileWave(Waveform):
@@ -255,9 +290,10 @@ class ProfileWave(Waveform):
         self.h = 2 * math.pi / len(u)
         idx = (np.arange(len(u))[:, None] + _NODES[None, :]) % len(u)
         self.coefficients = u[idx] @ _VINV.T
+        self.push = push_width(u)
 
     def signal(self, amplitude: float, omega: float, phase: float = 0.0) -> ProfileSignal:
-        return ProfileSignal(self.coefficients, self.h, amplitude, omega, float(phase))
+        return ProfileSignal(self.coefficients, self.h, amplitude, omega, float(phase), self.push)
 
     def describe(self) -> dict:
         return dict(waveform=self.name, label=self.label, cells=len(self.values))
@@ -338,6 +374,72 @@ def damping_trace(spec):
         deg[0] -= spec.left == "free"
         deg[-1] -= spec.right == "free"
     return float(np.sum((m.damping.gamma + m.damping.eta * deg) / m.mass(np.arange(spec.N))))
+
+
+def conformal_rate(spec):
+    """c with R^T J_M R = e^{-c T} J_M for the monodromy of ``spec`` (J_M the symplectic form sum_n m_n dx_n ^ dv_n):
+    0 undamped, gamma / m for on-site damping with uniform masses (y = e^{-c t / 2} z makes the variational
+    equation Hamiltonian); None where the flow is not conformally symplectic (dashpots between beads, on-site damping
+    with unequal masses)."""
+    model = spec.model
+    if model.damping.eta != 0.0 or (model.damping.gamma != 0.0 and not model.uniform_masses):
+        return None
+    return model.damping.gamma / float(model.mass(np.arange(1))[0])
+
+
+def check_monodromy(R, spec, T, rtol, steps, where):
+    """The closed forms of a dense monodromy R = R(T; 0) of ``spec``, resolved to ``steps`` rtol relative in
+    Frobenius norm (2N columns started as unit vectors, each step erring by at most rtol): Liouville, log det R =
+    -T tr(M^-1 C) (:func:`damping_trace`), to steps rtol ||R||_F ||R^-1||_F (|tr(R^-1 dR)| <= ||R^-1||_F ||dR||_F),
+    with det R > 0; and where the flow is conformally symplectic (:func:`conformal_rate`), R^T J_M R = e^{-c T}
+    J_M to 2 steps rtol ||J_M|| ||R||_F^2. A ConvergenceError naming the check, its value and its bound, at
+    ``where`` (the parameter), otherwise: the multipliers of a flow that jumped a push of the drive, or did not
+    resolve its contacts, are not the response's."""
+    what = "the multipliers' tangent flow (prefix -floquet_)"
+    sign, logdet = np.linalg.slogdet(R)
+    exact = -T * damping_trace(spec)
+    norm = np.linalg.norm(R)
+    bound = steps * rtol * norm * (np.linalg.norm(np.linalg.inv(R)) if sign != 0 else math.inf)
+    if not (sign > 0 and abs(logdet - exact) <= bound):
+        raise ConvergenceError(what, f"Liouville: det R = {sign * math.exp(logdet) if sign else 0.0:.6g}, closed form "
+                               f"exp(-T tr(M^-1 C)) = {math.exp(exact):.6g} (log det off by "
+                               f"{abs(logdet - exact):.2g} > {bound:.2g}, {steps} steps at rtol {rtol:.0e})", **where)
+    c = conformal_rate(spec)
+    if c is not None:
+        m = spec.model.mass(np.arange(spec.N))
+        JR = np.empty_like(R)                  # J_M R: rows (x_n, v_n) -> (m_n v_n, -m_n x_n)
+        JR[0::2], JR[1::2] = m[:, None] * R[1::2], -m[:, None] * R[0::2]
+        defect = R.T @ JR
+        defect[0::2, 1::2] -= math.exp(-c * T) * np.diag(m)
+        defect[1::2, 0::2] += math.exp(-c * T) * np.diag(m)
+        size, bound = np.linalg.norm(defect), 2 * steps * rtol * float(np.max(m)) * norm ** 2
+        if not size <= bound:
+            raise ConvergenceError(what, f"symplecticity: ||R^T J R - e^(-cT) J|| = {size:.2g} > {bound:.2g} "
+                                   f"(c = {c:g}, {steps} steps at rtol {rtol:.0e})", **where)
+
+
+def check_eigenpairs(op, mu, vectors, spec, T, where, tol=TOL_MU):
+    """The dominant multipliers mu (SLEPc on the matrix-free monodromy, no determinant to check) against an
+    independent flow: R v for all the eigenvectors in one integration (:meth:`~hertzpetsc.tangent.MonodromyModShift.
+    apply`, its steps controlled on all the columns at once, not on one as the Krylov products'), each relative
+    residual ||R v - mu v|| / (|mu| ||v||) within ``tol`` (the verdicts' resolution); and where the flow is
+    conformally symplectic (:func:`conformal_rate`, multipliers in pairs of product e^{-c T}) the largest at least
+    e^{-c T / 2} (1 - tol). A ConvergenceError naming the check otherwise."""
+    what = "the multipliers' tangent flow and eigensolver (prefix -floquet_)"
+    mu = np.asarray(mu, complex)
+    V = np.asarray(vectors, complex)
+    N, k = spec.N, V.shape[1]
+    RY = op.apply(np.concatenate([V.real, V.imag], axis=1).reshape(N, 2, 2 * k)).reshape(2 * N, 2 * k)
+    res = np.linalg.norm(RY[:, :k] + 1j * RY[:, k:] - V * mu, axis=0) / (np.abs(mu) * np.linalg.norm(V, axis=0))
+    worst = int(np.argmax(res))
+    if not res[worst] <= tol:
+        raise ConvergenceError(what, f"eigen-residual on an independent flow: ||R v - mu v|| / |mu| ||v|| = "
+                               f"{res[worst]:.2g} > {tol:.0e} for mu = {mu[worst]:.8g}", **where)
+    c = conformal_rate(spec)
+    if c is not None and not np.max(np.abs(mu)) >= math.exp(-0.5 * c * T) * (1 - tol):
+        raise ConvergenceError(what, f"symplecticity: rho = {np.max(np.abs(mu)):.8g} < e^(-cT/2) = "
+                               f"{math.exp(-0.5 * c * T):.8g} (multipliers in pairs of product e^(-cT), c = {c:g})",
+                               **where)
 
 
 # --- the response and its multipliers ---------------------------------------------------------------------------
@@ -475,7 +577,7 @@ class PeriodicShooting(ContinuationProblem):
         ftol = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if dense else None
         if self.dense is not None:             # R's columns start as unit vectors: R to rtol in norm
-            rtol = self.dense.flow.integrator.ts.getTolerances()[0]
+            rtol = self.tangent_rtol = self.dense.flow.integrator.ts.getTolerances()[0]
             self.dense.flow.integrator.control_components(tangents=(rtol, rtol))
         # the Newton Jacobian's monodromy: the same 2N columns, steps controlled by the state's error alone
         self.jacobian_flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, floquet_prefix) \
@@ -486,13 +588,14 @@ class PeriodicShooting(ContinuationProblem):
             self.jacobian_flow.integrator.control_components(state=(loose, atol * loose / rtol))
         self.product = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, ftol, floquet_prefix, shift=0) \
             if jacobian == "mf" else None
-        self.dominant = DominantFloquet(spec, comm, min(nev, 2 * spec.N), ftol, floquet_prefix, shift=0) \
-            if floquet == "slepc" else None
+        self.dominant = DominantFloquet(spec, comm, min(nev, 2 * spec.N), ftol, floquet_prefix, shift=0,
+                                        vectors=True) if floquet == "slepc" else None
         self.mpi = comm.tompi4py()
         self.last_rank = comm.getRank() == comm.getSize() - 1
         self.nloc = 2 * self.chain.nloc
         self.size = 2 * spec.N + 1
-        self._mono = None              # (x, p, R, version, accurate) of the last dense monodromy
+        self._mono = None              # (x, p, R, version, accurate, steps of its flow) of the last dense monodromy
+        self._checked = None           # the version of the last monodromy whose closed forms were checked
         self._spectra = {}             # key of (x, p) -> multipliers
         self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
         self._tight = False            # the corrector's retry: Jacobians from the fully resolved flow
@@ -774,7 +877,7 @@ class PeriodicShooting(ContinuationProblem):
         R = flow.resolvent(x, self.T)[0]
         self.counters["tangent_flows"] += 1
         self._mono_version += 1
-        self._mono = (np.array(x, copy=True), p, R, self._mono_version, accurate)
+        self._mono = (np.array(x, copy=True), p, R, self._mono_version, accurate, flow.integrator.ts.getStepNumber())
         return R
 
     def formJacobian(self, snes: PETSc.SNES, Z: PETSc.Vec, J: PETSc.Mat, P: PETSc.Mat) -> None:
@@ -912,11 +1015,18 @@ class PeriodicShooting(ContinuationProblem):
             return self._spectra[key]
         self._at(p)
         if self.floquet_kind == "dense":
-            mu = dense_multipliers(self.monodromy(x, p))
+            R = self.monodromy(x, p)
+            if self._checked != self._mono[3]:          # once per monodromy
+                check_monodromy(R, self.drive.spec(), self.T, self.tangent_rtol, self._mono[5],
+                                {self.parameter: float(p)})
+                self._checked = self._mono[3]
+            mu = dense_multipliers(R)
         elif self.floquet_kind == "slepc":
             res = self.dominant.spectrum(Response(self.drive, self.periods, x, math.nan))
-            self.counters["products"] += res.work["products"]
+            self.counters["products"] += res.work["products"] + 2 * len(res.multipliers)
             mu = res.multipliers
+            check_eigenpairs(self.dominant.op, mu, self.dominant.vectors, self.drive.spec(), self.T,
+                             {self.parameter: float(p)})
         else:
             raise ParameterError("floquet", "none", "this problem computes no multipliers")
         self._spectra = {key: mu}

@@ -175,16 +175,20 @@ class DominantFloquet(FloquetSolver):
 
     ``ncv``: subspace dimension (default max(2 nev + 20, 60), capped at 2N: clustered multipliers on the unit circle
     need it); ``tol``: relative tolerance; ``warm``: start from the previous solve's eigenvectors (a scan in q);
-    ``shift``: the shift S in beads (1: F_q of a travelling wave; 0: the plain monodromy R(T; 0) of a driven chain).
+    ``shift``: the shift S in beads (1: F_q of a travelling wave; 0: the plain monodromy R(T; 0) of a driven chain);
+    ``vectors``: keep the eigenvectors of the last solve (:attr:`vectors`, (2N, nev) on every rank, in the order of
+    the returned multipliers).
     """
 
     def __init__(self, spec: ChainSpec, comm: PETSc.Comm, nev: int = 10,
                  tolerances: IntegrationTolerances = FLOQUET_TOLERANCES, prefix: str = FLOQUET_PREFIX,
-                 ncv: Optional[int] = None, tol: float = 1e-10, warm: bool = False, shift: int = 1) -> None:
+                 ncv: Optional[int] = None, tol: float = 1e-10, warm: bool = False, shift: int = 1,
+                 vectors: bool = False) -> None:
         dim = 2 * spec.N
         if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
         self.prefix, self.warm, self.start, self.previous = prefix, warm, [], []
+        self.keep_vectors, self.vectors = vectors, None
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
         self.eps = largest_magnitude(self.op.base.comm, prefix, nev,
@@ -224,6 +228,18 @@ class DominantFloquet(FloquetSolver):
                                    f"{nconv} of {self.nev} multipliers converged ({eps.getConvergedReason()})",
                                    **({"q": float(orbit.q)} if hasattr(orbit, "q") else {"T": float(orbit.T)}))
         values = np.array([eps.getEigenvalue(i) for i in range(self.nev)])
+        if self.keep_vectors:                  # (2N, nev) complex on every rank, in the Spectrum's order
+            from .assembly import gathered
+            vr, vi = A.createVecRight(), A.createVecRight()
+            try:
+                columns = []
+                for i in np.argsort(-np.abs(values), kind="stable"):
+                    eps.getEigenvector(int(i), vr, vi)
+                    columns.append(gathered(vr) + 1j * gathered(vi))
+            finally:
+                vr.destroy()
+                vi.destroy()
+            self.vectors = np.array(columns).T
         if self.warm:
             self._release()
             for i in np.argsort(-np.abs(values), kind="stable"):

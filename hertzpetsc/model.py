@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Callable, Sequence, Union
+from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -193,9 +193,16 @@ class LatticeModel:
 # --- the ends of a finite chain ------------------------------------------------------------------------------------
 class Signal:
     """A periodic motion x(t) of period ``period`` with its velocity; subclasses implement :meth:`position`
-    and :meth:`velocity` (vectorised in t)."""
+    and :meth:`velocity` (vectorised in t), and :attr:`time_scale`, the duration of the signal's shortest push (half
+    a period of its fastest component: a pulse, a sample spacing), which limits the steps of every flow of a chain
+    it drives (:attr:`ChainSpec.time_scale`): a push the chain's beads do not yet feel is invisible to the error
+    estimate of a step that jumps it."""
 
     period = None
+
+    @property
+    def time_scale(self) -> float:
+        raise NotImplementedError
 
     def position(self, t: ArrayLike) -> np.ndarray:
         raise NotImplementedError
@@ -233,6 +240,11 @@ class Harmonic(Signal):
     def period(self) -> float:
         return 2 * math.pi / self.omega
 
+    @property
+    def time_scale(self) -> float:
+        """Half a period: the actuator advances for half of it."""
+        return 0.5 * self.period
+
     def position(self, t: ArrayLike) -> np.ndarray:
         return self.offset + self.amplitude * _cos(self.omega * np.asarray(t, float) + self.phase)
 
@@ -262,6 +274,11 @@ class SampledSignal(Signal):
         object.__setattr__(self, "samples", tuple(float(v) for v in s))
         object.__setattr__(self, "period", check_real("period", self.period, "the signal's period", 0.0))
 
+    @property
+    def time_scale(self) -> float:
+        """The sample spacing (half the period of the interpolant's fastest component)."""
+        return self.period / len(self.samples)
+
     def _series(self, t):
         """The interpolant's terms at t: the phases exp(2 pi i k t / period) (t, k), the coefficients c_k, and k."""
         n = len(self.samples)
@@ -283,12 +300,16 @@ class SampledSignal(Signal):
 
 
 class FunctionSignal(Signal):
-    """x(t) = f(t) with velocity df(t), both periodic of ``period``; checked periodic at 64 points on creation."""
+    """x(t) = f(t) with velocity df(t), both periodic of ``period``; checked periodic at 64 points on creation.
+    ``time_scale``: the duration of its shortest push (default: period / 64, the resolution of that check)."""
 
     def __init__(self, f: Callable[[np.ndarray], ArrayLike], df: Callable[[np.ndarray], ArrayLike], period: float,
-                 name: str = "function") -> None:
+                 name: str = "function", time_scale: Optional[float] = None) -> None:
         self.f, self.df, self.name = f, df, name
         self.period = check_real("period", period, "the signal's period", 0.0)
+        self._time_scale = self.period / 64 if time_scale is None else \
+            check_real("time_scale", time_scale, "the duration of the signal's shortest push", 0.0, self.period,
+                       hi_open=False)
         t = np.linspace(0.0, self.period, 64, endpoint=False)
         for what, g in (("position", f), ("velocity", df)):
             a, b = np.asarray(g(t), float), np.asarray(g(t + self.period), float)
@@ -296,6 +317,10 @@ class FunctionSignal(Signal):
             if a.shape != t.shape or not np.all(np.isfinite(a)) or np.max(np.abs(a - b)) > 1e-9 * scale:
                 raise ParameterError("signal", name, f"its {what} is not periodic with the stated period "
                                      f"{self.period:g} (or not a finite vectorised function of t)")
+
+    @property
+    def time_scale(self) -> float:
+        return self._time_scale
 
     def position(self, t: ArrayLike) -> np.ndarray:
         return np.asarray(self.f(np.asarray(t, float)), float)
@@ -367,6 +392,13 @@ class ChainSpec:
     def driven(self) -> bool:
         """True when an end is an actuator (the chain's equations depend on time)."""
         return isinstance(self.left, Actuator) or isinstance(self.right, Actuator)
+
+    @property
+    def time_scale(self) -> float:
+        """The shortest :attr:`Signal.time_scale` of the actuators (inf without any): the steps of the chain's flows
+        are limited by it (:class:`~hertzpetsc.chain.ChainIntegrator`)."""
+        return min((end.signal.time_scale for end in (self.left, self.right) if isinstance(end, Actuator)),
+                   default=math.inf)
 
     def with_length(self, N: int) -> ChainSpec:
         """The same lattice and ends on N beads."""

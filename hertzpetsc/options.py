@@ -244,7 +244,7 @@ class AppOptions:
                 raise ParameterError(f"-{name}", text, f"member {bad[0]!r} is not {valid[1]}")
         if distinct:
             for i, v in enumerate(values):
-                if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in values[:i]):
+                if any(math.isclose(v, s, rel_tol=1e-12) for s in values[:i]):
                     raise ParameterError(f"-{name}", text, f"lists {v!r} twice; the members must be different")
         return values
 

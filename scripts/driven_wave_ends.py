@@ -4,7 +4,7 @@ ends of a finite undamped chain are periodic responses; their Floquet multiplier
 against the periodic chain's, for q above and below q_c: does driving the ends stabilise or destabilise the wave?
 
     mpiexec -n 2 python scripts/driven_wave_ends.py [-branch results/branch_alpha1.5.npz]
-        [-refined results/refined_N100.npz] [-q 9*pi/50,...] [-sizes 10,20,40] [-rtols 1e-12,1e-14]
+        [-refined results/refined_N100.npz] [-q 5*pi/50,9*pi/50,...] [-sizes 10,20,40] [-rtols 1e-12,1e-14]
         [-samples 8192] [-output results/driven_wave_ends.npz] [-table results/driven_wave_ends.md]
         [-figures figures] [-resume | -force]
 
@@ -36,7 +36,7 @@ def main():
     opts = AppOptions(__doc__, ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     refined_path = opts.path("refined", "results/refined_N100.npz", "refinement file (the periodic chain's waves)")
-    qs = opts.numbers("q", "9*pi/50,13*pi/50,14*pi/50,15*pi/50,16*pi/50,20*pi/50,30*pi/50,40*pi/50",
+    qs = opts.numbers("q", "5*pi/50,9*pi/50,13*pi/50,14*pi/50,15*pi/50,16*pi/50,20*pi/50,30*pi/50,40*pi/50",
                       "wavenumbers (refined in the file)", valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"),
                       distinct=True)
     sizes = opts.numbers("sizes", "10,20,40", "beads of the driven chains", expr=False, kind=int,

@@ -172,6 +172,41 @@ def test_algorithm_parameters_are_validated():
         Continuation(Bratu(5), algorithm="arclength")
 
 
+class RejectingBratu(Bratu):
+    """The Bratu problem whose test functions fail once (ConvergenceError, as multipliers that fail their closed-form
+    checks do): at the first point past lambda = 1.5."""
+
+    rejected = None
+
+    def test_functions(self, Z):
+        lam = float(Z.getArray(readonly=True)[-1])
+        if lam > 1.5 and self.rejected is None:
+            self.rejected = lam
+            raise ConvergenceError("test functions", "closed-form check", **{"lambda": lam})
+        return super().test_functions(Z)
+
+
+def test_a_point_whose_test_functions_fail_is_a_rejected_arclength_step():
+    """A pseudo-arclength point whose test functions raise ConvergenceError is not accepted: the step is halved (as
+    a failed corrector's) and the curve goes on past it."""
+    prob = RejectingBratu(29)
+    cont = Continuation(prob, PseudoArclength(ds=0.2, ds_max=0.2))
+    Z = prob.create_vec()
+    Z.set(0.0)
+    Z.getArray()[-1] = 1.0
+    try:
+        cont.start(Z)
+        cont.step_to(1.2)
+        points = [p for _, p in zip(range(6), cont.run())]
+    finally:
+        Z.destroy()
+        cont.destroy()
+    assert prob.rejected is not None and points[-1].parameter > prob.rejected
+    assert all(abs(p.parameter - prob.rejected) > 1e-12 for p in points)
+    steps = np.diff([p.s for p in points if p.event is None])
+    assert np.min(steps) < 0.75 * np.max(steps)        # the step that met the failure was halved
+
+
 class FlatBratu(Bratu):
     """The Bratu problem with a verdict's margin as test: flat (-1e-6) while u_max < 1/2, then u_max - 1/2 - 1e-6 (the
     Illinois rule crawls on such a function); and a second test that counts its evaluations."""

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import RESULTS, ROOT, one_error_line, run_script
+from conftest import RESULTS, ROOT, one_error_line, run_script, script_env, shared_tmp
 from hertzpetsc.assembly import gathered
 from hertzpetsc.chain import IntegrationTolerances
 from hertzpetsc.continuation import ContinuationPoint, Natural, PseudoArclength
@@ -137,6 +137,138 @@ def test_liouville_product_of_the_multipliers(masses, right):
         assert expected == pytest.approx(-4 * 0.05 * prob.T, rel=1e-14)
     assert abs(logdet - expected) < 1e-8 * abs(expected)
     assert r.residual < 1e-10
+
+
+def wave_ends_pi10(N=10, samples=1024):
+    """The refined wave q = pi/10 of the 100-bead chain (tests/data/wave_ends_pi10.npz, tests/data/make_wave_ends.py)
+    imposed at both ends of N beads: (the orbit, its profile, the drive)."""
+    from hertzpetsc.waves import Orbit
+    with np.load(os.path.join(ROOT, "tests", "data", "wave_ends_pi10.npz")) as z:
+        orbit = Orbit(ChainSpec.hertz(1.5, 100), float(z["q"]), int(z["m"]), float(z["T"]), z["x"], float(z["omega"]))
+    profile = refined_profile(orbit, COMM, samples)
+    return orbit, profile, wave_ends_drive(orbit.spec.model, N, profile, orbit.omega, orbit.q)
+
+
+def test_the_drive_is_never_jumped():
+    """The wave q = pi/10 imposed at both ends of 10 beads (issue 37): for part of the period every bead of the window
+    flies freely, which the flow integrates exactly, so an adaptive step grows until it crosses the actuator's push
+    (2.1 time units, a fifth of the profile) whole. Before the steps were limited by the push's duration
+    (ChainSpec.time_scale / STEPS_PER_PUSH), the multipliers' flow took steps of 4 to 17 time units across it: det R
+    came out 0 or e^-104 instead of 1, and rho 27.31 at rtol 1e-10 against 22.64 at 1e-12. Now no step exceeds a
+    quarter of the push, det R = 1 (Liouville, undamped) to the flows' resolution and R is symplectic, and rho agrees
+    between rtol 1e-10 and 1e-12 to 1e-6 relative (1e-8 measured)."""
+    from hertzpetsc.chain import STEPS_PER_PUSH
+    from hertzpetsc.studies.driven import tolerances_of
+    orbit, profile, drive = wave_ends_pi10()
+    push = profile.push / orbit.omega
+    assert 1.5 < push < 3.0 and drive.spec().time_scale == pytest.approx(push, rel=1e-14)
+    x0 = orbit.x[1:11]
+    rhos = []
+    for rtol in (1e-10, 1e-12):
+        prob = PeriodicShooting(drive, COMM, tol=1e4 * rtol, tolerances=tolerances_of(rtol))
+        try:
+            steps = []
+            ts = prob.dense.flow.integrator.ts
+            ts.setMonitor(lambda ts, i, t, X: steps.append(ts.getTimeStep()))
+            r = prob.solve_response(x0)
+            mu = prob.multipliers(x=r.x, p=orbit.omega)
+            ts.cancelMonitor()
+            assert prob.dense.flow.integrator.max_step == pytest.approx(push / STEPS_PER_PUSH, rel=1e-14)
+            assert 0 < max(steps) <= push / STEPS_PER_PUSH * (1 + 1e-12)
+        finally:
+            prob.destroy()
+        assert abs(np.sum(np.log(np.abs(mu)))) < 1e-6
+        rhos.append(float(np.max(np.abs(mu))))
+    assert abs(rhos[0] / rhos[1] - 1) < 1e-6 and 22 < rhos[1] < 23
+
+
+@pytest.mark.serial
+def test_the_driven_multipliers_do_not_depend_on_the_number_of_blas_threads():
+    """The response and rho of the wave q = pi/10 on 10 beads (rtol 1e-10) in processes with one and with two BLAS
+    threads (set explicitly; the drivers' default is one): the same to 1e-6 relative (1.5e-8 measured) -- the dense
+    solves' round-off differs, the steps of the flows do not jump the push either way."""
+    import subprocess
+    import sys
+    code = ("import sys; sys.path.insert(0, 'tests'); import numpy as np; import test_driven as t; "
+            "from hertzpetsc.driven import PeriodicShooting; from hertzpetsc.studies.driven import tolerances_of; "
+            "orbit, _, drive = t.wave_ends_pi10(); "
+            "p = PeriodicShooting(drive, t.COMM, tol=1e-6, tolerances=tolerances_of(1e-10)); "
+            "r = p.solve_response(orbit.x[1:11]); print(repr(float(np.max(np.abs(p.multipliers(x=r.x, p=orbit.omega))))))")
+    rhos = []
+    for threads in ("1", "2"):
+        env = dict(script_env(), OPENBLAS_NUM_THREADS=threads, OMP_NUM_THREADS=threads)
+        r = subprocess.run(["timeout", "300", sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                           cwd=ROOT)
+        assert r.returncode == 0, r.stderr
+        rhos.append(float(r.stdout.strip().splitlines()[-1]))
+    assert abs(rhos[1] / rhos[0] - 1) < 1e-6 and 22 < rhos[0] < 23
+
+
+def test_signals_declare_the_time_scale_that_limits_every_flow():
+    """A signal's time scale is its shortest push: half a period of a harmonic, a half-sine pulse's width, a sampled
+    signal's spacing, a travelling-wave profile's contact (|U''| above 1e-3 of its largest); the chain's is its
+    actuators' shortest (inf without any), and no step of a driven chain's flows exceeds a quarter of it."""
+    from hertzpetsc.chain import STEPS_PER_PUSH
+    from hertzpetsc.driven import push_width
+    from hertzpetsc.model import FunctionSignal, SampledSignal
+    assert Harmonic(0.1, 2.0).time_scale == pytest.approx(math.pi / 2, rel=1e-15)
+    assert HalfSinePulses(0.3).signal(0.1, 2.0).time_scale == pytest.approx(0.3 * math.pi, rel=1e-15)
+    assert SampledSignal((0.0, 1.0, 0.0, -1.0), 2.0).time_scale == 0.5
+    assert FunctionSignal(np.sin, np.cos, 2 * math.pi).time_scale == pytest.approx(2 * math.pi / 64, rel=1e-15)
+    th = np.linspace(0.0, 2 * math.pi, 512, endpoint=False)
+    assert push_width(np.cos(th)) == pytest.approx(math.pi, abs=0.02)           # where |cos| > 1e-3
+    pulse = np.where((th > 1.0) & (th < 1.5), np.sin(2 * math.pi * (th - 1.0)) ** 2, 0.0)
+    assert push_width(pulse) == pytest.approx(0.5, abs=3 * 2 * math.pi / 512)     # the stencil adds a point a side
+    spec = small_drive(N=6, right=HalfSinePulses(0.1), omega=2.0).spec()
+    assert spec.time_scale == pytest.approx(0.1 * math.pi, rel=1e-15)
+    assert ChainSpec.hertz(1.5, 8).time_scale == math.inf
+    prob = PeriodicShooting(small_drive(N=6, right=HalfSinePulses(0.1), omega=2.0, amplitude=0.05), COMM)
+    try:
+        for integ in (prob.integrator, prob.dense.flow.integrator, prob.jacobian_flow.integrator):
+            steps = []
+            integ.ts.setMonitor(lambda ts, i, t, X: steps.append(ts.getTimeStep()))
+            prob.monodromy(np.zeros((6, 2)), 2.0, accurate=integ is not prob.jacobian_flow.integrator)
+            prob.map(np.zeros((6, 2)))
+            integ.ts.cancelMonitor()
+            assert 0 < max(steps) <= 0.1 * math.pi / STEPS_PER_PUSH * (1 + 1e-12)
+            prob._mono = None
+    finally:
+        prob.destroy()
+
+
+def test_multipliers_that_break_liouville_or_symplecticity_are_refused():
+    """check_monodromy: the monodromy of a response passes (det R = exp(-T tr(M^-1 C)), and R^T J R = e^(-gamma T) J
+    with on-site damping and unit masses); one column off by 1e-6 fails Liouville, x_1 and x_2 rescaled by 2 and
+    1/2 (det unchanged) fails symplecticity, each a ConvergenceError naming the check and the parameter. The
+    SLEPc route's pairs against an independent flow: a multiplier off by 1e-4 fails its eigen-residual."""
+    from hertzpetsc.driven import check_eigenpairs, check_monodromy
+    from hertzpetsc.errors import ConvergenceError
+    drive = Drive(LatticeModel.hertz(1.5, delta0=0.5, gamma=0.05), 4, HarmonicWave(), 0.05, 1.2)
+    prob = PeriodicShooting(drive, COMM)
+    try:
+        r = prob.solve_response(prob.run_in(np.zeros((4, 2)), 10))
+        prob.multipliers(x=r.x, p=1.2)                   # checked on the way
+        R, steps = prob.monodromy(r.x, 1.2).copy(), prob._mono[5]
+    finally:
+        prob.destroy()
+    where = {"omega": 1.2}
+    check_monodromy(R, drive.spec(), prob.T, 1e-12, steps, where)
+    bad = R.copy()
+    bad[:, 3] *= 1 + 1e-6
+    with pytest.raises(ConvergenceError, match=r"Liouville: det R = .* at omega = 1\.2"):
+        check_monodromy(bad, drive.spec(), prob.T, 1e-12, steps, where)
+    bad = R.copy()
+    bad[0] *= 2.0                                        # x_1 doubled, x_2 halved: det R kept, the form is not
+    bad[2] *= 0.5
+    with pytest.raises(ConvergenceError, match="symplecticity"):
+        check_monodromy(bad, drive.spec(), prob.T, 1e-12, steps, where)
+    mf = PeriodicShooting(drive, COMM, jacobian="mf", floquet="slepc", nev=2)
+    try:
+        mu = mf.multipliers(x=r.x, p=1.2)                # checked on the way
+        with pytest.raises(ConvergenceError, match="eigen-residual"):
+            check_eigenpairs(mf.dominant.op, mu * (1 + 1e-4), mf.dominant.vectors, drive.spec(), mf.T, where)
+    finally:
+        mf.destroy()
 
 
 def test_newton_jacobians_resolve_the_state_and_the_multipliers_the_tangents():
@@ -411,7 +543,6 @@ def test_a_study_stopped_by_an_error_writes_the_table_of_its_records(monkeypatch
     records with the error below it, then is raised; the table of another run does not stay next to the file."""
     from hertzpetsc import continuation
     from hertzpetsc.errors import ConvergenceError
-    from conftest import shared_tmp
     drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
     run = continuation.Continuation.run
 
@@ -471,7 +602,7 @@ def test_driven_studies_follow_the_study_protocol():
     old = ResponseCurve(drive, "omega", 0.75, COMM, None, run_in=5, max_steps=6, samples=16, nmult=100)
     try:
         assert new.params == old.params and new.output is None and new.comm is COMM
-        assert new.identity() == new.constants() and new.constants()["nmult"] == 6      # at most 2N
+        assert new.identity() == dict(new.constants(), solver_options="") and new.constants()["nmult"] == 6
         assert new.open().arrays()["multipliers"].shape == (0, 6) and new.records == []
         assert sorted(new.constants()) == ["N", "base_periods", "drive", "floquet", "jacobian", "mode", "nmult",
                                            "p_end", "parameter", "rtol", "tol"]
@@ -481,9 +612,48 @@ def test_driven_studies_follow_the_study_protocol():
     res = LinearResonances(drive, COMM, None, "new", [2], golden=20)          # the call of before
     try:
         assert res.params == ResonanceParameters(drive, (2,), golden=20) and res.modes == [2]
-        assert res.identity() == dict(drive=res.constants()["drive"], modes=[2], tol=1e-10, rtol=1e-12)
+        assert res.identity() == dict(drive=res.constants()["drive"], modes=[2], tol=1e-10, rtol=1e-12, golden=20,
+                                      solver_options="")
     finally:
         res.destroy()
+
+
+def test_a_resume_from_other_inputs_or_other_solver_tolerances_is_refused(tmp_path, clean_options):
+    """A wave-ends file names the branch and refinement files it was computed from with their contents' hashes: a
+    resume from another -refined file (same name or not) is refused naming -refined, one with another
+    -floquet_ts_rtol naming the solver options; the same inputs resume."""
+    from types import SimpleNamespace
+    from hertzpetsc.errors import RecordFileError
+    from hertzpetsc.records import file_digest
+    branch, refined = SimpleNamespace(alpha=1.5), SimpleNamespace(N=100, has=lambda q: True)
+    tmp = shared_tmp(tmp_path)
+    files = {name: os.path.join(tmp, f"{name}.npz") for name in ("branch", "refined", "other")}
+    out = os.path.join(tmp, "w.npz")
+
+    def write(name, content):
+        if COMM.getRank() == 0:
+            with open(files[name], "wb") as f:
+                f.write(content)
+        COMM.barrier()
+
+    def study(mode, refined_path=files["refined"]):
+        return WaveEnds(WaveEndsParameters(branch, refined, [0.5], [4], [1e-12], branch_path=files["branch"],
+                                           refined_path=refined_path), COMM, out, mode).open()
+    for name in files:
+        write(name, name.encode())
+    study("new")
+    with np.load(out) as z:
+        assert str(z["refined_sha256"]) == file_digest(files["refined"], COMM) and str(z["solver_options"]) == ""
+    study("resume")
+    with pytest.raises(RecordFileError, match=r"refined_sha256 = .* set by the refinement file's content \(-refined\)"):
+        study("resume", files["other"])
+    write("refined", b"changed")
+    with pytest.raises(RecordFileError, match="-refined"):
+        study("resume")
+    write("refined", b"refined")
+    clean_options.setValue("floquet_ts_rtol", "1e-10")
+    with pytest.raises(RecordFileError, match=r"solver_options = .* set by the solver options"):
+        study("resume")
 
 
 @pytest.mark.parametrize("make,name", [
@@ -562,6 +732,23 @@ BAD = [(("-gamma", "-0.1"), "gamma"), (("-amplitude", "-1"), "amplitude"), (("-o
        (("-samples_per_period", "1"), "-samples_per_period"),
        (("-parameter", "amplitude", "-amplitude", "0.01", "-p_end", "-0.01"), "invalid -p_end = -0.01"),
        (("-ds_max", "0.001"), "invalid -ds_max = 0.001")]
+
+
+def test_distinct_numbers_are_told_apart_relative_to_their_size():
+    """-rtols 1e-12,1e-14 (the wave-ends driver's default) lists two tolerances, 1e-14,1e-14 one twice: members are
+    the same when they agree to 1e-12 relative (an absolute floor made every pair below 1e-12 the same)."""
+    from hertzpetsc.options import AppOptions
+    kept = AppOptions.current
+    try:
+        opts = AppOptions()
+        assert opts.numbers("hz_test_rtols", "1e-12,1e-14", expr=False, distinct=True) == [1e-12, 1e-14]
+        assert opts.numbers("hz_test_q", "pi/10,pi/10+1e-9", distinct=True)[1] > math.pi / 10
+        assert opts.numbers("hz_test_levels", "100,inf", expr=False, distinct=True) == [100.0, math.inf]
+        for text in ("1e-14,1e-14", "1e-14,1.0000000000001e-14", "0,0", "inf,inf"):
+            with pytest.raises(ParameterError, match="twice"):
+                opts.numbers("hz_test_same", text, expr=False, distinct=True)
+    finally:
+        AppOptions.current = kept
 
 
 @pytest.mark.serial

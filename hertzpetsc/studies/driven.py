@@ -5,9 +5,11 @@ exact boundary driving by a travelling wave, and the generation of travelling wa
 Each study follows the protocol of :mod:`hertzpetsc.studies.base`: ``Study(params, comm=None, output=None,
 mode="new")`` with its frozen, validated parameters (:class:`ResponseParameters`, :class:`ResonanceParameters`,
 :class:`WaveEndsParameters`, :class:`GenerationParameters`), its record kind, fields and solver roles (``drive_``,
-``floquet_``), and an in-memory store without ``output``. Their identities are the record kinds' as before the
-protocol (no solver options), so the files written before resume; the call of before (loose arguments) is still
-accepted (:meth:`DrivenStudy.legacy`).
+``floquet_``), and an in-memory store without ``output``. Their identities are the protocol's: the constants but
+the file names, the content hashes of the input files (``branch_sha256``, ``refined_sha256``: a resume from another
+``-branch`` or ``-refined`` file is refused naming it) and the options given under ``-drive_`` and ``-floquet_`` that
+change numbers; the keys a file written before lacks are not compared, so those files still resume. The call of
+before (loose arguments) is still accepted (:meth:`DrivenStudy.legacy`).
 
 Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues):
 
@@ -139,6 +141,9 @@ def _drive(drive):
 
 
 _DRIVE_ROLE = ("Newton on P(X) - X and the state flow", ("snes", "ts"))
+# The tables' sentence on units (every driven table's header).
+UNITS = ("Units: those of eq. nc (the masses as given, 1 by default, and the contact force (delta0 - r)_+^alpha with "
+         "coefficient 1): omega in radians per time unit, the driving period 2 pi / omega")
 
 
 class DrivenStudy(Study):
@@ -162,10 +167,9 @@ class DrivenStudy(Study):
         return params, kw.get("comm"), kw.get("output"), kw.get("mode", "new")
 
     RENAMED = {}
-
-    def identity(self) -> dict:
-        """What a resumed file must agree with: the constants but the ``LABELS``."""
-        return {k: v for k, v in self.constants().items() if k not in self.LABELS}
+    NAMES = dict(branch_sha256="the branch file's content (-branch)",
+                 refined_sha256="the refinement file's content (-refined)",
+                 solver_options="the solver options (-drive_*, -floquet_*)")
 
     def configure(self) -> None:
         """Nothing left to check: the options of ``drive_`` and ``floquet_`` are read when the study is built (its
@@ -299,7 +303,7 @@ class ResponseCurve(DrivenStudy):
         self.problem = PeriodicShooting(p.drive, self.comm, **self.kw)       # configures drive_ and floquet_ now
 
     def constants(self) -> dict:
-        """The constants of the files written before the protocol (their identity: all of them)."""
+        """The constants (all part of the identity)."""
         p = self.params
         return dict(drive=json.dumps(p.drive.describe(), sort_keys=True, default=str), parameter=p.parameter,
                     p_end=p.p_end, base_periods=p.periods, jacobian=p.jacobian, floquet=p.floquet, tol=p.tol,
@@ -606,6 +610,12 @@ class ResponseCurve(DrivenStudy):
                  "responses close to a located event on either side of it, differ by the crossing the event names (1), "
                  "or not (0: e.g. a neutral saddle, marked where the stored multipliers show it: the factor of tau_NS "
                  "nearest zero is that of a real pair mu, 1/mu).\n",
+                 f"{UNITS}. Columns: branch (0 the continued one, j the j-th period-doubled); periods k (the "
+                 f"response's period k 2 pi / omega); {self.parameter} (the continuation parameter); rho: the largest "
+                 "|mu| of the monodromy over one response period k 2 pi / omega (Liouville and, where it holds, "
+                 "symplecticity checked on every dense monodromy); residual: ||P^k(X) - X||_inf / max(||X||_inf, a); "
+                 "force_right: largest compressive force of the last bond over the period (the force on the wall, in "
+                 "the law's unit); amp_max: largest bead amplitude (max - min)/2 of x_n over the period.\n",
                  "| branch | periods | event | " + self.parameter + " | confirmed | rho | residual | force_right | "
                  "amp_max |", "|---|---|---|---|---|---|---|---|---|"]
         arclength = str(self.store.constants.get("mode", "arclength")) == "arclength"
@@ -676,6 +686,11 @@ def linear_multipliers(drive, T):
     Mi = np.linalg.inv(M)
     A = np.block([[np.zeros((N, N)), np.eye(N)], [-Mi @ Kmat, -Mi @ C]])
     return np.exp(T * np.linalg.eigvals(A))
+
+
+# Samples per period of the first-harmonic quadrature of a resonance (the response at small amplitude: its
+# harmonics beyond the first are O(a / delta0) smaller each order, those from J - 1 on below round-off).
+HARMONIC_SAMPLES = 64
 
 
 def _match(mu, ref):
@@ -756,10 +771,10 @@ class LinearResonances(DrivenStudy):
         self._x = None
 
     def constants(self) -> dict:
-        """The constants of the files written before the protocol (their identity: all of them)."""
+        """The constants (all part of the identity)."""
         p = self.params
         return dict(drive=json.dumps(p.drive.describe(), sort_keys=True, default=str), modes=self.modes, tol=p.tol,
-                    rtol=p.rtol)
+                    rtol=p.rtol, golden=p.golden)
 
     def window(self, k: int) -> tuple[float, float]:
         w = self.omega_k
@@ -768,15 +783,18 @@ class LinearResonances(DrivenStudy):
         return w[k - 1] - 0.4 * (w[k - 1] - lo), w[k - 1] + 0.4 * (hi - w[k - 1])
 
     def shooting_amplitude(self, omega: float) -> float:
-        """|X_N| / a of the response at omega: the first harmonic of the last bead from x_N(0), x_N'(0)."""
+        """|X_N| / a of the response at omega: the modulus of the first Fourier coefficient of the last bead's
+        x_N(t) over the period, X_N = (2 / J) sum_j x_N(t_j) e^{-i omega t_j} (J = HARMONIC_SAMPLES equal steps:
+        the trapezoidal rule, exact for the harmonics below J - 1), as the linear chain's complex amplitude is."""
         prob = self.problem
         prob.set_drive(prob.drive.with_parameter("omega", omega))
         x0 = self._x if self._x is not None else np.zeros((self.drive.N, 2))
         r = prob.solve_response(x0)
         self._x = r.x
         self._evals += 1
-        xN, vN = r.x[-1]
-        return math.hypot(xN, vN / omega) / self.drive.amplitude
+        t, X = prob.trajectory(r.x, HARMONIC_SAMPLES)
+        first = 2.0 / HARMONIC_SAMPLES * np.sum(X[:-1, -1, 0] * np.exp(-1j * omega * t[:-1]))
+        return abs(first) / self.drive.amplitude
 
     def run(self) -> Iterator[dict]:
         self.open()
@@ -804,11 +822,14 @@ class LinearResonances(DrivenStudy):
                  f"{d.model.delta0:g} (K = V''(0) = {d.model.law.linear_stiffness:.6g}), N = {d.N}, masses "
                  f"{list(d.model.masses)}, gamma = {d.model.damping.gamma:g}, eta = {d.model.damping.eta:g}; actuator "
                  f"a cos(omega t), a = {d.amplitude:g}; right end {d.right}.\n",
-                 "omega_k: normal modes of the undamped linear chain (closed form); peak (linear): maximum over omega "
-                 "of the last bead's |X_N| for the damped linear chain (complex solve, golden section); peak "
-                 "(shooting): the same from periodic responses of the Hertz chain (Newton shooting, golden section); "
-                 "mu error: max distance of the response's Floquet multipliers at its peak to exp(T lambda) of the "
-                 "linear damped chain.\n",
+                 f"{UNITS}. k: mode number; omega_k: normal modes of the undamped linear chain (closed form); "
+                 "peak (linear): maximum over omega of the last bead's |X_N| for the damped linear chain (complex "
+                 "solve, golden section); peak (shooting): the same from periodic responses of the Hertz chain (Newton "
+                 "shooting, golden section); |X_N|/a: the first harmonic's amplitude of x_N(t) per unit actuator "
+                 "amplitude (shooting: the Fourier coefficient of the response over its period, "
+                 f"{HARMONIC_SAMPLES} samples); mu error: max distance of the response's Floquet multipliers at its "
+                 "peak (monodromy over one driving period 2 pi / omega) to exp(T lambda) of the linear damped chain; "
+                 "solves: periodic responses computed for the peak.\n",
                  "| k | omega_k | peak (linear) | peak - omega_k | peak (shooting) | shooting - linear | "
                  "|X_N|/a linear | |X_N|/a shooting | mu error | solves |", "|---|---|---|---|---|---|---|---|---|---|"]
         for r in sorted(self.store.records, key=lambda r: int(r["k"])):
@@ -829,7 +850,7 @@ class WaveEndsParameters:
     (:class:`~hertzpetsc.studies.refinement.RefinedStates`), the wavenumbers ``q`` (refined in it), the driven
     chains' ``sizes`` N in [1, P - 2], the flow tolerances ``rtols``, at least ``samples`` points of the sampled
     wave profile, the ``nmult`` largest multipliers recorded; ``branch_path`` and ``refined_path`` name the files
-    (recorded, not part of the identity)."""
+    (recorded; their contents' hashes are part of the identity)."""
 
     branch: object
     refined: object
@@ -902,6 +923,9 @@ class WaveEnds(DrivenStudy):
         return dict(alpha=p.branch.alpha, P=p.refined.N, branch=p.branch_path, refined=p.refined_path,
                     samples=p.samples, rtols=list(p.rtols))
 
+    def inputs(self) -> dict:
+        return dict(branch=self.params.branch_path, refined=self.params.refined_path)
+
     def periodic_rho(self, orbit: Orbit, rtol: float) -> float:
         key = (round(orbit.q, 12), rtol)
         if key not in self._rho_periodic:
@@ -942,10 +966,17 @@ class WaveEnds(DrivenStudy):
         P = self.refined.N
         lines = [f"schema: {WAVE_ENDS_FORMAT}; refined waves of the periodic chain of P = {P} beads (alpha = "
                  f"{self.branch.alpha:g}) imposed at both ends of N beads (beads 0 and N + 1 move as the wave's, from "
-                 f"its profile sampled on >= {self.samples} points), undamped. rho: largest |multiplier| of the "
-                 f"driven chain over tau = 2 pi / omega; rho periodic: rho(F_q)^(P/m), the periodic chain over tau. "
-                 "'imposed': residual ||P(X) - X||_inf / ||X||_inf of the refined wave itself in the driven chain; "
-                 "'residual': after Newton. Driving the ends stabilises the wave where rho < rho periodic.\n",
+                 f"its profile sampled on >= {self.samples} points), undamped.\n",
+                 f"{UNITS}. q: the wave's wavenumber per bead (x_n(t) = U(q n - omega t)), q = 2 pi m / P; m: its "
+                 "wavelengths on the P beads; N: beads of the driven chain; rtol: the flows' tolerance (atol = rtol / "
+                 "100; every step at most a quarter of the profile's push, ChainSpec.time_scale); omega (not listed): "
+                 "the wave's frequency. 'imposed': residual ||P(X) - X||_inf / ||X||_inf of the refined wave itself "
+                 "in the driven chain; 'residual': after Newton; 'moved': ||X - X_wave||_inf / ||X_wave||_inf. rho: "
+                 "largest |multiplier| of the driven chain's monodromy over one period tau = 2 pi / omega of the wave "
+                 "(det = 1 and symplecticity checked); outside: multipliers with |mu| > 1 + 1e-6; rho periodic: "
+                 "rho(F_q)^(P/m), F_q = S R(q / omega; 0) the periodic chain's map over the shift by one bead, i.e. "
+                 "the periodic chain over the same tau. Driving the ends stabilises the wave where rho < rho "
+                 "periodic.\n",
                  "| q | m | N | rtol | imposed | residual | moved | rho | outside | rho periodic | driven / periodic |",
                  "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in recs:
@@ -965,7 +996,7 @@ def make_waveform(name, width=0.5):
 @dataclass(frozen=True)
 class GenerationParameters:
     """Simple signals at one end: the ``branch`` (its travelling-wave family; ``branch_path`` names its file,
-    recorded, not part of the identity) and a ``model`` of the same exponent (its damping is replaced by each
+    recorded; its content's hash is part of the identity) and a ``model`` of the same exponent (its damping is replaced by each
     gamma), N beads, the actuator's ``signals`` (of :data:`WAVEFORMS`; half_sine pulses of ``width`` periods), the
     driving frequencies ``omegas`` > 0, ``amplitudes`` >= 0 and on-site damping ``gammas`` >= 0 (every
     combination), ``run_in`` driving periods from rest, the shooting tolerance ``tol`` and the flows' ``rtol``, the
@@ -1052,7 +1083,10 @@ class Generation(DrivenStudy):
     def constants(self) -> dict:
         p = self.params
         return dict(model=json.dumps(p.model.describe(), sort_keys=True), N=p.N, branch=p.branch_path,
-                    bulk=list(p.bulk), run_in=p.run_in, width=p.width)
+                    bulk=list(p.bulk), run_in=p.run_in, width=p.width, tol=p.tol, rtol=p.rtol, samples=p.samples)
+
+    def inputs(self) -> dict:
+        return dict(branch=self.params.branch_path)
 
     def _key(self, w, om, a, g):
         return (WAVEFORMS.index(w), round(om, 12), round(a, 12), round(g, 12))
@@ -1127,10 +1161,14 @@ class Generation(DrivenStudy):
         lines = [f"schema: {GENERATION_FORMAT}; chain {json.loads(str(self.store.constants['model']))}, N = {self.N}, "
                  f"actuator at bead 0, wall at bead N + 1; periodic response after {self.run_in} periods of run-in "
                  f"from rest and Newton; bulk = beads {self.bulk[0]:g} N .. {self.bulk[1]:g} N.\n",
-                 "q: median local wavenumber over the bulk (bead-to-bead time lag x omega); A/A_fam: median ratio of "
-                 "the bead amplitude to the amplitude of the branch's wave with that q at the driving frequency "
-                 "(1: on the family); D: median RMS distance of the normalised bead motion to the branch's profile "
-                 "U_q (0: the wave's shape); decay: -d ln A_n/dn; strains: static (mean x_{n+1} - x_n, < 0 "
+                 f"{UNITS}. periodic: whether Newton found a periodic response (of the driving period); rho: the "
+                 "largest |mu| of its monodromy over one driving period 2 pi / omega (Liouville and conformal "
+                 "symplecticity checked); a: the actuator's amplitude; gamma: on-site damping; A bulk: median bead "
+                 "amplitude (max - min)/2 over the bulk; q IQR: interquartile range of the local wavenumbers.\n",
+                 "q: median local wavenumber per bead over the bulk (bead-to-bead time lag x omega); A/A_fam: median "
+                 "ratio of the bead amplitude to the amplitude of the branch's wave with that q at the driving "
+                 "frequency (1: on the family); D: median RMS distance of the normalised bead motion to the branch's "
+                 "profile U_q (0: the wave's shape); decay: -d ln A_n/dn; strains: static (mean x_{n+1} - x_n, < 0 "
                  "compressed) and dynamic ((max - min)/2); q lin: the wavenumber of the linear wave at omega in the "
                  "chain statically compressed by the bulk's static strain s: omega = 2 sqrt(K) sin(q/2), K = V''(s) = "
                  "alpha |s|^(alpha-1) (the actuator's mean push compresses the chain against the wall).\n",

@@ -7,9 +7,9 @@ Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues): co
 cells_per_pi, N, sizes (the longer chains), tol, tol_rho, solver_options; per record: q, m (wavelengths on N
 beads), omega (of the refined wave), E_profile (E(q) of the wave interpolated from the grid), E_refined, E_floor
 (where E_refined > tol: the refinement's flow's own error at the refined state, within which it was accepted;
-NaN elsewhere and in files written before it), iterations (Gauss-Newton), rho (the largest multiplier modulus, trivial ones excluded), outside (multipliers with
-|mu| > 1 + tol_rho), spread (of the trivial multipliers), unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on
-each longer chain, in the order of ``sizes``), seconds.
+NaN elsewhere and in files written before it), iterations (Gauss-Newton), rho (the largest multiplier modulus,
+trivial ones excluded), outside (multipliers with |mu| > 1 + tol_rho), spread (of the trivial multipliers),
+unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on each longer chain, in the order of ``sizes``), seconds.
 """
 import math
 import time
@@ -128,8 +128,9 @@ class WaveStudy(Study):
             s = floquet.spectrum(refined.orbit, p.tol_rho)
             longer = [floquet.spectrum(refined.orbit.tiled(L // p.N), p.tol_rho).rho for L in p.sizes]
         return dict(q=q, m=orbit.m, omega=refined.orbit.omega, E_profile=E0, E_refined=refined.E,
-                    E_floor=refined.E_floor, iterations=refined.iterations, rho=s.rho, outside=s.outside, spread=s.trivial_spread,
-                    unstable=int(s.rho - 1 > p.tol_rho), rho_sizes=np.array(longer, dtype=float),
+                    E_floor=refined.E_floor, iterations=refined.iterations, rho=s.rho, outside=s.outside,
+                    spread=s.trivial_spread, unstable=int(s.rho - 1 > p.tol_rho),
+                    rho_sizes=np.array(longer, dtype=float),
                     seconds=time.perf_counter() - t0)
 
     def run(self):

@@ -7,20 +7,22 @@
 
 For every branch point whose q = 2 pi m / N fits the chain (or the listed -q): E(q) of the interpolated branch
 wave with the paper's flow (rtol 1e-12, atol 1e-14) and with the tight flow (rtol 1e-14, atol 1e-16) used for
-refinement; Gauss-Newton refinement to E <= tol; E(q) of the refined state with both flows; r(q). -method
-symmetric (default) refines on the wave's cell of N/gcd(m,N) beads over its shortest time symmetry (the state is
-then exactly invariant under it), each q on one rank and the q dealt to the ranks; full is the paper's
-Gauss-Newton on the whole chain over script-T. The refined states are written after each q (-resume skips the q
-already in -output). Figure: errors.png (fig. errors).
+refinement; Gauss-Newton refinement to E <= tol (or, where the iteration stops above tol, to the tight flow's
+floor: E within tol plus that flow's own error at the refined state, marked in the table); E(q) of the refined state
+with both flows; r(q). -method symmetric (default) refines on the wave's cell of N/gcd(m,N) beads over its shortest
+time symmetry (the state is then exactly invariant under it), each q on one rank and the q dealt to the ranks; full
+is the paper's Gauss-Newton on the whole chain over script-T. The refined states are written after each q
+(-resume skips the q already in -output). Figure: errors.png (fig. errors).
 Solver prefixes: -shoot_ (the refinement: its flows -shoot_ts_* and -shoot_gn_max_it), -shoot_jac_ (the flow of
-its Jacobian: -shoot_jac_ts_*), -chain_ (the paper's flow
-for E: -chain_ts_*).
+its Jacobian: -shoot_jac_ts_*), -chain_ (the paper's flow for E: -chain_ts_*).
 """
+import math
 import sys
 
 from hertzpetsc.start import init_petsc
 
 init_petsc(sys.argv)
+import numpy as np  # noqa: E402
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
@@ -52,9 +54,13 @@ def main():
     print0(f"# {'q':>8} {'E before':>10} {'E after':>10} {'its':>4} {'jac':>4} {'time':>6}")
     scan.run_to_table(table_path, lambda r: print0(      # on a stop: the table of the records done
         f"  {r['q']:8.5f} {r['E_before']:10.2e} {r['E_after']:10.2e} {r['iterations']:4d} "
-        f"{r['jacobians']:4d} {r['wall_time']:6.1f}"))
+        f"{r['jacobians']:4d} {r['wall_time']:6.1f}" + ("" if math.isnan(r["E_after_floor"]) else
+                                                         f"  at the flow's floor {r['E_after_floor']:.1e}")))
     refined = RefinedStates.load(output, comm)
-    print0(f"max E after refinement: {refined.column('E_after').max():.2e} (tight flow); wrote {output}, {table_path}")
+    floor = ~np.isnan(refined.column("E_after_floor"))
+    print0(f"max E after refinement: {refined.column('E_after').max():.2e} (tight flow)"
+           + (f"; at the flow's floor at q = {', '.join(f'{q:.4f}' for q in refined.q[floor])}" if floor.any() else "")
+           + f"; wrote {output}, {table_path}")
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_errors(refined, figures), flush=True)

@@ -15,6 +15,10 @@ x                      (P, N, 2)  refined (x_n, xdot_n)
 E_before, E_after      (P,)       E(q) of the interpolated branch wave / of the refined state, tight flow
 E_before_paper_flow    (P,)       the same with the paper's flow (rtol 1e-12, atol 1e-14)
 E_after_paper_flow     (P,)
+E_after_floor          (P,)       where E_after > tol: the tight flow's own error at the refined state (E_after <=
+                                  tol + E_after_floor: accepted at the flow's floor); NaN elsewhere
+E_after_fine           (P,)       where E_after > tol: E_after with the tight flow's tolerances divided by 10; NaN
+                                  elsewhere
 r                      (P,)       relative size of the last Gauss-Newton step (the paper's r(q))
 iterations, jacobians  (P,)       Gauss-Newton iterations, Jacobian evaluations
 wall_time              (P,)       seconds
@@ -46,6 +50,8 @@ if TYPE_CHECKING:
 REFINED_FORMAT = "hertzpetsc-refined-1"
 REFINED_FIELDS = ("q", "E_before_paper_flow", "E_before", "E_after", "E_after_paper_flow", "r", "iterations",
                   "jacobians", "wall_time", "sigma_min")
+# fields added after files were written (a file without them: NaN, no q at the flow's floor)
+REFINED_ADDED = {"E_after_floor": math.nan, "E_after_fine": math.nan}
 
 
 class RefinedStates:
@@ -69,6 +75,9 @@ class RefinedStates:
         return cls(path, data)
 
     def column(self, name: str) -> np.ndarray:
+        """A field over the file's q (a field added after the file was written: its default)."""
+        if name not in self.data and name in REFINED_ADDED:
+            return np.full(len(self.q), REFINED_ADDED[name])
         return np.asarray(self.data[name])
 
     def has(self, q: float) -> bool:
@@ -116,7 +125,7 @@ class RefinementScan(Study):
     file ``output`` as soon as its round is done (kept in memory when ``output`` is None).
     """
 
-    FORMAT, FIELDS = REFINED_FORMAT, REFINED_FIELDS + ("x",)
+    FORMAT, FIELDS, ADDED = REFINED_FORMAT, REFINED_FIELDS + tuple(REFINED_ADDED) + ("x",), REFINED_ADDED
     ROLES = {"shoot_": ("refinement: its flows and Gauss-Newton (-shoot_gn_max_it 20)", ("ts",)),
              "shoot_jac_": ("the flow of the refinement's Jacobian (rtol 1e-10)", ("ts",)),
              "chain_": ("the paper's flow (rtol 1e-12) for E before and after", ("ts",))}
@@ -146,7 +155,8 @@ class RefinementScan(Study):
         E_after_paper = self.paper_flow.residual(res.orbit)
         return dict(q=q, x=res.x, E_before_paper_flow=E_paper, E_before=res.E_initial, E_after=res.E,
                     E_after_paper_flow=E_after_paper, r=res.r, iterations=res.iterations, jacobians=res.jacobians,
-                    wall_time=res.wall_time, sigma_min=res.sigma_min)
+                    wall_time=res.wall_time, sigma_min=res.sigma_min, E_after_floor=res.E_floor,
+                    E_after_fine=res.E_fine)
 
     def run(self) -> Iterator[dict]:
         """Refine every q not yet in the file; yields the record (a dict of the fields) after saving it."""
@@ -169,9 +179,20 @@ class RefinementScan(Study):
                     else "on the N beads over script-T (the paper's map).\n"),
                  "| q | m | E before (paper flow) | E before (tight flow) | E after (tight flow) | E after (paper flow) "
                  "| r(q) | GN its | Jacobians |", "|---|---|---|---|---|---|---|---|---|"]
+        floors = []
         for r in rows:
             q = float(r["q"])
+            floor = not math.isnan(float(r["E_after_floor"]))
+            if floor:
+                floors.append(f"- q = {q:.4f}: E after {r['E_after']:.2e} > {self.tol:g}, within the tight flow's "
+                              f"own error at the refined state, {r['E_after_floor']:.1e} (its S X(script-T) against "
+                              f"the same flow's at a tenth of its tolerances, which gives E = "
+                              f"{r['E_after_fine']:.2e}).")
             lines.append(f"| {q:.4f} | {int(round(q * N / (2 * math.pi)))} | {r['E_before_paper_flow']:.2e} | "
-                         f"{r['E_before']:.2e} | {r['E_after']:.2e} | {r['E_after_paper_flow']:.2e} | "
-                         f"{r['r']:.1e} | {int(r['iterations'])} | {int(r['jacobians'])} |")
+                         f"{r['E_before']:.2e} | {r['E_after']:.2e}{' (floor)' if floor else ''} | "
+                         f"{r['E_after_paper_flow']:.2e} | {r['r']:.1e} | {int(r['iterations'])} | "
+                         f"{int(r['jacobians'])} |")
+        if floors:
+            lines += ["", "Refined to the tight flow's floor (the iteration stopped above the target E <= "
+                      f"{self.tol:g}; hertzpetsc.shooting):"] + floors
         return "\n".join(lines) + "\n"

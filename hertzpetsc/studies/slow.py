@@ -198,8 +198,9 @@ class SlowInstabilityScan(Study):
         self.pep = ComovingPEP(PETSc.COMM_SELF)
         self.sectors = (DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances,
                                         twists=np.linspace(0.0, math.pi, n_twist)) if n_twist else None)
+        # the study's own fallback where E stalls above refine_tol (refine): not the refiner's floor acceptance
         self.refiner = (Refiner(self.spec, PETSc.COMM_SELF, refine_tol, tolerances=tolerances, prefix=SHOOT_PREFIX,
-                                symmetric=True) if n_twist else None)
+                                symmetric=True, accept_floor=False) if n_twist else None)
         self.SHAPES = {"gamma_cm": (len(grids),)}
 
     def constants(self) -> dict:

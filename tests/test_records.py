@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import shared_tmp
+from conftest import DATA, shared_tmp
 from hertzpetsc.branch import POINT_FIELDS, Branch, BranchPoint, SolveStats, branch_store
 from hertzpetsc.diagnostics import WaveDiagnostics
 from hertzpetsc.errors import ParameterError, RecordFileError
@@ -49,8 +49,7 @@ def test_roundtrip_and_plain_numpy_access(tmp_path):
 
 
 def test_a_file_written_before_the_record_store_still_loads():
-    b = Branch.load(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "results",
-                                 "branch_alpha1.5.npz"))
+    b = Branch.load(os.path.join(DATA, "branch_alpha1.5.npz"))
     assert len(b) == 50 and abs(b.point(math.pi / 50).diagnostics.N - 4.8442) < 1e-4
 
 

@@ -17,14 +17,29 @@ runs from a notebook. :meth:`Study.run` yields each record after saving it; :met
 as numpy arrays (the file's content) and :meth:`Study.table` the Markdown table. :class:`ContinuedScan`: the
 studies whose points are continued per alpha, a round of steps at a time.
 """
+import itertools
 import os
+import weakref
 from dataclasses import fields, is_dataclass
 
 from petsc4py import PETSc
 
 from ..errors import HertzPetscError, ParameterError
-from ..records import MODES, MemoryRecords, NpzRecords, file_digest, write_text
+from ..records import MODES, MemoryRecords, NpzRecords, checking, file_digest, given, write_text
 from .dealing import dealt
+
+_BUILT = weakref.WeakSet()      # the studies built in this process that write a record file (check_stores)
+_ORDER = itertools.count()      # ... in the order they were built
+
+
+def check_stores():
+    """Open the record file of every study built so far and not yet opened, as a run would, but only to check it
+    (:func:`hertzpetsc.records.checking`): an existing file without resume or force, a missing one to resume, one
+    of another kind or computation is refused here (a driver's ``-check``); nothing is written. Collective."""
+    with checking():
+        for study in sorted(_BUILT, key=lambda s: s._built):
+            if study.store is None and study.output is not None:
+                study._open()
 
 
 class Study:
@@ -50,6 +65,9 @@ class Study:
         self.params = params
         self.comm = comm if comm is not None else PETSc.COMM_WORLD
         self.output, self.mode = output, mode
+        if output is not None:
+            self._built = next(_ORDER)
+            _BUILT.add(self)
 
     # --- what identifies the records -------------------------------------------------------------------------
     def constants(self):
@@ -83,7 +101,16 @@ class Study:
             return MemoryRecords(self.FORMAT, self.constants(), self.FIELDS, self.comm, self.DTYPES, self.SHAPES)
         identity = self.identity()
         return NpzRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity, self.FIELDS,
-                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT, self.ADDED, self.NAMES)
+                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT, self.ADDED, self.names())
+
+    def names(self):
+        """How the user sets each identity key whose name is not a parameter's (:func:`check_identity`): ``NAMES``,
+        the input files (by the option each was given as) and the solver options of the roles."""
+        out = {f"{name}_sha256": f"the content of the input file {given(path)}" for name, path in self.inputs().items()
+               if path}
+        if self.ROLES:
+            out["solver_options"] = "the options " + ", ".join(f"-{p}*" for p in self.ROLES)
+        return dict(out, **self.NAMES)
 
     def _todo(self, qs):
         """The wavenumbers of ``qs`` that the store holds no record of yet (to 12 decimals)."""

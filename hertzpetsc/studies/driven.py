@@ -5,9 +5,11 @@ exact boundary driving by a travelling wave, and the generation of travelling wa
 Each study follows the protocol of :mod:`hertzpetsc.studies.base`: ``Study(params, comm=None, output=None,
 mode="new")`` with its frozen, validated parameters (:class:`ResponseParameters`, :class:`ResonanceParameters`,
 :class:`WaveEndsParameters`, :class:`GenerationParameters`), its record kind, fields and solver roles (``drive_``,
-``floquet_``), and an in-memory store without ``output``. Their identities are the record kinds' as before the
-protocol (no solver options), so the files written before resume; the call of before (loose arguments) is still
-accepted (:meth:`DrivenStudy.legacy`).
+``floquet_``), and an in-memory store without ``output``. Their identities are the protocol's: the constants of the
+record kinds as before it, the options of ``drive_`` and ``floquet_`` that change numbers and the content hashes of
+the input files (a resume from another input file or with other solver tolerances is refused, naming the option);
+files written before the last two keys were added lack them and still resume. The call of before (loose
+arguments) is still accepted (:meth:`DrivenStudy.legacy`).
 
 Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues):
 
@@ -154,10 +156,6 @@ class DrivenStudy(Study):
         return params, kw.get("comm"), kw.get("output"), kw.get("mode", "new")
 
     RENAMED = {}
-
-    def identity(self):
-        """What a resumed file must agree with: the constants but the ``LABELS``."""
-        return {k: v for k, v in self.constants().items() if k not in self.LABELS}
 
     def configure(self):
         """Nothing left to check: the options of ``drive_`` and ``floquet_`` are read when the study is built (its
@@ -819,6 +817,7 @@ class WaveEndsParameters:
 
     def __post_init__(self):
         P = self.refined.N
+        self.refined.check_alpha(self.branch.alpha)
         sizes = _several("sizes", self.sizes, "chain size",
                          check=lambda N: check_integer("sizes", N, 1, "the beads of a driven chain"))
         for N in sizes:
@@ -868,6 +867,9 @@ class WaveEnds(DrivenStudy):
         p = self.params
         return dict(alpha=p.branch.alpha, P=p.refined.N, branch=p.branch_path, refined=p.refined_path,
                     samples=p.samples, rtols=list(p.rtols))
+
+    def inputs(self):
+        return dict(branch=self.params.branch_path, refined=self.params.refined_path)
 
     def periodic_rho(self, orbit, rtol):
         key = (round(orbit.q, 12), rtol)
@@ -1011,6 +1013,9 @@ class Generation(DrivenStudy):
         p = self.params
         return dict(model=json.dumps(p.model.describe(), sort_keys=True), N=p.N, branch=p.branch_path,
                     bulk=list(p.bulk), run_in=p.run_in, width=p.width)
+
+    def inputs(self):
+        return dict(branch=self.params.branch_path)
 
     def _key(self, w, om, a, g):
         return (WAVEFORMS.index(w), round(om, 12), round(a, 12), round(g, 12))

@@ -48,7 +48,7 @@ from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_fa
 from ..floquet import FLOQUET_PREFIX
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..qbranch import regrid_half_profile
-from ..records import RecordFileError, check_kind, load_npz, on_rank0
+from ..records import RecordFileError, check_kind, given, load_npz, on_rank0
 from ..resources import check_memory
 from ..richardson import extrapolate
 from ..slow import DeflatedSectors, crossing_search, twist_scan
@@ -687,6 +687,16 @@ class QBoundary(Study):
         return q_boundary_table(self.arrays())
 
 
+def _brackets(stable, unstable, mine, name):
+    """What the located edges' rows show of their brackets: the largest relative width |unstable - stable| / min of
+    the rows ``mine`` (a table claims the resolution its rows have, not the one asked for)."""
+    s, u = np.asarray(stable, float)[mine], np.asarray(unstable, float)[mine]
+    if not len(s):
+        return "no edge located"
+    width = float(np.max(np.abs(u - s) / np.minimum(s, u)))
+    return f"the {len(s)} located edges within brackets of at most {width:.1e} (relative, in {name})"
+
+
 def q_boundary_table(z):
     """The Markdown table of a boundary-in-q file's arrays: the located edges per amplitude, then the grid's
     verdicts."""
@@ -698,7 +708,8 @@ def q_boundary_table(z):
              f"deflated); waves at A = ||u||_inf (border row), Richardson of h = pi/{int(z['cells_per_pi'])} and "
              f"pi/{2 * int(z['cells_per_pi'])}; flow rtol {float(z['rtol']):g}; unstable when rho - 1 > {tol:g}; "
              f"edges located by bisection in q through the simplest q / 2 pi of the middle third (cells of at most "
-             f"{int(z['max_cell'])} beads) to a bracket of {float(z['locate_tol']) / 2:g} (relative).\n",
+             f"{int(z['max_cell'])} beads), asked to a bracket of {float(z['locate_tol']) / 2:g} (relative); "
+             + _brackets(z["q_stable"], z["q_unstable"], kind == KIND_EDGE_INF, "q") + ".\n",
              "### Located edges\n",
              "Each row: at amplitude A, the wavenumber where the verdict changes, between q (stable side) and q "
              "(unstable side), with rho - 1 on both sides (the multipliers' distance to the unit circle) and the cell "
@@ -855,6 +866,18 @@ def check_comparable(z, old, path):
                                   f"{show(mine)} in this map (compare maps of the same {', '.join(COMPARED)})")
 
 
+def check_same_chain(zmap, alpha, delta0, path):
+    """RecordFileError unless the stability map ``zmap`` (file ``path``, drawn beside a boundary in q) is of the
+    monatomic chain of ``alpha`` and ``delta0``: a figure never draws the edges of another chain as this one's."""
+    theirs = dict(alpha=float(zmap["alpha"]), delta0=float(zmap["delta0"]),
+                  masses=[float(m) for m in np.atleast_1d(zmap["masses"])])
+    mine = dict(alpha=float(alpha), delta0=float(delta0), masses=[1.0] * len(theirs["masses"]))
+    for key in ("alpha", "delta0", "masses"):
+        if not np.allclose(theirs[key], mine[key], rtol=1e-12, atol=0):
+            raise RecordFileError(f"stability-map file {given(path)} is a map of another chain: {key} = "
+                                  f"{theirs[key]} there, {mine[key]} in this boundary")
+
+
 def compare_v1(z, old, tol=None, path="the other map"):
     """A Markdown section: the verdicts of this map (arrays ``z``) against a ``-1`` map (``old``, file ``path``) at
     the (q, a) both computed, at the old threshold (``tol``: the old file's tol_rho); rho's agreement where rho - 1 >
@@ -942,8 +965,10 @@ def map_table(z):
              f"Richardson of h = pi/{int(z['cells_per_pi'])} and pi/{2 * int(z['cells_per_pi'])}; flow rtol "
              f"{float(z['rtol']):g}; symmetry multipliers deflated; unstable when rho - 1 > {tol:g}; infinite chain: "
              + (f"cell twists with a bead-level Bloch step <= pi/{twists}, maxima refined" if twists else "not "
-                "computed") + f"; boundary located by bisection in log a to a bracket of {float(z['locate_tol']):g} "
-             "(relative).\n",
+                "computed") + f"; boundary located by bisection in log a, asked to a bracket of "
+             f"{float(z['locate_tol']):g} (relative, in a); "
+             + _brackets(z["A_stable"], z["A_unstable"], (kinds == KIND_EDGE) | (kinds == KIND_EDGE_INF), "A")
+             + ".\n",
              "### Located boundary\n",
              "Each row: an amplitude where the verdict changes, between A (stable side) and A (unstable side); "
              "rho - 1 of the chain (N beads or the infinite chain) at both ends: the multipliers' distance to the unit "

@@ -285,8 +285,8 @@ class RecordStore:
         exists = self._exists()
         if self.mode == "resume":
             if not exists:
-                raise RecordFileError(f"{self.what} {given(self.path)} does not exist: nothing to resume (omit -resume, "
-                                      "mode 'resume' in the API, to start it)")
+                raise RecordFileError(f"{self.what} {given(self.path)} does not exist: nothing to resume (omit "
+                                      "-resume, mode 'resume' in the API, to start it)")
             records = self._load()
         elif exists and self.mode == "new":
             raise RecordFileError(f"{self.what} {given(self.path)} exists: continue it with -resume or overwrite it "

@@ -1,9 +1,11 @@
 """Shared fixtures and helpers. The suite runs serially and again under ``mpiexec -n 2`` (tests marked ``serial``
 skip there); tests that compare 1 and 2 ranks do so within one process via COMM_SELF vs COMM_WORLD, or launch
 mpiexec themselves (serial-marked, with a timeout)."""
+import atexit
 import functools
 import math
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -53,6 +55,7 @@ def checkout():
     data (tests/data), so that a driver's default input (results/branch_alpha1.5.npz, ...) is the test's copy, never
     the repository's results, and its default outputs (runs/) land here."""
     path = tempfile.mkdtemp(prefix="hz-checkout-")
+    atexit.register(shutil.rmtree, path, True)
     os.mkdir(os.path.join(path, "results"))
     for name in os.listdir(DATA):
         if name.endswith((".npz", ".md")):

@@ -122,7 +122,8 @@ def _branch(tmp_path, alpha):
     return path
 
 
-def test_a_table_never_takes_a_file_of_another_alpha(tmp_path):
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_table_never_takes_a_file_of_another_alpha(tmp_path, ranks):
     """The paper's table refuses a branch of alpha = 2; a Floquet reference (floquet_long, slow_instabilities) of
     alpha = 3/2 is refused for a branch of alpha = 2, and so are refined waves of 3/2; a stability map of another
     chain is not drawn beside a boundary in q (computing or -render); long runs of two exponents make no table."""
@@ -137,11 +138,15 @@ def test_a_table_never_takes_a_file_of_another_alpha(tmp_path):
              ("driven_wave_ends.py", ("-branch", b2, "-refined", REFINED, "-q", "2*pi/5", "-rtols", "1e-12"),
               "-refined", "alpha = 1.5"),
              ("boundary_in_q.py", ("-alpha", 1.5, "-map", MAP), "-map", "alpha = 2.0 there"),
-             ("boundary_in_q.py", ("-delta0", 0.5, "-alpha", 2, "-map", MAP), "-map", "delta0 = 1.0 there")]
+             ("boundary_in_q.py", ("-delta0", 0.5, "-alpha", 2, "-map", MAP), "-map", "delta0 = 1.0 there"),
+             ("boundary_in_q.py", ("-render", "-output", os.path.join(DATA, "boundary_in_q_alpha1.5.npz"), "-map",
+                                   MAP), "-map", "alpha = 2.0 there")]
     for script, args, option, needle in cases:
-        r = run_script(script, *args, *out)
+        r = run_script(script, *args, *out, ranks=ranks)
         line = one_error_line(r)
         assert r.returncode == 4 and f"({option})" in line and needle in line, (script, line)
+    if ranks > 1:
+        return
     # long runs of two exponents
     runs = []
     for alpha, branch in ((1.5, BRANCH), (2.0, b2)):

@@ -149,6 +149,18 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
         Step("dimer_a0.5", "issue 16", "dimer_branch.py", ("-a", "0.5", "-cells_per_pi", "400", "-output",
                                                            "results/dimer_a0.5.npz", "-table", "results/dimer_a0.5.md"),
              record="results/dimer_a0.5.npz"),
+        *(Step(f"precompressed_dimer{eps}", "issue 16", "precompressed_branch.py",
+               ("-masses", f"1,{eps}", "-q", "pi/5,7*pi/25,3*pi/10,2*pi/5", "-a_min", "0.1", "-a_max", "1000", "-ds",
+                "0.05756462732485115", "-output", f"results/precompressed_dimer{eps}.npz", "-table",
+                f"results/precompressed_dimer{eps}.md"), parallel=False, record=f"results/precompressed_dimer{eps}.npz")
+          for eps in ("0.9", "0.7", "0.5", "0.4")),
+        Step("solitary_stability_M96", "3.3", "solitary_stability.py",
+             ("-c0", "0.8,0.85,0.9", "-M", "96", "-output", "results/solitary_stability_M96.npz", "-table",
+              "results/solitary_stability_M96.md"), record="results/solitary_stability_M96.npz"),
+        Step("wave", "issue 16", "wave.py",
+             ("-alpha", "1.5", "-delta0", "1", "-masses", "1,0.5,0.333333333333", "-q", "2*pi/15,4*pi/15", "-A", "0.5",
+              "-N", "60", "-sizes", "30000", "-output", "results/wave.npz", "-table", "results/wave.md"),
+             record="results/wave.npz"),
         # issue 23: the boundary located on N = 100 and on the infinite chain, compared with the map of kind -1
         # (results/precompression_map.npz, kept as it was: -render re-renders it); the dimers' maps likewise
         Step("precompression_map", "issue 23", "precompression_map.py",

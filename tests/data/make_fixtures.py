@@ -1,4 +1,5 @@
-"""The results files the tests read, frozen: copies of the committed results/ files of commit c2e6847936cdeac7581c192a1e71fde8e2f0bdd5.
+"""The results files the tests read, frozen: copies of the committed results/ files of commit
+c2e6847936cdeac7581c192a1e71fde8e2f0bdd5.
 
 Tests read only files they own (tests/data, or computed in the test): results/ is the published record, which
 `bash scripts/hz.sh main` and `bash scripts/hz.sh paper` rewrite (on another number of ranks, with other round-off:
@@ -15,7 +16,7 @@ COMMIT = "c2e6847936cdeac7581c192a1e71fde8e2f0bdd5"
 FILES = ("branch_alpha1.5.npz", "refined_N100.npz", "floquet_N100.npz", "compacton_stability.npz", "wave.npz",
          "stability_boundary_alpha2_N100.npz", "stability_boundary_alpha1.5_N100.npz", "precompression_map.npz",
          "precompression_map.md", "precompression_map_dimer0.4.npz", "precompression_map_dimer0.4.md",
-         "precompression_map_dimer0.7.npz", "precompression_map_dimer0.7.md")
+         "precompression_map_dimer0.7.npz", "precompression_map_dimer0.7.md", "boundary_in_q_alpha1.5.npz")
 HERE = os.path.dirname(os.path.abspath(__file__))
 
 if __name__ == "__main__":

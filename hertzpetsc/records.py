@@ -34,9 +34,7 @@ from .errors import HertzPetscError, ParameterError, RecordFileError
 
 MODES = ("new", "resume", "force")
 _CHECKING = []          # non-empty within checking(): stores are opened to be checked, never written
-
-
-_GIVEN = {}             # {path: "-option"}: the paths given on the command line (named_path)
+_GIVEN = {}             # {path: "-option"}: the paths given on the command line (name_path, given)
 
 
 def name_path(option, value):
@@ -118,7 +116,13 @@ def on_rank0(comm, fn, *args, what="file operation"):
 
 
 def _replace_atomically(path, write):
-    """Call ``write(file)`` on ``path.tmp`` (reused by the next write if this one is killed), fsync, rename."""
+    """Call ``write(file)`` on ``path.tmp`` (reused by the next write if this one is killed), fsync, rename. A path
+    that exists and is not a regular file or a directory (a device such as /dev/null, a pipe) is written in place:
+    a rename would replace the device with a file (as root, /dev/null itself)."""
+    if os.path.exists(path) and not os.path.isfile(path) and not os.path.isdir(path):
+        with open(path, "wb") as f:
+            write(f)
+        return
     tmp = path + ".tmp"
     with open(tmp, "wb") as f:
         write(f)

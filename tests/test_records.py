@@ -184,6 +184,24 @@ def test_unwritable_outputs_fail_on_every_rank_before_anything_is_computed(tmp_p
         write(os.path.join(blocker, "b.npz"), small_branch(1))
 
 
+@pytest.mark.serial
+def test_a_device_or_pipe_is_written_in_place_not_replaced(tmp_path):
+    """A table written to a path that is not a regular file (a FIFO here; /dev/null for a user who wants no table)
+    is written into it: the atomic rename of a regular file would replace the device by a file (as root, the
+    machine's /dev/null)."""
+    import stat
+    import threading
+    fifo = str(tmp_path / "pipe")
+    os.mkfifo(fifo)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(open(fifo, "rb").read()), daemon=True)
+    reader.start()
+    write_text(fifo, "| a | table |\n")
+    reader.join(timeout=10)
+    assert got == [b"| a | table |\n"] and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert sorted(os.listdir(tmp_path)) == ["pipe"]                      # no temporary file beside it
+
+
 def test_bad_mode_and_model_are_refused():
     with pytest.raises(ParameterError, match="invalid mode = 'sometimes': must be one of new, resume, force"):
         NpzRecords("x.npz", "k", {}, {}, ("q",), None, "sometimes")

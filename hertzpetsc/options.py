@@ -27,6 +27,7 @@ from petsc4py import PETSc
 
 from . import __version__
 from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure
+from .records import name_path
 
 # seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
 ABORT_GRACE = 3.0
@@ -135,6 +136,7 @@ class AppOptions:
 
     def __init__(self, doc="", roles=None):
         AppOptions.current = self
+        name_path(None, None)           # a new command line: the paths of another are forgotten
         self.db = PETSc.Options()
         self.doc = (doc or "").strip()
         self.roles = dict(roles or {})
@@ -195,14 +197,18 @@ class AppOptions:
         return raw
 
     def path(self, name, default, help=""):
-        """A file or directory name; empty only where the default is empty (none: an empty value says so too)."""
+        """A file or directory name; empty only where the default is empty (none: an empty value says so too). The
+        errors about the file name the option (:func:`hertzpetsc.records.name_path`), its default included."""
         raw = self._raw(name, default, "a path" + (", or empty for none" if default == "" else ""), help)
         if raw is None:
+            if default:
+                name_path(f"-{name}", default)
             return default
         if not raw.strip():
             if default == "":
                 return ""
             raise ParameterError(f"-{name}", raw, "must be a non-empty path")
+        name_path(f"-{name}", raw)
         return raw
 
     def flag(self, name, help=""):
@@ -293,7 +299,10 @@ class AppOptions:
     def done(self):
         """End of the declarations: under -help, print them and PETSc's options of the roles, and exit 0.
         Otherwise check that every rank was given the same options (ranks that disagree would compute different
-        things and deadlock in the first collective call that depends on them)."""
+        things and deadlock in the first collective call that depends on them). Declares ``-check``
+        (:meth:`check_unused`)."""
+        self.check = self.flag("check", "check the options and the input files, and that the outputs can be written, "
+                               "then exit 0: nothing is computed or written (output directories may be created)")
         if not self.help:
             check_ranks_agree(PETSc.COMM_WORLD)
             return
@@ -314,7 +323,23 @@ class AppOptions:
 
     def check_unused(self, passed_on=()):
         """Refuse options that nothing has read (after every solver of the driver was configured); options under
-        the prefixes ``passed_on`` are handed to other processes (the benchmark workers) and not checked here."""
+        the prefixes ``passed_on`` are handed to other processes (the benchmark workers) and not checked here.
+
+        With ``-check`` this is where the driver stops: it has read and validated its options, loaded its inputs and
+        built its studies (which configured their solvers); the record files those studies would open are then
+        checked as a run would open them (an existing file without -resume or -force, a resume of another
+        computation: :func:`hertzpetsc.studies.base.check_stores`), one line says so, and every rank exits 0."""
+        self._refuse_unused(passed_on)
+        if getattr(self, "check", False):
+            from .studies.base import check_stores
+            check_stores()
+            for name in self.db.getAll():           # what PETSc would write when it finalizes (-log_view :file)
+                if name.startswith(("log_", "memory_view", "malloc_dump", "malloc_view")):
+                    self.db.delValue(name)
+            print0("check: options, inputs and outputs valid (nothing computed or written)")
+            raise SystemExit(0)
+
+    def _refuse_unused(self, passed_on):
         left = [(n, v) for n, v in unused_options() if n not in self.known() and not n.startswith(tuple(passed_on))]
         if not left:
             return

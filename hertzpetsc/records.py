@@ -14,12 +14,15 @@ Two layouts: :class:`NpzRecords` (one numpy archive rewritten through a temporar
 record: the branch file of the README and the other per-point files) and :class:`AppendRecords` (a JSON header
 and a file of fixed-length float64 records appended and flushed one by one: long runs, whose snapshots would make
 a rewrite quadratic). A killed run leaves the last complete file (npz) or a partial trailing record that the next
-resume drops (append); stale temporary files of a killed write are removed when the store is opened.
+resume drops (append); stale temporary files of a killed write are removed when the store is opened. Within
+:func:`checking` (a driver's ``-check``) a store is opened only to check it: the mode against the file, its kind and
+identity on a resume; nothing is created, removed or written.
 
 Tables, figures and summaries are written by :func:`write_text` / :func:`save_figure` / :func:`write_json`
 (temporary file and rename, rank 0, the verdict shared). Reading needs numpy only; a communicator, when given, is a
 petsc4py or mpi4py communicator.
 """
+import contextlib
 import glob
 import json
 import os
@@ -30,6 +33,42 @@ import numpy as np
 from .errors import HertzPetscError, ParameterError, RecordFileError
 
 MODES = ("new", "resume", "force")
+_CHECKING = []          # non-empty within checking(): stores are opened to be checked, never written
+_GIVEN = {}             # {path: "-option"}: the paths given on the command line (name_path, given)
+
+
+def name_path(option, value):
+    """Remember that ``value`` (a path, or a comma-separated list of paths, each maybe followed by ``:...``) was
+    given as ``option``: the errors about those files then name it (AppOptions.path calls this; ``option`` None:
+    forget every path, for a new command line)."""
+    if option is None:
+        _GIVEN.clear()
+        return
+    for part in str(value).split(","):
+        for path in {part.strip(), part.split(":")[0].strip()}:
+            if path:
+                _GIVEN.setdefault(path, option)
+
+
+def given(path):
+    """``path`` quoted, and the option it was given as, if it was given on the command line."""
+    option = _GIVEN.get(str(path))
+    return f"{str(path)!r}" + (f" ({option})" if option else "")
+
+
+def is_checking():
+    """True within :func:`checking`."""
+    return bool(_CHECKING)
+
+
+@contextlib.contextmanager
+def checking():
+    """Open record stores within this block only to check them (-check): nothing is created or written."""
+    _CHECKING.append(True)
+    try:
+        yield
+    finally:
+        _CHECKING.pop()
 
 
 # --- collective helpers -------------------------------------------------------------------------------------------
@@ -77,7 +116,13 @@ def on_rank0(comm, fn, *args, what="file operation"):
 
 
 def _replace_atomically(path, write):
-    """Call ``write(file)`` on ``path.tmp`` (reused by the next write if this one is killed), fsync, rename."""
+    """Call ``write(file)`` on ``path.tmp`` (reused by the next write if this one is killed), fsync, rename. A path
+    that exists and is not a regular file or a directory (a device such as /dev/null, a pipe) is written in place:
+    a rename would replace the device with a file (as root, /dev/null itself)."""
+    if os.path.exists(path) and not os.path.isfile(path) and not os.path.isdir(path):
+        with open(path, "wb") as f:
+            write(f)
+        return
     tmp = path + ".tmp"
     with open(tmp, "wb") as f:
         write(f)
@@ -186,14 +231,14 @@ def load_npz(path, what, error=RecordFileError):
     """All arrays of a record archive (npz, or HDF5 by its name: :func:`is_hdf5`) as a dict; ``error`` (naming
     ``what``) if it is missing or unreadable."""
     if not os.path.exists(path):
-        raise error(f"{what} {path!r} does not exist")
+        raise error(f"{what} {given(path)} does not exist")
     if is_hdf5(path):
         return _load_h5(path, what, error)
     try:
         with np.load(path, allow_pickle=False) as z:
             return {k: z[k] for k in z.files}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as err:
-        raise error(f"{what} {path!r} is corrupt or not an npz archive ({err})") from None
+        raise error(f"{what} {given(path)} is corrupt or not an npz archive ({err})") from None
 
 
 def check_kind(data, path, kind, what):
@@ -201,7 +246,7 @@ def check_kind(data, path, kind, what):
     stored = str(data.get("format", ""))
     if stored != kind:
         found = f"a {stored!r} file" if stored else "not a hertzpetsc record file"
-        raise RecordFileError(f"{path!r} is {found}, but a {what} ({kind!r}) is expected here")
+        raise RecordFileError(f"{given(path)} is {found}, but a {what} ({kind!r}) is expected here")
 
 
 def _same(a, b):
@@ -222,7 +267,7 @@ def check_identity(stored, wanted, path, names=None):
     for key, value in wanted.items():
         if key in stored and not _same(stored[key], value):
             by = f", set by {names[key]}" if names and key in names else ""
-            raise RecordFileError(f"{path!r} holds another computation: {key} = {stored[key]!r} there, {value!r} "
+            raise RecordFileError(f"{given(path)} holds another computation: {key} = {stored[key]!r} there, {value!r} "
                                   f"requested{by} (rerun with the same parameters, or without -resume and with "
                                   "-force (mode 'force' in the API) to start afresh)")
 
@@ -244,14 +289,16 @@ class RecordStore:
         exists = self._exists()
         if self.mode == "resume":
             if not exists:
-                raise RecordFileError(f"{self.what} {self.path!r} does not exist: nothing to resume (omit -resume, "
-                                      "mode 'resume' in the API, to start it)")
+                raise RecordFileError(f"{self.what} {given(self.path)} does not exist: nothing to resume (omit "
+                                      "-resume, mode 'resume' in the API, to start it)")
             records = self._load()
         elif exists and self.mode == "new":
-            raise RecordFileError(f"{self.what} {self.path!r} exists: continue it with -resume or overwrite it "
+            raise RecordFileError(f"{self.what} {given(self.path)} exists: continue it with -resume or overwrite it "
                                   "with -force (mode 'resume' or 'force' in the API)")
         else:
             records = []
+        if _CHECKING:
+            return records, self.state
         self._prepare()
         self.records = records
         self._start(records)
@@ -312,11 +359,11 @@ class NpzRecords(RecordStore):
                         if k in data}, self.identity, self.path, self.names)
         missing = [f for f in self.fields if f not in data and f not in self.added]
         if missing:
-            raise RecordFileError(f"{self.what} {self.path!r} is corrupt: missing {missing}")
+            raise RecordFileError(f"{self.what} {given(self.path)} is corrupt: missing {missing}")
         present = [f for f in self.fields if f in data]
         P = len(data[present[0]])
         if any(len(data[f]) != P for f in present):
-            raise RecordFileError(f"{self.what} {self.path!r} is corrupt: inconsistent array shapes")
+            raise RecordFileError(f"{self.what} {given(self.path)} is corrupt: inconsistent array shapes")
         self.state = {k[len("state_"):]: data[k] for k in data if k.startswith("state_")}
         return [{f: data[f][i] if f in data else self.added[f] for f in self.fields} for i in range(P)]
 
@@ -409,7 +456,7 @@ def _load_h5(path, what, error):
                 out[name] = value
             return out
     except (OSError, ValueError) as err:
-        raise error(f"{what} {path!r} is corrupt or not an HDF5 file ({err})") from None
+        raise error(f"{what} {given(path)} is corrupt or not an HDF5 file ({err})") from None
 
 
 class AppendRecords(RecordStore):
@@ -440,7 +487,7 @@ class AppendRecords(RecordStore):
     def read_header(directory, header_name="run.json", what="run directory"):
         path = os.path.join(directory, header_name)
         if not os.path.exists(path):
-            raise RecordFileError(f"no run in {directory!r} ({header_name} missing)")
+            raise RecordFileError(f"no run in {given(directory)} ({header_name} missing)")
         try:
             with open(path) as f:
                 return json.load(f)
@@ -450,7 +497,7 @@ class AppendRecords(RecordStore):
     def _load(self):
         header = self.read_header(self.directory, os.path.basename(self.header_path), self.what)
         if "format" in header and header["format"] != self.kind:
-            raise RecordFileError(f"{self.directory!r} holds a {header['format']!r} run, not a {self.kind!r} one")
+            raise RecordFileError(f"{given(self.directory)} holds a {header['format']!r} run, not a {self.kind!r} one")
         check_identity(header, self.identity, self.directory)
         size = os.path.getsize(self.data_path) if os.path.exists(self.data_path) else 0
         whole = size // (8 * self.record_length) * 8 * self.record_length

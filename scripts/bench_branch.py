@@ -3,7 +3,7 @@
 implementation of the same discretisation (scipy.sparse Newton with spsolve), in the same run.
 
     python scripts/bench_branch.py [-cells 1000,50000] [-M 50] [-repeats 3] [-direct_repeats 1] [-previous DIR]
-                                   [-output results/bench_branch.md] [-scipy_timeout 600] [-tw_... options]
+                                   [-output runs/bench_branch.md] [-scipy_timeout 600] [-tw_... options]
 
 hertzpetsc runs both linear-solver paths: -tw_solver direct (LU; MUMPS on 2 ranks) and -tw_solver nk
 (Newton-Krylov: GMRES + exact second-difference preconditioner, matrix-free Jacobian), with one OpenBLAS thread
@@ -138,7 +138,7 @@ def main():
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
     M = opts.integer("M", 50, "targets q = m pi / M", minimum=1)
     previous = opts.path("previous", "", "a checkout of another release, measured side by side (none if empty)")
-    output, repeats, records_path, mode = declare_common(opts, "results/bench_branch.md")
+    output, repeats, records_path, mode = declare_common(opts, "runs/bench_branch.md")
     opts.done()
     from hertzpetsc.resources import check_memory
     for K in cells:                          # refused before any worker is started

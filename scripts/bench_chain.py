@@ -4,7 +4,7 @@
 one Gauss-Newton refinement at N = 100.
 
     python scripts/bench_chain.py [-branch results/branch_alpha1.5.npz] [-sizes 100,10000,1000000]
-                                  [-repeats 3] [-output results/bench_chain.md] [-scipy_timeout 600] [-refine_N 100]
+                                  [-repeats 3] [-output runs/bench_chain.md] [-scipy_timeout 600] [-refine_N 100]
 
 The wave is q = 3 pi/10 (15 wavelengths per 100 beads), so N must be a multiple of 20. Each measurement runs in
 its own process; wall time excludes start-up and the construction of the initial state; best of -repeats
@@ -98,15 +98,15 @@ def main():
     branch, sizes = declare_chains(opts, "100,10000,1000000", 20, "q = 3 pi/10 on the chain")
     scipy_timeout = opts.integer("scipy_timeout", 600, "seconds before a SciPy run is given up", minimum=1)
     refine_N = opts.integer("refine_N", 100, "chain of the refinement measurement (0: none)", minimum=0)
-    output, repeats, records_path, mode = declare_common(opts, "results/bench_chain.md")
+    output, repeats, records_path, mode = declare_common(opts, "runs/bench_chain.md")
     opts.done()
     from petsc4py import PETSc
 
     from hertzpetsc.resources import check_chain_memory
     for N in sizes:                          # refused before any worker is started (the SciPy route's arrays too)
         check_chain_memory(N, PETSc.COMM_WORLD, name="sizes")
-    opts.check_unused()
     initial(branch, sizes[0])                                # the workers' input, checked before any worker runs
+    opts.check_unused()
     me = os.path.abspath(__file__)
     rec = BenchRecords(records_path, "hertzpetsc-bench-chain-1", dict(branch=branch), mode)
     lines = [f"Travelling wave q = 3pi/10 over one script-T on a periodic chain; rtol {RTOL:g}, atol {ATOL:g}; "

@@ -4,7 +4,7 @@ periodic response of a long chain by Newton-Krylov shooting.
 
     python scripts/bench_driven.py [-N 20] [-points 200] [-omega0 0.3] [-omega1 2.3] [-delta0 1] [-gamma 0.05]
         [-amplitude 0.02] [-run_in 30] [-long_N 10000] [-long_gamma 0.2] [-long_run_in 10] [-repeats 1]
-        [-workloads sweep,long] [-output results/bench_driven.md] [-records FILE] [-resume | -force]
+        [-workloads sweep,long] [-output runs/bench_driven.md] [-records FILE] [-resume | -force]
 
 sweep: a chain of -N beads (Hertz, alpha 3/2, precompression -delta0, on-site damping -gamma) between an actuator
 a cos(omega t) and a wall; -run_in periods from rest at omega0, then the periodic response and all 2N multipliers
@@ -187,7 +187,7 @@ def main():
     long_gamma = opts.real("long_gamma", 0.2, "on-site damping of the long chain", valid=(lambda x: x >= 0, ">= 0"))
     long_run_in = opts.integer("long_run_in", 10, "periods from rest before Newton-Krylov (long chain)", minimum=0)
     workloads = opts.words("workloads", "sweep,long", "what to measure", choices=("sweep", "long"))
-    output, repeats, records_path, mode = declare_common(opts, "results/bench_driven.md", repeats=1)
+    output, repeats, records_path, mode = declare_common(opts, "runs/bench_driven.md", repeats=1)
     opts.done()
     opts.check_unused()
     if set(workloads) == {"long"} and not long_N:

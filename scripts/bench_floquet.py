@@ -10,7 +10,7 @@ route (S R from 2N tangent vectors in one TS, then LAPACK; N = 100 only); agains
 would take (assemble the 2N x 2N matrix S R(script-T; 0) column by column with solve_ivp DOP853 on the
 variational equations, then numpy.linalg.eigvals), all flows at rtol 1e-12, atol 1e-14.
 
-    python scripts/bench_floquet.py [-sizes 100,1000,10000] [-repeats 1] [-output results/bench_floquet.md]
+    python scripts/bench_floquet.py [-sizes 100,1000,10000] [-repeats 1] [-output runs/bench_floquet.md]
                                     [-scipy_limit 600] [-slepc_max 1000] [-plain_max 100] [-records FILE]
 
 The wave is the refined N = 100 state (results/refined_N100.npz) tiled to N beads. The SciPy route is run when
@@ -129,10 +129,10 @@ def main():
     plain_max = opts.integer("plain_max", 100, "largest N of the plain SLEPc and dense rows", minimum=0)
     scipy_limit = opts.real("scipy_limit", 600.0, "SciPy runs projected longer than this are not run (s)",
                             valid=(lambda x: x > 0, "> 0"))
-    output, repeats, records_path, mode = declare_common(opts, "results/bench_floquet.md", repeats=1)
+    output, repeats, records_path, mode = declare_common(opts, "runs/bench_floquet.md", repeats=1)
     opts.done()
-    opts.check_unused()
     cell_orbit(branch, refined)                              # the workers' input, checked before any worker runs
+    opts.check_unused()
     me = os.path.abspath(__file__)
     rec = BenchRecords(records_path, "hertzpetsc-bench-floquet-1", dict(branch=branch, refined=refined), mode)
     lines = [f"10 dominant multipliers of F_q, q = 9pi/50, rtol {RTOL:g}; {machine(repeats)}. Bloch: g//2 + 1 "

@@ -15,7 +15,7 @@
 
     python scripts/bench_map.py [-alpha 1.5] [-N 100] [-m 6,...,45] [-subset_m 10,15,20,25] [-a 0.1,...,1000]
         [-a_min 0.01] [-a_max 1000] [-ds 0.2302585] [-twists 1024] [-levels 0.1,0.3,1,1.5,2,3,5,10,30,100,inf]
-        [-routes map,boundary,dense,subset] [-previous DIR] [-repeats 1] [-log_view] [-output results/bench_map.md]
+        [-routes map,boundary,dense,subset] [-previous DIR] [-repeats 1] [-log_view] [-output runs/bench_map.md]
         [-records FILE [-resume]]
 
 -previous DIR: the boundary routes also with the hertzpetsc of another checkout (e.g. the commit before a change:
@@ -25,7 +25,7 @@ compared with this checkout's.
 Each measurement runs in its own process (under mpiexec for 2 ranks), one BLAS thread per rank; wall times exclude
 imports and include the record file's writes. With -log_view the boundary route's PETSc log (events hz_* of the
 sector maps, twist scans, Floquet flows, and the SNES of the wave solves) is written beside the table
-(results/logview_map_boundary_np2.txt; with -previous also logview_map_boundary_previous_np2.txt). Measure on an
+(logview_map_boundary_np2.txt; with -previous also logview_map_boundary_previous_np2.txt). Measure on an
 otherwise idle machine: two ranks share the two cores.
 """
 import json
@@ -143,7 +143,7 @@ def main():
     previous = opts.path("previous", "", "a checkout of another version: the boundary routes measured with it too, "
                          "side by side (none if empty)")
     log_view = opts.flag("log_view", "write the boundary route's PETSc -log_view beside the table")
-    output, repeats, records_path, mode = declare_common(opts, "results/bench_map.md", repeats=1)
+    output, repeats, records_path, mode = declare_common(opts, "runs/bench_map.md", repeats=1)
     opts.done()
     opts.check_unused()
     if previous and not os.path.isfile(os.path.join(previous, "hertzpetsc", "__init__.py")):

@@ -3,14 +3,14 @@
 as the grid is refined, h = pi*1e-3 .. pi*1e-6 (2 million grid points), on 1 and 2 ranks.
 
     python scripts/bench_newton.py [-cells 1000,10000,100000,1000000] [-q 0.9*pi] [-repeats 2]
-                                   [-output results/bench_newton.md] [-logview_cells 1000000] [-tw_... options]
+                                   [-output runs/bench_newton.md] [-logview_cells 1000000] [-tw_... options]
 
 One Newton solve of eqs. ad-pbc at q (default 0.9 pi, a shift that is neither 0 nor the half-period reflection)
 from the binary oscillation u0 rescaled by (pi/q)^(2/(alpha-1)), alpha = 3/2. Each measurement runs in its own
 process (under mpiexec for 2 ranks, one OpenBLAS thread per rank); reported: Newton and Krylov iterations,
 wall time of the SNES solve per Newton step (set-up excluded, reported apart), peak resident memory per rank,
 best of -repeats. Parallel efficiency = t(1 rank) / (2 t(2 ranks)) per Newton step. For -logview_cells the solve
-is run once more with -log_view on 1 and 2 ranks, into results/logview_newton_np{1,2}.txt. -tw_* options go to
+is run once more with -log_view on 1 and 2 ranks, into logview_newton_np{1,2}.txt beside -output. -tw_* options go to
 the solves (default -tw_solver nk). Before anything is allocated the memory is checked
 (:func:`hertzpetsc.resources.check_memory`): a grid that would not fit is refused with the estimate.
 Measure on an otherwise idle machine: 2 ranks share its 2 cores.
@@ -73,7 +73,7 @@ def main():
     q = opts.real("q", 0.9 * math.pi, "wavenumber", expr=True, valid=(lambda x: 0 < x <= math.pi, "in (0, pi]"))
     logview = opts.integer("logview_cells", 1000000, "grid of the -log_view runs (0: none)", minimum=0)
     timeout = opts.integer("timeout", 1800, "seconds before a run is given up", minimum=1)
-    output, repeats, records_path, mode = declare_common(opts, "results/bench_newton.md", repeats=2)
+    output, repeats, records_path, mode = declare_common(opts, "runs/bench_newton.md", repeats=2)
     opts.done()
     from hertzpetsc.resources import check_memory
     for K in cells:                          # refused before any worker is started
@@ -108,7 +108,7 @@ def main():
         print("\n".join(lines[-2:]), flush=True)
     if logview:
         for ranks in (1, 2):
-            path = os.path.join(ROOT, "results", f"logview_newton_np{ranks}.txt")
+            path = os.path.join(os.path.dirname(os.path.abspath(output)), f"logview_newton_np{ranks}.txt")
             best_of(1, script, "newton", dict(K=logview, q=q), ranks, timeout, [*extra, "-log_view", f":{path}"])
             lines.append(f"\n-log_view of the h = pi/{logview} solve on {ranks} rank(s): `{os.path.relpath(path, ROOT)}`")
     write_report(output, lines)

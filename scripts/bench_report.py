@@ -2,7 +2,7 @@
 """The performance report (results/performance.md): every large workload on 1 and 2 ranks against the plain
 SciPy route, in one run, with parallel efficiency, memory per unknown and a -log_view scaling section.
 
-    python scripts/bench_report.py [-output results/performance.md] [-repeats 2] [-scipy_timeout 600]
+    python scripts/bench_report.py [-output runs/performance.md] [-repeats 2] [-scipy_timeout 600]
                                    [-workloads branch,newton,chain,floquet] [-records FILE [-resume]]
 
 Workloads (each measurement in its own process, through the workers of the bench_*.py scripts):
@@ -82,7 +82,8 @@ def log_events(path):
     return out
 
 
-def scaling_section():
+def scaling_section(directory):
+    """The -log_view rows; the logs are written into ``directory`` (the report's)."""
     q = 0.9 * math.pi
     rows = []
     for name, sname, worker, req, args, event, unit in (
@@ -90,7 +91,7 @@ def scaling_section():
              "SNESSolve", "Newton step"),
             ("chain, N = 1e6", "bench_chain.py", "petsc", dict(branch=BRANCH, N=10 ** 6), [], "TSStep", "time step")):
         for ranks in (1, 2):
-            path = os.path.join(ROOT, "results", f"logview_{sname.split('_')[1].split('.')[0]}_np{ranks}.txt")
+            path = os.path.join(directory, f"logview_{sname.split('_')[1].split('.')[0]}_np{ranks}.txt")
             res = best_of(1, script(sname), worker, req, ranks, 3600, [*args, "-log_view", f":{path}"])
             ev = log_events(path)
             if event not in ev:
@@ -128,7 +129,7 @@ def main():
     scipy_timeout = opts.integer("scipy_timeout", 600, "seconds before a SciPy run is given up", minimum=1)
     which = set(opts.words("workloads", "branch,newton,chain,floquet", "workloads to run",
                            choices=("branch", "newton", "chain", "floquet")))
-    output, repeats, records_path, mode = declare_common(opts, "results/performance.md", repeats=2)
+    output, repeats, records_path, mode = declare_common(opts, "runs/performance.md", repeats=2)
     opts.done()
     opts.check_unused()
     rec = BenchRecords(records_path, "hertzpetsc-bench-report-1", dict(which=sorted(which)), mode)
@@ -160,7 +161,7 @@ def main():
               "reductions.", "",
               "| run | ranks | steps | s / step | messages / step | MB / step | reductions / step | log |",
               "|---|---|---|---|---|---|---|---|"]
-    lines += scaling_section()
+    lines += scaling_section(os.path.dirname(os.path.abspath(output)))
     lines += ["", MODEL]
     write_report(output if os.path.isabs(output) else os.path.join(ROOT, output), lines)
 

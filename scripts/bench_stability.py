@@ -11,7 +11,7 @@ Floquet multipliers modulo shifts) at every branch q = 2 pi m / N of the N = 100
   for every flow: the same arithmetic, so the same numbers), 1 rank: what the compiled kernel gains.
 
     python scripts/bench_stability.py [-N 100] [-routes scipy,symmetric,paper,numpy] [-repeats 1]
-                                      [-output results/bench_stability.md] [-records FILE [-resume]]
+                                      [-output runs/bench_stability.md] [-records FILE [-resume]]
 
 Every route starts from the same branch waves (results/branch_alpha1.5.npz interpolated onto the chain) and
 stops at the same target E <= -tol. hertzpetsc runs the studies the two drivers run (RefinementScan, then
@@ -172,8 +172,10 @@ def main():
     N = opts.integer("N", 100, "beads of the periodic chain", minimum=3, maximum=MAX_DENSE_BEADS)
     tol = opts.real("tol", 1e-10, "target E(q) of every refinement", valid=(lambda x: x > 0, "> 0"))
     routes = opts.words("routes", ",".join(ROUTES), "routes to run", choices=ROUTES)
-    output, repeats, records_path, mode = declare_common(opts, "results/bench_stability.md", repeats=1)
+    output, repeats, records_path, mode = declare_common(opts, "runs/bench_stability.md", repeats=1)
     opts.done()
+    from hertzpetsc.branch import Branch
+    Branch.load(branch)                                      # the workers' input, checked before any worker runs
     opts.check_unused()
     os.environ.update(OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")      # the SciPy route too: one core each
     work = tempfile.mkdtemp(prefix="bench_stability_")

@@ -4,8 +4,8 @@ amplitudes A = ||u||_inf (issue 23: the boundary in A at each q is precompressio
 
     mpiexec -n 2 python scripts/boundary_in_q.py [-alpha 1.5] [-delta0 1] [-A 0.1,0.3,1,1.5,2,3,5,10,30,100,inf]
         [-N 100] [-m 10,12,14,15,16,18,20,22,24,25] [-q LIST] [-cells_per_pi 1000] [-rtol 1e-11] [-tol_rho 1e-6]
-        [-twists 512] [-locate_tol 1e-3] [-max_cell 400] [-map FILE] [-output results/boundary_in_q.npz]
-        [-table results/boundary_in_q.md] [-figures figures] [-resume | -force | -render]
+        [-twists 512] [-locate_tol 1e-3] [-max_cell 400] [-map FILE] [-output runs/boundary_in_q.npz]
+        [-table runs/boundary_in_q.md] [-figures figures] [-resume | -force | -render]
 
 At each amplitude A (inf: the uncompressed limit) and each grid wavenumber (q = 2 pi m / N and -q): the wave with
 max |u| = A (a border row of eq. ad; Richardson combination of h = pi/K and pi/(2K), K = -cells_per_pi) and rho over
@@ -33,7 +33,7 @@ from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import check_kind, load_npz, on_rank0, prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.maps import (MAX_MAP_BEADS, QB_MAX_CELL, QMAP_FORMAT, QMAP_FORMAT_V1, QBoundary,  # noqa: E402
-                                     QBoundaryParameters, q_boundary_table, read_map)
+                                     QBoundaryParameters, check_same_chain, q_boundary_table, read_map)
 
 ROLES = QBoundary.ROLES
 
@@ -60,7 +60,7 @@ def main():
     map_path = opts.path("map", "", "a stability-map file (precompression_map.py) drawn with the edges (none if "
                          "empty)")
     output, mode, table_path, figures = opts.record_table_figures(
-        "results/boundary_in_q.npz", "boundary-in-q file", "results/boundary_in_q.md", "boundary_in_q.png")
+        "runs/boundary_in_q.npz", "boundary-in-q file", "runs/boundary_in_q.md", "boundary_in_q.png")
     render = opts.flag("render", "compute nothing: rewrite -table and the figure from the file -output")
     opts.done()
     comm = PETSc.COMM_WORLD
@@ -69,11 +69,15 @@ def main():
         if mode != "new":
             raise RecordFileError("-render reads -output and writes only -table and the figure: give it without "
                                   "-resume or -force")
-        opts.check_unused()
         z = on_rank0(comm, lambda: _read(output), what="boundary-in-q file")
+        if zmap is not None:
+            check_same_chain(zmap, z["alpha"], z["delta0"], map_path)
         prepare_outputs(comm, table_path, figures=figures)
+        opts.check_unused()
         write_figure_and_table(comm, z, zmap, table_path, figures)
         return
+    if zmap is not None:
+        check_same_chain(zmap, alpha, delta0, map_path)
     if len(ms) + len(extra_q) < 2:
         raise ParameterError("-m", ",".join(str(m) for m in ms), "with -q, at least two grid wavenumbers between "
                              "which to locate")

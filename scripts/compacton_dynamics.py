@@ -4,9 +4,9 @@ and the two-compacton test (which compacton carries the 2-compacton error of sec
 
     mpiexec -n 2 python scripts/compacton_dynamics.py [-stability results/compacton_stability.npz] [-alpha 1.5] \
         [-q 7*pi/25,pi/50,0] [-N 2100] [-n0 50] [-travel 1000] [-amplitude 1e-8] [-kinds mode,noise] \
-        [-output results/compacton_dynamics.npz] [-table results/compacton_dynamics.md] [-figures figures] \
+        [-output runs/compacton_dynamics.npz] [-table runs/compacton_dynamics.md] [-figures figures] \
         [-pairs_branch results/branch_alpha1.5.npz] [-pairs_q pi/50] [-spacing 132] [-pairs_travel 100] \
-        [-pairs_output results/compacton_pairs.npz] [-pairs_table results/compacton_pairs.md] [-resume | -force]
+        [-pairs_output runs/compacton_pairs.npz] [-pairs_table runs/compacton_pairs.md] [-resume | -force]
         [-no_dynamics] [-no_pairs]
 
 Dynamics: each exact compacton of -q (from the stability file, at -alpha) is placed at bead -n0 of a free chain of
@@ -77,7 +77,7 @@ def main():
     amplitude = opts.real("amplitude", 1e-8, "size of the perturbation (relative)", valid=(lambda x: x > 0, "> 0"))
     kinds = opts.words("kinds", "mode,noise", "perturbations", choices=("mode", "noise"))
     output, mode, table, figures = opts.record_table_figures(
-        "results/compacton_dynamics.npz", "compacton dynamics file", "results/compacton_dynamics.md",
+        "runs/compacton_dynamics.npz", "compacton dynamics file", "runs/compacton_dynamics.md",
         "compacton_dynamics.png")
     pairs_branch = opts.path("pairs_branch", "results/branch_alpha1.5.npz", "branch of the two-compacton test")
     pairs_q = opts.numbers("pairs_q", "pi/50", "q of the two-compacton test", valid=(lambda q: q > 0, "> 0"))
@@ -86,8 +86,8 @@ def main():
     spacing = opts.integer("spacing", 132, "beads between the two compactons' windows", minimum=8)
     pairs_travel = opts.integer("pairs_travel", 100, "beads the rear compacton passes beyond the front one's start",
                                 minimum=1)
-    pairs_output = opts.path("pairs_output", "results/compacton_pairs.npz", "two-compacton record file")
-    pairs_table = opts.path("pairs_table", "results/compacton_pairs.md", "two-compacton table")
+    pairs_output = opts.path("pairs_output", "runs/compacton_pairs.npz", "two-compacton record file")
+    pairs_table = opts.path("pairs_table", "runs/compacton_pairs.md", "two-compacton table")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table, pairs_table, figures=figures)
@@ -95,7 +95,7 @@ def main():
     if qs:
         records = stability_records(stability, alpha, qs, comm)
         dyn = CompactonDynamics(records, LatticeModel.hertz(alpha), comm, output, mode, N, n0, travel, amplitude,
-                                kinds)
+                                kinds, source=stability)
     pairs = None
     if pairs_q:
         if len(pairs_q) > 1:

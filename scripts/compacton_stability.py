@@ -5,7 +5,7 @@ that travels with them, and the window map's multipliers, against q, for each br
     mpiexec -n 2 python scripts/compacton_stability.py \
         -branches results/branch_alpha1.5.npz,runs/branch_alpha2.npz,runs/branch_alpha2.5.npz \
         [-q 1.5,...,pi/6400] [-no_solitary] [-M 18] [-rear 6] [-nev 3] [-eta 2.5] \
-        [-output results/compacton_stability.npz] [-table results/compacton_stability.md] [-figures figures] \
+        [-output runs/compacton_stability.npz] [-table runs/compacton_stability.md] [-figures figures] \
         [-resume | -force]
 
 For each branch the scan starts at the branch's largest q with F(q) >= 1 (the compacton of that branch point,
@@ -64,7 +64,7 @@ def main():
         ring_qs = []
     tol = opts.real("tol_unstable", TOL_UNSTABLE, "unstable: |mu| > 1 + tol_unstable", valid=(lambda x: x > 0, "> 0"))
     output, mode, table, figures = opts.record_table_figures(
-        "results/compacton_stability.npz", "compacton stability file", "results/compacton_stability.md",
+        "runs/compacton_stability.npz", "compacton stability file", "runs/compacton_stability.md",
         "compacton_stability_mu.png and compacton_stability_spectra.png")
     opts.done()
     if nev > 2 * M:

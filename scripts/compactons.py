@@ -40,7 +40,7 @@ def main():
     margin = opts.integer("margin", 10, "beads at rest behind the train", minimum=2)
     travel = opts.integer("travel", 100, "beads the whole train travels", minimum=5, maximum=10 ** 7)
     dt = opts.real("dt_snapshot", 0.05, "time between snapshots", valid=(lambda x: x > 0, "> 0"))
-    output, figures = opts.table_and_figures("results/compactons.md", "graphulin.png and the space-time plots")
+    output, figures = opts.table_and_figures("runs/compactons.md", "graphulin.png and the space-time plots")
     opts.done()
     comm = PETSc.COMM_WORLD
     files = [p for p in paths.split(",") if p.strip()]

@@ -37,7 +37,7 @@ def main():
         max_halvings=opts.integer("max_halvings", 8, "step reductions allowed per target q", minimum=0),
         max_corrector=opts.real("max_corrector", 0.25, "relative change of the rescaled profile that makes a step "
                                 "be rejected and halved", valid=(lambda x: x > 0, "> 0")))
-    output = opts.path("output", "branch.npz", "branch file, rewritten after every converged point")
+    output = opts.path("output", "runs/branch.npz", "branch file, rewritten after every converged point")
     mode = opts.mode()
     figures = opts.path("figures", "", "directory for the figures of section 3.1 (none if empty)")
     opts.done()
@@ -45,11 +45,11 @@ def main():
     prepare_outputs(comm, figures=figures)
     study = BranchStudy(params, output, comm, mode, run_metadata(params=dict(alpha=params.alpha, M=params.M,
                         cells_per_pi=params.cells_per_pi, q_stop=params.q_stop), prefix="tw_"))
+    opts.check_unused()
     k_alpha = None
     if figures:     # the line of figs. normes and pentes uses k_alpha of the solitary wave (eq. kal2)
         from hertzpetsc.solitary import SolitaryParameters, solve_solitary_wave
         k_alpha = solve_solitary_wave(SolitaryParameters(params.alpha, 80), PETSc.COMM_SELF).k_alpha
-    opts.check_unused()
     study.open()
     if study.resumed:
         print0(f"resuming {output}: {study.resumed} points, last q = {study.branch.points[-1].q:.6f}")

@@ -2,7 +2,7 @@
 """Convergence in the grid step h of the branch diagnostics (second-order scheme, section 3.1).
 
     mpiexec -n 2 python scripts/convergence_h.py [-alpha 1.5] [-M 50] [-cells 250,500,1000,2000,4000]
-                                                  [-output results/convergence_h.md]
+                                                  [-output runs/convergence_h.md]
 
 Computes the branch q = pi -> pi/M on each grid h = pi/K, and for those of q = pi, 3pi/10, 7pi/25, 9pi/50, pi/50
 that are on it (q = m pi / M) reports ||u||_inf, p(q), N(q), T(q) on each grid, the observed order
@@ -28,7 +28,7 @@ def main():
     M = opts.integer("M", 50, "target wavenumbers q = m pi / M", minimum=1)
     cells = opts.numbers("cells", "250,500,1000,2000,4000", "grids K (h = pi/K), at least three, all different",
                          expr=False, kind=int, valid=(lambda K: K >= 4, ">= 4"), distinct=True, minimum_count=3)
-    output = opts.path("output", "results/convergence_h.md", "table")
+    output = opts.path("output", "runs/convergence_h.md", "table")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_output(output, comm)

@@ -3,7 +3,7 @@
 
     mpiexec -n 2 python scripts/dimer_branch.py [-alpha 1.5] [-delta0 1] [-q 3*pi/10] [-a 0.5]
         [-cells_per_pi 200] [-epsilon_end 0.3] [-max_steps 200] [-ds 0.02] [-ds_max 0.1]
-        [-output results/dimer.npz] [-table results/dimer.md] [-figures figures] [-resume | -force]
+        [-output runs/dimer.npz] [-table runs/dimer.md] [-figures figures] [-resume | -force]
 
 Per-bead wavenumber q, one odd profile per bead of the cell (u: mass 1, v: mass epsilon), fixed amplitude a (first
 sine coefficient of u). From the monatomic wave at epsilon = 1 (two natural steps), pseudo-arclength in
@@ -41,7 +41,7 @@ def main():
     ds = opts.real("ds", 0.02, "first arclength step", valid=(lambda x: x > 0, "> 0"))
     ds_max = opts.real("ds_max", 0.1, "largest arclength step", valid=(lambda x: x > 0, "> 0"))
     output, mode, table_path, figures = opts.record_table_figures(
-        "results/dimer.npz", "dimer file", "results/dimer.md", "dimer_epsilon.png")
+        "runs/dimer.npz", "dimer file", "runs/dimer.md", "dimer_epsilon.png")
     opts.done()
     for q in qs:
         check_wavenumber(q, math.pi / K)

@@ -8,7 +8,7 @@ frequency, amplitude and damping.
     mpiexec -n 2 python scripts/driven_generation.py [-branch results/branch_alpha1.5.npz] [-N 60] [-alpha 1.5]
         [-delta0 0] [-eta 0] [-signals harmonic,half_sine] [-width 0.5] [-omegas 0.2,0.3,0.5]
         [-amplitudes 0.1,0.5] [-gammas 0.02,0.05] [-run_in 60] [-tol 1e-9] [-rtol 1e-12] [-bulk 0.25,0.75]
-        [-samples 128] [-output results/driven_generation.npz] [-table results/driven_generation.md]
+        [-samples 128] [-output runs/driven_generation.npz] [-table runs/driven_generation.md]
         [-figures figures] [-resume | -force]
 
 Each case: -run_in driving periods from rest, Newton (dense Jacobian for N <= 200, Newton-Krylov above), the
@@ -52,7 +52,7 @@ def main():
     bulk = opts.numbers("bulk", "0.25,0.75", "the bulk: fractions (lo, hi) of the chain", expr=False)
     samples = opts.integer("samples", 128, "samples per period", minimum=8)
     output, mode, table_path, figures = opts.record_table_figures(
-        "results/driven_generation.npz", "driven-generation file", "results/driven_generation.md",
+        "runs/driven_generation.npz", "driven-generation file", "runs/driven_generation.md",
         "driven_generation.png")
     opts.done()
     comm = PETSc.COMM_WORLD

@@ -5,7 +5,7 @@ alpha delta0^(alpha - 1)) and the damped linear chain's response (closed form: t
 
     python scripts/driven_resonances.py [-N 20] [-alpha 1.5] [-delta0 1] [-gamma 0.01] [-eta 0] [-masses 1]
         [-amplitude 1e-6] [-modes 1,2,...] [-golden 40] [-tol 1e-10] [-rtol 1e-12]
-        [-output results/driven_resonances.npz] [-table results/driven_resonances.md] [-figures figures]
+        [-output runs/driven_resonances.npz] [-table runs/driven_resonances.md] [-figures figures]
         [-resume | -force]
 
 For each mode k: the peak of the last bead's amplitude over omega near omega_k (golden section) from Newton-shooting
@@ -36,7 +36,7 @@ def main():
     tol = opts.real("tol", 1e-10, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     output, mode, table_path, figures = opts.record_table_figures(
-        "results/driven_resonances.npz", "driven-resonances file", "results/driven_resonances.md",
+        "runs/driven_resonances.npz", "driven-resonances file", "runs/driven_resonances.md",
         "driven_resonances.png")
     opts.done()
     comm = PETSc.COMM_WORLD

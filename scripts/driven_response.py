@@ -55,7 +55,7 @@ def main():
     switch = opts.integer("switch", 0, "steps on each period-doubled branch (branch switching)", minimum=0)
     max_steps = opts.integer("max_steps", 400, "largest number of continuation steps", minimum=1)
     output, omode, table_path, figures = opts.record_table_figures(
-        "results/driven_response.npz", "driven-response file", "results/driven_response.md", "the response figure")
+        "runs/driven_response.npz", "driven-response file", "runs/driven_response.md", "the response figure")
     name = opts.string("name", "driven_response", "figure name (without .png)")
     opts.done()
     comm = PETSc.COMM_WORLD

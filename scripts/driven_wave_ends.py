@@ -5,7 +5,7 @@ against the periodic chain's, for q above and below q_c: does driving the ends s
 
     mpiexec -n 2 python scripts/driven_wave_ends.py [-branch results/branch_alpha1.5.npz]
         [-refined results/refined_N100.npz] [-q 5*pi/50,9*pi/50,...] [-sizes 10,20,40] [-rtols 1e-12,1e-14]
-        [-samples 8192] [-output results/driven_wave_ends.npz] [-table results/driven_wave_ends.md]
+        [-samples 8192] [-output runs/driven_wave_ends.npz] [-table runs/driven_wave_ends.md]
         [-figures figures] [-resume | -force]
 
 Beads 1..N of the periodic chain of P beads (the refinement file's) between actuators moving as beads 0 and N + 1
@@ -46,7 +46,7 @@ def main():
                          valid=(lambda r: 0 < r < 1, "in (0, 1)"))
     samples = opts.integer("samples", 8192, "least number of points of the sampled wave profile", minimum=64)
     output, mode, table_path, figures = opts.record_table_figures(
-        "results/driven_wave_ends.npz", "driven wave-ends file", "results/driven_wave_ends.md", "driven_wave_ends.png")
+        "runs/driven_wave_ends.npz", "driven wave-ends file", "runs/driven_wave_ends.md", "driven_wave_ends.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)

@@ -40,33 +40,43 @@ def parse_run(spec):
     return parts[0], window
 
 
+def read_run(d):
+    """The snapshots and the summary of a finished long run (RecordFileError naming the run otherwise)."""
+    snaps = read_snapshots(d)
+    try:
+        with open(os.path.join(d, "summary.json")) as f:
+            summary = json.load(f)
+    except (OSError, ValueError):
+        raise RecordFileError(f"run {d!r} has no readable summary.json (finish it with long_run.py -resume)")
+    if len(snaps.times) == 0:
+        raise RecordFileError(f"run {d!r} has no snapshot")
+    return snaps, summary
+
+
 def main():
     opts = AppOptions(__doc__)
     runs = opts.path("runs", "", "comma-separated run directories, each optionally dir:t0:t1")
-    figures = opts.path("figures", "figures", "directory for the figures")
-    table = opts.path("table", "results/long_runs.md", "table")
+    figures = opts.path("figures", "runs/figures", "directory for the figures")
+    table = opts.path("table", "runs/long_runs.md", "table")
     opts.done()
-    opts.check_unused()
     specs = [parse_run(s) for s in runs.split(",")] if runs.strip() else []
     if not specs:
         raise ParameterError("-runs", runs, "must name at least one run directory")
+    loaded = [(d, window, *read_run(d)) for d, window in specs]
+    alphas = sorted({float(snaps.header["alpha"]) for _, _, snaps, _ in loaded})
+    if len(alphas) > 1:                         # one table, one chain: its rows name q, not alpha
+        raise ParameterError("-runs", runs, "must name runs of one Hertz exponent: these are of alpha = "
+                             + ", ".join(f"{a:g}" for a in alphas))
     prepare_output(table)
     prepare_output(os.path.join(figures, "deviation.png"), what="figure")
+    opts.check_unused()
     rank0 = PETSc.COMM_WORLD.getRank() == 0     # figures are drawn on rank 0
     rows = ["| run | q | script-T | initial state | t_final | destruction time (D > 0.1) | D > 1e-6 at | "
             "D > 1e-3 at | max D | energy drift | integrator |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     deviations = {}
-    for d, window in specs:
+    for d, window, snaps, s in loaded:
         name = os.path.basename(os.path.normpath(d))
-        snaps = read_snapshots(d)
         header, t, X = snaps.header, snaps.times, snaps.states
-        try:
-            with open(os.path.join(d, "summary.json")) as f:
-                s = json.load(f)
-        except (OSError, ValueError):
-            raise RecordFileError(f"run {d!r} has no readable summary.json (finish it with long_run.py -resume)")
-        if len(t) == 0:
-            raise RecordFileError(f"run {d!r} has no snapshot")
         t0, t1 = window if window else (max(0.0, t[-1] - 220), t[-1])
         sel = (t >= t0) & (t <= t1)
         title = f"q = {header['q']:.4f}, N = {header['N']}"

@@ -4,7 +4,7 @@
     mpiexec -n 2 python scripts/floquet_long.py [-sizes 1000,10000] [-q 7*pi/25,9*pi/50,pi/50,3*pi/10]
         [-refined results/refined_N100.npz] [-branch results/branch_alpha1.5.npz] [-nev 10] [-tol_rho 1e-4]
         [-slepc_sizes 1000] [-split sectors|beads] [-reference results/floquet_N100.npz]
-        [-output results/floquet_long.md] [-npz results/floquet_long.npz] [-resume | -force]
+        [-output runs/floquet_long.md] [-npz runs/floquet_long.npz] [-resume | -force]
 
 The wave on N = L * 100 beads at q = 2 pi m / 100 is the refined 100-bead wave tiled L times. All 2N multipliers
 come from the L//2 + 1 Bloch sectors of the 100-bead cell (hertzpetsc.bloch, one TS run of 200 complex tangent
@@ -50,16 +50,19 @@ def main():
     split = opts.string("split", "sectors", "sectors dealt to ranks, or each sector over all ranks",
                         choices=("sectors", "beads"))
     reference = opts.path("reference", "results/floquet_N100.npz", "Floquet scan quoted for rho(N = 100), or 'none'")
-    output = opts.path("output", "results/floquet_long.md", "table")
-    npz = opts.path("npz", "results/floquet_long.npz", "Bloch records (record store)")
+    output = opts.path("output", "runs/floquet_long.md", "table")
+    npz = opts.path("npz", "runs/floquet_long.npz", "Bloch records (record store)")
     mode = opts.mode()
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_output(output, comm)
     refined = RefinedStates.load(refined_path, comm)
-    scan = BlochScan(Branch.load(branch_path, comm), refined, sizes, qs, comm, npz, mode, nev, tol_rho, slepc_sizes, split,
-                     IntegrationTolerances(), on_rank0(comm, floquet_reference, reference, what="cannot read -reference")
-                     if reference != "none" else {})
+    branch = Branch.load(branch_path, comm)
+    refined.check_alpha(branch.alpha)
+    quoted = (on_rank0(comm, floquet_reference, reference, branch.alpha, refined.N, what="cannot read -reference")
+              if reference != "none" else {})
+    scan = BlochScan(branch, refined, sizes, qs, comm, npz, mode, nev, tol_rho, slepc_sizes, split,
+                     IntegrationTolerances(), quoted)
     opts.check_unused()
     scan.open()
     print0(f"# cell M = {scan.M}, ranks {comm.getSize()}, split {split}, nev {nev}")

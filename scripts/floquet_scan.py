@@ -3,7 +3,7 @@
 
     mpiexec -n 2 python scripts/floquet_scan.py [-refined results/refined_N100.npz] [-branch ...] [-N 100]
         [-q 3*pi/10,7*pi/25] [-method symmetric|dense|slepc] [-nev 10] [-tol_rho 1e-4] [-check_q 9*pi/50]
-        [-output results/floquet_N100.npz] [-table results/floquet_table_N100.md] [-figures figures]
+        [-output runs/floquet_N100.npz] [-table runs/floquet_table_N100.md] [-figures figures]
         [-resume | -force]
 
 Around the refined waves of -refined: rho(F_q) without the four trivial multipliers (translation, time shift,
@@ -55,7 +55,7 @@ def main():
     tol_rho = opts.real("tol_rho", 1e-4, "unstable when rho - 1 > tol_rho", valid=(lambda x: x > 0, "> 0"))
     check_q = opts.real("check_q", 9 * math.pi / 50, "q of the rho(Phi_q) = rho(F_q)^(N/m) check", expr=True)
     output, mode, table_path, figures = opts.record_table_figures(
-        f"results/floquet_N{N}.npz", "Floquet file", f"results/floquet_table_N{N}.md", "floquet.png and eigen.png")
+        f"runs/floquet_N{N}.npz", "Floquet file", f"runs/floquet_table_N{N}.md", "floquet.png and eigen.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)

@@ -3,7 +3,7 @@
 the composite approximation (eq. solapprox); the rescaled norm ||u||_inf q^(2/(alpha-1)) against k_alpha.
 
     python scripts/long_wave.py [-branch results/branch_alpha1.5.npz] [-cells_per_unit 160] [-window 0.1]
-        [-output results/long_wave.md] [-figures figures]
+        [-output runs/long_wave.md] [-figures figures]
 
 Errors are relative to k_alpha: over the period, and over |xi - pi| <= window (the paper: agreement in a domain
 of width ~0.2 around pi). Figures approxz.png (zoom near pi, with the inner solution) and approx.png (the
@@ -30,7 +30,7 @@ def main():
                      maximum=10 ** 5)
     window = opts.real("window", 0.1, "half-width of the window around pi", valid=(lambda x: 0 < x < math.pi,
                                                                                   "in (0, pi)"))
-    output, figures = opts.table_and_figures("results/long_wave.md", "approxz.png and approx.png")
+    output, figures = opts.table_and_figures("runs/long_wave.md", "approxz.png and approx.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, output, figures=figures)

@@ -3,7 +3,7 @@
 the README quotes for them (hertzpetsc.studies.paper; the benchmarks are separate: they need an idle machine).
 
     python scripts/paper.py [-ranks 2] [-steps branch,paper_table,...] [-progress runs/paper.npz] [-resume | -force]
-        [-logs runs/paper_logs]
+        [-logs runs/paper_logs] [-workdir DIR]
 
 One progress line per step (its section, the time it took) and the total. Each step's output goes to
 <logs>/<step>.log. A killed pipeline continues with -resume: finished steps are skipped, an interrupted one
@@ -17,6 +17,7 @@ from hertzpetsc.start import init_petsc
 
 init_petsc(sys.argv)
 
+from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.studies.paper import PaperPipeline, paper_steps  # noqa: E402
 
@@ -30,11 +31,16 @@ def main():
     only = opts.words("steps", ",".join(names), "steps to run, in the pipeline's order", choices=names)
     progress = opts.path("progress", "runs/paper.npz", "progress file (record store)")
     logs = opts.path("logs", "runs/paper_logs", "directory of the steps' logs")
+    workdir = opts.path("workdir", "", "directory the steps run in: their results/, figures/ and runs/ are there "
+                        "(none if empty: the repository's)")
     mode = opts.mode()
     opts.done()
+    if workdir and not os.path.isdir(workdir):
+        raise ParameterError("-workdir", workdir, "must be an existing directory")
     opts.check_unused()
     pipeline = PaperPipeline(ROOT, os.path.join(ROOT, progress), os.path.join(ROOT, logs), mode, ranks,
-                             only=only if only != names else None)
+                             only=only if only != names else None,
+                             workdir=os.path.abspath(workdir) if workdir else None)
     t0 = time.perf_counter()
     n = len(pipeline.steps)
     for i, step, seconds, args in pipeline.run():

@@ -16,7 +16,11 @@ init_petsc(sys.argv)
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.diagnostics import crossing  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_output, write_text  # noqa: E402
+from hertzpetsc.errors import RecordFileError  # noqa: E402
+from hertzpetsc.records import given, prepare_output, write_text  # noqa: E402
+
+
+PAPER_ALPHA = 1.5      # the exponent of every number the paper quotes in section 3.1
 
 
 def _row(label, paper_text, get, value=None, tol=None):
@@ -62,11 +66,15 @@ def table(branch):
 def main():
     opts = AppOptions(__doc__)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
-    output = opts.path("output", "results/paper_table.md", "table")
+    output = opts.path("output", "runs/paper_table.md", "table")
     opts.done()
-    opts.check_unused()
+    branch = Branch.load(branch_path)
+    if abs(branch.alpha - PAPER_ALPHA) > 1e-12:      # the paper's numbers are of its chain: no table of another
+        raise RecordFileError(f"branch file {given(branch_path)} is of alpha = {branch.alpha:g}: the paper's table "
+                              f"(section 3.1) compares a branch of alpha = {PAPER_ALPHA:g}")
     prepare_output(output)
-    text, ok = table(Branch.load(branch_path))
+    opts.check_unused()
+    text, ok = table(branch)
     write_text(output, text)
     print0(text)
     if not ok:

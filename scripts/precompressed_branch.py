@@ -3,7 +3,7 @@
 
     mpiexec -n 2 python scripts/precompressed_branch.py [-alpha 1.5] [-delta0 1] [-masses 1]
         [-branch acoustic|optical] [-q 3*pi/10,7*pi/25,pi/2,4*pi/5] [-cells_per_pi 1000] [-a_min 1e-3] [-a_max 1e3]
-        [-ds 0.1] [-output results/precompressed.npz] [-table results/precompressed.md] [-figures figures]
+        [-ds 0.1] [-output runs/precompressed.npz] [-table runs/precompressed.md] [-figures figures]
         [-resume | -force]
 
 -masses: the repeating mass pattern (q is per bead; the family starts from the linear wave of -branch, the
@@ -53,7 +53,7 @@ def main():
     a_max = opts.real("a_max", 1e3, "last amplitude", valid=(lambda x: x > 0, "> 0"))
     ds = opts.real("ds", 0.1, "step in s = log a", valid=(lambda x: x > 0, "> 0"))
     output, mode, table_path, figures = opts.record_table_figures(
-        "results/precompressed.npz", "precompressed-wave file", "results/precompressed.md", "precompressed_omega.png")
+        "runs/precompressed.npz", "precompressed-wave file", "runs/precompressed.md", "precompressed_omega.png")
     opts.done()
     for q in qs:
         check_wavenumber(q, math.pi / K)

@@ -5,8 +5,8 @@ periodic chain of N beads and on the infinite chain.
     mpiexec -n 2 python scripts/precompression_map.py [-alpha 1.5] [-delta0 1] [-N 100] [-epsilon 1]
         [-m 10,12,14,15,16,18,20,22,24,25] [-q LIST] [-a 0.1,0.3,0.5,0.7,1,1.5,2,3,5,10,20,30,50,100,1000]
         [-a_min 0.01 -a_max 1000 -ds 0] [-cells_per_pi 1000] [-rtol 1e-11] [-tol_rho 1e-6] [-twists 0]
-        [-locate chain] [-locate_tol 1e-3] [-output results/precompression_map.npz]
-        [-table results/precompression_map.md] [-figures figures] [-compare FILE] [-resume | -force | -render]
+        [-locate chain] [-locate_tol 1e-3] [-output runs/precompression_map.npz]
+        [-table runs/precompression_map.md] [-figures figures] [-compare FILE] [-resume | -force | -render]
 
 For q = 2 pi m / N (and the wavenumbers of -q, infinite chain only) and each amplitude a (first sine coefficient
 of u; -a, and with -ds > 0 the grid a_min exp(k ds) up to a_max): the wave (Richardson combination of the h = pi/K
@@ -80,7 +80,7 @@ def main():
     locate_tol = opts.real("locate_tol", 1e-3, "relative bracket of a located boundary point",
                            valid=(lambda x: 0 < x < 0.5, "in (0, 0.5)"))
     output, mode, table_path, figures = opts.record_table_figures(
-        "results/precompression_map.npz", "stability-map file", "results/precompression_map.md",
+        "runs/precompression_map.npz", "stability-map file", "runs/precompression_map.md",
         "precompression_map.png")
     compare = opts.path("compare", "", "a map of kind hertzpetsc-precompression-map-1 to compare the verdicts with "
                         "(none if empty)")
@@ -98,9 +98,9 @@ def main():
             raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "-render takes the computation "
                                  "from the file -output: give no option that defines it (-"
                                  + ", -".join(COMPUTATION) + ")")
-        opts.check_unused()
         z = read_map(output, comm)
         prepare_outputs(comm, table_path, figures=figures)
+        opts.check_unused()
         write_figure_and_table(comm, z, table_path, figures, compare)
         return
     if mode == "resume" and map_format(output, comm) in (MAP_FORMAT_V1, MAP_FORMAT_V2):

@@ -2,7 +2,7 @@
 """E(q) along the branch before and after Gauss-Newton refinement on a periodic chain (paper section 3.4).
 
     mpiexec -n 2 python scripts/refine_branch.py -branch results/branch_alpha1.5.npz [-N 100] [-tol 1e-10]
-        [-q 3*pi/10,7*pi/25] [-method symmetric|full] [-output results/refined_N100.npz] [-table results/refinement_table_N100.md]
+        [-q 3*pi/10,7*pi/25] [-method symmetric|full] [-output runs/refined_N100.npz] [-table runs/refinement_table_N100.md]
         [-figures figures] [-resume | -force]
 
 For every branch point whose q = 2 pi m / N fits the chain (or the listed -q): E(q) of the interpolated branch
@@ -42,7 +42,7 @@ def main():
     method = opts.string("method", "symmetric", "symmetric (the wave's cell over its time symmetry) or full "
                          "(all N beads over script-T)", choices=("symmetric", "full"))
     output, mode, table_path, figures = opts.record_table_figures(
-        f"results/refined_N{N}.npz", "refinement file", f"results/refinement_table_N{N}.md", "errors.png")
+        f"runs/refined_N{N}.npz", "refinement file", f"runs/refinement_table_N{N}.md", "errors.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)

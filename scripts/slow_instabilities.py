@@ -6,7 +6,7 @@ QEP and by the deflated monodromy of the refined waves.
         [-refined results/refined_N100.npz | none] [-q_min 0.9] [-q 3*pi/10,...] [-grids 1000,2000,4000]
         [-n_theta 41] [-n_twist 3] [-refine_tol 1e-12] [-rtol 1e-14] [-theta_longwave 0.05] [-target 1e-9]
         [-validate 7*pi/25,9*pi/50,pi/50] [-reference results/floquet_N100.npz] [-convergence_q 3*pi/10,2*pi/5]
-        [-output results/slow_instabilities.npz] [-table results/slow_instabilities.md] [-figures figures]
+        [-output runs/slow_instabilities.npz] [-table runs/slow_instabilities.md] [-figures figures]
         [-resume | -force]
 
 For every branch q >= q_min (or the listed -q): the co-moving route (theta in [0, pi] on h = pi/grids[0], the
@@ -82,7 +82,7 @@ def main():
         raise ParameterError("-figure_name", figure_name, "must end in a figure format: ."
                              + ", .".join(sorted(formats)))
     output, mode, table_path, figures = opts.record_table_figures(
-        "results/slow_instabilities.npz", "slow-instability file", "results/slow_instabilities.md", figure_name)
+        "runs/slow_instabilities.npz", "slow-instability file", "runs/slow_instabilities.md", figure_name)
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)
@@ -96,7 +96,7 @@ def main():
             raise ParameterError("-convergence_q", q, f"must list chain wavenumbers 2 pi m / N, N = {N}")
     refined = None if refined_path == "none" else RefinedStates.load(refined_path, comm)
     # the validation's reference is read now: a missing one is an error before any computation, not a table of nan
-    reference_rho = (on_rank0(comm, floquet_reference, reference, what="cannot read -reference")
+    reference_rho = (on_rank0(comm, floquet_reference, reference, branch.alpha, N, what="cannot read -reference")
                      if validate and reference != "none" else None)
     scan = SlowInstabilityScan(branch, branch_path, N, comm, output, mode, qs, refined, grids, n_theta, n_twist,
                                refine_tol, IntegrationTolerances(rtol=rtol, atol=rtol / 100), target, theta_lw)

@@ -2,7 +2,7 @@
 """The branch down to q = pi/400 with the grid refined as q decreases; Richardson extrapolation in h (sec. 3.2).
 
     mpiexec -n 2 python scripts/small_q.py [-q_stop pi/400] [-per_halving 4] [-cells_per_q 20] [-levels 3]
-        [-progress runs/small_q.npz] [-resume | -force] [-output results/small_q.md] [-figures figures]
+        [-progress runs/small_q.npz] [-resume | -force] [-output runs/small_q.md] [-figures figures]
 
 Level l keeps q / h >= cells_per_q 2^l, doubling the grid each time q halves below pi/50 (the RefiningGrid policy
 of hertzpetsc.qbranch); the levels are the three resolutions of the extrapolation. After every converged
@@ -43,13 +43,13 @@ def main():
         levels=opts.integer("levels", 3, "resolutions (Richardson from the three finest)", minimum=3))
     progress = opts.path("progress", "runs/small_q.npz", "progress file (record store)")
     mode = opts.mode()
-    output, figures = opts.table_and_figures("results/small_q.md", "smallq.png")
+    output, figures = opts.table_and_figures("runs/small_q.md", "smallq.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, output, figures=figures)
     study = SmallQStudy(params, progress, comm, mode)
-    k_alpha, half_length = k_alpha_extrapolated(params.alpha)
     opts.check_unused()
+    k_alpha, half_length = k_alpha_extrapolated(params.alpha)
     study.open()
 
     def show(item):

@@ -3,7 +3,7 @@
 the energy criterion (a change of sign of dH/dc signals a change of stability; Cuevas-Maraver et al., PRE 2017).
 
     mpiexec -n 2 python scripts/solitary_stability.py [-alphas 1.5,2,2.5] [-c0 0,0.2,...,0.9] [-M 0] [-tail 1e-12]
-        [-output results/solitary_stability.npz] [-table results/solitary_stability.md] [-figures figures]
+        [-output runs/solitary_stability.npz] [-table runs/solitary_stability.md] [-figures figures]
         [-resume | -force]
 
 For each alpha the unit-speed solitary wave of eq. adr is refined on the window (Delta = 0) and continued in the
@@ -41,7 +41,7 @@ def main():
                      valid=(lambda x: 0 < x < 1e-6, "in (0, 1e-6)"))
     tol = opts.real("tol_unstable", TOL_UNSTABLE, "unstable: |mu| > 1 + tol_unstable", valid=(lambda x: x > 0, "> 0"))
     output, mode, table, figures = opts.record_table_figures(
-        "results/solitary_stability.npz", "solitary stability file", "results/solitary_stability.md",
+        "runs/solitary_stability.npz", "solitary stability file", "runs/solitary_stability.md",
         "solitary_stability.png")
     opts.done()
     comm = PETSc.COMM_WORLD

@@ -3,7 +3,7 @@
 domain length.
 
     mpiexec -n 2 python scripts/solitary_wave.py [-alphas 1.5,2,2.5] [-cells 10,20,40,80,160] [-lengths 5,6,7,8,10]
-        [-half_length 8] [-output results/solitary.md] [-figures figures]
+        [-half_length 8] [-output runs/solitary.md] [-figures figures]
 
 For each alpha: k_alpha on grids delta = 1/n (n in -cells) at L = -half_length, the observed order and the Richardson
 extrapolation (h^2); and k_alpha for L in -lengths at the finest n. Figure ondesol.png: r(s) and y(s) for the
@@ -34,7 +34,7 @@ def main():
                            valid=(lambda L: 3 <= L <= 1000, "in [3, 1000]"), distinct=True)
     half_length = opts.real("half_length", 8.0, "the domain [-L, L] of the grid study (alpha near 1 has a slow tail: "
                             "larger L)", valid=(lambda L: 3 <= L <= 1000, "in [3, 1000]"))
-    output, figures = opts.table_and_figures("results/solitary.md", "ondesol.png")
+    output, figures = opts.table_and_figures("runs/solitary.md", "ondesol.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, output, figures=figures)

@@ -3,7 +3,7 @@
 
     mpiexec -n 2 python scripts/wave.py [-alpha 1.5] [-delta0 1] [-masses 1,0.5,0.333333] [-q 2*pi/15] [-A 0.5]
         [-branch acoustic|optical] [-cells_per_pi 400] [-N 90] [-sizes 30000] [-tol 1e-10] [-tol_rho 1e-4]
-        [-output results/wave.npz] [-table results/wave.md] [-resume | -force]
+        [-output runs/wave.npz] [-table runs/wave.md] [-resume | -force]
 
 At each q (per bead: a pattern of p masses has the wavenumber p q per cell; q N / (2 pi) whole): the wave with
 amplitude A = max |u| (eq. ad for the mass pattern, A a border row; from the linear wave of -branch for delta0 > 0,
@@ -48,9 +48,9 @@ def main():
     tol = opts.real("tol", 1e-10, "the refinement's target E (at least the flow's -shoot_ts_rtol, 1e-14)",
                     valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     tol_rho = opts.real("tol_rho", 1e-4, "unstable when rho - 1 > tol_rho", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    output = opts.path("output", "results/wave.npz", "wave file (record store)")
+    output = opts.path("output", "runs/wave.npz", "wave file (record store)")
     mode = opts.mode()
-    table_path = opts.path("table", "results/wave.md", "table")
+    table_path = opts.path("table", "runs/wave.md", "table")
     opts.done()
     comm = PETSc.COMM_WORLD
     model = LatticeModel.hertz(alpha, tuple(masses), delta0)

@@ -1,11 +1,14 @@
 """Shared fixtures and helpers. The suite runs serially and again under ``mpiexec -n 2`` (tests marked ``serial``
 skip there); tests that compare 1 and 2 ranks do so within one process via COMM_SELF vs COMM_WORLD, or launch
 mpiexec themselves (serial-marked, with a timeout)."""
+import atexit
 import functools
 import math
 import os
+import shutil
 import subprocess
 import sys
+import tempfile
 
 import hertzpetsc.start  # noqa: F401  (one BLAS thread per process, as in the drivers)
 import pytest
@@ -17,7 +20,9 @@ from hertzpetsc.model import ChainSpec, LatticeModel
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCRIPTS = os.path.join(ROOT, "scripts")
-RESULTS = os.path.join(ROOT, "results")
+# the results files the tests read: frozen copies (tests/data/make_fixtures.py), never results/, which the documented
+# commands rewrite
+DATA = os.path.join(ROOT, "tests", "data")
 
 
 def pytest_collection_modifyitems(config, items):
@@ -44,13 +49,28 @@ def script_env():
     return env
 
 
+@functools.lru_cache(maxsize=None)
+def checkout():
+    """A directory laid out as a checkout for the drivers the tests run: its ``results/`` holds links to the test
+    data (tests/data), so that a driver's default input (results/branch_alpha1.5.npz, ...) is the test's copy, never
+    the repository's results, and its default outputs (runs/) land here."""
+    path = tempfile.mkdtemp(prefix="hz-checkout-")
+    atexit.register(shutil.rmtree, path, True)
+    os.mkdir(os.path.join(path, "results"))
+    for name in os.listdir(DATA):
+        if name.endswith((".npz", ".md")):
+            os.symlink(os.path.join(DATA, name), os.path.join(path, "results", name))
+    return path
+
+
 def run_script(name, *args, ranks=1, timeout=300, cwd=None):
-    """Run scripts/<name> (under ``mpiexec -n ranks`` if ranks > 1, always with a timeout)."""
+    """Run scripts/<name> (under ``mpiexec -n ranks`` if ranks > 1, always with a timeout) in ``cwd``, by default in
+    :func:`checkout`."""
     cmd = [sys.executable, os.path.join(SCRIPTS, name), *map(str, args)]
     if ranks > 1:
         cmd = ["mpiexec", "-n", str(ranks), *cmd]
     return subprocess.run(["timeout", str(timeout), *cmd], capture_output=True, text=True, env=script_env(),
-                          cwd=cwd)
+                          cwd=cwd or checkout())
 
 
 def one_error_line(result):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import RESULTS, one_error_line, run_script
+from conftest import DATA, one_error_line, run_script
 from hertzpetsc.branch import Branch
 from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
 from hertzpetsc.compacton_spectrum import WindowStability, eigenvector, jordan_check, sorted_eig, split_jordan_pair
@@ -20,7 +20,7 @@ from hertzpetsc.model import ChainSpec, LatticeModel
 from hertzpetsc.studies.compacton_dynamics import CompactonDynamics
 from hertzpetsc.studies.compacton_stability import exact_compacton
 
-BRANCH = f"{RESULTS}/branch_alpha1.5.npz"
+BRANCH = f"{DATA}/branch_alpha1.5.npz"
 M, REAR = 12, 3
 Q = math.pi / 5                      # mu_3 = 0.211 lies above 2 exp(-eta) = 0.164: SLEPc can be asked for it
 
@@ -153,7 +153,7 @@ def test_least_stable_mode_of_the_solitary_wave_at_alpha_2():
     amounts, so J's rear columns are tiny but nonzero; dgeev's vector of mu_3 (balancing) was then nearly a rear-bead
     unit vector, which leaves the window in one period (the dynamics' |rest| fell from 1e-8 to 1e-14 at k = 1).
     The eigenvector is J's, and on the chain the perturbation along it shrinks by |mu_3| per bead."""
-    d = np.load(f"{RESULTS}/compacton_stability.npz")
+    d = np.load(f"{DATA}/compacton_stability.npz")
     i = int(np.nonzero((d["alpha"] == 2.0) & (d["q"] == 0.0))[0][0])
     rec = {k: d[k][i] for k in ("alpha", "q", "gap", "residual", "iterations", "dominant", "state")}
     ex = exact_compacton(rec)

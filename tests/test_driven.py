@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import RESULTS, ROOT, one_error_line, run_script, script_env, shared_tmp
+from conftest import DATA, ROOT, one_error_line, run_script, script_env, shared_tmp
 from hertzpetsc.assembly import gathered
 from hertzpetsc.chain import IntegrationTolerances
 from hertzpetsc.continuation import ContinuationPoint, Natural, PseudoArclength
@@ -403,8 +403,8 @@ def test_travelling_wave_imposed_at_both_ends_is_a_periodic_response():
     tolerances 1e-12 and 1e-14 (undamped: det R = 1)."""
     from hertzpetsc.branch import Branch
     from hertzpetsc.studies.refinement import RefinedStates
-    branch = Branch.load(f"{RESULTS}/branch_alpha1.5.npz")
-    ref = RefinedStates.load(f"{RESULTS}/refined_N100.npz")
+    branch = Branch.load(f"{DATA}/branch_alpha1.5.npz")
+    ref = RefinedStates.load(f"{DATA}/refined_N100.npz")
     q = 2 * math.pi / 5
     orbit = ref.orbit(branch.point(q))
     profile = refined_profile(orbit, COMM, 4096)
@@ -602,6 +602,7 @@ def test_driven_studies_follow_the_study_protocol():
     old = ResponseCurve(drive, "omega", 0.75, COMM, None, run_in=5, max_steps=6, samples=16, nmult=100)
     try:
         assert new.params == old.params and new.output is None and new.comm is COMM
+        # the identity: the constants of the files of before, and the solver options that change numbers (none here)
         assert new.identity() == dict(new.constants(), solver_options="") and new.constants()["nmult"] == 6
         assert new.open().arrays()["multipliers"].shape == (0, 6) and new.records == []
         assert sorted(new.constants()) == ["N", "base_periods", "drive", "floquet", "jacobian", "mode", "nmult",
@@ -625,7 +626,8 @@ def test_a_resume_from_other_inputs_or_other_solver_tolerances_is_refused(tmp_pa
     from types import SimpleNamespace
     from hertzpetsc.errors import RecordFileError
     from hertzpetsc.records import file_digest
-    branch, refined = SimpleNamespace(alpha=1.5), SimpleNamespace(N=100, has=lambda q: True)
+    branch, refined = SimpleNamespace(alpha=1.5), SimpleNamespace(N=100, has=lambda q: True,
+                                                                      check_alpha=lambda alpha, of=None: None)
     tmp = shared_tmp(tmp_path)
     files = {name: os.path.join(tmp, f"{name}.npz") for name in ("branch", "refined", "other")}
     out = os.path.join(tmp, "w.npz")
@@ -701,8 +703,8 @@ def test_wave_ends_and_generation_parameters_are_checked():
     model of the branch's exponent, known signals, a bulk inside the chain."""
     from hertzpetsc.branch import Branch
     from hertzpetsc.studies.refinement import RefinedStates
-    branch = Branch.load(os.path.join(RESULTS, "branch_alpha1.5.npz"), COMM)
-    refined = RefinedStates.load(os.path.join(RESULTS, "refined_N100.npz"), COMM)
+    branch = Branch.load(os.path.join(DATA, "branch_alpha1.5.npz"), COMM)
+    refined = RefinedStates.load(os.path.join(DATA, "refined_N100.npz"), COMM)
     q = branch.point(2 * math.pi / 5).q
     p = WaveEndsParameters(branch, refined, [q], [4, 10], [1e-12])
     assert p.q == (q,) and p.sizes == (4, 10) and p.rtols == (1e-12,)

@@ -6,7 +6,7 @@ import os
 import numpy as np
 import pytest
 
-from conftest import RESULTS, SCRIPTS, run_script
+from conftest import DATA, SCRIPTS, run_script
 from hertzpetsc.branch import Branch
 from hertzpetsc.studies.refinement import RefinedStates
 
@@ -36,7 +36,7 @@ def test_main_command_reproduces_the_paper_table(tmp_path):
     assert r.returncode == 0 and "NO" not in r.stdout, r.stdout + r.stderr
     assert sorted(p.name for p in (tmp_path / "fig").iterdir()) == sorted(
         f"{n}.png" for n in ("profiles", "normes", "pentes", "number", "lsq", "dispersplot"))
-    two, one = Branch.load(str(tmp_path / "b.npz")), Branch.load(f"{RESULTS}/branch_alpha1.5.npz")
+    two, one = Branch.load(str(tmp_path / "b.npz")), Branch.load(f"{DATA}/branch_alpha1.5.npz")
     assert two.meta["ranks"] == 2 and np.max(np.abs(two.u - one.u)) <= 1e-10 * np.max(np.abs(one.u))
 
 
@@ -83,7 +83,7 @@ def test_section_3_1_3_3_and_appendix_drivers(work, tmp_path):
     r = run_script("solitary_wave.py", "-alphas", "1.5", "-cells", "10,20,40", "-lengths", "5,6", "-output",
                    tmp_path / "s.md", "-figures", tmp_path)
     assert r.returncode == 0 and (tmp_path / "ondesol.png").exists(), r.stderr
-    r = run_script("long_wave.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", "-cells_per_unit", 20, "-output",
+    r = run_script("long_wave.py", "-branch", f"{DATA}/branch_alpha1.5.npz", "-cells_per_unit", 20, "-output",
                    tmp_path / "lw.md", "-figures", tmp_path)
     assert r.returncode == 0 and "| 0.0628 |" in (tmp_path / "lw.md").read_text(), r.stderr
     r = run_script("compactons.py", "-branches", work / "b.npz", "-q", "0.3*pi", "-margin", 4, "-travel", 20,

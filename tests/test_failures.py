@@ -7,6 +7,7 @@ The matrix runs each driver's ``main`` in this process (through its ``guarded_ma
 exit status), which is what makes it cheap; the process tests show the same lines and statuses from real
 processes, on every rank, with no hang and with the files left intact.
 """
+import functools
 import math
 import os
 import re
@@ -20,16 +21,16 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import RESULTS, SCRIPTS, one_error_line, run_script, script_env
+from conftest import DATA, SCRIPTS, checkout, one_error_line, run_script, script_env
 from hertzpetsc.branch import Branch
 from hertzpetsc.options import guarded_main
 from hertzpetsc.simulation import read_snapshots
 
 pytestmark = pytest.mark.serial           # the matrix exits through guarded_main; the MPI cases launch mpiexec
 
-BRANCH = f"{RESULTS}/branch_alpha1.5.npz"
-REFINED = f"{RESULTS}/refined_N100.npz"
-FLOQUET = f"{RESULTS}/floquet_N100.npz"
+BRANCH = f"{DATA}/branch_alpha1.5.npz"
+REFINED = f"{DATA}/refined_N100.npz"
+FLOQUET = f"{DATA}/floquet_N100.npz"
 
 # driver: (arguments of a run that would start, its input option, its record output option, a bad list,
 #          a bad solver option); {t} is a fresh directory, {f} a plain file in it
@@ -48,7 +49,7 @@ DRIVERS = {
                         ("-floquet_ts_type", "bogus")),
     "long_run.py": (("-branch", BRANCH, "-q", "3*pi/10", "-t_final", 1, "-output", "{t}/run"), "branch", "output",
                     None, ("-chain_ts_type", "bogus")),
-    "dynamics_figures.py": (("-runs", "{t}/run", "-figures", "{t}/fig", "-table", "{t}/d.md"), "runs", None,
+    "dynamics_figures.py": (("-runs", "{run}", "-figures", "{t}/fig", "-table", "{t}/d.md"), "runs", None,
                             ("-runs", ""), None),
     "small_q.py": (("-q_stop", "pi/60", "-per_halving", 1, "-cells_per_q", 4, "-progress", "{t}/p.npz", "-output",
                     "{t}/s.md"), None, "progress", None, ("-tw_pc_type", "bogus")),
@@ -58,7 +59,8 @@ DRIVERS = {
                      ("-sol_pc_type", "bogus")),
     "compactons.py": (("-branches", BRANCH, "-q", "7*pi/25", "-travel", 5, "-output", "{t}/c.md"), "branches", None,
                       ("-q", ""), ("-chain_ts_type", "bogus")),
-    "paper.py": (("-steps", "paper_table", "-progress", "{t}/p.npz", "-logs", "{t}/logs"), None, "progress",
+    "paper.py": (("-steps", "paper_table", "-progress", "{t}/p.npz", "-logs", "{t}/logs", "-workdir", checkout()), None,
+                 "progress",
                  ("-steps", "paper_table,bogus"), None),
     "bench_branch.py": (("-cells", 100, "-output", "{t}/b.md"), None, "records", ("-cells", "100,100"), None),
     "bench_chain.py": (("-sizes", 20, "-branch", BRANCH, "-output", "{t}/b.md"), "branch", "records", ("-sizes", 30),
@@ -92,7 +94,7 @@ DRIVERS = {
                                "{t}/s.md"), None, "output", ("-c0", "0.5,0.5"), ("-cwin_ts_type", "bogus")),
     "wave.py": (("-masses", "1,0.5,0.25", "-q", "2*pi/15", "-N", 30, "-cells_per_pi", 60, "-output", "{t}/w.npz",
                  "-table", "{t}/w.md"), None, "output", ("-masses", "1,0"), ("-shoot_ts_type", "bogus")),
-    "compacton_dynamics.py": (("-stability", f"{RESULTS}/compacton_stability.npz", "-q", "7*pi/25", "-N", 40,
+    "compacton_dynamics.py": (("-stability", f"{DATA}/compacton_stability.npz", "-q", "7*pi/25", "-N", 40,
                                "-n0", 5, "-travel", 10, "-kinds", "mode", "-no_pairs", "-output", "{t}/d.npz",
                                "-table", "{t}/d.md"), "stability", "output", ("-q", "7*pi/25,7*pi/25"),
                               ("-cdyn_ts_type", "bogus")),
@@ -148,8 +150,20 @@ def drive(script, args, capfd, monkeypatch, cwd):
     return code, out.out, [line for line in out.err.splitlines() if line.strip()]
 
 
+@functools.lru_cache(maxsize=None)
+def long_run_directory():
+    """A finished long run (20 beads, one time unit), made once: the input of dynamics_figures.py's cases, which
+    reads its runs before it checks its options."""
+    path = os.path.join(checkout(), "runs", "matrix_run")
+    r = run_script("long_run.py", "-branch", BRANCH, "-q", "3*pi/10", "-N", 20, "-t_final", 1, "-output", path,
+                   "-force")
+    assert r.returncode == 0, r.stderr
+    return path
+
+
 def fill(args, t):
-    return [str(a).replace("{t}", str(t)) for a in args]
+    return [str(a).replace("{t}", str(t)).replace("{run}", long_run_directory() if "{run}" in str(a) else "")
+            for a in args]
 
 
 def swap(args, option, value):

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import RESULTS
+from conftest import DATA
 from hertzpetsc.branch import Branch
 from hertzpetsc.longwave import compare_with_branch, composite_profile
 from hertzpetsc.solitary import SolitaryParameters, solve_solitary_wave
@@ -16,7 +16,7 @@ from hertzpetsc.studies.longwave import LongWaveStudy
 def comparisons():
     """The committed paper branch (h = pi/1000; its reproduction is tested by the driver's smoke test)."""
     wave = solve_solitary_wave(SolitaryParameters(1.5, 80, 8.0), PETSc.COMM_SELF)
-    branch = Branch.load(f"{RESULTS}/branch_alpha1.5.npz")
+    branch = Branch.load(f"{DATA}/branch_alpha1.5.npz")
     pts = sorted([p for p in branch.points if p.q < 4 * math.pi / 50 + 1e-9], key=lambda p: -p.q)
     return wave, [compare_with_branch(wave, p) for p in pts]
 
@@ -46,7 +46,7 @@ def test_composite_matches_outer_solution_away_from_pi(comparisons):
 
 
 def test_study_table_lists_the_smallest_q_first():
-    study = LongWaveStudy(Branch.load(f"{RESULTS}/branch_alpha1.5.npz"), cells_per_unit=20, count=3)
+    study = LongWaveStudy(Branch.load(f"{DATA}/branch_alpha1.5.npz"), cells_per_unit=20, count=3)
     rows = [line for line in study.table().splitlines() if line.startswith("| 0.")]
     assert [line.split("|")[1].strip() for line in rows] == ["0.0628", "0.1257", "0.1885"]
     assert study.smallest.q == pytest.approx(math.pi / 50)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import RESULTS, one_error_line, run_script
+from conftest import DATA, one_error_line, run_script
 from hertzpetsc.bloch import BlochSectors, SymmetricFloquet
 from hertzpetsc.chain import IntegrationTolerances
 from hertzpetsc.errors import ParameterError
@@ -229,7 +229,7 @@ def test_maps_before_issue_23_are_rendered_not_resumed_and_the_old_import_path_w
     import hertzpetsc.studies.maps as maps
     from hertzpetsc.studies import precompression
     assert precompression.StabilityMap is maps.StabilityMap and precompression.MapParameters is maps.MapParameters
-    results = pathlib.Path(__file__).resolve().parent.parent / "results"
+    results = pathlib.Path(DATA)
     for name in ("precompression_map", "precompression_map_dimer0.7", "precompression_map_dimer0.4"):
         with np.load(results / f"{name}.npz") as z:
             assert str(z["format"]) == maps.MAP_FORMAT_V1
@@ -344,7 +344,7 @@ def test_unstable_intervals_read_the_uncompressed_limit():
 
 def maps_file(name):
     from hertzpetsc.studies.maps import read_map
-    return read_map(os.path.join(RESULTS, name))
+    return read_map(os.path.join(DATA, name))
 
 
 def test_a_deflation_that_does_not_hold_gives_no_verdict(capfd):
@@ -362,7 +362,7 @@ def test_a_deflation_that_does_not_hold_gives_no_verdict(capfd):
     assert "eigenvector residual 4.2e-01" in capfd.readouterr().err
     chain["eigvec"] = 1e-9
     assert study._row(q, maps.KIND_LIMIT, math.inf, math.inf, 0.9, probe, {})["rho"] == 1.4
-    z = maps.read_map(os.path.join(RESULTS, "stability_boundary_alpha2_N100.npz"))
+    z = maps.read_map(os.path.join(DATA, "stability_boundary_alpha2_N100.npz"))
     z = {k: np.array(v) for k, v in z.items()}
     lim = np.nonzero((z["kind"] == maps.KIND_LIMIT) & np.isclose(z["q"], q))[0]
     z["rho"][lim] = math.nan
@@ -555,7 +555,7 @@ def test_driver_refuses_changed_computations(tmp_path):
     assert r.returncode == 0, r.stderr
     r = run_script("precompression_map.py", *args, "-a", "0.3,3,10", *out, "-resume")
     assert r.returncode == 4 and "(-a" in one_error_line(r)
-    old = os.path.join(RESULTS, "precompression_map.npz")
+    old = os.path.join(DATA, "precompression_map.npz")
     r = run_script("precompression_map.py", "-render", "-compare", old, *out)
     assert r.returncode == 4 and "alpha = 1.5 there, 2 in this map" in one_error_line(r)
     r = run_script("precompression_map.py", *args, "-a", "0.3", "-compare", old, "-output", tmp_path / "c.npz",

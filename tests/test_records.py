@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import shared_tmp
+from conftest import DATA, shared_tmp
 from hertzpetsc.branch import POINT_FIELDS, Branch, BranchPoint, SolveStats, branch_store
 from hertzpetsc.diagnostics import WaveDiagnostics
 from hertzpetsc.errors import ParameterError, RecordFileError
@@ -49,8 +49,7 @@ def test_roundtrip_and_plain_numpy_access(tmp_path):
 
 
 def test_a_file_written_before_the_record_store_still_loads():
-    b = Branch.load(os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "results",
-                                 "branch_alpha1.5.npz"))
+    b = Branch.load(os.path.join(DATA, "branch_alpha1.5.npz"))
     assert len(b) == 50 and abs(b.point(math.pi / 50).diagnostics.N - 4.8442) < 1e-4
 
 
@@ -183,6 +182,24 @@ def test_unwritable_outputs_fail_on_every_rank_before_anything_is_computed(tmp_p
         write_text(os.path.join(blocker, "t.md"), "x", COMM)
     with pytest.raises(RecordFileError):
         write(os.path.join(blocker, "b.npz"), small_branch(1))
+
+
+@pytest.mark.serial
+def test_a_device_or_pipe_is_written_in_place_not_replaced(tmp_path):
+    """A table written to a path that is not a regular file (a FIFO here; /dev/null for a user who wants no table)
+    is written into it: the atomic rename of a regular file would replace the device by a file (as root, the
+    machine's /dev/null)."""
+    import stat
+    import threading
+    fifo = str(tmp_path / "pipe")
+    os.mkfifo(fifo)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(open(fifo, "rb").read()), daemon=True)
+    reader.start()
+    write_text(fifo, "| a | table |\n")
+    reader.join(timeout=10)
+    assert got == [b"| a | table |\n"] and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert sorted(os.listdir(tmp_path)) == ["pipe"]                      # no temporary file beside it
 
 
 def test_bad_mode_and_model_are_refused():

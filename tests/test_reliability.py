@@ -47,7 +47,7 @@ def test_sigterm_ends_the_pipeline_step_and_its_ranks_then_resume_finishes(tmp_p
     """SIGTERM (what timeout, kill and batch schedulers send) to the paper pipeline: status 143, one error line,
     the running step's mpiexec and ranks ended; -resume then runs the step to its end."""
     args = [sys.executable, os.path.join(SCRIPTS, "paper.py"), "-steps", "convergence_h", "-progress",
-            str(tmp_path / "p.npz"), "-logs", str(tmp_path / "logs")]
+            str(tmp_path / "p.npz"), "-logs", str(tmp_path / "logs"), "-workdir", str(tmp_path)]
     proc = subprocess.Popen(args, env=script_env(), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             cwd=ROOT)
     marker = "scripts/convergence_h.py"
@@ -93,7 +93,7 @@ def test_a_second_pipeline_on_the_same_progress_file_is_refused(tmp_path):
     """While a pipeline holds its progress file (stopped with SIGSTOP once its step runs, so that it cannot finish
     first: the step takes about a second), a second pipeline on that file is refused, naming the holder."""
     args = [sys.executable, os.path.join(SCRIPTS, "paper.py"), "-steps", "convergence_h", "-progress",
-            str(tmp_path / "p.npz"), "-logs", str(tmp_path / "logs")]
+            str(tmp_path / "p.npz"), "-logs", str(tmp_path / "logs"), "-workdir", str(tmp_path)]
     first = subprocess.Popen(args, env=script_env(), stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, cwd=ROOT)
     try:
         deadline = time.time() + 60
@@ -164,21 +164,21 @@ def test_a_resume_from_another_input_or_other_solver_options_is_refused(tmp_path
     """Record identities hold the input files' content and the number-changing solver options: a refinement
     resumed with another branch file, or with another -shoot_ts_rtol, is refused, naming the difference (one line,
     status 4), instead of mixing two computations in one file."""
-    from conftest import RESULTS, run_script
+    from conftest import DATA, run_script
     import shutil
     other = tmp_path / "other.npz"
-    shutil.copy(f"{RESULTS}/branch_alpha1.5.npz", other)
+    shutil.copy(f"{DATA}/branch_alpha1.5.npz", other)
     with open(other, "ab") as f:                     # another file (same content would be the same input)
         f.write(b"\0")
     args = ["-N", 20, "-q", "2*pi/5", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md"]
-    r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, timeout=120)
+    r = run_script("refine_branch.py", "-branch", f"{DATA}/branch_alpha1.5.npz", *args, timeout=120)
     assert r.returncode == 0, r.stderr
     r = run_script("refine_branch.py", "-branch", other, *args, "-resume", timeout=120)
     assert r.returncode == 4 and "branch_sha256" in one_error_line(r)
-    r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, "-resume",
+    r = run_script("refine_branch.py", "-branch", f"{DATA}/branch_alpha1.5.npz", *args, "-resume",
                    "-shoot_ts_rtol", "1e-13", timeout=120)
     assert r.returncode == 4 and "solver_options" in one_error_line(r)
-    r = run_script("refine_branch.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *args, "-resume",
+    r = run_script("refine_branch.py", "-branch", f"{DATA}/branch_alpha1.5.npz", *args, "-resume",
                    "-shoot_ts_monitor", timeout=120)          # a monitor changes no number: accepted
     assert r.returncode == 0, r.stderr
 
@@ -188,8 +188,8 @@ def test_a_documented_option_of_a_solver_the_run_does_not_create_is_accepted_and
     """-floquet_eps_nev is an option of floquet_scan's role floquet_ (its -help lists it), read only when the run
     creates the EPS (-method slepc): with -method symmetric it is accepted with one note (status 0), not refused as
     unknown; a typo beside it is still refused."""
-    from conftest import RESULTS, run_script
-    args = ["-q", "7*pi/25", "-refined", f"{RESULTS}/refined_N100.npz", "-output", tmp_path / "f.npz",
+    from conftest import DATA, run_script
+    args = ["-q", "7*pi/25", "-refined", f"{DATA}/refined_N100.npz", "-output", tmp_path / "f.npz",
             "-table", tmp_path / "f.md", "-method", "symmetric", "-floquet_eps_nev", "5"]
     r = run_script("floquet_scan.py", *args, timeout=120)
     notes = [line for line in r.stderr.splitlines() if line.strip()]

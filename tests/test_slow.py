@@ -8,7 +8,7 @@ import pytest
 import scipy.sparse as sp
 from petsc4py import PETSc
 
-from conftest import RESULTS, chain, one_error_line, run_script, small_branch
+from conftest import DATA, chain, one_error_line, run_script, small_branch
 from hertzpetsc.bloch import SymmetricFloquet
 from hertzpetsc.comoving import ComovingWave
 from hertzpetsc.comoving_pep import ComovingPEP
@@ -136,7 +136,7 @@ def test_bad_parameters_name_themselves(pep):
 def test_driver_runs_resumes_and_refuses_bad_input(tmp_path):
     """The driver on the committed branch on 30 beads at one chain q (2 pi/5, m = 6) and one co-moving-only q
     (3 pi/10), on 2 ranks and on 1: the same records; -resume adds a q; bad input is one error line."""
-    args = ["-branch", f"{RESULTS}/branch_alpha1.5.npz", "-N", 30, "-grids", "250,500,1000", "-n_theta", 5,
+    args = ["-branch", f"{DATA}/branch_alpha1.5.npz", "-N", 30, "-grids", "250,500,1000", "-n_theta", 5,
             "-n_twist", 2, "-refine_tol", "1e-11", "-reference", "none", "-convergence_q", "2*pi/5"]
     r = run_script("slow_instabilities.py", *args, "-q", "2*pi/5,3*pi/10", "-output", tmp_path / "two.npz",
                    "-table", tmp_path / "two.md", "-figures", tmp_path, ranks=2)
@@ -168,6 +168,6 @@ def test_driver_runs_resumes_and_refuses_bad_input(tmp_path):
     for bad, name in ((("-grids", "250,500"), "-grids"), (("-n_theta", 1), "-n_theta"), (("-rtol", 1e-3), "-rtol"),
                       (("-q_min", 4), "-q_min"), (("-convergence_q", "3*pi/10", "-N", 30), "-convergence_q"),
                       (("-figure_name", "x.txt"), "-figure_name")):
-        r = run_script("slow_instabilities.py", "-branch", f"{RESULTS}/branch_alpha1.5.npz", *bad, "-output",
+        r = run_script("slow_instabilities.py", "-branch", f"{DATA}/branch_alpha1.5.npz", *bad, "-output",
                        tmp_path / "bad.npz", "-table", tmp_path / "bad.md")
         assert name in one_error_line(r)

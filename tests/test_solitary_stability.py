@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import RESULTS, one_error_line, run_script
+from conftest import DATA, one_error_line, run_script
 from hertzpetsc.compacton_spectrum import jordan_check, split_jordan_pair
 from hertzpetsc.compacton_window import CompactonWindow, embed
 from hertzpetsc.continuation import Continuation, Natural
@@ -86,7 +86,7 @@ def test_uncompressed_wave_is_eq_adr_and_the_scaling_family(uncompressed):
     # the q -> 0 end of the compacton table: the compacton study's solitary row (M = 18): the window's length does
     # not change the multipliers (the tails are doubly exponential)
     _, _, rest = split_jordan_pair(weighted_multipliers(J, math.inf))
-    with np.load(f"{RESULTS}/compacton_stability.npz") as z:
+    with np.load(f"{DATA}/compacton_stability.npz") as z:
         row = np.nonzero((z["alpha"] == alpha) & (z["q"] == 0))[0][0]
         assert np.max(np.abs(rest[:3] - z["dominant"][row][:3])) < 1e-10            # measured 8e-15
     assert np.max(np.abs(rest)) < 1

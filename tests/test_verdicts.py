@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from conftest import RESULTS, one_error_line, run_script
+from conftest import DATA, one_error_line, run_script
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.richardson import observed_order, richardson
 from hertzpetsc.studies.floquet import q_label
@@ -63,7 +63,7 @@ def test_q_is_labelled_a_fraction_of_pi_only_when_it_is_one():
 
 @pytest.mark.serial
 def test_a_missing_reference_file_is_an_error_before_any_computation(tmp_path):
-    r = run_script("floquet_long.py", "-refined", os.path.join(RESULTS, "refined_N100.npz"), "-reference",
+    r = run_script("floquet_long.py", "-refined", os.path.join(DATA, "refined_N100.npz"), "-reference",
                    str(tmp_path / "missing.npz"), "-sizes", "200", "-q", "7*pi/25", "-output", str(tmp_path / "l.md"),
                    "-npz", str(tmp_path / "l.npz"), timeout=60)
     line = one_error_line(r)

@@ -19,18 +19,33 @@ studies whose points are continued per alpha, a round of steps at a time.
 """
 from __future__ import annotations
 
+import itertools
 import os
+import weakref
 from dataclasses import fields, is_dataclass
 from typing import TYPE_CHECKING, Any, Callable, Iterator, Optional
 
 from petsc4py import PETSc
 
 from ..errors import HertzPetscError, ParameterError
-from ..records import MODES, MemoryRecords, NpzRecords, file_digest, write_text
+from ..records import MODES, MemoryRecords, NpzRecords, checking, file_digest, given, write_text
 from .dealing import dealt
 
 if TYPE_CHECKING:
     import numpy as np
+
+_BUILT = weakref.WeakSet()      # the studies built in this process that write a record file (check_stores)
+_ORDER = itertools.count()      # ... in the order they were built
+
+
+def check_stores() -> None:
+    """Open the record file of every study built so far and not yet opened, as a run would, but only to check it
+    (:func:`hertzpetsc.records.checking`): an existing file without resume or force, a missing one to resume, one
+    of another kind or computation is refused here (a driver's ``-check``); nothing is written. Collective."""
+    with checking():
+        for study in sorted(_BUILT, key=lambda s: s._built):
+            if study.store is None and study.output is not None:
+                study._open()
 
 
 class Study:
@@ -57,6 +72,9 @@ class Study:
         self.params = params
         self.comm = comm if comm is not None else PETSc.COMM_WORLD
         self.output, self.mode = output, mode
+        if output is not None:
+            self._built = next(_ORDER)
+            _BUILT.add(self)
 
     # --- what identifies the records -------------------------------------------------------------------------
     def constants(self) -> dict:
@@ -90,7 +108,16 @@ class Study:
             return MemoryRecords(self.FORMAT, self.constants(), self.FIELDS, self.comm, self.DTYPES, self.SHAPES)
         identity = self.identity()
         return NpzRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity, self.FIELDS,
-                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT, self.ADDED, self.NAMES)
+                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT, self.ADDED, self.names())
+
+    def names(self) -> dict:
+        """How the user sets each identity key whose name is not a parameter's (:func:`check_identity`): ``NAMES``,
+        the input files (by the option each was given as) and the solver options of the roles."""
+        out = {f"{name}_sha256": f"the content of the input file {given(path)}" for name, path in self.inputs().items()
+               if path}
+        if self.ROLES:
+            out["solver_options"] = "the options " + ", ".join(f"-{p}*" for p in self.ROLES)
+        return dict(out, **self.NAMES)
 
     def _todo(self, qs):
         """The wavenumbers of ``qs`` that the store holds no record of yet (to 12 decimals)."""

@@ -14,7 +14,7 @@ from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid,
                             paper_targets)
 from ..errors import ParameterError, RecordFileError, check_integer
 from ..model import LatticeModel
-from ..records import load_npz, npz_arrays, on_rank0, write_npz
+from ..records import is_checking, load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
 from ..richardson import richardson
 from ..twsolver import TW_PREFIX
@@ -185,6 +185,8 @@ def _legacy_smallq_progress(path, params):
     if stored != params.identity():
         raise RecordFileError(f"{path!r} holds another computation: it was made with {stored} (rerun with those "
                               "options, or with -force to start afresh)")
+    if is_checking():
+        return True
     records, state = [], {}
     for lev in range(params.levels):
         key = f"L{lev}_"
@@ -198,6 +200,7 @@ def _legacy_smallq_progress(path, params):
                     state[f"{key}seed{j}_{part}"] = data[key + f"seed{j}_{part}"]
     write_npz(path, npz_arrays(SMALLQ_FORMAT, params.identity(), ("level", "q", "K") + SMALLQ_FIELDS, records, state,
                                {"level": np.int64, "K": np.int64}))
+    return True
 
 
 class SmallQStudy(Study):
@@ -252,8 +255,10 @@ class SmallQStudy(Study):
     def _open(self):
         """The progress file (one of the first format converted when resumed), or memory."""
         if self.progress is not None and self.mode == "resume":
-            on_rank0(self.comm, _legacy_smallq_progress, self.progress, self.params,
-                     what=f"cannot read progress file {self.progress!r}")
+            legacy = on_rank0(self.comm, _legacy_smallq_progress, self.progress, self.params,
+                              what=f"cannot read progress file {self.progress!r}")
+            if legacy and is_checking():        # -check: its identity is checked; it is converted when run
+                return None
         return super()._open()
 
     def rows(self, level: int) -> list[dict]:

@@ -48,7 +48,8 @@ class CompactonDynamics(Study):
     or Gaussian noise ('noise') on the window (relative to D for positions and v_peak for velocities); after each
     unit of time (one bead of travel) the window W_k at beads n0 + k.. is compared with Y*:
     delta = a v1 + b v2 + rest (Jordan vectors). Linear prediction: b constant, a_k = a_0 + k b, and
-    |rest| ~ |mu_3|^k down to the flow's floor. Records keyed by (q, kind)."""
+    |rest| ~ |mu_3|^k down to the flow's floor. Records keyed by (q, kind); ``source``: the stability file the
+    records were read from (its content is part of the identity)."""
 
     FORMAT, FIELDS = DYNAMICS_FORMAT, DYN_FIELDS + ("rest", "a", "b", "dist", "deviation")
     DTYPES = {"kind": str, "steps": np.int64, "mu3": complex}
@@ -58,7 +59,7 @@ class CompactonDynamics(Study):
     def __init__(self, records: Sequence[Mapping], model: LatticeModel, comm: Optional[PETSc.Comm] = None,
                  output: Optional[str] = None, mode: str = "new", N: int = 2100, n0: int = 50, travel: int = 1000,
                  amplitude: float = 1e-8, kinds: Sequence[str] = ("mode", "noise"), seed: int = 12345,
-                 tolerances: IntegrationTolerances = DYNAMICS_TOLERANCES) -> None:
+                 tolerances: IntegrationTolerances = DYNAMICS_TOLERANCES, source: str = "") -> None:
         if not records:
             raise ParameterError("-q", "", "no compacton to run")
         self.cases = [exact_compacton(r) for r in records]
@@ -71,6 +72,7 @@ class CompactonDynamics(Study):
             if kind not in ("mode", "noise"):
                 raise ParameterError("-kinds", kind, "each must be mode or noise")
         super().__init__(None, comm, output, mode)
+        self.source = source
         self.model, self.N, self.n0, self.travel = model, int(N), int(n0), int(travel)
         self.amplitude, self.kinds, self.seed, self.tolerances = float(amplitude), list(kinds), seed, tolerances
         self.window = CompactonWindow(model, M, PETSc.COMM_SELF)
@@ -81,6 +83,9 @@ class CompactonDynamics(Study):
     def constants(self) -> dict:
         return dict(alpha=self.alpha, N=self.N, n0=self.n0, travel=self.travel, amplitude=self.amplitude,
                     rtol=self.tolerances.rtol, M=self.cases[0].M)
+
+    def inputs(self) -> dict:
+        return dict(stability=self.source)
 
     def perturbation(self, kind: str, scale: np.ndarray, V: np.ndarray) -> np.ndarray:
         M = len(scale) // 2

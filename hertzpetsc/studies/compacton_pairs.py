@@ -60,6 +60,9 @@ class CompactonPairs(Study):
         return dict(alpha=self.branch.alpha, q=self.q, h=self.branch.h, spacing=self.spacing, travel=self.travel,
                     M=self.M, N=self.N, gap=self.gap)
 
+    def inputs(self) -> dict:
+        return dict(branch=getattr(self.branch, "path", "") or "")
+
     def initial(self, rear: Optional[str], front: str) -> np.ndarray:
         """(N, 2) gap-lattice chain: the front window at bead margin + spacing, the rear one spacing beads behind."""
         nf = self.margin + self.spacing

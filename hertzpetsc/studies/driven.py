@@ -5,11 +5,11 @@ exact boundary driving by a travelling wave, and the generation of travelling wa
 Each study follows the protocol of :mod:`hertzpetsc.studies.base`: ``Study(params, comm=None, output=None,
 mode="new")`` with its frozen, validated parameters (:class:`ResponseParameters`, :class:`ResonanceParameters`,
 :class:`WaveEndsParameters`, :class:`GenerationParameters`), its record kind, fields and solver roles (``drive_``,
-``floquet_``), and an in-memory store without ``output``. Their identities are the protocol's: the constants but
-the file names, the content hashes of the input files (``branch_sha256``, ``refined_sha256``: a resume from another
-``-branch`` or ``-refined`` file is refused naming it) and the options given under ``-drive_`` and ``-floquet_`` that
-change numbers; the keys a file written before lacks are not compared, so those files still resume. The call of
-before (loose arguments) is still accepted (:meth:`DrivenStudy.legacy`).
+``floquet_``), and an in-memory store without ``output``. Their identities are the protocol's: the constants of the
+record kinds as before it, the options of ``drive_`` and ``floquet_`` that change numbers and the content hashes of
+the input files (a resume from another input file or with other solver tolerances is refused, naming the option);
+files written before the last two keys were added lack them and still resume. The call of before (loose
+arguments) is still accepted (:meth:`DrivenStudy.legacy`).
 
 Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues):
 
@@ -864,6 +864,7 @@ class WaveEndsParameters:
 
     def __post_init__(self):
         P = self.refined.N
+        self.refined.check_alpha(self.branch.alpha)
         sizes = _several("sizes", self.sizes, "chain size",
                          check=lambda N: check_integer("sizes", N, 1, "the beads of a driven chain"))
         for N in sizes:
@@ -1084,6 +1085,9 @@ class Generation(DrivenStudy):
         p = self.params
         return dict(model=json.dumps(p.model.describe(), sort_keys=True), N=p.N, branch=p.branch_path,
                     bulk=list(p.bulk), run_in=p.run_in, width=p.width, tol=p.tol, rtol=p.rtol, samples=p.samples)
+
+    def inputs(self) -> dict:
+        return dict(branch=self.params.branch_path)
 
     def inputs(self) -> dict:
         return dict(branch=self.params.branch_path)

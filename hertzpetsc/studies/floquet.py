@@ -27,7 +27,7 @@ from ..bloch import SymmetricFloquet, bloch_residuals, real_pairs, seeded_domina
 from ..errors import ParameterError, RecordFileError
 from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
-from ..records import check_kind, load_npz
+from ..records import check_kind, given, load_npz
 from ..waves import orbit_on_chain
 from .base import Study
 from .dealing import dealt
@@ -82,7 +82,8 @@ def _select_wavenumbers(branch, N, qs, refined):
     if refined is None:
         return fitting, "unrefined branch waves (interpolated onto the chain)"
     if refined.N != N:
-        raise RecordFileError(f"refinement file {refined.path!r} is for N = {refined.N} beads, not {N}")
+        raise RecordFileError(f"refinement file {given(refined.path)} is for N = {refined.N} beads, not {N}")
+    refined.check_alpha(branch.alpha)
     missing = [q for q in fitting if not refined.has(q)]
     if qs:
         if missing:
@@ -236,12 +237,17 @@ class FloquetScan(Study):
                 if abs(float(r["q"]) - q) < 1e-9]
 
 
-def floquet_reference(path):
+def floquet_reference(path, alpha=None, N=None):
     """{round(q, 12): rho} from a Floquet file (either format); a missing or unreadable file is an error naming it
-    (a reference that is not there must not become a table of nan)."""
+    (a reference that is not there must not become a table of nan), and so is one of another Hertz exponent
+    ``alpha`` or chain length ``N`` than the table quotes it for (where the file says)."""
     data = load_npz(path, "Floquet reference file")
     if "format" in data:
         check_kind(data, path, FLOQUET_FORMAT, "Floquet file")
+    for name, want in (("alpha", alpha), ("N", N)):
+        if want is not None and name in data and abs(float(data[name]) - want) > 1e-12 * max(1.0, abs(want)):
+            raise RecordFileError(f"Floquet file {given(path)} is for {name} = {float(data[name]):g}, not {want:g} "
+                                  "(the reference must be of the same chain)")
     return {round(float(a), 12): float(b) for a, b in zip(data["q"], data["rho"])}
 
 

@@ -1,22 +1,33 @@
 """The long-wave limit (section 3.2): the branch at its smallest q against the inner solution (the solitary wave,
 eq. inner) and the composite approximation (eq. solapprox)."""
+import functools
+
 from petsc4py import PETSc
 
 from ..longwave import compare_with_branch
-from ..solitary import SolitaryParameters, solve_solitary_wave
+from ..solitary import SolitaryParameters, configure_options, solve_solitary_wave
 
 Q_REPORT = 10     # the branch points with the 10 smallest q
 
 
 class LongWaveStudy:
-    """Errors of eq. solapprox and of the inner solution, relative to k_alpha, at the ``count`` smallest q."""
+    """Errors of eq. solapprox and of the inner solution, relative to k_alpha, at the ``count`` smallest q (computed
+    when first asked for: building the study checks its arguments and the options of ``sol_``)."""
 
     def __init__(self, branch, cells_per_unit=160, window=0.1, count=Q_REPORT):
         self.branch, self.n, self.window = branch, cells_per_unit, window
-        self.wave = solve_solitary_wave(SolitaryParameters(branch.alpha, cells_per_unit), PETSc.COMM_SELF)
-        order = sorted(branch.points, key=lambda p: p.q)[:count]
-        self.rows = [compare_with_branch(self.wave, p, window) for p in order]
-        self.smallest = order[0]
+        self.params = SolitaryParameters(branch.alpha, cells_per_unit)
+        self.order = sorted(branch.points, key=lambda p: p.q)[:count]
+        self.smallest = self.order[0]
+        configure_options(PETSc.COMM_SELF)
+
+    @functools.cached_property
+    def wave(self):
+        return solve_solitary_wave(self.params, PETSc.COMM_SELF)
+
+    @functools.cached_property
+    def rows(self):
+        return [compare_with_branch(self.wave, p, self.window) for p in self.order]
 
     def table(self):
         b, w = self.branch, self.wave

@@ -53,7 +53,7 @@ from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_fa
 from ..floquet import FLOQUET_PREFIX
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..qbranch import regrid_half_profile
-from ..records import RecordFileError, check_kind, load_npz, on_rank0
+from ..records import RecordFileError, check_kind, given, load_npz, on_rank0
 from ..resources import check_memory
 from ..richardson import extrapolate
 from ..slow import CERT_MARGIN, DeflatedSectors, crossing_search, twist_scan
@@ -721,6 +721,16 @@ class QBoundary(Study):
         return q_boundary_table(self.arrays())
 
 
+def _brackets(stable, unstable, mine, name):
+    """What the located edges' rows show of their brackets: the largest relative width |unstable - stable| / min of
+    the rows ``mine`` (a table claims the resolution its rows have, not the one asked for)."""
+    s, u = np.asarray(stable, float)[mine], np.asarray(unstable, float)[mine]
+    if not len(s):
+        return "no edge located"
+    width = float(np.max(np.abs(u - s) / np.minimum(s, u)))
+    return f"the {len(s)} located edges within brackets of at most {width:.1e} (relative, in {name})"
+
+
 def q_boundary_table(z):
     """The Markdown table of a boundary-in-q file's arrays: the located edges per amplitude, then the grid's
     verdicts (each stable one certified between its twist samples, or unresolved; a file of kind -1 holds the
@@ -732,10 +742,6 @@ def q_boundary_table(z):
     cert = np.asarray(z["cert_inf"]) if certified else np.full(len(A), CERT_NONE)
     edges = np.nonzero(kind == KIND_EDGE_INF)[0]
     qs_, qu_ = np.asarray(z["q_stable"], float), np.asarray(z["q_unstable"], float)
-    widths = np.abs(qu_[edges] - qs_[edges]) / np.minimum(qs_[edges], qu_[edges])
-    shown = (f"edges located by bisection in q through the simplest q / 2 pi of the middle third (cells of at most "
-             f"{int(z['max_cell'])} beads) to a bracket of {float(z['locate_tol']) / 2:g} (relative) where such a "
-             f"cell exists: the widest bracket below is {float(np.max(widths)):.1e}" if len(edges) else "no edge")
     lines = [f"schema: {z.get('format', QMAP_FORMAT)}; alpha = {float(z['alpha']):g}, delta0 = "
              f"{float(z['delta0']):g}; the infinite chain (cell twists, bead-level Bloch step <= pi/{int(z['twists'])}, "
              f"maxima refined; symmetry multipliers deflated"
@@ -745,7 +751,9 @@ def q_boundary_table(z):
                 if certified else "; verdicts at the twist samples only, before the twist certification")
              + f"); waves at A = ||u||_inf (border row), Richardson of h = pi/{int(z['cells_per_pi'])} and "
              f"pi/{2 * int(z['cells_per_pi'])}; flow rtol {float(z['rtol']):g}; unstable when rho - 1 > {tol:g}; "
-             f"{shown}.\n",
+             f"edges located by bisection in q through the simplest q / 2 pi of the middle third (cells of at most "
+             f"{int(z['max_cell'])} beads), asked to a bracket of {float(z['locate_tol']) / 2:g} (relative); "
+             + _brackets(z["q_stable"], z["q_unstable"], kind == KIND_EDGE_INF, "q") + ".\n",
              "### Located edges\n",
              "Each row: at amplitude A, the wavenumber where the verdict changes, between q (stable side) and q "
              "(unstable side), with rho - 1 on both sides (the multipliers' distance to the unit circle), the cell "
@@ -920,6 +928,18 @@ def check_comparable(z, old, path):
                                   f"{show(mine)} in this map (compare maps of the same {', '.join(COMPARED)})")
 
 
+def check_same_chain(zmap, alpha, delta0, path):
+    """RecordFileError unless the stability map ``zmap`` (file ``path``, drawn beside a boundary in q) is of the
+    monatomic chain of ``alpha`` and ``delta0``: a figure never draws the edges of another chain as this one's."""
+    theirs = dict(alpha=float(zmap["alpha"]), delta0=float(zmap["delta0"]),
+                  masses=[float(m) for m in np.atleast_1d(zmap["masses"])])
+    mine = dict(alpha=float(alpha), delta0=float(delta0), masses=[1.0] * len(theirs["masses"]))
+    for key in ("alpha", "delta0", "masses"):
+        if not np.allclose(theirs[key], mine[key], rtol=1e-12, atol=0):
+            raise RecordFileError(f"stability-map file {given(path)} is a map of another chain: {key} = "
+                                  f"{theirs[key]} there, {mine[key]} in this boundary")
+
+
 def compare_v1(z, old, tol=None, path="the other map"):
     """A Markdown section: the verdicts of this map (arrays ``z``) against a ``-1`` map (``old``, file ``path``) at
     the (q, a) both computed, at the old threshold (``tol``: the old file's tol_rho); rho's agreement where rho - 1 >
@@ -1037,7 +1057,10 @@ def map_table(z):
                  f"modulations up to the beads of the column 'longest modulation' (the shortest coverage of the q's "
                  f"stable verdicts)" if certified else "verdicts at the twist samples only (a file of kind "
                  f"{MAP_FORMAT_V2}, before the twist certification)")) if twists else "not computed")
-             + f"; boundary located by bisection in log a to a bracket of {float(z['locate_tol']):g} (relative).\n",
+             + f"; boundary located by bisection in log a, asked to a bracket of {float(z['locate_tol']):g} "
+             f"(relative, in a); "
+             + _brackets(z["A_stable"], z["A_unstable"], (kinds == KIND_EDGE) | (kinds == KIND_EDGE_INF), "A")
+             + ".\n",
              "### Located boundary\n",
              "Each row: an amplitude where the verdict changes, between A (stable side) and A (unstable side); "
              "rho - 1 of the chain (N beads or the infinite chain) at both ends: the multipliers' distance to the unit "

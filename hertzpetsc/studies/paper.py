@@ -42,6 +42,10 @@ class Step:
     parallel: bool = True
     record: str = ""
 
+    def arguments(self, resume=False):
+        """The driver's arguments: a step with a record file continues it (``resume``) or starts it afresh."""
+        return list(self.args) + (["-resume" if resume else "-force"] if self.record else [])
+
 
 def paper_steps(figures="figures", runs="runs"):
     """The studies of the paper, in the order in which their inputs become available."""
@@ -69,9 +73,15 @@ def paper_steps(figures="figures", runs="runs"):
         Step("compactons", "3.3", "compactons.py", ("-branches", f"results/branch_alpha1.5.npz,{runs}/branch_K4000.npz",
                                                     "-q", "7*pi/25,pi/10,pi/50", "-output", "results/compactons.md",
                                                     "-figures", figures)),
-        Step("refine_branch", "3.4", "refine_branch.py", ("-figures", figures), record="results/refined_N100.npz"),
-        Step("floquet_scan", "3.5", "floquet_scan.py", ("-figures", figures), record="results/floquet_N100.npz"),
-        Step("floquet_long", "3.5", "floquet_long.py", ("-sizes", "1000,10000"), record="results/floquet_long.npz"),
+        Step("refine_branch", "3.4", "refine_branch.py", ("-output", "results/refined_N100.npz", "-table",
+                                                          "results/refinement_table_N100.md", "-figures", figures),
+             record="results/refined_N100.npz"),
+        Step("floquet_scan", "3.5", "floquet_scan.py", ("-output", "results/floquet_N100.npz", "-table",
+                                                        "results/floquet_table_N100.md", "-figures", figures),
+             record="results/floquet_N100.npz"),
+        Step("floquet_long", "3.5", "floquet_long.py", ("-sizes", "1000,10000", "-output", "results/floquet_long.md",
+                                                        "-npz", "results/floquet_long.npz"),
+             record="results/floquet_long.npz"),
     ]
     for name, q, t_final, extra in long_runs:
         steps.append(Step(f"long_run_{name}", "3.4", "long_run.py",
@@ -81,6 +91,7 @@ def paper_steps(figures="figures", runs="runs"):
                       ("-runs", ",".join(f"{runs}/{name}:{windows[name]}" for name, *_ in long_runs), "-figures",
                        figures, "-table", "results/long_runs.md"), parallel=False))
     steps += beyond_the_paper_steps(figures, runs)
+    steps += driven_steps(figures)
     return steps
 
 
@@ -91,7 +102,8 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
     """The studies of the paper's open questions and of the chains beyond it (issues 14-16)."""
     steps = [
         Step("slow_instabilities", "3.5", "slow_instabilities.py",
-             ("-refined", "results/refined_N100.npz", "-figures", figures), record="results/slow_instabilities.npz"),
+             ("-refined", "results/refined_N100.npz", "-output", "results/slow_instabilities.npz", "-table",
+              "results/slow_instabilities.md", "-figures", figures), record="results/slow_instabilities.npz"),
         Step("branch_M200", "3.5", "continuation.py", ("-M", "200", "-q_stop", "27*pi/100", "-output",
                                                         f"{runs}/branch_alpha1.5_M200.npz"),
              record=f"{runs}/branch_alpha1.5_M200.npz"),
@@ -117,13 +129,19 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
              record=f"{runs}/branch_alpha2.5.npz"),
         Step("compacton_stability", "3.3", "compacton_stability.py",
              ("-branches", f"results/branch_alpha1.5.npz,{runs}/branch_alpha2.npz,{runs}/branch_alpha2.5.npz",
-              "-figures", figures), record="results/compacton_stability.npz"),
-        Step("solitary_stability", "3.3", "solitary_stability.py", ("-figures", figures),
-             record="results/solitary_stability.npz"),
+              "-output", "results/compacton_stability.npz", "-table", "results/compacton_stability.md", "-figures",
+              figures), record="results/compacton_stability.npz"),
+        Step("solitary_stability", "3.3", "solitary_stability.py",
+             ("-output", "results/solitary_stability.npz", "-table", "results/solitary_stability.md", "-figures",
+              figures), record="results/solitary_stability.npz"),
         Step("compacton_dynamics", "3.3", "compacton_dynamics.py",
-             ("-q", "7*pi/25,pi/50", "-pairs_branch", f"{runs}/branch_K4000.npz", "-figures", figures),
+             ("-stability", "results/compacton_stability.npz", "-q", "7*pi/25,pi/50", "-output",
+              "results/compacton_dynamics.npz", "-table", "results/compacton_dynamics.md", "-pairs_branch",
+              f"{runs}/branch_K4000.npz", "-pairs_output", "results/compacton_pairs.npz", "-pairs_table",
+              "results/compacton_pairs.md", "-figures", figures),
              parallel=False, record="results/compacton_dynamics.npz"),
-        Step("precompressed", "issue 16", "precompressed_branch.py", ("-figures", figures),
+        Step("precompressed", "issue 16", "precompressed_branch.py",
+             ("-output", "results/precompressed.npz", "-table", "results/precompressed.md", "-figures", figures),
              record="results/precompressed.npz"),
         Step("dimer_a0.1", "issue 16", "dimer_branch.py", ("-a", "0.1", "-cells_per_pi", "400", "-output",
                                                            "results/dimer_a0.1.npz", "-table", "results/dimer_a0.1.md",
@@ -131,6 +149,18 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
         Step("dimer_a0.5", "issue 16", "dimer_branch.py", ("-a", "0.5", "-cells_per_pi", "400", "-output",
                                                            "results/dimer_a0.5.npz", "-table", "results/dimer_a0.5.md"),
              record="results/dimer_a0.5.npz"),
+        *(Step(f"precompressed_dimer{eps}", "issue 16", "precompressed_branch.py",
+               ("-masses", f"1,{eps}", "-q", "pi/5,7*pi/25,3*pi/10,2*pi/5", "-a_min", "0.1", "-a_max", "1000", "-ds",
+                "0.05756462732485115", "-output", f"results/precompressed_dimer{eps}.npz", "-table",
+                f"results/precompressed_dimer{eps}.md"), parallel=False, record=f"results/precompressed_dimer{eps}.npz")
+          for eps in ("0.9", "0.7", "0.5", "0.4")),
+        Step("solitary_stability_M96", "3.3", "solitary_stability.py",
+             ("-c0", "0.8,0.85,0.9", "-M", "96", "-output", "results/solitary_stability_M96.npz", "-table",
+              "results/solitary_stability_M96.md"), record="results/solitary_stability_M96.npz"),
+        Step("wave", "issue 16", "wave.py",
+             ("-alpha", "1.5", "-delta0", "1", "-masses", "1,0.5,0.333333333333", "-q", "2*pi/15,4*pi/15", "-A", "0.5",
+              "-N", "60", "-sizes", "30000", "-output", "results/wave.npz", "-table", "results/wave.md"),
+             record="results/wave.npz"),
         # issue 23: the boundary located on N = 100 and on the infinite chain, compared with the map of kind -1
         # (results/precompression_map.npz, kept as it was: -render re-renders it); the dimers' maps likewise
         Step("precompression_map", "issue 23", "precompression_map.py",
@@ -153,11 +183,69 @@ def beyond_the_paper_steps(figures="figures", runs="runs"):
     return steps
 
 
-class PaperPipeline:
-    """Run :func:`paper_steps` (or ``only`` of them) from the repository ``root`` with ``ranks`` ranks, keeping
-    the progress in ``progress`` (mode new, resume or force) and each step's output in ``logs``."""
+# the driven chains' responses (docs/driven.md): (name, ranks > 1, arguments of driven_response.py); each writes
+# results/<name>.npz and .md; a figure where one is committed
+DRIVEN_RESPONSES = (
+    ("driven_response_N20_precompressed", False, True,
+     "-N 20 -delta0 1 -gamma 0.02 -amplitude 0.2 -omega 0.3 -p_end 2.6 -max_corrector 3 -max_steps 500 -switch 20"),
+    ("driven_response_N1000_precompressed", True, True,
+     "-N 1000 -delta0 1 -gamma 0.05 -amplitude 0.2 -omega 0.3 -p_end 2.6 -mode grid -points 116 "
+     "-grid_max_corrector 100 -jacobian mf -floquet none -run_in 30"),
+    ("driven_response_N200_precompressed", False, True,
+     "-N 200 -delta0 1 -gamma 0.05 -amplitude 0.2 -omega 0.3 -p_end 2.6 -max_corrector 3 -max_steps 400"),
+    ("driven_response_N100_precompressed", False, False,
+     "-N 100 -delta0 1 -gamma 0.02 -amplitude 0.2 -omega 0.3 -p_end 2.6 -max_corrector 3 -max_steps 1000"),
+    ("driven_response_N100_precompressed_a0.5", False, False,
+     "-N 100 -delta0 1 -gamma 0.02 -amplitude 0.5 -omega 0.3 -p_end 2.6 -max_corrector 3 -max_steps 1000"),
+    ("driven_response_N200_precompressed_a0.5", False, False,
+     "-N 200 -delta0 1 -gamma 0.02 -amplitude 0.5 -omega 0.3 -p_end 2.6 -max_corrector 3 -max_steps 1000"),
+    ("driven_response_N200_vacuum_low", False, True,
+     "-N 200 -delta0 0 -gamma 0.05 -amplitude 0.5 -omega 0.1 -p_end 0.6 -ds_max 0.02 -max_steps 300"),
+    ("driven_response_N20_vacuum", False, True,
+     "-N 20 -delta0 0 -gamma 0.05 -amplitude 0.5 -omega 1.2 -p_end 0.1 -max_steps 20"),
+    ("driven_response_N20_vacuum_low", False, True,
+     "-N 20 -delta0 0 -gamma 0.05 -amplitude 0.5 -omega 0.1 -p_end 0.6 -ds_max 0.02"),
+)
 
-    def __init__(self, root, progress, logs, mode="new", ranks=2, steps=None, only=None, python=sys.executable):
+
+def driven_steps(figures="figures"):
+    """The driven, damped chains of the paper's Discussion (issue 22, docs/driven.md), after the refined waves the
+    exact boundary driving imposes: the frequency responses, the resonances, the wave imposed at both ends, the
+    simple signals; then the tables of the stability maps of kind -1 (made before issue 23 by a route since replaced:
+    rendered from their files, not recomputed)."""
+    steps = []
+    for name, parallel, figure, args in DRIVEN_RESPONSES:
+        steps.append(Step(name, "Discussion", "driven_response.py",
+                          (*args.split(), "-output", f"results/{name}.npz", "-table", f"results/{name}.md",
+                           *(("-figures", figures) if figure else ()), "-name", name),
+                          parallel=parallel, record=f"results/{name}.npz"))
+    steps += [
+        Step("driven_resonances", "Discussion", "driven_resonances.py",
+             ("-N", "20", "-delta0", "1", "-gamma", "0.01", "-amplitude", "1e-6", "-output",
+              "results/driven_resonances.npz", "-table", "results/driven_resonances.md", "-figures", figures),
+             parallel=False, record="results/driven_resonances.npz"),
+        Step("driven_wave_ends", "Discussion", "driven_wave_ends.py",
+             ("-branch", "results/branch_alpha1.5.npz", "-refined", "results/refined_N100.npz", "-output",
+              "results/driven_wave_ends.npz", "-table", "results/driven_wave_ends.md", "-figures", figures),
+             parallel=False, record="results/driven_wave_ends.npz"),
+        Step("driven_generation", "Discussion", "driven_generation.py",
+             ("-branch", "results/branch_alpha1.5.npz", "-N", "40", "-omegas", "0.15,0.3,0.5", "-run_in", "40",
+              "-output", "results/driven_generation.npz", "-table", "results/driven_generation.md", "-figures",
+              figures), parallel=False, record="results/driven_generation.npz")]
+    for name in ("precompression_map", "precompression_map_dimer0.7", "precompression_map_dimer0.4"):
+        steps.append(Step(f"render_{name}", "issue 16", "precompression_map.py",
+                          ("-render", "-output", f"results/{name}.npz", "-table", f"results/{name}.md"),
+                          parallel=False))
+    return steps
+
+
+class PaperPipeline:
+    """Run :func:`paper_steps` (or ``only`` of them), the drivers of the repository ``root``, in the directory
+    ``workdir`` (default ``root``: the steps' results/, figures/ and runs/ paths are relative to it) with ``ranks``
+    ranks, keeping the progress in ``progress`` (mode new, resume or force) and each step's output in ``logs``."""
+
+    def __init__(self, root, progress, logs, mode="new", ranks=2, steps=None, only=None, python=sys.executable,
+                 workdir=None):
         steps = list(steps or paper_steps())
         names = [s.name for s in steps]
         if only:
@@ -167,6 +255,7 @@ class PaperPipeline:
                                      + ", ".join(names))
             steps = [s for s in steps if s.name in only]
         self.root, self.logs, self.ranks, self.python, self.steps = root, logs, ranks, python, steps
+        self.workdir = workdir or root
         self.progress, self.mode, self.store = progress, mode, None
 
     def open(self):
@@ -198,11 +287,8 @@ class PaperPipeline:
 
     def command(self, step):
         """The command line of a step: continued (-resume) if it was interrupted and has a record, else afresh."""
-        args = list(step.args)
-        if step.record:
-            interrupted = "started" in self._events(step.name)
-            args.append("-resume" if interrupted and os.path.exists(os.path.join(self.root, step.record))
-                        else "-force")
+        interrupted = "started" in self._events(step.name)
+        args = step.arguments(interrupted and os.path.exists(os.path.join(self.workdir, step.record)))
         cmd = [self.python, os.path.join(self.root, "scripts", step.script), *args]
         return (["mpiexec", "-n", str(self.ranks), *cmd] if step.parallel and self.ranks > 1 else cmd), args
 
@@ -215,7 +301,7 @@ class PaperPipeline:
                 continue
             cmd, args = self.command(step)
             log = os.path.join(self.logs, f"{step.name}.log")
-            record = os.path.join(self.root, step.record) if step.record else ""
+            record = os.path.join(self.workdir, step.record) if step.record else ""
             # the step's outputs must be writable before it is recorded as started (a run directory: its files)
             for path in [log] + ([os.path.join(record, "run.json") if os.path.isdir(record)
                                   or not os.path.splitext(record)[1] else record] if record else []):
@@ -223,7 +309,7 @@ class PaperPipeline:
             self.store.append(dict(name=step.name, event="started", seconds=0.0))
             t0 = time.perf_counter()
             with open(log, "w") as out:
-                rc = run_child(cmd, self.root, out)
+                rc = run_child(cmd, self.workdir, out)
             seconds = time.perf_counter() - t0
             if rc != 0:
                 with open(log) as f:

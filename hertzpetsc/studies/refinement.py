@@ -36,7 +36,7 @@ from petsc4py import PETSc
 from ..chain import CHAIN_PREFIX
 from ..errors import ParameterError, RecordFileError
 from ..model import ChainSpec
-from ..records import check_kind, load_npz, on_rank0
+from ..records import check_kind, given, load_npz, on_rank0
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
 from ..symmetry import WaveSymmetry
 from ..waves import chain_wavenumbers, check_chain_wavenumber, orbit_on_chain
@@ -88,16 +88,22 @@ class RefinedStates:
         i = np.nonzero(np.abs(self.q - q) <= 1e-12 * max(1.0, q))[0]
         return self.data["x"][i[0]] if len(i) else None
 
+    def check_alpha(self, alpha: float, of: str = "the branch's") -> None:
+        """RecordFileError unless the waves were refined at Hertz exponent ``alpha`` (waves of another chain are
+        never mixed with a branch of this one)."""
+        if abs(alpha - self.alpha) > 1e-12:
+            raise RecordFileError(f"refinement file {given(self.path)} is for alpha = {self.alpha:g}, not {of} "
+                                  f"{alpha:g}")
+
     def orbit(self, point: BranchPoint, spec: Optional[ChainSpec] = None) -> Orbit:
         """The refined orbit of branch point ``point`` on the file's chain (RecordFileError if it lacks q)."""
         spec = spec or ChainSpec(point.model, self.N)
         if spec.N != self.N:
-            raise RecordFileError(f"refinement file {self.path!r} is for N = {self.N} beads, not {spec.N}")
-        if abs(point.model.alpha - self.alpha) > 1e-12:
-            raise RecordFileError(f"refinement file {self.path!r} is for alpha = {self.alpha}, not {point.model.alpha}")
+            raise RecordFileError(f"refinement file {given(self.path)} is for N = {self.N} beads, not {spec.N}")
+        self.check_alpha(point.model.alpha)
         x = self.state(point.q)
         if x is None:
-            raise RecordFileError(f"refinement file {self.path!r} has no refined state at q = {point.q:.12g}")
+            raise RecordFileError(f"refinement file {given(self.path)} has no refined state at q = {point.q:.12g}")
         return orbit_on_chain(point, spec).with_state(x, "refined")
 
 

@@ -462,9 +462,8 @@ class PeriodicShooting(ContinuationProblem):
                            name="N")
         self.chain = Chain(spec, comm)
         self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
-        if not PETSc.Options().hasName(prefix + "ts_max_steps"):
-            # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
-            self.integrator.ts.setMaxSteps(MAX_STEPS_PER_FLOW * self.periods)
+        # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
+        self.integrator.max_steps = MAX_STEPS_PER_FLOW * self.periods
         self.X = self.chain.create_state()
         ftol = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if dense else None

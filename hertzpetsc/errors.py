@@ -18,6 +18,7 @@ the verdict broadcast), and solver verdicts are collective, so a driver can prin
 """
 import math
 import numbers
+import signal
 
 
 class HertzPetscError(Exception):
@@ -94,6 +95,15 @@ class RecordFileError(HertzPetscError, IOError):
     """A record file is missing, corrupt, of another kind, belongs to another computation, or cannot be written."""
 
     exit_status = 4
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP (what ``timeout``, ``kill`` and batch schedulers send), raised like KeyboardInterrupt so
+    that ``finally`` blocks end child processes and leave record files consistent (status 128 + the signal)."""
+
+    def __init__(self, signum):
+        self.signum = signum
+        super().__init__(signal.Signals(signum).name)
 
 
 # The names under which these errors were raised before the record store existed (still caught by old code).

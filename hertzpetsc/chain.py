@@ -32,9 +32,10 @@ from petsc4py import PETSc
 
 from . import kernels
 from .assembly import gathered
-from .errors import ConvergenceError, ParameterError, check_real
+from .errors import ConvergenceError, ParameterError, check_instance, check_integer, check_prefix, check_real
 from .hertz import HertzLaw
 from .model import Actuator, ChainSpec
+from .resources import check_chain_size
 
 # The options prefix of the TS of simulations (long runs, compactons on the chain); the refinement's and the
 # Floquet analysis' flows have their own (shoot_, floquet_).
@@ -69,7 +70,8 @@ class Chain:
         if not isinstance(spec, ChainSpec):
             raise ParameterError("spec", spec, "must be a ChainSpec")
         self.comm = comm
-        self.n_tangent = int(n_tangent)
+        self.n_tangent = check_integer("n_tangent", n_tangent, 0, "the number of tangent vectors")
+        check_chain_size(spec.N, 1 + self.n_tangent, "n_tangent" if self.n_tangent else "N")
         self.dof = 2 * (1 + self.n_tangent)
         periodic = spec.boundary == "periodic"
         bt = PETSc.DM.BoundaryType.PERIODIC if periodic else PETSc.DM.BoundaryType.GHOSTED
@@ -403,13 +405,21 @@ class ChainIntegrator:
     0`` makes the TS call :meth:`Chain.rhs_reference` (numpy, the same numbers) instead."""
 
     def __init__(self, chain, tolerances=None, prefix=CHAIN_PREFIX, rk_type="8vr"):
-        self.chain = chain
-        tol = tolerances or IntegrationTolerances()
+        self.chain = check_instance("chain", chain, Chain, "a Chain")
+        tol = IntegrationTolerances() if tolerances is None else \
+            check_instance("tolerances", tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
+        check_prefix("prefix", prefix)
+        check_instance("rk_type", rk_type, str, "a PETSc Runge-Kutta type such as '8vr'")
         ts = PETSc.TS().create(comm=chain.comm)
         ts.setOptionsPrefix(prefix)
         ts.setProblemType(PETSc.TS.ProblemType.NONLINEAR)
         ts.setType(PETSc.TS.Type.RK)
-        ts.setRKType(rk_type)
+        try:
+            ts.setRKType(rk_type)
+        except PETSc.Error:
+            ts.destroy()
+            raise ParameterError("rk_type", rk_type, "is not a Runge-Kutta type of PETSc's TSRK (e.g. '8vr', "
+                                 "'5dp', '4')") from None
         self._F = chain.create_state()
         # the compiled function, called by the TS itself unless an actuator's signal (any but Harmonic) needs Python:
         # then Chain.rhs; no kernel or -<prefix>rhs_compiled 0: Chain.rhs_reference

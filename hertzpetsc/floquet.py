@@ -23,7 +23,8 @@ from typing import Optional
 import numpy as np
 
 from .chain import IntegrationTolerances
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_flag, check_instance, check_integer, check_real
+from .model import ChainSpec
 from .tangent import MonodromyModShift, TangentFlow
 
 FLOQUET_PREFIX = "floquet_"
@@ -140,6 +141,7 @@ class DenseFloquet(FloquetSolver):
     ``floquet_``), serving every orbit of a scan; ``with DenseFloquet(...) as d:`` frees it."""
 
     def __init__(self, spec, comm, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX):
+        check_instance("spec", spec, ChainSpec, "a ChainSpec")
         self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
 
     def monodromy(self, orbit, shift=True, T=None):
@@ -171,10 +173,13 @@ class DominantFloquet(FloquetSolver):
 
     def __init__(self, spec, comm, nev=10, tolerances=FLOQUET_TOLERANCES, prefix=FLOQUET_PREFIX, ncv=None,
                  tol=1e-10, warm=False, shift=1):
-        dim = 2 * spec.N
-        if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
+        dim = 2 * check_instance("spec", spec, ChainSpec, "a ChainSpec").N
+        if not (check_integer("nev", nev, 1, "the number of multipliers") <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
-        self.prefix, self.warm, self.start, self.previous = prefix, warm, [], []
+        if ncv is not None:
+            ncv = check_integer("ncv", ncv, nev, "the subspace dimension", dim, f"(from nev to 2N = {dim})")
+        tol = check_real("tol", tol, "the eigensolver's relative tolerance", 0.0, 1.0)
+        self.prefix, self.warm, self.start, self.previous = prefix, check_flag("warm", warm), [], []
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
         self.eps = largest_magnitude(self.op.base.comm, prefix, nev,

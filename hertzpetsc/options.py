@@ -294,6 +294,7 @@ class AppOptions:
         """End of the declarations: under -help, print them and PETSc's options of the roles, and exit 0.
         Otherwise check that every rank was given the same options (ranks that disagree would compute different
         things and deadlock in the first collective call that depends on them)."""
+        self.work_limit()
         if not self.help:
             check_ranks_agree(PETSc.COMM_WORLD)
             return
@@ -308,6 +309,14 @@ class AppOptions:
         sys.stdout.flush()
         self.db.delValue("help")              # PETSc would print its viewer options again at its finalize
         raise SystemExit(0)
+
+    def work_limit(self):
+        """-max_hours, every driver's: the limit of the up-front estimates of computing time
+        (:func:`hertzpetsc.resources.check_work`); a run estimated to take longer is refused before it computes."""
+        from . import resources
+        hours = self.real("max_hours", resources.DEFAULT_MAX_HOURS, "refuse a run estimated to compute longer than "
+                          "this many hours (0: no limit)", valid=(lambda h: h >= 0, ">= 0 (0: no limit)"))
+        return resources.set_work_limit(hours)
 
     def known(self):
         return {name for name, *_ in self.declared}

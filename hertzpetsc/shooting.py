@@ -33,7 +33,9 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import IntegrationTolerances
-from .errors import ConvergenceError, ParameterError, check_integer, check_real
+from .errors import (ConvergenceError, ParameterError, check_flag, check_instance, check_integer, check_prefix,
+                     check_real)
+from .model import ChainSpec
 from .gauss_newton import GaussNewton
 from .tangent import TangentFlow
 
@@ -158,6 +160,12 @@ class Refiner:
     def __init__(self, spec, comm, tol=1e-10, max_iterations=20, tolerances=MEASURE_TOLERANCES,
                  prefix=SHOOT_PREFIX, symmetric=True, jacobian_tolerances=JACOBIAN_TOLERANCES):
         tol = check_real("tol", tol, "the target residual", 0.0)
+        check_instance("spec", spec, ChainSpec, "a ChainSpec")
+        symmetric = check_flag("symmetric", symmetric)
+        check_prefix("prefix", prefix)
+        max_iterations = check_integer("max_iterations", max_iterations, 1, "the Gauss-Newton iterations")
+        for name, value in (("tolerances", tolerances), ("jacobian_tolerances", jacobian_tolerances)):
+            check_instance(name, value, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
         self.spec, self.tol, self.comm, self.symmetric = spec, tol, comm, symmetric
         self.tolerances, self.jacobian_tolerances, self.prefix = tolerances, jacobian_tolerances, prefix
         limit = PETSc.Options().getInt(prefix + "gn_max_it", max_iterations)      # an option, else the argument

@@ -16,7 +16,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator
-from .errors import ParameterError
+from .errors import ParameterError, check_instance, check_integer
 from .model import ChainSpec
 from .symmetry import real_sector
 
@@ -28,8 +28,8 @@ class TangentFlow:
     ``rk_type``."""
 
     def __init__(self, spec, n_tangent, comm, tolerances, prefix, chain=Chain, rk_type="8vr"):
-        self.spec = spec
-        self.k = int(n_tangent)
+        self.spec = check_instance("spec", spec, ChainSpec, "a ChainSpec")
+        self.k = check_integer("n_tangent", n_tangent, 0, "the number of tangent vectors")
         self.aug = chain(spec, comm, n_tangent=self.k)
         self.integrator = ChainIntegrator(self.aug, tolerances, prefix, rk_type)
         self.Z = self.aug.create_state()

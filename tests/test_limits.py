@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import ROOT, SCRIPTS, one_error_line, run_script, script_env
-from hertzpetsc import kernels
+from conftest import SCRIPTS, one_error_line, run_script, script_env
+from hertzpetsc import kernels, resources
 from hertzpetsc.chain import Chain, ChainIntegrator, MIN_STEPS, STEP_LIMIT_FACTOR
-from hertzpetsc.errors import ConvergenceError, ParameterError
+from hertzpetsc.errors import ConvergenceError
 from hertzpetsc.model import ChainSpec, LatticeModel
 from hertzpetsc.records import load_npz
 
@@ -264,3 +264,21 @@ def test_a_state_that_overflows_is_a_convergence_error_not_a_petsc_error():
         X.destroy()
         integ.destroy()
         chain.destroy()
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_run_in_of_days_is_refused_before_computing_with_the_estimate(tmp_path, ranks):
+    """driven_response.py -run_in 10^8 (10 beads, omega = 1: 6.3e8 units of time): refused in one line that names
+    -run_in, gives the estimate in hours and says how to raise the limit, on every rank, before any computation
+    (no record file written); -max_hours must be >= 0."""
+    args = ["-N", 10, "-omega", 1, "-p_end", 1.2, "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md"]
+    r = run_script("driven_response.py", *args, "-run_in", 10 ** 8, ranks=ranks, timeout=120)
+    line = one_error_line(r)
+    assert r.returncode == 2
+    hours = resources.chain_seconds(10, 10 ** 8 * 2 * math.pi) / 3600
+    assert line.startswith("error: invalid -run_in = 100000000:") and f"about {hours:.3g} hours" in line, line
+    assert "-max_hours" in line
+    assert not (tmp_path / "r.npz").exists()
+    r = run_script("driven_response.py", *args, "-max_hours", -1, timeout=120)
+    assert "invalid -max_hours = '-1'" in one_error_line(r)

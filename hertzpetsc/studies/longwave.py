@@ -1,7 +1,11 @@
 """The long-wave limit (section 3.2): the branch at its smallest q against the inner solution (the solitary wave,
 eq. inner) and the composite approximation (eq. solapprox)."""
+import math
+
 from petsc4py import PETSc
 
+from ..branch import Branch
+from ..errors import check_instance, check_integer, check_real
 from ..longwave import compare_with_branch
 from ..solitary import SolitaryParameters, solve_solitary_wave
 
@@ -12,6 +16,10 @@ class LongWaveStudy:
     """Errors of eq. solapprox and of the inner solution, relative to k_alpha, at the ``count`` smallest q."""
 
     def __init__(self, branch, cells_per_unit=160, window=0.1, count=Q_REPORT):
+        check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+        window = check_real("window", window, "the half-width of the window around xi = pi", 0.0, math.pi,
+                            hi_open=False)
+        count = check_integer("count", count, 1, "the smallest q reported")
         self.branch, self.n, self.window = branch, cells_per_unit, window
         self.wave = solve_solitary_wave(SolitaryParameters(branch.alpha, cells_per_unit), PETSc.COMM_SELF)
         order = sorted(branch.points, key=lambda p: p.q)[:count]

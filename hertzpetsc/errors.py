@@ -16,6 +16,7 @@ status   class
 Errors are raised on every rank at once: parameters and input files are checked on all ranks (or on rank 0 and
 the verdict broadcast), and solver verdicts are collective, so a driver can print on rank 0 and exit on all.
 """
+import ctypes
 import math
 import numbers
 import signal
@@ -180,6 +181,13 @@ class Terminated(BaseException):
     def __init__(self, signum):
         self.signum = signum
         super().__init__(signal.Signals(signum).name)
+
+
+def check_signals(*args):
+    """Run Python's pending signal handlers now (a KeyboardInterrupt or :class:`Terminated` is raised here): the
+    monitor of a solver that calls no Python otherwise (SLEPc's PEP on assembled matrices), so that a signal ends it
+    within an iteration. Takes and ignores the monitor's arguments."""
+    ctypes.pythonapi.PyErr_CheckSignals()
 
 
 # The names under which these errors were raised before the record store existed (still caught by old code).

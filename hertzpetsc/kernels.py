@@ -22,6 +22,7 @@ import tempfile
 
 import numpy as np
 
+from .errors import check_signals
 from .hertz import power_recipe
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -164,7 +165,7 @@ def release_signals():
         signum = _lib.hz_release_signals()
         if signum:
             last_signal = signum
-            ctypes.pythonapi.PyErr_CheckSignals()      # raises what the handler raises
+            check_signals()                            # raises what the handler raises
 
 
 last_signal = 0          # the last signal that ended a solve (release_signals), for an error that hides it

@@ -282,3 +282,27 @@ def test_a_run_in_of_days_is_refused_before_computing_with_the_estimate(tmp_path
     assert not (tmp_path / "r.npz").exists()
     r = run_script("driven_response.py", *args, "-max_hours", -1, timeout=120)
     assert "invalid -max_hours = '-1'" in one_error_line(r)
+
+
+def test_a_signal_ends_a_polynomial_eigensolve_that_calls_no_python(monkeypatch):
+    """SLEPc's PEP on assembled matrices calls no Python but its monitor: the monitor runs Python's pending signal
+    handlers (errors.check_signals), and what they raise ends the solve and comes back from it as itself. Here the
+    handler is replaced by one that raises at the second iteration, as guarded_main's does on SIGTERM."""
+    import scipy.sparse as sp
+    from hertzpetsc import comoving_pep
+    from hertzpetsc.errors import Terminated
+    calls = []
+
+    def pending(*args):
+        calls.append(args)
+        if len(calls) == 2:
+            raise Terminated(signal.SIGTERM)
+
+    monkeypatch.setattr(comoving_pep, "check_signals", pending)
+    n = 200
+    lap = sp.diags([np.ones(n - 1), -2 * np.ones(n), np.ones(n - 1)], [-1, 0, 1], format="csr")
+    mats = [lap, sp.identity(n, format="csr") * 0.1, sp.identity(n, format="csr")]
+    solver = comoving_pep.ComovingPEP(PETSc.COMM_SELF, nev=40, tol=1e-14)
+    with pytest.raises(Terminated):
+        solver.solve(mats, -0.5, 40)
+    assert len(calls) == 2

@@ -12,9 +12,17 @@
  *
  * Built by `python -m hertzpetsc.kernels` (scripts/hz.sh setup) against Debian's libpetsc; PETSc's headers are not
  * needed: the few functions used are declared below with their C signatures (PetscErrorCode = int, PetscScalar =
- * PetscReal = double in the real build; INSERT_VALUES = 1, SCATTER_FORWARD = 0).
+ * PetscReal = double in the real build; INSERT_VALUES = 1, SCATTER_FORWARD = 0; PETSC_ERR_SIG = 59).
+ *
+ * Signals: a TS on this function runs without Python in between, so Python's handlers of SIGINT, SIGTERM and SIGHUP
+ * (hertzpetsc.options.guarded_main) would run only after the whole solve. hz_watch_signals puts a handler in front
+ * of the process's own (it records the signal in a flag, then calls the handler it replaced), and the right-hand
+ * side returns PETSC_ERR_SIG once the flag is set: the TS ends at its next stage, and hertzpetsc.kernels.interrupted
+ * lets Python's handler raise (one load of the flag per evaluation).
  */
+#define _POSIX_C_SOURCE 200809L
 #include <math.h>
+#include <signal.h>
 #include <stddef.h>
 #include <string.h>
 
@@ -37,6 +45,7 @@ extern double petsc_TotalFlops;
 
 #define INSERT_VALUES 1
 #define SCATTER_FORWARD 0
+#define PETSC_ERR_SIG 59
 #define CHECK(call) do { PetscErrorCode ierr_ = (call); if (ierr_) return ierr_; } while (0)
 
 enum { END_INSIDE = 0, END_FREE = 1, END_WALL = 2, END_ACTUATOR = 3 };
@@ -227,6 +236,61 @@ static void harmonic_end(const double *h, double t, double *x, double *v)
     *v = -h[1] * h[2] * sin(arg);
 }
 
+/* A watched signal that arrived during a solve (0: none); ``armed`` between hz_watch_signals and hz_release_signals;
+ * the process's handlers that on_signal stands in front of. */
+static volatile sig_atomic_t received = 0, armed = 0;
+static const int watched[3] = {SIGINT, SIGTERM, SIGHUP};
+static struct sigaction previous[3];
+
+static void on_signal(int sig, siginfo_t *info, void *context)
+{
+    if (armed) {                  /* during a solve: only the flag; the process's handler runs after the solve */
+        received = sig;
+        return;
+    }
+    for (int i = 0; i < 3; i++) {
+        if (watched[i] != sig) continue;
+        const struct sigaction *p = &previous[i];
+        if (p->sa_flags & SA_SIGINFO) p->sa_sigaction(sig, info, context);
+        else if (p->sa_handler != SIG_DFL && p->sa_handler != SIG_IGN) p->sa_handler(sig);
+    }
+}
+
+/* Before a solve: put on_signal in front of the process's handler of each watched signal that is handled (not
+ * default, not ignored) and not yet watched (again after Python installed another handler), and arm it: a watched
+ * signal then sets the flag that makes hz_chain_rhs fail. Returns 0. */
+int hz_watch_signals(void)
+{
+    received = 0;
+    for (int i = 0; i < 3; i++) {
+        struct sigaction now, mine;
+        if (sigaction(watched[i], NULL, &now)) continue;
+        if (now.sa_flags & SA_SIGINFO) {
+            if (now.sa_sigaction == on_signal) continue;
+        } else if (now.sa_handler == SIG_DFL || now.sa_handler == SIG_IGN) {
+            continue;
+        }
+        previous[i] = now;
+        mine = now;
+        mine.sa_flags |= SA_SIGINFO;
+        mine.sa_sigaction = on_signal;
+        sigaction(watched[i], &mine, NULL);
+    }
+    armed = 1;
+    return 0;
+}
+
+/* After the solve: disarm, and give a signal that arrived meanwhile to the process's handler (Python's records it
+ * for its interpreter). Returns that signal, 0 if none. */
+int hz_release_signals(void)
+{
+    armed = 0;
+    int sig = received;
+    received = 0;
+    if (sig) raise(sig);
+    return sig;
+}
+
 /* The TS right-hand side: F = f(t, X). t enters only through the actuators' motion: computed here for harmonic
  * actuators, set by the caller (hertzpetsc.kernels.ChainKernel.set_time) for other signals. */
 PetscErrorCode hz_chain_rhs(TS ts, double t, Vec X, Vec F, void *ctx)
@@ -235,6 +299,7 @@ PetscErrorCode hz_chain_rhs(TS ts, double t, Vec X, Vec F, void *ctx)
     const double *x;
     double *g, *out;
     (void)ts;
+    if (received) return PETSC_ERR_SIG;         /* a watched signal: end the solve (hz_watch_signals) */
     if (k->harmonic_left) harmonic_end(k->harmonic[0], t, &k->left_x, &k->left_v);
     if (k->harmonic_right) harmonic_end(k->harmonic[1], t, &k->right_x, &k->right_v);
     CHECK(VecGetArrayRead(X, &x));

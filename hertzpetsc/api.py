@@ -8,6 +8,7 @@ pipeline in these calls.
 from __future__ import annotations
 
 import math
+import os
 from typing import TYPE_CHECKING, Optional, Union
 
 import numpy as np
@@ -15,7 +16,7 @@ from petsc4py import PETSc
 
 from .bloch import SymmetricFloquet
 from .branch import Branch, BranchPoint
-from .errors import ParameterError, check_integer, check_real
+from .errors import ParameterError, check_flag, check_instance, check_integer, check_real
 from .families import AmplitudePoint
 from .families import wave_at as _wave_at
 from .families import wave_of_amplitude
@@ -23,6 +24,7 @@ from .floquet import DenseFloquet, DominantFloquet, Spectrum
 from .grid import ProfileGrid
 from .model import ChainSpec, LatticeModel
 from .qbranch import ContinuationParameters
+from .resources import check_chain_size
 from .shooting import Refinement
 from .shooting import refine as _refine
 from .studies.branch import BranchStudy
@@ -47,6 +49,8 @@ def compute_branch(model: Optional[LatticeModel] = None, M: int = 50, cells_per_
     model = model if model is not None else LatticeModel.hertz()
     if not isinstance(model, LatticeModel):
         raise ParameterError("model", type(model).__name__, "must be a LatticeModel (e.g. LatticeModel.hertz(1.5))")
+    if output is not None:
+        check_instance("output", output, (str, os.PathLike), "a path (None: in memory)")
     params = ContinuationParameters(M=M, cells_per_pi=cells_per_pi, q_stop=q_stop, model=model)
     study = BranchStudy(params, output, _comm(comm), mode)
     for _ in study.run():
@@ -82,6 +86,8 @@ def orbit(point: BranchPoint, N: int, A: Optional[float] = None) -> Orbit:
     """A point of a branch (eq. ad) as a travelling wave on a periodic chain of N beads (eq. twper): the profile
     scaled to max |u| = 1 (the paper's normalisation, section 3.4) or to max |u| = ``A`` for a scale-invariant law
     (the beads at t = 0 sample u at q n, so max_n |x_n(0)| can be below it). Local (numpy only)."""
+    check_instance("point", point, BranchPoint, "a BranchPoint (branch.point(q))")
+    check_chain_size(check_integer("N", N, 2, "the number of beads"), 1)
     scale = None
     if A is not None:
         A = check_real("A", A, "the amplitude max |u|", lo=0.0)
@@ -99,8 +105,9 @@ def refine(orbit: Orbit, tol: float = 1e-10, symmetric: bool = True,
     :class:`~hertzpetsc.shooting.Refinement` (``.orbit`` the refined wave, ``.E_initial``, ``.E``, ``.iterations``);
     ``symmetric``: on the wave's cell over its shortest time symmetry. ConvergenceError if E stays above tol.
     Collective."""
+    check_instance("orbit", orbit, Orbit, "an Orbit (hz.orbit, hz.wave)")
     tol = check_real("tol", tol, "the target E(q) of the refinement", lo=0.0, hi=1.0)
-    return _refine(orbit, _comm(comm), tol, symmetric=symmetric)
+    return _refine(orbit, _comm(comm), tol, symmetric=check_flag("symmetric", symmetric))
 
 
 def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = None,
@@ -112,6 +119,7 @@ def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = No
     Krylov-Schur, default 10). ``nev`` given with ``symmetric`` or ``dense``: all 2N are computed and the ``nev``
     largest kept (``.complete`` False). ``tol_rho`` in (0, 1): unstable when rho - 1 > tol_rho (default 1e-4).
     Collective."""
+    check_instance("orbit", orbit, Orbit, "an Orbit (hz.orbit, hz.wave, hz.refine(...).orbit)")
     if method not in METHODS:
         raise ParameterError("method", method, f"must be one of {', '.join(METHODS)}")
     if tol_rho is not None:

@@ -26,10 +26,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 from petsc4py import PETSc
 
-from .chain import Chain
-from .errors import ParameterError, check_integer
+from .chain import Chain, IntegrationTolerances
+from .errors import ParameterError, check_choice, check_instance, check_integer, check_prefix
 from .floquet import FLOQUET_PREFIX, FLOQUET_TOLERANCES, DominantFloquet, FloquetSolver, Spectrum
-from .model import ChainSpec
+from .model import ChainSpec, LatticeModel
 from .symmetry import real_sector
 from .tangent import LOCAL_RESPONSE, CellPropagator, MonodromyModShift, TangentFlow, twisted_resolvent
 
@@ -184,8 +184,10 @@ class SymmetricFloquet(FloquetSolver):
 
     def __init__(self, model: LatticeModel, comm: PETSc.Comm, tolerances: IntegrationTolerances = FLOQUET_TOLERANCES,
                  prefix: str = FLOQUET_PREFIX, split: str = "sectors", n_modes: int = 0) -> None:
-        if split not in ("sectors", "beads"):
-            raise ParameterError("split", split, "must be 'sectors' or 'beads'")
+        check_instance("model", model, LatticeModel, "a LatticeModel")
+        check_choice("split", split, ("sectors", "beads"))
+        check_prefix("prefix", prefix)
+        check_instance("tolerances", tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
         self.comm, self.split, self.n_modes = comm, split, check_integer("n_modes", n_modes, 0)
         self.sectors = BlochSectors(model, PETSc.COMM_SELF if split == "sectors" else comm, tolerances, prefix)
         self.sectors.configure()

@@ -35,9 +35,11 @@ from petsc4py import PETSc
 
 from . import kernels
 from .assembly import gathered
-from .errors import ConvergenceError, ParameterError, PetscFailure, check_real
+from .errors import (ConvergenceError, ParameterError, PetscFailure, check_instance, check_integer, check_prefix,
+                     check_real)
 from .hertz import HertzLaw
 from .model import Actuator, ChainSpec
+from .resources import check_chain_size
 
 # The options prefix of the TS of simulations (long runs, compactons on the chain); the refinement's and the
 # Floquet analysis' flows have their own (shoot_, floquet_).
@@ -47,6 +49,15 @@ CHAIN_PREFIX = "chain_"
 # when no bead touches the actuator before it starts (free flight is integrated exactly, and a step may otherwise
 # grow across the whole push).
 STEPS_PER_PUSH = 4
+# The steps one integration over (t0, t1) may take unless -<prefix>ts_max_steps is given: MIN_STEPS plus
+# STEP_LIMIT_FACTOR times the steps of the integrator's first step size, (t1 - t0) / dt0 (dt0 = -<prefix>ts_dt,
+# 1e-3 by default; fixed-step runs take exactly (t1 - t0) / dt0). The flows of the test suite took at most 6.5 times
+# that count (short Floquet intervals from dt0), most of them 20 to 70 times fewer steps; a flow whose step collapses
+# (a state blowing up: max_t |x| to 1e10) fails with ConvergenceError instead of crawling for hours.
+MIN_STEPS = 1000
+STEP_LIMIT_FACTOR = 100
+# PETSc's error code of an infinity or NaN met by a norm (PETSC_ERR_FP): a state that overflowed
+OVERFLOW_ERROR = 72
 
 
 @dataclass(frozen=True)
@@ -68,7 +79,8 @@ class Chain:
         if not isinstance(spec, ChainSpec):
             raise ParameterError("spec", spec, "must be a ChainSpec")
         self.comm = comm
-        self.n_tangent = int(n_tangent)
+        self.n_tangent = check_integer("n_tangent", n_tangent, 0, "the number of tangent vectors")
+        check_chain_size(spec.N, 1 + self.n_tangent, "n_tangent" if self.n_tangent else "N")
         self.dof = 2 * (1 + self.n_tangent)
         periodic = spec.boundary == "periodic"
         bt = PETSc.DM.BoundaryType.PERIODIC if periodic else PETSc.DM.BoundaryType.GHOSTED
@@ -403,22 +415,32 @@ class ChainIntegrator:
 
     def __init__(self, chain: Chain, tolerances: Optional[IntegrationTolerances] = None, prefix: str = CHAIN_PREFIX,
                  rk_type: str = "8vr") -> None:
-        self.chain = chain
-        tol = tolerances or IntegrationTolerances()
+        self.chain = check_instance("chain", chain, Chain, "a Chain")
+        tol = IntegrationTolerances() if tolerances is None else \
+            check_instance("tolerances", tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
+        check_prefix("prefix", prefix)
+        check_instance("rk_type", rk_type, str, "a PETSc Runge-Kutta type such as '8vr'")
         ts = PETSc.TS().create(comm=chain.comm)
         ts.setOptionsPrefix(prefix)
         ts.setProblemType(PETSc.TS.ProblemType.NONLINEAR)
         ts.setType(PETSc.TS.Type.RK)
-        ts.setRKType(rk_type)
+        try:
+            ts.setRKType(rk_type)
+        except PETSc.Error:
+            ts.destroy()
+            raise ParameterError("rk_type", rk_type, "is not a Runge-Kutta type of PETSc's TSRK (e.g. '8vr', "
+                                 "'5dp', '4')") from None
         self._F = chain.create_state()
         # the compiled function, called by the TS itself unless an actuator's signal (any but Harmonic) needs Python:
         # then Chain.rhs; no kernel or -<prefix>rhs_compiled 0: Chain.rhs_reference
+        self.compiled = False                 # the TS calls the compiled function itself (no Python per stage)
         if not PETSc.Options(prefix).getBool("rhs_compiled", True) or chain.kernel is None:
             ts.setRHSFunction(chain.rhs_reference, self._F)
         elif chain.kernel.python_signals:
             ts.setRHSFunction(chain.rhs, self._F)
         else:
             chain.kernel.install(ts, self._F)
+            self.compiled = True
         if chain.n_tangent == 0:
             self._J = chain.create_jacobian()
             ts.setRHSJacobian(chain.rhs_jacobian, self._J, self._J)
@@ -426,15 +448,19 @@ class ChainIntegrator:
             self._J = None
         ts.setTolerances(rtol=tol.rtol, atol=tol.atol)
         ts.setExactFinalTime(PETSc.TS.ExactFinalTime.MATCHSTEP)
-        ts.setMaxSteps(10 ** 9)
         ts.setTimeStep(1e-3)
         ts.setFromOptions()
         self.initial_step = ts.getTimeStep()     # flows that measure something start from it every time
+        # the step limit of each integration: -<prefix>ts_max_steps if given, else max_steps if set, else the budget
+        # of MIN_STEPS and STEP_LIMIT_FACTOR
+        self.user_max_steps = ts.getMaxSteps() if PETSc.Options(prefix).hasName("ts_max_steps") else None
+        self.max_steps = None
         rtol, atol = ts.getTolerances()
-        for name, value in (("rtol", rtol), ("atol", atol)):
+        for name, value, what in (("rtol", rtol, "the integration tolerance"), ("atol", atol, "the integration "
+                                  "tolerance"), ("dt", self.initial_step, "the first time step")):
             if not (value > 0 and math.isfinite(value)):
                 ts.destroy()
-                raise ParameterError(f"-{prefix}ts_{name}", value, "the integration tolerance must be positive")
+                raise ParameterError(f"-{prefix}ts_{name}", value, f"{what} must be positive")
         self.ts = ts
         self.steps = 0
         # the largest step: -<prefix>ts_adapt_dt_max, or less on a driven chain (max_step)
@@ -484,15 +510,44 @@ class ChainIntegrator:
         ts.setTime(t0)
         ts.setMaxTime(t1)
         ts.setStepNumber(0)
+        limit = self.step_limit(t1 - t0)
+        ts.setMaxSteps(limit)
         if dt is not None:
             ts.setTimeStep(dt)
-        ts.solve(X)
+        if self.compiled:                     # no Python during the solve: a signal ends it through the kernel
+            kernels.watch_signals()
+        try:
+            ts.solve(X)
+        except PETSc.Error as err:
+            if err.ierr != OVERFLOW_ERROR:
+                raise
+            # PETSc's norms of the steps saw an infinity or NaN (on every rank: the norm is collective)
+            raise ConvergenceError("chain TS (prefix -%s)" % ts.getOptionsPrefix(), "the state overflowed: a force "
+                                   "became infinite or NaN (an initial state or perturbation far too large?)",
+                                   t=ts.getTime()) from None
+        finally:
+            if self.compiled:
+                kernels.release_signals()
         reason = ts.getConvergedReason()
+        prefix = ts.getOptionsPrefix()
         if reason < 0 or abs(ts.getTime() - t1) > 1e-12 * max(1.0, abs(t1)):
-            raise ConvergenceError("chain TS (prefix -%s)" % ts.getOptionsPrefix(), int(reason), t=ts.getTime())
+            if reason >= 0 and ts.getStepNumber() >= limit:
+                reason = (f"the step limit of {limit} steps from t = {t0:.12g} to {t1:.12g}, last step "
+                          f"{ts.getTimeStep():.3g}: the flow is too stiff or blows up; -{prefix}ts_max_steps raises it")
+            raise ConvergenceError("chain TS (prefix -%s)" % prefix, reason if isinstance(reason, str) else int(reason),
+                                   t=ts.getTime())
         n = ts.getStepNumber()
         self.steps += n
         return n
+
+    def step_limit(self, interval: float) -> int:
+        """The steps an integration over ``interval`` may take: -<prefix>ts_max_steps if given, else
+        :attr:`max_steps` if set, else MIN_STEPS + STEP_LIMIT_FACTOR interval / dt0."""
+        if self.user_max_steps is not None:
+            return self.user_max_steps
+        if self.max_steps is not None:
+            return int(self.max_steps)
+        return int(min(MIN_STEPS + STEP_LIMIT_FACTOR * interval / self.initial_step, 2 ** 31 - 1))
 
     def destroy(self) -> None:
         self.ts.destroy()

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 from .assembly import gathered
-from .errors import ConvergenceError
+from .errors import ConvergenceError, check_signals
 from .options import inserted_options
 
 COMOVING_PREFIX = "cm_"
@@ -73,6 +73,7 @@ class ComovingPEP:
         pc.setType(PETSc.PC.Type.LU)
         pc.setFactorSolverType("mumps")
         pep.setFromOptions()
+        pep.setMonitor(check_signals)          # no Python callback otherwise: a signal ends the solve per iteration
         return pep
 
     @PETSc.Log.EventDecorator("hz_comoving_pep")

@@ -28,6 +28,7 @@ from petsc4py import PETSc
 from .chain import Chain, IntegrationTolerances
 from .continuation import ContinuationProblem
 from .errors import ConvergenceError, ParameterError, check_integer
+from .resources import MAX_DENSE_BEADS
 from .gauss_newton import GaussNewton
 from .model import ChainSpec
 from .tangent import TangentFlow
@@ -84,7 +85,8 @@ class CompactonWindow:
     first use). Arrays in and out are given on every rank."""
 
     def __init__(self, model, M, comm, tolerances=WINDOW_TOLERANCES, prefix=WINDOW_PREFIX, rk_type="8vr"):
-        self.M = check_integer("M", M, 4, "the window's number of beads")
+        self.M = check_integer("M", M, 4, "the window's number of beads", MAX_DENSE_BEADS,
+                               "(its map's Jacobian is dense: (2M)^2 entries)")
         self.model, self.comm, self.spec = model, comm, ChainSpec(model, self.M, "free")
         self.tolerances, self.prefix, self.rk_type = tolerances, prefix, rk_type
         self._flows = {}

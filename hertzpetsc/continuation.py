@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Collection, Iterator, Optional, Sequence, Unio
 
 import numpy as np
 
-from .errors import ConvergenceError, ParameterError, check_integer
+from .errors import ConvergenceError, ParameterError, check_integer, check_real
 
 if TYPE_CHECKING:
     from petsc4py import PETSc
@@ -215,8 +215,9 @@ def _check_algorithm(alg, positive, **integers):
     for name, least in dict(max_halvings=0, max_step_changes=1, **integers).items():
         object.__setattr__(alg, name, check_integer(name, getattr(alg, name), least))
     for name in ("max_corrector",) + positive:
-        if not getattr(alg, name) > 0:
-            raise ParameterError(name, getattr(alg, name), "must be > 0")
+        value = getattr(alg, name)
+        if value != math.inf:                      # max_step, max_corrector: inf, no bound
+            object.__setattr__(alg, name, check_real(name, value, f"{name}", 0.0))
 
 
 @dataclass(frozen=True)
@@ -261,14 +262,12 @@ class PseudoArclength:
 
     def __post_init__(self):
         for name in ("ds", "ds_min", "ds_max"):
-            v = getattr(self, name)
-            if not (isinstance(v, (int, float)) and v > 0 and math.isfinite(v)):
-                raise ParameterError(name, v, "the arclength step must be a finite number > 0")
+            object.__setattr__(self, name, check_real(name, getattr(self, name), "the arclength step", 0.0))
         if not self.ds_min <= self.ds <= self.ds_max:
             raise ParameterError("ds", self.ds, f"must lie in [ds_min, ds_max] = [{self.ds_min:g}, {self.ds_max:g}]")
-        if not self.growth >= 1:
-            raise ParameterError("growth", self.growth, "must be >= 1")
-        _check_algorithm(self, (), max_iterations=1)
+        object.__setattr__(self, "growth", check_real("growth", self.growth, "the step's growth factor", 1.0,
+                                                      lo_open=False))
+        _check_algorithm(self, (), max_iterations=1, easy=0)
 
 
 class ContinuationUse:

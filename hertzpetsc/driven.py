@@ -326,6 +326,8 @@ class Drive:
         object.__setattr__(self, "omega", check_real("omega", self.omega, "the driving frequency", 0.0))
         if not (self.right in ("wall", "free") or isinstance(self.right, Waveform)):
             raise ParameterError("right", self.right, "the far end is 'wall', 'free' or a Waveform (second actuator)")
+        for name in ("left_phase", "right_phase"):
+            object.__setattr__(self, name, check_real(name, getattr(self, name), "the actuator's phase"))
 
     @property
     def period(self) -> float:
@@ -360,6 +362,16 @@ class Drive:
         out["right"] = self.right if isinstance(self.right, str) else dict(self.right.describe(),
                                                                             phase=self.right_phase)
         return out
+
+
+def check_dense_beads(N, jacobian, floquet):
+    """Whether the dense routes are used (``jacobian`` or ``floquet`` 'dense'); ParameterError naming N when the chain
+    is longer than they allow (LAPACK on 2N x 2N matrices cannot be interrupted: its size is bounded instead)."""
+    dense = "dense" in (jacobian, floquet)
+    if dense and N > MAX_DENSE_BEADS:
+        raise ParameterError("N", N, f"at most {MAX_DENSE_BEADS} beads with the dense Jacobian or dense "
+                             "multipliers (2N x 2N matrices); longer chains: jacobian 'mf', floquet 'slepc' or 'none'")
+    return dense
 
 
 def _check_parameter(name):
@@ -560,19 +572,15 @@ class PeriodicShooting(ContinuationProblem):
         self.drive = drive
         spec = drive.spec()
         self.N = spec.N
-        dense = "dense" in (jacobian, floquet)
-        if dense and spec.N > MAX_DENSE_BEADS:
-            raise ParameterError("N", spec.N, f"at most {MAX_DENSE_BEADS} beads with the dense Jacobian or dense "
-                                 "multipliers (2N x 2N matrices); longer chains: jacobian 'mf', floquet 'slepc' or 'none'")
+        dense = check_dense_beads(spec.N, jacobian, floquet)
         # the state flow, and the tangent flows with 2N columns (dense: the multipliers' and the Jacobian's) or one
         # (matrix-free), before any allocation
         check_chain_memory(spec.N, comm, columns=(2 + 2 * spec.N) * (2 if jacobian == "dense" else 1) if dense else 3,
                            name="N")
         self.chain = Chain(spec, comm)
         self.integrator = ChainIntegrator(self.chain, tolerances, prefix)
-        if not PETSc.Options().hasName(prefix + "ts_max_steps"):
-            # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
-            self.integrator.ts.setMaxSteps(MAX_STEPS_PER_FLOW * self.periods)
+        # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
+        self.integrator.max_steps = MAX_STEPS_PER_FLOW * self.periods
         self.X = self.chain.create_state()
         ftol = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if dense else None

@@ -18,8 +18,10 @@ the verdict broadcast), and solver verdicts are collective, so a driver can prin
 """
 from __future__ import annotations
 
+import ctypes
 import math
 import numbers
+import signal
 from typing import Any, Collection, Optional, Union
 
 
@@ -62,7 +64,9 @@ def check_real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
             and (hi is None or (v < hi if hi_open else v <= hi))):
         rng = " and ".join(f"{op} {b:g}" for op, b in ((">" if lo_open else ">=", lo), ("<" if hi_open else "<=", hi))
                            if b is not None)
-        raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else ""))
+        kind = "" if isinstance(value, numbers.Real) and not isinstance(value, bool) else \
+            f", not {type(value).__name__}"
+        raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else "") + kind)
     return v
 
 
@@ -73,8 +77,82 @@ def check_integer(name, value, lo, what="", hi=None, note=""):
     if not (isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
             and value == int(value) and lo <= value and (hi is None or value <= hi)):
         rng = f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
-        raise ParameterError(name, value, " ".join(x for x in (what, f"must be an integer {rng}", note) if x))
+        kind = "" if isinstance(value, numbers.Real) and not isinstance(value, bool) else \
+            f"(not {type(value).__name__})"
+        raise ParameterError(name, value, " ".join(x for x in (what, f"must be an integer {rng}", kind, note) if x))
     return int(value)
+
+
+def members(name, values, what):
+    """``values`` (one number, or a sequence of them: a list, tuple, range or numpy array; not a string) as a list."""
+    if isinstance(values, numbers.Number):
+        return [values]
+    if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__") or isinstance(values, dict):
+        raise ParameterError(name, values, f"must be a sequence of {what} (a list or tuple), not "
+                             f"{type(values).__name__}")
+    return list(values.tolist() if hasattr(values, "tolist") else values)
+
+
+def _distinct(name, values, what):
+    """Refuse a repeated member (equal to 1e-12 relative, as AppOptions.numbers(distinct=True) does)."""
+    for i, v in enumerate(values):
+        if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in values[:i]):
+            raise ParameterError(name, values, f"lists {v!r} twice; the {what} must be different")
+
+
+def check_reals(name, values, what, lo=None, hi=None, lo_open=True, hi_open=True, distinct=False, empty=False):
+    """``values`` (one number or a sequence) as a tuple of floats, each checked by :func:`check_real` under the
+    name ``name``; at least one unless ``empty``; with ``distinct``, no member twice: the one check of a list of
+    real parameters (``what``: the members, plural)."""
+    out = tuple(check_real(name, v, f"each of the {what}", lo, hi, lo_open, hi_open)
+                for v in members(name, values, "numbers"))
+    if not out and not empty:
+        raise ParameterError(name, values, f"give at least one of the {what}")
+    if distinct:
+        _distinct(name, out, what)
+    return out
+
+
+def check_integers(name, values, lo, what="", hi=None, distinct=False, empty=False):
+    """``values`` (one number or a sequence) as a tuple of ints, each checked by :func:`check_integer` under the
+    name ``name``; at least one unless ``empty``; with ``distinct``, no member twice."""
+    out = tuple(check_integer(name, v, lo, f"each of the {what}" if what else "", hi)
+                for v in members(name, values, "integers"))
+    if not out and not empty:
+        raise ParameterError(name, values, f"give at least one of the {what or 'integers'}")
+    if distinct:
+        _distinct(name, out, what or "integers")
+    return out
+
+
+def check_choice(name, value, choices, what="must be one of"):
+    """``value`` if it is one of ``choices`` (names), else a :class:`ParameterError` naming ``name``."""
+    if not (isinstance(value, str) and value in choices):
+        raise ParameterError(name, value, f"{what} " + ", ".join(choices))
+    return value
+
+
+def check_instance(name, value, kind, what):
+    """``value`` if it is an instance of ``kind``, else a :class:`ParameterError` naming ``name`` (``what`` it must
+    be, e.g. "a LatticeModel (LatticeModel.hertz(1.5))") and the type it was given."""
+    if not isinstance(value, kind):
+        raise ParameterError(name, value, f"must be {what}, not {type(value).__name__}")
+    return value
+
+
+def check_prefix(name, value):
+    """``value`` if it is an options prefix (text such as 'floquet_'), else a :class:`ParameterError` naming
+    ``name``."""
+    if not (isinstance(value, str) and all(c.isalnum() or c == "_" for c in value)):
+        raise ParameterError(name, value, "must be an options prefix: letters, digits and '_' (e.g. 'floquet_')")
+    return value
+
+
+def check_flag(name, value):
+    """``value`` as a bool if it is one (Python's or numpy's), else a :class:`ParameterError` naming ``name``."""
+    if isinstance(value, bool) or type(value).__name__ == "bool_":
+        return bool(value)
+    raise ParameterError(name, value, f"must be True or False, not {type(value).__name__}")
 
 
 class OptionError(ParameterError):
@@ -102,6 +180,22 @@ class RecordFileError(HertzPetscError, IOError):
     """A record file is missing, corrupt, of another kind, belongs to another computation, or cannot be written."""
 
     exit_status = 4
+
+
+class Terminated(BaseException):
+    """SIGTERM or SIGHUP (what ``timeout``, ``kill`` and batch schedulers send), raised like KeyboardInterrupt so
+    that ``finally`` blocks end child processes and leave record files consistent (status 128 + the signal)."""
+
+    def __init__(self, signum):
+        self.signum = signum
+        super().__init__(signal.Signals(signum).name)
+
+
+def check_signals(*args):
+    """Run Python's pending signal handlers now (a KeyboardInterrupt or :class:`Terminated` is raised here): the
+    monitor of a solver that calls no Python otherwise (SLEPc's PEP on assembled matrices), so that a signal ends it
+    within an iteration. Takes and ignores the monitor's arguments."""
+    ctypes.pythonapi.PyErr_CheckSignals()
 
 
 # The names under which these errors were raised before the record store existed (still caught by old code).

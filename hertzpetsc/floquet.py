@@ -25,7 +25,8 @@ from typing import TYPE_CHECKING, Optional, Sequence
 import numpy as np
 
 from .chain import IntegrationTolerances
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_flag, check_instance, check_integer, check_real
+from .model import ChainSpec
 from .tangent import MonodromyModShift, TangentFlow
 
 if TYPE_CHECKING:
@@ -149,6 +150,7 @@ class DenseFloquet(FloquetSolver):
 
     def __init__(self, spec: ChainSpec, comm: PETSc.Comm, tolerances: IntegrationTolerances = FLOQUET_TOLERANCES,
                  prefix: str = FLOQUET_PREFIX) -> None:
+        check_instance("spec", spec, ChainSpec, "a ChainSpec")
         self.flow = TangentFlow(spec, 2 * spec.N, comm, tolerances, prefix)
 
     def monodromy(self, orbit: Orbit, shift: bool = True, T: Optional[float] = None) -> np.ndarray:
@@ -184,11 +186,14 @@ class DominantFloquet(FloquetSolver):
                  tolerances: IntegrationTolerances = FLOQUET_TOLERANCES, prefix: str = FLOQUET_PREFIX,
                  ncv: Optional[int] = None, tol: float = 1e-10, warm: bool = False, shift: int = 1,
                  vectors: bool = False) -> None:
-        dim = 2 * spec.N
-        if not (isinstance(nev, (int, np.integer)) and 1 <= nev <= dim):
+        dim = 2 * check_instance("spec", spec, ChainSpec, "a ChainSpec").N
+        if not (check_integer("nev", nev, 1, "the number of multipliers") <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
-        self.prefix, self.warm, self.start, self.previous = prefix, warm, [], []
-        self.keep_vectors, self.vectors = vectors, None
+        if ncv is not None:
+            ncv = check_integer("ncv", ncv, nev, "the subspace dimension", dim, f"(from nev to 2N = {dim})")
+        tol = check_real("tol", tol, "the eigensolver's relative tolerance", 0.0, 1.0)
+        self.prefix, self.warm, self.start, self.previous = prefix, check_flag("warm", warm), [], []
+        self.keep_vectors, self.vectors = check_flag("vectors", vectors), None
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
         self.eps = largest_magnitude(self.op.base.comm, prefix, nev,

@@ -19,12 +19,14 @@ from petsc4py import PETSc
 from numpy.typing import ArrayLike
 
 from .assembly import gathered
-from .errors import ParameterError, check_integer
+from .errors import ParameterError, check_integer, check_real
 
 
 def check_cells_per_pi(cells_per_pi):
-    """K must be an integer >= 4 (h = pi/K); returns it as int."""
-    return check_integer("cells_per_pi", cells_per_pi, 4, note="(h = pi / cells_per_pi)")
+    """K must be an integer >= 4 (h = pi/K) whose whole period's 2K values PETSc's index type can count; returns it
+    as int (the memory a solver needs on it: :func:`~hertzpetsc.resources.check_memory`)."""
+    from .resources import MAX_UNKNOWNS
+    return check_integer("cells_per_pi", cells_per_pi, 4, hi=MAX_UNKNOWNS // 2, note="(h = pi / cells_per_pi)")
 
 
 class ProfileGrid:
@@ -46,7 +48,7 @@ class ProfileGrid:
         if dirichlet and parity < 0:
             raise ParameterError("dirichlet", dirichlet, "is only available for even profiles (parity +1)")
         self.parity, self.dirichlet, self.comm = parity, dirichlet, comm
-        self.h = 0.5 * length / self.K
+        self.h = 0.5 * check_real("length", length, "the period", 0.0) / self.K
         self.offset = 1 if parity < 0 else 0          # unknown index = grid index - offset
         self.size = self.K - 1 if parity < 0 else (self.K + 1 if parity > 0 else 2 * self.K)
         self.n_half = self.K + 1 if parity else 2 * self.K      # values of a half profile (xi_half)

@@ -22,6 +22,7 @@ import tempfile
 
 import numpy as np
 
+from .errors import check_signals
 from .hertz import power_recipe
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -31,6 +32,8 @@ LIBRARY = os.path.join(HERE, "_chain_kernel.so")
 CFLAGS = ["-O3", "-fPIC", "-shared", "-std=c99", "-ffp-contract=off", "-fno-fast-math"]
 
 END_INSIDE, END_FREE, END_WALL, END_ACTUATOR = 0, 1, 2, 3
+# PETSc's error code "Signal received": what the compiled right-hand side returns once a watched signal arrived
+SIGNAL_ERROR = 59
 
 
 class KernelContext(ctypes.Structure):
@@ -145,6 +148,7 @@ def library():
             lib.hz_chain_rhs.restype = ctypes.c_int
             lib.hz_install_rhs.argtypes = [vp, vp, ptr]
             lib.hz_install_rhs.restype = ctypes.c_int
+            lib.hz_watch_signals.restype = lib.hz_release_signals.restype = ctypes.c_int
             _lib, _status = lib, "compiled"
     return _lib
 
@@ -153,6 +157,29 @@ def status():
     """'compiled', or why the chain falls back to its numpy right-hand side."""
     library()
     return _status
+
+
+def watch_signals():
+    """Before a solve on the compiled right-hand side (no Python runs its signal handlers until the solve returns):
+    from now on SIGINT, SIGTERM or SIGHUP (where the process handles them) make the right-hand side fail with
+    :data:`SIGNAL_ERROR` at its next evaluation, so that the solve ends within a step. No-op without the library."""
+    if _lib is not None:
+        _lib.hz_watch_signals()
+
+
+def release_signals():
+    """After the solve (also when it failed): a watched signal that arrived meanwhile goes to the process's handler
+    now, and Python's handler runs at once (guarded_main's raises :class:`~hertzpetsc.errors.Terminated`, Python's
+    default one KeyboardInterrupt)."""
+    global last_signal
+    if _lib is not None:
+        signum = _lib.hz_release_signals()
+        if signum:
+            last_signal = signum
+            check_signals()                            # raises what the handler raises
+
+
+last_signal = 0          # the last signal that ended a solve (release_signals), for an error that hides it
 
 
 class ChainKernel:

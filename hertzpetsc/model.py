@@ -367,7 +367,8 @@ class ChainSpec:
             raise ParameterError("boundary", self.boundary, f"must be one of {', '.join(BOUNDARIES)}")
         if self.boundary == "periodic":
             if self.left is not None or self.right is not None:
-                raise ParameterError("boundary", "periodic", "a periodic chain has no ends (left/right)")
+                raise ParameterError("left" if self.left is not None else "right", self.left or self.right,
+                                     "a periodic chain has no ends: give boundary 'free' or 'fixed' with left/right")
             if self.N < 2:
                 raise ParameterError("N", self.N, "a periodic chain needs at least 2 beads")
         else:

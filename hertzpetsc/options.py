@@ -25,8 +25,8 @@ import time
 import numpy as np
 from petsc4py import PETSc
 
-from . import __version__
-from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure
+from . import __version__, kernels
+from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure, Terminated
 from .records import name_path
 
 # seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
@@ -303,6 +303,7 @@ class AppOptions:
         (:meth:`check_unused`)."""
         self.check = self.flag("check", "check the options and the input files, and that the outputs can be written, "
                                "then exit 0: nothing is computed or written (output directories may be created)")
+        self.work_limit()
         if not self.help:
             check_ranks_agree(PETSc.COMM_WORLD)
             return
@@ -317,6 +318,14 @@ class AppOptions:
         sys.stdout.flush()
         self.db.delValue("help")              # PETSc would print its viewer options again at its finalize
         raise SystemExit(0)
+
+    def work_limit(self):
+        """-max_hours, every driver's: the limit of the up-front estimates of computing time
+        (:func:`hertzpetsc.resources.check_work`); a run estimated to take longer is refused before it computes."""
+        from . import resources
+        hours = self.real("max_hours", resources.DEFAULT_MAX_HOURS, "refuse a run estimated to compute longer than "
+                          "this many hours (0: no limit)", valid=(lambda h: h >= 0, ">= 0 (0: no limit)"))
+        return resources.set_work_limit(hours)
 
     def known(self):
         return {name for name, *_ in self.declared}
@@ -439,15 +448,6 @@ def _exit(code, message, collective):
     comm.tompi4py().Abort(code)
 
 
-class Terminated(BaseException):
-    """SIGTERM or SIGHUP (what ``timeout``, ``kill`` and batch schedulers send), raised like KeyboardInterrupt so
-    that ``finally`` blocks end child processes and leave record files consistent."""
-
-    def __init__(self, signum):
-        self.signum = signum
-        super().__init__(signal.Signals(signum).name)
-
-
 def _raise_terminated(signum, frame):
     raise Terminated(signum)
 
@@ -461,13 +461,27 @@ def run_child(cmd, cwd=None, out=None, grace=5.0, err=subprocess.STDOUT, env=Non
     child = subprocess.Popen(cmd, cwd=cwd, stdout=out, stderr=err, env=dict(os.environ) if env is None else env,
                              start_new_session=True)
     try:
-        return child.wait(timeout=timeout)
+        return _wait(child, timeout)
     except subprocess.TimeoutExpired:
         _end_group(child, grace)
         return 124
     except BaseException:
         _end_group(child, grace)
         raise
+
+
+def _wait(child, timeout):
+    """child.wait(timeout), returning to the interpreter every 0.2 s: a signal that the kernel gave another thread
+    of this process (an MPI progress thread) is seen by Python's handler only there, never inside a blocking
+    wait for the child."""
+    end = None if timeout is None else time.monotonic() + timeout
+    while True:
+        step = 0.2 if end is None else min(0.2, max(end - time.monotonic(), 0.0))
+        try:
+            return child.wait(timeout=step)
+        except subprocess.TimeoutExpired:
+            if end is not None and time.monotonic() >= end:
+                raise
 
 
 def _end_group(child, grace):
@@ -505,17 +519,35 @@ def guarded_main(main):
         _report(err)
 
 
+def _interruption(err):
+    """The signal number behind ``err``: a KeyboardInterrupt or :class:`Terminated`, also one that an error in a
+    ``finally`` block replaced (a solver object destroyed in the state the interruption left it in: PETSc error 58),
+    or a solve that the compiled kernel ended for a signal whose handler did not raise; else None."""
+    seen = set()
+    while err is not None and id(err) not in seen:
+        if isinstance(err, KeyboardInterrupt):
+            return signal.SIGINT
+        if isinstance(err, Terminated):
+            return err.signum
+        if isinstance(err, PETSc.Error) and err.ierr == kernels.SIGNAL_ERROR and kernels.last_signal:
+            return kernels.last_signal
+        seen.add(id(err))
+        err = err.__context__
+    return None
+
+
 def _report(err):
     """The one error line and exit status of an exception that ended ``main`` (:func:`guarded_main`)."""
-    if isinstance(err, KeyboardInterrupt):
-        _exit(130, "interrupted", False)
-    elif isinstance(err, Terminated):
-        if PETSc.COMM_WORLD.getSize() > 1:
-            # under mpiexec the signal is either the user's, forwarded to every rank, or mpiexec ending the ranks
-            # of a job that another rank aborted after printing its error: end quietly (the finally blocks ran)
-            sys.stdout.flush()
-            os._exit(128 + err.signum)
-        _exit(128 + err.signum, f"terminated by {signal.Signals(err.signum).name}", False)
+    signum = _interruption(err)
+    if signum is not None:
+        # under mpiexec the signal is either the user's, forwarded to every rank, or mpiexec ending the ranks of a
+        # job that another rank aborted after printing its error: end quietly. The finally blocks ran; the exit
+        # skips PETSc's finalization, which would meet solver objects the interruption left mid-operation.
+        sys.stdout.flush()
+        if PETSc.COMM_WORLD.getSize() == 1:
+            text = "interrupted" if signum == signal.SIGINT else f"terminated by {signal.Signals(signum).name}"
+            print(f"error: {text}", file=sys.stderr, flush=True)
+        os._exit(128 + signum)
     elif not isinstance(err, Exception):
         raise err
     elif os.environ.get("HZ_TRACEBACK"):          # for developers: the full traceback instead of one line

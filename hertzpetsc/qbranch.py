@@ -28,7 +28,7 @@ from .binary import binary_oscillation
 from .branch import BranchPoint
 from .continuation import ContinuationError, ContinuationUse, Natural
 from .diagnostics import point_diagnostics
-from .errors import ConvergenceError, ParameterError, check_integer
+from .errors import ConvergenceError, ParameterError, check_instance, check_integer
 from .grid import ProfileGrid, check_cells_per_pi
 from .hertz import check_alpha
 from .model import LatticeModel
@@ -62,8 +62,10 @@ class ContinuationParameters:
         model = self.model
         if model is None:
             model = LatticeModel.hertz(check_alpha(1.5 if self.alpha is None else self.alpha))
-        elif self.alpha is not None and check_alpha(self.alpha) != model.alpha:
-            raise ParameterError("alpha", self.alpha, f"differs from the model's exponent {model.alpha}")
+        else:
+            check_instance("model", model, LatticeModel, "a LatticeModel (LatticeModel.hertz(alpha))")
+            if self.alpha is not None and check_alpha(self.alpha) != model.alpha:
+                raise ParameterError("alpha", self.alpha, f"differs from the model's exponent {model.alpha}")
         if model.cell != 1 or model.delta0 != 0:
             raise ParameterError("model", model.describe(), "the q-branch (eq. ad at omega = 1 from the binary "
                                  "oscillation) is the uncompressed monatomic chain's; a precompressed chain or a mass "
@@ -72,8 +74,12 @@ class ContinuationParameters:
         object.__setattr__(self, "alpha", model.alpha)
         object.__setattr__(self, "M", check_integer("M", self.M, 1, note="(wavenumbers q = m pi / M)"))
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        q_stop = math.pi / self.M if self.q_stop is None else self.q_stop
+        default_stop = self.q_stop is None
+        q_stop = math.pi / self.M if default_stop else self.q_stop
         object.__setattr__(self, "q_stop", check_wavenumber(q_stop, name="q_stop"))
+        if self.q_stop < self.h and default_stop:
+            raise ParameterError("M", self.M, f"gives the default q_stop = pi / M below the grid step h = "
+                                 f"pi/{self.cells_per_pi}: M must be at most cells_per_pi")
         if self.q_stop < self.h:
             raise ParameterError("q_stop", self.q_stop, f"must be at least the grid step h = pi/{self.cells_per_pi}"
                                  f" = {self.h:.6g}; increase cells_per_pi")

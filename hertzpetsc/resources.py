@@ -1,15 +1,19 @@
-"""Memory needed by the travelling-wave solvers, checked before anything is allocated.
+"""Memory and time a run needs, checked before anything is allocated or computed.
 
 A request that would not fit (a grid too fine for the machine) is refused up front with
 :class:`~hertzpetsc.errors.ParameterError`, naming cells_per_pi, the estimated memory and the largest grid that
 fits, instead of being killed by the kernel part-way. The estimates are per unknown, measured as peak resident
 memory (results/bench_newton.md) with a safety margin, plus a fixed per-process cost (Python, numpy, PETSc, MPI).
+Likewise a run whose estimated computing time exceeds a limit (:func:`check_work`: -max_hours, default
+:data:`DEFAULT_MAX_HOURS`) is refused with the estimate, from costs per unit of work measured once (the constants
+below say where).
 """
+import math
 import os
 
 from petsc4py import PETSc
 
-from .errors import ParameterError
+from .errors import ParameterError, check_real
 
 GIB = 2.0 ** 30
 # fixed cost of one process (interpreter, numpy, petsc4py, MPI), bytes
@@ -87,17 +91,86 @@ MAX_DENSE_BEADS = 5000
 BYTES_PER_BEAD_COLUMN = 2 * 8 * 24
 
 
+def physical_memory():
+    """The machine's physical memory, bytes (the same on every rank of one machine, unlike what is available)."""
+    return float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+
+
+def check_chain_size(N, columns=1, name="N"):
+    """Raise :class:`ParameterError` naming ``name`` if a chain of N beads carrying ``columns`` state columns has
+    more unknowns than PETSc's index type counts, or needs more than the machine's physical memory (local and
+    deterministic: no collective, the same verdict on every rank; :func:`check_chain_memory` is the finer check
+    against the memory available)."""
+    N, columns = int(N), int(columns)
+    if 2 * N * columns > MAX_UNKNOWNS:
+        raise ParameterError(name, N, f"gives {2 * N * columns} unknowns ({columns} column(s)), more than PETSc's "
+                             f"index type allows ({MAX_UNKNOWNS})")
+    total = BYTES_PER_BEAD_COLUMN * N * columns
+    if total > physical_memory():
+        raise ParameterError(name, N, f"a chain of {N} beads with {columns} column(s) needs about {total / GIB:.1f} "
+                             f"GiB, more than this machine's {physical_memory() / GIB:.1f} GiB")
+
+
 def check_chain_memory(N, comm=None, columns=1, name="N", available=None):
     """Raise :class:`ParameterError` naming ``name`` if a chain of N beads carrying ``columns`` state columns (the
     state plus tangents) would not fit in memory or in PETSc's index type. Collective on ``comm``."""
     comm, available = _shared_memory(comm, available)
     N, columns = int(N), int(columns)
-    if 2 * N * columns > MAX_UNKNOWNS:
-        raise ParameterError(name, N, f"gives {2 * N * columns} unknowns, more than PETSc's index type allows "
-                             f"({MAX_UNKNOWNS})")
+    check_chain_size(N, columns, name)
     total = PROCESS_BYTES * comm.getSize() + BYTES_PER_BEAD_COLUMN * N * columns
     if total > USABLE_FRACTION * available:
         fits = int((USABLE_FRACTION * available - PROCESS_BYTES * comm.getSize()) / (BYTES_PER_BEAD_COLUMN * columns))
         raise ParameterError(name, N, f"a chain of {N} beads with {columns} column(s) needs about {total / GIB:.1f} "
                              f"GiB but {available / GIB:.1f} GiB are available: at most {max(fits, 0)} beads")
     return total
+
+
+# --- work: a run estimated to take hours beyond the limit is refused before it computes ----------------------------
+# The limit (hours of computing on the reference machine, 2 cores) of the estimates below; drivers set it from
+# -max_hours (0: none), Python from set_work_limit. The documented commands take at most about 20 minutes each.
+DEFAULT_MAX_HOURS = 6.0
+# Seconds per bead and unit of time of the chain's state flow (adaptive RK 8(7), rtol 1e-12, RMS error norm, one
+# rank): 0.275 s for 10^4 beads over script-T = 1.2010 at q = 3 pi/10, 84 steps (results/bench_chain.md, 2026-11-22,
+# idle machine). Tighter flows take more steps per unit of time (e.g. the compacton dynamics' max-norm flows at rtol
+# 1e-13: 7.8e-5, results/compacton_dynamics.md), driven chains at low frequencies fewer.
+CHAIN_SECONDS = 2.3e-5
+# Seconds of one integration call beyond its steps (TS set-up, Python): 12 us per call at N = 20 (5000 calls of one
+# step each, best of 5; measured 2026-12-06 on the shared machine under load: an upper bound).
+INTEGRATE_SECONDS = 1.2e-5
+
+_work_limit = DEFAULT_MAX_HOURS
+
+
+def set_work_limit(hours):
+    """The limit (hours) of :func:`check_work`; 0 or inf: none. Drivers set it from -max_hours."""
+    global _work_limit
+    hours = math.inf if hours == 0 or hours == math.inf else check_real("max_hours", hours, "the computing-time "
+                                                                         "limit in hours (0: none)", 0.0)
+    _work_limit = hours
+    return hours
+
+
+def work_limit():
+    """The limit (hours) of :func:`check_work` (inf: none)."""
+    return _work_limit
+
+
+def chain_seconds(beads, time, per_bead=CHAIN_SECONDS):
+    """The estimated seconds of state flows of ``beads`` beads (summed over the flows) over ``time`` units of time
+    (summed likewise): per_bead (seconds per bead and unit of time, :data:`CHAIN_SECONDS`) x beads x time."""
+    return per_bead * float(beads) * float(time)
+
+
+def _duration(seconds):
+    return f"{seconds / 3600:.3g} hours" if seconds >= 3600 else f"{seconds / 60:.3g} minutes"
+
+
+def check_work(name, value, seconds, what):
+    """Raise :class:`ParameterError` naming ``name`` (whose ``value`` makes the run long) when the estimated
+    ``seconds`` of ``what`` (the work, in words) exceed the limit (:func:`set_work_limit`, -max_hours); local and
+    deterministic: every rank given the same arguments decides alike."""
+    if seconds > _work_limit * 3600.0:
+        raise ParameterError(name, value, f"{what} would take about {_duration(seconds)} of computing (estimated "
+                             f"from measured costs), more than the limit of {_work_limit:g} hours: -max_hours H "
+                             "raises it (0: none; hertzpetsc.resources.set_work_limit in Python)")
+    return seconds

@@ -45,7 +45,9 @@ import numpy as np
 from petsc4py import PETSc
 
 from .chain import IntegrationTolerances
-from .errors import ConvergenceError, ParameterError, check_integer, check_real
+from .errors import (ConvergenceError, ParameterError, check_flag, check_instance, check_integer, check_prefix,
+                     check_real)
+from .model import ChainSpec
 from .gauss_newton import GaussNewton
 from .tangent import TangentFlow
 
@@ -219,6 +221,12 @@ class Refiner:
                  symmetric: bool = True, jacobian_tolerances: IntegrationTolerances = JACOBIAN_TOLERANCES,
                  accept_floor: bool = True) -> None:
         tol = check_real("tol", tol, "the target residual", 0.0)
+        check_instance("spec", spec, ChainSpec, "a ChainSpec")
+        symmetric = check_flag("symmetric", symmetric)
+        check_prefix("prefix", prefix)
+        max_iterations = check_integer("max_iterations", max_iterations, 1, "the Gauss-Newton iterations")
+        for name, value in (("tolerances", tolerances), ("jacobian_tolerances", jacobian_tolerances)):
+            check_instance(name, value, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
         self.spec, self.tol, self.comm, self.symmetric = spec, tol, comm, symmetric
         self.accept_floor = accept_floor
         self.tolerances, self.jacobian_tolerances, self.prefix = tolerances, jacobian_tolerances, prefix

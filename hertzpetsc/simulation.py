@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import ParameterError, RecordFileError
+from .errors import ParameterError, RecordFileError, check_real
 from .records import AppendRecords
 
 LONGRUN_FORMAT = "hertzpetsc-longrun-2"
@@ -84,8 +84,7 @@ def read_snapshots(directory):
 
 def check_times(t_final, snapshot_dt):
     for name, v in (("t_final", t_final), ("snapshot_dt", snapshot_dt)):
-        if not (np.isfinite(v) and v > 0):
-            raise ParameterError(name, v, "must be a positive time")
+        check_real(name, v, "the time", 0.0)
     if snapshot_dt > t_final:
         raise ParameterError("snapshot_dt", snapshot_dt, f"must not exceed t_final = {t_final}")
 

@@ -23,16 +23,21 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import RowAssembler, StencilGather
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .grid import ProfileGrid
 from .hertz import check_alpha
 from .model import LatticeModel
+from .resources import check_memory
 from .twsolver import ACCEPT_FACTOR, create_snes
 
 SOL_PREFIX = "sol_"
 # L tried in turn when none is given (x 1.5 each; alpha near 1: a slow tail)
 AUTO_HALF_LENGTHS = (8.0, 12.0, 18.0, 27.0, 40.5)
 
+
+# The finest grid of the solitary wave: 2 L n unknowns on the line (L up to the largest of AUTO_HALF_LENGTHS) must
+# fit in memory on the direct solver; 10^6 cells per unit is already far beyond the convergence studies (n <= 160).
+MAX_CELLS_PER_UNIT = 10 ** 6
 
 @dataclass(frozen=True)
 class SolitaryParameters:
@@ -46,16 +51,20 @@ class SolitaryParameters:
 
     def __post_init__(self):
         object.__setattr__(self, "alpha", check_alpha(self.alpha))
-        n = self.cells_per_unit
-        if not (isinstance(n, (int, np.integer)) and n >= 2 and n % 2 == 0):
+        n = check_integer("cells_per_unit", self.cells_per_unit, 2, hi=MAX_CELLS_PER_UNIT,
+                          note="(even: unit shift and half-integers on the grid)")
+        if n % 2:
             raise ParameterError("cells_per_unit", n, "must be an even integer >= 2 (unit shift and half-integers "
                                  "on the grid)")
-        K = None if self.half_length is None else self.half_length * n
-        if K is not None and not (self.half_length >= 3 and abs(K - round(K)) < 1e-9):
-            raise ParameterError("half_length", self.half_length, "must be >= 3 and a multiple of the grid step "
-                                 f"1/{n}")
-        if not self.tail_tolerance > 0:
-            raise ParameterError("tail_tolerance", self.tail_tolerance, "must be > 0")
+        object.__setattr__(self, "cells_per_unit", n)
+        if self.half_length is not None:
+            L = check_real("half_length", self.half_length, "the half-length of the line", 3.0, lo_open=False)
+            if abs(L * n - round(L * n)) >= 1e-9:
+                raise ParameterError("half_length", self.half_length, "must be >= 3 and a multiple of the grid step "
+                                     f"1/{n}")
+            object.__setattr__(self, "half_length", L)
+        object.__setattr__(self, "tail_tolerance", check_real("tail_tolerance", self.tail_tolerance, "the tail "
+                                                              "tolerance", 0.0))
 
     @property
     def K(self):
@@ -169,6 +178,11 @@ def _check_tail(wave):
 def _solve(params, comm, prefix):
     """The solve of :func:`solve_solitary_wave` at a given L, without the tail check."""
     t0 = time.perf_counter()
+    try:
+        check_memory(params.K, comm, "direct")
+    except ParameterError as err:
+        raise ParameterError("cells_per_unit", params.cells_per_unit, f"with the half-length L = "
+                             f"{params.half_length:g}, the line has {params.K} cells: {err.valid}") from None
     s = np.arange(params.K + 1) / params.cells_per_unit
     # round-off floor of the residual: ~4 eps |r| n^2 per row (|r| <= 1.5), times sqrt(K) in the 2-norm
     atol = 10 * 4 * np.finfo(float).eps * 1.5 * params.cells_per_unit ** 2 * math.sqrt(params.K + 1)

@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike
 from petsc4py import PETSc
 
 from .chain import Chain, ChainIntegrator, IntegrationTolerances
-from .errors import ParameterError
+from .errors import ParameterError, check_instance, check_integer
 from .model import ChainSpec
 from .symmetry import real_sector
 
@@ -33,8 +33,8 @@ class TangentFlow:
 
     def __init__(self, spec: ChainSpec, n_tangent: int, comm: PETSc.Comm, tolerances: Optional[IntegrationTolerances],
                  prefix: str, chain: type[Chain] = Chain, rk_type: str = "8vr") -> None:
-        self.spec = spec
-        self.k = int(n_tangent)
+        self.spec = check_instance("spec", spec, ChainSpec, "a ChainSpec")
+        self.k = check_integer("n_tangent", n_tangent, 0, "the number of tangent vectors")
         self.aug = chain(spec, comm, n_tangent=self.k)
         self.integrator = ChainIntegrator(self.aug, tolerances, prefix, rk_type)
         self.Z = self.aug.create_state()

@@ -173,10 +173,11 @@ def main():
     from hertzpetsc.options import AppOptions
     opts = AppOptions(__doc__)
     from hertzpetsc.driven import JACOBIAN_RTOL
-    from hertzpetsc.resources import MAX_DENSE_BEADS, check_chain_memory
+    from hertzpetsc.resources import MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_work
+    from hertzpetsc.studies.driven import MAX_POINTS
     N = opts.integer("N", 20, "beads of the swept chain (dense Jacobian and multipliers)", minimum=1,
                      maximum=MAX_DENSE_BEADS)
-    points = opts.integer("points", 200, "frequencies of the sweep", minimum=2)
+    points = opts.integer("points", 200, "frequencies of the sweep", minimum=2, maximum=MAX_POINTS)
     omega0 = opts.real("omega0", 0.3, "first frequency", valid=(lambda x: x > 0, "> 0"))
     omega1 = opts.real("omega1", 2.3, "last frequency", valid=(lambda x: x > 0, "> 0"))
     delta0 = opts.real("delta0", 1.0, "precompression", valid=(lambda x: x >= 0, ">= 0"))
@@ -199,6 +200,13 @@ def main():
         check_chain_memory(N, PETSc.COMM_WORLD, columns=2 + 2 * N, name="N")
         if "long" in workloads and long_N:
             check_chain_memory(long_N, PETSc.COMM_WORLD, columns=3, name="long_N")
+        # the run-ins' state flows, estimated (the SciPy route and each repeat run them again)
+        runs = 2 + repeats
+        check_work("run_in", run_in, runs * chain_seconds(N, run_in * 2 * math.pi / omega0),
+                   f"{runs} run-ins of {run_in} periods on {N} beads")
+        if "long" in workloads:
+            check_work("long_run_in", long_run_in, repeats * chain_seconds(long_N, long_run_in * 2 * math.pi),
+                       f"{repeats} run-in(s) of {long_run_in} periods on {long_N} beads")
     me = os.path.abspath(__file__)
     sweep = dict(N=N, points=points, omega0=omega0, omega1=omega1, delta0=delta0, gamma=gamma, amplitude=amplitude,
                  run_in=run_in)

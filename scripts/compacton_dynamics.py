@@ -74,7 +74,8 @@ def main():
     N = opts.integer("N", 2100, "beads of the free chain", minimum=10, maximum=10 ** 7)
     n0 = opts.integer("n0", 50, "first bead of the compacton's window", minimum=1)
     travel = opts.integer("travel", 1000, "units of time = beads of travel", minimum=10, maximum=10 ** 7)
-    amplitude = opts.real("amplitude", 1e-8, "size of the perturbation (relative)", valid=(lambda x: x > 0, "> 0"))
+    amplitude = opts.real("amplitude", 1e-8, "size of the perturbation (relative to D and v_peak)",
+                          valid=(lambda x: 0 < x < 1, "in (0, 1): a perturbation, split linearly"))
     kinds = opts.words("kinds", "mode,noise", "perturbations", choices=("mode", "noise"))
     output, mode, table, figures = opts.record_table_figures(
         "runs/compacton_dynamics.npz", "compacton dynamics file", "runs/compacton_dynamics.md",
@@ -100,8 +101,13 @@ def main():
     if pairs_q:
         if len(pairs_q) > 1:
             raise ParameterError("-pairs_q", pairs_q, "one wavenumber")
-        pairs = CompactonPairs(Branch.load(pairs_branch, comm), pairs_q[0], comm, pairs_output, mode, spacing,
-                               pairs_travel)
+        try:
+            pairs = CompactonPairs(Branch.load(pairs_branch, comm), pairs_q[0], comm, pairs_output, mode, spacing,
+                                   pairs_travel)
+        except ParameterError as err:             # the pairs' travel is this driver's -pairs_travel
+            if err.name != "travel":
+                raise
+            raise ParameterError("-pairs_travel", err.value, err.valid) from None
     opts.check_unused()
     try:
         if dyn is not None:

@@ -27,7 +27,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterator, Optional
 
 from petsc4py import PETSc
 
-from ..errors import HertzPetscError, ParameterError
+from ..errors import HertzPetscError, ParameterError, check_choice, check_instance
 from ..records import MODES, MemoryRecords, NpzRecords, checking, file_digest, given, write_text
 from .dealing import dealt
 
@@ -67,8 +67,9 @@ class Study:
                  mode: str = "new") -> None:
         if self.Parameters is not None and not isinstance(params, self.Parameters):
             raise ParameterError("params", type(params).__name__, f"must be {self.Parameters.__name__}(...)")
-        if mode not in MODES:
-            raise ParameterError("mode", mode, f"must be one of {', '.join(MODES)}")
+        check_choice("mode", mode, MODES)
+        if output is not None:
+            check_instance("output", output, (str, os.PathLike), "a path (None: the records in memory)")
         self.params = params
         self.comm = comm if comm is not None else PETSc.COMM_WORLD
         self.output, self.mode = output, mode

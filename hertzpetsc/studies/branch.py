@@ -12,7 +12,9 @@ import numpy as np
 from ..branch import BRANCH_FORMAT, POINT_FIELDS, Branch, BranchPoint, branch_store
 from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
                             paper_targets)
-from ..errors import ParameterError, RecordFileError, check_integer
+from ..errors import (ParameterError, RecordFileError, check_instance, check_integer, check_integers, check_prefix,
+                      check_real)
+from ..hertz import check_alpha
 from ..model import LatticeModel
 from ..records import is_checking, load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
@@ -46,6 +48,9 @@ class BranchStudy(Study):
                  comm: Optional[PETSc.Comm] = None, mode: str = "new", meta: Optional[Mapping] = None,
                  prefix: str = TW_PREFIX, solver: Optional[str] = None) -> None:
         super().__init__(params, comm, output, mode)
+        check_prefix("prefix", prefix)
+        if meta is not None:
+            check_instance("meta", meta, dict, "a dict of labels (None: none)")
         self.branch = Branch(params.model, params.cells_per_pi, params.M, [], dict(meta or {}))
         self.continuation = BranchContinuation(params, self.comm, prefix, solver)
         self.resumed = 0
@@ -83,7 +88,10 @@ class ConvergenceStudy(Study):
     ROLES = TW_ROLE
 
     def __init__(self, model, M, cells, comm=None, prefix=TW_PREFIX):
-        cells = sorted(int(K) for K in cells)
+        check_instance("model", model, LatticeModel, "a LatticeModel (LatticeModel.hertz(alpha))")
+        M = check_integer("M", M, 1, "the target wavenumbers q = m pi / M")
+        check_prefix("prefix", prefix)
+        cells = sorted(check_integers("cells", cells, 4, "grids K (h = pi/K)"))
         if len(cells) < 3 or len(set(cells)) != len(cells):
             raise ParameterError("cells", cells, "needs at least three different grids for an observed order")
         if cells[0] < M:        # the smallest target q = pi/M must be at least every grid's step h = pi/K
@@ -143,6 +151,10 @@ class SmallQParameters:
     levels: int = 3
 
     def __post_init__(self):
+        object.__setattr__(self, "alpha", check_alpha(self.alpha))
+        for name in ("q_first", "q_stop"):
+            object.__setattr__(self, name, check_real(name, getattr(self, name), "the wavenumber", 0.0, math.pi,
+                                                      hi_open=False))
         if not (0 < self.q_stop <= self.q_first <= math.pi):
             raise ParameterError("q_stop", self.q_stop, f"must satisfy 0 < q_stop <= q_first = {self.q_first:.6g} <= pi")
         object.__setattr__(self, "per_halving", check_integer("per_halving", self.per_halving, 1))

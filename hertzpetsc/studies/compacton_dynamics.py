@@ -18,8 +18,9 @@ from petsc4py import PETSc
 from ..chain import ChainIntegrator, IntegrationTolerances
 from ..compacton_spectrum import eigenvector, window_spectrum
 from ..compacton_window import CompactonWindow, WindowChain, embed
-from ..errors import ParameterError
+from ..errors import ParameterError, check_integer, check_real
 from ..model import ChainSpec, LatticeModel
+from ..resources import chain_seconds, check_chain_memory, check_work
 from ..options import inserted_options
 from .base import Study
 from .compacton_stability import exact_compacton, fmt_multiplier, q_text
@@ -27,6 +28,9 @@ from .compacton_stability import exact_compacton, fmt_multiplier, q_text
 DYNAMICS_FORMAT = "hertzpetsc-compacton-dynamics-1"
 DYNAMICS_PREFIX = "cdyn_"
 DYNAMICS_TOLERANCES = IntegrationTolerances(rtol=1e-13, atol=1e-16)
+# Seconds per bead and unit of time of these flows (max-norm error control, rtol 1e-13, about 93 steps per unit):
+# 164.4 s for 2100 beads over 1000 units (results/compacton_dynamics.md, q = 0.87965, mode, 1 rank)
+DYNAMICS_SECONDS = 7.8e-5
 
 
 def dynamics_integrator(chain, tolerances=DYNAMICS_TOLERANCES, prefix=DYNAMICS_PREFIX):
@@ -66,13 +70,21 @@ class CompactonDynamics(Study):
         self.mu3 = {round(float(r["q"]), 12): complex(r["dominant"][0]) for r in records}
         self.alpha = float(records[0]["alpha"])
         M = self.cases[0].M
+        N, n0 = check_integer("N", N, 10, "the beads of the free chain"), check_integer("n0", n0, 1, "the first bead")
+        travel = check_integer("travel", travel, 1, "the units of time (beads of travel)")
+        amplitude = check_real("amplitude", amplitude, "the perturbation (relative to D and v_peak; the split with "
+                               "the Jordan vectors is linear)", 0.0, 1.0)
         if n0 < 1 or N < n0 + travel + M + 2:
             raise ParameterError("-N", N, f"the chain must hold n0 + travel + M + 2 = {n0 + travel + M + 2} beads")
         for kind in kinds:
             if kind not in ("mode", "noise"):
                 raise ParameterError("-kinds", kind, "each must be mode or noise")
+        runs = len(self.cases) * len(kinds)
+        check_work("travel", travel, chain_seconds(N, travel * runs, DYNAMICS_SECONDS),
+                   f"{runs} run(s) of {N} beads over {travel} units of time")
         super().__init__(None, comm, output, mode)
         self.source = source
+        check_chain_memory(N, self.comm)
         self.model, self.N, self.n0, self.travel = model, int(N), int(n0), int(travel)
         self.amplitude, self.kinds, self.seed, self.tolerances = float(amplitude), list(kinds), seed, tolerances
         self.window = CompactonWindow(model, M, PETSc.COMM_SELF)

@@ -11,10 +11,12 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..compacton_window import DEFAULT_REAR, CompactonRefiner, CompactonWindow, WindowChain, embed, guess_from_branch
-from ..errors import ParameterError
+from ..branch import Branch
+from ..errors import ParameterError, check_instance, check_integer, check_real
 from ..model import ChainSpec
+from ..resources import MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_work
 from .base import Study
-from .compacton_dynamics import DYNAMICS_TOLERANCES, CompactonDynamics, dynamics_integrator
+from .compacton_dynamics import DYNAMICS_SECONDS, DYNAMICS_TOLERANCES, CompactonDynamics, dynamics_integrator
 from .compacton_stability import q_text
 
 if TYPE_CHECKING:
@@ -42,16 +44,25 @@ class CompactonPairs(Study):
                  mode: str = "new", spacing: int = 132, travel: int = 100, M: int = 18, rear: int = DEFAULT_REAR,
                  margin: int = 10, tolerances: IntegrationTolerances = DYNAMICS_TOLERANCES) -> None:
         super().__init__(None, comm, output, mode)
-        self.branch, self.q = branch, float(q)
-        self.spacing, self.travel, self.M, self.rear, self.margin = int(spacing), int(travel), int(M), int(rear), \
-            int(margin)
-        Yu, gap = guess_from_branch(branch.point(q), self.M, self.rear, branch.q_k())
+        self.branch = check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+        self.q = check_real("q", q, "the wavenumber", 0.0, math.pi, hi_open=False)
+        self.spacing, self.travel, self.M, self.rear, self.margin = (
+            check_integer(name, value, lo, what, hi) for name, value, lo, what, hi in (
+                ("spacing", spacing, 8, "the beads between the two windows", None),
+                ("travel", travel, 1, "the beads of travel", None),
+                ("M", M, 4, "the window's beads (its map and the doubled window's are dense)", MAX_DENSE_BEADS // 2),
+                ("rear", rear, 2, "the beads at rest behind the zone", None),
+                ("margin", margin, 2, "the beads at rest", None)))
+        Yu, gap = guess_from_branch(branch.point(self.q), self.M, self.rear, branch.q_k())
         if self.spacing < self.M:
             raise ParameterError("-spacing", spacing, f"the two windows must not overlap: spacing >= M = {self.M}")
         self.gap, self.states = gap, {"unrefined": Yu}
         self.tolerances = tolerances
         self.T = self.spacing + self.travel
         self.N = self.margin + self.spacing + self.M + self.T + self.margin
+        check_work("travel", travel, chain_seconds(self.N, self.T * len(PAIR_CASES), DYNAMICS_SECONDS),
+                   f"{len(PAIR_CASES)} runs of {self.N} beads over {self.T} units of time")
+        check_chain_memory(self.N, self.comm, name="travel")
         self.model = branch.model
         self.chain = WindowChain(ChainSpec(self.model, self.N, "free"), self.comm, gap)
         self.integ = dynamics_integrator(self.chain, tolerances)

@@ -29,8 +29,11 @@ from ..compacton_spectrum import DEFAULT_ETA, WindowStability, sorted_eig, split
 from ..compacton_window import (DEFAULT_REAR, WINDOW_PREFIX, WINDOW_TOLERANCES, CompactonRefiner, CompactonWindow,
                                 ExactCompacton, embed, guess_from_branch)
 from ..continuation import Continuation, Natural
-from ..errors import ParameterError
+from ..branch import Branch
+from ..errors import (ParameterError, check_flag, check_instance, check_integer, check_real, check_reals,
+                      members)
 from ..model import ChainSpec
+from ..resources import MAX_DENSE_BEADS
 from ..richardson import richardson
 from .base import ContinuedScan, point_key
 
@@ -54,6 +57,7 @@ def scan_sequence(branch, qs, solitary=True):
     """The q of one alpha in computing order: the branch start (its largest q with F(q) >= 1, where a compacton
     exists: eq. extens), then ``qs`` (each <= q_k, else ParameterError) by decreasing q, then 0 (the solitary
     wave)."""
+    qs = check_reals("qs", qs, "wavenumbers", distinct=True, empty=True)
     ok = branch.column("F") >= 1.0
     if not ok.any():
         raise ParameterError("branch", "no point with F >= 1", "the branch must reach q <= q_k (F(q) >= 1)")
@@ -85,8 +89,18 @@ class CompactonStabilityScan(ContinuedScan):
                  output: Optional[str] = None, mode: str = "new", M: int = 18, rear: int = DEFAULT_REAR, nev: int = 3,
                  eta: float = DEFAULT_ETA, solitary: bool = True, tol_unstable: float = TOL_UNSTABLE,
                  tolerances: IntegrationTolerances = WINDOW_TOLERANCES) -> None:
+        branches = [check_instance("branches", b, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+                    for b in members("branches", branches, "Branches")]
         if not branches:
             raise ParameterError("-branches", "", "give at least one branch file")
+        M = check_integer("M", M, 4, "the window's beads (its map and the doubled window's are dense)",
+                          MAX_DENSE_BEADS // 2)
+        rear = check_integer("rear", rear, 2, "the beads at rest behind the zone")
+        nev = check_integer("nev", nev, 1, "the dominant multipliers")
+        eta = check_real("eta", eta, "the weight's rate", 0.0, lo_open=False)
+        solitary = check_flag("solitary", solitary)
+        check_real("tol_unstable", tol_unstable, "the instability threshold on |mu| - 1", 0.0)
+        check_instance("tolerances", tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
         self.branches = {round(b.alpha, 10): b for b in branches}
         if len(self.branches) != len(branches):
             raise ParameterError("-branches", [b.alpha for b in branches], "one branch per alpha")

@@ -6,8 +6,9 @@ import time
 from dataclasses import dataclass
 
 from ..chain import configure_options
-from ..errors import ParameterError
-from ..resources import check_chain_memory
+from ..branch import Branch
+from ..errors import ParameterError, check_instance, check_integer, check_real, check_reals, members
+from ..resources import chain_seconds, check_chain_memory, check_work
 from ..model import ChainSpec
 from ..compacton import (CompactonScales, chain_length, compacton_train, extension_residuals, lattice_checks,
                          placement, simulate_on_chain, train_span)
@@ -48,8 +49,17 @@ class CompactonStudy:
     behind, until the whole train has passed ``travel`` beads (TS prefix ``chain_``)."""
 
     def __init__(self, branches, qs, comm, theta=2.0, c=1.0, margin=10, travel=100, dt_snapshot=0.05):
+        branches = [check_instance("branches", b, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+                    for b in members("branches", branches, "Branches")]
+        qs = check_reals("qs", qs, "wavenumbers", 0.0, math.pi, hi_open=False, distinct=True)
+        theta = check_real("theta", theta, "the phase between the compactons")
+        c = check_real("c", c, "the velocity in beads per unit time", 0.0)
+        margin = check_integer("margin", margin, 2, "the beads at rest behind the train")
+        travel = check_integer("travel", travel, 5, "the beads the train travels")
+        dt_snapshot = check_real("dt_snapshot", dt_snapshot, "the time between snapshots", 0.0)
         self.branches, self.qs, self.comm = branches, qs, comm
         self.theta, self.c, self.margin, self.travel, self.dt = theta, c, margin, travel, dt_snapshot
+        seconds = 0.0
         for b in branches:                                   # refuse bad input before any long run
             for q in qs:
                 # the shortest run, the single compacton's: t_final = (travel + its length) / c
@@ -64,6 +74,9 @@ class CompactonStudy:
                 # chain column (24 work vectors) per 24 snapshots
                 snapshots = travel / (c * dt_snapshot)
                 check_chain_memory(N, comm, columns=1 + math.ceil(snapshots / 24), name="travel")
+                # the single compacton and the pair, each on at most N beads until the pair has travelled
+                seconds += 2 * chain_seconds(N, (travel + math.ceil(train_span(train))) / c)
+        check_work("travel", travel, seconds, f"the {2 * len(branches) * len(qs)} compacton runs")
         self.cases = []
         if branches:
             configure_options(ChainSpec(branches[0].model, 3, "free"), comm)

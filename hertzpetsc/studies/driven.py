@@ -63,13 +63,14 @@ from petsc4py import PETSc
 from ..continuation import (Continuation, ContinuationError, ContinuationPoint, Natural, PseudoArclength,
                              golden_maximum)
 from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
-                      HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of,
+                      HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of, check_dense_beads,
                       configure_options, crossing, local_wave, neutral_saddle, refined_profile, switch_to_doubled,
                       verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError, check_integer, check_real
 from ..floquet import DenseFloquet
 from ..model import LatticeModel
-from ..resources import MAX_DENSE_BEADS, check_chain_memory
+from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
+                         check_work)
 from .base import Study
 from .dealing import dealt
 
@@ -132,6 +133,29 @@ def _distinct(name, values, what):
     if len(set(values)) < len(values):
         raise ParameterError(name, list(values), f"the {what}s must be distinct")
     return values
+
+
+# Generous caps on counts whose cost per unit depends on the responses (a continuation step takes 0.1 s to several
+# seconds): beyond them a run takes days. Golden-section steps beyond GOLDEN_MAX shrink the bracket below round-off.
+MAX_POINTS = 10 ** 5
+MAX_PERIODS = 1000
+GOLDEN_MAX = 100
+# The sampled wave profile of the exact boundary driving: a few arrays of this many points per (q, N) (128 MiB each)
+MAX_PROFILE_SAMPLES = 2 ** 24
+
+
+def _check_run_in(run_in, beads_periods):
+    """The run-ins' state flows, estimated (:func:`~hertzpetsc.resources.check_work`): ``beads_periods`` the
+    (beads, driving period) of each run-in of ``run_in`` periods."""
+    seconds = sum(chain_seconds(N, run_in * T) for N, T in beads_periods)
+    check_work("run_in", run_in, seconds, f"{len(beads_periods)} run-in(s) of {run_in} driving periods")
+
+
+def _check_samples(name, samples, N, records, comm):
+    """``records`` trajectories of ``samples`` stops each (one integration per stop; (samples + 1) states of N beads
+    kept): their time (:func:`~hertzpetsc.resources.check_work`) and memory (one chain column per 24 states)."""
+    check_work(name, samples, records * samples * INTEGRATE_SECONDS, f"{records} trajectories of {samples} stops")
+    check_chain_memory(N, comm, columns=1 + math.ceil((samples + 1) / 24), name=name)
 
 
 def _drive(drive):
@@ -226,7 +250,7 @@ class ResponseParameters:
         _check_end("p_end", self.p_end, drive, self.parameter)
         object.__setattr__(self, "p_end", p_end)
         object.__setattr__(self, "periods", check_integer("periods", self.periods, 1, "the response period in driving "
-                                                   "periods"))
+                                                   "periods", MAX_PERIODS))
         _one_of("jacobian", self.jacobian, JACOBIANS)
         _one_of("floquet", self.floquet, FLOQUET_METHODS)
         object.__setattr__(self, "nev", check_integer("nev", self.nev, 1, "the number of dominant multipliers"))
@@ -236,14 +260,21 @@ class ResponseParameters:
             raise ParameterError("algorithm", self.algorithm, "a continuation.PseudoArclength (None: "
                                  "corner_arclength()) or, with a grid, a continuation.Natural")
         if self.grid is not None:
-            object.__setattr__(self, "grid", _several("grid", self.grid, "parameter value of the grid"))
+            object.__setattr__(self, "grid", _distinct("grid", _several("grid", self.grid, "parameter value of the "
+                                                                        "grid"), "grid value"))
+            if len(self.grid) > MAX_POINTS:
+                raise ParameterError("grid", len(self.grid), f"at most {MAX_POINTS} values (a run of days)")
             for value in self.grid:
                 _check_end("grid", value, drive, self.parameter)
-        for name, lo, what in (("run_in", 0, "the run-in in driving periods"), ("samples", 0, "the samples per "
-                               "period"), ("switch", 0, "the steps on each doubled branch"),
-                               ("max_steps", 1, "the number of continuation steps"),
-                               ("nmult", 1, "the number of recorded multipliers")):
-            object.__setattr__(self, name, check_integer(name, getattr(self, name), lo, what))
+        for name, lo, what, hi in (("run_in", 0, "the run-in in driving periods", None),
+                                   ("samples", 0, "the samples per period", None),
+                                   ("switch", 0, "the steps on each doubled branch", MAX_POINTS),
+                                   ("max_steps", 1, "the number of continuation steps", MAX_POINTS),
+                                   ("nmult", 1, "the number of recorded multipliers", None)):
+            object.__setattr__(self, name, check_integer(name, getattr(self, name), lo, what, hi))
+        dense = check_dense_beads(drive.N, self.jacobian, self.floquet)
+        check_chain_size(drive.N, 2 + 2 * drive.N if dense else 3)
+        _check_run_in(self.run_in, [(drive.N, drive.period)])
         if self.samples == 1:
             raise ParameterError("samples", 1, "the samples per period must be 0 (no diagnostics) or at least 2")
 
@@ -300,6 +331,9 @@ class ResponseCurve(DrivenStudy):
         self.SHAPES = {"multipliers": (self.nmult,), "x": (p.drive.N, 2)}
         self.kw = dict(parameter=p.parameter, periods=p.periods, jacobian=p.jacobian, floquet=p.floquet, nev=p.nev,
                        tol=p.tol, tolerances=tolerances_of(p.rtol, p.drive.amplitude))
+        if p.samples:                # a trajectory per record: the grid's values or the steps (and the switches')
+            records = len(p.grid) if p.grid is not None else p.max_steps + p.switch
+            _check_samples("samples", p.samples, p.drive.N, records, self.comm)
         self.problem = PeriodicShooting(p.drive, self.comm, **self.kw)       # configures drive_ and floquet_ now
 
     def constants(self) -> dict:
@@ -735,7 +769,8 @@ class ResonanceParameters:
             object.__setattr__(self, "modes", modes)
         for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
             check_real(name, getattr(self, name), what, 0.0, 1.0)
-        object.__setattr__(self, "golden", check_integer("golden", self.golden, 1, "the golden-section steps per peak"))
+        object.__setattr__(self, "golden", check_integer("golden", self.golden, 1, "the golden-section steps per peak",
+                                                         GOLDEN_MAX, "(more shrink the bracket below round-off)"))
 
 
 class LinearResonances(DrivenStudy):
@@ -879,9 +914,9 @@ class WaveEndsParameters:
         object.__setattr__(self, "q", _distinct("q", qs, "wavenumber"))
         object.__setattr__(self, "rtols", _distinct("rtols", _several("rtols", self.rtols, "flow tolerance", 0.0, 1.0),
                                                     "flow tolerance"))
-        for name, what in (("samples", "the points of the sampled profile"),
-                           ("nmult", "the number of recorded multipliers")):
-            object.__setattr__(self, name, check_integer(name, getattr(self, name), 1, what))
+        for name, what, hi in (("samples", "the points of the sampled profile", MAX_PROFILE_SAMPLES),
+                               ("nmult", "the number of recorded multipliers", None)):
+            object.__setattr__(self, name, check_integer(name, getattr(self, name), 1, what, hi))
 
 
 class WaveEnds(DrivenStudy):
@@ -1042,6 +1077,9 @@ class GenerationParameters:
             raise ParameterError("bulk", self.bulk, "two fractions lo, hi of the chain with 0 <= lo < hi <= 1")
         object.__setattr__(self, "bulk", bulk)
         object.__setattr__(self, "samples", check_integer("samples", self.samples, 8, "the samples per period"))
+        check_chain_size(self.N, 2 + 2 * self.N if self.N <= 200 else 3)
+        per_omega = len(self.signals) * len(self.amplitudes) * len(self.gammas)
+        _check_run_in(self.run_in, [(self.N, 2 * math.pi / om) for om in self.omegas] * per_omega)
 
 
 class Generation(DrivenStudy):
@@ -1076,6 +1114,7 @@ class Generation(DrivenStudy):
         check_chain_memory(self.N, PETSc.COMM_SELF, columns=2 + 2 * self.N if self.N <= 200 else 3, name="N")
         self.family = BranchFamily(p.branch)
         self.cases = [(w, om, a, g) for w in p.signals for om in p.omegas for a in p.amplitudes for g in p.gammas]
+        _check_samples("samples", p.samples, self.N, len(self.cases), self.comm)
         self.width, self.bulk = p.width, p.bulk
         self.run_in, self.tol, self.rtol, self.samples = p.run_in, p.tol, p.rtol, p.samples
         self.SHAPES = {"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)}

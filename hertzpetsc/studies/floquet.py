@@ -24,14 +24,17 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..bloch import SymmetricFloquet, bloch_residuals, real_pairs, seeded_dominant_multipliers
-from ..errors import ParameterError, RecordFileError
+from ..branch import Branch
+from ..chain import IntegrationTolerances
+from ..errors import (ParameterError, RecordFileError, check_choice, check_instance, check_integer, check_integers,
+                      check_real, check_reals)
 from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
 from ..records import check_kind, given, load_npz
 from ..waves import orbit_on_chain
 from .base import Study
 from .dealing import dealt
-from .refinement import scan_wavenumbers
+from .refinement import RefinedStates, scan_wavenumbers
 
 if TYPE_CHECKING:
     from ..branch import Branch
@@ -74,6 +77,15 @@ def critical_wavenumbers(q, rho, tol_rho):
     qc = float(q[unstable].max())
     above = ~unstable & (q > qc)
     return qc, float(q[above].min()) if above.any() else None, float(q[int(np.argmax(rho))])
+
+
+def _check_scan(refined, tol_rho, tolerances):
+    """The arguments the Floquet and Bloch scans share: a RefinedStates or None, tol_rho in (0, 1), the flows'
+    IntegrationTolerances."""
+    if refined is not None:
+        check_instance("refined", refined, RefinedStates, "a RefinedStates (RefinedStates.load(path)) or None")
+    check_real("tol_rho", tol_rho, "the verdict's threshold on rho - 1", 0.0, 1.0)
+    check_instance("tolerances", tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
 
 
 def _select_wavenumbers(branch, N, qs, refined):
@@ -122,6 +134,9 @@ class FloquetScan(Study):
         if method not in METHODS:
             raise ParameterError("-method", method, "must be one of " + ", ".join(METHODS))
         super().__init__(None, comm, output, mode)
+        check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+        _check_scan(refined, tol_rho, tolerances)
+        nev = check_integer("nev", nev, 1, "the multipliers of the slepc route")
         self.branch, self.N, self.method, self.nev = branch, N, method, nev
         self.tol_rho, self.tolerances, self.refined = tol_rho, tolerances, refined
         self.spec = ChainSpec(branch.model, N)
@@ -268,6 +283,14 @@ class BlochScan(Study):
                  tolerances: IntegrationTolerances = FLOQUET_TOLERANCES,
                  reference: Optional[Mapping[float, float]] = None) -> None:
         super().__init__(None, comm, output, mode)
+        check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+        check_instance("refined", refined, RefinedStates, "a RefinedStates (RefinedStates.load(path))")
+        _check_scan(refined, tol_rho, tolerances)
+        sizes = check_integers("sizes", sizes, 2, "chain lengths", distinct=True)
+        slepc_sizes = check_integers("slepc_sizes", slepc_sizes, 2, "chain lengths", distinct=True, empty=True)
+        qs = check_reals("qs", qs, "wavenumbers", 0.0, math.pi, hi_open=False, distinct=True)
+        nev = check_integer("nev", nev, 1, "the dominant multipliers")
+        check_choice("split", split, ("sectors", "beads"))
         self.branch, self.refined = branch, refined
         self.M = refined.N
         self.cell = ChainSpec(branch.model, self.M)

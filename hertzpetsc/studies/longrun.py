@@ -16,10 +16,12 @@ from typing import TYPE_CHECKING, Callable, Optional
 import numpy as np
 
 from ..chain import CHAIN_PREFIX, Chain, ChainIntegrator
-from ..errors import ParameterError
+from ..errors import ParameterError, check_instance, check_integer, check_real
+from ..resources import INTEGRATE_SECONDS, chain_seconds, check_chain_memory, check_work
 from ..records import write_json
 from ..simulation import (check_times, decode, first_crossing, snapshot_record, snapshot_store, state_digest,
                           wave_deviation)
+from ..waves import Orbit
 from .base import Study
 
 if TYPE_CHECKING:
@@ -67,13 +69,20 @@ class LongRun(Study):
     def __init__(self, orbit: Orbit, t_final: float, snapshots_per_T: int, output: str,
                  comm: Optional[PETSc.Comm] = None, mode: str = "new", prefix: str = CHAIN_PREFIX) -> None:
         super().__init__(None, comm, output, mode)
-        self.orbit = orbit
+        self.orbit = check_instance("orbit", orbit, Orbit, "an Orbit (hz.orbit, a refined wave)")
+        t_final = check_real("t_final", t_final, "the final time", 0.0)
+        snapshots_per_T = check_integer("snapshots_per_T", snapshots_per_T, 1, "the snapshots per script-T")
         self.dt_snap = orbit.T / snapshots_per_T
         if t_final > 0 and self.dt_snap > t_final:       # the interval is derived: name the two arguments
             raise ParameterError("t_final", t_final, f"must be >= script-T / snapshots_per_T = {self.dt_snap:.6g} "
                                  f"(one snapshot interval, script-T = {orbit.T:.6g}): increase t_final or "
                                  "snapshots_per_T")
         check_times(t_final, self.dt_snap)
+        check_work("t_final", t_final, chain_seconds(orbit.N, t_final), f"a run of {orbit.N} beads to t = {t_final:g}")
+        snapshots = t_final / self.dt_snap
+        check_work("snapshots_per_T", snapshots_per_T, snapshots * INTEGRATE_SECONDS,
+                   f"{snapshots:.3g} snapshots (one integration each)")
+        check_chain_memory(orbit.N, self.comm)
         self.t_final, self.snapshots_per_T = t_final, snapshots_per_T
         self.chain = Chain(orbit.spec, self.comm)
         self.integrator = ChainIntegrator(self.chain, prefix=prefix)

@@ -1,9 +1,12 @@
 """The long-wave limit (section 3.2): the branch at its smallest q against the inner solution (the solitary wave,
 eq. inner) and the composite approximation (eq. solapprox)."""
 import functools
+import math
 
 from petsc4py import PETSc
 
+from ..branch import Branch
+from ..errors import check_instance, check_integer, check_real
 from ..longwave import compare_with_branch
 from ..solitary import SolitaryParameters, configure_options, solve_solitary_wave
 
@@ -15,6 +18,10 @@ class LongWaveStudy:
     when first asked for: building the study checks its arguments and the options of ``sol_``)."""
 
     def __init__(self, branch, cells_per_unit=160, window=0.1, count=Q_REPORT):
+        check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+        window = check_real("window", window, "the half-width of the window around xi = pi", 0.0, math.pi,
+                            hi_open=False)
+        count = check_integer("count", count, 1, "the smallest q reported")
         self.branch, self.n, self.window = branch, cells_per_unit, window
         self.params = SolitaryParameters(branch.alpha, cells_per_unit)
         self.order = sorted(branch.points, key=lambda p: p.q)[:count]

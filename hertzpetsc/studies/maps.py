@@ -47,7 +47,8 @@ from petsc4py import PETSc
 
 from ..chain import IntegrationTolerances
 from ..diagnostics import sup_norm
-from ..errors import ConvergenceError, ParameterError, check_integer
+from ..errors import (ConvergenceError, ParameterError, check_flag, check_instance, check_integer, check_real,
+                      check_reals, members)
 from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_family_amplitude, uncompressed_limit,
                         wave_at)
 from ..floquet import FLOQUET_PREFIX
@@ -134,7 +135,8 @@ class MapParameters:
     def __post_init__(self):
         _check_shared(self)
         p = self.model.cell
-        if not (isinstance(self.N, (int, np.integer)) and p <= self.N <= MAX_MAP_BEADS and self.N % p == 0):
+        object.__setattr__(self, "N", check_integer("N", self.N, p, hi=MAX_MAP_BEADS))
+        if self.N % p:
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {p} in [{p}, "
                                  f"{MAX_MAP_BEADS}]")
         qs = _check_qs(self.q, math.pi / self.cells_per_pi)
@@ -146,7 +148,7 @@ class MapParameters:
                 wave_cell(q, p)
         object.__setattr__(self, "q", qs)
         amps = []
-        for a in sorted(check_family_amplitude(self.model, a, "a") for a in self.a):
+        for a in sorted(check_family_amplitude(self.model, a, "a") for a in check_reals("a", self.a, "amplitudes")):
             if not amps or a > amps[-1] * (1 + 1e-9):
                 amps.append(a)
         if not amps:
@@ -154,22 +156,23 @@ class MapParameters:
         object.__setattr__(self, "a", tuple(amps))
         object.__setattr__(self, "twists", check_integer("twists", self.twists, 0, hi=10 ** 6,
                                                          note="(0: no infinite chain)"))
-        locate = tuple(self.locate)
-        if any(name not in TESTS for name in locate):
-            raise ParameterError("locate", ",".join(locate), f"must be a subset of {', '.join(TESTS)}")
+        locate = (self.locate,) if isinstance(self.locate, str) else self.locate
+        if not (isinstance(locate, (tuple, list)) and all(isinstance(name, str) and name in TESTS for name in locate)):
+            raise ParameterError("locate", self.locate, f"must be a subset of {', '.join(TESTS)}")
         if "infinite" in locate and not self.twists:
             raise ParameterError("locate", ",".join(locate), "locating the infinite chain's boundary needs twists > 0")
-        object.__setattr__(self, "locate", locate)
+        object.__setattr__(self, "locate", tuple(locate))
+        object.__setattr__(self, "limit", check_flag("limit", self.limit))
 
 
 def _check_shared(params):
     """The checks the map and the boundary in q share: a precompressed model, the grid, tol_rho and locate_tol."""
     _check_delta0_positive(params.model)
     object.__setattr__(params, "cells_per_pi", check_cells_per_pi(params.cells_per_pi))
-    if not (params.tol_rho > 0 and math.isfinite(params.tol_rho)):
-        raise ParameterError("tol_rho", params.tol_rho, "must be a finite number > 0")
-    if not (0 < params.locate_tol < 0.5):
-        raise ParameterError("locate_tol", params.locate_tol, "must lie in (0, 0.5)")
+    check_instance("tolerances", params.tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
+    object.__setattr__(params, "tol_rho", check_real("tol_rho", params.tol_rho, "the verdict's threshold", 0.0))
+    object.__setattr__(params, "locate_tol", check_real("locate_tol", params.locate_tol, "the relative bracket of a "
+                                                        "located change", 0.0, 0.5))
 
 
 class RichardsonCompanion:
@@ -586,13 +589,14 @@ class QBoundaryParameters:
             raise ParameterError("masses", list(self.model.masses), "the boundary in q is located for monatomic "
                                  "chains (the dimers' infinite chains are unstable at every amplitude of their maps)")
         object.__setattr__(self, "max_cell", check_integer("max_cell", self.max_cell, 2, hi=MAX_MAP_BEADS))
-        qs = sorted(set(_check_qs(self.q, math.pi / self.cells_per_pi)))
+        qs = sorted(set(_check_qs(self.q, math.pi / self.cells_per_pi, distinct=False)))
         for q in qs:
             if wave_cell(q).M > self.max_cell:
                 raise ParameterError("q", q, f"q / 2 pi must be a fraction with a denominator of at most max_cell = "
                                      f"{self.max_cell}")
         object.__setattr__(self, "q", tuple(qs))
-        amps = {math.inf if A == math.inf else check_family_amplitude(self.model, A, "A") for A in self.A}
+        amps = {math.inf if A == math.inf else check_family_amplitude(self.model, A, "A")
+                for A in members("A", self.A, "amplitudes")}
         if not amps:
             raise ParameterError("A", self.A, "give at least one amplitude")
         object.__setattr__(self, "A", tuple(sorted(amps)))

@@ -26,14 +26,14 @@ on the waves of :func:`richardson_wave` / :func:`wave_orbit` here.
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Iterator, Optional
 
 import numpy as np
 
 from ..diagnostics import sup_norm
-from ..errors import ConvergenceError, ParameterError, RecordFileError, check_integer
+from ..errors import (ConvergenceError, ParameterError, RecordFileError, check_choice, check_instance,
+                      check_integer, check_real, check_reals)
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..advdelay import check_branch, check_wavenumber
 from ..model import ChainSpec, LatticeModel
@@ -63,8 +63,7 @@ def amplitude_grid(a_min, a_max, ds):
     a_min, a_max = check_amplitude(a_min, "a_min"), check_amplitude(a_max, "a_max")
     if not a_max > a_min:
         raise ParameterError("a_max", a_max, f"must exceed a_min = {a_min:g}")
-    if not (ds > 0 and math.isfinite(ds)):
-        raise ParameterError("ds", ds, "the step in log a must be a finite number > 0")
+    ds = check_real("ds", ds, "the step in log a", 0.0)
     n = int(math.floor(math.log(a_max / a_min) / ds + 1e-9))
     if n > MAX_AMPLITUDES:
         raise ParameterError("ds", ds, f"gives {n + 1} amplitudes from a_min to a_max: at most {MAX_AMPLITUDES} "
@@ -79,6 +78,7 @@ MAX_AMPLITUDES = 10000
 
 
 def _check_delta0_positive(model):
+    check_instance("model", model, LatticeModel, "a LatticeModel (e.g. LatticeModel.hertz(1.5, delta0=1))")
     if not model.delta0 > 0:
         raise ParameterError("delta0", model.delta0, "the families of this study need a precompression > 0")
 
@@ -88,12 +88,10 @@ def _at(records, q):
     return [r for r in records if abs(float(r["q"]) - q) <= 1e-12 * q]
 
 
-def _check_qs(q, h=None, name="q"):
-    """The wavenumbers ``q`` (a number or a sequence of them) as a tuple of checked wavenumbers."""
-    qs = tuple(check_wavenumber(x, h, name) for x in ((q,) if isinstance(q, numbers.Real) else q))
-    if not qs:
-        raise ParameterError(name, q, "give at least one wavenumber")
-    return qs
+def _check_qs(q, h=None, name="q", distinct=True):
+    """The wavenumbers ``q`` (a number or a sequence of them; each once if ``distinct``) as a tuple of checked
+    wavenumbers."""
+    return tuple(check_wavenumber(x, h, name) for x in check_reals(name, q, "wavenumbers", distinct=distinct))
 
 
 @dataclass(frozen=True)
@@ -114,6 +112,7 @@ class AmplitudeParameters:
         _check_delta0_positive(self.model)
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
+        check_choice("branch", self.branch, ("acoustic", "optical"))
         for q in self.q:
             check_branch(self.model, q, self.branch)
         amplitude_grid(self.a_min, self.a_max, self.ds)
@@ -295,14 +294,12 @@ class DimerParameters:
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
         object.__setattr__(self, "a", check_amplitude(self.a, "a"))
-        if not (0 < self.epsilon_end < 1):
-            raise ParameterError("epsilon_end", self.epsilon_end, "must lie in (0, 1) (continuation from epsilon = 1 "
-                                 "down)")
+        object.__setattr__(self, "epsilon_end", check_real("epsilon_end", self.epsilon_end, "the last mass ratio "
+                                                           "(continuation from epsilon = 1 down)", 0.0, 1.0))
         object.__setattr__(self, "max_steps", check_integer("max_steps", self.max_steps, 1, hi=MAX_STEPS))
         for name in ("ds", "ds_max"):
-            v = getattr(self, name)
-            if not (0 < v <= 1):
-                raise ParameterError(name, v, "the arclength step must lie in (0, 1]")
+            object.__setattr__(self, name, check_real(name, getattr(self, name), "the arclength step", 0.0, 1.0,
+                                                      hi_open=False))
         if self.ds > self.ds_max:
             raise ParameterError("ds", self.ds, f"must not exceed ds_max = {self.ds_max:g}")
 

@@ -34,7 +34,8 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..chain import CHAIN_PREFIX
-from ..errors import ParameterError, RecordFileError
+from ..branch import Branch
+from ..errors import ParameterError, RecordFileError, check_instance, check_integer, check_real, check_reals
 from ..model import ChainSpec
 from ..records import check_kind, given, load_npz, on_rank0
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
@@ -110,6 +111,10 @@ class RefinedStates:
 def scan_wavenumbers(branch, N, qs=None):
     """The q of the scan: those of ``qs`` (each must be a branch point fitting N beads), or every branch q that
     fits the chain. ParameterError naming the option otherwise."""
+    check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+    check_integer("N", N, 2, "the beads of the periodic chain")
+    qs = () if qs is None else check_reals("qs", qs, "wavenumbers", 0.0, math.pi, hi_open=False, distinct=True,
+                                           empty=True)
     if qs:
         for q in qs:
             branch.point(q)
@@ -141,10 +146,12 @@ class RefinementScan(Study):
                  output: Optional[str] = None, mode: str = "new", qs: Optional[Sequence[float]] = None,
                  tol: float = 1e-10, symmetric: bool = True) -> None:
         super().__init__(None, comm, output, mode)
+        self.qs = scan_wavenumbers(branch, N, qs)
+        check_instance("branch_path", branch_path, str, "the branch file's path (a label)")
+        tol = check_real("tol", tol, "the target E(q) of the refinement", 0.0, 1.0)
         self.branch, self.branch_path, self.N, self.tol = branch, branch_path, N, tol
         self.spec = ChainSpec(branch.model, N)
         self.SHAPES = {"x": (N, 2)}
-        self.qs = scan_wavenumbers(branch, N, qs)
         self.refiner = Refiner(self.spec, PETSc.COMM_SELF, tol, prefix=SHOOT_PREFIX, symmetric=symmetric)
         self.paper_flow = ShiftMap(self.spec, PETSc.COMM_SELF, PAPER_TOLERANCES, CHAIN_PREFIX)
 

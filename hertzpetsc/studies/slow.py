@@ -57,9 +57,12 @@ from petsc4py import PETSc
 from ..comoving import ComovingWave, profile_on_grid
 from ..comoving_pep import ComovingPEP
 from ..comoving_window import sector_window, theta_scan, tracked_exponent
-from ..errors import ConvergenceError, ParameterError
+from ..branch import Branch
+from ..errors import (ConvergenceError, ParameterError, check_instance, check_integer, check_integers, check_real,
+                      check_reals)
 from ..chain import IntegrationTolerances
 from ..model import ChainSpec
+from ..resources import check_memory
 from ..richardson import richardson
 from ..shooting import SHOOT_PREFIX, Refiner, relative_residual
 from ..slow import DeflatedSectors
@@ -148,6 +151,11 @@ def monodromy_fields(sectors, refiner, orbit, E):
 CELLS_PER_Q = 20
 
 
+# Generous caps on the scans' counts (each theta is a quadratic eigenproblem on the grid, each twist a sector's
+# monodromy on the wave's cell): beyond them a run takes days.
+MAX_THETAS = 10000
+MAX_TWISTS = 1000
+
 class SlowInstabilityScan(Study):
     """gamma(q) above q_c by the co-moving and the monodromy routes (module docstring), written as it goes.
 
@@ -173,6 +181,21 @@ class SlowInstabilityScan(Study):
                  n_theta: int = 41, n_twist: int = 3, refine_tol: float = 1e-12,
                  tolerances: IntegrationTolerances = SLOW_TOLERANCES, target: float = TARGET,
                  theta_longwave: float = 0.05) -> None:
+        grids = check_integers("grids", grids, 4, "grids K (h = pi/K)", distinct=True)
+        n_theta = check_integer("n_theta", n_theta, 2, "the Bloch parameters of the co-moving scan", MAX_THETAS)
+        n_twist = check_integer("n_twist", n_twist, 0, "the cell twists of the monodromy route", MAX_TWISTS)
+        check_instance("branch_path", branch_path, str, "the branch file's path (a label)")
+        theta_longwave = check_real("theta_longwave", theta_longwave, "the long-wave Bloch parameter", 0.0, 0.5)
+        refine_tol = check_real("refine_tol", refine_tol, "the refinement's target E", 0.0, 1.0)
+        check_instance("tolerances", tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
+        target = check_real("target", target, "the PEP's target")
+        if refined is not None:
+            from .refinement import RefinedStates
+            check_instance("refined", refined, RefinedStates, "a RefinedStates (RefinedStates.load(path)) or None")
+        check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
+        check_integer("N", N, 2, "the beads of the periodic chain")
+        qs = None if qs is None else check_reals("qs", qs, "wavenumbers", 0.0, math.pi, hi_open=False, distinct=True,
+                                                 empty=True)
         if len(grids) < 3 or any(b != 2 * a for a, b in zip(grids, grids[1:])):
             raise ParameterError("-grids", ",".join(map(str, grids)), "must be at least 3 grids K, each twice the "
                                  "previous (Richardson of order 2)")
@@ -194,6 +217,7 @@ class SlowInstabilityScan(Study):
             raise ParameterError("-grids", ",".join(map(str, grids)), "the coarsest grid has "
                                  f"{q0 * grids[0] / math.pi:.3g} cells per q at q = {q0:.6g}: at least {CELLS_PER_Q} are needed (K >= "
                                  f"{math.ceil(CELLS_PER_Q * math.pi / q0)}) to resolve the compression zone")
+        check_memory(grids[-1], self.comm, "direct", name="grids")        # the finest co-moving grid's solves
         self.spec = ChainSpec(branch.model, N)
         self.pep = ComovingPEP(PETSc.COMM_SELF)
         self.sectors = (DeflatedSectors(branch.model, PETSc.COMM_SELF, tolerances,

@@ -1,7 +1,7 @@
 """The solitary wave of unit velocity and k_alpha (appendix): convergence in the grid step and the domain."""
 from petsc4py import PETSc
 
-from ..errors import ParameterError
+from ..errors import ParameterError, check_integers, check_real, check_reals
 from ..richardson import richardson
 from ..solitary import SolitaryParameters, configure_options, solve_solitary_wave
 
@@ -22,7 +22,10 @@ class SolitaryStudy:
     the finest n."""
 
     def __init__(self, alphas, cells, lengths, comm, half_length=8.0):
-        cells = sorted(int(n) for n in cells)
+        alphas = check_reals("alphas", alphas, "Hertz exponents", 1.0, distinct=True)
+        cells = sorted(check_integers("cells", cells, 2, "grids n (delta = 1/n, even)"))
+        lengths = check_reals("lengths", lengths, "half-lengths L", 3.0, lo_open=False, distinct=True, empty=True)
+        half_length = check_real("half_length", half_length, "the half-length L", 3.0, lo_open=False)
         if len(cells) < 3 or len(set(cells)) != len(cells):
             raise ParameterError("-cells", cells, "needs at least three different grids for an observed order")
         for n in cells:

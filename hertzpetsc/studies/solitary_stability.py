@@ -28,12 +28,11 @@ from petsc4py import PETSc
 
 from ..compacton_spectrum import window_spectrum
 from ..compacton_window import WINDOW_PREFIX, WINDOW_TOLERANCES, embed
-from ..errors import ParameterError
-from ..hertz import check_alpha
+from ..errors import ParameterError, check_integer, check_real, check_reals
 from ..model import LatticeModel
 from ..resources import MAX_DENSE_BEADS
 from ..solitary import SOL_PREFIX, SolitaryParameters, solve_solitary_wave
-from ..solitary_family import (PrecompressionContinuation, check_sound_speed, essential_radius, guess_from_solitary,
+from ..solitary_family import (PrecompressionContinuation, essential_radius, guess_from_solitary,
                                precompression_at_unit_speed, symplectic_product, tail_rate, unit_lattice,
                                weighted_multipliers, window_beads, window_energy)
 from .base import ContinuedScan
@@ -68,26 +67,23 @@ class SolitaryStabilityParameters:
     tol_unstable: float = TOL_UNSTABLE
 
     def __post_init__(self):
-        alphas = tuple(check_alpha(a) for a in self.alphas)
-        if not alphas or len({round(a, 10) for a in alphas}) != len(alphas):
-            raise ParameterError("alphas", list(self.alphas), "give at least one alpha, each once")
-        given = [check_sound_speed(c) for c in self.c0]
-        if len(set(given)) != len(given):
-            raise ParameterError("c0", list(self.c0), "each sound speed once")
+        alphas = check_reals("alphas", self.alphas, "Hertz exponents", 1.0, distinct=True)
+        given = check_reals("c0", self.c0, "sound speeds in units of the wave's speed (0: the uncompressed chain; a "
+                            "solitary wave is supersonic)", 0.0, 1.0, lo_open=False, distinct=True)
         c0 = tuple(sorted(set(given) | {0.0}))
         object.__setattr__(self, "alphas", alphas)
         object.__setattr__(self, "c0", c0)
-        if not (0 < self.tail < 1e-6):
-            raise ParameterError("tail", self.tail, "the tail level at the window's ends must be in (0, 1e-6)")
+        object.__setattr__(self, "tail", check_real("tail", self.tail, "the tail level at the window's ends", 0.0,
+                                                    1e-6))
         need = window_beads(c0[-1], self.tail)
-        M = need if self.M == 0 else self.M
-        if not (isinstance(M, (int, np.integer)) and need <= M <= MAX_DENSE_BEADS // 4):
+        M = need if check_integer("M", self.M, 0) == 0 else int(self.M)
+        if not need <= M <= MAX_DENSE_BEADS // 4:
             raise ParameterError("M", self.M, f"the window needs {need} beads for tails of {self.tail:g} at c0 = "
                                               f"{c0[-1]:g} (0: that many), and at most {MAX_DENSE_BEADS // 4} "
                                               "(its dense map and the doubled window's)")
         object.__setattr__(self, "M", int(M))
-        if not self.tol_unstable > 0:
-            raise ParameterError("tol_unstable", self.tol_unstable, "must be > 0")
+        object.__setattr__(self, "tol_unstable", check_real("tol_unstable", self.tol_unstable, "the instability "
+                                                            "threshold on |mu| - 1", 0.0))
 
 
 class SolitaryStabilityScan(ContinuedScan):

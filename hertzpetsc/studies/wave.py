@@ -24,7 +24,8 @@ import numpy as np
 
 from ..advdelay import check_branch
 from ..bloch import SymmetricFloquet
-from ..errors import ConvergenceError, ParameterError
+from ..errors import (ConvergenceError, ParameterError, check_instance, check_integer, check_integers,
+                      check_real)
 from ..families import FamilyFold, check_amplitude, check_family_amplitude, wave_of_amplitude
 from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
@@ -65,7 +66,7 @@ class WaveParameters:
     branch: str = "acoustic"
 
     def __post_init__(self):
-        m = self.model
+        m = check_instance("model", self.model, LatticeModel, "a LatticeModel (LatticeModel.hertz(1.5, delta0=1))")
         m.require_conservative("a travelling wave")
         if m.delta0 == 0 and m.cell > 1:
             raise ParameterError("delta0", 0.0, "a mass pattern's waves start from the linear wave: give a "
@@ -73,7 +74,8 @@ class WaveParameters:
         object.__setattr__(self, "A", check_family_amplitude(m, self.A, "A") if m.delta0 > 0 else
                            check_amplitude(self.A, "A"))
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        if not (isinstance(self.N, (int, np.integer)) and 2 <= self.N <= MAX_BEADS and self.N % m.cell == 0):
+        object.__setattr__(self, "N", check_integer("N", self.N, 2, hi=MAX_BEADS))
+        if self.N % m.cell:
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {m.cell} in "
                                  f"[2, {MAX_BEADS}]")
         qs = _check_qs(self.q, math.pi / self.cells_per_pi)
@@ -81,16 +83,14 @@ class WaveParameters:
             check_chain_wavenumber(q, self.N)
             check_branch(m, q, self.branch)
         object.__setattr__(self, "q", qs)
-        sizes = tuple(int(L) for L in self.sizes)
+        sizes = check_integers("sizes", self.sizes, 3, "longer chains", MAX_SIZE, distinct=True, empty=True)
         for L in sizes:
             if not (L > self.N and L % self.N == 0 and L <= MAX_SIZE):
                 raise ParameterError("sizes", L, f"each longer chain must be a multiple of N = {self.N} beads, at "
                                      f"most {MAX_SIZE}")
         object.__setattr__(self, "sizes", sizes)
-        for name in ("tol", "tol_rho"):
-            v = getattr(self, name)
-            if not (0 < v < 1):
-                raise ParameterError(name, v, "must lie in (0, 1)")
+        for name, what in (("tol", "the refinement's target E"), ("tol_rho", "the verdict's threshold on rho - 1")):
+            object.__setattr__(self, name, check_real(name, getattr(self, name), what, 0.0, 1.0))
 
 
 class WaveStudy(Study):

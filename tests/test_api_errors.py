@@ -1,0 +1,128 @@
+"""API errors name the Python argument (issue 37): a value of the wrong type (a string where a number is needed, a
+tuple of strings for sizes, an object of another kind), a repeated member of a list that must hold distinct values,
+a count that would run for hours: a ParameterError naming the argument, never a bare TypeError, ValueError or
+AttributeError from inside. The sweep passes every kind of wrong value to every argument of the cheap constructors
+of the public surface."""
+import math
+
+import pytest
+from petsc4py import PETSc
+
+import hertzpetsc as hz
+from conftest import small_branch
+from hertzpetsc import resources
+from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
+from hertzpetsc.continuation import Natural, PseudoArclength
+from hertzpetsc.driven import Drive, HarmonicWave
+from hertzpetsc.errors import HertzPetscError, ParameterError
+from hertzpetsc.solitary import SolitaryParameters
+from hertzpetsc.studies.solitary_stability import SolitaryStabilityParameters
+
+PRE = hz.LatticeModel.hertz(1.5, delta0=1.0)
+DAMPED = hz.LatticeModel.hertz(1.5, delta0=1.0, gamma=0.05)
+DRIVE = Drive(DAMPED, 10, HarmonicWave(), 0.1, 1.0)
+
+# values of another kind than any argument takes
+WRONG = {"text": "x", "number as text": "1e-10", "tuple of text": ("a",), "object": object(), "dict": {"a": 1}}
+
+# constructor: the arguments of a valid call
+CONSTRUCTORS = [
+    (IntegrationTolerances, dict(rtol=1e-12, atol=1e-14)),
+    (Natural, dict(max_halvings=8, max_corrector=0.25, max_step=1.0)),
+    (PseudoArclength, dict(ds=0.02, ds_min=1e-8, ds_max=0.1, growth=1.5, easy=3)),
+    (hz.Damping, dict(gamma=0.1, eta=0.0)),
+    (hz.HertzLaw, dict(alpha=1.5, delta0=0.0)),
+    (hz.LatticeModel.hertz, dict(alpha=1.5, masses=(1.0,), delta0=0.0, gamma=0.0, eta=0.0)),
+    (hz.ChainSpec, dict(model=hz.LatticeModel.hertz(), N=10)),
+    (hz.ContinuationParameters, dict(alpha=1.5, M=10, cells_per_pi=200)),
+    (SolitaryParameters, dict(alpha=1.5, cells_per_unit=40, half_length=8.0, tail_tolerance=1e-13)),
+    (hz.SmallQParameters, dict(alpha=1.5, q_stop=math.pi / 400, q_first=math.pi / 50, per_halving=4)),
+    (hz.WaveParameters, dict(model=PRE, q=(2 * math.pi / 15,), A=0.5, N=30, sizes=(60,), tol=1e-10, tol_rho=1e-4)),
+    (hz.MapParameters, dict(model=PRE, q=(2 * math.pi / 10,), a=(0.5,), N=20, tol_rho=1e-4, locate=("chain",),
+                            locate_tol=1e-3, limit=True, twists=0)),
+    (hz.QBoundaryParameters, dict(model=PRE, A=(0.5,), q=(2 * math.pi / 10, 2 * math.pi / 8), twists=16)),
+    (hz.AmplitudeParameters, dict(model=PRE, q=(0.5,), a_min=1e-3, a_max=1.0, ds=0.1)),
+    (hz.DimerParameters, dict(model=PRE, q=(0.5,), a=0.5, epsilon_end=0.3, ds=0.02, ds_max=0.1)),
+    (SolitaryStabilityParameters, dict(alphas=(1.5,), c0=(0.0, 0.5), M=0, tail=1e-12, tol_unstable=1e-6)),
+    (Drive, dict(model=DAMPED, N=10, waveform=HarmonicWave(), amplitude=0.1, omega=1.0, left_phase=0.0)),
+    (hz.ResponseParameters, dict(drive=DRIVE, parameter="omega", p_end=1.2, run_in=5, samples=16, max_steps=10)),
+    (hz.ResonanceParameters, dict(drive=DRIVE, modes=(1, 2), golden=20)),
+]
+
+
+def _cases():
+    for fn, base in CONSTRUCTORS:
+        for arg in base:
+            for kind, value in WRONG.items():
+                yield pytest.param(fn, base, arg, value, id=f"{getattr(fn, '__qualname__', fn)}-{arg}-{kind}")
+
+
+@pytest.mark.parametrize("fn, base, arg, value", list(_cases()))
+def test_a_value_of_another_kind_is_a_parameter_error_naming_the_argument(fn, base, arg, value):
+    fn(**base)                                          # the valid call is valid
+    with pytest.raises(ParameterError) as err:
+        fn(**dict(base, **{arg: value}))
+    assert err.value.name == arg, str(err.value)
+
+
+@pytest.mark.parametrize("call, name, words", [
+    (lambda: hz.WaveParameters(PRE, (2 * math.pi / 15,), 0.5, N=30, tol="1e-10"), "tol", "not str"),
+    (lambda: hz.WaveParameters(PRE, (2 * math.pi / 15,), 0.5, N=30, sizes=("a",)), "sizes", "not str"),
+    (lambda: hz.WaveParameters(PRE, (2 * math.pi / 15, 2 * math.pi / 15), 0.5, N=30), "q", "twice"),
+    (lambda: hz.ResponseParameters(DRIVE, "omega", 1.2, grid=(1.1, 1.2, 1.1)), "grid", "distinct"),
+    (lambda: hz.MapParameters(PRE, (2 * math.pi / 10,), (0.5, 1.0), N=20, locate="everything"), "locate",
+     "subset"),
+    (lambda: SolitaryStabilityParameters(alphas=(1.5, 1.5)), "alphas", "twice"),
+    (lambda: hz.ResonanceParameters(DRIVE, golden=1000), "golden", "round-off"),
+    (lambda: Chain(hz.ChainSpec(hz.LatticeModel.hertz(), 10), PETSc.COMM_SELF, n_tangent="2"), "n_tangent",
+     "not str"),
+    (lambda: ChainIntegrator("a chain"), "chain", "not str"),
+    (lambda: hz.DenseFloquet(hz.LatticeModel.hertz(), PETSc.COMM_SELF), "spec", "not LatticeModel"),
+    (lambda: hz.refine(hz.ChainSpec(hz.LatticeModel.hertz(), 10)), "orbit", "not ChainSpec"),
+    (lambda: hz.multipliers("orbit"), "orbit", "not str"),
+])
+def test_wrong_types_and_repeated_members_name_the_argument(call, name, words):
+    with pytest.raises(ParameterError, match=words) as err:
+        call()
+    assert err.value.name == name
+
+
+def test_the_loose_arguments_of_the_scans_are_checked_by_name():
+    """The studies that predate the Parameters protocol check their arguments the same way."""
+    from hertzpetsc.studies.floquet import FloquetScan
+    from hertzpetsc.studies.longrun import LongRun
+    from hertzpetsc.studies.refinement import RefinementScan
+    branch = small_branch()
+    orbit = hz.orbit(branch.point(3 * math.pi / 10), 20)
+    for call, name in [(lambda: RefinementScan("branch.npz", "", 20, PETSc.COMM_SELF), "branch"),
+                       (lambda: RefinementScan(branch, "", 20, PETSc.COMM_SELF, qs=("a",)), "qs"),
+                       (lambda: RefinementScan(branch, "", 20, PETSc.COMM_SELF, tol="1e-10"), "tol"),
+                       (lambda: FloquetScan(branch, 20, PETSc.COMM_SELF, nev="10"), "nev"),
+                       (lambda: FloquetScan(branch, 20, PETSc.COMM_SELF, tolerances=1e-12), "tolerances"),
+                       (lambda: RefinementScan(branch, "", 20, PETSc.COMM_SELF, mode="append"), "mode"),
+                       (lambda: LongRun(orbit, "100", 4, None, PETSc.COMM_SELF), "t_final"),
+                       (lambda: LongRun(orbit, 100.0, 4.5, None, PETSc.COMM_SELF), "snapshots_per_T")]:
+        with pytest.raises(ParameterError) as err:
+            call()
+        assert err.value.name == name
+
+
+def test_a_count_that_would_run_for_hours_is_refused_with_the_estimate():
+    """run_in = 10^8 driving periods of 10 beads: about 10 beads x 6.3e8 time units x CHAIN_SECONDS, refused with
+    that estimate in hours and the option that raises the limit; without a limit the same parameters are taken."""
+    seconds = resources.chain_seconds(10, 10 ** 8 * DRIVE.period)
+    assert seconds > resources.DEFAULT_MAX_HOURS * 3600
+    with pytest.raises(ParameterError, match=r"about %.3g hours.*-max_hours" % (seconds / 3600)) as err:
+        hz.ResponseParameters(DRIVE, "omega", 1.2, run_in=10 ** 8)
+    assert err.value.name == "run_in"
+    try:
+        resources.set_work_limit(0)
+        assert hz.ResponseParameters(DRIVE, "omega", 1.2, run_in=10 ** 8).run_in == 10 ** 8
+    finally:
+        resources.set_work_limit(resources.DEFAULT_MAX_HOURS)
+    assert hz.ResponseParameters(DRIVE, "omega", 1.2, run_in=50).run_in == 50
+
+
+def test_no_package_error_escapes_as_another_type():
+    """ParameterError is a ValueError (callers that catch ValueError keep working) and a package error."""
+    assert issubclass(ParameterError, ValueError) and issubclass(ParameterError, HertzPetscError)

@@ -746,7 +746,7 @@ def q_boundary_table(z):
     cert = np.asarray(z["cert_inf"]) if certified else np.full(len(A), CERT_NONE)
     edges = np.nonzero(kind == KIND_EDGE_INF)[0]
     qs_, qu_ = np.asarray(z["q_stable"], float), np.asarray(z["q_unstable"], float)
-    lines = [f"schema: {z.get('format', QMAP_FORMAT)}; alpha = {float(z['alpha']):g}, delta0 = "
+    lines = [f"schema: {str(z.get('format', QMAP_FORMAT))}; alpha = {float(z['alpha']):g}, delta0 = "
              f"{float(z['delta0']):g}; the infinite chain (cell twists, bead-level Bloch step <= pi/{int(z['twists'])}, "
              f"maxima refined; symmetry multipliers deflated"
              + (f"; a stable verdict certified between its twist samples: any band of instability there has rho - 1 "
@@ -1051,7 +1051,8 @@ def map_table(z):
                         + f" | {_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |")
     amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), kinds) if k == KIND_POINT))
     unresolved = bool(np.any(((kinds == KIND_POINT) | (kinds == KIND_LIMIT)) & ~np.isfinite(np.asarray(z["rho"], float))))
-    lines = [f"schema: {MAP_FORMAT}; alpha = {float(z['alpha']):g}, delta0 = {float(z['delta0']):g}, masses "
+    lines = [f"schema: {str(z.get('format', MAP_FORMAT))}; alpha = {float(z['alpha']):g}, "
+             f"delta0 = {float(z['delta0']):g}, masses "
              f"{', '.join(f'{m:g}' for m in np.asarray(z['masses']))} (repeated), N = {int(z['N'])}; waves: "
              f"Richardson of h = pi/{int(z['cells_per_pi'])} and pi/{2 * int(z['cells_per_pi'])}; flow rtol "
              f"{float(z['rtol']):g}; symmetry multipliers deflated; unstable when rho - 1 > {tol:g}; infinite chain: "

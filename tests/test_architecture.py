@@ -42,6 +42,13 @@ OPTIONS_READERS = {
     "hertzpetsc.driven": "the drive_snes_ tolerances the user set (the code's defaults only where none is)",
     "hertzpetsc.studies.base": "the roles' number-changing options, part of a record file's identity",
 }
+# where files are written: the record store and its atomic writers; the paper pipeline's step logs (a child's output)
+WRITERS = {"hertzpetsc.records": "the record store, write_text, write_json, save_figure",
+           "hertzpetsc.studies.paper": "each step's log: the child process's output streamed to it"}
+# where COMM_WORLD may be used other than as the default of a ``comm`` argument (DESIGN.md: communicators are
+# passed explicitly)
+WORLD = {"hertzpetsc.options": "the drivers' process: options, errors, metadata",
+         "hertzpetsc.start": "the drivers' first call", "hertzpetsc.console": "print0: rank 0 of the run"}
 # where a module-level __getattr__ may be defined: the aliases, and the package's lazy exports (each name is
 # defined in the module _MODULES lists: not an alias)
 GETATTR = {"hertzpetsc.compat", "hertzpetsc"}
@@ -209,6 +216,39 @@ def prints(sources):
             if name == "print" and isinstance(f, ast.Name) or name == "write" and ast.unparse(f) in (
                     "sys.stdout.write", "sys.stderr.write"):
                 out.append((module, node.lineno))
+    return out
+
+
+def writes(sources):
+    """(module, line) of every file opened to write (open() with a mode of w, a, x or +) or array or figure saved
+    (np.save*, savefig, h5py.File with a writing mode) outside WRITERS."""
+    out = []
+    for module, text in sources.items():
+        if module in WRITERS:
+            continue
+        for node, name in _calls(ast.parse(text)):
+            mode = node.args[1] if len(node.args) > 1 else next((k.value for k in node.keywords if k.arg == "mode"),
+                                                                  None)
+            mode = mode.value if isinstance(mode, ast.Constant) and isinstance(mode.value, str) else ""
+            if name in ("open", "File") and set(mode) & set("wax+") or name in ("save", "savez", "savez_compressed",
+                                                                                "savetxt", "savefig"):
+                out.append((module, node.lineno))
+    return out
+
+
+def world_uses(sources):
+    """(module, line) of every PETSc.COMM_WORLD outside WORLD that is not ``comm if comm is not None else
+    PETSc.COMM_WORLD`` (the default of an argument)."""
+    out = []
+    for module, text in sources.items():
+        if module in WORLD:
+            continue
+        tree = ast.parse(text)
+        defaults = {id(n.orelse) for n in ast.walk(tree) if isinstance(n, ast.IfExp)
+                    and re.fullmatch(r"(\w+) is not None", ast.unparse(n.test)) and ast.unparse(n.body) ==
+                    ast.unparse(n.test).split()[0]}
+        out += [(module, n.lineno) for n in ast.walk(tree) if isinstance(n, ast.Attribute)
+                and ast.unparse(n) == "PETSc.COMM_WORLD" and id(n) not in defaults]
     return out
 
 
@@ -387,6 +427,14 @@ def test_the_library_prints_only_through_its_reporting_modules(sources):
     assert not prints(sources), f"print outside {sorted(REPORTING)}: {prints(sources)}"
 
 
+def test_files_are_written_only_through_the_record_store(sources):
+    assert not writes(sources), f"files written outside {sorted(WRITERS)}: {writes(sources)}"
+
+
+def test_communicators_are_passed_explicitly(sources):
+    assert not world_uses(sources), f"COMM_WORLD used but as a comm argument's default: {world_uses(sources)}"
+
+
 def test_nothing_else_constructs_a_law(sources):
     assert {"HertzLaw", "RescaledLaw"} <= law_classes(sources)
     assert not laws_constructed(sources), laws_constructed(sources)
@@ -421,7 +469,8 @@ BAD = {
     "hertzpetsc.advdelay": "from .continuation import C\nfrom .errors import RecordFileError\n"
                            "BranchFileError = RecordFileError\n",
     "hertzpetsc.errors": "class RecordFileError(Exception):\n    pass\n",
-    "hertzpetsc.diagnostics": "from .hertz import HertzLaw\nlaw = HertzLaw(1.5)\nimport sys\nsys.stderr.write('x')\n",
+    "hertzpetsc.diagnostics": "from .hertz import HertzLaw\nlaw = HertzLaw(1.5)\nimport sys\nsys.stderr.write('x')\n"
+                              "open('t.md', 'w').write('x')\nopen('t.md').read()\n",
     "hertzpetsc.studies": "",
     "hertzpetsc.studies.dealing": "def dealt():\n    pass\n",
     "hertzpetsc.studies.maps": "from .precompression import wave_orbit\nclass Map:\n    def run(self):\n"
@@ -450,7 +499,11 @@ def test_the_checkers_flag_a_bad_package():
                                     ("hertzpetsc.studies.precompression", 1, "module-level __getattr__")]
     assert sorted(prints(BAD)) == [("hertzpetsc.diagnostics", 4), ("hertzpetsc.tangent", 3)]
     assert laws_constructed(BAD) == [("hertzpetsc.diagnostics", 2, "HertzLaw")]
+    assert writes(BAD) == [("hertzpetsc.diagnostics", 5)]
+    assert writes({"m": "import numpy as np\nnp.savez('x.npz', a=1)\nf = open('x', mode='ab')\n"}) == [("m", 2), ("m", 3)]
     assert study_classes_off_base(BAD) == ["Map"]
     assert module_level_petsc({"m": "from petsc4py import PETSc\ndef f():\n    import slepc4py\n"}, ["m"]) == [("m", 1)]
     assert attribute_uses({"m": "import sys\nx = sys.argv\n"}, "sys.argv", set()) == [("m", 2)]
+    assert world_uses({"m": "def f(comm=None):\n    comm = comm if comm is not None else PETSc.COMM_WORLD\n"
+                            "    return PETSc.COMM_WORLD.getSize()\n"}) == [("m", 3)]
     assert external_imports({"m": "import matplotlib.pyplot as plt\n"}, "matplotlib", set()) == [("m", 1)]

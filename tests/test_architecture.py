@@ -10,12 +10,13 @@ import ast
 import importlib
 import os
 import re
+import subprocess
 import sys
 from dataclasses import dataclass
 
 import pytest
 
-from conftest import ROOT
+from conftest import ROOT, script_env
 
 PACKAGE = "hertzpetsc"
 
@@ -412,6 +413,9 @@ def test_every_old_import_path_still_works(sources):
         exec(f"import {old} as moved", namespace)
         assert namespace["moved"] is importlib.import_module(new) is sys.modules[old]
         assert namespace["moved"].__spec__.name == new                   # reload and pickling see the real one
+        package, _, name = old.rpartition(".")
+        exec(f"from {package} import {name} as moved_too", namespace)
+        assert namespace["moved_too"] is namespace["moved"]
     from hertzpetsc.errors import BranchFileError, RecordFileError, RunFileError
     from hertzpetsc.studies.dealing import dealt
     from hertzpetsc.studies.precompression import StabilityMap
@@ -421,6 +425,21 @@ def test_every_old_import_path_still_works(sources):
     from hertzpetsc.studies.maps import StabilityMap as map_now
     assert BranchFileError is RunFileError is RecordFileError and dealt is dealt_now
     assert BranchContinuation is now and StabilityMap is map_now
+
+
+def test_old_import_paths_work_in_a_fresh_interpreter():
+    """A user's script that imports old paths first thing (nothing of the package imported before)."""
+    code = ("from hertzpetsc.continuation import BranchContinuation, ContinuationParameters\n"
+            "from hertzpetsc.errors import BranchFileError\n"
+            "from hertzpetsc.studies.dealing import dealt\n"
+            "import hertzpetsc.studies.precompression as p\n"
+            "from hertzpetsc.qbranch import BranchContinuation as B\n"
+            "from hertzpetsc.records import RecordFileError, check_stores\n"
+            "from hertzpetsc.studies.base import check_stores as c\n"
+            "assert B is BranchContinuation and BranchFileError is RecordFileError and c is check_stores\n"
+            "print(p.StabilityMap.__module__, dealt.__module__)\n")
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, env=script_env())
+    assert r.returncode == 0 and r.stdout.split() == ["hertzpetsc.studies.maps", "hertzpetsc.dealing"], r.stderr
 
 
 def test_the_library_prints_only_through_its_reporting_modules(sources):

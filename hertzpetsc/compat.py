@@ -22,7 +22,7 @@ _MAP = ("StabilityMap", "MapParameters", "map_table", "MAP_FORMAT", "MAP_FIELDS"
 
 # {old module: {old name: (module now, name now)}}
 NAMES: dict[str, dict[str, tuple[str, str]]] = {
-    # the q-branch moved out of the continuation layer (issue 20)
+    # the q-branch moved out of the continuation layer (the one-model merge, commit 464f95d)
     "hertzpetsc.continuation": {name: ("hertzpetsc.qbranch", name) for name in _QBRANCH},
     # the stability map moved to its own study module (issue 23)
     "hertzpetsc.studies.precompression": {name: ("hertzpetsc.studies.maps", name) for name in _MAP},

@@ -18,6 +18,9 @@ import pytest
 
 from conftest import ROOT, script_env
 
+# the code is the same on every rank, and a fresh interpreter is started below: serially only
+pytestmark = pytest.mark.serial
+
 PACKAGE = "hertzpetsc"
 
 # The layers, lowest first (DESIGN.md, "Layers"): a module imports only from its own layer or a lower one.

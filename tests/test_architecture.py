@@ -401,10 +401,16 @@ def test_every_old_import_path_still_works(sources):
     the old modules define none of them themselves (the table would be dead)."""
     from hertzpetsc import compat
     for old, names in compat.NAMES.items():
-        own = {n for n in ast.parse(sources[old]).body for n in
-               ([n.name] if isinstance(n, (ast.ClassDef, ast.FunctionDef)) else [])}
+        own = set()
+        for node in ast.parse(sources[old]).body:
+            if isinstance(node, (ast.ClassDef, ast.FunctionDef)):
+                own.add(node.name)
+            elif isinstance(node, (ast.Import, ast.ImportFrom)):
+                own |= {(a.asname or a.name).split(".")[0] for a in node.names}
+            elif isinstance(node, ast.Assign):
+                own |= {t.id for target in node.targets for t in ast.walk(target) if isinstance(t, ast.Name)}
         for name, (module, new) in names.items():
-            assert name not in own, f"{old}.{name} is defined there: no alias needed"
+            assert name not in own, f"{old}.{name} is defined or imported there: no alias needed"
             namespace = {}
             exec(f"from {old} import {name}", namespace)
             assert namespace[name] is getattr(importlib.import_module(module), new)

@@ -18,7 +18,11 @@ with the same arguments and gets the same result. docs/api.md lists the names an
 """
 import importlib
 
+from . import compat
+
 __version__ = "0.3.0"
+
+compat.install()           # the old import paths of moved and renamed names (hertzpetsc.compat)
 
 # module (relative to the package) -> the names it defines that the package exports
 _MODULES = {

@@ -12,6 +12,7 @@ import math
 import numpy as np
 
 from .hertz import HertzLaw
+from .model import LatticeModel
 
 
 def quarter_period_solution(law, steps=1 << 15):
@@ -43,7 +44,7 @@ def binary_oscillation(alpha, xi, steps=1 << 15, derivative=False):
 
     Uses u0(pi - xi) = u0(xi) on [0, pi] (from oddness and eq. sym), oddness, and 2 pi-periodicity.
     """
-    law = alpha if isinstance(alpha, HertzLaw) else HertzLaw(alpha)
+    law = alpha if isinstance(alpha, HertzLaw) else LatticeModel.hertz(alpha).law
     nodes, us, vs = quarter_period_solution(law, steps)
     xi = np.asarray(xi, dtype=float)
     x = np.mod(xi, 2.0 * math.pi)

@@ -759,15 +759,3 @@ class Continuation:
             Z.destroy()
         self.history = []
         self._known = {}
-
-
-_MOVED = ("BranchContinuation", "ContinuationParameters", "FixedGrid", "RefiningGrid", "continue_branch",
-          "paper_targets", "regrid_half_profile")
-
-
-def __getattr__(name):
-    """The q-branch's names, importable from here as before they moved to :mod:`hertzpetsc.qbranch`."""
-    if name in _MOVED:
-        from . import qbranch
-        return getattr(qbranch, name)
-    raise AttributeError(name)

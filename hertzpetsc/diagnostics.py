@@ -7,7 +7,7 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-from .hertz import HertzLaw
+from .model import LatticeModel
 from .stencil import full_period, shifted
 
 
@@ -91,7 +91,7 @@ def free_flight_half_length(u_half, q, h):
 
 def point_diagnostics(u_half, q, h, alpha):
     """All scalar diagnostics of one branch point (section 3.1, eqs. defnq, invv, dispers)."""
-    law = HertzLaw(alpha)
+    law = LatticeModel.hertz(alpha).law
     a = law.alpha
     norm = sup_norm(u_half)
     ell = free_flight_half_length(u_half, q, h)

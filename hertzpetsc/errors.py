@@ -198,11 +198,6 @@ def check_signals(*args):
     ctypes.pythonapi.PyErr_CheckSignals()
 
 
-# The names under which these errors were raised before the record store existed (still caught by old code).
-BranchFileError = RecordFileError
-RunFileError = RecordFileError
-
-
 class PetscFailure(HertzPetscError, RuntimeError):
     """PETSc refused an operation (an unknown solver type, a bad option value ...): PETSc's own message."""
 

@@ -22,6 +22,7 @@ import tempfile
 
 import numpy as np
 
+from .console import note, print0
 from .errors import check_signals
 from .hertz import power_recipe
 
@@ -138,9 +139,8 @@ def library():
             _status = "not built (run: python -m hertzpetsc.kernels, or bash scripts/hz.sh setup)"
         elif built != source_digest():
             _status = "built from another source or against another PETSc (run: python -m hertzpetsc.kernels)"
-            if PETSc.COMM_WORLD.getRank() == 0:       # same numbers, much slower: say so once
-                print(f"note: the compiled chain kernel {LIBRARY} is {_status}; using the numpy right-hand side",
-                      file=sys.stderr, flush=True)
+            # same numbers, much slower: say so once
+            note(f"the compiled chain kernel {LIBRARY} is {_status}; using the numpy right-hand side")
         else:
             lib = ctypes.CDLL(LIBRARY)
             ptr, vp = ctypes.POINTER(KernelContext), ctypes.c_void_p
@@ -309,10 +309,10 @@ def main(argv):
     try:
         path = build(force="--force" in argv[1:])
     except (OSError, RuntimeError, subprocess.CalledProcessError) as err:
-        print(f"hertzpetsc kernel: not built ({err}); the chains use the numpy right-hand side (same arithmetic, "
-              "slower)", file=sys.stderr)
+        print0(f"hertzpetsc kernel: not built ({err}); the chains use the numpy right-hand side (same arithmetic, "
+               "slower)", file=sys.stderr)
         sys.exit(1)
-    print(f"hertzpetsc kernel: {path}")
+    print0(f"hertzpetsc kernel: {path}")
 
 
 if __name__ == "__main__":

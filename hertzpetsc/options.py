@@ -26,8 +26,9 @@ import numpy as np
 from petsc4py import PETSc
 
 from . import __version__, kernels
+from .console import print0
 from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure, Terminated
-from .records import name_path
+from .records import check_stores, name_path
 
 # seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
 ABORT_GRACE = 3.0
@@ -337,10 +338,9 @@ class AppOptions:
         With ``-check`` this is where the driver stops: it has read and validated its options, loaded its inputs and
         built its studies (which configured their solvers); the record files those studies would open are then
         checked as a run would open them (an existing file without -resume or -force, a resume of another
-        computation: :func:`hertzpetsc.studies.base.check_stores`), one line says so, and every rank exits 0."""
+        computation: :func:`hertzpetsc.records.check_stores`), one line says so, and every rank exits 0."""
         self._refuse_unused(passed_on)
         if getattr(self, "check", False):
-            from .studies.base import check_stores
             check_stores()
             for name in self.db.getAll():           # what PETSc would write when it finalizes (-log_view :file)
                 if name.startswith(("log_", "memory_view", "malloc_dump", "malloc_view")):
@@ -403,12 +403,6 @@ def check_ranks_agree(comm):
                               enumerate(values))
             raise ParameterError(f"-{name}", values[0], f"the ranks were given different values ({shown}): give "
                                  "every rank the same options")
-
-
-def print0(*args, file=sys.stdout):
-    """Print on rank 0 of COMM_WORLD only."""
-    if PETSc.COMM_WORLD.getRank() == 0:
-        print(*args, file=file, flush=True)
 
 
 def run_metadata(**extra):

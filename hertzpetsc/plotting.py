@@ -462,8 +462,8 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
     intervals between them (red bars), the uppermost located edge of each q joined along q, the gap opening A_gap(q)
     (dashed) and q_c of the uncompressed limit (shaded: between the largest q unstable at A = infinity and the next
     stable q of the map)."""
-    from .studies.floquet import critical_wavenumbers
-    from .studies.maps import unstable_intervals
+    from .verdicts import critical_wavenumbers
+    from .verdicts import unstable_intervals
     tol = float(z["tol_rho"])
     kind = np.asarray(z["kind"])
     q, A = np.asarray(z["q"], float), np.asarray(z["A"], float)

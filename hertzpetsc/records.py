@@ -24,8 +24,10 @@ petsc4py or mpi4py communicator.
 """
 import contextlib
 import glob
+import itertools
 import json
 import os
+import weakref
 import zipfile
 
 import numpy as np
@@ -35,6 +37,8 @@ from .errors import HertzPetscError, ParameterError, RecordFileError
 MODES = ("new", "resume", "force")
 _CHECKING = []          # non-empty within checking(): stores are opened to be checked, never written
 _GIVEN = {}             # {path: "-option"}: the paths given on the command line (name_path, given)
+_PENDING = weakref.WeakKeyDictionary()    # {owner: order}: what would open a record file when run (check_stores)
+_ORDER = itertools.count()
 
 
 def name_path(option, value):
@@ -69,6 +73,22 @@ def checking():
         yield
     finally:
         _CHECKING.pop()
+
+
+def pending(owner) -> None:
+    """Note that ``owner`` (a study: ``check_open()`` opens its record file unless it is open) opens a record file
+    when it runs, for :func:`check_stores`."""
+    _PENDING[owner] = next(_ORDER)
+
+
+def check_stores() -> None:
+    """Open the record file of every owner noted by :func:`pending` (the studies built so far), in the order they
+    were built, as a run would, but only to check it (within :func:`checking`): an existing file without resume or
+    force, a missing one to resume, one of another kind or computation is refused here (a driver's ``-check``);
+    nothing is written. Collective."""
+    with checking():
+        for owner in sorted(list(_PENDING.keys()), key=_PENDING.get):
+            owner.check_open()
 
 
 # --- collective helpers -------------------------------------------------------------------------------------------

@@ -139,7 +139,7 @@ class MonodromyModShift:
         self.integrations += 1
         if size == 1 or k < size:
             return self._integrate(Y, self.comm)
-        from .studies.dealing import dealt
+        from .dealing import dealt
         FY = np.empty_like(Y)
         shares = [list(range(r, k, size)) for r in range(size)]             # equal costs: share r on rank r
         for cols, part in dealt(shares, [1] * size, self.comm, lambda c: self._integrate(Y[:, :, c], PETSc.COMM_SELF)):

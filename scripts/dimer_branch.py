@@ -22,7 +22,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.precompression import DimerFamilies, DimerParameters  # noqa: E402
 
 ROLES = DimerFamilies.ROLES
@@ -54,11 +54,9 @@ def main():
     study.open()
     print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, a = {a:g}, h = pi/{K}")
     print0(f"# {'q':>8} {'epsilon':>9} {'omega':>10} {'||v||/||u||':>11} {'d eps/ds':>10}")
-    for r in study.run():
-        print0(f"  {r['q']:8.5f} {r['epsilon']:9.5f} {r['omega']:10.6f} {r['norm_v'] / r['norm_u']:11.4f} "
-               f"{r['tangent_epsilon']:10.2e}")
-    text = study.table()
-    write_text(table_path, text, comm)
+    text = study.run_to_table(table_path, lambda r: print0(
+        f"  {r['q']:8.5f} {r['epsilon']:9.5f} {r['omega']:10.6f} {r['norm_v'] / r['norm_u']:11.4f} "
+        f"{r['tangent_epsilon']:10.2e}"))
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_dimer_epsilon(study.curves(), figures), flush=True)

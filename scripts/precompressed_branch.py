@@ -32,7 +32,7 @@ from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
 from hertzpetsc.hertz import check_delta0  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.precompression import AmplitudeFamilies, AmplitudeParameters  # noqa: E402
 
 ROLES = AmplitudeFamilies.ROLES
@@ -67,11 +67,9 @@ def main():
     print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, masses {','.join(f'{m:g}' for m in masses)}, {branch}, "
            f"h = pi/{K}, a in [{a_min:g}, {a_max:g}], ds = {ds:g}")
     print0(f"# {'q':>8} {'kind':>4} {'a':>10} {'A':>10} {'omega':>12} {'Omega':>10} {'its':>3}")
-    for r in study.run():
-        print0(f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.4g} {r['A']:10.4g} {r['omega']:12.8f} "
-               f"{r['Omega']:10.6f} {r['iterations']:3d}")
-    text = study.table()
-    write_text(table_path, text, comm)
+    text = study.run_to_table(table_path, lambda r: print0(
+        f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.4g} {r['A']:10.4g} {r['omega']:12.8f} {r['Omega']:10.6f} "
+        f"{r['iterations']:3d}"))
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_precompressed_omega(study.curves(), alpha, delta0, figures), flush=True)

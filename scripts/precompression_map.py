@@ -124,9 +124,10 @@ def main():
     print0(f"# N = {N}, alpha = {alpha:g}, delta0 = {delta0:g}, masses {', '.join(f'{m:g}' for m in masses)}, "
            f"h = pi/{K} and pi/{2 * K}, rtol {rtol:g}, {len(study.a_values)} amplitudes, twists {twists}")
     print0(f"# {'q':>8} {'kind':>4} {'a':>10} {'A':>10} {'rho - 1':>10} {'inf - 1':>10} {'s':>6}")
-    for r in study.run():
-        print0(f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.5g} {r['A']:10.5g} {r['rho'] - 1:10.3e} "
-               f"{r['rho_inf'] - 1:10.3e} {r['seconds']:6.1f}")
+    # the table of this run's records, also when an error stops it (then with the error below it)
+    study.run_to_table(table_path, lambda r: print0(
+        f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.5g} {r['A']:10.5g} {r['rho'] - 1:10.3e} "
+        f"{r['rho_inf'] - 1:10.3e} {r['seconds']:6.1f}"))
     z = study.arrays()
     study.destroy()
     write_figure_and_table(comm, z, table_path, figures, compare)

@@ -24,7 +24,7 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.wave import MAX_BEADS, MAX_SIZE, WaveParameters, WaveStudy  # noqa: E402
 
 
@@ -63,11 +63,9 @@ def main():
     print0(f"# chain {model.describe()}, {branch} branch, A = {A:g}, h = pi/{K}, N = {N}"
            + (f", sizes {sizes}" if sizes else ""))
     print0(f"# {'q':>9} {'omega':>12} {'E before':>9} {'E after':>9} {'rho - 1':>10} {'outside':>7} {'s':>6}")
-    for r in study.run():
-        print0(f"  {r['q']:9.6f} {r['omega']:12.8f} {r['E_profile']:9.1e} {r['E_refined']:9.1e} "
-               f"{r['rho'] - 1:10.2e} {r['outside']:7d} {r['seconds']:6.1f}")
-    text = study.table()
-    write_text(table_path, text, comm)
+    text = study.run_to_table(table_path, lambda r: print0(
+        f"  {r['q']:9.6f} {r['omega']:12.8f} {r['E_profile']:9.1e} {r['E_refined']:9.1e} {r['rho'] - 1:10.2e} "
+        f"{r['outside']:7d} {r['seconds']:6.1f}"))
     print0(text)
     if study.failed:                         # the table holds every q that converged; exit 3 names the first failure
         raise next(iter(study.failed.values()))

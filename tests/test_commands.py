@@ -134,7 +134,7 @@ def _parse(line, where):
     if any(PLACEHOLDERS.search(t) for t in tokens):
         return []
     if tokens[:2] == ["bash", "scripts/hz.sh"]:
-        if len(tokens) == 2:                # the script named in prose, no job
+        if len(tokens) == 2:                    # the script named in prose, without a job: runs no driver
             return []
         if tokens[2] != "run":
             return _hz_commands(tokens[2], f"{where} (hz.sh {tokens[2]})")

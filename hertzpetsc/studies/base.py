@@ -19,34 +19,18 @@ studies whose points are continued per alpha, a round of steps at a time.
 """
 from __future__ import annotations
 
-import itertools
 import os
-import weakref
 from dataclasses import fields, is_dataclass
 from typing import TYPE_CHECKING, Any, Callable, Iterator, Optional
 
 from petsc4py import PETSc
 
+from ..dealing import dealt
 from ..errors import HertzPetscError, ParameterError, check_choice, check_instance
-from ..records import MODES, MemoryRecords, NpzRecords, checking, file_digest, given, write_text
-from .dealing import dealt
+from ..records import MODES, MemoryRecords, NpzRecords, file_digest, given, pending, write_text
 
 if TYPE_CHECKING:
     import numpy as np
-
-_BUILT = weakref.WeakSet()      # the studies built in this process that write a record file (check_stores)
-_ORDER = itertools.count()      # ... in the order they were built
-
-
-def check_stores() -> None:
-    """Open the record file of every study built so far and not yet opened, as a run would, but only to check it
-    (:func:`hertzpetsc.records.checking`): an existing file without resume or force, a missing one to resume, one
-    of another kind or computation is refused here (a driver's ``-check``); nothing is written. Collective."""
-    with checking():
-        for study in sorted(_BUILT, key=lambda s: s._built):
-            if study.store is None and study.output is not None:
-                study._open()
-
 
 class Study:
     """Base class of the studies (module docstring)."""
@@ -74,8 +58,7 @@ class Study:
         self.comm = comm if comm is not None else PETSc.COMM_WORLD
         self.output, self.mode = output, mode
         if output is not None:
-            self._built = next(_ORDER)
-            _BUILT.add(self)
+            pending(self)
 
     # --- what identifies the records -------------------------------------------------------------------------
     def constants(self) -> dict:
@@ -102,6 +85,12 @@ class Study:
         if self.store is None:
             self.store = self._open()
         return self
+
+    def check_open(self) -> None:
+        """Open the record file as a run would, unless it is open: within :func:`hertzpetsc.records.checking` (a
+        driver's ``-check``, :func:`hertzpetsc.records.check_stores`) only to check it."""
+        if self.store is None and self.output is not None:
+            self._open()
 
     def _open(self):
         """The record store: the file of ``output`` in ``mode`` (constants and identity), or memory."""

@@ -53,15 +53,16 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from dataclasses import MISSING, dataclass, fields
 from typing import TYPE_CHECKING, Any, Iterator, Optional, Sequence, overload
 
 import numpy as np
 from petsc4py import PETSc
 
+from ..console import note
 from ..continuation import (Continuation, ContinuationError, ContinuationPoint, Natural, PseudoArclength,
                              golden_maximum)
+from ..dealing import dealt
 from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
                       HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of, check_dense_beads,
                       configure_options, crossing, local_wave, neutral_saddle, refined_profile, switch_to_doubled,
@@ -72,7 +73,6 @@ from ..model import LatticeModel
 from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
                          check_work)
 from .base import Study
-from .dealing import dealt
 
 if TYPE_CHECKING:
     from ..branch import Branch
@@ -586,8 +586,7 @@ class ResponseCurve(DrivenStudy):
         """Everything up to the last point was recorded; the curve ends there (e.g. the response is lost): say so
         once (:attr:`ended`, and a note on rank 0)."""
         self.ended = f"the continuation stopped before {self.parameter} = {self.p_end:g}: {err}"
-        if self.comm.getRank() == 0:
-            print(f"note: {self.ended}", file=sys.stderr, flush=True)
+        note(self.ended, self.comm)
 
     def _switched(self):
         """From each confirmed period doubling of branch 0 (in order), switch onto the doubled branch and take

@@ -26,14 +26,15 @@ from petsc4py import PETSc
 from ..bloch import SymmetricFloquet, bloch_residuals, real_pairs, seeded_dominant_multipliers
 from ..branch import Branch
 from ..chain import IntegrationTolerances
+from ..dealing import dealt
 from ..errors import (ParameterError, RecordFileError, check_choice, check_instance, check_integer, check_integers,
                       check_real, check_reals)
 from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
 from ..records import check_kind, given, load_npz
+from ..verdicts import critical_wavenumbers
 from ..waves import orbit_on_chain
 from .base import Study
-from .dealing import dealt
 from .refinement import RefinedStates, scan_wavenumbers
 
 if TYPE_CHECKING:
@@ -65,18 +66,6 @@ def q_label(q):
 def _path(source):
     """The file a branch or refinement came from ('' for none or one computed in memory)."""
     return getattr(source, "path", "") or ""
-
-
-def critical_wavenumbers(q, rho, tol_rho):
-    """(q_c, next stable q above it or None, q_m): q_c the largest q with rho - 1 > tol_rho (nan if none is
-    unstable), q_m the q of the largest rho."""
-    q, rho = np.asarray(q, dtype=float), np.asarray(rho, dtype=float)
-    unstable = rho - 1 > tol_rho
-    if not unstable.any():
-        return math.nan, None, float(q[int(np.argmax(rho))])
-    qc = float(q[unstable].max())
-    above = ~unstable & (q > qc)
-    return qc, float(q[above].min()) if above.any() else None, float(q[int(np.argmax(rho))])
 
 
 def _check_scan(refined, tol_rho, tolerances):

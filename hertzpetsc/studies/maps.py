@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 import time
 from dataclasses import dataclass
 from fractions import Fraction
@@ -46,6 +45,8 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..chain import IntegrationTolerances
+from ..console import note
+from ..dealing import dealt
 from ..diagnostics import sup_norm
 from ..errors import (ConvergenceError, ParameterError, check_flag, check_instance, check_integer, check_real,
                       check_reals, members)
@@ -60,9 +61,10 @@ from ..richardson import extrapolate
 from ..slow import CERT_MARGIN, DeflatedSectors, crossing_search, twist_scan
 from ..symmetry import WaveSymmetry
 from ..twsolver import tw_solver
+from ..verdicts import (KIND_CROSSING, KIND_EDGE, KIND_EDGE_INF, KIND_GAP, KIND_LIMIT, KIND_POINT,
+                        unstable_intervals)
 from ..waves import check_chain_wavenumber, fits_chain
 from .base import Study
-from .dealing import dealt
 from .floquet import q_label
 from .precompression import _check_delta0_positive, _check_qs, amplitude_grid, wave_orbit
 
@@ -83,7 +85,6 @@ MAP_FIELDS = ("q", "m", "kind", "a", "A", "omega", "rho", "outside", "sector", "
 # the twist samples (slow.certify_twists), 0 stable samples not certified between them (unresolved), -1 none
 # (unstable, no verdict, or a file of kind -2, whose verdicts are the samples')
 CERT_STABLE, CERT_UNRESOLVED, CERT_NONE = 1, 0, -1
-KIND_POINT, KIND_EDGE, KIND_EDGE_INF, KIND_LIMIT, KIND_GAP, KIND_CROSSING = 0, 1, 2, 3, 4, 5
 TESTS = ("chain", "infinite")
 EDGE_KIND = {"chain": KIND_EDGE, "infinite": KIND_EDGE_INF}
 MAX_MAP_BEADS = 2000
@@ -385,8 +386,8 @@ class StabilityMap(Study):
                     # the symmetry vectors are not eigenvectors of this orbit's sector maps: the deflated
                     # spectrum is not the wave's, no verdict (rho nan), said once per record
                     row.update(rho=nan, outside=-1)
-                    print(f"note: q = {q:.6g}, a = {a:g}: the deflation's eigenvector residual {c['eigvec']:.1e} "
-                          f"exceeds {EIGVEC_MAX:g}; no verdict recorded (rho = nan)", file=sys.stderr, flush=True)
+                    note(f"q = {q:.6g}, a = {a:g}: the deflation's eigenvector residual {c['eigvec']:.1e} exceeds "
+                         f"{EIGVEC_MAX:g}; no verdict recorded (rho = nan)", PETSc.COMM_SELF)
             if self.twists:
                 i = probe.infinite(entry)
                 row.update(rho_inf=i["rho"], theta_inf=i["theta"], cluster_inf=i["cluster"], cert_inf=i["cert"],
@@ -680,9 +681,9 @@ class QBoundary(Study):
                 third = (hi - lo) / 3
                 x = simplest_fraction(lo + third, hi - third)
                 if x.denominator > p.max_cell:
-                    print(f"note: A = {A:g}: the bracket q / 2 pi in [{lo}, {hi}] holds no cell of at most max_cell = "
-                          f"{p.max_cell} beads in its middle third; the edge is located to {float((hi - lo) / lo):.1e}",
-                          file=sys.stderr, flush=True)
+                    note(f"A = {A:g}: the bracket q / 2 pi in [{lo}, {hi}] holds no cell of at most max_cell = "
+                         f"{p.max_cell} beads in its middle third; the edge is located to {float((hi - lo) / lo):.1e}",
+                         PETSc.COMM_SELF)
                     break
                 row = self.evaluate(x, A)
                 rows.append(row)
@@ -869,51 +870,6 @@ def map_v1_table(z):
         lines.append(f"| {q_label(qq)} ({qq:.4f}) | " + " | ".join(_rho_cell(rho, i, tol) for i in found) + " |")
     lines.append(f"\nmax trivial spread {worst:.1e}")
     return "\n".join(lines) + "\n"
-
-
-def unstable_intervals(z, key="rho"):
-    """{q: [(A_from, A_to), ...]} the intervals of A where the chain of ``key`` (``rho``: N beads, ``rho_inf``: the
-    infinite chain) is unstable, between its located edges (the located points' A, the midpoints of their
-    brackets), read together with the verdicts at the map's amplitudes and at the uncompressed limit (A = inf, the
-    last verdict of the walk when the map has it): from 0 when the smallest map amplitude is unstable before the
-    first edge, to inf when the verdict stays unstable up to the limit (without a limit record: up to the largest
-    map amplitude); nan where an edge was not located (an onset after an onset, an offset after an offset, a map
-    amplitude or the limit whose verdict contradicts the last located edge: the family stepped into a window the
-    edges do not show, or the verdict changes beyond the largest map amplitude)."""
-    tol = float(z["tol_rho"])
-    kind, q, A = np.asarray(z["kind"]), np.asarray(z["q"], float), np.asarray(z["A"], float)
-    rho = np.asarray(z[key], float)
-    edge = KIND_EDGE if key == "rho" else KIND_EDGE_INF
-    onset_of = np.asarray(z["A_unstable"], float) > np.asarray(z["A_stable"], float)
-    out = {}
-    for qq in sorted(set(q[(kind == KIND_POINT) & np.isfinite(rho)].tolist())):
-        pts = np.nonzero(((kind == KIND_POINT) | (kind == KIND_LIMIT)) & (q == qq) & np.isfinite(rho))[0]
-        mine = np.nonzero((kind == edge) & (q == qq))[0]
-        # the walk in A: points (their verdicts, the limit's at A = inf last) and edges; at equal A the point first
-        walk = sorted([(float(A[i]) if kind[i] == KIND_POINT else math.inf, 0, i) for i in pts]
-                      + [(float(A[i]), 1, i) for i in mine])
-        start, spans, seen = None, [], False
-        for a, is_edge, i in walk:
-            if not is_edge:
-                unstable = rho[i] - 1 > tol
-                if unstable and start is None:
-                    start = 0.0 if not seen else math.nan      # an onset before it was not located
-                elif not unstable and start is not None:
-                    spans.append((start, math.nan))             # an offset before it was not located
-                    start = None
-                seen = True
-            elif onset_of[i]:
-                if start is not None:                           # unstable already: an offset between was not located
-                    spans.append((start, math.nan))
-                start, seen = a, True
-            else:                                               # stable before: nan, an onset between was not located
-                spans.append((math.nan if start is None else start, a))
-                start, seen = None, True
-        if start is not None:                  # up to the uncompressed limit only if the last verdict is unstable
-            last = next(i for a, is_edge, i in reversed(walk) if not is_edge)
-            spans.append((start, math.inf if rho[last] - 1 > tol or A[last] < start else math.nan))
-        out[qq] = spans
-    return out
 
 
 # the constants of two maps that must agree for their verdicts to be compared (tol_rho may differ: the comparison is

@@ -532,12 +532,3 @@ def wave_orbit(model, q, a, profiles, lam, N, h):
     point = BranchPoint(q, np.asarray(profiles[0]), h, model.rescaled(a), profiles=tuple(profiles),
                         omega=math.sqrt(lam))
     return orbit_on_chain(point, ChainSpec(model, N), scale=a)
-
-
-def __getattr__(name):
-    """The stability map's names at their place before issue 23 (``studies.precompression.StabilityMap``, ...): the
-    study of :mod:`hertzpetsc.studies.maps` (imported when first asked: it imports this module)."""
-    if name in ("StabilityMap", "MapParameters", "map_table", "MAP_FORMAT", "MAP_FIELDS"):
-        from . import maps
-        return getattr(maps, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

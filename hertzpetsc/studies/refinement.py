@@ -35,6 +35,7 @@ from petsc4py import PETSc
 
 from ..chain import CHAIN_PREFIX
 from ..branch import Branch
+from ..dealing import dealt
 from ..errors import ParameterError, RecordFileError, check_instance, check_integer, check_real, check_reals
 from ..model import ChainSpec
 from ..records import check_kind, given, load_npz, on_rank0
@@ -42,7 +43,6 @@ from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
 from ..symmetry import WaveSymmetry
 from ..waves import chain_wavenumbers, check_chain_wavenumber, orbit_on_chain
 from .base import Study
-from .dealing import dealt
 
 if TYPE_CHECKING:
     from ..branch import Branch, BranchPoint

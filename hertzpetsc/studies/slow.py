@@ -58,6 +58,7 @@ from ..comoving import ComovingWave, profile_on_grid
 from ..comoving_pep import ComovingPEP
 from ..comoving_window import sector_window, theta_scan, tracked_exponent
 from ..branch import Branch
+from ..dealing import dealt
 from ..errors import (ConvergenceError, ParameterError, check_instance, check_integer, check_integers, check_real,
                       check_reals)
 from ..chain import IntegrationTolerances
@@ -70,7 +71,6 @@ from ..stencil import full_period
 from ..symmetry import WaveSymmetry
 from ..waves import fits_chain, orbit_on_chain
 from .base import Study
-from .dealing import dealt
 from .floquet import _path, q_label
 
 if TYPE_CHECKING:

@@ -6,8 +6,8 @@ number of ranks, so the results do not depend on it at all. The items are dealt 
 rule on estimated costs; after each round every rank has every result of the round (an allgather), so that rank 0
 can record them as they come. An error on one rank is passed to every rank in the same round, so all raise it.
 """
-from ..errors import HertzPetscError
-from ..records import _rebuild, _sent
+from .errors import HertzPetscError
+from .records import _rebuild, _sent
 
 
 def lpt_plan(costs, size):

@@ -62,8 +62,8 @@ def main():
     if figures:
         from hertzpetsc import plotting
         if comm.getRank() == 0:
-            for name in plotting.plot_branch_figures(study.branch, figures, k_alpha):
-                print(f"wrote {name}", flush=True)
+            for fig in plotting.plot_branch_figures(study.branch, figures, k_alpha):
+                print(f"wrote {fig.path}", flush=True)
     print0(f"wrote {output}")
 
 

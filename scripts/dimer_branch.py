@@ -61,7 +61,7 @@ def main():
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_dimer_epsilon(study.curves(), figures), flush=True)
+        print("wrote " + plotting.plot_dimer_epsilon(study.curves(), figures).path, flush=True)
     print0(text)
 
 

@@ -74,7 +74,7 @@ def main():
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_precompressed_omega(study.curves(), alpha, delta0, figures), flush=True)
+        print("wrote " + plotting.plot_precompressed_omega(study.curves(), alpha, delta0, figures).path, flush=True)
     print0(text)
 
 

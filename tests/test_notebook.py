@@ -189,3 +189,43 @@ def test_the_tutorial_notebook_runs_and_makes_its_figures_as_objects(tmp_path, m
         assert out.count("omega = ") == len(responses) and "wrote driven_response.png" in out
     else:
         assert out == "" and listing(tmp_path) == []
+
+
+# --- 5. progress with the time left -----------------------------------------------------------------------------
+class Terminal:
+    """A stream that says it is a terminal (or not), keeping what is written."""
+
+    def __init__(self, tty):
+        self.tty, self.text = tty, ""
+
+    def isatty(self):
+        return self.tty
+
+    def write(self, s):
+        self.text += s
+
+    def flush(self):
+        pass
+
+
+def test_progress_estimates_the_time_left_on_rank_0_of_a_terminal_only():
+    """Progress at the pace so far: after 30 s for 3 of 10 records (2 done before this run started) the time left
+    is 30 s x 7 / 1; a line at most every interval seconds, none when the stream is not a terminal, none on the
+    other ranks."""
+    from hertzpetsc.progress import Progress, duration
+    now = [0.0]
+    tty = Terminal(True)
+    p = Progress(10, "records", "scan", start=2, stream=tty, interval=20.0, clock=lambda: now[0])
+    now[0] = 10.0
+    assert p.update(2.5) is None                           # within the interval: nothing
+    now[0] = 30.0
+    line = p.update(3)
+    assert p.left(3) == 30.0 * 7 / 1
+    assert (line == "scan: 3/10 records, 30 s elapsed, about 3 min 30 s left at the pace so far"
+            if COMM.getRank() == 0 else line is None)
+    assert tty.text == (line + "\n" if line else "")
+    assert p.update(4) is None and p.update(4, force=True) == (p.line(4) if COMM.getRank() == 0 else None)
+    assert duration(7384) == "2 h 3 min" and duration(59.6) == "1 min 0 s"
+    pipe = Terminal(False)
+    quiet = Progress(10, stream=pipe, interval=0.0, clock=lambda: now[0])
+    assert quiet.update(5, force=True) is None and pipe.text == ""

@@ -413,6 +413,15 @@ class ResponseCurve(DrivenStudy):
     def _same_event(rec, point, code):
         return int(rec["event"]) == code and abs(float(rec["s"]) - point.s) <= 1e-12 * max(1.0, abs(point.s))
 
+    def planned(self) -> Optional[int]:
+        """Grid mode without switching: the grid's values (and the start) not yet in the file; else None (a
+        continuation's steps are not known in advance)."""
+        if self.grid is None or self.switch:
+            return None
+        done = [self.drive.value(self.parameter)] + [float(r["p"]) for r in self.open().branch_records(0)]
+        todo = [p for p in self.grid if not any(abs(q - p) <= 1e-12 * max(1, abs(p)) for q in done)]
+        return len(todo) + (0 if self.branch_records(0) else 1)
+
     def run(self) -> Iterator[dict]:
         """Compute what the file lacks: the main branch, then the period-doubled branches. Yields each record."""
         self.open()

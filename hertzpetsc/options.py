@@ -21,6 +21,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Mapping
+from typing import Any, Iterator, Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -402,7 +404,7 @@ def inserted_options(prefix, defaults, override=False):
 
 
 @contextlib.contextmanager
-def call_options(options):
+def call_options(options: Optional[Mapping[str, Any]]) -> Iterator[None]:
     """The per-call solver options of an API call (``options={"tw_snes_rtol": 1e-12}``, as DOLFINx's
     ``petsc_options``): in the options database for the duration of the block, over what it held, which is put
     back afterwards, also when the block raises. Names are full option names (prefix included, a leading '-'
@@ -411,7 +413,6 @@ def call_options(options):
     if options is None:
         yield
         return
-    from collections.abc import Mapping
     if not isinstance(options, Mapping):
         raise ParameterError("options", options, "a dict of solver options {name: value}, e.g. "
                              "{'tw_snes_rtol': 1e-12} (None: the options database as it is)")
@@ -423,6 +424,8 @@ def call_options(options):
         if not (value is None or isinstance(value, (str, bool, int, float, np.integer, np.floating))):
             raise ParameterError("options", f"{{{key!r}: {value!r}}}", "a value is a string, a number, a bool or "
                                  "None (an option without value)")
+        if name.lower() in {n.lower() for n in values}:
+            raise ParameterError("options", key, "given twice (names are case-insensitive, the '-' optional)")
         values[name] = value
     with inserted_options("", values, override=True) as inserted:
         yield

@@ -144,7 +144,7 @@ def test_per_call_options_change_the_solver_and_leave_the_database_as_it_was():
         with pytest.raises(ParameterError, match="options = 'tw_snes_rtl': not read"):
             hz.compute_branch(M=2, cells_per_pi=100, options={"tw_snes_rtl": 1e-3})
         assert opts.getAll() == before
-        for bad in ({"tw snes": 1}, {"tw_snes_rtol": [1]}, ["tw_snes_rtol"]):
+        for bad in ({"tw snes": 1}, {"tw_snes_rtol": [1]}, ["tw_snes_rtol"], {"tw_snes_rtol": 1, "-TW_snes_rtol": 2}):
             with pytest.raises(ParameterError, match="options"):
                 hz.compute_branch(M=2, cells_per_pi=100, options=bad)
         assert opts.getAll() == before

@@ -54,7 +54,7 @@ _MODULES = {
     "studies.driven": "ResponseCurve LinearResonances WaveEnds Generation ResponseParameters ResonanceParameters "
                       "WaveEndsParameters GenerationParameters",
     # conveniences (this package's api module)
-    "api": "compute_branch wave_at wave orbit refine multipliers plot_spectrum",
+    "api": "compute_branch wave_at wave orbit refine multipliers response plot_spectrum",
 }
 # name -> module that defines it
 _EXPORTS = {name: module for module, names in _MODULES.items() for name in names.split()}

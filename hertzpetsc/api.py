@@ -4,18 +4,24 @@ the package's objects with the paper's defaults (solver options still read from 
 ``comm`` (default PETSc.COMM_WORLD): all ranks call it with the same arguments and get the same result, except
 :func:`plot_spectrum` (local: call it on one rank). The package's docstring (:mod:`hertzpetsc`) shows the paper's
 pipeline in these calls.
+
+Per-call solver options: ``options={"tw_snes_rtol": 1e-12}`` (full names, prefix included, as DOLFINx's
+``petsc_options``) are in the options database for that call only, over what it holds, which is put back afterwards
+(also when the call raises; :func:`hertzpetsc.options.call_options`); an option none of the call's solvers read is a
+ParameterError naming ``options``.
 """
 from __future__ import annotations
 
 import math
 import os
-from typing import TYPE_CHECKING, Optional, Union
+from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence, Union
 
 import numpy as np
 from petsc4py import PETSc
 
 from .bloch import SymmetricFloquet
 from .branch import Branch, BranchPoint
+from .driven import Drive, Response
 from .errors import ParameterError, check_flag, check_instance, check_integer, check_real
 from .families import AmplitudePoint
 from .families import wave_at as _wave_at
@@ -23,6 +29,7 @@ from .families import wave_of_amplitude
 from .floquet import DenseFloquet, DominantFloquet, Spectrum
 from .grid import ProfileGrid
 from .model import ChainSpec, LatticeModel
+from .options import call_options
 from .qbranch import ContinuationParameters
 from .resources import check_chain_size
 from .shooting import Refinement
@@ -41,44 +48,49 @@ def _comm(comm):
 
 def compute_branch(model: Optional[LatticeModel] = None, M: int = 50, cells_per_pi: int = 1000,
                    q_stop: Optional[float] = None, output: Optional[str] = None, mode: str = "new",
-                   comm: Optional[PETSc.Comm] = None) -> Branch:
+                   comm: Optional[PETSc.Comm] = None, options: Optional[Mapping[str, Any]] = None) -> Branch:
     """The branch of eq. ad from the binary oscillation at q = pi down to q_stop through q = m pi / M (section
     3.1), on the grid h = pi / cells_per_pi, for the uncompressed ``model`` (default: the paper's, alpha = 3/2).
     Written to ``output`` as it goes when given (a branch file; ``mode`` new/resume/force), else kept in memory.
-    Collective."""
+    ``options``: per-call solver options (prefix ``tw_``). Collective."""
     model = model if model is not None else LatticeModel.hertz()
     if not isinstance(model, LatticeModel):
         raise ParameterError("model", type(model).__name__, "must be a LatticeModel (e.g. LatticeModel.hertz(1.5))")
     if output is not None:
         check_instance("output", output, (str, os.PathLike), "a path (None: in memory)")
     params = ContinuationParameters(M=M, cells_per_pi=cells_per_pi, q_stop=q_stop, model=model)
-    study = BranchStudy(params, output, _comm(comm), mode)
-    for _ in study.run():
-        pass
+    with call_options(options):
+        study = BranchStudy(params, output, _comm(comm), mode)
+        for _ in study.run():
+            pass
     return study.branch
 
 
 def wave_at(model: LatticeModel, q: float, A: float, cells_per_pi: int = 400, branch: str = "acoustic",
-            comm: Optional[PETSc.Comm] = None) -> AmplitudePoint:
+            comm: Optional[PETSc.Comm] = None, options: Optional[Mapping[str, Any]] = None) -> AmplitudePoint:
     """The travelling wave of a precompressed ``model`` (any mass pattern) with per-bead wavenumber q and amplitude
     A = max |u| (A is a border row of eq. ad; reached from the linear wave by natural steps), on the grid h = pi /
     cells_per_pi: an :class:`~hertzpetsc.families.AmplitudePoint` (omega, the rescaled profiles, the gap
     indicator). ``branch``: the linear wave the family starts from, 'acoustic' (the lowest frequency at q) or, for a
     mass pattern, 'optical' (the highest); a family that folds below A raises
     :class:`~hertzpetsc.families.FamilyFold` (the largest A it reaches, the other branch to try). :func:`wave` puts
-    such a wave on a chain. Collective."""
+    such a wave on a chain. ``options``: per-call solver options (prefix ``precomp_``). Collective."""
     grid = ProfileGrid(cells_per_pi, _comm(comm))
-    return _wave_at(model, q, A, grid, branch=branch)
+    with call_options(options):
+        return _wave_at(model, q, A, grid, branch=branch)
 
 
 def wave(model: LatticeModel, q: float, A: float, N: int, cells_per_pi: int = 400,
-         comm: Optional[PETSc.Comm] = None, branch: str = "acoustic") -> Orbit:
+         comm: Optional[PETSc.Comm] = None, branch: str = "acoustic",
+         options: Optional[Mapping[str, Any]] = None) -> Orbit:
     """The travelling wave of any ``model`` (Hertz exponent, precompression, mass pattern) with per-bead wavenumber
     q and amplitude A = max |u|, on a periodic chain of N beads (N q / 2 pi wavelengths, whole pattern cells): an
     :class:`~hertzpetsc.waves.Orbit` (state, script-T) ready for :func:`refine` and :func:`multipliers`.
     ``branch``: the linear wave a precompressed pattern's family starts from ('acoustic' or 'optical', as in
-    :func:`wave_at`). Collective."""
-    point, scale = wave_of_amplitude(model, q, A, ProfileGrid(cells_per_pi, _comm(comm)), branch=branch)
+    :func:`wave_at`). ``options``: per-call solver options (prefix ``precomp_`` with precompression, else ``tw_``).
+    Collective."""
+    with call_options(options):
+        point, scale = wave_of_amplitude(model, q, A, ProfileGrid(cells_per_pi, _comm(comm)), branch=branch)
     return orbit_on_chain(point, ChainSpec(model, N), scale=scale)
 
 
@@ -100,24 +112,28 @@ def orbit(point: BranchPoint, N: int, A: Optional[float] = None) -> Orbit:
 
 
 def refine(orbit: Orbit, tol: float = 1e-10, symmetric: bool = True,
-           comm: Optional[PETSc.Comm] = None) -> Refinement:
+           comm: Optional[PETSc.Comm] = None, options: Optional[Mapping[str, Any]] = None) -> Refinement:
     """Gauss-Newton refinement of ``orbit`` until E(q) <= ``tol`` (section 3.4; prefix ``shoot_``): a
     :class:`~hertzpetsc.shooting.Refinement` (``.orbit`` the refined wave, ``.E_initial``, ``.E``, ``.iterations``);
     ``symmetric``: on the wave's cell over its shortest time symmetry. ConvergenceError if E stays above tol.
-    Collective."""
+    ``options``: per-call solver options (prefixes ``shoot_``, ``shoot_jac_``; ``shoot_gn_max_it``). Collective."""
     check_instance("orbit", orbit, Orbit, "an Orbit (hz.orbit, hz.wave)")
     tol = check_real("tol", tol, "the target E(q) of the refinement", lo=0.0, hi=1.0)
-    return _refine(orbit, _comm(comm), tol, symmetric=check_flag("symmetric", symmetric))
+    symmetric = check_flag("symmetric", symmetric)
+    with call_options(options):
+        return _refine(orbit, _comm(comm), tol, symmetric=symmetric)
 
 
 def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = None,
-                tol_rho: Optional[float] = None, comm: Optional[PETSc.Comm] = None) -> Spectrum:
+                tol_rho: Optional[float] = None, comm: Optional[PETSc.Comm] = None,
+                options: Optional[Mapping[str, Any]] = None) -> Spectrum:
     """The Floquet multipliers of F_q = S R(script-T; 0) around ``orbit`` (section 3.5; prefix ``floquet_``): a
     :class:`~hertzpetsc.floquet.Spectrum` (``.multipliers`` sorted by modulus, ``.rho`` without the trivial ones,
     ``.outside``, ``.trivial_spread``). ``method``: ``symmetric`` (all 2N, from the Bloch sectors of the wave's
     cell; any N = L M), ``dense`` (all 2N on the whole chain, the paper's route) or ``slepc`` (the ``nev`` largest,
     Krylov-Schur, default 10). ``nev`` given with ``symmetric`` or ``dense``: all 2N are computed and the ``nev``
     largest kept (``.complete`` False). ``tol_rho`` in (0, 1): unstable when rho - 1 > tol_rho (default 1e-4).
+    ``options``: per-call solver options (prefix ``floquet_``: ``floquet_ts_*``, with ``slepc`` ``floquet_eps_*``).
     Collective."""
     check_instance("orbit", orbit, Orbit, "an Orbit (hz.orbit, hz.wave, hz.refine(...).orbit)")
     if method not in METHODS:
@@ -127,14 +143,58 @@ def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = No
     if nev is not None:
         nev = check_integer("nev", nev, 1, "the multipliers kept", hi=2 * orbit.N)
     comm = _comm(comm)
-    if method == "symmetric":
-        solver = SymmetricFloquet(orbit.spec.model, comm)
-    elif method == "dense":
-        solver = DenseFloquet(orbit.spec, comm)
-    else:
-        solver = DominantFloquet(orbit.spec, comm, nev if nev is not None else 10)
-    with solver:
-        return solver.spectrum(orbit, tol_rho, nev)
+    with call_options(options):
+        if method == "symmetric":
+            solver = SymmetricFloquet(orbit.spec.model, comm)
+        elif method == "dense":
+            solver = DenseFloquet(orbit.spec, comm)
+        else:
+            solver = DominantFloquet(orbit.spec, comm, nev if nev is not None else 10)
+        with solver:
+            return solver.spectrum(orbit, tol_rho, nev)
+
+
+def response(drive: Drive, omega: Union[float, Sequence[float]], periods: int = 1, run_in: int = 50,
+             tol: float = 1e-10, rtol: float = 1e-12, jacobian: str = "dense", floquet: str = "dense", nev: int = 8,
+             samples: int = 64, comm: Optional[PETSc.Comm] = None,
+             options: Optional[Mapping[str, Any]] = None) -> list[Response]:
+    """The periodic responses of the driven chain ``drive`` (:class:`~hertzpetsc.driven.Drive`) at the driving
+    frequencies ``omega`` (one or several, distinct), with their Floquet multipliers: the grid mode of
+    :class:`~hertzpetsc.studies.driven.ResponseCurve` (records in memory): the first response Newton's from the state
+    after ``run_in`` driving periods from rest at omega[0], each next one a natural continuation step from the one
+    before, in the order given (so the responses are one branch; give the frequencies in order along it).
+    ``periods`` k: responses of period k 2 pi / omega; ``tol`` on ||P(X) - X||_inf / scale and the flows' ``rtol``
+    (atol rtol / 100, scaled by an amplitude below 1), ``jacobian`` ('dense', 'mf') and ``floquet`` ('dense': all 2N,
+    checked against Liouville's determinant and, where the flow is conformally symplectic, symplecticity; 'slepc':
+    the ``nev`` largest, eigen-residuals checked on an independent flow; 'none') as in
+    :class:`~hertzpetsc.studies.driven.ResponseParameters`; ``samples`` per period for the record's forces,
+    amplitudes and power balance (0: none). One :class:`~hertzpetsc.driven.Response` per frequency, in order, with
+    ``.multipliers``, ``.rho`` and ``.record``; a ConvergenceError (a ContinuationError: the last response found)
+    if a frequency's response is not found. ``options``: per-call solver options (prefixes ``drive_``,
+    ``floquet_``). Collective."""
+    from .studies.driven import ResponseCurve, ResponseParameters
+    check_instance("drive", drive, Drive, "a Drive (hertzpetsc.driven.Drive)")
+    omegas = [check_real("omega", w, "the driving frequency", lo=0.0) for w in np.atleast_1d(omega).tolist()]
+    if not omegas or len(set(omegas)) < len(omegas):
+        raise ParameterError("omega", omega, "one or more distinct driving frequencies")
+    params = ResponseParameters(drive.with_parameter("omega", omegas[0]), "omega", omegas[-1], periods=periods,
+                                jacobian=jacobian, floquet=floquet, nev=nev, tol=tol, rtol=rtol, grid=tuple(omegas),
+                                run_in=run_in, samples=samples, nmult=2 * drive.N)
+    with call_options(options):
+        study = ResponseCurve(params, _comm(comm))
+        try:
+            records = list(study.run())
+        finally:
+            study.destroy()
+    if study.stop is not None:
+        raise study.stop
+    out = []
+    for rec in records:
+        mu = np.asarray(rec["multipliers"])
+        mu = mu[np.isfinite(mu)] if floquet != "none" else None
+        out.append(Response(drive.with_parameter("omega", float(rec["omega"])), int(rec["periods"]),
+                            np.asarray(rec["x"]), float(rec["residual"]), int(rec["iterations"]), mu, rec))
+    return out
 
 
 def plot_spectrum(spectrum: Union[Spectrum, np.ndarray], ax: Optional[matplotlib.axes.Axes] = None,

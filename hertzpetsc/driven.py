@@ -458,13 +458,28 @@ def check_eigenpairs(op, mu, vectors, spec, T, where, tol=TOL_MU):
 @dataclass
 class Response:
     """A periodic response: the drive, k (period k 2 pi / omega), the state X(0) as (N, 2) on every rank, the
-    relative residual ||P(X) - X||_inf / scale and Newton's iterations."""
+    relative residual ||P(X) - X||_inf / scale and Newton's iterations; from :func:`hertzpetsc.api.response` also
+    its ``multipliers`` (sorted by decreasing modulus: all 2N, or the dominant ones; None: not computed) and its
+    ``record`` (the fields of a ``hertzpetsc-driven-response-1`` record: forces, amplitudes, power balance, ...)."""
 
     drive: Drive
     periods: int
     x: np.ndarray
     residual: float
     iterations: int = 0
+    multipliers: Optional[np.ndarray] = None
+    record: Optional[dict] = None
+
+    @property
+    def omega(self) -> float:
+        """The driving frequency."""
+        return self.drive.omega
+
+    @property
+    def rho(self) -> float:
+        """The largest multiplier modulus (nan without multipliers): stable below 1 (:func:`verdict`)."""
+        return float(np.max(np.abs(self.multipliers))) if self.multipliers is not None and len(self.multipliers) \
+            else math.nan
 
     @property
     def T(self) -> float:

@@ -21,6 +21,8 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Mapping
+from typing import Any, Iterator, Optional
 
 import numpy as np
 from petsc4py import PETSc
@@ -372,22 +374,66 @@ class AppOptions:
 
 
 @contextlib.contextmanager
-def inserted_options(prefix, defaults):
+def inserted_options(prefix, defaults, override=False):
     """Insert ``defaults`` ({name: value}, names without ``prefix``) into the options database for the duration of
     the block, only where the user set none, and delete afterwards only the keys inserted here (petsctools'
     inserted_options): the one way a solver role gets code defaults that PETSc's own set-up would not accept
-    otherwise (e.g. before setFromOptions)."""
+    otherwise (e.g. before setFromOptions). ``override``: set every key, also those the database holds, and put
+    their values back afterwards (the per-call options of the API, :func:`call_options`). Yields the names
+    inserted (those the database did not hold)."""
     opts = PETSc.Options()
-    inserted = []
+    inserted, previous = [], {}
+    if override:
+        held = opts.getAll()
     for key, value in defaults.items():
-        if not opts.hasName(prefix + key):
-            opts.setValue(prefix + key, value)
-            inserted.append(prefix + key)
+        name = prefix + key
+        if opts.hasName(name):
+            if not override:
+                continue
+            previous[name] = held.get(name, held.get(name.lower()))
+        else:
+            inserted.append(name)
+        opts.setValue(name, value)
     try:
         yield inserted
     finally:
         for key in inserted:
             opts.delValue(key)
+        for key, value in previous.items():
+            opts.setValue(key, value)
+
+
+@contextlib.contextmanager
+def call_options(options: Optional[Mapping[str, Any]]) -> Iterator[None]:
+    """The per-call solver options of an API call (``options={"tw_snes_rtol": 1e-12}``, as DOLFINx's
+    ``petsc_options``): in the options database for the duration of the block, over what it held, which is put
+    back afterwards, also when the block raises. Names are full option names (prefix included, a leading '-'
+    allowed); values a string, number, bool or None (a flag). An option the block's solvers did not read (a
+    misspelt name, a solver the call does not create) is a ParameterError naming ``options`` after the block."""
+    if options is None:
+        yield
+        return
+    if not isinstance(options, Mapping):
+        raise ParameterError("options", options, "a dict of solver options {name: value}, e.g. "
+                             "{'tw_snes_rtol': 1e-12} (None: the options database as it is)")
+    values = {}
+    for key, value in options.items():
+        name = key.lstrip("-") if isinstance(key, str) else ""
+        if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*", name):
+            raise ParameterError("options", key, "an option name such as 'tw_snes_rtol' (prefix included)")
+        if not (value is None or isinstance(value, (str, bool, int, float, np.integer, np.floating))):
+            raise ParameterError("options", f"{{{key!r}: {value!r}}}", "a value is a string, a number, a bool or "
+                                 "None (an option without value)")
+        if name.lower() in {n.lower() for n in values}:
+            raise ParameterError("options", key, "given twice (names are case-insensitive, the '-' optional)")
+        values[name] = value
+    with inserted_options("", values, override=True) as inserted:
+        yield
+        left = {n.lower() for n, _ in unused_options()}
+        unread = [n for n in inserted if n.lower() in left]
+    if unread:
+        raise ParameterError("options", ", ".join(unread), "not read by any solver of this call (a misspelt name, "
+                             "or a solver prefix this call does not use: docs/api.md lists each call's prefixes)")
 
 
 def check_ranks_agree(comm):

@@ -1,10 +1,21 @@
-"""Figures of the paper, from results (branches, refinement and Floquet records, snapshots, waves). Called by
-scripts, never by solvers; each figure is written atomically on the calling rank.
+"""Figures of the paper, from results (branches, refinement and Floquet records, snapshots, waves).
 
-matplotlib is imported lazily with the Agg backend, so this module can be imported on a machine without a screen.
+Every ``plot_*`` function returns a :class:`matplotlib.figure.Figure` (:func:`plot_long_wave` and
+:func:`plot_branch_figures` a list of them): in a notebook the figure shows as the cell's value, and
+``fig.savefig(...)`` writes it anywhere. A file is written only when ``directory`` is given: ``directory/name``
+(the file name the drivers write; ``name=`` where a function takes one), atomically, on the calling rank, its path
+then in ``fig.path`` (None when nothing was written); the drivers in scripts/ call them so, on rank 0. Called by
+scripts and notebooks, never by solvers.
+
+matplotlib is imported lazily, and pyplot not at all: the figures are made by ``Figure`` directly, so this module
+chooses no backend (a notebook's inline backend stays) and runs on a machine without a screen.
 """
+from __future__ import annotations
+
 import math
 import os
+
+from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence
 
 import numpy as np
 
@@ -12,21 +23,28 @@ from .diagnostics import dispersion, dispersion_long_wave
 from .model import LatticeModel
 from .records import save_figure
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
-def _pyplot():
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    return plt
+    from .branch import Branch, BranchPoint
 
 
-def _save(fig, directory, name, tight=True):
+def _subplots(*args, figsize, **kwargs):
+    """A new :class:`matplotlib.figure.Figure` and its axes (``Figure.subplots``), outside pyplot: no backend is
+    chosen or changed, nothing is kept by pyplot's figure manager (a figure nobody holds is freed)."""
+    from matplotlib.figure import Figure
+    fig = Figure(figsize=figsize)
+    return fig, fig.subplots(*args, **kwargs)
+
+
+def _finish(fig, directory, name, tight=True):
+    """The figure, laid out, with ``fig.path`` the file it was written to: ``directory/name`` (atomically, the
+    format from the name) when a directory is given, else None and nothing written."""
     if tight:
         fig.tight_layout()
-    try:
-        return save_figure(fig, os.path.join(directory, name))
-    finally:
-        _pyplot().close(fig)
+    fig.path = None if directory is None else save_figure(fig, os.path.join(directory, name))
+    return fig
 
 
 def _columns(rows, *keys):
@@ -34,14 +52,15 @@ def _columns(rows, *keys):
     return [np.array([float(r[k]) for r in rows]) for k in keys]
 
 
-def branch_k_alpha(branch):
+def branch_k_alpha(branch: Branch) -> float:
     """Estimate of k_alpha from the branch: ||u||_inf q^(2/(alpha-1)) at its smallest q (eq. normscaling)."""
     return float(branch.column("rescaled_norm")[np.argmin(branch.q)])
 
 
-def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50)):
-    """Fig. profiles: u(xi; q) on a period for the branch points nearest to ``qs``."""
-    fig, axes = _pyplot().subplots(len(qs), 1, figsize=(6, 2.2 * len(qs)))
+def plot_profiles(branch: Branch, directory: Optional[str] = None,
+                  qs: Sequence[float] = (math.pi, 3 * math.pi / 10, math.pi / 50)) -> Figure:
+    """Fig. profiles (profiles.png): u(xi; q) on a period for the branch points nearest to ``qs``."""
+    fig, axes = _subplots(len(qs), 1, figsize=(6, 2.2 * len(qs)))
     xi = branch.xi
     xfull = np.concatenate([xi[:-1], 2 * math.pi - xi[:0:-1]])
     for ax, q in zip(np.atleast_1d(axes), qs):
@@ -50,7 +69,7 @@ def plot_profiles(branch, directory, qs=(math.pi, 3 * math.pi / 10, math.pi / 50
         ax.set(xlim=(0, 2 * math.pi), ylabel=r"$u(\xi)$")
         ax.set_title(rf"$q = {point.q:.4f}$", fontsize=10)
     np.atleast_1d(axes)[-1].set_xlabel(r"$\xi$")
-    return _save(fig, directory, "profiles.png")
+    return _finish(fig, directory, "profiles.png")
 
 
 def _plot_power_law(branch, directory, name, field, factor, k_alpha, ylabel, data_label, line_label):
@@ -59,41 +78,42 @@ def _plot_power_law(branch, directory, name, field, factor, k_alpha, ylabel, dat
     k = branch_k_alpha(branch) if k_alpha is None else k_alpha
     q = branch.q
     qq = np.linspace(q.min(), math.pi, 200)
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     ax.semilogy(q, branch.column(field), "ko", ms=3, label=data_label)
     ax.semilogy(qq, factor * k * qq ** (2 / (1 - a)), "b-", lw=1,
                 label=line_label + f", $k_\\alpha$ = {k:.4f}" + (" (branch, min q)" if k_alpha is None else ""))
     ax.set(xlabel="$q$", ylabel=ylabel)
     ax.legend()
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)
 
 
-def plot_norms(branch, directory, k_alpha=None):
-    """Fig. normes: ||u||_inf vs q (log scale) and the line k_alpha q^(2/(1-alpha))."""
+def plot_norms(branch: Branch, directory: Optional[str] = None, k_alpha: Optional[float] = None) -> Figure:
+    """Fig. normes (normes.png): ||u||_inf vs q (log scale) and the line k_alpha q^(2/(1-alpha))."""
     return _plot_power_law(branch, directory, "normes.png", "norm_inf", 1.0, k_alpha, r"$\|u\|_\infty$",
                            "computed", r"$k_\alpha q^{2/(1-\alpha)}$")
 
 
-def plot_slopes(branch, directory, k_alpha=None):
-    """Fig. pentes: free-flight slope p(q) = u'(0) vs q (log scale) and the line (k_alpha/pi) q^(2/(1-alpha))."""
+def plot_slopes(branch: Branch, directory: Optional[str] = None, k_alpha: Optional[float] = None) -> Figure:
+    """Fig. pentes (pentes.png): free-flight slope p(q) = u'(0) vs q (log scale) and the line (k_alpha/pi)
+    q^(2/(1-alpha))."""
     return _plot_power_law(branch, directory, "pentes.png", "slope", 1 / math.pi, k_alpha, "$u'$",
                            "computed $u'(0)$", r"$(k_\alpha/\pi)\, q^{2/(1-\alpha)}$")
 
 
-def plot_number(branch, directory):
-    """Fig. number: N(q), the mean number of adjacent interacting beads."""
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+def plot_number(branch: Branch, directory: Optional[str] = None) -> Figure:
+    """Fig. number (number.png): N(q), the mean number of adjacent interacting beads."""
+    fig, ax = _subplots(figsize=(6, 4))
     ax.plot(branch.q, branch.column("N"), "k.-", ms=4, lw=0.8)
     ax.set(xlabel="$q$", ylabel="$N(q)$")
     ax.grid(alpha=0.3)
-    return _save(fig, directory, "number.png")
+    return _finish(fig, directory, "number.png")
 
 
-def plot_free_flight(branch, directory):
-    """Fig. lsq: F(q) = 2 ell(q) / q, with F = 1 and q_k marked."""
+def plot_free_flight(branch: Branch, directory: Optional[str] = None) -> Figure:
+    """Fig. lsq (lsq.png): F(q) = 2 ell(q) / q, with F = 1 and q_k marked."""
     qk = branch.q_k()
     F = branch.column("F")
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     pos = F > 0  # F(pi) = 0: no free flight for the binary oscillation
     ax.semilogy(branch.q[pos], F[pos], "k.-", ms=4, lw=0.8)
     ax.axhline(1.0, color="gray", lw=0.6)
@@ -101,105 +121,111 @@ def plot_free_flight(branch, directory):
         ax.axvline(qk, color="b", lw=0.6, ls="--", label=rf"$q_k = {qk:.3f}$")
         ax.legend()
     ax.set(xlabel="$q$", ylabel=r"$F(q) = 2\ell(q)/q$")
-    return _save(fig, directory, "lsq.png")
+    return _finish(fig, directory, "lsq.png")
 
 
-def plot_dispersion(branch, directory, k_alpha=None):
-    """Fig. dispersplot: omega(q, A0) (eq. dispers) and its linear approximation at q = 0 (eq. disperseq)."""
+def plot_dispersion(branch: Branch, directory: Optional[str] = None, k_alpha: Optional[float] = None) -> Figure:
+    """Fig. dispersplot (dispersplot.png): omega(q, A0) (eq. dispers) and its linear approximation at q = 0 (eq.
+    disperseq)."""
     law = LatticeModel.hertz(branch.alpha).law
     A0 = float(law.amplitude(law.p0))
     k = branch_k_alpha(branch) if k_alpha is None else k_alpha
     q, norm = branch.q, branch.column("norm_inf")
     qq = np.linspace(0, math.pi, 200)
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     ax.plot(q, dispersion(norm, A0, law.alpha), "k.-", ms=4, lw=0.8, label=r"$\omega(q, A_0)$")
     ax.plot(qq, dispersion_long_wave(qq, A0, law.alpha, k), "b--", lw=0.8, label="linear approximation")
     ax.set(xlabel="$q$", ylabel=r"$\omega$", ylim=(0, 1.1 * max(1.0, float(np.max(dispersion(norm, A0, law.alpha))))))
     ax.legend()
-    return _save(fig, directory, "dispersplot.png")
+    return _finish(fig, directory, "dispersplot.png")
 
 
-def plot_branch_figures(branch, directory, k_alpha=None):
-    """All figures of section 3.1; returns the paths written."""
+def plot_branch_figures(branch: Branch, directory: Optional[str] = None,
+                        k_alpha: Optional[float] = None) -> list[Figure]:
+    """All figures of section 3.1, in this order: profiles, normes, pentes, number, lsq, dispersplot."""
     return [plot_profiles(branch, directory), plot_norms(branch, directory, k_alpha),
             plot_slopes(branch, directory, k_alpha), plot_number(branch, directory),
             plot_free_flight(branch, directory), plot_dispersion(branch, directory, k_alpha)]
 
 
 # --- section 3.4: residuals and chain dynamics ---------------------------------------------------------------
-def plot_errors(refined, directory):
-    """Fig. errors: E(q) before (dotted) and after (full) refinement, and r(q) (dash-dot), semi-log, from a
+def plot_errors(refined: Any, directory: Optional[str] = None) -> Figure:
+    """Fig. errors (errors.png): E(q) before (dotted) and after (full) refinement, and r(q) (dash-dot), semi-log, from a
     :class:`~hertzpetsc.studies.refinement.RefinedStates`."""
     order = np.argsort(refined.q)
     q = refined.q[order]
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     ax.semilogy(q, refined.column("E_before_paper_flow")[order], "k:", label="E(q), branch wave (rtol 1e-12 flow)")
     ax.semilogy(q, refined.column("E_after")[order], "k-", label="E(q), refined (rtol 1e-14 flow)")
     ax.semilogy(q, refined.column("r")[order], "k-.", lw=0.8, label="r(q), last Gauss-Newton step")
     ax.set(xlabel="$q$", ylabel="errors")
     ax.legend(fontsize=8)
-    return _save(fig, directory, "errors.png")
+    return _finish(fig, directory, "errors.png")
 
 
-def bond_forces(states):
+def bond_forces(states: np.ndarray) -> np.ndarray:
     """V'(x_{n+1} - x_n) / (-|.|^alpha) without alpha on the ring: the bond compressions min(x_{n+1} - x_n, 0),
     per snapshot."""
     x = states[..., 0]
     return np.minimum(np.roll(x, -1, axis=-1) - x, 0.0)
 
 
-def plot_snapshot(x0, xt, t, directory, name, title=""):
+def plot_snapshot(x0: np.ndarray, xt: np.ndarray, t: float, directory: Optional[str] = None,
+                  name: str = "snapshot.png", title: str = "") -> Figure:
     """Bead displacements at time t (line) against the initial state (dots), as in figs. stabletw, shockbis."""
-    fig, ax = _pyplot().subplots(figsize=(6, 3))
+    fig, ax = _subplots(figsize=(6, 3))
     n = np.arange(1, len(x0) + 1)
     ax.plot(n, xt, "k-", lw=1, label=f"$t = {t:.1f}$")
     ax.plot(n, x0, "b.", ms=3, label="$t = 0$")
     ax.set(xlabel="$n$", ylabel="$x_n$")
     ax.set_title(title, fontsize=9)
     ax.legend(fontsize=8)
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)
 
 
 def _spacetime(image, times, n0, cmap, label, directory, name, title):
     """``image`` (times x beads, bead j at n0 + j) in grey levels over (n, t), with its colour bar."""
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     im = ax.imshow(image, aspect="auto", origin="lower", cmap=cmap,
                    extent=(n0 - 0.5, image.shape[1] + n0 - 0.5, times[0], times[-1]))
     fig.colorbar(im, ax=ax, label=label)
     ax.set(xlabel="$n$", ylabel="$t$")
     ax.set_title(title, fontsize=9)
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)
 
 
-def plot_spacetime_forces(times, states, alpha, directory, name, title=""):
+def plot_spacetime_forces(times: np.ndarray, states: np.ndarray, alpha: float, directory: Optional[str] = None,
+                          name: str = "forces.png", title: str = "") -> Figure:
     """Interaction forces V'(x_{n+1} - x_n) in grey levels over (n, t) (figs. stabletw ... structures)."""
     return _spacetime(-np.abs(bond_forces(states)) ** alpha, times, 1, "gray", r"$V'(x_{n+1}-x_n)$", directory,
                       name, title)
 
 
-def plot_deviation(runs, directory, name="deviation.png"):
+def plot_deviation(runs: Mapping[str, tuple[np.ndarray, np.ndarray]], directory: Optional[str] = None,
+                   name: str = "deviation.png") -> Figure:
     """D(t) = ||S^k X(k T) - X(0)|| / ||X(0)|| for several runs (dict label -> (t, D)), log scale."""
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     for label, (t, D) in runs.items():
         ax.semilogy(t, np.maximum(D, 1e-16), lw=0.8, label=label)
     ax.set(xlabel="$t$", ylabel="deviation from the travelling wave")
     ax.legend(fontsize=8)
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)
 
 
 # --- section 3.5: Floquet multipliers ---------------------------------------------------------------------------
-def plot_floquet_radius(q, rho, tol_rho, directory):
-    """Fig. floquet: spectral radius of the monodromy matrix modulo shifts vs q."""
+def plot_floquet_radius(q: np.ndarray, rho: np.ndarray, tol_rho: float, directory: Optional[str] = None) -> Figure:
+    """Fig. floquet (floquet.png): spectral radius of the monodromy matrix modulo shifts vs q."""
     order = np.argsort(q)
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     ax.plot(np.asarray(q)[order], np.asarray(rho)[order], "k.-", ms=4, lw=0.8)
     ax.axhline(1 + tol_rho, color="gray", lw=0.6, ls="--", label=rf"$1 + {tol_rho:g}$")
     ax.set(xlabel="$q$", ylabel=r"$\rho(\mathcal{F}_q)$")
     ax.legend(fontsize=8)
-    return _save(fig, directory, "floquet.png")
+    return _finish(fig, directory, "floquet.png")
 
 
-def draw_multipliers(ax, lam, title=None, ms=5, inner=None):
+def draw_multipliers(ax: Axes, lam: np.ndarray, title: Optional[str] = None, ms: float = 5,
+                     inner: Optional[float] = None) -> Axes:
     """Multipliers ``lam`` in the complex plane with the unit circle (and the circle of radius ``inner``, dotted), on
     the matplotlib axes ``ax`` (fig. eigen)."""
     th = np.linspace(0, 2 * math.pi, 400)
@@ -215,21 +241,22 @@ def draw_multipliers(ax, lam, title=None, ms=5, inner=None):
     return ax
 
 
-def plot_multipliers(panels, directory):
-    """Fig. eigen: multipliers in the complex plane with the unit circle; ``panels`` = [(label, multipliers)]."""
-    fig, axes = _pyplot().subplots(2, 2, figsize=(8, 8))
+def plot_multipliers(panels: Sequence[tuple[str, np.ndarray]], directory: Optional[str] = None) -> Figure:
+    """Fig. eigen (eigen.png): multipliers in the complex plane with the unit circle; ``panels`` = [(label,
+    multipliers)]."""
+    fig, axes = _subplots(2, 2, figsize=(8, 8))
     for ax, (label, lam) in zip(axes.ravel(), panels):
         draw_multipliers(ax, lam, f"q = {label}")
-    return _save(fig, directory, "eigen.png")
+    return _finish(fig, directory, "eigen.png")
 
 
 # --- appendix: the solitary wave -------------------------------------------------------------------------------
-def plot_solitary(wave, directory):
-    """Fig. ondesol: r(s) (top) and the displacement y(s) (bottom) of the unit-velocity solitary wave."""
+def plot_solitary(wave: Any, directory: Optional[str] = None) -> Figure:
+    """Fig. ondesol (ondesol.png): r(s) (top) and the displacement y(s) (bottom) of the unit-velocity solitary wave."""
     s = np.concatenate([-wave.s[:0:-1], wave.s])
     r = np.concatenate([wave.r[:0:-1], wave.r])
     y = np.concatenate([-wave.y[:0:-1], wave.y])
-    fig, (a1, a2) = _pyplot().subplots(2, 1, figsize=(6, 5))
+    fig, (a1, a2) = _subplots(2, 1, figsize=(6, 5))
     a1.plot(s, r, "k-", lw=1)
     a1.set_ylabel("$r(s)$")
     a2.plot(s, y, "k-", lw=1)
@@ -237,10 +264,10 @@ def plot_solitary(wave, directory):
     a2.axhline(-wave.k_alpha, color="gray", lw=0.5, ls="--")
     a2.set(ylabel="$y(s)$", xlabel="$s$")
     a1.set_title(rf"$\alpha = {wave.params.alpha}$, $k_\alpha = {wave.k_alpha:.5f}$", fontsize=10)
-    return _save(fig, directory, "ondesol.png")
+    return _finish(fig, directory, "ondesol.png")
 
 
-def plot_long_wave(wave, point, directory, zoom=0.3):
+def plot_long_wave(wave: Any, point: BranchPoint, directory: Optional[str] = None, zoom: float = 0.3) -> list[Figure]:
     """Figs. approxz (the rescaled profile of a branch point near pi against the inner solution) and approx
     (against the composite approximation of eq. solapprox over the period)."""
     from .longwave import composite_profile, inner_solution
@@ -249,24 +276,24 @@ def plot_long_wave(wave, point, directory, zoom=0.3):
     xi = np.arange(2 * K + 1) * math.pi / K
     ut = q ** point.model.law.rescaling_exponent * np.concatenate([u_half, -u_half[-2::-1]])
     near = np.abs(xi - math.pi) <= zoom
-    paths = []
+    figures = []
     for name, shown, approximation, label in (
             ("approxz.png", near, lambda x: inner_solution(wave, (x - math.pi) / q), "inner solution (eq. inner)"),
             ("approx.png", slice(None), lambda x: composite_profile(wave, q, x), "composite (eq. solapprox)")):
-        fig, ax = _pyplot().subplots(figsize=(6, 4))
+        fig, ax = _subplots(figsize=(6, 4))
         ax.plot(xi[shown], ut[shown], "k-", lw=1.2, label=rf"computed, $q = {q:.4f}$")
         ax.plot(xi[shown], approximation(xi[shown]), "b-", lw=0.8, label=label)
         ax.set(xlabel=r"$\xi$", ylabel=r"$\tilde u(\xi)$")
         ax.legend(fontsize=8)
-        paths.append(_save(fig, directory, name))
-    return paths
+        figures.append(_finish(fig, directory, name))
+    return figures
 
 
 # --- section 3.3: compactons ------------------------------------------------------------------------------------
-def plot_compacton_profiles(single, double, directory):
-    """Fig. graphulin: U_q (eq. extens, top) and U^(2)_{q, theta} (eq. extens2, bottom), with the compression
-    regions (ell, 2 pi - ell) + s_j shaded."""
-    fig, axes = _pyplot().subplots(2, 1, figsize=(6, 6))
+def plot_compacton_profiles(single: Any, double: Any, directory: Optional[str] = None) -> Figure:
+    """Fig. graphulin (graphulin.png): U_q (eq. extens, top) and U^(2)_{q, theta} (eq. extens2, bottom), with the
+    compression regions (ell, 2 pi - ell) + s_j shaded."""
+    fig, axes = _subplots(2, 1, figsize=(6, 6))
     for ax, train in zip(axes, (single, double)):
         xi = np.linspace(-2 * math.pi, train.offsets[-1] + 4 * math.pi, 2000)
         ax.plot(xi, train(xi), "k-", lw=1)
@@ -275,33 +302,35 @@ def plot_compacton_profiles(single, double, directory):
         theta = "" if train.count == 1 else rf", $\theta = {train.offsets[1] - 2 * math.pi:.3g}$"
         ax.set(xlabel=r"$\xi$", ylabel="$U_q$" if train.count == 1 else "$U^{(2)}_{q,\\theta}$")
         ax.set_title(rf"$q = {train.q:.4f}$, $F(q) = {train.F:.3f}$" + theta, fontsize=9)
-    return _save(fig, directory, "graphulin.png")
+    return _finish(fig, directory, "graphulin.png")
 
 
-def plot_spacetime_velocities(times, states, directory, name, title=""):
+def plot_spacetime_velocities(times: np.ndarray, states: np.ndarray, directory: Optional[str] = None,
+                              name: str = "velocities.png", title: str = "") -> Figure:
     """Bead velocities xdot_n over (n, t): compactons travel through beads at rest (white = exactly 0)."""
     return _spacetime(states[..., 1], times, 0, "gray_r", r"$\dot x_n$", directory, name, title)
 
 
 # --- section 3.2 beyond the paper: small q -------------------------------------------------------------------------
-def plot_small_q(q, levels, extrapolated, k_alpha, directory):
+def plot_small_q(q: np.ndarray, levels: Sequence[np.ndarray], extrapolated: np.ndarray, k_alpha: float,
+                 directory: Optional[str] = None) -> Figure:
     """||u||_inf q^(2/(alpha-1)) against q on each grid level and extrapolated in h, with k_alpha (eq.
     normscaling): the long-wave limit beyond the paper's q = pi/50."""
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     for lev, values in enumerate(levels):
         ax.semilogx(q, values, ".-", lw=0.6, ms=3, color=str(0.7 - 0.25 * lev), label=f"level {lev}")
     ax.semilogx(q, extrapolated, "k.-", lw=1.2, label="extrapolated in $h$")
     ax.axhline(k_alpha, color="b", lw=0.8, ls="--", label=rf"$k_\alpha = {k_alpha:.5f}$")
     ax.set(xlabel="$q$", ylabel=r"$\|u\|_\infty\, q^{2/(\alpha-1)}$")
     ax.legend(fontsize=8)
-    return _save(fig, directory, "smallq.png")
+    return _finish(fig, directory, "smallq.png")
 
 
 # --- isolated compactons: window spectra and perturbed dynamics (hertzpetsc.studies.compacton_stability) ---------
-def plot_compacton_max_multiplier(rows, directory):
+def plot_compacton_max_multiplier(rows: Sequence[Mapping], directory: Optional[str] = None) -> Figure:
     """Largest nontrivial |mu| of the compacton window map against q (log q), one curve per alpha; the solitary
     wave (q = 0) as a dashed level."""
-    fig, ax = _pyplot().subplots(figsize=(6, 4))
+    fig, ax = _subplots(figsize=(6, 4))
     for k, a in enumerate(sorted({float(r["alpha"]) for r in rows})):
         rs = [r for r in rows if float(r["alpha"]) == a]
         q, mu = _columns(rs, "q", "max_nontrivial")
@@ -315,24 +344,24 @@ def plot_compacton_max_multiplier(rows, directory):
     ax.set_title("isolated compactons; dashed: solitary wave ($q \\to 0$)", fontsize=9)
     ax.set_ylim(0, 1.05)
     ax.legend(fontsize=8)
-    return _save(fig, directory, "compacton_stability_mu.png")
+    return _finish(fig, directory, "compacton_stability_mu.png")
 
 
-def plot_compacton_spectra(rows, eta, directory):
+def plot_compacton_spectra(rows: Sequence[Mapping], eta: float, directory: Optional[str] = None) -> Figure:
     """All window multipliers of the given records in the complex plane, with the unit circle and the circle
     exp(-eta) below which the transport part lies in the weighted space."""
-    fig, axes = _pyplot().subplots(1, len(rows), figsize=(4 * len(rows), 4))
+    fig, axes = _subplots(1, len(rows), figsize=(4 * len(rows), 4))
     for ax, r in zip(np.atleast_1d(axes), rows):
         draw_multipliers(ax, r["multipliers"], rf"$\alpha = {float(r['alpha']):g}$, $q = {float(r['q']):.4f}$", ms=6,
                          inner=math.exp(-eta))
-    return _save(fig, directory, "compacton_stability_spectra.png")
+    return _finish(fig, directory, "compacton_stability_spectra.png")
 
 
-def plot_solitary_stability(rows, directory):
+def plot_solitary_stability(rows: Sequence[Mapping], directory: Optional[str] = None) -> Figure:
     """Left: the energy slope d ln H / d ln c at fixed lattice against the Mach number c / c0 (Jordan vectors: lines,
     finite differences along the family: circles), the uncompressed value 2(alpha+1)/(alpha-1) dashed; right: the
     largest nontrivial |mu| of the window map and the weighted essential-spectrum radius against c0."""
-    fig, (ax, bx) = _pyplot().subplots(1, 2, figsize=(10, 4))
+    fig, (ax, bx) = _subplots(1, 2, figsize=(10, 4))
     for a in sorted({float(r["alpha"]) for r in rows}):
         rs = sorted((r for r in rows if float(r["alpha"]) == a), key=lambda r: float(r["c0"]))
         c0, slope, fd = _columns(rs, "c0", "log_slope", "log_slope_fd")
@@ -355,13 +384,13 @@ def plot_solitary_stability(rows, directory):
     bx.set(xlabel="$c_0 / c$", ylabel=r"window multipliers", ylim=(0, 1.05))
     bx.set_title("spectral route: largest nontrivial multiplier", fontsize=9)
     bx.legend(fontsize=7)
-    return _save(fig, directory, "solitary_stability.png")
+    return _finish(fig, directory, "solitary_stability.png")
 
 
-def plot_compacton_dynamics(records, directory):
+def plot_compacton_dynamics(records: Sequence[Mapping], directory: Optional[str] = None) -> Figure:
     """Left: |rest| (deviation from the Jordan block at 1) against the beads travelled, with |mu_3|^k; right: the
     first record's deviation per window bead (space-time, log10)."""
-    fig, (ax, bx) = _pyplot().subplots(1, 2, figsize=(11, 4))
+    fig, (ax, bx) = _subplots(1, 2, figsize=(11, 4))
     for r in records:
         rest = np.asarray(r["rest"])
         k = np.arange(len(rest))
@@ -382,11 +411,12 @@ def plot_compacton_dynamics(records, directory):
     bx.set_xscale("symlog", linthresh=50)
     bx.set(xlabel="time = beads travelled", ylabel="window bead (moving frame)")
     bx.set_title(f"q = {float(r['q']):.4f}, {r['kind']}: perturbed compacton, moving frame", fontsize=9)
-    return _save(fig, directory, "compacton_dynamics.png")
+    return _finish(fig, directory, "compacton_dynamics.png")
 
 
 # --- beyond the paper: slow instabilities above q_c on the infinite chain --------------------------------------------
-def plot_slow_instabilities(records, target, alpha, directory, name="slow_instabilities.png"):
+def plot_slow_instabilities(records: Sequence[Mapping], target: float, alpha: float, directory: Optional[str] = None,
+                            name: str = "slow_instabilities.png") -> Figure:
     """gamma(q) on a log scale from the slow-instability records: the co-moving route on each grid and the
     deflated monodromy route (|gamma|: both are rounding-level where stable), the undeflated symmetry cluster
     (ln(1 + raw |mu| - 1) / script-T, what an undeflated spectrum shows) and the target resolution."""
@@ -394,7 +424,7 @@ def plot_slow_instabilities(records, target, alpha, directory, name="slow_instab
     q, T = _columns(rows, "q", "T")
     g = np.array([np.abs(np.asarray(r["gamma_cm"], dtype=float)) for r in rows])
     floor = 1e-17
-    fig, ax = _pyplot().subplots(figsize=(7, 4.2))
+    fig, ax = _subplots(figsize=(7, 4.2))
     for k in range(g.shape[1]):
         ax.semilogy(q, np.maximum(g[:, k], floor), "o-" if k == g.shape[1] - 1 else ".",
                     ms=3 + k, lw=0.6, color=str(0.6 - 0.3 * k / max(1, g.shape[1] - 1)),
@@ -414,15 +444,15 @@ def plot_slow_instabilities(records, target, alpha, directory, name="slow_instab
     ax.set(xlabel="$q$", ylabel=r"$|\gamma(q)| = \max \ln|\mu| / \mathcal{T}$")
     ax.set_title(rf"$\alpha = {alpha:g}$: growth rates on the infinite chain", fontsize=9)
     ax.legend(fontsize=7, loc="best")
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)
 
 
 # --- issue 16: precompressed and dimer chains ----------------------------------------------------------------------
-def plot_precompressed_omega(curves, alpha, delta0, directory):
+def plot_precompressed_omega(curves: Mapping, alpha: float, delta0: float, directory: Optional[str] = None) -> Figure:
     """omega(q, A) of the precompressed chain against the acoustic omega_lin(q) (left) and, rescaled as
     omega A^(-(alpha-1)/2), against its uncompressed limit (right); open circles: the gap opening A_gap(q).
     ``curves``: {q: (A, omega, omega_lin, Omega0, (A_gap, omega_gap))}."""
-    fig, (ax1, ax2) = _pyplot().subplots(1, 2, figsize=(10, 4))
+    fig, (ax1, ax2) = _subplots(1, 2, figsize=(10, 4))
     e = (alpha - 1) / 2
     for i, (q, (A, omega, omega_lin, Omega0, (A_gap, omega_gap))) in enumerate(sorted(curves.items())):
         color = f"C{i}"
@@ -437,13 +467,13 @@ def plot_precompressed_omega(curves, alpha, delta0, directory):
     ax1.set(xlabel=r"$A = \|u\|_\infty$" + f" ($\\delta_0$ = {delta0:g})", ylabel=r"$\omega / \omega_{lin}(q)$")
     ax2.set(xlabel=r"$A$", ylabel=r"$\omega A^{-(\alpha-1)/2}$ (dashed: uncompressed limit)", yscale="log")
     ax1.legend(fontsize=8)
-    return _save(fig, directory, "precompressed_omega.png")
+    return _finish(fig, directory, "precompressed_omega.png")
 
 
-def plot_dimer_epsilon(curves, directory):
+def plot_dimer_epsilon(curves: Mapping, directory: Optional[str] = None) -> Figure:
     """Dimer waves continued in the mass ratio epsilon: omega (solid) and the linear acoustic frequency (dashed),
     and ||v||_inf of the light bead, against epsilon. ``curves``: {q: (epsilon, omega, omega_acoustic, norm_v)}."""
-    fig, (ax1, ax2) = _pyplot().subplots(1, 2, figsize=(10, 4))
+    fig, (ax1, ax2) = _subplots(1, 2, figsize=(10, 4))
     for i, (q, (eps, omega, omega_ac, norm_v)) in enumerate(sorted(curves.items())):
         color = f"C{i}"
         ax1.plot(eps, omega, ".-", color=color, ms=2, lw=0.8, label=f"q = {q / math.pi:.3g}$\\pi$")
@@ -452,10 +482,10 @@ def plot_dimer_epsilon(curves, directory):
     ax1.set(xlabel=r"$\epsilon$ ($m_2 / m_1$)", ylabel=r"$\omega$ (dashed: linear acoustic branch)")
     ax2.set(xlabel=r"$\epsilon$", ylabel=r"$\|v\|_\infty$ (light bead)")
     ax1.legend(fontsize=8)
-    return _save(fig, directory, "dimer_epsilon.png")
+    return _finish(fig, directory, "dimer_epsilon.png")
 
 
-def plot_stability_map(z, directory, name="precompression_map.png"):
+def plot_stability_map(z: Mapping, directory: Optional[str] = None, name: str = "precompression_map.png") -> Figure:
     """The stability map of a ``hertzpetsc-precompression-map-2`` file's arrays ``z`` in the (q, A) plane: one panel
     per chain (N beads; the infinite chain when computed): the map's verdicts (open: stable; filled, coloured by
     log10(rho - 1): unstable), the located boundary points (triangles up: onset, down: offset), the unstable
@@ -470,7 +500,7 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
     panels = [("rho", 1, f"N = {int(z['N'])}")]
     if int(z["twists"]):
         panels.append(("rho_inf", 2, "infinite chain"))
-    fig, axes = _pyplot().subplots(1, len(panels), figsize=(6 * len(panels), 4.8), squeeze=False)
+    fig, axes = _subplots(1, len(panels), figsize=(6 * len(panels), 4.8), squeeze=False)
     rho_all = np.concatenate([np.asarray(z[key], float) for key, _, _ in panels])
     bad_all = rho_all[np.isfinite(rho_all) & (rho_all - 1 > tol)]
     vmin = np.log10(tol)
@@ -516,10 +546,11 @@ def plot_stability_map(z, directory, name="precompression_map.png"):
     fig.colorbar(sc, ax=list(axes[0]), label=r"$\log_{10}(\rho - 1)$")
     fig.suptitle(rf"$\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$, masses "
                  + ", ".join(f"{m:g}" for m in np.asarray(z["masses"], float)), fontsize=10)
-    return _save(fig, directory, name, tight=False)
+    return _finish(fig, directory, name, tight=False)
 
 
-def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
+def plot_q_boundary(z: Mapping, directory: Optional[str] = None, name: str = "boundary_in_q.png",
+                    zmap: Optional[Mapping] = None) -> Figure:
     """The infinite chain's boundary located in q at fixed A (a ``hertzpetsc-boundary-q-1`` file's arrays ``z``) in
     the (q, A) plane: each located edge as its bracket in q (red), the grid verdicts (open: stable, filled:
     unstable); with ``zmap`` (a stability-map file with the infinite chain) that map's edges located in A at its q
@@ -530,7 +561,7 @@ def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
     finite = A[np.isfinite(A)]
     top = (finite.max() if len(finite) else 1.0) * 3
     shown = np.where(np.isfinite(A), A, top)
-    fig, ax = _pyplot().subplots(figsize=(6.5, 4.8))
+    fig, ax = _subplots(figsize=(6.5, 4.8))
     pts = grid == 1
     bad = pts & (rho - 1 > tol)
     ax.scatter(q[pts & ~bad], shown[pts & ~bad], s=10, facecolors="none", edgecolors="0.5", lw=0.6,
@@ -557,18 +588,19 @@ def plot_q_boundary(z, directory, name="boundary_in_q.png", zmap=None):
     ax.set_title(rf"infinite chain, $\alpha = {float(z['alpha']):g}$, $\delta_0 = {float(z['delta0']):g}$: "
                  "boundary located in $q$", fontsize=10)
     ax.legend(fontsize=7, loc="upper right")
-    return _save(fig, directory, name, tight=False)
+    return _finish(fig, directory, name, tight=False)
 
 
 # --- driven, damped chains (issue 22) ---------------------------------------------------------------------------------
 _EVENT_MARKERS = {1: ("o", "fold"), 2: ("s", "period doubling"), 3: ("D", "Neimark-Sacker")}
 
 
-def plot_driven_response(records, parameter, directory, name="driven_response.png", title=""):
+def plot_driven_response(records: Sequence[Mapping], parameter: str = "omega", directory: Optional[str] = None,
+                         name: str = "driven_response.png", title: str = "") -> Figure:
     """A response curve: the largest force transmitted to the right end (Pozharskiy et al. 2015's observable) and
     the largest Floquet multiplier modulus against the parameter; stable points solid, unstable dotted; events
     marked; switched (period-doubled) branches in colour."""
-    fig, (ax, bx) = _pyplot().subplots(2, 1, figsize=(6.5, 6), sharex=True)
+    fig, (ax, bx) = _subplots(2, 1, figsize=(6.5, 6), sharex=True)
     branches = sorted({int(r["branch"]) for r in records})
     for j in branches:
         rs = [r for r in records if int(r["branch"]) == j]
@@ -603,13 +635,14 @@ def plot_driven_response(records, parameter, directory, name="driven_response.pn
     bx.axhline(1.0, color="0.6", lw=0.8)
     bx.set(ylabel=r"$\max |\mu|$",
            xlabel={"omega": r"$\omega$", "amplitude": "$a$", "gamma": r"$\gamma$"}.get(parameter, parameter))
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)
 
 
-def plot_driven_resonances(records, directory, name="driven_resonances.png"):
+def plot_driven_resonances(records: Sequence[Mapping], directory: Optional[str] = None,
+                           name: str = "driven_resonances.png") -> Figure:
     """Small-amplitude resonances: peak frequencies from shooting and from the damped linear chain against the
     normal modes omega_k, and their differences."""
-    fig, (ax, bx) = _pyplot().subplots(2, 1, figsize=(6, 5.5), sharex=True)
+    fig, (ax, bx) = _subplots(2, 1, figsize=(6, 5.5), sharex=True)
     recs = sorted(records, key=lambda r: int(r["k"]))
     k = np.array([int(r["k"]) for r in recs])
     wk, pl, ps = _columns(recs, "omega_k", "peak_linear", "peak_shooting")
@@ -622,13 +655,14 @@ def plot_driven_resonances(records, directory, name="driven_resonances.png"):
     bx.semilogy(k, np.maximum(np.abs(ps - pl), 1e-16), "x-", color="C3", label="|peak shooting - peak linear|")
     bx.set_xlabel("mode $k$")
     bx.legend(fontsize=8)
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)
 
 
-def plot_driven_wave_ends(records, directory, name="driven_wave_ends.png"):
+def plot_driven_wave_ends(records: Sequence[Mapping], directory: Optional[str] = None,
+                          name: str = "driven_wave_ends.png") -> Figure:
     """rho of the travelling wave with driven ends (finite chain, tightest tolerance) against the periodic chain's
     rho(F_q)^(P/m), against q, one curve per chain length."""
-    fig, ax = _pyplot().subplots(figsize=(6.5, 4.2))
+    fig, ax = _subplots(figsize=(6.5, 4.2))
     rt = min(float(r["rtol"]) for r in records)
     recs = [r for r in records if float(r["rtol"]) == rt]
     qs = sorted({float(r["q"]) for r in recs})
@@ -640,13 +674,14 @@ def plot_driven_wave_ends(records, directory, name="driven_wave_ends.png"):
                     color=f"C{i}", label=f"ends driven, N = {N}")
     ax.set(xlabel="$q$", ylabel=r"$\rho - 1$ over $\tau = 2\pi/\omega$")
     ax.legend(fontsize=8)
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)
 
 
-def plot_driven_generation(records, directory, name="driven_generation.png"):
+def plot_driven_generation(records: Sequence[Mapping], directory: Optional[str] = None,
+                           name: str = "driven_generation.png") -> Figure:
     """The generation map: per case the shape distance D of the bulk to the branch's wave against omega (one
     curve per signal, amplitude and damping), and the bead amplitudes A_n along the chain for each case."""
-    fig, (ax, bx) = _pyplot().subplots(2, 1, figsize=(6.5, 7))
+    fig, (ax, bx) = _subplots(2, 1, figsize=(6.5, 7))
     ok = [r for r in records if int(r["ok"])]
     groups = sorted({(int(r["waveform"]), float(r["amplitude"]), float(r["gamma"])) for r in ok})
     names = ("harmonic", "half-sine")
@@ -662,4 +697,4 @@ def plot_driven_generation(records, directory, name="driven_generation.png"):
     ax.set(xlabel=r"$\omega$", ylabel="shape distance $D$ to the branch's wave")
     ax.legend(fontsize=7)
     bx.set(xlabel="bead $n$", ylabel="amplitude $A_n$")
-    return _save(fig, directory, name)
+    return _finish(fig, directory, name)

@@ -117,7 +117,7 @@ def figure_and_table(comm, z, zmap, table_path, figures, text):
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         name = os.path.splitext(os.path.basename(table_path))[0] + ".png"
-        print("wrote " + plotting.plot_q_boundary(z, figures, name, zmap), flush=True)
+        print("wrote " + plotting.plot_q_boundary(z, figures, name, zmap).path, flush=True)
     print0(text)
 
 

@@ -121,7 +121,7 @@ def main():
             text = dyn.run_to_table(table, show)             # on a stop: the table of the records done
             if figures and comm.getRank() == 0:
                 from hertzpetsc import plotting
-                print("wrote " + plotting.plot_compacton_dynamics(dyn.store.records, figures), flush=True)
+                print("wrote " + plotting.plot_compacton_dynamics(dyn.store.records, figures).path, flush=True)
             print0(text)
         if pairs is not None:
             print0(pairs.run_to_table(pairs_table, lambda r: print0(

@@ -126,12 +126,12 @@ def main():
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         rows = scan.rows()
-        print("wrote " + plotting.plot_compacton_max_multiplier(rows, figures), flush=True)
+        print("wrote " + plotting.plot_compacton_max_multiplier(rows, figures).path, flush=True)
         a0 = min(float(r["alpha"]) for r in rows)
         mine = [r for r in rows if float(r["alpha"]) == a0]
         positive = [r for r in mine if float(r["q"]) > 0] or mine
         picks = [max(mine, key=lambda r: float(r["q"])), min(positive, key=lambda r: abs(float(r["q"]) - PI_50))]
-        print("wrote " + plotting.plot_compacton_spectra(picks, eta, figures), flush=True)
+        print("wrote " + plotting.plot_compacton_spectra(picks, eta, figures).path, flush=True)
     print0(text)
 
 

@@ -19,6 +19,7 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.qbranch import ContinuationParameters  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0, run_metadata  # noqa: E402
+from hertzpetsc.progress import Progress  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.branch import BranchStudy  # noqa: E402
 
@@ -55,15 +56,17 @@ def main():
         print0(f"resuming {output}: {study.resumed} points, last q = {study.branch.points[-1].q:.6f}")
     print0(f"# alpha = {params.alpha}, h = pi/{params.cells_per_pi}, M = {params.M}, ranks = {comm.getSize()}")
     print0(f"# {'q':>10} {'newton':>6} {'residual':>10} {'|u|_inf':>12} {'N(q)':>7} {'T(q)':>7} {'substeps':>8}")
-    for pt in study.run():
+    progress = Progress(study.planned(), "points", "branch", comm=comm)     # on a terminal: the time left
+    for done, pt in enumerate(study.run(), 1):
         d = pt.diagnostics
         print0(f"  {pt.q:10.6f} {pt.solve.iterations:6d} {pt.solve.residual_norm:10.3e} "
                f"{d.norm_inf:12.6g} {d.N:7.4f} {d.T:7.4f} {pt.substeps:8d}")
+        progress.update(done)
     if figures:
         from hertzpetsc import plotting
         if comm.getRank() == 0:
-            for name in plotting.plot_branch_figures(study.branch, figures, k_alpha):
-                print(f"wrote {name}", flush=True)
+            for fig in plotting.plot_branch_figures(study.branch, figures, k_alpha):
+                print(f"wrote {fig.path}", flush=True)
     print0(f"wrote {output}")
 
 

@@ -59,7 +59,7 @@ def main():
         f"{r['tangent_epsilon']:10.2e}"))
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_dimer_epsilon(study.curves(), figures), flush=True)
+        print("wrote " + plotting.plot_dimer_epsilon(study.curves(), figures).path, flush=True)
     print0(text)
 
 

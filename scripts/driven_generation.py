@@ -73,7 +73,7 @@ def main():
     records = study.store.records
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_driven_generation(records, figures), flush=True)
+        print("wrote " + plotting.plot_driven_generation(records, figures).path, flush=True)
     print0(text)
 
 

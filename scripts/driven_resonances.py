@@ -52,7 +52,7 @@ def main():
     study.destroy()
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_driven_resonances(records, figures), flush=True)
+        print("wrote " + plotting.plot_driven_resonances(records, figures).path, flush=True)
     print0(text)
 
 

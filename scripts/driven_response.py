@@ -83,7 +83,7 @@ def main():
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_driven_response(records, parameter, figures, name + ".png",
-                                                        os.path.basename(output)), flush=True)
+                                                        os.path.basename(output)).path, flush=True)
     print0(text)
 
 

@@ -73,8 +73,8 @@ def main():
         from hertzpetsc import plotting
         q = [float(r["q"]) for r in scan.store.records]
         rho = [float(r["rho"]) for r in scan.store.records]
-        print("wrote " + plotting.plot_floquet_radius(q, rho, tol_rho, figures), flush=True)
-        print("wrote " + plotting.plot_multipliers(scan.eigen_panels(EIGEN_Q), figures), flush=True)
+        print("wrote " + plotting.plot_floquet_radius(q, rho, tol_rho, figures).path, flush=True)
+        print("wrote " + plotting.plot_multipliers(scan.eigen_panels(EIGEN_Q), figures).path, flush=True)
     print0(text)
 
 

@@ -25,6 +25,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.model import ChainSpec  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.progress import Progress  # noqa: E402
 from hertzpetsc.studies.longrun import LongRun  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 from hertzpetsc.waves import orbit_on_chain  # noqa: E402
@@ -54,7 +55,12 @@ def main():
         print0(f"resuming {output} at t = {run.resumed_at:.6g} ({len(run.store.records)} snapshots)")
     print0(f"# q = {orbit.q:.6f}, N = {N}, script-T = {orbit.T:.6f}, initial state: {orbit.source}, "
            f"t_final = {t_final}")
-    run.run(lambda t, drift, steps: print0(f"  t = {t:10.3f}  energy drift {drift:+.2e}  steps {steps}"))
+    progress = Progress(t_final, "time units", "long run", start=run.resumed_at, comm=comm)
+
+    def show(t, drift, steps):
+        print0(f"  t = {t:10.3f}  energy drift {drift:+.2e}  steps {steps}")
+        progress.update(t)          # on a terminal: the time left, now and then
+    run.run(show)
     summary = run.write_summary()
     run.destroy()
     print0(json.dumps(summary.as_dict(), indent=1))

@@ -40,8 +40,8 @@ def main():
     write_text(output, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        for path in plotting.plot_long_wave(study.wave, study.smallest, figures):
-            print("wrote " + path, flush=True)
+        for fig in plotting.plot_long_wave(study.wave, study.smallest, figures):
+            print("wrote " + fig.path, flush=True)
     print0(text)
 
 

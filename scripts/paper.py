@@ -5,7 +5,8 @@ the README quotes for them (hertzpetsc.studies.paper; the benchmarks are separat
     python scripts/paper.py [-ranks 2] [-steps branch,paper_table,...] [-progress runs/paper.npz] [-resume | -force]
         [-logs runs/paper_logs] [-workdir DIR]
 
-One progress line per step (its section, the time it took) and the total. Each step's output goes to
+One progress line per step (its section, the time it took) and the total; on a terminal also the time
+left at the pace of the steps so far. Each step's output goes to
 <logs>/<step>.log. A killed pipeline continues with -resume: finished steps are skipped, an interrupted one
 continues from its own record file where its driver has one. Called by `bash scripts/hz.sh paper`.
 """
@@ -19,6 +20,7 @@ init_petsc(sys.argv)
 
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
+from hertzpetsc.progress import Progress  # noqa: E402
 from hertzpetsc.studies.paper import PaperPipeline, paper_steps  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -43,9 +45,14 @@ def main():
                              workdir=os.path.abspath(workdir) if workdir else None)
     t0 = time.perf_counter()
     n = len(pipeline.steps)
+    progress = Progress(n, "steps", "pipeline", interval=0.0)        # on a terminal: the time left after each step
     for i, step, seconds, args in pipeline.run():
         how = "done before" if seconds is None else f"{seconds:8.1f} s" + (" (resumed)" if "-resume" in args else "")
         print0(f"[{i:2d}/{n}] sec. {step.section:8s} {step.name:24s} {how}")
+        if seconds is None:
+            progress.start += 1                                        # not at this run's pace
+        elif i < n:
+            progress.update(i)
     print0(f"total {time.perf_counter() - t0:.1f} s for {n} steps")
 
 

@@ -72,7 +72,7 @@ def main():
         f"{r['iterations']:3d}"))
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_precompressed_omega(study.curves(), alpha, delta0, figures), flush=True)
+        print("wrote " + plotting.plot_precompressed_omega(study.curves(), alpha, delta0, figures).path, flush=True)
     print0(text)
 
 

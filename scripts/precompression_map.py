@@ -142,7 +142,7 @@ def write_figure_and_table(comm, z, table_path, figures, compare=""):
         from hertzpetsc import plotting
         name = os.path.splitext(os.path.basename(table_path))[0] + ".png"
         v2 = map_v1_as_v2(z) if str(z["format"]) == MAP_FORMAT_V1 else z
-        print("wrote " + plotting.plot_stability_map(v2, figures, name), flush=True)
+        print("wrote " + plotting.plot_stability_map(v2, figures, name).path, flush=True)
     print0(text)
 
 

@@ -63,7 +63,7 @@ def main():
            + f"; wrote {output}, {table_path}")
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_errors(refined, figures), flush=True)
+        print("wrote " + plotting.plot_errors(refined, figures).path, flush=True)
 
 
 if __name__ == "__main__":

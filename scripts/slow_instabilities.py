@@ -127,7 +127,7 @@ def main():
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_slow_instabilities(scan.store.records, target, branch.alpha, figures,
-                                                          figure_name), flush=True)
+                                                          figure_name).path, flush=True)
     print0(text)
 
 

@@ -62,7 +62,7 @@ def main():
         scan.destroy()
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_solitary_stability(scan.rows(), figures), flush=True)
+        print("wrote " + plotting.plot_solitary_stability(scan.rows(), figures).path, flush=True)
     print0(text)
 
 

@@ -43,7 +43,7 @@ def main():
     run_to_table(study, output, lambda alpha: print0("\n".join(study.section(alpha))))    # on a stop: alphas done
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
-        print("wrote " + plotting.plot_solitary(study.finest[alphas[0]], figures), flush=True)
+        print("wrote " + plotting.plot_solitary(study.finest[alphas[0]], figures).path, flush=True)
     print0(f"wrote {output}")
 
 

@@ -27,6 +27,7 @@ from petsc4py import PETSc
 
 from ..dealing import dealt
 from ..errors import HertzPetscError, ParameterError, check_choice, check_instance
+from ..progress import Progress
 from ..records import MODES, MemoryRecords, NpzRecords, file_digest, given, pending, write_text
 
 if TYPE_CHECKING:
@@ -145,18 +146,28 @@ class Study:
     def destroy(self) -> None:
         """Free the PETSc objects the study holds (none by default)."""
 
+    def planned(self) -> Optional[int]:
+        """How many records :meth:`run` will yield from now, where that is known in advance (None: not known); the
+        drivers' progress line (:func:`run_to_table`) estimates the time left from it."""
+        return None
+
 
 def run_to_table(study, path, show=None, text=None):
     """Run ``study`` (anything with ``run()``, ``comm`` and ``table()``; ``show(item)`` for each item it yields),
-    then write ``text()`` (default ``study.table()``) to ``path`` and return it. If an error stops it (a solver that
+    then write ``text()`` (default ``study.table()``) to ``path`` and return it; a study that knows the records it
+    will yield (``planned()``) shows the time left on a terminal (:class:`~hertzpetsc.progress.Progress`). If an error stops it (a solver that
     did not converge, PETSc refusing), the table of what was done with the error below it is written first (a
     table that needs the whole run says why there is none) and the error re-raised: the table on disk never
     describes another run than the record file's (one that could not be opened is left alone). Collective."""
     text = text or study.table
+    planned = getattr(study, "planned", lambda: None)()
+    progress = Progress(planned, "records", type(study).__name__, comm=study.comm) if planned else None
     try:
-        for item in study.run():
+        for done, item in enumerate(study.run(), 1):
             if show is not None:
                 show(item)
+            if progress is not None:
+                progress.update(done)          # on a terminal: the time left, now and then
     except HertzPetscError as err:
         if getattr(study, "output", None) is None or study.store is not None:
             try:

@@ -64,6 +64,10 @@ class BranchStudy(Study):
             self.continuation.resume_from([p.q for p in pts], [p.u_half for p in pts])
         return store
 
+    def planned(self) -> int:
+        """The wavenumbers of the branch (m pi / M down to q_stop) not yet in the file."""
+        return max(0, len(self.params.targets()) - len(self.open().branch.points))
+
     def run(self) -> Iterator[BranchPoint]:
         self.open()
         try:

@@ -219,7 +219,9 @@ class ResponseParameters:
     ``p_end``; the response's period in driving ``periods``; Newton's ``jacobian`` (dense, mf) and the multipliers'
     route ``floquet`` (dense, slepc with ``nev``, none); the shooting tolerance ``tol`` and the flows' ``rtol``
     (:func:`tolerances_of`); ``algorithm`` the pseudo-arclength (None: :func:`corner_arclength`), or ``grid`` the
-    parameter values of the grid mode (natural steps: ``algorithm`` if it is a continuation.Natural); ``run_in`` driving
+    parameter values of the grid mode (natural steps from the drive's value through them in their order: ``algorithm``
+    if it is a continuation.Natural; a value equal to the drive's is its first record, not solved twice; ``p_end`` may
+    then equal the start, :func:`hertzpetsc.api.response`); ``run_in`` driving
     periods from rest before the first Newton; ``samples`` per period for the diagnostics (0: none); ``switch`` steps on
     each period-doubled branch; ``max_steps``; the ``nmult`` largest multipliers recorded (at most 2N)."""
 
@@ -245,7 +247,7 @@ class ResponseParameters:
         _check_parameter(self.parameter)
         p0 = drive.value(self.parameter)
         p_end = check_real("p_end", self.p_end, "the end value of the parameter")
-        if not p_end != p0:
+        if not p_end != p0 and self.grid is None:
             raise ParameterError("p_end", self.p_end, f"must differ from the start {self.parameter} = {p0:g}")
         _check_end("p_end", self.p_end, drive, self.parameter)
         object.__setattr__(self, "p_end", p_end)
@@ -306,6 +308,7 @@ class ResponseCurve(DrivenStudy):
     Parameters = ResponseParameters
     FORMAT, FIELDS = RESPONSE_FORMAT, RESPONSE_FIELDS
     ended = None                   # why the continuation stopped before p_end, when it did (also said in a note)
+    stop = None                    # and the ContinuationError that stopped it
     DTYPES = {"branch": np.int64, "periods": np.int64, "event": np.int64, "confirmed": np.int64,
               "iterations": np.int64, "outside": np.int64, "multipliers": complex}
     ROLES = {"drive_": ("Newton on P(X) - X (bordered) and the state flow", ("snes", "ts")),
@@ -410,6 +413,15 @@ class ResponseCurve(DrivenStudy):
     def _same_event(rec, point, code):
         return int(rec["event"]) == code and abs(float(rec["s"]) - point.s) <= 1e-12 * max(1.0, abs(point.s))
 
+    def planned(self) -> Optional[int]:
+        """Grid mode without switching: the grid's values (and the start) not yet in the file; else None (a
+        continuation's steps are not known in advance)."""
+        if self.grid is None or self.switch:
+            return None
+        done = [self.drive.value(self.parameter)] + [float(r["p"]) for r in self.open().branch_records(0)]
+        todo = [p for p in self.grid if not any(abs(q - p) <= 1e-12 * max(1, abs(p)) for q in done)]
+        return len(todo) + (0 if self.branch_records(0) else 1)
+
     def run(self) -> Iterator[dict]:
         """Compute what the file lacks: the main branch, then the period-doubled branches. Yields each record."""
         self.open()
@@ -421,10 +433,10 @@ class ResponseCurve(DrivenStudy):
         prob = self.problem
         done = self.branch_records(0)
         p_start = self.drive.value(self.parameter)
-        if self.grid is not None:
-            targets = [p for p in self.grid if not any(abs(float(r["p"]) - p) <= 1e-12 * max(1, abs(p))
-                                                       for r in done)]
-            if not targets:
+        if self.grid is not None:        # the start's value is the first record (a grid may hold it: hz.response)
+            targets = [p for p in self.grid if not any(abs(q - p) <= 1e-12 * max(1, abs(p))
+                                                       for q in [p_start] + [float(r["p"]) for r in done])]
+            if done and not targets:
                 return
         elif done and (len(done) >= self.max_steps
                        or (float(done[-1]["p"]) - self.p_end) * (p_start - self.p_end) <= 0):
@@ -586,6 +598,7 @@ class ResponseCurve(DrivenStudy):
         """Everything up to the last point was recorded; the curve ends there (e.g. the response is lost): say so
         once (:attr:`ended`, and a note on rank 0)."""
         self.ended = f"the continuation stopped before {self.parameter} = {self.p_end:g}: {err}"
+        self.stop = err
         note(self.ended, self.comm)
 
     def _switched(self):

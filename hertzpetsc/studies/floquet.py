@@ -160,6 +160,10 @@ class FloquetScan(Study):
                     growth=spec.growth(orbit.T), refined=int(orbit.source == "refined"), seconds=seconds,
                     multipliers=np.pad(lam, (0, 2 * self.N - len(lam)), constant_values=np.nan))
 
+    def planned(self) -> int:
+        """The wavenumbers not yet in the file."""
+        return len(self.open()._todo(self.qs))
+
     def run(self) -> Iterator[dict]:
         """Compute the spectrum at every q not yet in the file; yields the record after saving it. The symmetric
         route deals the q to the ranks (each on one rank); the others distribute each q over the ranks, in order

@@ -171,6 +171,10 @@ class RefinementScan(Study):
                     wall_time=res.wall_time, sigma_min=res.sigma_min, E_after_floor=res.E_floor,
                     E_after_fine=res.E_fine)
 
+    def planned(self) -> int:
+        """The wavenumbers not yet in the file."""
+        return len(self.open()._todo(self.qs))
+
     def run(self) -> Iterator[dict]:
         """Refine every q not yet in the file; yields the record (a dict of the fields) after saving it."""
         todo = self.open()._todo(self.qs)

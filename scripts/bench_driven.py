@@ -108,7 +108,7 @@ def petsc_sweep(req, petsc_args):
                   req["amplitude"], grid[0])
     comm = MPI.COMM_WORLD
     study = ResponseCurve(ResponseParameters(drive, "omega", grid[-1], tol=TOL, rtol=RTOL, grid=tuple(grid[1:]),
-                                             run_in=req["run_in"], samples=0, max_steps=10 ** 6), PETSc.COMM_WORLD)
+                                             run_in=req["run_in"], samples=0, max_steps=len(grid)), PETSc.COMM_WORLD)
     spent = dict(accurate=0.0, jacobian=0.0)
     monodromy = study.problem.monodromy
 

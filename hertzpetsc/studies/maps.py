@@ -758,7 +758,7 @@ def q_boundary_table(z):
              f"pi/{2 * int(z['cells_per_pi'])}; flow rtol {float(z['rtol']):g}; unstable when rho - 1 > {tol:g}; "
              f"edges located by bisection in q through the simplest q / 2 pi of the middle third (cells of at most "
              f"{int(z['max_cell'])} beads), asked to a bracket of {float(z['locate_tol']) / 2:g} (relative); "
-             + _brackets(z["q_stable"], z["q_unstable"], kind == KIND_EDGE_INF, "q") + ".\n",
+             + _brackets(qs_, qu_, kind == KIND_EDGE_INF, "q") + ".\n",
              "### Located edges\n",
              "Each row: at amplitude A, the wavenumber where the verdict changes, between q (stable side) and q "
              "(unstable side), with rho - 1 on both sides (the multipliers' distance to the unit circle), the cell "

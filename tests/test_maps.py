@@ -565,3 +565,55 @@ def test_driver_refuses_changed_computations(tmp_path):
     assert r.returncode == 2 and one_error_line(r).startswith("error: invalid -q = ") and "twists > 0" in r.stderr
     r = run_script("precompression_map.py", "-render", "-alpha", 3, *out)
     assert r.returncode == 2 and one_error_line(r).startswith("error: invalid -alpha = ")
+
+
+def test_a_wave_reached_by_a_warm_start_is_the_cold_wave():
+    """alpha = 2, pi/2 on 100 beads, just past the gap opening (A_gap = 0.968): the zones' contact is weak, each
+    zone's translation is nearly an eigenvector, and every sector holds a pair of multipliers 1 +- i s with s about
+    1e-6, whose splitting goes as the square root of the orbit's error. The bubble search between a = 1 and 1.5 steps
+    the family by bisection; a corrector from the interpolation of the bracket stopped after one Newton iteration
+    below the SNES atol, 80 times the converged residual: at a = 1.0063555 the orbit's error was 4.3e-10 (1.2e-11
+    cold), the pair split off the circle (rho - 1 = 1.2e-5) and the map located a band A = 1.0572 - 1.0625 that the
+    wave computed alone (rho - 1 = 4e-11) does not have. The map's waves are now solved again from themselves: every
+    wave it evaluates is the cold one to the grid's round-off floor, and no edge is located. Which is right: the
+    orbit refined on the chain by Gauss-Newton (E <= 1e-13) has the pair on the circle."""
+    from hertzpetsc.model import ChainSpec
+    from hertzpetsc.shooting import Refiner
+    from hertzpetsc.studies import maps
+    model, q, K = LatticeModel.hertz(2.0, (1.0,), 1.0), math.pi / 2, 1000
+    waves = []
+    wave = maps.MapProbe.wave
+
+    def kept(self, entry):
+        e = wave(self, entry)
+        waves.append((e["point"].a, e["w"][0], e["lam"]))
+        return e
+    maps.MapProbe.wave = kept
+    study = StabilityMap(MapParameters(model, (q,), (1.0, 1.5), N=100, cells_per_pi=K, tolerances=TOL, limit=False),
+                         SELF)
+    try:
+        rows = list(study.run())
+    finally:
+        maps.MapProbe.wave = wave
+        study.destroy()
+    assert not any(r["kind"] == KIND_EDGE for r in rows)
+    assert all(r["rho"] - 1 < 1e-6 for r in rows if r["kind"] == KIND_POINT)
+    searched = sorted({a for a, _, _ in waves if 1.0 < a < 1.5})
+    assert len(searched) >= 3                           # the bubble search stepped the family between the two
+    a_mid = min(searched, key=lambda a: abs(a - 1.0063555))
+    [(_, (w_cold,), lam_cold)] = richardson_waves(model, q, [a_mid], K)      # from the linear wave, cold
+    for a, w, lam in waves:
+        if a == a_mid:
+            # one Newton iteration from a converged K wave moves it by at most 2e-11 (its round-off floor); the
+            # warm-started wave was 6e-10 away
+            assert np.max(np.abs(w - w_cold)) < 1e-10 and abs(lam - lam_cold) < 1e-9
+    with Refiner(ChainSpec(model, 100), SELF, 1e-12) as refiner:
+        orbit = refiner.refine(wave_orbit(model, q, a_mid, [w_cold], lam_cold, 100, math.pi / K)).orbit
+    route = DeflatedSectors(model, SELF, TOL, twists=None, krein=1e-6)
+    try:
+        spec = route.spectrum(orbit, 1e-6)
+    finally:
+        route.destroy()
+    assert spec.rho - 1 < 1e-8
+    pair = [s.values[np.argsort(np.abs(s.values - 1))[:2]] for s in spec.work["sectors"][1:]]
+    assert all(np.all(np.abs(v.imag) > 100 * np.abs(np.abs(v) - 1)) for v in pair)

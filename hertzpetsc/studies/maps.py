@@ -179,33 +179,56 @@ def _check_shared(params):
 class RichardsonCompanion:
     """The wave on h = pi/(2K) at the amplitude of a wave of the h = pi/K family (Newton from its profiles
     interpolated, prefix of the family; ``measure``: the family's, what its a is), and their Richardson combination
-    (second order: O(h^4) initial data)."""
+    (second order: O(h^4) initial data).
+
+    The family's wave is first solved again on its own grid from itself (:meth:`polished`): a continuation corrector
+    stops once the residual is below the SNES atol, which a warm start from a close predictor (the interpolation of a
+    bisection's bracket) reaches in one iteration far above the grid's round-off floor. The orbit's error then
+    shifts the multipliers; near a defective pair (the zone translations of a wave just past its gap opening, whose
+    zones a contact still joins) it splits them by its square root, off the unit circle: an instability of no
+    wave. One Newton iteration from below atol lands on the floor."""
 
     def __init__(self, model, q, K, comm, prefix=PRECOMP_PREFIX, measure="a1"):
         self.K = K
-        self.problem = FamilyProblem(model, ProfileGrid(2 * K, comm), q, amplitude=1.0, measure=measure,
-                                     parameter="log_a")
-        self.problem.prefix = prefix
-        self.problem.solver(False, prefix)
+        self.coarse, self.problem = (FamilyProblem(model, ProfileGrid(k, comm), q, amplitude=1.0, measure=measure,
+                                                   parameter="log_a") for k in (K, 2 * K))
+        for problem in (self.coarse, self.problem):
+            problem.prefix = prefix
+            problem.solver(False, prefix)
 
-    def fine(self, point):
-        """(profiles, lam) on the fine grid at the amplitude of ``point`` (an AmplitudePoint of the K grid)."""
-        s = math.log(point.a)
-        self.problem.set_parameter("log_a", s)
-        Z = self.problem.pack([regrid_half_profile(w, 2 * self.K) for w in point.profiles], point.lam, s)
+    @staticmethod
+    def _solved(problem, profiles, lam, a):
+        """(profiles, lam) of ``problem`` at amplitude ``a`` by Newton from (profiles, lam) (on its grid)."""
+        s = math.log(a)
+        problem.set_parameter("log_a", s)
+        Z = problem.pack(profiles, lam, s)
         try:
-            self.problem.solve(Z)
-            return self.problem.half_profiles(Z), float(self.problem._scalars(Z)[0])
+            problem.solve(Z)
+            return problem.half_profiles(Z), float(problem._scalars(Z)[0])
         finally:
             Z.destroy()
 
+    def polished(self, point):
+        """(profiles, lam) of ``point`` (an AmplitudePoint of the K grid) solved again from itself (class
+        docstring)."""
+        return self._solved(self.coarse, [np.asarray(w) for w in point.profiles], point.lam, point.a)
+
+    def fine(self, point):
+        """(profiles, lam) on the fine grid at the amplitude of ``point`` (an AmplitudePoint of the K grid)."""
+        return self._solved(self.problem, [regrid_half_profile(w, 2 * self.K) for w in point.profiles], point.lam,
+                            point.a)
+
     def combine(self, point):
-        """(profiles, lam): the Richardson combination of ``point`` and its fine-grid companion."""
+        """(profiles, lam): the Richardson combination of ``point`` (:meth:`polished`) and its fine-grid
+        companion; and (fine profiles, lam) of the companion."""
+        coarse, lam1 = self.polished(point)
+        point = SimpleNamespace(a=point.a, profiles=coarse, lam=lam1)
         fine, lam2 = self.fine(point)
-        return [extrapolate(np.asarray(w1), np.asarray(w2)[::2]) for w1, w2 in zip(point.profiles, fine)], \
-            extrapolate(point.lam, lam2), (fine, lam2)
+        return [extrapolate(np.asarray(w1), np.asarray(w2)[::2]) for w1, w2 in zip(coarse, fine)], \
+            extrapolate(lam1, lam2), (fine, lam2)
 
     def destroy(self):
+        self.coarse.destroy()
         self.problem.destroy()
 
 

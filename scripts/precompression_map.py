@@ -12,13 +12,14 @@ For q = 2 pi m / N (and the wavenumbers of -q, infinite chain only) and each amp
 of u; -a, and with -ds > 0 the grid a_min exp(k ds) up to a_max): the wave (Richardson combination of the h = pi/K
 and pi/(2K) waves, K = -cells_per_pi) continued in log a from the linear wave, put on the chain; all 2N multipliers
 modulo shift on N beads from the sectors of its cell, and with -twists T > 0 the infinite chain's over the cell twists
-(bead-level Bloch step <= pi/T), symmetry multipliers deflated by their known eigenvectors; unstable when
+(bead-level Bloch step <= pi/T), symmetry multipliers deflated by their known eigenvectors (where one left is
+within 1e-3 of 1 on N beads, on the orbit refined by Gauss-Newton with the flow at rtol/100); unstable when
 rho - 1 > tol_rho. Where the verdict of a chain of -locate (chain, infinite, or none) changes between two amplitudes,
 its root is located by bisection in log a to a relative bracket -locate_tol; the gap opening is located on the way;
 the uncompressed limit closes each q. With -epsilon != 1 the chain is the dimer (masses 1, epsilon), the waves its
 acoustic ones. The q are dealt to the ranks. Table: the located boundary with rho - 1 on both sides, and the
 verdicts; figure precompression_map.png. Solver prefixes: -precomp_ (the wave solves), -floquet_ (the flows of
-the cell maps, -floquet_ts_*).
+the cell maps, -floquet_ts_*), -shoot_ and -shoot_jac_ (the refinement).
 
 -render computes nothing: it rewrites -table (and the figure) from the file -output, of this kind or of kind
 hertzpetsc-precompression-map-1 (the maps before issue 23: rho - 1 per (q, a) on the dense route); such a file is

@@ -354,7 +354,7 @@ def test_a_deflation_that_does_not_hold_gives_no_verdict(capfd):
     from hertzpetsc.studies import maps
     study = maps.StabilityMap(maps.MapParameters(LatticeModel.hertz(1.5, delta0=1.0), (2 * math.pi * 20 / 100,),
                                                  (0.1,)), SELF)
-    chain = dict(rho=1.4, outside=3, sector=0.0, cluster=1.3, raw=0.1, eigvec=0.42, decoupled=True)
+    chain = dict(rho=1.4, outside=3, sector=0.0, cluster=1.3, raw=0.1, eigvec=0.42, decoupled=True, E=math.nan)
     probe = SimpleNamespace(chain=lambda entry: chain)
     q = 2 * math.pi * 20 / 100
     row = study._row(q, maps.KIND_LIMIT, math.inf, math.inf, 0.9, probe, {})
@@ -617,3 +617,33 @@ def test_a_wave_reached_by_a_warm_start_is_the_cold_wave():
     assert spec.rho - 1 < 1e-8
     pair = [s.values[np.argsort(np.abs(s.values - 1))[:2]] for s in spec.work["sectors"][1:]]
     assert all(np.all(np.abs(v.imag) > 100 * np.abs(np.abs(v) - 1)) for v in pair)
+
+
+def test_a_multiplier_near_one_is_judged_on_the_refined_orbit():
+    """alpha = 3/2, pi/2 on 100 beads at a = 1 (A = 1.029, past the gap opening at 0.845): the Richardson wave's
+    orbit error E is about 4e-10 (the law's (delta0 - r)^(3/2) limits the extrapolation), which splits the nearly
+    defective zone-translation pair at 1 off the unit circle: rho - 1 = 3e-6 on the deflated sectors and on all 200
+    multipliers alike (the dense route), and the map said unstable here and located a band A = 1.0239 - 1.0344
+    around it. The orbit refined on the chain by Gauss-Newton has the pair on the circle on both routes; the map's
+    verdict is now that orbit's (E_chain recorded)."""
+    from hertzpetsc.floquet import DenseFloquet
+    from hertzpetsc.model import ChainSpec
+    from hertzpetsc.shooting import Refiner
+    from hertzpetsc.studies.maps import REFINE_TOL
+    model, q, N, K = LatticeModel.hertz(1.5, (1.0,), 1.0), math.pi / 2, 100, 1000
+    study = StabilityMap(MapParameters(model, (q,), (1.0,), N=N, cells_per_pi=K, tolerances=TOL, locate=(),
+                                       limit=False), SELF)
+    try:
+        [row] = [r for r in study.run() if r["kind"] == KIND_POINT]
+    finally:
+        study.destroy()
+    assert row["E_chain"] <= REFINE_TOL and row["rho"] - 1 < 1e-7
+    [(a, w, lam)] = richardson_waves(model, q, [1.0], K)
+    orbit = wave_orbit(model, q, a, w, lam, N, math.pi / K)
+    with Refiner(ChainSpec(model, N), SELF, REFINE_TOL) as refiner:
+        assert refiner.residual(orbit) > 1e-10
+        refined = refiner.refine(orbit).orbit
+    with DenseFloquet(ChainSpec(model, N), SELF, TOL) as dense:
+        # every multiplier (the trivial group too, split by the square root of the flow's error, about 1e-8)
+        rho = [float(np.max(np.abs(np.linalg.eigvals(dense.monodromy(o))))) - 1 for o in (orbit, refined)]
+    assert rho[0] > 1e-6 and rho[1] < 1e-7

@@ -8,7 +8,11 @@ layer, each the margin ln(rho) - ln(1 + tol_rho) of a verdict:
 * ``chain``: rho of all 2N multipliers of F_q on the periodic chain of N beads, from the sectors of the wave's cell
   with the symmetry multipliers deflated by their known eigenvectors (:class:`~hertzpetsc.slow.DeflatedSectors`:
   time shift and translation with their Jordan partners at the cell twist 0, every zone's translation at every twist
-  when the zones are decoupled), so that no verdict rests on the numerical splitting of the trivial group;
+  when the zones are decoupled), so that no verdict rests on the numerical splitting of the trivial group; where a
+  multiplier that the deflation leaves lies within :data:`NEAR_ONE` of 1 (a nearly defective pair: the translations
+  of zones that a contact still joins, just past the gap opening), on the orbit refined on the chain by Gauss-Newton
+  and the cells' flow at a hundredth of its tolerances (such a pair moves as the square root of the orbit's and the
+  flow's errors);
 * ``infinite``: rho over every Bloch parameter of the infinite chain: the cell twists Theta in [0, pi] of the wave's
   cell of M beads (:func:`~hertzpetsc.slow.twist_scan`: a grid of ceil(twists / M) steps, i.e. a bead-level Bloch
   step of at most pi / twists, the largest local maxima refined by golden section, and the twists where an unstable
@@ -20,8 +24,9 @@ Where a verdict changes between two amplitudes of the map, the layer locates the
 bracket is at most ``locate_tol`` / 2 long (:class:`~hertzpetsc.continuation.Continuation`, ``bisect``): the located
 point's record keeps both ends with their rho - 1, so the boundary is confirmed by the multipliers on both sides. The
 gap opening (2 u(q/2) = delta0 for a monatomic chain) is located on the way. Each wave is the Richardson combination
-of the h = pi/K wave of the family and the h = pi/(2K) one solved at the same amplitude from it (initial data with an
-O(h^4) error). The uncompressed limit (delta0 / A = 0) closes each q. The q are dealt to the ranks, each computed on
+of the h = pi/K wave of the family, solved again from itself (a warm-started corrector stops far above the grid's
+floor: :class:`RichardsonCompanion`), and the h = pi/(2K) one solved at the same amplitude from it (initial data with
+an O(h^4) error): a wave does not depend on the path by which the family reached it. The uncompressed limit (delta0 / A = 0) closes each q. The q are dealt to the ranks, each computed on
 one rank (:mod:`hertzpetsc.studies.dealing`): the records do not depend on the number of ranks.
 
 Record file (npz, record store, kind ``hertzpetsc-precompression-map-3``; its constants and fields :data:`MAP_FIELDS`
@@ -45,6 +50,8 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..chain import IntegrationTolerances
+from ..model import ChainSpec
+from ..options import inserted_options
 from ..console import note
 from ..dealing import dealt
 from ..diagnostics import sup_norm
@@ -58,6 +65,7 @@ from ..qbranch import regrid_half_profile
 from ..records import RecordFileError, check_kind, given, load_npz, on_rank0
 from ..resources import check_memory
 from ..richardson import extrapolate
+from ..shooting import Refiner
 from ..slow import CERT_MARGIN, DeflatedSectors, crossing_search, twist_scan
 from ..symmetry import WaveSymmetry
 from ..twsolver import tw_solver
@@ -80,7 +88,7 @@ EIGVEC_MAX = 1e-4
 MAP_FIELDS = ("q", "m", "kind", "a", "A", "omega", "rho", "outside", "sector", "cluster", "raw_cluster", "eigvec",
               "decoupled", "rho_inf", "theta_inf", "cluster_inf", "a_stable", "a_unstable", "A_stable", "A_unstable",
               "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds", "cert_inf", "bound_inf",
-              "cert_stable", "modulation_inf")
+              "cert_stable", "modulation_inf", "E_chain")
 # the infinite chain's certification of a record (cert_inf; cert_stable: of an edge's stable side): 1 stable between
 # the twist samples (slow.certify_twists), 0 stable samples not certified between them (unresolved), -1 none
 # (unstable, no verdict, or a file of kind -2, whose verdicts are the samples')
@@ -91,6 +99,17 @@ MAX_MAP_BEADS = 2000
 # deflated spectra of Richardson waves keep rho - 1 below 1e-8 where the wave is stable (the orbit's error after
 # deflation); the verdict's margin keeps a factor 100
 MAP_TOL_RHO = 1e-6
+# A multiplier that the deflation leaves within NEAR_ONE of 1 belongs to a nearly defective pair (the translations of
+# zones that a contact still joins, just past the gap opening: their pair 1 +- sqrt(c) in every sector, c the weak
+# coupling): the orbit's and the flow's errors move it by their square roots, off the unit circle when c is below
+# them. Where the chain's spectrum has one, its verdict is taken on the orbit refined on the chain by Gauss-Newton to
+# E <= REFINE_TOL (shooting.Refiner, prefixes shoot_ and shoot_jac_; a Gauss-Newton step from above it lands near
+# 1e-13, the flows' floor of E is about 1e-12), with the cells' flow at FINE_FLOW times the map's tolerances: the
+# Richardson wave's E (1e-12 .. 1e-9) gave rho - 1 up to 1.3e-5 there, the flow at rtol 1e-11 up to 8e-7 on the
+# refined orbit; both together 1e-10.
+NEAR_ONE = 1e-3
+REFINE_TOL = 1e-11
+FINE_FLOW = 1e-2
 
 
 def certification(scan):
@@ -186,7 +205,7 @@ class RichardsonCompanion:
     bisection's bracket) reaches in one iteration far above the grid's round-off floor. The orbit's error then
     shifts the multipliers; near a defective pair (the zone translations of a wave just past its gap opening, whose
     zones a contact still joins) it splits them by its square root, off the unit circle: an instability of no
-    wave. One Newton iteration from below atol lands on the floor."""
+    wave. One Newton iteration from below atol lands on the floor (a full step, without line search)."""
 
     def __init__(self, model, q, K, comm, prefix=PRECOMP_PREFIX, measure="a1"):
         self.K = K
@@ -194,7 +213,11 @@ class RichardsonCompanion:
                                                    parameter="log_a") for k in (K, 2 * K))
         for problem in (self.coarse, self.problem):
             problem.prefix = prefix
-            problem.solver(False, prefix)
+        # the polish takes the full Newton step (unless the user chose a line search): from a wave on its floor no
+        # step decreases the residual, which a line search takes for a failure
+        with inserted_options(prefix, {"snes_linesearch_type": "basic"}):
+            self.coarse.solver(False, prefix)
+        self.problem.solver(False, prefix)
 
     @staticmethod
     def _solved(problem, profiles, lam, a):
@@ -240,7 +263,7 @@ class MapProbe:
     def __init__(self, study, q, model=None, measure="a1"):
         self.study, self.q, self.measure = study, q, measure
         self.model = study.model if model is None else model
-        self._companion = None
+        self._companion = self._refiner = None
         self.cache, self.hints, self.evaluations = {}, [], {name: 0 for name in TESTS}
 
     @property
@@ -249,6 +272,12 @@ class MapProbe:
             self._companion = RichardsonCompanion(self.model, self.q, self.study.K, PETSc.COMM_SELF,
                                                   measure=self.measure)
         return self._companion
+
+    @property
+    def refiner(self):
+        if self._refiner is None:
+            self._refiner = Refiner(ChainSpec(self.model, self.study.N), PETSc.COMM_SELF, REFINE_TOL)
+        return self._refiner
 
     def entry(self, point):
         key = math.log(point.a)
@@ -287,6 +316,12 @@ class MapProbe:
             st, e = self.study, self.wave(entry)
             orbit = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], st.N, math.pi / st.K)
             spec = st.route(self.model).spectrum(orbit, st.tol_rho)
+            E = math.nan
+            if np.min(np.abs(spec.multipliers[~spec.known] - 1), initial=math.inf) < NEAR_ONE:
+                # a nearly defective pair at 1: the verdict of the refined orbit (NEAR_ONE)
+                refined = self.refiner.refine(orbit)
+                orbit, E = refined.orbit, refined.E
+                spec = st.route(self.model, fine=True).spectrum(orbit, st.tol_rho)
             sectors = spec.work["sectors"]
             rest = ~spec.known
             top = int(np.argmax(np.abs(spec.multipliers) * rest))
@@ -297,7 +332,7 @@ class MapProbe:
                 sector=2 * math.pi * float(spec.sector[top]) / sym.g, cluster=spec.trivial_spread,
                 raw=max((float(np.max(np.abs(s.raw_cluster))) - 1 for s in sectors if s.r), default=0.0),
                 eigvec=max(s.eigenvector_residual for s in sectors), decoupled=bool(spec.work["decoupled"]),
-                patterns=tuple(s.pattern() for s in sectors))
+                patterns=tuple(s.pattern() for s in sectors), E=E)
             self.evaluations["chain"] += 1
         return entry["chain"]
 
@@ -326,6 +361,8 @@ class MapProbe:
     def destroy(self):
         if self._companion is not None:
             self._companion.destroy()
+        if self._refiner is not None:
+            self._refiner.destroy()
 
 
 def limit_probe(study, q, grid, probe, point):
@@ -358,14 +395,19 @@ def saved_as_dealt(study, jobs, costs, key, belongs):
 
 class StabilityMap(Study):
     """The stability map and boundary of waves of a precompressed ``model`` (module docstring). Prefixes:
-    ``precomp_`` (the wave solves), ``floquet_`` (the flows of the cell maps)."""
+    ``precomp_`` (the wave solves), ``floquet_`` (the flows of the cell maps), ``shoot_`` and ``shoot_jac_`` (the
+    refinement where a multiplier is near 1)."""
 
     Parameters = MapParameters
     FORMAT, FIELDS = MAP_FORMAT, MAP_FIELDS
     DTYPES = {"m": np.int64, "kind": np.int64, "outside": np.int64, "decoupled": np.int64, "evaluations": np.int64,
               "cert_inf": np.int64, "cert_stable": np.int64}
     ROLES = {"floquet_": ("the flow of the variational equations (the cells' maps)", ("ts",)),
-             "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
+             "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",)),
+             "shoot_": ("the refinement's flow and Gauss-Newton where a multiplier is near 1 (-shoot_gn_max_it)",
+                        ("ts",)),
+             "shoot_jac_": ("the flow of the refinement's Jacobian", ("ts",))}
+    ADDED = {"E_chain": math.nan}
     WHAT = "stability-map file"
     NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="model's masses (-epsilon)")
 
@@ -384,12 +426,15 @@ class StabilityMap(Study):
                     cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists,
                     locate=",".join(self.locate) or "none", locate_tol=self.locate_tol, amplitudes=self.a_values)
 
-    def route(self, model: LatticeModel) -> DeflatedSectors:
-        """The deflated sector route of ``model`` on one rank (built once per model, prefix ``floquet_``)."""
-        key = repr(model.describe())
+    def route(self, model: LatticeModel, fine: bool = False) -> DeflatedSectors:
+        """The deflated sector route of ``model`` on one rank (built once per model, prefix ``floquet_``); ``fine``:
+        its flow at :data:`FINE_FLOW` times the map's tolerances."""
+        key = (repr(model.describe()), fine)
         if key not in self._routes:
+            tol = self.tolerances if not fine else IntegrationTolerances(rtol=FINE_FLOW * self.tolerances.rtol,
+                                                                         atol=FINE_FLOW * self.tolerances.atol)
             # Krein signatures where crossings are searched: along a (chain) and over the twists (infinite chain)
-            self._routes[key] = DeflatedSectors(model, PETSc.COMM_SELF, self.tolerances, FLOQUET_PREFIX, twists=None,
+            self._routes[key] = DeflatedSectors(model, PETSc.COMM_SELF, tol, FLOQUET_PREFIX, twists=None,
                                                 krein=self.tol_rho if self.locate or self.twists else None)
         return self._routes[key]
 
@@ -404,7 +449,7 @@ class StabilityMap(Study):
             if fits_chain(q, self.N):
                 c = probe.chain(entry)
                 row.update(rho=c["rho"], outside=c["outside"], sector=c["sector"], cluster=c["cluster"],
-                           raw_cluster=c["raw"], eigvec=c["eigvec"], decoupled=int(c["decoupled"]))
+                           raw_cluster=c["raw"], eigvec=c["eigvec"], decoupled=int(c["decoupled"]), E_chain=c["E"])
                 if not c["eigvec"] <= EIGVEC_MAX:
                     # the symmetry vectors are not eigenvectors of this orbit's sector maps: the deflated
                     # spectrum is not the wave's, no verdict (rho nan), said once per record
@@ -639,7 +684,7 @@ class QBoundary(Study):
     FORMAT, FIELDS = QMAP_FORMAT, QMAP_FIELDS
     DTYPES = {"M": np.int64, "kind": np.int64, "grid": np.int64, "evaluations": np.int64, "cert_inf": np.int64,
               "cert_stable": np.int64}
-    ROLES = StabilityMap.ROLES
+    ROLES = {k: StabilityMap.ROLES[k] for k in ("floquet_", "precomp_")}      # no refinement (NEAR_ONE)
     WHAT = "boundary-in-q file"
     NAMES = dict(levels="A (-A)", grid_q="q (-m with -N, and -q)")
     locate, N = ("infinite",), 0

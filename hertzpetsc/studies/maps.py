@@ -26,8 +26,9 @@ point's record keeps both ends with their rho - 1, so the boundary is confirmed 
 gap opening (2 u(q/2) = delta0 for a monatomic chain) is located on the way. Each wave is the Richardson combination
 of the h = pi/K wave of the family, solved again from itself (a warm-started corrector stops far above the grid's
 floor: :class:`RichardsonCompanion`), and the h = pi/(2K) one solved at the same amplitude from it (initial data with
-an O(h^4) error): a wave does not depend on the path by which the family reached it. The uncompressed limit (delta0 / A = 0) closes each q. The q are dealt to the ranks, each computed on
-one rank (:mod:`hertzpetsc.studies.dealing`): the records do not depend on the number of ranks.
+an O(h^4) error): a wave does not depend on the path by which the family reached it. The uncompressed limit
+(delta0 / A = 0) closes each q. The q are dealt to the ranks, each computed on one rank
+(:mod:`hertzpetsc.studies.dealing`): the records do not depend on the number of ranks.
 
 Record file (npz, record store, kind ``hertzpetsc-precompression-map-3``; its constants and fields :data:`MAP_FIELDS`
 in docs/schemas.md); a record's kind: 0 a point of the map, 1 a located boundary point on N beads, 2 on the infinite
@@ -50,8 +51,6 @@ import numpy as np
 from petsc4py import PETSc
 
 from ..chain import IntegrationTolerances
-from ..model import ChainSpec
-from ..options import inserted_options
 from ..console import note
 from ..dealing import dealt
 from ..diagnostics import sup_norm
@@ -61,6 +60,8 @@ from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_fa
                         wave_at)
 from ..floquet import FLOQUET_PREFIX
 from ..grid import ProfileGrid, check_cells_per_pi
+from ..model import ChainSpec
+from ..options import inserted_options
 from ..qbranch import regrid_half_profile
 from ..records import RecordFileError, check_kind, given, load_npz, on_rank0
 from ..resources import check_memory

@@ -40,6 +40,7 @@ from .waves import Orbit, orbit_on_chain
 
 if TYPE_CHECKING:
     import matplotlib.axes
+    import matplotlib.figure
 
 
 def _comm(comm):
@@ -198,13 +199,15 @@ def response(drive: Drive, omega: Union[float, Sequence[float]], periods: int = 
 
 
 def plot_spectrum(spectrum: Union[Spectrum, np.ndarray], ax: Optional[matplotlib.axes.Axes] = None,
-                  title: Optional[str] = None) -> matplotlib.axes.Axes:
+                  title: Optional[str] = None) -> matplotlib.figure.Figure:
     """The multipliers in the complex plane with the unit circle (fig. eigen of the paper), on the matplotlib axes
-    ``ax`` (a new figure if None); returns the axes. Local: call it on one rank."""
+    ``ax`` (None: a new Figure, made without pyplot, so a notebook's current figure and figure list stay as they
+    were); returns the figure (shown as a notebook cell's value; ``fig.axes[0]`` the axes, ``fig.savefig`` writes
+    it). Local: call it on one rank."""
     from .plotting import draw_multipliers
     if ax is None:
-        import matplotlib.pyplot as plt
-        _, ax = plt.subplots(figsize=(4.5, 4.5))
+        from matplotlib.figure import Figure
+        ax = Figure(figsize=(4.5, 4.5)).subplots()
     lam = spectrum.multipliers if isinstance(spectrum, Spectrum) else np.asarray(spectrum)
     draw_multipliers(ax, lam, title)
-    return ax
+    return ax.figure

@@ -29,8 +29,8 @@ from petsc4py import PETSc
 
 from . import __version__, kernels
 from .console import print0
-from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure, Terminated
-from .records import check_stores, name_path
+from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure, RecordFileError, Terminated
+from .records import check_stores, name_path, prepare_outputs
 
 # seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
 ABORT_GRACE = 3.0
@@ -278,6 +278,29 @@ class AppOptions:
         -output is their record store: (record path, mode, table path, figures directory)."""
         return (self.path("output", record, f"{what} (record store)"), self.mode(), self.path("table", table, "table"),
                 self.path("figures", "", f"directory for {figures} (none if empty)"))
+
+    def render_flag(self, also=""):
+        """-render, a flag: compute nothing, rewrite -table and the figure from the record file -output
+        (:meth:`render`); ``also`` ends its help text."""
+        return self.flag("render", "compute nothing: rewrite -table and the figure from the file -output" + also)
+
+    def render(self, mode, read, write, table, figures, computation=()):
+        """-render, after :meth:`done` (the one place of the drivers' -render): refused with -resume or -force (the
+        record file is read, not written) and with any of the options ``computation`` (they define what the file
+        holds); then ``records = read()`` (the file -output, every rank), the outputs prepared, the options
+        checked (:meth:`check_unused`: -check stops there) and ``write(records)`` (the table and the figure)."""
+        if mode != "new":
+            raise RecordFileError("-render reads -output and writes only -table and the figure: give it without "
+                                  "-resume or -force")
+        given = [name for name in computation if self.db.hasName(name)]
+        if given:
+            raise ParameterError(f"-{given[0]}", self.db.getString(given[0], ""), "-render takes the computation "
+                                 "from the file -output: give no option that defines it (-"
+                                 + ", -".join(computation) + ")")
+        records = read()
+        prepare_outputs(PETSc.COMM_WORLD, table, figures=figures)
+        self.check_unused()
+        write(records)
 
     def mode(self):
         """The record mode from -resume / -force: 'resume', 'force' or 'new' (both at once is an error)."""

@@ -28,7 +28,7 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
-from hertzpetsc.errors import ParameterError, RecordFileError  # noqa: E402
+from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import check_kind, load_npz, on_rank0, prepare_outputs, write_text  # noqa: E402
@@ -61,20 +61,18 @@ def main():
                          "empty)")
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/boundary_in_q.npz", "boundary-in-q file", "runs/boundary_in_q.md", "boundary_in_q.png")
-    render = opts.flag("render", "compute nothing: rewrite -table and the figure from the file -output")
+    render = opts.render_flag()
     opts.done()
     comm = PETSc.COMM_WORLD
     zmap = read_map(map_path, comm) if map_path else None
     if render:
-        if mode != "new":
-            raise RecordFileError("-render reads -output and writes only -table and the figure: give it without "
-                                  "-resume or -force")
-        z = on_rank0(comm, lambda: _read(output), what="boundary-in-q file")
-        if zmap is not None:
-            check_same_chain(zmap, z["alpha"], z["delta0"], map_path)
-        prepare_outputs(comm, table_path, figures=figures)
-        opts.check_unused()
-        write_figure_and_table(comm, z, zmap, table_path, figures)
+        def read():
+            z = on_rank0(comm, lambda: _read(output), what="boundary-in-q file")
+            if zmap is not None:
+                check_same_chain(zmap, z["alpha"], z["delta0"], map_path)
+            return z
+        opts.render(mode, read, lambda z: write_figure_and_table(comm, z, zmap, table_path, figures), table_path,
+                    figures)
         return
     if zmap is not None:
         check_same_chain(zmap, alpha, delta0, map_path)

@@ -31,36 +31,11 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import load_npz, prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.compacton_dynamics import CompactonDynamics  # noqa: E402
 from hertzpetsc.studies.compacton_pairs import CompactonPairs  # noqa: E402
-from hertzpetsc.studies.compacton_stability import STABILITY_FORMAT  # noqa: E402
 
 ROLES = CompactonDynamics.ROLES
-
-
-def stability_records(path, alpha, qs, comm):
-    """The records of the stability file at alpha and each q (ParameterError naming what the file has)."""
-    from hertzpetsc.records import check_kind, on_rank0
-
-    def read():
-        data = load_npz(path, "compacton stability file")
-        check_kind(data, path, STABILITY_FORMAT, "compacton stability file")
-        return {k: data[k] for k in ("alpha", "q", "gap", "residual", "iterations", "dominant", "state")}
-    data = on_rank0(comm, read, what=f"cannot read compacton stability file {path!r}")
-    out = []
-    for q in qs:
-        hit = [i for i in range(len(data["q"])) if abs(data["alpha"][i] - alpha) < 1e-9 and
-               abs(data["q"][i] - q) <= 1e-9 * max(q, 1e-3)]
-        if not hit:
-            have = sorted({round(float(a), 4) for a in data["alpha"]})
-            qa = sorted(float(x) for a, x in zip(data["alpha"], data["q"]) if abs(a - alpha) < 1e-9)
-            raise ParameterError("-q", q, f"the stability file has no compacton there (alpha in {have}; at alpha = "
-                                          f"{alpha:g}: {len(qa)} q" + (f" in [{qa[0]:.6g}, {qa[-1]:.6g}])" if qa
-                                                                      else ")"))
-        out.append({k: data[k][hit[0]] for k in data})
-    return out
 
 
 def main():
@@ -94,9 +69,8 @@ def main():
     prepare_outputs(comm, table, pairs_table, figures=figures)
     dyn = None
     if qs:
-        records = stability_records(stability, alpha, qs, comm)
-        dyn = CompactonDynamics(records, LatticeModel.hertz(alpha), comm, output, mode, N, n0, travel, amplitude,
-                                kinds, source=stability)
+        dyn = CompactonDynamics.from_stability(stability, alpha, qs, comm, output, mode, N=N, n0=n0, travel=travel,
+                                               amplitude=amplitude, kinds=kinds)
     pairs = None
     if pairs_q:
         if len(pairs_q) > 1:

@@ -41,7 +41,7 @@ from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.errors import ParameterError, RecordFileError  # noqa: E402
+from hertzpetsc.errors import RecordFileError  # noqa: E402
 from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MAP_FORMAT_V2, MapParameters, StabilityMap, TESTS,  # noqa: E402
                                      check_comparable, compare_v1, map_format, map_table, map_v1_as_v2, read_map)
 from hertzpetsc.studies.precompression import amplitude_grid  # noqa: E402
@@ -85,24 +85,15 @@ def main():
         "precompression_map.png")
     compare = opts.path("compare", "", "a map of kind hertzpetsc-precompression-map-1 to compare the verdicts with "
                         "(none if empty)")
-    render = opts.flag("render", "compute nothing: rewrite -table and the figure from the file -output (either kind)")
+    render = opts.render_flag(" (either kind)")
     opts.done()
     comm = PETSc.COMM_WORLD
     if compare and map_format(compare, comm) != MAP_FORMAT_V1:
         raise RecordFileError(f"-compare {compare!r}: not a stability map of kind {MAP_FORMAT_V1}")
     if render:
-        if mode != "new":
-            raise RecordFileError("-render reads -output and writes only -table and the figure: give it without "
-                                  "-resume or -force")
-        given = [name for name in COMPUTATION if opts.db.hasName(name)]
-        if given:
-            raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "-render takes the computation "
-                                 "from the file -output: give no option that defines it (-"
-                                 + ", -".join(COMPUTATION) + ")")
-        z = read_map(output, comm)
-        prepare_outputs(comm, table_path, figures=figures)
-        opts.check_unused()
-        write_figure_and_table(comm, z, table_path, figures, compare)
+        opts.render(mode, lambda: read_map(output, comm),
+                    lambda z: write_figure_and_table(comm, z, table_path, figures, compare), table_path, figures,
+                    COMPUTATION)
         return
     if mode == "resume" and map_format(output, comm) in (MAP_FORMAT_V1, MAP_FORMAT_V2):
         before = ("the route before issue 23 ({}, no located boundary)" if map_format(output, comm) == MAP_FORMAT_V1

@@ -34,16 +34,11 @@ slepc4py.init(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
-from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
-from hertzpetsc.records import on_rank0, prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
-from hertzpetsc.waves import fits_chain  # noqa: E402
-from hertzpetsc.studies.floquet import floquet_reference  # noqa: E402
-from hertzpetsc.studies.slow import (TARGET, SlowInstabilityScan, comoving_validation,  # noqa: E402
-                                     convergence_table, orbit_convergence, validation_table)
+from hertzpetsc.records import prepare_outputs  # noqa: E402
+from hertzpetsc.studies.slow import TARGET, SlowInstabilities, SlowInstabilityScan  # noqa: E402
 
 
 def main():
@@ -87,19 +82,10 @@ def main():
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)
     branch = Branch.load(branch_path, comm)
-    if not qs:
-        qs = [q for q in branch.q if q >= q_min * (1 - 1e-12)]
-        if not qs:
-            raise ParameterError("-q_min", q_min, f"must not exceed the branch's largest q = {max(branch.q):.6g}")
-    for q in convergence if n_twist else ():
-        if not fits_chain(q, N):
-            raise ParameterError("-convergence_q", q, f"must list chain wavenumbers 2 pi m / N, N = {N}")
-    refined = None if refined_path == "none" else RefinedStates.load(refined_path, comm)
-    # the validation's reference is read now: a missing one is an error before any computation, not a table of nan
-    reference_rho = (on_rank0(comm, floquet_reference, reference, branch.alpha, N, what="cannot read -reference")
-                     if validate and reference != "none" else None)
-    scan = SlowInstabilityScan(branch, branch_path, N, comm, output, mode, qs, refined, grids, n_theta, n_twist,
-                               refine_tol, IntegrationTolerances(rtol=rtol, atol=rtol / 100), target, theta_lw)
+    study = SlowInstabilities(branch, branch_path, N, comm, output, mode, qs, q_min, refined_path, convergence,
+                              validate, reference, refine_tol, rtol, n_twist, grids=grids, n_theta=n_theta,
+                              target=target, theta_longwave=theta_lw)
+    scan = study.scan
     opts.check_unused()
     scan.open()
     print0(f"# alpha = {branch.alpha}, {len(scan.qs)} q, grids {grids}, n_theta {n_theta}, n_twist {n_twist}")
@@ -110,20 +96,7 @@ def main():
         g = " ".join(f"{v:9.1e}" for v in r["gamma_cm"])
         print0(f"  {r['q']:8.5f} {r['m']:3d} {g:>30} {r['gamma_mono']:10.1e} {r['raw_cluster_mono']:11.1e} "
                f"{r['E_orbit']:8.1e} {r['verdict']:7d} {r['seconds']:6.1f}")
-    text = scan.run_to_table(table_path, show)        # on a stop: the table of the records done
-    scan.destroy()
-    if convergence and n_twist:
-        print0("# orbit residual and flow tolerance at q = " + ", ".join(f"{q:.5f}" for q in convergence))
-        settings = [("as given", None, 1e-14), ("refined", refine_tol * 100, 1e-12), ("refined", refine_tol, rtol)]
-        rows = on_rank0(comm, orbit_convergence, branch, convergence, N, refined, settings, PETSc.COMM_SELF,
-                        n_twist, what="orbit convergence")
-        text += "\n" + convergence_table(rows)
-    if validate and reference != "none":
-        print0("# validation of the co-moving route at q = " + ", ".join(f"{q:.5f}" for q in validate))
-        rows = on_rank0(comm, comoving_validation, branch, validate, N, reference_rho, what="co-moving validation")
-        text += "\n" + validation_table(rows, N)
-    if convergence and n_twist or validate and reference != "none":
-        write_text(table_path, text, comm)
+    text = study.run_to_table(table_path, show)        # the scan, then the checks appended to its table
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting
         print("wrote " + plotting.plot_slow_instabilities(scan.store.records, target, branch.alpha, figures,

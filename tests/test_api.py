@@ -109,3 +109,31 @@ def test_a_study_checks_its_mode_when_built(tmp_path):
     with pytest.raises(ParameterError, match="invalid mode = 'bogus': must be one of new, resume, force"):
         hz.WaveStudy(params, comm=COMM, output=str(tmp_path / "w.npz"), mode="bogus")
     assert not (tmp_path / "w.npz").exists()
+
+
+def test_plot_spectrum_leaves_pyplot_alone_and_returns_the_figure():
+    """hz.plot_spectrum makes its figure without pyplot: a notebook's current figure and figure list stay as they
+    were (it opened a pyplot figure, which became the current one); it returns the Figure (shown as a notebook
+    cell's value), whose axes hold the multipliers and the unit circle; with ``ax`` it draws on the caller's axes
+    and returns their figure. ``.figure.savefig`` (the tutorial's call) works on what it returns."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure
+    mine = plt.figure()
+    before = plt.get_fignums()
+    mu = np.array([1.1, 1 / 1.1, np.exp(0.3j), np.exp(-0.3j)])
+    try:
+        fig = hz.plot_spectrum(mu, title="test")
+        assert isinstance(fig, Figure) and fig.figure is fig and len(fig.axes) == 1
+        assert plt.get_fignums() == before and plt.gcf() is mine and not mine.axes
+        ax = fig.axes[0]
+        assert ax.get_title() == "test"
+        circle, points = ax.lines
+        assert np.allclose(np.hypot(circle.get_xdata(), circle.get_ydata()), 1.0)
+        assert np.array_equal(points.get_xdata(), mu.real) and np.array_equal(points.get_ydata(), mu.imag)
+        theirs = Figure().subplots()
+        assert hz.plot_spectrum(mu, ax=theirs) is theirs.figure and len(theirs.lines) == 2
+        assert plt.get_fignums() == before and plt.gcf() is mine
+    finally:
+        plt.close(mine)

@@ -29,7 +29,7 @@ SURFACE = {"hertzpetsc", "hertzpetsc.api", "hertzpetsc.compat"}
 
 # where print() may be called: the library's console lines, the drivers' -help / check: / error: lines
 REPORTING = {"hertzpetsc.console", "hertzpetsc.options"}
-# where matplotlib may be imported: the figures, and api.plot_spectrum on the caller's axes
+# where matplotlib may be imported: the figures, and api.plot_spectrum (a Figure, or the caller's axes)
 PLOTTING = {"hertzpetsc.plotting", "hertzpetsc.api"}
 # where sys.argv may be read, and why
 ARGV = {"hertzpetsc.start": "the drivers' first call: PETSc started with the command line",

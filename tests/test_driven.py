@@ -574,18 +574,65 @@ def test_a_study_stopped_by_an_error_writes_the_table_of_its_records(monkeypatch
 
 def test_grid_mode_takes_the_natural_algorithm_it_is_given():
     """In grid mode a continuation.Natural given as the algorithm is the one stepping (here a corrector limit no
-    step can meet: the curve stops after the first response, with its note), the default Natural otherwise."""
+    step can meet: no grid value is reached after the first response, an error naming the values not computed),
+    the default Natural otherwise."""
+    from hertzpetsc.continuation import ContinuationError
     drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
     out = []
     for algorithm in (Natural(max_corrector=1e-14, max_halvings=1), None):
         study = ResponseCurve(ResponseParameters(drive, "omega", 0.6, grid=(0.55, 0.6), algorithm=algorithm,
                                                  run_in=5, samples=0), COMM)
+        recs = []
         try:
-            out.append((len(list(study.run())), study.ended))
+            for rec in study.run():
+                recs.append(rec)
+        except ContinuationError as err:
+            recs.append(err)
         finally:
             study.destroy()
-    assert out[0][0] == 1 and "omega = 0.6" in out[0][1]
-    assert out[1] == (3, None)
+        out.append((recs, study.ended))
+    (first, err), ended = out[0]
+    assert float(first["p"]) == 0.5 and isinstance(err, ContinuationError) and str(err) == ended
+    assert "omega = 0.55, 0.6 (2 of the 2 grid values) not computed" in ended and "last converged omega = 0.5" in ended
+    assert len(out[1][0]) == 3 and out[1][1] is None
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_a_grid_that_reaches_none_of_its_values_is_an_error_not_an_empty_table(tmp_path, ranks):
+    """driven_response.py -mode grid whose steps reach no grid value (a corrector limit no step meets): exit 3 with
+    one error line on every rank naming the values not computed, the table of the records done (the first response)
+    with the failure below it; it exited 0 with a table of no rows."""
+    r = run_script("driven_response.py", "-N", 3, "-delta0", 1, "-gamma", 0.1, "-amplitude", 0.05, "-omega", 0.5,
+                   "-mode", "grid", "-points", 3, "-p_end", 0.6, "-grid_max_corrector", 1e-14, "-run_in", 5,
+                   "-samples_per_period", 0, "-output", tmp_path / "g.npz", "-table", tmp_path / "g.md",
+                   ranks=ranks, timeout=120, cwd=tmp_path)
+    line = one_error_line(r)
+    assert r.returncode == 3 and "grid mode" in line and "omega = 0.55, 0.6 (2 of the 2 grid values) not computed" \
+        in line and "last converged omega = 0.5" in line
+    table = (tmp_path / "g.md").read_text()
+    assert "; 1 records." in table and "Stopped before the end: grid mode" in table
+
+
+def test_a_first_response_not_found_says_what_was_tried_and_what_may_help():
+    """The sonic vacuum of 10 beads at omega = 0.1, a = 0.5 has no periodic response that the run-in reaches (its
+    motion after the run-in is not periodic: ||P(X) - X|| / scale stays about 3e-2): Newton stalls (reason -8). The
+    error (exit status 3) names the frequency, the run-in and its residual, and what may find a response; it said
+    only 'did not converge (reason -8)'."""
+    from hertzpetsc.errors import ConvergenceError
+    drive = Drive(LatticeModel.hertz(1.5, gamma=0.05), 10, HarmonicWave(), 0.5, 0.1)
+    study = ResponseCurve(ResponseParameters(drive, "omega", 0.6, run_in=50, samples=0), COMM)
+    try:
+        with pytest.raises(ConvergenceError) as caught:
+            list(study.run())
+    finally:
+        study.destroy()
+    msg = str(caught.value)
+    assert caught.value.exit_status == 3 and "\n" not in msg
+    assert msg.startswith("no periodic response of 1 driving period found at omega = 0.1:")
+    assert "after 50 driving periods from rest" in msg and "run_in" in msg and "periods" in msg
+    residual = float(msg.split("||P(X) - X|| / scale = ")[1].split(";")[0])
+    assert residual > 1e-3                  # far above the shooting tolerance: the run-in did not settle
 
 
 def test_driven_studies_follow_the_study_protocol():

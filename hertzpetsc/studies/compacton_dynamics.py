@@ -22,8 +22,9 @@ from ..errors import ParameterError, check_integer, check_real
 from ..model import ChainSpec, LatticeModel
 from ..resources import chain_seconds, check_chain_memory, check_work
 from ..options import inserted_options
+from ..records import check_kind, load_npz, on_rank0
 from .base import Study
-from .compacton_stability import exact_compacton, fmt_multiplier, q_text
+from .compacton_stability import STABILITY_FORMAT, exact_compacton, fmt_multiplier, q_text
 
 DYNAMICS_FORMAT = "hertzpetsc-compacton-dynamics-1"
 DYNAMICS_PREFIX = "cdyn_"
@@ -39,6 +40,28 @@ def dynamics_integrator(chain, tolerances=DYNAMICS_TOLERANCES, prefix=DYNAMICS_P
     the few moving beads through. The default is inserted for this set-up only (a given value wins)."""
     with inserted_options(prefix, {"ts_adapt_wnormtype": "INFINITY"}):
         return ChainIntegrator(chain, tolerances, prefix)
+
+
+def stability_records(path: str, alpha: float, qs: Sequence[float], comm: PETSc.Comm) -> list[dict]:
+    """The records of the compacton stability file ``path`` at ``alpha`` and each of ``qs`` (read on rank 0; a
+    ParameterError naming -q and what the file has where it has no compacton)."""
+    def read():
+        data = load_npz(path, "compacton stability file")
+        check_kind(data, path, STABILITY_FORMAT, "compacton stability file")
+        return {k: data[k] for k in ("alpha", "q", "gap", "residual", "iterations", "dominant", "state")}
+    data = on_rank0(comm, read, what=f"cannot read compacton stability file {path!r}")
+    out = []
+    for q in qs:
+        hit = [i for i in range(len(data["q"])) if abs(data["alpha"][i] - alpha) < 1e-9 and
+               abs(data["q"][i] - q) <= 1e-9 * max(q, 1e-3)]
+        if not hit:
+            have = sorted({round(float(a), 4) for a in data["alpha"]})
+            qa = sorted(float(x) for a, x in zip(data["alpha"], data["q"]) if abs(a - alpha) < 1e-9)
+            raise ParameterError("-q", q, f"the stability file has no compacton there (alpha in {have}; at alpha = "
+                                          f"{alpha:g}: {len(qa)} q" + (f" in [{qa[0]:.6g}, {qa[-1]:.6g}])" if qa
+                                                                      else ")"))
+        out.append({k: data[k][hit[0]] for k in data})
+    return out
 
 
 DYN_FIELDS = ("q", "kind", "mu3", "rate", "rate_first", "rate_last",
@@ -91,6 +114,17 @@ class CompactonDynamics(Study):
         chain = WindowChain(ChainSpec(model, self.N, "free"), self.comm, 0.0)
         self.chain, self.integ = chain, dynamics_integrator(chain, tolerances)
         self.SHAPES = dict({k: (self.travel + 1,) for k in ("rest", "a", "b", "dist")}, deviation=(self.travel + 1, M))
+
+    @classmethod
+    def from_stability(cls, path: str, alpha: float, qs: Sequence[float], comm: Optional[PETSc.Comm] = None,
+                       output: Optional[str] = None, mode: str = "new", N: int = 2100, n0: int = 50,
+                       travel: int = 1000, amplitude: float = 1e-8,
+                       kinds: Sequence[str] = ("mode", "noise")) -> CompactonDynamics:
+        """The study of the exact compactons of the stability file ``path`` at ``alpha`` and ``qs``
+        (:func:`stability_records`; the file's content is part of the identity)."""
+        comm = comm if comm is not None else PETSc.COMM_WORLD
+        return cls(stability_records(path, alpha, qs, comm), LatticeModel.hertz(alpha), comm, output, mode, N, n0,
+                   travel, amplitude, kinds, source=path)
 
     def constants(self) -> dict:
         return dict(alpha=self.alpha, N=self.N, n0=self.n0, travel=self.travel, amplitude=self.amplitude,

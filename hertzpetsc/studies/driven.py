@@ -54,7 +54,7 @@ from __future__ import annotations
 import json
 import math
 from dataclasses import MISSING, dataclass, fields
-from typing import TYPE_CHECKING, Any, Iterator, Optional, Sequence, overload
+from typing import TYPE_CHECKING, Any, Collection, Iterator, Optional, Sequence, overload
 
 import numpy as np
 from petsc4py import PETSc
@@ -168,6 +168,25 @@ _DRIVE_ROLE = ("Newton on P(X) - X and the state flow", ("snes", "ts"))
 # The tables' sentence on units (every driven table's header).
 UNITS = ("Units: those of eq. nc (the masses as given, 1 by default, and the contact force (delta0 - r)_+^alpha with "
          "coefficient 1): omega in radians per time unit, the driving period 2 pi / omega")
+
+
+class ResponseNotFound(ContinuationError):
+    """No periodic response where a study needs one (a :class:`~hertzpetsc.continuation.ContinuationError`, exit
+    status 3): the failure ``err`` with what was tried and what may help, in one line (``last``: the last response
+    found, nan if none)."""
+
+    def __init__(self, message: str, err: ConvergenceError) -> None:
+        self.what, self.reason, self.where = err.what, err.reason, err.where
+        self.last, self.failed = getattr(err, "last", math.nan), getattr(err, "failed", math.nan)
+        RuntimeError.__init__(self, message)
+
+    def as_option(self, options: Collection[str]) -> ResponseNotFound:
+        """The same error naming the driver's options: ``(run_in)`` as ``(-run_in)`` where it has that option."""
+        message = str(self)
+        for name in ("run_in", "periods"):
+            if name in options:
+                message = message.replace(f"({name})", f"(-{name})")
+        return ResponseNotFound(message, self)
 
 
 class DrivenStudy(Study):
@@ -300,15 +319,17 @@ class ResponseCurve(DrivenStudy):
 
     Arclength (no ``grid``): the layer's pseudo-arclength (``algorithm``), through folds, with folds, period
     doublings and Neimark-Sacker points located and each confirmed by the multipliers on both sides; grid: natural
-    steps to each value of ``grid`` (every target recorded; events bracketed between grid points). The first
-    response: Newton from rest after ``run_in`` driving periods (0: from rest). ``switch``: steps taken on the
+    steps to each value of ``grid`` (every target recorded; events bracketed between grid points; a value not
+    reached ends the run with a :class:`ResponseNotFound` naming the values not computed, the records before it
+    kept). The first response: Newton from rest after ``run_in`` driving periods (0: from rest; not found: a
+    :class:`ResponseNotFound` with the run-in's residual). ``switch``: steps taken on the
     period-doubled branch from each confirmed period doubling (branch switching). Solver prefixes: ``drive_`` (SNES
     and state flow), ``floquet_`` (tangent flow, EPS). Records: module docstring."""
 
     Parameters = ResponseParameters
     FORMAT, FIELDS = RESPONSE_FORMAT, RESPONSE_FIELDS
-    ended = None                   # why the continuation stopped before p_end, when it did (also said in a note)
-    stop = None                    # and the ContinuationError that stopped it
+    ended = None                   # why the continuation stopped before p_end, when it did (arclength: also said in
+    stop = None                    # a note; grid: the error raised) and the ContinuationError that stopped it
     DTYPES = {"branch": np.int64, "periods": np.int64, "event": np.int64, "confirmed": np.int64,
               "iterations": np.int64, "outside": np.int64, "multipliers": complex}
     ROLES = {"drive_": ("Newton on P(X) - X (bordered) and the state flow", ("snes", "ts")),
@@ -453,8 +474,12 @@ class ResponseCurve(DrivenStudy):
                 if self.run_in:
                     x = prob.run_in(x, self.run_in)
                 Z = prob.pack(x)
-                point = cont.start(Z)
-                Z.destroy()
+                try:
+                    point = cont.start(Z)
+                except ConvergenceError as err:
+                    raise self._no_first_response(err, prob, x, p_start) from None
+                finally:
+                    Z.destroy()
                 previous = self._record(prob, point, 0)
                 self._append(previous, cont)
                 yield previous
@@ -469,12 +494,11 @@ class ResponseCurve(DrivenStudy):
     def _grid(self, cont, previous, targets):
         prob = self.problem
         mu_prev = previous["multipliers"]
-        for p in targets:
+        for i, p in enumerate(targets):
             try:
                 point = cont.step_to(p)
             except ContinuationError as err:
-                self._stopped(err)
-                return
+                self._grid_stopped(err, targets[i:])
             rec = self._record(prob, point, 0)
             mu = point.report.get("multipliers", rec["multipliers"])
             kind = crossing(mu_prev, mu)
@@ -593,6 +617,30 @@ class ResponseCurve(DrivenStudy):
         finally:
             chord.destroy()
         return spectra
+
+    def _no_first_response(self, err, prob, x, p):
+        """The error of a first response not found (exit status 3), in one line: the failure ``err`` at the start
+        ``p``, the run-in's residual at its state ``x`` (large: the motion has not settled to a periodic one) and
+        what may find a response."""
+        try:
+            residual = f"{prob.residual(x):.1e}"
+        except ConvergenceError:
+            residual = "not measured (its flow failed)"
+        k = prob.periods
+        return ResponseNotFound(
+            f"no periodic response of {k} driving period{'s' if k > 1 else ''} found at {self.parameter} = {p:g}: "
+            f"{err} (Newton from the state after {self.run_in} driving periods from rest, where ||P(X) - X|| / "
+            f"scale = {residual}; a motion that has not settled to a periodic one keeps it large: more run-in "
+            "periods (run_in), a response of several driving periods (periods), or another start may find one)", err)
+
+    def _grid_stopped(self, err, missing):
+        """A grid that could not reach its values ``missing`` (the records before them are kept): the error that
+        ends the run (exit status 3), naming them; also :attr:`ended` and :attr:`stop`."""
+        values = ", ".join(f"{v:g}" for v in missing)
+        self.ended = (f"grid mode: the responses at {self.parameter} = {values} ({len(missing)} of the "
+                      f"{len(self.grid)} grid values) not computed: {err}")
+        self.stop = ResponseNotFound(self.ended, err)
+        raise self.stop from None
 
     def _stopped(self, err):
         """Everything up to the last point was recorded; the curve ends there (e.g. the response is lost): say so

@@ -49,7 +49,7 @@ from __future__ import annotations
 
 import math
 import time
-from typing import TYPE_CHECKING, Iterator, Mapping, Optional, Sequence
+from typing import TYPE_CHECKING, Callable, Iterator, Mapping, Optional, Sequence
 
 import numpy as np
 from petsc4py import PETSc
@@ -420,3 +420,65 @@ def convergence_table(rows):
                      f"{r['E_short']:.1e} | {r['raw']:.1e} | {math.sqrt(r['E_short']):.1e} | {r['gamma']:.1e} | "
                      f"{r['eig']:.1e} |")
     return "\n".join(lines) + "\n"
+
+
+# --- the scan with the checks appended to its table, as scripts/slow_instabilities.py runs it -------------------------
+class SlowInstabilities:
+    """The driver's run: the :class:`SlowInstabilityScan` of ``qs`` (empty: every branch q >= ``q_min``), then on
+    rank 0 the monodromy route against the orbit's residual and the flow's tolerance at the chain wavenumbers
+    ``convergence`` (:func:`orbit_convergence`, when ``n_twist``; the state as given, refined to 100 refine_tol at
+    rtol 1e-12, and to refine_tol at ``rtol``) and the co-moving route against rho(F_q) of the Floquet file
+    ``reference`` at ``validate`` (:func:`comoving_validation`; 'none': not run), both appended to the scan's table.
+    The inputs are read and checked when it is built (``refined``: a refinement file or 'none'), before any
+    computation; the other parameters are the scan's."""
+
+    def __init__(self, branch: Branch, branch_path: str, N: int, comm: PETSc.Comm, output: Optional[str],
+                 mode: str, qs: Sequence[float], q_min: float, refined: str, convergence: Sequence[float],
+                 validate: Sequence[float], reference: str, refine_tol: float = 1e-12, rtol: float = 1e-14,
+                 n_twist: int = 3, grids: Sequence[int] = (1000, 2000, 4000), n_theta: int = 41,
+                 target: float = TARGET, theta_longwave: float = 0.05) -> None:
+        from ..records import on_rank0
+        from .floquet import floquet_reference
+        from .refinement import RefinedStates
+        if not qs:
+            qs = [q for q in branch.q if q >= q_min * (1 - 1e-12)]
+            if not qs:
+                raise ParameterError("-q_min", q_min, f"must not exceed the branch's largest q = {max(branch.q):.6g}")
+        for q in convergence if n_twist else ():
+            if not fits_chain(q, N):
+                raise ParameterError("-convergence_q", q, f"must list chain wavenumbers 2 pi m / N, N = {N}")
+        self.refined = None if refined == "none" else RefinedStates.load(refined, comm)
+        # the validation's reference is read now: a missing one is an error before any computation, not a table of nan
+        self.reference_rho = (on_rank0(comm, floquet_reference, reference, branch.alpha, N, what="cannot read "
+                                       "-reference") if validate and reference != "none" else None)
+        self.branch, self.N, self.comm = branch, N, comm
+        self.convergence = list(convergence) if n_twist else []
+        self.validate = list(validate) if reference != "none" else []
+        self.settings = [("as given", None, 1e-14), ("refined", refine_tol * 100, 1e-12), ("refined", refine_tol, rtol)]
+        self.n_twist = n_twist
+        self.scan = SlowInstabilityScan(branch, branch_path, N, comm, output, mode, qs, self.refined,
+                                        refine_tol=refine_tol, tolerances=IntegrationTolerances(rtol=rtol,
+                                                                                                atol=rtol / 100),
+                                        n_twist=n_twist, grids=grids, n_theta=n_theta, target=target,
+                                        theta_longwave=theta_longwave)
+
+    def run_to_table(self, path: str, show: Optional[Callable[[dict], None]] = None) -> str:
+        """The scan (:func:`~hertzpetsc.studies.base.run_to_table`), its solvers freed, then the appended checks;
+        the table written to ``path`` and returned. Collective."""
+        from ..console import print0
+        from ..records import on_rank0, write_text
+        text = self.scan.run_to_table(path, show)        # on a stop: the table of the records done
+        self.scan.destroy()
+        if self.convergence:
+            print0("# orbit residual and flow tolerance at q = " + ", ".join(f"{q:.5f}" for q in self.convergence))
+            rows = on_rank0(self.comm, orbit_convergence, self.branch, self.convergence, self.N, self.refined,
+                            self.settings, PETSc.COMM_SELF, self.n_twist, what="orbit convergence")
+            text += "\n" + convergence_table(rows)
+        if self.validate:
+            print0("# validation of the co-moving route at q = " + ", ".join(f"{q:.5f}" for q in self.validate))
+            rows = on_rank0(self.comm, comoving_validation, self.branch, self.validate, self.N, self.reference_rho,
+                            what="co-moving validation")
+            text += "\n" + validation_table(rows, self.N)
+        if self.convergence or self.validate:
+            write_text(path, text, self.comm)
+        return text

@@ -6,6 +6,8 @@ precompression, mass pattern) in its fixed-amplitude form (u_c = a w_c, lam = om
   linear wave (a -> 0), with the gap opening (the largest bond length reaching delta0, so that contact is lost
   somewhere in the wave) located as an event of the layer; :func:`uncompressed_limit`: the delta0 / a = 0 wave on
   the same grid (the paper's wave rescaled).
+* :class:`WavenumberFamily`: the waves at a fixed amplitude continued in q (natural steps) from the amplitude
+  family's wave at a first q.
 * :class:`MassFamily`: a dimer's waves at fixed q and a, continued in the mass m_1 = epsilon by pseudo-arclength
   (through folds, which the layer detects).
 * :func:`wave_at`: the wave of a given model at a given (q, A = max |u|), A imposed as a border row;
@@ -324,6 +326,45 @@ class AmplitudeFamily(ContinuationUse):
         ``tests``), each with its ``event`` and ``bracket``."""
         return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket)
                 for cp in self.continuation.take_events()]
+
+
+class WavenumberFamily(ContinuationUse):
+    """Travelling waves of ``model`` at a fixed amplitude ``a`` (``measure`` 'a1': the first sine coefficient, 'sup':
+    A = max |u|), continued in the wavenumber q by the layer's natural algorithm (secant predictor, step halving up
+    to ``max_halvings``) from the wave at ``q_start``, itself reached from the linear wave by an
+    :class:`AmplitudeFamily` (any law with V''(0) > 0). One SNES under ``prefix``."""
+
+    def __init__(self, model: LatticeModel, a: float, grid: ProfileGrid, q_start: float,
+                 prefix: str = PRECOMP_PREFIX, branch: str = "acoustic", measure: str = "a1",
+                 solver: Optional[str] = None, max_halvings: int = 6) -> None:
+        fam = AmplitudeFamily(model, q_start, grid, prefix, branch, measure=measure, solver=solver)
+        try:
+            self.first = fam.step_to(a)
+            normalised = fam.problem.normalised
+        finally:
+            fam.destroy()
+        self.model, self.grid, self.a = model, grid, self.first.a
+        self._use(FamilyProblem(model, grid, self.first.q, amplitude=self.a, measure=measure, normalised=normalised,
+                                parameter="q"), prefix, solver, Natural(max_halvings=max_halvings))
+        Z = self.problem.pack(self.first.profiles, self.first.lam, parameter=self.first.q)
+        try:
+            self.continuation.start(Z)
+        finally:
+            Z.destroy()
+
+    def step_to(self, q: float) -> AmplitudePoint:
+        """The wave at wavenumber q (in (0, pi], at least one grid step), by natural steps from the last one."""
+        q = check_wavenumber(q, self.grid.h)
+        try:
+            cp = self.continuation.step_to(q)
+        except ContinuationError as err:
+            raise ConvergenceError("wavenumber continuation", err.reason, a=self.a, q=err.failed) from None
+        return self.problem.located(cp, cp.parameter)
+
+    def points(self, wavenumbers: Iterable[float]) -> Iterator[AmplitudePoint]:
+        """Yield the waves at the wavenumbers ``wavenumbers`` in the order given."""
+        for q in wavenumbers:
+            yield self.step_to(q)
 
 
 def uncompressed_limit(model: LatticeModel, q: float, grid: ProfileGrid, start: AmplitudePoint,

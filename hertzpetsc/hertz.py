@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -106,7 +107,7 @@ class HertzLaw(InteractionLaw):
         return replace(self, delta0=self.delta0 / check_scale(a))
 
     @property
-    def separation(self):
+    def separation(self) -> Optional[float]:
         """delta0: a bond that long has lost contact (None without precompression: every bond at r >= 0 has)."""
         return self.delta0 if self.delta0 > 0.0 else None
 
@@ -116,7 +117,7 @@ class HertzLaw(InteractionLaw):
         return self.delta0
 
     @property
-    def kernel_form(self):
+    def kernel_form(self) -> Optional[str]:
         """'hertz' (the compiled right-hand side evaluates this law) unless a subclass redefines V, V', V'' or the
         contact mask."""
         cls = type(self)

@@ -219,6 +219,14 @@ class LatticeModel:
         return cls(law_from_description(description), tuple(description.get("masses", (1.0,))),
                    Damping(description.get("gamma", 0.0), description.get("eta", 0.0)))
 
+    def law_identity(self) -> dict:
+        """The law's keys in the identity of a record file that names alpha and delta0 (the precompressed families'):
+        those two, as Hertz files always had them, and for any other law its description too (name, parameters), so
+        that its file reopens as that law (:meth:`from_description`)."""
+        out = dict(alpha=self.alpha, delta0=self.delta0)
+        law = self.law.describe()
+        return out if "law" not in law else dict(out, **law)
+
     def describe(self) -> dict:
         """The model as plain data (for record identities and file metadata); delta0 and damping only when
         nonzero, so that the identities of the uncompressed chain's records are unchanged."""

@@ -211,3 +211,46 @@ def test_small_amplitude_limit_of_every_law(model):
     assert 1.9 < order < 2.1
     assert abs(extrapolated - lin) <= 2 * abs(C) * a ** 2 * lin + h4 + 1e-13
     assert abs(extrapolated - lin * (1 + C * a ** 2)) <= h4 + 1e-3 * abs(C) * a ** 2 * lin + 1e-13
+
+
+def test_a_wave_file_of_any_law_reopens_as_that_law(tmp_path):
+    """The wave study's file holds the model's description: LatticeModel.from_description of its constants is the
+    Toda chain it was computed for; a resume with another b is refused naming b, one with the Hertz law naming
+    the law."""
+    from hertzpetsc.records import load_npz
+    from hertzpetsc.errors import RecordFileError
+    from hertzpetsc.studies.wave import WaveParameters, WaveStudy
+    model = LatticeModel(TodaLaw(1.3, 0.7))
+    path = str(tmp_path / "toda.npz")
+    params = WaveParameters(model, (2 * math.pi / 5,), 0.3, 64, 10, tol=1e-9)
+    (row,) = list(WaveStudy(params, COMM, path).run())
+    assert row["E_refined"] <= 1e-9 and row["rho"] == pytest.approx(1.0, abs=1e-6)
+    data = load_npz(path, "wave file")
+    constants = {k: data[k].item() if data[k].ndim == 0 else data[k].tolist() for k in data}
+    assert LatticeModel.from_description(constants) == model
+    assert constants["law"] == "toda"
+    WaveStudy(params, COMM, path, mode="resume").open()
+    with pytest.raises(RecordFileError, match="b = 0.7 there, 0.5 requested"):
+        WaveStudy(WaveParameters(model.with_parameter("b", 0.5), (2 * math.pi / 5,), 0.3, 64, 10, tol=1e-9), COMM,
+                  path, mode="resume").open()
+
+
+def test_a_hertz_file_is_not_resumed_as_another_law(tmp_path):
+    from hertzpetsc.errors import RecordFileError
+    from hertzpetsc.studies.wave import WaveParameters, WaveStudy
+    path = str(tmp_path / "hertz.npz")
+    hertz = LatticeModel.hertz(1.5, delta0=1.0)
+    list(WaveStudy(WaveParameters(hertz, (2 * math.pi / 5,), 0.3, 64, 10), COMM, path).run())
+    toda = LatticeModel(TodaLaw(1.5, 1.0))
+    with pytest.raises(RecordFileError, match="law = 'toda' requested, where the file has none"):
+        WaveStudy(WaveParameters(toda, (2 * math.pi / 5,), 0.3, 64, 10), COMM, path, mode="resume").open()
+
+
+def test_a_branch_file_holds_its_model(tmp_path):
+    """A branch of another model than the uncompressed monatomic Hertz chain stores its description and reopens as
+    it; the paper's chain's branch file has no such entry (its identity unchanged)."""
+    from hertzpetsc.branch import Branch
+    plain = Branch(LatticeModel.hertz(2.0), 16, 4)
+    assert "model" not in plain.constants()
+    other = Branch(LatticeModel(TodaLaw(1.3, 0.7)), 16, 4)
+    assert LatticeModel.from_description(__import__("json").loads(other.constants()["model"])) == other.model

@@ -254,3 +254,48 @@ def test_a_branch_file_holds_its_model(tmp_path):
     assert "model" not in plain.constants()
     other = Branch(LatticeModel(TodaLaw(1.3, 0.7)), 16, 4)
     assert LatticeModel.from_description(__import__("json").loads(other.constants()["model"])) == other.model
+
+
+WRONG_LAW_SCRIPT = '''
+import sys
+from hertzpetsc.start import init_petsc
+init_petsc(sys.argv)
+from dataclasses import dataclass
+import numpy as np
+import hertzpetsc as hz
+from hertzpetsc.law import InteractionLaw
+from hertzpetsc.options import guarded_main
+
+
+@dataclass(frozen=True)
+class Halved(InteractionLaw):
+    name = "halved"
+    k: float = 2.0
+
+    def V(self, r):
+        return 0.5 * self.k * np.asarray(r, float) ** 2
+
+    def dV(self, r):
+        return 0.5 * self.k * np.asarray(r, float)
+
+    def d2V(self, r):
+        return 0.5 * self.k + 0 * np.asarray(r, float)
+
+
+guarded_main(lambda: hz.wave(hz.LatticeModel(Halved()), 2 * np.pi / 5, 0.1, 10, cells_per_pi=32))
+'''
+
+
+@pytest.mark.serial
+def test_a_script_with_a_law_whose_force_and_potential_disagree_ends_in_one_error_line(tmp_path):
+    """Under mpiexec -n 2: one `error:` line naming the law, status 2 (a ParameterError), no traceback."""
+    import subprocess
+    import sys
+    from conftest import one_error_line, script_env
+    path = tmp_path / "wrong_law.py"
+    path.write_text(WRONG_LAW_SCRIPT)
+    result = subprocess.run(["timeout", "120", "mpiexec", "-n", "2", sys.executable, str(path)], capture_output=True,
+                            text=True, env=script_env(), cwd=tmp_path)
+    line = one_error_line(result)
+    assert result.returncode == 2
+    assert "invalid law = {'law': 'halved', 'k': 2.0}" in line and "force V' disagrees" in line, line

@@ -2,6 +2,7 @@
 kernel form, the consistency check and the registry by name; the Toda lattice's cnoidal waves against the whole wave
 pipeline; the linear limit of every law."""
 import math
+import os
 from dataclasses import dataclass
 
 import numpy as np
@@ -227,8 +228,9 @@ def test_a_wave_file_of_any_law_reopens_as_that_law(tmp_path):
     from hertzpetsc.records import load_npz
     from hertzpetsc.errors import RecordFileError
     from hertzpetsc.studies.wave import WaveParameters, WaveStudy
+    from conftest import shared_tmp
     model = LatticeModel(TodaLaw(1.3, 0.7))
-    path = str(tmp_path / "toda.npz")
+    path = os.path.join(shared_tmp(tmp_path), "toda.npz")
     params = WaveParameters(model, (2 * math.pi / 5,), 0.3, 64, 10, tol=1e-9)
     (row,) = list(WaveStudy(params, COMM, path).run())
     assert row["E_refined"] <= 1e-9 and row["rho"] == pytest.approx(1.0, abs=1e-6)
@@ -245,7 +247,8 @@ def test_a_wave_file_of_any_law_reopens_as_that_law(tmp_path):
 def test_a_hertz_file_is_not_resumed_as_another_law(tmp_path):
     from hertzpetsc.errors import RecordFileError
     from hertzpetsc.studies.wave import WaveParameters, WaveStudy
-    path = str(tmp_path / "hertz.npz")
+    from conftest import shared_tmp
+    path = os.path.join(shared_tmp(tmp_path), "hertz.npz")
     hertz = LatticeModel.hertz(1.5, delta0=1.0)
     list(WaveStudy(WaveParameters(hertz, (2 * math.pi / 5,), 0.3, 64, 10), COMM, path).run())
     toda = LatticeModel(TodaLaw(1.5, 1.0))

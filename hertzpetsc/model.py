@@ -11,8 +11,11 @@ with a :class:`Harmonic`, :class:`SampledSignal` or :class:`FunctionSignal`).
 
 Every consumer (the advance-delay problem, the solitary wave, the chain's right-hand side, Jacobian, tangent flow
 and energy balance, the waves) takes one of these and asks it for forces, stiffnesses, energies, damping and
-masses. Adding a law or a term is a change in this module (and the law's own) and nowhere else; the model also
-knows the closed forms of its linear waves (:meth:`LatticeModel.linear_frequencies`).
+masses. Adding a law is a file of its own (:mod:`hertzpetsc.law`: the protocol; the law's parameters are the
+model's continuation parameters, :meth:`LatticeModel.with_parameter`); adding a term is a change in this module and
+nowhere else. The model also knows the closed forms of its linear waves (:meth:`LatticeModel.linear_frequencies`)
+and rebuilds itself from its description (:meth:`LatticeModel.from_description`: record files reopen with their
+model).
 """
 from __future__ import annotations
 

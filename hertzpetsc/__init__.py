@@ -27,12 +27,13 @@ compat.install()           # the old import paths of moved and renamed names (he
 # module (relative to the package) -> the names it defines that the package exports
 _MODULES = {
     # the lattice model (numpy only)
-    "law": "InteractionLaw", "hertz": "HertzLaw",
+    "law": "InteractionLaw", "hertz": "HertzLaw", "toda": "TodaLaw", "fpu": "FPULaw",
     "model": "LatticeModel ChainSpec Damping Actuator Harmonic SampledSignal FunctionSignal",
     # travelling waves: the advance-delay problem, branches, families
     "grid": "ProfileGrid", "advdelay": "AdvanceDelayProblem", "branch": "Branch BranchPoint",
     "qbranch": "BranchContinuation ContinuationParameters",
-    "families": "AmplitudeFamily MassFamily AmplitudePoint FamilyFold uncompressed_limit wave_of_amplitude",
+    "families": "AmplitudeFamily WavenumberFamily MassFamily AmplitudePoint FamilyFold uncompressed_limit "
+                "wave_of_amplitude",
     # the continuation layer
     "continuation": "Continuation ContinuationProblem Natural PseudoArclength ContinuationPoint",
     # the chain, its flows and orbits

@@ -22,7 +22,8 @@ constants and the reference translation u' (zero at an exact solution). Two form
   A = max |u|, the quantity the tables print). w and lam stay O(1) from the linear wave to the uncompressed one.
 
 The problem is a :class:`~hertzpetsc.continuation.ContinuationProblem`: ``parameter`` names the continuation
-parameter (q, omega, a, log_a, delta0, alpha, or a mass m0, m1, ... ; ``epsilon`` is m1), the last entry of the
+parameter (q, omega, a, log_a, any parameter of the law by name (Hertz: delta0, alpha), or a mass m0, m1, ... ;
+``epsilon`` is m1), the last entry of the
 extended vector Z = (X, p). With the parameter fixed the SNES works on X alone (the fast path of the q-branch);
 otherwise on Z with the continuation layer's row appended (pseudo-arclength). The parameter's column dF/dp is exact
 for omega and the masses, a finite difference otherwise. Solvers: :mod:`hertzpetsc.twsolver` (SNES prefix ``tw_``,
@@ -227,7 +228,7 @@ class AdvanceDelayProblem(ContinuationProblem):
         self.stencils = None
         self._assembler = None
         self._set_q(q)
-        have = ["q", "delta0", "alpha"] + (["a", "log_a"] if self.bordered else ["omega"]) + \
+        have = ["q"] + list(model.parameters) + (["a", "log_a"] if self.bordered else ["omega"]) + \
             [f"m{c}" for c in range(self.p)] + (["epsilon"] if self.p > 1 else [])
         if parameter not in have:
             raise ParameterError("parameter", parameter, "this travelling-wave problem continues in one of "
@@ -271,9 +272,9 @@ class AdvanceDelayProblem(ContinuationProblem):
             self._set_amplitude(value)
         elif name == "log_a":
             self._set_amplitude(math.exp(value))
-        else:                                       # the model: delta0, alpha or a mass
-            if name in ("delta0", "alpha"):
-                self.model = self.model.with_delta0(value) if name == "delta0" else self.model.with_alpha(value)
+        else:                                       # the model: a parameter of the law, or a mass
+            if name in self.model.parameters:
+                self.model = self.model.with_parameter(name, value)
             else:
                 masses = list(self.masses)
                 masses[1 if name == "epsilon" else int(name[1:])] = value
@@ -288,8 +289,8 @@ class AdvanceDelayProblem(ContinuationProblem):
             return self.amplitude
         if name == "log_a":
             return math.log(self.amplitude)
-        if name in ("delta0", "alpha"):
-            return getattr(self.model, name)
+        if name in self.model.parameters:
+            return float(self.model.parameter(name))
         return float(self.masses[1 if name == "epsilon" else int(name[1:])])
 
     # --- layout: X = (profiles, [lam]), Z = (X, parameter) ------------------------------------------------------
@@ -667,9 +668,8 @@ class AdvanceDelayProblem(ContinuationProblem):
         if not self.bordered:
             raise ParameterError("amplitude", None, "the linear wave starts the fixed-amplitude form")
         K = self.lattice.law.linear_stiffness
-        if not K > 0:
-            raise ParameterError("delta0", self.model.delta0, "the linear wave needs a linear stiffness V''(0) > 0 "
-                                 "(a precompression > 0)")
+        self.lattice.require_linear_stiffness("the linear wave needs a linear stiffness V''(0) > 0 (a precompression "
+                                              "> 0)")
         check_branch(self.model, self.q, branch)
         import scipy.linalg
         g, p = self.grid, self.p

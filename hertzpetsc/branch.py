@@ -34,9 +34,12 @@ snes_reason        (P,)         PETSc converged reason
 substeps           (P,)         continuation sub-steps used to reach q from the previous point (1 = no reduction)
 wall_time          (P,)         seconds spent on this point
 meta               ()           JSON string: software versions, ranks, options, creation time
+model              ()           JSON string: the model's description (LatticeModel.describe: law by name, its
+                                parameters, masses, damping); absent for the uncompressed monatomic Hertz chain
 =================  ===========  ==================================================================
 
-A resumed file must have the same alpha, cells_per_pi and M (its identity).
+A resumed file must have the same alpha, cells_per_pi and M (and model, where it has one): its identity. The file
+reopens with its model (:meth:`Branch.load`).
 """
 from __future__ import annotations
 
@@ -182,10 +185,16 @@ class Branch:
         """q_k where F(q_k) = 1 (paper: q_k ~ 1.8)."""
         return crossing(self.q, self.column("F"), 1.0)
 
+    def model_entry(self) -> dict:
+        """{'model': the model's description as JSON} for any model but the uncompressed monatomic Hertz chain, whose
+        files hold its alpha alone (as they always did); empty for it."""
+        plain = self.model.describe() == {"alpha": self.alpha, "masses": [1.0]}
+        return {} if plain else dict(model=json.dumps(self.model.describe(), sort_keys=True))
+
     def constants(self) -> dict:
         """The per-file entries of the branch file (its identity among them)."""
         return dict(alpha=self.alpha, cells_per_pi=self.cells_per_pi, h=self.h, M=self.M, xi=self.xi,
-                    meta=json.dumps(self.meta))
+                    meta=json.dumps(self.meta), **self.model_entry())
 
     @classmethod
     def load(cls, path: str, comm: Optional[PETSc.Comm] = None, min_points: int = 1) -> Branch:
@@ -210,7 +219,12 @@ class Branch:
             meta = json.loads(str(data["meta"]))
         except ValueError:
             raise RecordFileError(f"branch file {path!r} is corrupt: unreadable meta") from None
-        branch = cls(LatticeModel.hertz(float(data["alpha"])), int(data["cells_per_pi"]), int(data["M"]), [], meta)
+        try:
+            model = LatticeModel.from_description(json.loads(str(data["model"]))) if "model" in data else \
+                LatticeModel.hertz(float(data["alpha"]))
+        except (ValueError, ParameterError) as err:
+            raise RecordFileError(f"branch file {path!r} holds a model that cannot be rebuilt: {err}") from None
+        branch = cls(model, int(data["cells_per_pi"]), int(data["M"]), [], meta)
         rows = [{k: data[k][i] for k in POINT_FIELDS + ("u",)} for i in range(P)]
         branch.points = [BranchPoint.from_record(r, branch.h, branch.model) for r in rows]
         branch.path = path
@@ -224,5 +238,5 @@ def branch_store(path, branch, comm, mode):
     if path is None:
         return MemoryRecords(BRANCH_FORMAT, branch.constants(), POINT_FIELDS + ("u",), comm, **layout)
     return NpzRecords(path, BRANCH_FORMAT, branch.constants(),
-                      dict(alpha=branch.alpha, cells_per_pi=branch.cells_per_pi, M=branch.M),
+                      dict(alpha=branch.alpha, cells_per_pi=branch.cells_per_pi, M=branch.M, **branch.model_entry()),
                       POINT_FIELDS + ("u",), comm, mode, what="branch file", **layout)

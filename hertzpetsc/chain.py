@@ -97,9 +97,9 @@ class Chain:
         self._take(spec)
         self._shift = None
         self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
-        # the compiled right-hand side: the Hertz law and this class's ghost rows (any other law, or a subclass that
-        # redefines the ghost rows or the right-hand side, evaluates in numpy)
-        compiled = type(self.model.law) is HertzLaw and type(self)._ghosted is Chain._ghosted \
+        # the compiled right-hand side: a law it evaluates exactly (the law says so: Hertz's form) and this class's
+        # ghost rows (any other law, or a subclass that redefines the ghost rows or the right-hand side, in numpy)
+        compiled = self.model.law.kernel_form == "hertz" and type(self)._ghosted is Chain._ghosted \
             and type(self).rhs_reference is Chain.rhs_reference
         lib = kernels.library() if compiled else None
         self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None

@@ -6,6 +6,8 @@ precompression, mass pattern) in its fixed-amplitude form (u_c = a w_c, lam = om
   linear wave (a -> 0), with the gap opening (the largest bond length reaching delta0, so that contact is lost
   somewhere in the wave) located as an event of the layer; :func:`uncompressed_limit`: the delta0 / a = 0 wave on
   the same grid (the paper's wave rescaled).
+* :class:`WavenumberFamily`: the waves at a fixed amplitude continued in q (natural steps) from the amplitude
+  family's wave at a first q.
 * :class:`MassFamily`: a dimer's waves at fixed q and a, continued in the mass m_1 = epsilon by pseudo-arclength
   (through folds, which the layer detects).
 * :func:`wave_at`: the wave of a given model at a given (q, A = max |u|), A imposed as a border row;
@@ -43,19 +45,22 @@ def check_amplitude(a, name="amplitude"):
     return check_real(name, a, "the wave amplitude", 0.0)
 
 
-# The largest first amplitude of a family, in units of delta0: it starts from the linear wave, the limit a << delta0.
+# The largest first amplitude of a family, in units of the law's reference amplitude (Hertz: delta0): it starts from
+# the linear wave, the limit a << delta0.
 START_MAX = 0.1
 
 
 def amplitude_floor(model):
     """The smallest amplitude (a or A) at which a family of the precompressed ``model`` keeps its amplitude:
-    delta0 max(sqrt(eps), eps^(1/(2(d-1)))), d the law's degree. Below sqrt(eps) delta0, omega / omega_lin - 1 =
+    delta0 max(sqrt(eps), eps^(1/(2(d-1)))), d the law's degree, delta0 its reference amplitude (the second term only
+    for d > 1: a law without a scaling (d = 1) keeps lam = omega^2). Below sqrt(eps) delta0, omega / omega_lin - 1 =
     C a^2 (C ~ (d-1)^2 / (4 delta0^2)) is below round-off: omega is the linear one whatever a. Below
     eps^(1/(2(d-1))) delta0 the rescaled law's stiffness, hence lam = omega^2 a^(1-d) ~ (delta0 / a)^(d-1), exceeds
     1/sqrt(eps): the Newton's stopping tolerance, scaled by lam max(lam, ||w||_inf) (the round-off floor,
     :func:`~hertzpetsc.twsolver.default_tolerances`), then accepts the predictor itself (omega off by the step)."""
     eps = float(np.finfo(float).eps)
-    return model.delta0 * max(math.sqrt(eps), eps ** (1.0 / (2.0 * (model.law.scale_degree - 1.0))))
+    d = model.law.scale_degree
+    return model.reference_amplitude * max(math.sqrt(eps), eps ** (1.0 / (2.0 * (d - 1.0))) if d > 1 else 0.0)
 
 
 def amplitude_ceiling(model):
@@ -83,13 +88,16 @@ def check_family_amplitude(model, a, name="amplitude", start=False):
     """a (> 0, finite) must be at least :func:`amplitude_floor`, and, for the ``start`` of a family from the linear
     wave, at most START_MAX delta0, else at most :func:`amplitude_ceiling`; ``name`` is used in errors."""
     a = check_amplitude(a, name)
-    lo, hi = amplitude_floor(model), (START_MAX * model.delta0 if start else math.inf)
+    ref = model.reference_amplitude
+    lo, hi = amplitude_floor(model), (START_MAX * ref if start else math.inf)
     if not lo <= a <= hi:
-        floor = (f"at least delta0 max(sqrt(eps), eps^(1/(2(alpha-1)))) = {lo:.3g} (delta0 = {model.delta0:g}; "
-                 "below, the amplitude is lost in floating point)")
+        d0 = "delta0" if "delta0" in model.parameters else "r0"
+        floor = (f"at least {d0} max(sqrt(eps), eps^(1/(2(alpha-1)))) = {lo:.3g} ({d0} = {ref:g}"
+                 f"{'' if d0 == 'delta0' else ', the law reference amplitude'}; below, the amplitude is lost in "
+                 "floating point)")
         if start:
             raise ParameterError(name, a, f"the first amplitude of a family must lie in [{lo:.3g}, {hi:.3g}]: at most "
-                                 f"{START_MAX:g} delta0 (it starts from the linear wave, a << delta0) and {floor}")
+                                 f"{START_MAX:g} {d0} (it starts from the linear wave, a << {d0}) and {floor}")
         raise ParameterError(name, a, f"the wave amplitude must be {floor}")
     return check_wave_amplitude(model, a, name, lo)
 
@@ -161,13 +169,14 @@ class FamilyProblem(AdvanceDelayProblem):
     """The fixed-amplitude advance-delay problem with the family's test function (the gap indicator) and report."""
 
     def gap(self, profiles):
-        """max bond length - delta0 over the wave (in units of u = a w): 2 u(q/2) - delta0 for a monatomic odd
-        wave (the bond across xi = 0 is the longest); for a pattern the refined maximum of tau_q u_{c+1} - u_c."""
+        """max bond length - delta0 over the wave (in units of u = a w; delta0: the law's ``separation``): 2 u(q/2)
+        - delta0 for a monatomic odd wave (the bond across xi = 0 is the longest); for a pattern the refined maximum of
+        tau_q u_{c+1} - u_c."""
         a = self.amplitude if math.isfinite(self.amplitude) else 1.0
         h = self.grid.h
         if self.p == 1:
             w_half_q = float(lagrange_periodic(full_period(profiles[0]), h, np.array([self.q / 2]))[0])
-            return 2 * a * w_half_q - self.model.delta0
+            return 2 * a * w_half_q - self.model.law.separation
         longest = -math.inf
         xi = np.arange(2 * self.grid.K) * h
         whole = [w if self.full else full_period(w) for w in profiles]
@@ -178,7 +187,7 @@ class FamilyProblem(AdvanceDelayProblem):
             a3 = r[[(j - 1) % len(r), j, (j + 1) % len(r)]]
             curv = a3[0] - 2 * a3[1] + a3[2]
             longest = max(longest, a3[1] - (a3[0] - a3[2]) ** 2 / (8 * curv) if curv < 0 else a3[1])
-        return a * longest - self.model.delta0
+        return a * longest - self.model.law.separation
 
     # the caller's tests: a function of the AmplitudePoint returning {name: function of no argument} (values read
     # when the layer needs them, :class:`~hertzpetsc.continuation.LazyTests`)
@@ -187,7 +196,8 @@ class FamilyProblem(AdvanceDelayProblem):
     def test_functions(self, Z):
         self.set_parameter(self.parameter, self._scalars(Z)[-1])
         point = self.point(Z, 0)
-        functions = {"gap": lambda: point.gap} if self.model.delta0 > 0 and math.isfinite(self.amplitude) else {}
+        functions = {"gap": lambda: point.gap} if self.model.law.separation is not None and \
+            math.isfinite(self.amplitude) else {}
         if self.extra_tests is not None:
             functions.update(self.extra_tests(point))
         return LazyTests(functions)
@@ -211,7 +221,8 @@ class FamilyProblem(AdvanceDelayProblem):
         omega = self._omega_from(lam)
         return AmplitudePoint(q=self.q, a=a, A=a * norm, omega=omega,
                               Omega=math.sqrt(max(lam, 0.0)) * norm ** (-(d - 1) / 2), lam=lam,
-                              gap=self.gap(prof) if self.model.delta0 > 0 else math.inf, profiles=tuple(prof),
+                              gap=self.gap(prof) if self.model.law.separation is not None else math.inf,
+                              profiles=tuple(prof),
                               iterations=iterations, m1=float(self.masses[1]) if self.p > 1 else 1.0,
                               normalised=self.normalised)
 
@@ -243,9 +254,8 @@ class AmplitudeFamily(ContinuationUse):
                  tests: Optional[Callable[[AmplitudePoint], dict]] = None, bisect: Sequence[str] = (),
                  locate_step: Optional[float] = None, max_step: Optional[float] = None,
                  max_corrector: Optional[float] = None, around_folds: int = AROUND_FOLDS) -> None:
-        if not model.law.linear_stiffness > 0:
-            raise ParameterError("delta0", model.delta0, "the amplitude family starts from the linear wave: it needs "
-                                 "a precompression > 0")
+        model.require_linear_stiffness("the amplitude family starts from the linear wave: it needs a precompression "
+                                       "> 0")
         self.model, self.grid, self.branch = model, grid, branch
         problem = FamilyProblem(model, grid, q, amplitude=1.0, measure=measure, parameter="log_a")
         self.q = problem.q
@@ -265,7 +275,7 @@ class AmplitudeFamily(ContinuationUse):
         a = check_amplitude(a_target)
         if not self.continuation.history:
             check_family_amplitude(self.model, a, "a")
-            a0 = min(a, START_MAX * self.model.delta0)     # the linear wave is a guess for a << delta0 only
+            a0 = min(a, START_MAX * self.model.reference_amplitude)     # the linear wave: a guess for a << delta0
             self.problem.set_parameter("a", a0)
             prof, lam = self.problem.linear_guess(self.branch)
             Z = self.problem.pack(prof, lam, parameter=math.log(a0))
@@ -318,6 +328,45 @@ class AmplitudeFamily(ContinuationUse):
                 for cp in self.continuation.take_events()]
 
 
+class WavenumberFamily(ContinuationUse):
+    """Travelling waves of ``model`` at a fixed amplitude ``a`` (``measure`` 'a1': the first sine coefficient, 'sup':
+    A = max |u|), continued in the wavenumber q by the layer's natural algorithm (secant predictor, step halving up
+    to ``max_halvings``) from the wave at ``q_start``, itself reached from the linear wave by an
+    :class:`AmplitudeFamily` (any law with V''(0) > 0). One SNES under ``prefix``."""
+
+    def __init__(self, model: LatticeModel, a: float, grid: ProfileGrid, q_start: float,
+                 prefix: str = PRECOMP_PREFIX, branch: str = "acoustic", measure: str = "a1",
+                 solver: Optional[str] = None, max_halvings: int = 6) -> None:
+        fam = AmplitudeFamily(model, q_start, grid, prefix, branch, measure=measure, solver=solver)
+        try:
+            self.first = fam.step_to(a)
+            normalised = fam.problem.normalised
+        finally:
+            fam.destroy()
+        self.model, self.grid, self.a = model, grid, self.first.a
+        self._use(FamilyProblem(model, grid, self.first.q, amplitude=self.a, measure=measure, normalised=normalised,
+                                parameter="q"), prefix, solver, Natural(max_halvings=max_halvings))
+        Z = self.problem.pack(self.first.profiles, self.first.lam, parameter=self.first.q)
+        try:
+            self.continuation.start(Z)
+        finally:
+            Z.destroy()
+
+    def step_to(self, q: float) -> AmplitudePoint:
+        """The wave at wavenumber q (in (0, pi], at least one grid step), by natural steps from the last one."""
+        q = check_wavenumber(q, self.grid.h)
+        try:
+            cp = self.continuation.step_to(q)
+        except ContinuationError as err:
+            raise ConvergenceError("wavenumber continuation", err.reason, a=self.a, q=err.failed) from None
+        return self.problem.located(cp, cp.parameter)
+
+    def points(self, wavenumbers: Iterable[float]) -> Iterator[AmplitudePoint]:
+        """Yield the waves at the wavenumbers ``wavenumbers`` in the order given."""
+        for q in wavenumbers:
+            yield self.step_to(q)
+
+
 def uncompressed_limit(model: LatticeModel, q: float, grid: ProfileGrid, start: AmplitudePoint,
                        prefix: str = PRECOMP_PREFIX) -> dict:
     """The delta0 / a = 0 wave on ``grid`` from the AmplitudePoint ``start`` (a large-amplitude wave of the family,
@@ -363,8 +412,7 @@ class MassFamily(ContinuationUse):
                  solver: Optional[str] = None) -> None:
         if model.cell != 2:
             raise ParameterError("masses", list(model.masses), "must be a pattern of two masses (a dimer)")
-        if not model.law.linear_stiffness > 0:
-            raise ParameterError("delta0", model.delta0, "the dimer family is computed for a precompression > 0")
+        model.require_linear_stiffness("the dimer family is computed for a precompression > 0")
         self.model, self.grid, self.q, self.a = model, grid, check_wavenumber(q, grid.h), check_amplitude(a)
         self.prefix, self.branch, self.solver_kind = prefix, branch, solver
         self._use(FamilyProblem(model, grid, q, amplitude=self.a, parameter="epsilon"), prefix, solver,
@@ -450,7 +498,7 @@ def wave_at(model: LatticeModel, q: float, A: float, grid: ProfileGrid, prefix: 
     A = check_family_amplitude(model, A, "A")
     fam = AmplitudeFamily(model, q, grid, prefix, branch, measure="sup", solver=solver)
     try:
-        a0 = min(max(a_start * model.delta0, amplitude_floor(model)), A)
+        a0 = min(max(a_start * model.reference_amplitude, amplitude_floor(model)), A)
         n = max(1, int(math.ceil((math.log(A) - math.log(a0)) / ds)))
         return list(fam.points(np.geomspace(a0, A, n + 1)))[-1]
     finally:
@@ -460,12 +508,13 @@ def wave_at(model: LatticeModel, q: float, A: float, grid: ProfileGrid, prefix: 
 def wave_of_amplitude(model: LatticeModel, q: float, A: float, grid: ProfileGrid, prefix: str = PRECOMP_PREFIX,
                       branch: str = "acoustic") -> tuple[BranchPoint, float]:
     """The wave of any ``model`` at per-bead wavenumber q and amplitude A = max_c ||u_c||_inf, as (``BranchPoint``,
-    scale) for :func:`~hertzpetsc.waves.orbit_on_chain` (``scale=``): with precompression, :func:`wave_at` (A
+    scale) for :func:`~hertzpetsc.waves.orbit_on_chain` (``scale=``): with a linear stiffness V''(0) > 0
+    (precompression; Toda, FPU), :func:`wave_at` (A
     imposed, the point at its physical amplitude, scale 1); without (eq. ad is scale-invariant), the q-branch from
     the binary oscillation continued to q on ``grid`` (steps pi / round(pi / q)), scaled by A / ||u||_inf.
     Collective over the grid's communicator."""
     A = check_wave_amplitude(model, A, "A")
-    if model.delta0 > 0:
+    if model.law.linear_stiffness > 0:
         return wave_at(model, q, A, grid, prefix, branch).branch_point(model, grid.h), 1.0
     from .qbranch import BranchContinuation, ContinuationParameters
     cont = BranchContinuation(ContinuationParameters(model=model, M=max(1, round(math.pi / q)),

@@ -6,7 +6,8 @@ of :mod:`hertzpetsc.law`; :class:`hertzpetsc.model.LatticeModel` puts it togethe
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -85,6 +86,7 @@ class HertzLaw(InteractionLaw):
     law and evaluates exactly as before. The closed forms below (W, c_alpha, period, p0) are those of delta0 = 0.
     """
 
+    name = "hertz"
     alpha: float = 1.5
     delta0: float = 0.0
 
@@ -101,8 +103,26 @@ class HertzLaw(InteractionLaw):
         """r -> a^(-alpha) V'(a r), in closed form: the same exponent with the precompression delta0 / a (a = inf:
         the uncompressed limit delta0 / a = 0)."""
         if a == math.inf:
-            return HertzLaw(self.alpha, 0.0)
-        return HertzLaw(self.alpha, self.delta0 / check_scale(a))
+            return replace(self, delta0=0.0)
+        return replace(self, delta0=self.delta0 / check_scale(a))
+
+    @property
+    def separation(self) -> Optional[float]:
+        """delta0: a bond that long has lost contact (None without precompression: every bond at r >= 0 has)."""
+        return self.delta0 if self.delta0 > 0.0 else None
+
+    @property
+    def reference_amplitude(self) -> float:
+        """delta0: the amplitude at which contact is lost (0 for the uncompressed chain, which has no scale)."""
+        return self.delta0
+
+    @property
+    def kernel_form(self) -> Optional[str]:
+        """'hertz' (the compiled right-hand side evaluates this law) unless a subclass redefines V, V', V'' or the
+        contact mask."""
+        cls = type(self)
+        same = all(getattr(cls, n) is getattr(HertzLaw, n) for n in ("V", "dV", "d2V", "contact"))
+        return "hertz" if same else None
 
     def stokes_coefficient(self, q: ArrayLike) -> np.ndarray:
         """C(q) in omega / omega_lin - 1 = C(q) a^2 + O(a^4) for the monatomic precompressed chain (a: first sine
@@ -114,6 +134,16 @@ class HertzLaw(InteractionLaw):
         s2 = np.sin(np.asarray(q, dtype=float) / 2) ** 2
         return (self.alpha - 1) * (self.alpha - 1 - s2) / (4 * self.delta0 ** 2)
 
+    @property
+    def taylor(self) -> tuple:
+        """(V''(0), V'''(0)/2, V''''(0)/6) = alpha delta0^(alpha-1) (1, -(alpha-1)/(2 delta0),
+        (alpha-1)(alpha-2)/(6 delta0^2)) (a subclass with derivatives of its own: differences of its V'')."""
+        if self.kernel_form is None or not self.delta0 > 0:
+            return InteractionLaw.taylor.fget(self)
+        a, d = self.alpha, self.delta0
+        K = a * d ** (a - 1)
+        return K, -K * (a - 1) / (2 * d), K * (a - 1) * (a - 2) / (6 * d * d)
+
     def contact(self, r: ArrayLike) -> np.ndarray:
         """Bonds in contact (r < 0) for the uncompressed law, whose V' and V'' vanish elsewhere; every bond with
         precompression (V' = delta0^alpha once contact is lost)."""
@@ -122,12 +152,18 @@ class HertzLaw(InteractionLaw):
         return np.asarray(r) < 0.0
 
     def describe(self) -> dict:
-        """alpha, and delta0 when nonzero (so that the uncompressed chain's record identities are unchanged)."""
+        """alpha, and delta0 when nonzero (so that the uncompressed chain's record identities are unchanged; no
+        ``law`` key: a description without one is Hertz's); a subclass with a name of its own adds it."""
+        if type(self).name != "hertz":
+            return InteractionLaw.describe(self)
         return dict(alpha=self.alpha, **({"delta0": self.delta0} if self.delta0 > 0.0 else {}))
 
     @property
     def linear_stiffness(self) -> float:
-        """K = V''(0) = alpha delta0^(alpha-1) (0 for the uncompressed chain)."""
+        """K = V''(0) = alpha delta0^(alpha-1) (0 for the uncompressed chain); a subclass with derivatives of its
+        own: its V''(0)."""
+        if self.kernel_form is None:
+            return InteractionLaw.linear_stiffness.fget(self)
         return self.alpha * self.delta0 ** (self.alpha - 1.0)
 
     # --- V and its derivatives (eq. vhertz); H(-x) makes them vanish for x >= 0 (no contact) ---

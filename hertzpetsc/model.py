@@ -11,8 +11,11 @@ with a :class:`Harmonic`, :class:`SampledSignal` or :class:`FunctionSignal`).
 
 Every consumer (the advance-delay problem, the solitary wave, the chain's right-hand side, Jacobian, tangent flow
 and energy balance, the waves) takes one of these and asks it for forces, stiffnesses, energies, damping and
-masses. Adding a law or a term is a change in this module (and the law's own) and nowhere else; the model also
-knows the closed forms of its linear waves (:meth:`LatticeModel.linear_frequencies`).
+masses. Adding a law is a file of its own (:mod:`hertzpetsc.law`: the protocol; the law's parameters are the
+model's continuation parameters, :meth:`LatticeModel.with_parameter`); adding a term is a change in this module and
+nowhere else. The model also knows the closed forms of its linear waves (:meth:`LatticeModel.linear_frequencies`)
+and rebuilds itself from its description (:meth:`LatticeModel.from_description`: record files reopen with their
+model).
 """
 from __future__ import annotations
 
@@ -24,8 +27,10 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .errors import ParameterError, check_integer, check_real
+from . import fpu, toda  # noqa: F401  (the package's laws, registered by name for from_description)
 from .hertz import HertzLaw
 from .law import InteractionLaw
+from .law import from_description as law_from_description
 
 BOUNDARIES = ("periodic", "free", "fixed")
 END_KINDS = ("free", "wall")
@@ -50,13 +55,14 @@ class LatticeModel:
     """Interaction law, mass pattern and damping of the infinite chain; the default is the paper's (Hertz law
     with alpha = 3/2, m_n = 1, no damping)."""
 
-    law: HertzLaw = field(default_factory=HertzLaw)
+    law: InteractionLaw = field(default_factory=HertzLaw)
     masses: tuple = (1.0,)
     damping: Damping = field(default_factory=Damping)
 
     def __post_init__(self):
         if not isinstance(self.law, InteractionLaw):
             raise ParameterError("law", self.law, "must be an InteractionLaw (V, V', V'' of a bond), e.g. HertzLaw()")
+        self.law.check_consistency()
         try:
             masses = tuple(float(x) for x in self.masses)
         except (TypeError, ValueError):
@@ -77,13 +83,40 @@ class LatticeModel:
     # --- the parameters the studies continue in (one place each) ----------------------------------------------
     @property
     def alpha(self) -> float:
-        """The law's exponent (Hertz: alpha; any law: its homogeneity degree)."""
+        """The law's parameter ``alpha`` if it has one (Hertz: its exponent), else its homogeneity degree."""
         return getattr(self.law, "alpha", self.law.scale_degree)
 
     @property
     def delta0(self) -> float:
-        """The precompression (static overlap between neighbours), 0 for the paper's chain."""
+        """The law's precompression ``delta0`` if it has one, else 0 (the paper's chain: 0)."""
         return getattr(self.law, "delta0", 0.0)
+
+    @property
+    def reference_amplitude(self) -> float:
+        """The bond length at which the law's nonlinearity is of order one (Hertz: delta0; Toda: 1/b)."""
+        return self.law.reference_amplitude
+
+    @property
+    def parameters(self) -> tuple:
+        """The law's parameters by name (each a continuation parameter)."""
+        return self.law.parameters
+
+    def parameter(self, name: str) -> float:
+        """The value of the law's parameter ``name``."""
+        return self.law.parameter(name)
+
+    def with_parameter(self, name: str, value: float) -> LatticeModel:
+        """The same lattice with the law's parameter ``name`` replaced by value (the law's own class; a law without
+        that parameter: ParameterError naming it)."""
+        return self.with_law(self.law.with_parameter(name, value))
+
+    def require_linear_stiffness(self, why: str) -> None:
+        """ParameterError unless V''(0) > 0, naming the precompression delta0 for a law that has one (Hertz), else
+        the law; ``why`` ends the message."""
+        if not self.law.linear_stiffness > 0:
+            if "delta0" in self.parameters:
+                raise ParameterError("delta0", self.delta0, why)
+            raise ParameterError("law", self.law.describe(), why.replace("a precompression > 0", "V''(0) > 0"))
 
     def with_law(self, law: InteractionLaw) -> LatticeModel:
         """The same masses and damping with another law."""
@@ -94,12 +127,14 @@ class LatticeModel:
         return LatticeModel(self.law, masses, self.damping)
 
     def with_delta0(self, delta0: float) -> LatticeModel:
-        """The same lattice with the Hertz law's precompression replaced by delta0."""
-        return self.with_law(HertzLaw(self.alpha, delta0))
+        """The same lattice with the law's precompression delta0 replaced (Hertz's; ParameterError for a law
+        without one)."""
+        return self.with_parameter("delta0", delta0)
 
     def with_alpha(self, alpha: float) -> LatticeModel:
-        """The same lattice with the Hertz law's exponent replaced by alpha."""
-        return self.with_law(HertzLaw(alpha, self.delta0))
+        """The same lattice with the law's parameter alpha replaced (Hertz's exponent; ParameterError for a law
+        without one)."""
+        return self.with_parameter("alpha", alpha)
 
     def with_damping(self, gamma: float = 0.0, eta: float = 0.0) -> LatticeModel:
         return LatticeModel(self.law, self.masses, Damping(gamma, eta))
@@ -178,6 +213,22 @@ class LatticeModel:
             B[c, (c + 1) % p] -= K * mu_plus
             B[c, (c - 1) % p] -= K * mu_minus
         return B
+
+    @classmethod
+    def from_description(cls, description: dict) -> LatticeModel:
+        """The model a :meth:`describe` dictionary describes (the law from the registry by name,
+        :func:`~hertzpetsc.law.from_description`; a description without ``law`` is the Hertz chain's); keys of
+        other objects (a chain's N, ends) are ignored."""
+        return cls(law_from_description(description), tuple(description.get("masses", (1.0,))),
+                   Damping(description.get("gamma", 0.0), description.get("eta", 0.0)))
+
+    def law_identity(self) -> dict:
+        """The law's keys in the identity of a record file that names alpha and delta0 (the precompressed families'):
+        those two, as Hertz files always had them, and for any other law its description too (name, parameters), so
+        that its file reopens as that law (:meth:`from_description`)."""
+        out = dict(alpha=self.alpha, delta0=self.delta0)
+        law = self.law.describe()
+        return out if "law" not in law else dict(out, **law)
 
     def describe(self) -> dict:
         """The model as plain data (for record identities and file metadata); delta0 and damping only when

@@ -30,7 +30,7 @@ from .continuation import ContinuationError, ContinuationUse, Natural
 from .diagnostics import point_diagnostics
 from .errors import ConvergenceError, ParameterError, check_instance, check_integer
 from .grid import ProfileGrid, check_cells_per_pi
-from .hertz import check_alpha
+from .hertz import HertzLaw, check_alpha
 from .model import LatticeModel
 from .resources import check_memory
 from .stencil import full_period, lagrange_periodic
@@ -66,6 +66,10 @@ class ContinuationParameters:
             check_instance("model", model, LatticeModel, "a LatticeModel (LatticeModel.hertz(alpha))")
             if self.alpha is not None and check_alpha(self.alpha) != model.alpha:
                 raise ParameterError("alpha", self.alpha, f"differs from the model's exponent {model.alpha}")
+        if not isinstance(model.law, HertzLaw) or model.law.kernel_form is None:
+            raise ParameterError("model", model.describe(), "the q-branch starts from the Hertz law's binary "
+                                 "oscillation (lemma binary): other laws have their waves at a given amplitude "
+                                 "(AmplitudeFamily, WavenumberFamily, wave_at)")
         if model.cell != 1 or model.delta0 != 0:
             raise ParameterError("model", model.describe(), "the q-branch (eq. ad at omega = 1 from the binary "
                                  "oscillation) is the uncompressed monatomic chain's; a precompressed chain or a mass "

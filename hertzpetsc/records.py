@@ -281,10 +281,20 @@ def _same(a, b):
     return a == b
 
 
+# identity keys whose absence from a file has a meaning: the files of the Hertz chain name no law
+ABSENT = {"law": "hertz"}
+ABSENT_WHAT = {"law": "law is Hertz's"}
+
+
 def check_identity(stored, wanted, path, names=None):
-    """Every identity key in both must agree; keys the stored file lacks (older files) are not compared. A
-    difference names the key and, where ``names`` has one, the parameter and option that set it."""
+    """Every identity key in both must agree; keys the stored file lacks (older files) are not compared, but for
+    those of :data:`ABSENT` (a file without ``law`` is of the Hertz law). A difference names the key and, where
+    ``names`` has one, the parameter and option that set it."""
     for key, value in wanted.items():
+        if key not in stored and key in ABSENT and value != ABSENT[key]:
+            raise RecordFileError(f"{given(path)} holds another computation: {key} = {value!r} requested, where the "
+                                  f"file has none (its {ABSENT_WHAT[key]}; rerun with the same model, or without "
+                                  "-resume and with -force (mode 'force' in the API) to start afresh)")
         if key in stored and not _same(stored[key], value):
             by = f", set by {names[key]}" if names and key in names else ""
             raise RecordFileError(f"{given(path)} holds another computation: {key} = {stored[key]!r} there, {value!r} "

@@ -59,7 +59,7 @@ GETATTR = {"hertzpetsc.compat", "hertzpetsc"}
 # where importlib.import_module may be called (an import the ast of imports does not see)
 DYNAMIC = {"hertzpetsc.compat", "hertzpetsc"}
 # the modules that define the laws (DESIGN.md: "nothing else constructs a law")
-LAW_MODULES = {"hertzpetsc.law", "hertzpetsc.hertz", "hertzpetsc.model"}
+LAW_MODULES = {"hertzpetsc.law", "hertzpetsc.hertz", "hertzpetsc.toda", "hertzpetsc.fpu", "hertzpetsc.model"}
 # classes of hertzpetsc/studies with run() or table() that are not studies.base.Study, and why (DESIGN.md,
 # "Studies and records": not on the protocol)
 NOT_ON_BASE = {

@@ -141,8 +141,8 @@ class AmplitudeFamilies(Study):
         p = self.params
         pattern = {} if self.model.cell == 1 and self.branch == "acoustic" else dict(
             masses=list(self.model.masses), branch=self.branch)            # monatomic files keep their identity
-        return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a_min=p.a_min,
-                    a_max=p.a_max, ds=p.ds, **pattern)
+        return dict(self.model.law_identity(), cells_per_pi=self.K, a_min=p.a_min, a_max=p.a_max, ds=p.ds,
+                    **pattern)
 
     def omega_lin(self, q: float) -> float:
         """The linear frequency of the family's branch at q (closed form, :meth:`LatticeModel.linear_frequencies`)."""
@@ -329,8 +329,8 @@ class DimerFamilies(Study):
         self.stopped = {}
 
     def constants(self) -> dict:
-        return dict(alpha=self.model.alpha, delta0=self.model.delta0, cells_per_pi=self.K, a=self.a,
-                    epsilon_end=self.epsilon_end, ds=self.ds, ds_max=self.ds_max)
+        return dict(self.model.law_identity(), cells_per_pi=self.K, a=self.a, epsilon_end=self.epsilon_end,
+                    ds=self.ds, ds_max=self.ds_max)
 
     def _row(self, q, p):
         w = p.wave

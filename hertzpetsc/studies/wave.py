@@ -3,7 +3,9 @@ mass pattern), wavenumbers q and an amplitude A = max |u|, the travelling wave (
 row), put on a periodic chain of N beads, refined by Gauss-Newton on its cell (section 3.4) and its Floquet
 multipliers modulo shift from the Bloch sectors of its cell (section 3.5), on N beads and on longer chains L N.
 
-Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues): constants alpha, delta0, masses, A,
+Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues): constants the model's description
+(:meth:`~hertzpetsc.model.LatticeModel.describe`: Hertz's alpha, delta0 when > 0; any other law its name ``law`` and
+parameters; the file's model is ``LatticeModel.from_description`` of them), masses, A,
 cells_per_pi, N, sizes (the longer chains), tol, tol_rho, solver_options; per record: q, m (wavelengths on N
 beads), omega (of the refined wave), E_profile (E(q) of the wave interpolated from the grid), E_refined, E_floor
 (where E_refined > tol: the refinement's flow's own error at the refined state, within which it was accepted;
@@ -68,10 +70,11 @@ class WaveParameters:
     def __post_init__(self):
         m = check_instance("model", self.model, LatticeModel, "a LatticeModel (LatticeModel.hertz(1.5, delta0=1))")
         m.require_conservative("a travelling wave")
-        if m.delta0 == 0 and m.cell > 1:
+        linear = m.law.linear_stiffness > 0              # the waves start from the linear wave (else: scale-invariant)
+        if not linear and m.cell > 1:
             raise ParameterError("delta0", 0.0, "a mass pattern's waves start from the linear wave: give a "
                                  "precompression > 0 (the sonic-vacuum dimer: dimer_branch.py from epsilon = 1)")
-        object.__setattr__(self, "A", check_family_amplitude(m, self.A, "A") if m.delta0 > 0 else
+        object.__setattr__(self, "A", check_family_amplitude(m, self.A, "A") if linear else
                            check_amplitude(self.A, "A"))
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         object.__setattr__(self, "N", check_integer("N", self.N, 2, hi=MAX_BEADS))

@@ -64,7 +64,7 @@ from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal, Signal
-from .tangent import MonodromyModShift, TangentFlow
+from .tangent import MonodromyModShift, TangentFlow, liouville_integral
 
 DRIVE_PREFIX = "drive_"
 # The flows of the responses: the paper's tolerances (state, residual of the shooting).
@@ -392,29 +392,39 @@ def conformal_rate(spec):
     """c with R^T J_M R = e^{-c T} J_M for the monodromy of ``spec`` (J_M the symplectic form sum_n m_n dx_n ^ dv_n):
     0 undamped, gamma / m for on-site damping with uniform masses (y = e^{-c t / 2} z makes the variational
     equation Hamiltonian); None where the flow is not conformally symplectic (dashpots between beads, on-site damping
-    with unequal masses)."""
+    with unequal masses, contact dissipation)."""
     model = spec.model
-    if model.damping.eta != 0.0 or (model.damping.gamma != 0.0 and not model.uniform_masses):
+    if model.damping.eta != 0.0 or model.damping.contact is not None or \
+            (model.damping.gamma != 0.0 and not model.uniform_masses):
         return None
     return model.damping.gamma / float(model.mass(np.arange(1))[0])
 
 
-def check_monodromy(R, spec, T, rtol, steps, where):
+def check_monodromy(R, spec, T, rtol, steps, where, trace=None):
     """The closed forms of a dense monodromy R = R(T; 0) of ``spec``, resolved to ``steps`` rtol relative in
     Frobenius norm (2N columns started as unit vectors, each step erring by at most rtol): Liouville, log det R =
     -T tr(M^-1 C) (:func:`damping_trace`), to steps rtol ||R||_F ||R^-1||_F (|tr(R^-1 dR)| <= ||R^-1||_F ||dR||_F),
     with det R > 0; and where the flow is conformally symplectic (:func:`conformal_rate`), R^T J_M R = e^{-c T}
-    J_M to 2 steps rtol ||J_M|| ||R||_F^2. A ConvergenceError naming the check, its value and its bound, at
-    ``where`` (the parameter), otherwise: the multipliers of a flow that jumped a push of the drive, or did not
-    resolve its contacts, are not the response's."""
+    J_M to 2 steps rtol ||J_M|| ||R||_F^2. With contact dissipation the damping depends on the state: no closed form
+    and no symplecticity; ``trace`` = (int_0^T tr Df dt, its error) along the orbit
+    (:func:`~hertzpetsc.tangent.liouville_integral`) replaces -T tr(M^-1 C), the bound widened by three times its
+    error. A ConvergenceError naming the check, its value and its bound, at ``where`` (the parameter), otherwise: the
+    multipliers of a flow that jumped a push of the drive, or did not resolve its contacts, are not the response's."""
     what = "the multipliers' tangent flow (prefix -floquet_)"
     sign, logdet = np.linalg.slogdet(R)
-    exact = -T * damping_trace(spec)
     norm = np.linalg.norm(R)
     bound = steps * rtol * norm * (np.linalg.norm(np.linalg.inv(R)) if sign != 0 else math.inf)
+    if spec.model.damping.contact is None:
+        exact, form = -T * damping_trace(spec), "closed form exp(-T tr(M^-1 C))"
+    elif trace is None:
+        raise ParameterError("trace", None, "the Liouville check of a chain with contact dissipation needs the "
+                             "integral of tr Df along the orbit (tangent.liouville_integral)")
+    else:
+        exact, form = trace[0], "exp(int tr Df dt) along the orbit"
+        bound += 3.0 * trace[1]
     if not (sign > 0 and abs(logdet - exact) <= bound):
-        raise ConvergenceError(what, f"Liouville: det R = {sign * math.exp(logdet) if sign else 0.0:.6g}, closed form "
-                               f"exp(-T tr(M^-1 C)) = {math.exp(exact):.6g} (log det off by "
+        raise ConvergenceError(what, f"Liouville: det R = {sign * math.exp(logdet) if sign else 0.0:.6g}, {form} = "
+                               f"{math.exp(exact):.6g} (log det off by "
                                f"{abs(logdet - exact):.2g} > {bound:.2g}, {steps} steps at rtol {rtol:.0e})", **where)
     c = conformal_rate(spec)
     if c is not None:
@@ -597,7 +607,7 @@ class PeriodicShooting(ContinuationProblem):
         # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
         self.integrator.max_steps = MAX_STEPS_PER_FLOW * self.periods
         self.X = self.chain.create_state()
-        ftol = floquet_tolerances or tolerances
+        ftol = self.floquet_tolerances = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if dense else None
         if self.dense is not None:             # R's columns start as unit vectors: R to rtol in norm
             rtol = self.tangent_rtol = self.dense.flow.integrator.ts.getTolerances()[0]
@@ -1040,8 +1050,11 @@ class PeriodicShooting(ContinuationProblem):
         if self.floquet_kind == "dense":
             R = self.monodromy(x, p)
             if self._checked != self._mono[3]:          # once per monodromy
-                check_monodromy(R, self.drive.spec(), self.T, self.tangent_rtol, self._mono[5],
-                                {self.parameter: float(p)})
+                spec = self.drive.spec()
+                trace = None if spec.model.damping.contact is None else \
+                    liouville_integral(spec, x, self.T, self.comm, self.floquet_tolerances,
+                                       self.dense.flow.integrator.ts.getOptionsPrefix())
+                check_monodromy(R, spec, self.T, self.tangent_rtol, self._mono[5], {self.parameter: float(p)}, trace)
                 self._checked = self._mono[3]
             mu = dense_multipliers(R)
         elif self.floquet_kind == "slepc":

@@ -23,6 +23,7 @@ from typing import Callable, Optional, Sequence, Union
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .dissipation import ContactDissipation
 from .errors import ParameterError, check_integer, check_real
 from .hertz import HertzLaw
 from .law import InteractionLaw
@@ -33,16 +34,26 @@ END_KINDS = ("free", "wall")
 
 @dataclass(frozen=True)
 class Damping:
-    """Linear damping of the chain: on-site ``gamma`` (force -gamma x_n') and between neighbours ``eta`` (a
-    dashpot in every bond: force eta (x_{n+1}' - 2 x_n' + x_{n-1}') on bead n). Both 0: the paper's Hamiltonian
-    chain."""
+    """Damping of the chain: linear on-site ``gamma`` (force -gamma x_n') and between neighbours ``eta`` (a
+    dashpot in every bond: force eta (x_{n+1}' - 2 x_n' + x_{n-1}') on bead n), and ``contact``, a dissipation in
+    the contacts that depends on the overlap and its rate (:class:`~hertzpetsc.dissipation.HuntCrossley`,
+    :class:`~hertzpetsc.dissipation.KuwabaraKono`; None: none). All absent: the paper's Hamiltonian chain."""
 
     gamma: float = 0.0
     eta: float = 0.0
+    contact: Optional[ContactDissipation] = None
 
     def __post_init__(self):
         for name, what in (("gamma", "the on-site damping"), ("eta", "the damping between neighbours")):
             object.__setattr__(self, name, check_real(name, getattr(self, name), what, 0.0, lo_open=False))
+        if self.contact is not None and not isinstance(self.contact, ContactDissipation):
+            raise ParameterError("contact", self.contact, "must be None or a contact dissipation (HuntCrossley(c), "
+                                 "KuwabaraKono(eta))")
+
+    @property
+    def active(self) -> bool:
+        """True when any term dissipates."""
+        return self.gamma > 0.0 or self.eta > 0.0 or self.contact is not None
 
 
 @dataclass(frozen=True)
@@ -102,7 +113,8 @@ class LatticeModel:
         return self.with_law(HertzLaw(alpha, self.delta0))
 
     def with_damping(self, gamma: float = 0.0, eta: float = 0.0) -> LatticeModel:
-        return LatticeModel(self.law, self.masses, Damping(gamma, eta))
+        """The same lattice with the linear damping gamma, eta (the contact dissipation kept)."""
+        return LatticeModel(self.law, self.masses, Damping(gamma, eta, self.damping.contact))
 
     def rescaled(self, a: float) -> LatticeModel:
         """The model whose law is r -> a^(-d) V'(a r) (:meth:`~hertzpetsc.law.InteractionLaw.rescaled`): the
@@ -127,7 +139,7 @@ class LatticeModel:
 
     @property
     def damped(self) -> bool:
-        return self.damping.gamma > 0.0 or self.damping.eta > 0.0
+        return self.damping.active
 
     # --- the forces, as every solver evaluates them ------------------------------------------------------------
     def force(self, r: ArrayLike) -> np.ndarray:
@@ -154,7 +166,7 @@ class LatticeModel:
         """ParameterError if the model is damped (for computations of the Hamiltonian chain: travelling waves)."""
         if self.damped:
             raise ParameterError("damping", (self.damping.gamma, self.damping.eta),
-                                 f"{what} needs the undamped chain (gamma = eta = 0)")
+                                 f"{what} needs the undamped chain (gamma = eta = 0, no contact dissipation)")
 
     # --- closed forms of the linear lattice ----------------------------------------------------------------
     def linear_frequencies(self, q: float) -> np.ndarray:
@@ -187,6 +199,8 @@ class LatticeModel:
         for name in ("gamma", "eta"):
             if getattr(self.damping, name) > 0.0:
                 out[name] = getattr(self.damping, name)
+        if self.damping.contact is not None:
+            out.update(self.damping.contact.describe())
         return out
 
 

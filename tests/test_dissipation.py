@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
+from conftest import run_script
 from hertzpetsc import kernels
 from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
 from hertzpetsc.dissipation import HuntCrossley, KuwabaraKono, contact_dissipation
@@ -14,6 +15,7 @@ from hertzpetsc.errors import ConvergenceError, ParameterError
 from hertzpetsc.hertz import HertzLaw
 from hertzpetsc.law import RescaledLaw
 from hertzpetsc.model import Actuator, ChainSpec, Damping, Harmonic, LatticeModel
+from hertzpetsc.studies.contacts import PulseDecay, PulseParameters, Restitution, RestitutionParameters, line_misfit
 from hertzpetsc.tangent import TangentFlow, liouville_integral
 
 COMM = PETSc.COMM_WORLD
@@ -236,3 +238,57 @@ def test_driven_response_with_contact_dissipation_dense_and_slepc_multipliers_ag
     finally:
         dense.destroy()
         mf.destroy()
+
+
+def test_restitution_converges_and_follows_the_small_dissipation_laws():
+    """e of two-bead impacts at rtol 1e-11 and 1e-9 agree to 1e-8 (converged under refinement); Hunt-Crossley:
+    (1 - e) / (c v) = 1 + O(c v) (within 2 c v); Kuwabara-Kono: (1 - e) / (C eta v^(1/5)) = 1 + O(1 - e) and the
+    exponent fitted on v = 1e-4..1e-2 within 0.005 of 1/5."""
+    hc = Restitution(RestitutionParameters("hunt-crossley", 0.1, velocities=(1e-3, 1e-2, 0.1)), COMM)
+    kk = Restitution(RestitutionParameters("kuwabara-kono", 0.05, velocities=(1e-4, 1e-3, 1e-2)), COMM)
+    for study in (hc, kk):
+        for _ in study.run():
+            pass
+        for r in study.rows():
+            assert abs(float(r["e"]) - float(r["e_coarse"])) < 1e-8
+            assert 0.0 < float(r["e"]) < 1.0
+    for r in hc.rows():
+        cv = 0.1 * float(r["v"])
+        assert abs((1 - float(r["e"])) / cv - 1.0) < 2 * cv
+    for r in kk.rows():
+        loss = 1 - float(r["e"])
+        assert abs(loss / float(r["law"]) - 1.0) < loss
+    slope, expected, _ = kk.fit()
+    assert expected == pytest.approx(0.2) and abs(slope - 0.2) < 5e-3
+    assert "fit on the three smallest v" in hc.table()
+
+
+def test_pulse_decay_law_tells_the_two_dampings_apart():
+    """A pulse on 60 beads (fit over beads 8..51): Hunt-Crossley's amplitudes make A^-1 linear in n (10 times closer
+    to a line than A^-1/5), Kuwabara-Kono's A^-1/5 (5 times closer than A^-1); the slope per unit damping is the
+    same for v0 = 1 and 0.5 to 5 % (the law's coefficient does not depend on the amplitude; the pulse's formation
+    over the first beads and O(c v) corrections make the rest)."""
+    for kind, damping, law, other in (("hunt-crossley", 0.05, -1.0, -0.2), ("kuwabara-kono", 0.02, -0.2, -1.0)):
+        study = PulseDecay(PulseParameters(kind, damping, velocities=(1.0, 0.5), N=60, skip=8), COMM)
+        rows = list(study.run())
+        n = np.arange(8, 52)
+        for r in rows:
+            A = np.asarray(r["amplitude"])
+            assert np.all(np.diff(A[8:52]) < 0)                          # decays bead after bead
+            assert line_misfit(n, A[8:52], other)[1] > 5 * line_misfit(n, A[8:52], law)[1]
+            assert float(r["misfit"]) < 2e-3
+        assert abs(float(rows[0]["slope"]) / float(rows[1]["slope"]) - 1.0) < 0.05
+        assert "decay law A^p linear in n" in study.table()
+
+
+@pytest.mark.serial
+def test_the_drivers_write_their_tables(tmp_path):
+    r = run_script("restitution.py", "-contact", "kuwabara-kono", "-damping", 0.05, "-velocities", "1e-3,1e-2",
+                   "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md")
+    assert r.returncode == 0, r.stderr
+    assert "Kuwabara-Kono eta = 0.05" in (tmp_path / "r.md").read_text()
+    r = run_script("pulse_decay.py", "-N", 16, "-skip", 3, "-velocities", 1, "-unclipped", "-output",
+                   tmp_path / "p.npz", "-table", tmp_path / "p.md")
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "p.npz") as z:
+        assert z["amplitude"].shape == (1, 16) and str(z["format"]) == "hertzpetsc-pulse-1"

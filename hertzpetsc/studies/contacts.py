@@ -22,7 +22,7 @@ across v0 at the law's p) and ``misfit`` (the relative RMS deviation of A^p from
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Iterator
 
 import numpy as np
@@ -33,7 +33,6 @@ from ..continuation import golden_maximum
 from ..dealing import dealt
 from ..dissipation import KINDS, contact_dissipation, hunt_crossley_restitution, kuwabara_kono_restitution
 from ..errors import ConvergenceError, ParameterError, check_flag, check_integer, check_real, check_reals
-from ..hertz import HertzLaw
 from ..model import ChainSpec, Damping, LatticeModel
 from .base import Study
 
@@ -111,8 +110,8 @@ class RestitutionParameters:
 
     @property
     def model(self) -> LatticeModel:
-        return LatticeModel(HertzLaw(self.alpha), self.masses,
-                            Damping(contact=_contact(self.contact, self.damping, self.clipped)))
+        return replace(LatticeModel.hertz(self.alpha, self.masses),
+                       damping=Damping(contact=_contact(self.contact, self.damping, self.clipped)))
 
     def law(self, v):
         """1 - e of the small-dissipation law at v."""
@@ -268,8 +267,8 @@ class PulseParameters:
 
     @property
     def model(self) -> LatticeModel:
-        return LatticeModel(HertzLaw(self.alpha), (1.0,),
-                            Damping(contact=_contact(self.contact, self.damping, self.clipped)))
+        return replace(LatticeModel.hertz(self.alpha),
+                       damping=Damping(contact=_contact(self.contact, self.damping, self.clipped)))
 
 
 class PulseDecay(Study):

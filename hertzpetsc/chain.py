@@ -3,7 +3,8 @@
     m_n x_n'' = f_n - f_{n-1} - gamma x_n',    f_n = V'(x_{n+1} - x_n) + eta (x_{n+1}' - x_n'),
 
 for the N beads of a :class:`~hertzpetsc.model.ChainSpec` (the law V', the masses m_n and the damping gamma, eta
-are its lattice model's; gamma = eta = 0 is the paper's eq. nc) with periodic boundary conditions x_{n+N} = x_n
+are its lattice model's; gamma = eta = 0 is the paper's eq. nc; a contact dissipation adds its tension f_d(r, dv) to
+f_n, :mod:`hertzpetsc.dissipation`) with periodic boundary conditions x_{n+N} = x_n
 (eq. pbcl), or two ends: free (no bond beyond), a wall at rest (x = 0) or an actuator whose prescribed motion
 x(t), x'(t) enters the bond to the first (last) bead -- the right-hand side, and through that bond's stiffness
 the Jacobian, but it is not an unknown. The state X = (x_n, xdot_n)_n is a PETSc Vec on a 1-D DMDA (bead-major,
@@ -21,8 +22,9 @@ gap-lattice coordinates, whose bonds are r = gap + y_{n+1} - y_n (:attr:`Chain.g
 the beads behind it stored relative to their rest position, so that bonds closed by less than the positions'
 round-off are computed without cancellation).
 
-The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law; :meth:`Chain.rhs_reference`
-is the same arithmetic in numpy (any law; the reference the kernel is tested against).
+The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law without contact
+dissipation; :meth:`Chain.rhs_reference` is the same arithmetic in numpy (any law, any damping; the reference the
+kernel is tested against).
 """
 from __future__ import annotations
 
@@ -100,9 +102,10 @@ class Chain:
         self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
         # the compiled right-hand side: the Hertz law and this class's ghost rows (any other law, or a subclass that
         # redefines the ghost rows or the right-hand side, evaluates in numpy)
+        contact = self.model.damping.contact
         compiled = type(self.model.law) is HertzLaw and type(self)._ghosted is Chain._ghosted \
             and type(self).rhs_reference is Chain.rhs_reference \
-            and self.model.damping.contact is None            # contact dissipation: the numpy reference
+            and (contact is None or type(contact) in kernels.CONTACT_KINDS)   # a damping term it knows
         lib = kernels.library() if compiled else None
         self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None
         self._sync()

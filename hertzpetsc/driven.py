@@ -30,7 +30,8 @@ Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by 
 dominant ones by SLEPc Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A
 driven chain has no symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
 exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`), and without dashpots R^T J R = e^{-c kT} J
-(:func:`conformal_rate`): checked on every monodromy before its multipliers are used (:func:`check_monodromy`; the
+(:func:`conformal_rate`); with contact dissipation (a damping that depends on the state) log det R = int tr Df dt
+along the orbit (:func:`~hertzpetsc.tangent.liouville_integral`) and no symplecticity: checked on every monodromy before its multipliers are used (:func:`check_monodromy`; the
 dominant pairs against an independent flow, :func:`check_eigenpairs`), a failure a ConvergenceError. Every flow's
 steps are at most a quarter of the drive's shortest push (:attr:`Waveform` signals' ``time_scale``,
 :attr:`~hertzpetsc.chain.ChainIntegrator.max_step`): a push that no bead feels yet is invisible to a step's error

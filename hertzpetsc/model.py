@@ -4,8 +4,8 @@
 
 :class:`LatticeModel` holds the interaction law between neighbours (any :class:`~hertzpetsc.law.InteractionLaw`;
 the paper's is :class:`~hertzpetsc.hertz.HertzLaw`, eq. vhertz), the masses m_n, which repeat a pattern (the
-paper's chain: all masses 1), and the linear damping (:class:`Damping`: on-site gamma, between neighbours eta; none
-in the paper). :class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq.
+paper's chain: all masses 1), and the damping (:class:`Damping`: on-site gamma, between neighbours eta, and a
+dissipation in the contacts, :mod:`hertzpetsc.dissipation`; none in the paper). :class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq.
 pbcl), free, a wall at rest, or an actuator whose motion is a given periodic function of time (:class:`Actuator`
 with a :class:`Harmonic`, :class:`SampledSignal` or :class:`FunctionSignal`).
 

@@ -7,6 +7,9 @@ with 2(1+k) dof per bead), so that R(T; 0) Y0 comes out with the same adaptive s
 :class:`MonodromyModShift` is the same map as a matrix-free ``Mat.createPython`` operator (one product = one
 integration with k = 1) for SLEPc.
 
+:func:`liouville_integral`: int_0^T tr Df dt along an orbit, Liouville's log det R(T; 0) where the damping depends
+on the state (contact dissipation).
+
 :class:`CellPropagator`: for an orbit that repeats every M beads, the flow of the infinite chain in three cell
 blocks, from one run on three cells; every Bloch sector's map of the cell follows from them (section 3.5).
 """

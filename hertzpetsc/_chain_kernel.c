@@ -74,10 +74,6 @@ typedef struct {
     double *bond, *stiff, *dv;  /* work arrays, nloc + 1 each */
     int harmonic_left, harmonic_right;   /* that end is an actuator offset + a cos(omega t + phase) ... */
     double harmonic[2][4];      /* ... with (offset, a, omega, phase): its position and velocity computed here */
-    int contact;                /* dissipation in the contacts: 0 none, 1 Hunt-Crossley, 2 Kuwabara-Kono */
-    int clipped;                /* a contact never pulls (hertzpetsc.dissipation) */
-    double contact_coef;        /* Hunt-Crossley's c or Kuwabara-Kono's eta */
-    double *cvel;               /* work array, nloc + 1: the bonds' df_d/d(dv) */
 } ChainKernel;
 
 /* a^e for a >= 0 as hertzpetsc.hertz.abs_power: whole or half-whole e up to 4 by products and one sqrt. */
@@ -157,15 +153,9 @@ static void twist(const ChainKernel *k, double *row, double sign)
     }
 }
 
-/* The contact dissipation's terms (defined at the end of the file: the code without them is laid out as before). */
-static void contact_bonds(const ChainKernel *k, const double *gl, const double *x, const double *gr);
-static void contact_tangents(const ChainKernel *k, const double *gl, const double *x, const double *gr, double *out);
-
 /* out (nloc x dof) = f: the owned beads' values x (nloc x dof), and the ghost rows gl, gr (dof each) with their
  * meaning already applied (ends, twist). */
-static inline __attribute__((always_inline)) void evaluate_terms(const ChainKernel *k, const double *gl,
-                                                                 const double *x, const double *gr, double *out,
-                                                                 const int contact)
+static void evaluate(const ChainKernel *k, const double *gl, const double *x, const double *gr, double *out)
 {
     const int n = k->nloc, d = k->dof, ntan = k->ntan;
     const int damped = k->gamma > 0.0 || k->eta > 0.0;
@@ -183,7 +173,6 @@ static inline __attribute__((always_inline)) void evaluate_terms(const ChainKern
         bond[i] = force(k, r) * mask;
         if (ntan) stiff[i] = stiffness(k, r) * mask;
     }
-    if (contact) contact_bonds(k, gl, x, gr);
     for (int i = 0; i < n; i++) {
         const double *left = ROW(i), *self = ROW(i + 1), *right = ROW(i + 2);
         double *o = out + (size_t)i * d;
@@ -197,7 +186,6 @@ static inline __attribute__((always_inline)) void evaluate_terms(const ChainKern
             }
         }
     }
-    if (contact && ntan) contact_tangents(k, gl, x, gr, out);
     if (damped) {                  /* -gamma v_n + eta (dv_n - dv_{n-1}) on every velocity column */
         const double gamma = k->gamma, eta = k->eta;
         for (int c = 1; c < d; c += 2) {
@@ -216,13 +204,6 @@ static inline __attribute__((always_inline)) void evaluate_terms(const ChainKern
 #undef ROW
 #undef MASK
     petsc_TotalFlops += (double)n * (8.0 + 4.0 * ntan);
-}
-
-/* evaluate_terms without contact dissipation (the flag a compile-time constant: this path is compiled as it was
- * before the contact terms). */
-static void evaluate(const ChainKernel *k, const double *gl, const double *x, const double *gr, double *out)
-{
-    evaluate_terms(k, gl, x, gr, out, 0);
 }
 
 /* The ghost rows (2 x dof: left, right) of the owned values x: the neighbours' rows (on one rank the periodic wrap,
@@ -312,8 +293,6 @@ int hz_release_signals(void)
 
 /* The TS right-hand side: F = f(t, X). t enters only through the actuators' motion: computed here for harmonic
  * actuators, set by the caller (hertzpetsc.kernels.ChainKernel.set_time) for other signals. */
-static PetscErrorCode hz_chain_rhs_contact(TS ts, double t, Vec X, Vec F, void *ctx);
-
 PetscErrorCode hz_chain_rhs(TS ts, double t, Vec X, Vec F, void *ctx)
 {
     ChainKernel *k = (ChainKernel *)ctx;
@@ -321,7 +300,6 @@ PetscErrorCode hz_chain_rhs(TS ts, double t, Vec X, Vec F, void *ctx)
     double *g, *out;
     (void)ts;
     if (received) return PETSC_ERR_SIG;         /* a watched signal: end the solve (hz_watch_signals) */
-    if (k->contact) return hz_chain_rhs_contact(ts, t, X, F, ctx);
     if (k->harmonic_left) harmonic_end(k->harmonic[0], t, &k->left_x, &k->left_v);
     if (k->harmonic_right) harmonic_end(k->harmonic[1], t, &k->right_x, &k->right_v);
     CHECK(VecGetArrayRead(X, &x));
@@ -344,102 +322,4 @@ const char *hz_kernel_source(void)
 PetscErrorCode hz_install_rhs(TS ts, Vec r, void *ctx)
 {
     return TSSetRHSFunction(ts, r, hz_chain_rhs, ctx);
-}
-
-/* --- dissipation in the contacts (hertzpetsc.dissipation), out of the way of the code without it ------------------ */
-
-/* The contact dissipation's tension f and its derivatives dfr = df/dr, dfv = df/d(dv) of a bond of length r and
- * velocity difference dv, as hertzpetsc.dissipation.ContactDissipation.bond_terms (the same operations in the same
- * order): 0 out of contact; clipped, f = min(g dv, d^alpha). */
-static inline void contact_terms(const ChainKernel *k, double r, double dv, double *f, double *dfr, double *dfv)
-{
-    const double d = k->delta0 - r, a = k->alpha;
-    if (!(d > 0.0)) {
-        *f = *dfr = *dfv = 0.0;
-        return;
-    }
-    double g, gp;
-    if (k->contact == 1) {
-        g = (1.5 * k->contact_coef) * pow(d, a);
-        gp = ((1.5 * k->contact_coef) * a) * pow(d, a - 1.0);
-    } else {
-        g = k->contact_coef * pow(d, a - 1.0);
-        gp = (k->contact_coef * (a - 1.0)) * pow(d, a - 2.0);
-    }
-    *f = g * dv;
-    *dfr = -gp * dv;
-    *dfv = g;
-    if (k->clipped) {
-        const double P = pow(d, a);
-        if (*f > P) {
-            *f = P;
-            *dfr = -a * pow(d, a - 1.0);
-            *dfv = 0.0;
-        }
-    }
-}
-
-/* Ghosted row i of the owned values x (nloc x dof) and the ghost rows gl, gr. */
-static inline const double *ghosted_row(const ChainKernel *k, const double *gl, const double *x, const double *gr,
-                                        int i)
-{
-    return i == 0 ? gl : i == k->nloc + 1 ? gr : x + (size_t)(i - 1) * k->dof;
-}
-
-/* The contact dissipation added to the bonds' tensions (and, with tangents, to their stiffnesses, with df/d(dv) in
- * k->cvel), after the law's: hertzpetsc.chain.Chain.rhs_reference. Out of line: the kernel's path without contact
- * dissipation is compiled as before. */
-static void contact_bonds(const ChainKernel *k, const double *gl, const double *x,
-                                                    const double *gr)
-{
-    for (int i = 0; i <= k->nloc; i++) {
-        const double *a = ghosted_row(k, gl, x, gr, i), *b = ghosted_row(k, gl, x, gr, i + 1);
-        double xl = a[0], xr = b[0];
-        if (k->gap != 0.0) {
-            xl = xl + k->gap * (double)i;
-            xr = xr + k->gap * (double)(i + 1);
-        }
-        double r = xr - xl, f, dfr, dfv;
-        const double mask = (i == 0 && k->left == END_FREE) || (i == k->nloc && k->right == END_FREE) ? 0.0 : 1.0;
-        if (i == k->step_bond) r = r + k->step;
-        contact_terms(k, r, b[1] - a[1], &f, &dfr, &dfv);
-        k->bond[i] = k->bond[i] + f * mask;
-        if (k->ntan) {
-            k->stiff[i] = k->stiff[i] + dfr * mask;
-            k->cvel[i] = dfv * mask;
-        }
-    }
-}
-
-/* The contacts' df/d(dv) on the tangents' velocity columns of ``out``, after the stiffness terms. */
-static void contact_tangents(const ChainKernel *k, const double *gl, const double *x,
-                                                       const double *gr, double *out)
-{
-    for (int i = 0; i < k->nloc; i++) {
-        const double *left = ghosted_row(k, gl, x, gr, i), *self = ghosted_row(k, gl, x, gr, i + 1),
-                     *right = ghosted_row(k, gl, x, gr, i + 2);
-        const double cl = k->cvel[i], cr = k->cvel[i + 1];
-        double *o = out + (size_t)i * k->dof;
-        for (int c = 2; c < k->dof; c += 2)
-            o[c + 1] = o[c + 1] + (cr * (right[c + 1] - self[c + 1]) - cl * (self[c + 1] - left[c + 1]));
-    }
-}
-
-/* hz_chain_rhs of a chain with contact dissipation: the same steps, evaluate_terms with the contact terms. */
-static __attribute__((noinline)) PetscErrorCode hz_chain_rhs_contact(TS ts, double t, Vec X, Vec F, void *ctx)
-{
-    ChainKernel *k = (ChainKernel *)ctx;
-    const double *x;
-    double *g, *out;
-    (void)ts;
-    if (k->harmonic_left) harmonic_end(k->harmonic[0], t, &k->left_x, &k->left_v);
-    if (k->harmonic_right) harmonic_end(k->harmonic[1], t, &k->right_x, &k->right_v);
-    CHECK(VecGetArrayRead(X, &x));
-    CHECK(ghost_rows(k, X, x, &g));
-    CHECK(VecGetArrayWrite(F, &out));
-    evaluate_terms(k, g, x, g + k->dof, out, 1);
-    CHECK(VecRestoreArrayWrite(F, &out));
-    if (!k->serial) CHECK(VecRestoreArray(k->ghost_vec, &g));
-    CHECK(VecRestoreArrayRead(X, &x));
-    return 0;
 }

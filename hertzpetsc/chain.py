@@ -102,10 +102,9 @@ class Chain:
         self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
         # the compiled right-hand side: the Hertz law and this class's ghost rows (any other law, or a subclass that
         # redefines the ghost rows or the right-hand side, evaluates in numpy)
-        contact = self.model.damping.contact
         compiled = type(self.model.law) is HertzLaw and type(self)._ghosted is Chain._ghosted \
             and type(self).rhs_reference is Chain.rhs_reference \
-            and (contact is None or type(contact) in kernels.CONTACT_KINDS)   # a damping term it knows
+            and self.model.damping.contact is None            # contact dissipation: the numpy reference
         lib = kernels.library() if compiled else None
         self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None
         self._sync()

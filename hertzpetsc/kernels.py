@@ -23,7 +23,6 @@ import tempfile
 import numpy as np
 
 from .console import note, print0
-from .dissipation import HuntCrossley, KuwabaraKono
 from .errors import check_signals
 from .hertz import power_recipe
 
@@ -34,9 +33,6 @@ LIBRARY = os.path.join(HERE, "_chain_kernel.so")
 CFLAGS = ["-O3", "-fPIC", "-shared", "-std=c99", "-ffp-contract=off", "-fno-fast-math"]
 
 END_INSIDE, END_FREE, END_WALL, END_ACTUATOR = 0, 1, 2, 3
-# the contact dissipations the kernel computes (hertzpetsc.dissipation), exactly these classes: their code in the C
-# struct
-CONTACT_KINDS = {HuntCrossley: 1, KuwabaraKono: 2}
 # PETSc's error code "Signal received": what the compiled right-hand side returns once a watched signal arrived
 SIGNAL_ERROR = 59
 
@@ -62,9 +58,7 @@ class KernelContext(ctypes.Structure):
                 ("gap", ctypes.c_double), ("step_bond", ctypes.c_int), ("step", ctypes.c_double),
                 ("bond", ctypes.c_void_p), ("stiff", ctypes.c_void_p), ("dv", ctypes.c_void_p),
                 ("harmonic_left", ctypes.c_int), ("harmonic_right", ctypes.c_int),
-                ("harmonic", (ctypes.c_double * 4) * 2),
-                ("contact", ctypes.c_int), ("clipped", ctypes.c_int), ("contact_coef", ctypes.c_double),
-                ("cvel", ctypes.c_void_p)]
+                ("harmonic", (ctypes.c_double * 4) * 2)]
 
 
 def petsc_library():
@@ -195,7 +189,7 @@ class ChainKernel:
     def __init__(self, chain, lib):
         self.lib = lib
         n = chain.nloc
-        self.work = np.zeros((4, n + 1))
+        self.work = np.zeros((3, n + 1))
         self.ghost = np.zeros(2 * chain.dof)
         ctx = KernelContext()
         ctx.nloc, ctx.dof, ctx.ntan = n, chain.dof, chain.n_tangent
@@ -205,7 +199,7 @@ class ChainKernel:
         if not ctx.serial:
             self.scatter, self.ghost_vec = ghost_scatter(chain)
             ctx.ghost_scatter, ctx.ghost_vec = self.scatter.handle, self.ghost_vec.handle
-        ctx.bond, ctx.stiff, ctx.dv, ctx.cvel = (self.work[i].ctypes.data for i in range(4))
+        ctx.bond, ctx.stiff, ctx.dv = (self.work[i].ctypes.data for i in range(3))
         self.ctx = ctx
         self.ref = ctypes.byref(ctx)
         self.set_physics(chain)
@@ -222,10 +216,6 @@ class ChainKernel:
         ctx.stiff_k, ctx.stiff_half = power_recipe(law.alpha - 1.0)
         damping = chain.model.damping
         ctx.gamma, ctx.eta = damping.gamma, damping.eta
-        contact = damping.contact                     # the kinds the kernel knows (Chain's guard: no other)
-        ctx.contact = 0 if contact is None else CONTACT_KINDS[type(contact)]
-        ctx.clipped = int(contact is not None and contact.clipped)
-        ctx.contact_coef = 0.0 if contact is None else getattr(contact, "c", getattr(contact, "eta", 0.0))
         self.inverse_mass = None if chain.inverse_mass is None else np.ascontiguousarray(chain.inverse_mass, float)
         ctx.inv_mass = None if self.inverse_mass is None else self.inverse_mass.ctypes.data
         # harmonic actuators move in C; any other signal is evaluated in Python at each right-hand side (set_time)

@@ -2,7 +2,6 @@
 with damping, mass patterns, precompression, twists, the gap lattice, walls, free ends and actuators, on any number of
 ranks; the TS calling it gives the same flows; damped tangent flows against finite differences of the flow."""
 import math
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,19 +12,13 @@ from hertzpetsc.bloch import TwistedChain
 from hertzpetsc.chain import Chain
 from hertzpetsc.compacton_window import WindowChain
 from hertzpetsc.errors import ParameterError
-from hertzpetsc.dissipation import HuntCrossley, KuwabaraKono
-from hertzpetsc.model import Actuator, ChainSpec, Damping, Harmonic, LatticeModel, SampledSignal
+from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal
 from hertzpetsc.tangent import TangentFlow
 
 COMM = PETSc.COMM_WORLD
 EPS = np.finfo(float).eps
 H = LatticeModel.hertz
 SAMPLED = SampledSignal((0.1, 0.3, -0.2, 0.05, 0.0), 2.5)
-
-def contacts(contact, delta0, alpha=1.5):
-    """A Hertz chain with a mass pattern, both linear dampings and ``contact`` (hertzpetsc.dissipation)."""
-    return replace(H(alpha, (1.0, 0.6), delta0, 0.05, 0.03), damping=Damping(0.05, 0.03, contact))
-
 
 def stepped(chain, step):
     chain.step = step
@@ -53,18 +46,6 @@ CHAINS = [
                                                    theta=math.pi)),
     ("complex twist, damping", lambda: TwistedChain(ChainSpec(H(1.5, gamma=0.1, eta=0.2), 12), 4, COMM,
                                                     complex_modes=True, theta=0.7)),
-    ("Hunt-Crossley contacts, actuator", lambda: Chain(ChainSpec(contacts(HuntCrossley(2.0), 0.2), 12, "fixed",
-                                                                 left=Actuator(Harmonic(0.2, 1.3))), COMM, 2)),
-    ("Hunt-Crossley unclipped, alpha 1.7", lambda: Chain(ChainSpec(contacts(HuntCrossley(2.0, False), 0.2, 1.7), 12),
-                                                         COMM, 2)),
-    ("Kuwabara-Kono contacts, free end", lambda: Chain(ChainSpec(contacts(KuwabaraKono(0.5), 0.0), 12, "free"),
-                                                       COMM, 2)),
-    ("Kuwabara-Kono unclipped, complex twist", lambda: TwistedChain(ChainSpec(contacts(KuwabaraKono(0.5, False),
-                                                                                       0.3), 12), 4, COMM,
-                                                                    complex_modes=True, theta=0.7)),
-    ("Hunt-Crossley, gap lattice, step", lambda: stepped(WindowChain(ChainSpec(contacts(HuntCrossley(1.0), 0.0), 12,
-                                                                               "free"), COMM, gap=0.37, n_tangent=2),
-                                                         (5, -1.3))),
 ]
 
 

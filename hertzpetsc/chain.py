@@ -345,7 +345,7 @@ class Chain:
             sl, sr = s[i] * inv[i], s[i + 1] * inv[i]
             el, er = e[i] * inv[i], e[i + 1] * inv[i]
             P.setValue(rows_v[i], 2 * n[i], -(sl + sr), addv=True)
-            if gamma or el or er:
+            if gamma or eta or contact is not None:
                 P.setValue(rows_v[i], 2 * n[i] + 1, -(gamma * inv[i] + el + er), addv=True)
             if not (self.first and i == 0):
                 P.setValue(rows_v[i], 2 * left[i], sl, addv=True)
@@ -390,14 +390,14 @@ class Chain:
         dv = (v[1:] - v[:-1]) * mask
         gamma, eta = self.model.damping.gamma, self.model.damping.eta
         f = self.model.force(r) * mask + eta * dv
-        bonds = eta * dv ** 2
-        contact = self._contact_terms(a, r, mask)
-        if contact is not None:
-            f = f + contact[0]
-            bonds = bonds + contact[0] * dv
-        dissipation = gamma * np.sum(v[1:-1] ** 2) + np.sum(bonds[1:])
+        dissipation = gamma * np.sum(v[1:-1] ** 2) + eta * np.sum(dv[1:] ** 2)
         if self.first:
-            dissipation += bonds[0]
+            dissipation += eta * dv[0] ** 2
+        contact = self._contact_terms(a, r, mask)
+        if contact is not None:                       # the contacts' tension f_d: power f_d dv >= 0 per bond
+            f = f + contact[0]
+            lost = contact[0] * dv
+            dissipation += np.sum(lost[1:]) + (lost[0] if self.first else 0.0)
         power_in = 0.0
         if isinstance(self.left_end, Actuator):
             power_in -= f[0] * v[0]

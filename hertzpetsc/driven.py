@@ -1091,7 +1091,8 @@ class PeriodicShooting(ContinuationProblem):
 class LinearChainPreconditioner:
     """(R_lin - I)^-1, the preconditioner of Newton-Krylov shooting (a PETSc ``PC`` python context, prefix
     ``drive_``: -drive_pc_type none turns it off). R_lin is the monodromy over the response's period of the chain
-    linearised about rest, m x'' + (gamma + eta L) x' + K L x = 0 with K = V''(0) and L the second difference with the
+    linearised about rest, m x'' + (gamma + eta L) x' + K L x = 0 with K = V''(0) (eta with the contacts' df/d(dv) at
+    rest, if the chain has contact dissipation) and L the second difference with the
     actuator's end fixed and the far end fixed (wall, actuator) or free: uniform masses make it diagonal in the sine
     modes of L (a sine transform by numpy's FFT), each mode a damped oscillator with its 2 x 2 monodromy in closed
     form. Without it GMRES on R - I stalls for about N / (c T) iterations on a long damped chain: the overdamped long
@@ -1121,7 +1122,10 @@ class LinearChainPreconditioner:
         lam = 4.0 * np.sin(np.pi * self.freq / self.ext) ** 2
         m = model.masses[0]
         w2 = model.law.linear_stiffness * lam / m
-        half = 0.5 * (model.damping.gamma + model.damping.eta * lam) / m
+        eta = model.damping.eta
+        if model.damping.contact is not None:     # the contacts at rest (overlap delta0): a dashpot df_d/d(dv)
+            eta = eta + float(model.damping.contact.bond_terms(model.law, np.zeros(1), np.zeros(1))[2][0])
+        half = 0.5 * (model.damping.gamma + eta * lam) / m
         s = np.sqrt(half * half - w2 + 0j)
         decay, cosh = np.exp(-half * T), np.cosh(s * T)
         sinc = np.where(np.abs(s * T) > 1e-8, np.sinh(s * T) / np.where(s == 0, 1.0, s), T)   # sinh(s T) / s

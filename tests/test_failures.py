@@ -419,6 +419,7 @@ OVERSIZED = {
     "driven_generation.py": ("N", "1000000000"),
     "bench_driven.py": ("N", "1000000000"),
     "bench_map.py": ("N", "1000000000"),
+    "pulse_decay.py": ("N", "1000000000000"),
 }
 
 

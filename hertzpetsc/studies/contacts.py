@@ -34,6 +34,7 @@ from ..dealing import dealt
 from ..dissipation import KINDS, contact_dissipation, hunt_crossley_restitution, kuwabara_kono_restitution
 from ..errors import ConvergenceError, ParameterError, check_flag, check_integer, check_real, check_reals
 from ..model import ChainSpec, Damping, LatticeModel
+from ..resources import check_chain_size
 from .base import Study
 
 RESTITUTION_FORMAT = "hertzpetsc-restitution-1"
@@ -283,6 +284,7 @@ class PulseDecay(Study):
 
     def __init__(self, params, comm=None, output=None, mode="new"):
         super().__init__(params, comm, output, mode)
+        check_chain_size(params.N, 1, "N")                 # before any file is opened
         self.SHAPES = {"amplitude": (params.N,)}
         self.configure()
 

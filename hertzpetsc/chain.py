@@ -3,7 +3,8 @@
     m_n x_n'' = f_n - f_{n-1} - gamma x_n',    f_n = V'(x_{n+1} - x_n) + eta (x_{n+1}' - x_n'),
 
 for the N beads of a :class:`~hertzpetsc.model.ChainSpec` (the law V', the masses m_n and the damping gamma, eta
-are its lattice model's; gamma = eta = 0 is the paper's eq. nc) with periodic boundary conditions x_{n+N} = x_n
+are its lattice model's; gamma = eta = 0 is the paper's eq. nc; a contact dissipation adds its tension f_d(r, dv) to
+f_n, :mod:`hertzpetsc.dissipation`) with periodic boundary conditions x_{n+N} = x_n
 (eq. pbcl), or two ends: free (no bond beyond), a wall at rest (x = 0) or an actuator whose prescribed motion
 x(t), x'(t) enters the bond to the first (last) bead -- the right-hand side, and through that bond's stiffness
 the Jacobian, but it is not an unknown. The state X = (x_n, xdot_n)_n is a PETSc Vec on a 1-D DMDA (bead-major,
@@ -21,8 +22,9 @@ gap-lattice coordinates, whose bonds are r = gap + y_{n+1} - y_n (:attr:`Chain.g
 the beads behind it stored relative to their rest position, so that bonds closed by less than the positions'
 round-off are computed without cancellation).
 
-The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law; :meth:`Chain.rhs_reference`
-is the same arithmetic in numpy (any law; the reference the kernel is tested against).
+The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law without contact
+dissipation; :meth:`Chain.rhs_reference` is the same arithmetic in numpy (any law, any damping; the reference the
+kernel is tested against).
 """
 from __future__ import annotations
 
@@ -37,6 +39,7 @@ from . import kernels
 from .assembly import gathered
 from .errors import (ConvergenceError, ParameterError, PetscFailure, check_instance, check_integer, check_prefix,
                      check_real)
+from .dissipation import contact_exponent
 from .hertz import HertzLaw
 from .model import Actuator, ChainSpec
 from .resources import check_chain_size
@@ -97,10 +100,11 @@ class Chain:
         self._take(spec)
         self._shift = None
         self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
-        # the compiled right-hand side: a law it evaluates exactly (the law says so: Hertz's form) and this class's
-        # ghost rows (any other law, or a subclass that redefines the ghost rows or the right-hand side, in numpy)
-        compiled = self.model.law.kernel_form == "hertz" and type(self)._ghosted is Chain._ghosted \
-            and type(self).rhs_reference is Chain.rhs_reference
+        # the compiled right-hand side: a law it evaluates exactly (the law says so: Hertz's form), no dissipation in
+        # the contacts, and this class's ghost rows (any other law or term, or a subclass that redefines the ghost
+        # rows or the right-hand side, evaluates in numpy)
+        compiled = self.model.law.kernel_form == "hertz" and self.model.damping.contact is None \
+            and type(self)._ghosted is Chain._ghosted and type(self).rhs_reference is Chain.rhs_reference
         lib = kernels.library() if compiled else None
         self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None
         self._sync()
@@ -109,6 +113,8 @@ class Chain:
         """The physics of ``spec`` on this layout: model, masses and the ends this rank touches."""
         self.spec = spec
         self.model = spec.model
+        if spec.model.damping.contact is not None:
+            contact_exponent(spec.model.law)          # a law with contacts, else a ParameterError
         # the ends this rank touches: ('free' | 'wall' | Actuator) or None inside the chain / periodic
         self.left_end = spec.left if self.first else None
         self.right_end = spec.right if self.last else None
@@ -128,9 +134,10 @@ class Chain:
                                  f"{self.spec.boundary!r} (the layout of this chain)")
         kind = kernels.end_kind
         if (kind(spec.left), kind(spec.right)) != (kind(self.spec.left), kind(self.spec.right)) \
-                or type(spec.model.law) is not type(self.model.law):
-            raise ParameterError("spec", spec, "must keep the kinds of the ends (free, wall, actuator) and of the "
-                                 f"law ({type(self.model.law).__name__}) of this chain")
+                or type(spec.model.law) is not type(self.model.law) \
+                or type(spec.model.damping.contact) is not type(self.model.damping.contact):
+            raise ParameterError("spec", spec, "must keep the kinds of the ends (free, wall, actuator), of the "
+                                 f"law ({type(self.model.law).__name__}) and of the contact dissipation of this chain")
         self._take(spec)
         if self.kernel is not None:
             self.kernel.set_physics(self)
@@ -274,6 +281,9 @@ class Chain:
         r = self._bonds(a)                          # bond lengths x_{n+1} - x_n
         mask = self._bond_mask()
         bond = model.force(r) * mask
+        contact = self._contact_terms(a, r, mask)
+        if contact is not None:
+            bond = bond + contact[0]
         out = F.getArray().reshape(self.nloc, self.dof)
         out[:, 0] = a[1:-1, 1]
         out[:, 1] = bond[1:] - bond[:-1]
@@ -282,11 +292,25 @@ class Chain:
             y = a[:, 2::2]                           # (nloc + 2, k) tangent displacements
             dy = y[1:] - y[:-1]
             out[:, 2::2] = a[1:-1, 3::2]
-            out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1]
+            if contact is not None:                  # the contacts' df/dr and df/d(dv) on the tangents
+                stiff = stiff + contact[1][:, None]
+                w = contact[2][:, None] * (a[1:, 3::2] - a[:-1, 3::2])
+                out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1] + (w[1:] - w[:-1])
+            else:
+                out[:, 3::2] = stiff[1:] * dy[1:] - stiff[:-1] * dy[:-1]
         if self.model.damped:                        # the state's and the tangents' velocities alike
             out[:, 1::2] += self._damping_forces(a[:, 1::2], mask)
         if self.inverse_mass is not None:
             out[:, 1::2] *= self.inverse_mass[:, None]
+
+    def _contact_terms(self, a, r, mask):
+        """(f_d, df_d/dr, df_d/d(dv)) of the bonds (nloc + 1) from the contact dissipation
+        (:meth:`~hertzpetsc.dissipation.ContactDissipation.bond_terms`), or None without one; a: ghosted rows."""
+        contact = self.model.damping.contact
+        if contact is None:
+            return None
+        f, dfr, dfv = contact.bond_terms(self.model.law, r, a[1:, 1] - a[:-1, 1])
+        return f * mask, dfr * mask, dfv * mask
 
     def _damping_forces(self, v, mask):
         """-gamma v_n + eta (dv_n - dv_{n-1}), dv the bonds' velocity differences (v: (nloc + 2, columns) ghosted
@@ -307,6 +331,10 @@ class Chain:
         s = self.model.stiffness(r) * mask                # bond stiffness V''(x_{n+1} - x_n)
         inv = self.inverse_mass if self.inverse_mass is not None else np.ones(self.nloc)
         gamma, eta = self.model.damping.gamma, self.model.damping.eta
+        e = eta * mask                                    # the bonds' df/d(dv): dashpots and contacts
+        contact = self._contact_terms(a, r, mask)
+        if contact is not None:
+            s, e = s + contact[1], e + contact[2]
         N = self.spec.N
         n = np.arange(self.xs, self.xe)
         rows_v = 2 * n + 1
@@ -315,9 +343,9 @@ class Chain:
         for i in range(self.nloc):
             P.setValue(2 * n[i], rows_v[i], 1.0, addv=True)
             sl, sr = s[i] * inv[i], s[i + 1] * inv[i]
-            el, er = eta * mask[i] * inv[i], eta * mask[i + 1] * inv[i]
+            el, er = e[i] * inv[i], e[i + 1] * inv[i]
             P.setValue(rows_v[i], 2 * n[i], -(sl + sr), addv=True)
-            if gamma or eta:
+            if gamma or eta or contact is not None:
                 P.setValue(rows_v[i], 2 * n[i] + 1, -(gamma * inv[i] + el + er), addv=True)
             if not (self.first and i == 0):
                 P.setValue(rows_v[i], 2 * left[i], sl, addv=True)
@@ -352,8 +380,9 @@ class Chain:
 
     def power(self, X: PETSc.Vec, t: Optional[float] = None) -> tuple[float, float]:
         """(input power of the actuators, dissipation rate) at the state X and time t, so that
-        dE/dt = input - dissipation: input = -f_0 x_0' + f_N x_{N+1}' (f the bond forces V' + eta dv of the bonds
-        to the actuators; f < 0 in compression), dissipation = gamma sum v^2 + eta sum over bonds dv^2."""
+        dE/dt = input - dissipation: input = -f_0 x_0' + f_N x_{N+1}' (f the bond forces V' + eta dv + f_d of the
+        bonds to the actuators; f < 0 in compression), dissipation = gamma sum v^2 + sum over bonds (eta dv^2 +
+        f_d dv), f_d the contact dissipation's tension (>= 0 power in every bond, clipped or not)."""
         a = self._ghosted(X, t)
         r = self._bonds(a)
         mask = self._bond_mask()
@@ -364,6 +393,11 @@ class Chain:
         dissipation = gamma * np.sum(v[1:-1] ** 2) + eta * np.sum(dv[1:] ** 2)
         if self.first:
             dissipation += eta * dv[0] ** 2
+        contact = self._contact_terms(a, r, mask)
+        if contact is not None:                       # the contacts' tension f_d: power f_d dv >= 0 per bond
+            f = f + contact[0]
+            lost = contact[0] * dv
+            dissipation += np.sum(lost[1:]) + (lost[0] if self.first else 0.0)
         power_in = 0.0
         if isinstance(self.left_end, Actuator):
             power_in -= f[0] * v[0]
@@ -371,6 +405,21 @@ class Chain:
             power_in += f[-1] * v[-1]
         mpi = self.comm.tompi4py()
         return mpi.allreduce(float(power_in)), mpi.allreduce(float(dissipation))
+
+    def velocity_trace(self, X: PETSc.Vec, t: Optional[float] = None) -> float:
+        """tr of the velocity block d(x'')/d(x') of the Jacobian at X: -sum_n (gamma + e_{n-1} + e_n) / m_n, e the
+        bonds' df/d(dv) (dashpots eta, contacts); d/dt log det R = this trace (Liouville), constant but for the
+        contact dissipation."""
+        a = self._ghosted(X, t)
+        r = self._bonds(a)
+        mask = self._bond_mask()
+        e = self.model.damping.eta * mask
+        contact = self._contact_terms(a, r, mask)
+        if contact is not None:
+            e = e + contact[2]
+        inv = self.inverse_mass if self.inverse_mass is not None else np.ones(self.nloc)
+        local = -float(np.sum((self.model.damping.gamma + e[:-1] + e[1:]) * inv))
+        return self.comm.tompi4py().allreduce(local)
 
     # --- the spatial shift S X = (X_2, ..., X_N, X_1) of section 3.5 -------------------------------------------
     def shift(self, X: PETSc.Vec, out: PETSc.Vec) -> None:

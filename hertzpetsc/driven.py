@@ -30,7 +30,8 @@ Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by 
 dominant ones by SLEPc Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A
 driven chain has no symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
 exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`), and without dashpots R^T J R = e^{-c kT} J
-(:func:`conformal_rate`): checked on every monodromy before its multipliers are used (:func:`check_monodromy`; the
+(:func:`conformal_rate`); with contact dissipation (a damping that depends on the state) log det R = int tr Df dt
+along the orbit (:func:`~hertzpetsc.tangent.liouville_integral`) and no symplecticity: checked on every monodromy before its multipliers are used (:func:`check_monodromy`; the
 dominant pairs against an independent flow, :func:`check_eigenpairs`), a failure a ConvergenceError. Every flow's
 steps are at most a quarter of the drive's shortest push (:attr:`Waveform` signals' ``time_scale``,
 :attr:`~hertzpetsc.chain.ChainIntegrator.max_step`): a push that no bead feels yet is invisible to a step's error
@@ -64,7 +65,7 @@ from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal, Signal
-from .tangent import MonodromyModShift, TangentFlow
+from .tangent import MonodromyModShift, TangentFlow, liouville_integral
 
 DRIVE_PREFIX = "drive_"
 # The flows of the responses: the paper's tolerances (state, residual of the shooting).
@@ -392,29 +393,39 @@ def conformal_rate(spec):
     """c with R^T J_M R = e^{-c T} J_M for the monodromy of ``spec`` (J_M the symplectic form sum_n m_n dx_n ^ dv_n):
     0 undamped, gamma / m for on-site damping with uniform masses (y = e^{-c t / 2} z makes the variational
     equation Hamiltonian); None where the flow is not conformally symplectic (dashpots between beads, on-site damping
-    with unequal masses)."""
+    with unequal masses, contact dissipation)."""
     model = spec.model
-    if model.damping.eta != 0.0 or (model.damping.gamma != 0.0 and not model.uniform_masses):
+    if model.damping.eta != 0.0 or model.damping.contact is not None or \
+            (model.damping.gamma != 0.0 and not model.uniform_masses):
         return None
     return model.damping.gamma / float(model.mass(np.arange(1))[0])
 
 
-def check_monodromy(R, spec, T, rtol, steps, where):
+def check_monodromy(R, spec, T, rtol, steps, where, trace=None):
     """The closed forms of a dense monodromy R = R(T; 0) of ``spec``, resolved to ``steps`` rtol relative in
     Frobenius norm (2N columns started as unit vectors, each step erring by at most rtol): Liouville, log det R =
     -T tr(M^-1 C) (:func:`damping_trace`), to steps rtol ||R||_F ||R^-1||_F (|tr(R^-1 dR)| <= ||R^-1||_F ||dR||_F),
     with det R > 0; and where the flow is conformally symplectic (:func:`conformal_rate`), R^T J_M R = e^{-c T}
-    J_M to 2 steps rtol ||J_M|| ||R||_F^2. A ConvergenceError naming the check, its value and its bound, at
-    ``where`` (the parameter), otherwise: the multipliers of a flow that jumped a push of the drive, or did not
-    resolve its contacts, are not the response's."""
+    J_M to 2 steps rtol ||J_M|| ||R||_F^2. With contact dissipation the damping depends on the state: no closed form
+    and no symplecticity; ``trace`` = (int_0^T tr Df dt, its error) along the orbit
+    (:func:`~hertzpetsc.tangent.liouville_integral`) replaces -T tr(M^-1 C), the bound widened by three times its
+    error. A ConvergenceError naming the check, its value and its bound, at ``where`` (the parameter), otherwise: the
+    multipliers of a flow that jumped a push of the drive, or did not resolve its contacts, are not the response's."""
     what = "the multipliers' tangent flow (prefix -floquet_)"
     sign, logdet = np.linalg.slogdet(R)
-    exact = -T * damping_trace(spec)
     norm = np.linalg.norm(R)
     bound = steps * rtol * norm * (np.linalg.norm(np.linalg.inv(R)) if sign != 0 else math.inf)
+    if spec.model.damping.contact is None:
+        exact, form = -T * damping_trace(spec), "closed form exp(-T tr(M^-1 C))"
+    elif trace is None:
+        raise ParameterError("trace", None, "the Liouville check of a chain with contact dissipation needs the "
+                             "integral of tr Df along the orbit (tangent.liouville_integral)")
+    else:
+        exact, form = trace[0], "exp(int tr Df dt) along the orbit"
+        bound += 3.0 * trace[1]
     if not (sign > 0 and abs(logdet - exact) <= bound):
-        raise ConvergenceError(what, f"Liouville: det R = {sign * math.exp(logdet) if sign else 0.0:.6g}, closed form "
-                               f"exp(-T tr(M^-1 C)) = {math.exp(exact):.6g} (log det off by "
+        raise ConvergenceError(what, f"Liouville: det R = {sign * math.exp(logdet) if sign else 0.0:.6g}, {form} = "
+                               f"{math.exp(exact):.6g} (log det off by "
                                f"{abs(logdet - exact):.2g} > {bound:.2g}, {steps} steps at rtol {rtol:.0e})", **where)
     c = conformal_rate(spec)
     if c is not None:
@@ -597,7 +608,7 @@ class PeriodicShooting(ContinuationProblem):
         # a Newton iterate far from any response (huge overlaps: stiff contacts) must fail, not crawl
         self.integrator.max_steps = MAX_STEPS_PER_FLOW * self.periods
         self.X = self.chain.create_state()
-        ftol = floquet_tolerances or tolerances
+        ftol = self.floquet_tolerances = floquet_tolerances or tolerances
         self.dense = DenseFloquet(spec, comm, ftol, floquet_prefix) if dense else None
         if self.dense is not None:             # R's columns start as unit vectors: R to rtol in norm
             rtol = self.tangent_rtol = self.dense.flow.integrator.ts.getTolerances()[0]
@@ -1040,8 +1051,11 @@ class PeriodicShooting(ContinuationProblem):
         if self.floquet_kind == "dense":
             R = self.monodromy(x, p)
             if self._checked != self._mono[3]:          # once per monodromy
-                check_monodromy(R, self.drive.spec(), self.T, self.tangent_rtol, self._mono[5],
-                                {self.parameter: float(p)})
+                spec = self.drive.spec()
+                trace = None if spec.model.damping.contact is None else \
+                    liouville_integral(spec, x, self.T, self.comm, self.floquet_tolerances,
+                                       self.dense.flow.integrator.ts.getOptionsPrefix())
+                check_monodromy(R, spec, self.T, self.tangent_rtol, self._mono[5], {self.parameter: float(p)}, trace)
                 self._checked = self._mono[3]
             mu = dense_multipliers(R)
         elif self.floquet_kind == "slepc":
@@ -1077,7 +1091,8 @@ class PeriodicShooting(ContinuationProblem):
 class LinearChainPreconditioner:
     """(R_lin - I)^-1, the preconditioner of Newton-Krylov shooting (a PETSc ``PC`` python context, prefix
     ``drive_``: -drive_pc_type none turns it off). R_lin is the monodromy over the response's period of the chain
-    linearised about rest, m x'' + (gamma + eta L) x' + K L x = 0 with K = V''(0) and L the second difference with the
+    linearised about rest, m x'' + (gamma + eta L) x' + K L x = 0 with K = V''(0) (eta with the contacts' df/d(dv) at
+    rest, if the chain has contact dissipation) and L the second difference with the
     actuator's end fixed and the far end fixed (wall, actuator) or free: uniform masses make it diagonal in the sine
     modes of L (a sine transform by numpy's FFT), each mode a damped oscillator with its 2 x 2 monodromy in closed
     form. Without it GMRES on R - I stalls for about N / (c T) iterations on a long damped chain: the overdamped long
@@ -1107,7 +1122,10 @@ class LinearChainPreconditioner:
         lam = 4.0 * np.sin(np.pi * self.freq / self.ext) ** 2
         m = model.masses[0]
         w2 = model.law.linear_stiffness * lam / m
-        half = 0.5 * (model.damping.gamma + model.damping.eta * lam) / m
+        eta = model.damping.eta
+        if model.damping.contact is not None:     # the contacts at rest (overlap delta0): a dashpot df_d/d(dv)
+            eta = eta + float(model.damping.contact.bond_terms(model.law, np.zeros(1), np.zeros(1))[2][0])
+        half = 0.5 * (model.damping.gamma + eta * lam) / m
         s = np.sqrt(half * half - w2 + 0j)
         decay, cosh = np.exp(-half * T), np.cosh(s * T)
         sinc = np.where(np.abs(s * T) > 1e-8, np.sinh(s * T) / np.where(s == 0, 1.0, s), T)   # sinh(s T) / s

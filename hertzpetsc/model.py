@@ -4,8 +4,8 @@
 
 :class:`LatticeModel` holds the interaction law between neighbours (any :class:`~hertzpetsc.law.InteractionLaw`;
 the paper's is :class:`~hertzpetsc.hertz.HertzLaw`, eq. vhertz), the masses m_n, which repeat a pattern (the
-paper's chain: all masses 1), and the linear damping (:class:`Damping`: on-site gamma, between neighbours eta; none
-in the paper). :class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq.
+paper's chain: all masses 1), and the damping (:class:`Damping`: on-site gamma, between neighbours eta, and a
+dissipation in the contacts, :mod:`hertzpetsc.dissipation`; none in the paper). :class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq.
 pbcl), free, a wall at rest, or an actuator whose motion is a given periodic function of time (:class:`Actuator`
 with a :class:`Harmonic`, :class:`SampledSignal` or :class:`FunctionSignal`).
 
@@ -26,6 +26,7 @@ from typing import Callable, Optional, Sequence, Union
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .dissipation import ContactDissipation
 from .errors import ParameterError, check_integer, check_real
 from . import fpu, toda  # noqa: F401  (the package's laws, registered by name for from_description)
 from .hertz import HertzLaw
@@ -38,16 +39,26 @@ END_KINDS = ("free", "wall")
 
 @dataclass(frozen=True)
 class Damping:
-    """Linear damping of the chain: on-site ``gamma`` (force -gamma x_n') and between neighbours ``eta`` (a
-    dashpot in every bond: force eta (x_{n+1}' - 2 x_n' + x_{n-1}') on bead n). Both 0: the paper's Hamiltonian
-    chain."""
+    """Damping of the chain: linear on-site ``gamma`` (force -gamma x_n') and between neighbours ``eta`` (a
+    dashpot in every bond: force eta (x_{n+1}' - 2 x_n' + x_{n-1}') on bead n), and ``contact``, a dissipation in
+    the contacts that depends on the overlap and its rate (:class:`~hertzpetsc.dissipation.HuntCrossley`,
+    :class:`~hertzpetsc.dissipation.KuwabaraKono`; None: none). All absent: the paper's Hamiltonian chain."""
 
     gamma: float = 0.0
     eta: float = 0.0
+    contact: Optional[ContactDissipation] = None
 
     def __post_init__(self):
         for name, what in (("gamma", "the on-site damping"), ("eta", "the damping between neighbours")):
             object.__setattr__(self, name, check_real(name, getattr(self, name), what, 0.0, lo_open=False))
+        if self.contact is not None and not isinstance(self.contact, ContactDissipation):
+            raise ParameterError("contact", self.contact, "must be None or a contact dissipation (HuntCrossley(c), "
+                                 "KuwabaraKono(eta))")
+
+    @property
+    def active(self) -> bool:
+        """True when any term dissipates."""
+        return self.gamma > 0.0 or self.eta > 0.0 or self.contact is not None
 
 
 @dataclass(frozen=True)
@@ -137,7 +148,8 @@ class LatticeModel:
         return self.with_parameter("alpha", alpha)
 
     def with_damping(self, gamma: float = 0.0, eta: float = 0.0) -> LatticeModel:
-        return LatticeModel(self.law, self.masses, Damping(gamma, eta))
+        """The same lattice with the linear damping gamma, eta (the contact dissipation kept)."""
+        return LatticeModel(self.law, self.masses, Damping(gamma, eta, self.damping.contact))
 
     def rescaled(self, a: float) -> LatticeModel:
         """The model whose law is r -> a^(-d) V'(a r) (:meth:`~hertzpetsc.law.InteractionLaw.rescaled`): the
@@ -162,7 +174,7 @@ class LatticeModel:
 
     @property
     def damped(self) -> bool:
-        return self.damping.gamma > 0.0 or self.damping.eta > 0.0
+        return self.damping.active
 
     # --- the forces, as every solver evaluates them ------------------------------------------------------------
     def force(self, r: ArrayLike) -> np.ndarray:
@@ -189,7 +201,7 @@ class LatticeModel:
         """ParameterError if the model is damped (for computations of the Hamiltonian chain: travelling waves)."""
         if self.damped:
             raise ParameterError("damping", (self.damping.gamma, self.damping.eta),
-                                 f"{what} needs the undamped chain (gamma = eta = 0)")
+                                 f"{what} needs the undamped chain (gamma = eta = 0, no contact dissipation)")
 
     # --- closed forms of the linear lattice ----------------------------------------------------------------
     def linear_frequencies(self, q: float) -> np.ndarray:
@@ -238,6 +250,8 @@ class LatticeModel:
         for name in ("gamma", "eta"):
             if getattr(self.damping, name) > 0.0:
                 out[name] = getattr(self.damping, name)
+        if self.damping.contact is not None:
+            out.update(self.damping.contact.describe())
         return out
 
 

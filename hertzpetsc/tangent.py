@@ -7,6 +7,9 @@ with 2(1+k) dof per bead), so that R(T; 0) Y0 comes out with the same adaptive s
 :class:`MonodromyModShift` is the same map as a matrix-free ``Mat.createPython`` operator (one product = one
 integration with k = 1) for SLEPc.
 
+:func:`liouville_integral`: int_0^T tr Df dt along an orbit, Liouville's log det R(T; 0) where the damping depends
+on the state (contact dissipation).
+
 :class:`CellPropagator`: for an orbit that repeats every M beads, the flow of the infinite chain in three cell
 blocks, from one run on three cells; every Bloch sector's map of the cell follows from them (section 3.5).
 """
@@ -89,6 +92,38 @@ class TangentFlow:
         self.Z.destroy()
         self.integrator.destroy()
         self.aug.destroy()
+
+
+def liouville_integral(spec: ChainSpec, x0: ArrayLike, T: float, comm: PETSc.Comm,
+                       tolerances: Optional[IntegrationTolerances] = None, prefix: str = "floquet_",
+                       samples: int = 1024) -> tuple[float, float]:
+    """(int_0^T tr Df(X(t)) dt, its error estimate) along the orbit from ``x0`` (N, 2): Liouville's log det R(T; 0)
+    when the damping depends on the state (contact dissipation, :meth:`~hertzpetsc.chain.Chain.velocity_trace`).
+    Simpson's rule on ``samples`` intervals of the state flow; the error estimate is its difference from Simpson on
+    half as many (not divided by 15: the integrand has kinks where contacts open, close or clip)."""
+    n = check_integer("samples", samples, 4, "the quadrature's intervals")
+    n += n % 4
+    chain = Chain(spec, comm)
+    integ = ChainIntegrator(chain, tolerances, prefix)
+    X = chain.create_state()
+    try:
+        chain.set_from_array(X, np.asarray(x0, float).reshape(spec.N, 2))
+        ts = np.linspace(0.0, float(T), n + 1)
+        tr = np.empty(n + 1)
+        tr[0] = chain.velocity_trace(X, 0.0)
+        for i in range(1, n + 1):
+            integ.integrate(X, ts[i - 1], ts[i], dt=integ.initial_step if i == 1 else None)
+            tr[i] = chain.velocity_trace(X, ts[i])
+    finally:
+        X.destroy()
+        integ.destroy()
+        chain.destroy()
+
+    def simpson(f, h):
+        return h / 3.0 * (f[0] + f[-1] + 4.0 * f[1:-1:2].sum() + 2.0 * f[2:-1:2].sum())
+    h = float(T) / n
+    fine, coarse = simpson(tr, h), simpson(tr[::2], 2 * h)
+    return float(fine), float(abs(fine - coarse))
 
 
 class MonodromyModShift:

@@ -110,6 +110,10 @@ DRIVERS = {
                              ("-omegas", "0.5,0.5"), ("-floquet_eps_type", "bogus")),
     "bench_driven.py": (("-N", 2, "-points", 2, "-workloads", "sweep", "-output", "{t}/b.md"), None, "records",
                         ("-workloads", "gpu"), None),
+    "restitution.py": (("-velocities", "0.01,0.1", "-output", "{t}/r.npz", "-table", "{t}/r.md"), None, "output",
+                       ("-velocities", "0.1,0.1"), ("-chain_ts_type", "bogus")),
+    "pulse_decay.py": (("-N", 12, "-skip", 2, "-velocities", 1, "-output", "{t}/p.npz", "-table", "{t}/p.md"), None,
+                       "output", ("-velocities", "1,1"), ("-chain_ts_type", "bogus")),
 }
 
 
@@ -415,6 +419,7 @@ OVERSIZED = {
     "driven_generation.py": ("N", "1000000000"),
     "bench_driven.py": ("N", "1000000000"),
     "bench_map.py": ("N", "1000000000"),
+    "pulse_decay.py": ("N", "1000000000000"),
 }
 
 

@@ -1,0 +1,293 @@
+"""Dissipation in the contacts (issue 38, item 2): Hunt-Crossley and Kuwabara-Kono bond forces, clipped or not,
+in the chain's right-hand side, exact Jacobian, tangent flow, energy balance and driven responses."""
+import math
+
+import numpy as np
+import pytest
+from petsc4py import PETSc
+
+from conftest import run_script
+from hertzpetsc import kernels
+from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
+from hertzpetsc.dissipation import HuntCrossley, KuwabaraKono, contact_dissipation
+from hertzpetsc.driven import Drive, HarmonicWave, PeriodicShooting, check_monodromy, conformal_rate
+from hertzpetsc.errors import ConvergenceError, ParameterError
+from hertzpetsc.hertz import HertzLaw
+from hertzpetsc.law import RescaledLaw
+from hertzpetsc.model import Actuator, ChainSpec, Damping, Harmonic, LatticeModel
+from hertzpetsc.studies.contacts import PulseDecay, PulseParameters, Restitution, RestitutionParameters, line_misfit
+from hertzpetsc.tangent import TangentFlow, liouville_integral
+
+COMM = PETSc.COMM_WORLD
+TIGHT = IntegrationTolerances(1e-12, 1e-14)
+CONTACTS = [HuntCrossley(0.8), HuntCrossley(0.8, clipped=False), KuwabaraKono(0.3), KuwabaraKono(0.3, clipped=False)]
+
+
+def model_with(contact, delta0=0.2, masses=(1.0, 0.6), gamma=0.01, eta=0.02):
+    return LatticeModel(HertzLaw(1.5, delta0), masses, Damping(gamma, eta, contact))
+
+
+def test_bond_terms_closed_forms_clipping_and_derivatives():
+    """f_d = g(d) dv in contact (HC: 1.5 c d^alpha, KK: eta d^(alpha - 1)), 0 out of contact, min(g dv, d^alpha) when
+    clipped; df/dr and df/d(dv) against central differences (h = 1e-6: error O(h^2) ~ 1e-11, round-off 1e-10)."""
+    law = HertzLaw(1.5, 0.3)
+    rng = np.random.default_rng(0)
+    r = rng.uniform(-1.0, 0.6, 200)
+    dv = rng.uniform(-2.0, 2.0, 200)
+    d = 0.3 - r
+    for contact, g in ((HuntCrossley(0.7, False), 1.05 * np.maximum(d, 0) ** 1.5),
+                       (KuwabaraKono(0.4, False), 0.4 * np.sqrt(np.maximum(d, 0)))):
+        f, dfr, dfv = contact.bond_terms(law, r, dv)
+        assert np.allclose(f, g * dv, rtol=1e-14, atol=0)
+        clipped = type(contact)(contact.c if hasattr(contact, "c") else contact.eta, True)
+        fc, _, _ = clipped.bond_terms(law, r, dv)
+        P = np.maximum(d, 0) ** 1.5
+        assert np.allclose(fc, np.minimum(g * dv, P), rtol=1e-14, atol=0)
+        assert np.any(fc < f) and np.all(fc <= P + 1e-15)           # some contacts would pull, none does
+        assert np.all(f[d <= 0] == 0) and np.all(fc[d <= 0] == 0)
+    h = 1e-6
+    away = np.abs(d) > 1e-3                                          # kinks: contact edge, clipping edge
+    for contact in CONTACTS:
+        f, dfr, dfv = contact.bond_terms(law, r, dv)
+        edge = np.abs(contact.bond_terms(law, r, dv + 1e-3)[2] - dfv) > 0.1 * np.abs(dfv) + 1e-3
+        ok = away & ~edge
+        num_r = (contact.bond_terms(law, r + h, dv)[0] - contact.bond_terms(law, r - h, dv)[0]) / (2 * h)
+        num_v = (contact.bond_terms(law, r, dv + h)[0] - contact.bond_terms(law, r, dv - h)[0]) / (2 * h)
+        assert np.allclose(dfr[ok], num_r[ok], rtol=1e-6, atol=1e-6)
+        assert np.allclose(dfv[ok], num_v[ok], rtol=1e-6, atol=1e-6)
+
+
+def test_the_model_records_the_term_only_when_present_and_checks_it():
+    assert LatticeModel.hertz(1.5, gamma=0.1).describe() == {"alpha": 1.5, "masses": [1.0], "gamma": 0.1}
+    m = model_with(HuntCrossley(0.5))
+    assert m.describe()["contact"] == "hunt-crossley" and m.describe()["contact_c"] == 0.5 and m.damped
+    assert m.with_damping(0.2, 0.0).damping.contact == HuntCrossley(0.5)           # the lens keeps the term
+    assert contact_dissipation("none", 1.0) is None
+    assert contact_dissipation("kuwabara-kono", 0.2, False) == KuwabaraKono(0.2, False)
+    for bad in (lambda: HuntCrossley(-1.0), lambda: KuwabaraKono(math.nan), lambda: HuntCrossley(1.0, "yes"),
+                lambda: Damping(0.0, 0.0, "hunt-crossley"), lambda: contact_dissipation("hertz", 1.0)):
+        with pytest.raises(ParameterError):
+            bad()
+    with pytest.raises(ParameterError, match="travelling"):
+        m.require_conservative("travelling waves")
+
+
+def chain_arrays(spec, x, t=0.0):
+    """(f, dense Jacobian, forward differences h = 1e-7) of the chain at the state x."""
+    ch = Chain(spec, COMM)
+    X, F, G = ch.create_state(), ch.create_state(), ch.create_state()
+    J = ch.create_jacobian()
+    try:
+        ch.set_from_array(X, x)
+        ch.rhs_jacobian(None, t, X, J, J)
+        ch.rhs(None, t, X, F)
+        f0 = ch.gather(F).ravel()
+        dense = np.zeros((2 * spec.N, 2 * spec.N))
+        lo, hi = J.getOwnershipRange()
+        dense[lo:hi] = J.getValues(range(lo, hi), range(2 * spec.N))
+        dense = COMM.tompi4py().allreduce(dense)
+        fd = np.zeros_like(dense)
+        for k in range(2 * spec.N):
+            e = np.asarray(x, float).ravel().copy()
+            e[k] += 1e-7
+            ch.set_from_array(X, e.reshape(-1, 2))
+            ch.rhs(None, t, X, G)
+            fd[:, k] = (ch.gather(G).ravel() - f0) / 1e-7
+        return f0, dense, fd, ch.kernel
+    finally:
+        for v in (X, F, G, J):
+            v.destroy()
+        ch.destroy()
+
+
+@pytest.mark.parametrize("contact", CONTACTS)
+@pytest.mark.parametrize("boundary,ends", [("periodic", {}), ("free", {}),
+                                           ("fixed", dict(left=Actuator(Harmonic(0.2, 1.3))))])
+def test_exact_jacobian_with_velocity_derivatives(contact, boundary, ends):
+    """The exact Jacobian (positions and velocities) against forward differences (h = 1e-7: error h |f''| ~ 1e-7
+    of the largest entry, the states chosen away from the kinks), at states where bonds touch, clip and separate."""
+    spec = ChainSpec(model_with(contact), 8, boundary, **ends)
+    x = np.random.default_rng(3).normal(size=(8, 2)) * 0.3
+    f, J, fd, kernel = chain_arrays(spec, x, t=0.7)
+    assert kernel is None                                  # the compiled kernel does not compute the term
+    r = np.diff(x[:, 0])
+    assert np.any(0.2 - r > 0) and np.any(0.2 - r < 0)   # in and out of contact
+    assert np.max(np.abs(J - fd)) < 1e-6 * max(1.0, np.max(np.abs(J)))
+    # the velocity derivatives are there: the velocity columns differ from the dashpots' alone
+    plain, _, _, _ = chain_arrays(ChainSpec(model_with(None), 8, boundary, **ends), x, t=0.7)
+    assert np.max(np.abs(f - plain)) > 1e-3
+
+
+def test_compiled_path_only_without_contact_dissipation():
+    """The compiled kernel's guard looks at the damping's terms too: a chain with contact dissipation evaluates in
+    numpy (the kernel does not compute the term: see docs/dissipation.md), one without takes the kernel; set_spec
+    keeps the kind of contact dissipation and moves its coefficient."""
+    ch = Chain(ChainSpec(model_with(None), 6, "fixed"), COMM)
+    try:
+        assert (ch.kernel is not None) == (kernels.status() == "compiled")
+        with pytest.raises(ParameterError, match="contact dissipation"):
+            ch.set_spec(ChainSpec(model_with(HuntCrossley(0.5)), 6, "fixed"))
+    finally:
+        ch.destroy()
+    for contact in (HuntCrossley(0.5), KuwabaraKono(0.5, False)):
+        ch = Chain(ChainSpec(model_with(contact), 6, "fixed"), COMM)
+        try:
+            assert ch.kernel is None
+            ch.set_spec(ChainSpec(model_with(type(contact)(0.9)), 6, "fixed"))
+            assert ch.model.damping.contact == type(contact)(0.9)
+        finally:
+            ch.destroy()
+    no_contact = RescaledLaw(HertzLaw(), 2.0, 1.5)          # a law that names no exponent: contact unknown
+    with pytest.raises(ParameterError, match="law"):
+        Chain(ChainSpec(LatticeModel(no_contact, damping=Damping(contact=HuntCrossley(0.5))), 6, "fixed"), COMM)
+
+
+@pytest.mark.parametrize("contact", [HuntCrossley(3.0), HuntCrossley(0.8, clipped=False), KuwabaraKono(0.3)])
+def test_energy_balance_with_contact_dissipation(contact):
+    """E(T) - E(0) = int (input - dissipation) dt along a driven trajectory with collisions: Simpson on 2000
+    intervals, its error estimated by Simpson on 1000 (the integrand has kinks where contacts open, close or clip:
+    the quadrature, not the flow's rtol 1e-12, limits the check; 4 times the samples shrink the misfit 5 to 40 fold);
+    the balance holds within three times that estimate."""
+    model = model_with(contact, delta0=0.0, gamma=0.0, eta=0.0)
+    spec = ChainSpec(model, 6, "fixed", left=Actuator(Harmonic(0.5, 2.0)))
+    ch = Chain(spec, COMM)
+    X = ch.create_state()
+    x0 = np.zeros((6, 2))
+    x0[:, 1] = np.random.default_rng(1).normal(size=6) * 0.5
+    ch.set_from_array(X, x0)
+    integ = ChainIntegrator(ch, TIGHT)
+    try:
+        ts = np.linspace(0.0, 6.0, 2001)
+        E, W = [], []
+        for i, t in enumerate(ts):
+            if i:
+                integ.integrate(X, ts[i - 1], t)
+            E.append(ch.energy(X, t))
+            p_in, diss = ch.power(X, t)
+            W.append(p_in - diss)
+            assert diss >= 0.0
+        E, W = np.array(E), np.array(W)
+
+        def simpson(f, h):
+            return h / 3 * (f[0] + f[-1] + 4 * f[1:-1:2].sum() + 2 * f[2:-1:2].sum())
+        h = ts[1] - ts[0]
+        fine, coarse = simpson(W, h), simpson(W[::2], 2 * h)
+        assert abs(E[-1] - E[0]) > 1e-2
+        assert abs((E[-1] - E[0]) - fine) <= max(3 * abs(fine - coarse), 1e-9 * np.max(E))
+        assert abs(fine - coarse) < 1e-4 * np.max(E)        # d^(1/2) (KK) and the clipping's jump: Simpson ~ h
+    finally:
+        X.destroy()
+        integ.destroy()
+        ch.destroy()
+
+
+def test_tangent_flow_and_liouville_with_contact_dissipation():
+    """R(T; 0) of a driven chain with Hunt-Crossley contacts against central differences of the flow (h = 1e-4: the
+    contacts that open and close move the adaptive steps, so the differences carry noise ~ 1e-6 at this h, more at
+    smaller h, the same without contact dissipation), and log det R against int tr Df dt along the orbit (liouville_integral, to its own
+    error estimate); the symplectic form is not conserved (no conformal rate)."""
+    spec = ChainSpec(model_with(HuntCrossley(0.8)), 4, "fixed", left=Actuator(Harmonic(0.2, 1.3)))
+    x0 = np.random.default_rng(3).normal(size=(4, 2)) * 0.2
+    flow = TangentFlow(spec, 8, COMM, TIGHT, "floquet_")
+    try:
+        R, _ = flow.resolvent(x0, 2.0)
+        steps = flow.integrator.ts.getStepNumber()
+        fd = np.zeros_like(R)
+        for j in range(8):
+            xs = []
+            for s in (1, -1):
+                e = x0.ravel().copy()
+                e[j] += s * 1e-4
+                xs.append(flow.run(e.reshape(4, 2), 2.0, np.zeros((4, 2, 8)))[0].ravel())
+            fd[:, j] = (xs[0] - xs[1]) / 2e-4
+    finally:
+        flow.destroy()
+    assert np.max(np.abs(R - fd)) < 1e-5 * np.max(np.abs(R))
+    integral, err = liouville_integral(spec, x0, 2.0, COMM, TIGHT)
+    assert err < 1e-6
+    assert abs(np.linalg.slogdet(R)[1] - integral) < 3 * err + 1e-9
+    assert conformal_rate(spec) is None
+    where = {"omega": 1.3}
+    check_monodromy(R, spec, 2.0, 1e-12, steps, where, (integral, err))
+    with pytest.raises(ConvergenceError, match="Liouville"):
+        check_monodromy(R, spec, 2.0, 1e-12, steps, where, (integral + 1e-3, err))
+    with pytest.raises(ParameterError, match="trace"):
+        check_monodromy(R, spec, 2.0, 1e-12, steps, where)
+
+
+def test_driven_response_with_contact_dissipation_dense_and_slepc_multipliers_agree():
+    """A periodic response of a precompressed chain with Hunt-Crossley contacts (and a weak on-site damping): the
+    dense bordered Newton and Newton-Krylov find the same response; its dominant multipliers by LAPACK on the dense
+    monodromy (Liouville checked by the integral of tr Df along the orbit) and by SLEPc on the matrix-free one agree
+    to 1e-8 (the eigen-residuals' tolerance)."""
+    model = model_with(HuntCrossley(0.5), delta0=0.5, masses=(1.0,), gamma=0.01, eta=0.0)
+    drive = Drive(model, 5, HarmonicWave(), 0.05, 1.2)
+    dense = PeriodicShooting(drive, COMM)
+    mf = PeriodicShooting(drive, COMM, jacobian="mf", floquet="slepc", nev=4)
+    try:
+        x0 = dense.run_in(np.zeros((5, 2)), 10)
+        rd, rm = dense.solve_response(x0), mf.solve_response(x0)
+        assert rd.residual < 1e-10 and rm.residual < 1e-10
+        assert np.max(np.abs(rd.x - rm.x)) < 1e-9 * np.max(np.abs(rd.x))
+        mu_d, mu_s = dense.multipliers(x=rd.x, p=1.2), mf.multipliers(x=rd.x, p=1.2)
+        assert np.abs(mu_d[3]) - np.abs(mu_d[4]) > 1e-3
+        assert np.max(np.abs(np.sort_complex(mu_d[:4]) - np.sort_complex(mu_s[:4]))) < 1e-8
+        # the contacts damp more than the on-site term alone: prod |mu| < exp(-gamma N T)
+        assert np.sum(np.log(np.abs(mu_d))) < -0.01 * 5 * dense.T - 1e-3
+    finally:
+        dense.destroy()
+        mf.destroy()
+
+
+def test_restitution_converges_and_follows_the_small_dissipation_laws():
+    """e of two-bead impacts at rtol 1e-11 and 1e-9 agree to 1e-8 (converged under refinement); Hunt-Crossley:
+    (1 - e) / (c v) = 1 + O(c v) (within 2 c v); Kuwabara-Kono: (1 - e) / (C eta v^(1/5)) = 1 + O(1 - e) and the
+    exponent fitted on v = 1e-4..1e-2 within 0.005 of 1/5."""
+    hc = Restitution(RestitutionParameters("hunt-crossley", 0.1, velocities=(1e-3, 1e-2, 0.1)), COMM)
+    kk = Restitution(RestitutionParameters("kuwabara-kono", 0.05, velocities=(1e-4, 1e-3, 1e-2)), COMM)
+    for study in (hc, kk):
+        for _ in study.run():
+            pass
+        for r in study.rows():
+            assert abs(float(r["e"]) - float(r["e_coarse"])) < 1e-8
+            assert 0.0 < float(r["e"]) < 1.0
+    for r in hc.rows():
+        cv = 0.1 * float(r["v"])
+        assert abs((1 - float(r["e"])) / cv - 1.0) < 2 * cv
+    for r in kk.rows():
+        loss = 1 - float(r["e"])
+        assert abs(loss / float(r["law"]) - 1.0) < loss
+    slope, expected, _ = kk.fit()
+    assert expected == pytest.approx(0.2) and abs(slope - 0.2) < 5e-3
+    assert "fit on the three smallest v" in hc.table()
+
+
+def test_pulse_decay_law_tells_the_two_dampings_apart():
+    """A pulse on 60 beads (fit over beads 8..51): Hunt-Crossley's amplitudes make A^-1 linear in n (10 times closer
+    to a line than A^-1/5), Kuwabara-Kono's A^-1/5 (5 times closer than A^-1); the slope per unit damping is the
+    same for v0 = 1 and 0.5 to 5 % (the law's coefficient does not depend on the amplitude; the pulse's formation
+    over the first beads and O(c v) corrections make the rest)."""
+    for kind, damping, law, other in (("hunt-crossley", 0.05, -1.0, -0.2), ("kuwabara-kono", 0.02, -0.2, -1.0)):
+        study = PulseDecay(PulseParameters(kind, damping, velocities=(1.0, 0.5), N=60, skip=8), COMM)
+        rows = list(study.run())
+        n = np.arange(8, 52)
+        for r in rows:
+            A = np.asarray(r["amplitude"])
+            assert np.all(np.diff(A[8:52]) < 0)                          # decays bead after bead
+            assert line_misfit(n, A[8:52], other)[1] > 5 * line_misfit(n, A[8:52], law)[1]
+            assert float(r["misfit"]) < 2e-3
+        assert abs(float(rows[0]["slope"]) / float(rows[1]["slope"]) - 1.0) < 0.05
+        assert "decay law A^p linear in n" in study.table()
+
+
+@pytest.mark.serial
+def test_the_drivers_write_their_tables(tmp_path):
+    r = run_script("restitution.py", "-contact", "kuwabara-kono", "-damping", 0.05, "-velocities", "1e-3,1e-2",
+                   "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md")
+    assert r.returncode == 0, r.stderr
+    assert "Kuwabara-Kono eta = 0.05" in (tmp_path / "r.md").read_text()
+    r = run_script("pulse_decay.py", "-N", 16, "-skip", 3, "-velocities", 1, "-unclipped", "-output",
+                   tmp_path / "p.npz", "-table", tmp_path / "p.md")
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "p.npz") as z:
+        assert z["amplitude"].shape == (1, 16) and str(z["format"]) == "hertzpetsc-pulse-1"

@@ -377,13 +377,15 @@ class BeadChain:
     def table(self, records: Sequence[Any], columns: Sequence[tuple[str, str, Callable[[Any], float]]],
               lead: Sequence[tuple[str, Callable[[Any], float]]] = ()) -> str:
         """A Markdown section of the records in SI units: the chain and its scales, then one row per record with
-        the dimensionless ``lead`` columns [(label, value(record))] and the SI ``columns`` (:meth:`columns`)."""
+        the dimensionless ``lead`` columns [(label, value(record)): a number, or text as it is] and the SI
+        ``columns`` (:meth:`columns`)."""
         heads = [label for label, _ in lead] + \
             [f"{label} [{DISPLAY.get(q, (_SCALES.get(q, ('',))[0],))[0]}]" for label, q, _ in columns]
         lines = ["", "## In SI units", "", "\n\n".join(x[2:] for x in self.summary().splitlines()), "",
                  "| " + " | ".join(heads) + " |", "|" + "---|" * len(heads)]
         for r in records:
-            lines.append("| " + " | ".join([f"{float(v(r)):.6g}" for _, v in lead] + self.columns(r, columns))
+            lines.append("| " + " | ".join([v(r) if isinstance(v(r), str) else f"{float(v(r)):.6g}" for _, v in lead]
+                                           + self.columns(r, columns))
                          + " |")
         return "\n".join(lines) + "\n"
 
@@ -414,19 +416,20 @@ class BeadChain:
 BEAD_OPTIONS = ("beads", "radius", "youngs", "poisson", "density", "static_force", "length_scale")
 
 
-def bead_options(opts, replaces=("alpha", "delta0", "masses")) -> Optional[BeadChain]:
+def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_force="0N") -> Optional[BeadChain]:
     """Declare and read the options of a chain in SI units (``opts`` an AppOptions): -beads (materials of the
     pattern, e.g. steel or steel,ptfe; 'custom' with -youngs, -poisson, -density), -radius (one, or one per bead),
     -youngs, -poisson, -density (replace the table's values), -static_force, -length_scale. Returns the
     :class:`BeadChain`, or None without -beads (the dimensionless options alone, as before). With -beads the
-    dimensionless options ``replaces`` (the exponent, -delta0, -masses) may not be given: the beads define them."""
-    names = opts.string("beads", "", "bead materials of the pattern, comma-separated, from " + ", ".join(MATERIALS)
+    dimensionless options ``replaces`` (the exponent, -delta0, -masses) may not be given: the beads define them.
+    ``beads``, ``static_force``: the defaults (a driver whose chain is always one of beads)."""
+    names = opts.string("beads", beads, "bead materials of the pattern, comma-separated, from " + ", ".join(MATERIALS)
                         + " or custom (none: the dimensionless chain of -delta0, -masses)")
     radius = opts.string("radius", "4.76mm", "-beads: radius, or one per bead (e.g. 4.76mm)")
     youngs = opts.string("youngs", "", "-beads: Young's modulus (e.g. 193GPa), replacing the table's")
     poisson = opts.string("poisson", "", "-beads: Poisson ratio in (-1, 0.5], replacing the table's")
     density = opts.string("density", "", "-beads: density (e.g. 8000kg/m^3), replacing the table's")
-    force = opts.string("static_force", "0N", "-beads: the static force pressing the chain (precompression)")
+    force = opts.string("static_force", static_force, "-beads: the static force pressing the chain (precompression)")
     length = opts.string("length_scale", "", "-beads: the length scale (default: the static overlap, so that "
                          "delta0 = 1; needed when -static_force is 0)")
     if opts.help or not names.strip():

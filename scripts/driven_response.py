@@ -95,7 +95,7 @@ def main():
     si = None if beads is None else [(parameter, si_kind, lambda r: r["p"]), ("wall force - F0", "force",
                                                                              lambda r: r["force_right"])]
     if beads is not None:
-        print0(beads.summary())
+        print0(beads.summary() + f"\n# damping gamma = {beads.to_si('damping', drive.gamma):.6g} kg/s")
     print0(f"# {'branch':>6} {parameter:>12} {'event':>16} {'rho':>10} {'residual':>9} {'force':>10}"
            + ("" if si is None else f" {'[Hz]' if parameter == 'omega' else '[um]':>12} {'dF [N]':>10}"))
 
@@ -106,8 +106,9 @@ def main():
                + ("" if si is None else " {:>12} {:>10}".format(*beads.columns(r, si))))
 
     def table():
-        return study.table() + ("" if si is None else beads.table(
-            study.store.records, si, [("branch", lambda r: r["branch"]), (parameter, lambda r: r["p"])]))
+        lead = [("branch", lambda r: r["branch"]), ("event", lambda r: EVENT_NAMES[int(r["event"])] or ""),
+                (parameter, lambda r: r["p"])]
+        return study.table() + ("" if si is None else beads.table(study.store.records, si, lead))
     text = study.run_to_table(table_path, show, table)  # on a stop: the table of the records done, then the error
     records = study.store.records
     study.destroy()

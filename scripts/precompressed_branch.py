@@ -21,7 +21,8 @@ Figure: precompressed_omega.png.
 With -beads (hertzpetsc.units) the chain is that of the beads pressed by -static_force (instead of -alpha, -delta0,
 -masses; a and A in units of the length scale, by default the static overlap: delta0 = 1), and every row is also
 shown in SI units (A in um, frequency in Hz, phase speed in m/s); the table gets a section in SI units: per q, the
-first and last amplitude of the grid and the gap opening. Solver prefix: -precomp_ (the bordered Newton: -precomp_snes_*, -precomp_ksp_*,
+first and last amplitude of the grid and the gap opening.
+Solver prefix: -precomp_ (the bordered Newton: -precomp_snes_*, -precomp_ksp_*,
 -precomp_pc_*).
 """
 import math

@@ -2,13 +2,14 @@
 of the dimensionless chain, the closed forms of a steel chain in SI (sound speed, cut-off) against the package's
 linear lattice converted back, the solitary wave's speed in m/s, and bad input from the API and the command line."""
 import math
+import os
 import re
 
 import numpy as np
 import pytest
 
 import hertzpetsc as hz
-from conftest import one_error_line, run_script
+from conftest import ROOT, one_error_line, run_script
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.materials import MATERIALS, Material, material
 from hertzpetsc.units import Bead, BeadChain, contact_constant, parse_quantity
@@ -210,3 +211,33 @@ def test_the_wave_driver_reports_si_beside_the_dimensionless_values(tmp_path):
     assert f == pytest.approx(omega / (2 * math.pi * STEEL.tau), rel=1e-5)
     assert c == pytest.approx(omega / (2 * math.pi / 15) * 2 * R / STEEL.tau, rel=1e-5)
     assert "sound speed c0 = 541.9" in text          # c0 of the closed form, checked above to 1e-9
+
+
+def test_the_driven_response_takes_its_drive_in_si_and_reports_the_wall_force_in_newtons(tmp_path):
+    table = tmp_path / "driven.md"
+    r = run_script("driven_response.py", "-N", "4", "-beads", "steel", "-static_force", "10N", "-gamma", "0.05",
+                   "-drive_amplitude", "0.1um", "-drive_frequency", "10kHz", "-p_end_si", "10.5kHz", "-run_in", "10",
+                   "-max_steps", "3", "-output", tmp_path / "driven.npz", "-table", table)
+    assert r.returncode == 0, r.stderr
+    data = np.load(tmp_path / "driven.npz", allow_pickle=True)
+    rows = [line.split("|")[1:-1] for line in table.read_text().split("## In SI units")[1].splitlines()
+            if re.match(r"^\| 0 \|", line)]
+    omega = np.asarray(data["omega"], float)
+    assert len(rows) == len(omega) >= 2
+    assert float(rows[0][3]) == pytest.approx(1e4, rel=1e-5)                   # the first response at -drive_frequency
+    assert omega[0] == pytest.approx(2 * math.pi * 1e4 * STEEL.tau, rel=1e-12)
+    assert data["amplitude"][0] == pytest.approx(1e-7 / STEEL.L, rel=1e-12)
+    for row, w, f in zip(rows, omega, np.asarray(data["force_right"], float)):
+        assert float(row[3]) == pytest.approx(w / (2 * math.pi * STEEL.tau), rel=1e-5)
+        assert float(row[4]) == pytest.approx(f * F0, rel=1e-5)                   # K L^(3/2) = F0 at L = delta_s
+
+
+def test_the_page_quotes_what_beads_to_waves_prints(tmp_path):
+    """docs/from-beads-to-waves.md's tables of closed forms and solitary speeds are the driver's output."""
+    out = tmp_path / "b.md"
+    r = run_script("beads_to_waves.py", "-beads", "steel", "-radius", "4.76mm", "-static_force", "10N", "-output", out)
+    assert r.returncode == 0, r.stderr
+    page = open(os.path.join(ROOT, "docs", "from-beads-to-waves.md")).read()
+    rows = [line for line in out.read_text().splitlines() if re.match(r"^\| [0-9cs]", line)]
+    assert len(rows) == 5 and all(row in page for row in rows), [row for row in rows if row not in page]
+    assert "v1 = 1.6249441" in out.read_text() and "v1 = 1.6249441" in page

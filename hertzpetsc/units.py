@@ -432,7 +432,13 @@ def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_
     force = opts.string("static_force", static_force, "-beads: the static force pressing the chain (precompression)")
     length = opts.string("length_scale", "", "-beads: the length scale (default: the static overlap, so that "
                          "delta0 = 1; needed when -static_force is 0)")
-    if opts.help or not names.strip():
+    if opts.help:
+        return None
+    if not names.strip():
+        given = [name for name in BEAD_OPTIONS[1:] if opts.db.hasName(name)]
+        if given:
+            raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "describes beads: give -beads "
+                                 "(e.g. steel) too")
         return None
     for name in replaces:
         if opts.db.hasName(name):

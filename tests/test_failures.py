@@ -110,6 +110,8 @@ DRIVERS = {
                              ("-omegas", "0.5,0.5"), ("-floquet_eps_type", "bogus")),
     "bench_driven.py": (("-N", 2, "-points", 2, "-workloads", "sweep", "-output", "{t}/b.md"), None, "records",
                         ("-workloads", "gpu"), None),
+    "beads_to_waves.py": (("-cells", "10,20,40", "-max_velocity", "0.1m/s", "-output", "{t}/b.md"), None, None,
+                          ("-cells", "10,20,20"), ("-sol_pc_type", "bogus")),
 }
 
 
@@ -415,6 +417,7 @@ OVERSIZED = {
     "driven_generation.py": ("N", "1000000000"),
     "bench_driven.py": ("N", "1000000000"),
     "bench_map.py": ("N", "1000000000"),
+    "beads_to_waves.py": ("cells", "10,20,1000000000000"),
 }
 
 

@@ -173,7 +173,8 @@ def test_the_solitary_wave_speed_in_si():
     assert api == pytest.approx(speeds, rel=1e-12)
 
 
-# --- the command line ---------------------------------------------------------------------------------------------
+# --- the command line (drivers run as processes of their own: serial) ---------------------------------------------------------------------------------------------
+@pytest.mark.serial
 @pytest.mark.parametrize("script, args, option", [
     ("wave.py", ["-beads", "unobtainium"], "-beads"),
     ("wave.py", ["-beads", "steel", "-poisson", "0.7", "-static_force", "1N"], "-poisson"),
@@ -196,11 +197,13 @@ def test_bad_si_options_are_one_error_line_naming_them(script, args, option):
     assert r.returncode == 2 and line.startswith(f"error: invalid {option} = "), line
 
 
+@pytest.mark.serial
 def test_bad_si_options_end_every_rank_with_one_line():
     r = run_script("wave.py", "-beads", "steel", "-poisson", "0.6", "-static_force", "1N", "-check", ranks=2)
     assert one_error_line(r).startswith("error: invalid -poisson = ")
 
 
+@pytest.mark.serial
 def test_the_wave_driver_reports_si_beside_the_dimensionless_values(tmp_path):
     table = tmp_path / "wave.md"
     r = run_script("wave.py", "-beads", "steel", "-radius", "4.76mm", "-static_force", "10N", "-q", "2*pi/15",
@@ -215,6 +218,7 @@ def test_the_wave_driver_reports_si_beside_the_dimensionless_values(tmp_path):
     assert "sound speed c0 = 541.9" in text          # c0 of the closed form, checked above to 1e-9
 
 
+@pytest.mark.serial
 def test_the_driven_response_takes_its_drive_in_si_and_reports_the_wall_force_in_newtons(tmp_path):
     table = tmp_path / "driven.md"
     r = run_script("driven_response.py", "-N", "4", "-beads", "steel", "-static_force", "10N", "-gamma", "0.05",
@@ -234,6 +238,7 @@ def test_the_driven_response_takes_its_drive_in_si_and_reports_the_wall_force_in
         assert float(row[4]) == pytest.approx(f * F0, rel=1e-5)                   # K L^(3/2) = F0 at L = delta_s
 
 
+@pytest.mark.serial
 def test_the_page_quotes_what_beads_to_waves_prints(tmp_path):
     """docs/from-beads-to-waves.md's tables of closed forms and solitary speeds are the driver's output."""
     out = tmp_path / "b.md"

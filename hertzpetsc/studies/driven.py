@@ -72,6 +72,7 @@ from ..floquet import DenseFloquet
 from ..model import LatticeModel
 from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
                          check_work)
+from ..units import bead_options, parse_quantity
 from .base import Study
 
 if TYPE_CHECKING:
@@ -1269,7 +1270,6 @@ def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, 
     right = opts.string("right", "wall", "the far end", choices=("wall", "free"))
     chain = None
     if beads:
-        from ..units import bead_options
         chain = bead_options(opts)
         a_si = opts.string("drive_amplitude", "", "-beads: the actuator's amplitude (e.g. 1um), instead of -amplitude")
         f_si = opts.string("drive_frequency", "", "-beads: the driving frequency (e.g. 2kHz), instead of -omega")
@@ -1281,7 +1281,6 @@ def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, 
                 if opts.db.hasName(name) and opts.db.hasName(si):
                     raise ParameterError(f"-{name}", opts.db.getString(name, ""), f"give one of -{name} "
                                          f"(dimensionless) and -{si} (SI)")
-            from ..units import parse_quantity
             if a_si:
                 a = chain.from_si("length", check_real("-drive_amplitude", parse_quantity(
                     "-drive_amplitude", a_si, "length"), "the actuator's amplitude", 0.0, lo_open=False))

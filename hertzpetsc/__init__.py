@@ -29,6 +29,8 @@ _MODULES = {
     # the lattice model (numpy only)
     "law": "InteractionLaw", "hertz": "HertzLaw", "toda": "TodaLaw", "fpu": "FPULaw",
     "model": "LatticeModel ChainSpec Damping Actuator Harmonic SampledSignal FunctionSignal",
+    # beads in SI units (issue 38)
+    "materials": "Material material", "units": "Bead BeadChain contact_constant parse_quantity",
     # travelling waves: the advance-delay problem, branches, families
     "grid": "ProfileGrid", "advdelay": "AdvanceDelayProblem", "branch": "Branch BranchPoint",
     "qbranch": "BranchContinuation ContinuationParameters",
@@ -55,7 +57,7 @@ _MODULES = {
     "studies.driven": "ResponseCurve LinearResonances WaveEnds Generation ResponseParameters ResonanceParameters "
                       "WaveEndsParameters GenerationParameters",
     # conveniences (this package's api module)
-    "api": "compute_branch wave_at wave orbit refine multipliers response plot_spectrum",
+    "api": "compute_branch wave_at wave orbit refine multipliers response solitary_speed plot_spectrum",
 }
 # name -> module that defines it
 _EXPORTS = {name: module for module, names in _MODULES.items() for name in names.split()}

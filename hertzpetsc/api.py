@@ -22,7 +22,7 @@ from petsc4py import PETSc
 from .bloch import SymmetricFloquet
 from .branch import Branch, BranchPoint
 from .driven import Drive, Response
-from .errors import ParameterError, check_flag, check_instance, check_integer, check_real
+from .errors import ParameterError, check_flag, check_instance, check_integer, check_integers, check_real
 from .families import AmplitudePoint
 from .families import wave_at as _wave_at
 from .families import wave_of_amplitude
@@ -34,6 +34,7 @@ from .qbranch import ContinuationParameters
 from .resources import check_chain_size
 from .shooting import Refinement
 from .shooting import refine as _refine
+from .units import BeadChain
 from .studies.branch import BranchStudy
 from .studies.floquet import METHODS
 from .waves import Orbit, orbit_on_chain
@@ -196,6 +197,29 @@ def response(drive: Drive, omega: Union[float, Sequence[float]], periods: int = 
         out.append(Response(drive.with_parameter("omega", float(rec["omega"])), int(rec["periods"]),
                             np.asarray(rec["x"]), float(rec["residual"]), int(rec["iterations"]), mu, rec))
     return out
+
+
+def solitary_speed(chain: BeadChain, max_velocity: Union[float, str, Sequence[float]],
+                   cells: Sequence[int] = (80, 160, 320)) -> Union[float, np.ndarray]:
+    """The speed [m/s] of the solitary wave of the uncompressed bead chain ``chain`` (a
+    :class:`~hertzpetsc.units.BeadChain` of one bead, static force 0) whose beads reach ``max_velocity`` [m/s] (a
+    number, a string with a unit such as '0.1 m/s', or several numbers): the unit-speed wave of eq. adr computed on
+    the grids 1/n, n in ``cells`` (three), its maximal bead velocity extrapolated in the grid step
+    (:func:`hertzpetsc.studies.solitary.unit_wave_velocity`), scaled as v^(1/5)
+    (:meth:`~hertzpetsc.units.BeadChain.solitary_speed`). Local (each rank solves on its own)."""
+    from .studies.solitary import unit_wave_velocity
+    check_instance("chain", chain, BeadChain, "a BeadChain (hertzpetsc.units.BeadChain)")
+    cells = check_integers("cells", cells, 2, "grids n (even)", distinct=True)
+    if len(cells) != 3:
+        raise ParameterError("cells", cells, "three grids for the extrapolation")
+    many = not isinstance(max_velocity, str) and np.ndim(max_velocity) > 0
+    values = list(max_velocity) if many else [max_velocity]
+    chain.solitary_speed(values[0], 1.0)            # the chain and the velocities refused before solving
+    for v in values[1:]:
+        chain.solitary_speed(v, 1.0)
+    v1 = unit_wave_velocity(1.5, tuple(sorted(cells)))[0]
+    speeds = [chain.solitary_speed(v, v1) for v in values]
+    return np.array(speeds) if many else speeds[0]
 
 
 def plot_spectrum(spectrum: Union[Spectrum, np.ndarray], ax: Optional[matplotlib.axes.Axes] = None,

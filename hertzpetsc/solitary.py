@@ -152,6 +152,14 @@ def displacement_profile(r_half, n):
     return y, k_alpha
 
 
+def max_bead_velocity(wave):
+    """max_n |x_n'| of the unit-speed solitary wave x_n(t) = y(n - t): max |y'|, from y on the grid (central
+    differences, y odd; second order in the grid step like the wave itself)."""
+    y, n = wave.y, wave.params.cells_per_unit
+    full = np.concatenate([-y[:0:-1], y])
+    return float(np.max(np.abs(full[2:] - full[:-2])) * n / 2)
+
+
 def solve_solitary_wave(params, comm, prefix=SOL_PREFIX):
     """Compute the unit-velocity solitary wave and k_alpha (``wave.params.half_length`` is the L used);
     ParameterError if L is too short for the tail tolerance (a given L, or 40.5 when L is chosen), ConvergenceError

@@ -7,7 +7,13 @@ with their Floquet multipliers, folds, period doublings, Neimark-Sacker points a
 First response: -run_in periods from rest, then Newton; then pseudo-arclength to -p_end (events located and
 confirmed by the multipliers on both sides) or -points values (-mode grid; events bracketed); -switch S steps on
 each period-doubled branch. Records: hertzpetsc-driven-response-1 (docs/schemas.md).
+
+In SI units (hertzpetsc.units): -beads steel -radius 4.76mm -static_force 10N -drive_amplitude 0.1um
+-drive_frequency 10kHz [-p_end_si 12kHz] define the chain and the drive instead of -alpha, -delta0, -masses,
+-amplitude, -omega (-gamma, -eta stay dimensionless: gamma m / tau in kg/s); each row is also shown with the
+parameter in Hz (or um) and the force on the wall beyond the static force in N, and the table gets a section in SI units.
 """
+import math
 import os
 import sys
 
@@ -22,15 +28,30 @@ from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.driven import (EVENT_NAMES, ResponseCurve, ResponseParameters,  # noqa: E402
                                        corner_arclength, drive_options)
+from hertzpetsc.units import parse_quantity  # noqa: E402
 
 ROLES = ResponseCurve.ROLES
 
 
+def si_p_end(text, kind, opts, beads):
+    """-p_end_si in SI units (refused without -beads, or with -p_end)."""
+    if beads is None or opts.db.hasName("p_end"):
+        raise ParameterError("-p_end_si", text, "is in SI units: give -beads, and not -p_end")
+    value = parse_quantity("-p_end_si", text, kind)
+    return 2 * math.pi * value if kind == "frequency" else value
+
+
 def main():
     opts = AppOptions(__doc__, ROLES)
-    drive = drive_options(opts)
+    drive, beads = drive_options(opts, beads=True)
     parameter = opts.string("parameter", "omega", "continuation parameter", choices=("omega", "amplitude"))
     p_end = opts.real("p_end", 0.3, "end value of the parameter", expr=True)
+    p_end_si = opts.string("p_end_si", "", "-beads: the end value in SI units (a frequency for omega, e.g. 12kHz; "
+                           "a length for amplitude), instead of -p_end")
+    si_kind = "frequency" if parameter == "omega" else "length"
+    if p_end_si and not opts.help:
+        p_end = beads.from_si("angular_frequency" if parameter == "omega" else "length",
+                              si_p_end(p_end_si, si_kind, opts, beads))
     mode = opts.string("mode", "arclength", "pseudo-arclength or a grid of values", choices=("arclength", "grid"))
     points = opts.integer("points", 200, "grid mode: number of parameter values (start and p_end included)", minimum=2)
     periods = opts.integer("periods", 1, "response period in driving periods", minimum=1)
@@ -71,13 +92,24 @@ def main():
     opts.check_unused()
     study.open()
     print0(f"# {drive.describe()}")
-    print0(f"# {'branch':>6} {parameter:>12} {'event':>16} {'rho':>10} {'residual':>9} {'force':>10}")
+    si = None if beads is None else [(parameter, si_kind, lambda r: r["p"]), ("wall force - F0", "force",
+                                                                             lambda r: r["force_right"])]
+    if beads is not None:
+        print0(beads.summary() + f"\n# damping gamma = {beads.to_si('damping', drive.gamma):.6g} kg/s")
+    print0(f"# {'branch':>6} {parameter:>12} {'event':>16} {'rho':>10} {'residual':>9} {'force':>10}"
+           + ("" if si is None else f" {'[Hz]' if parameter == 'omega' else '[um]':>12} {'dF [N]':>10}"))
 
     def show(r):
         ev = EVENT_NAMES[int(r["event"])] or ""
         print0(f"  {int(r['branch']):6d} {float(r['p']):12.8f} {ev:>16} {float(r['rho']):10.6f} "
-               f"{float(r['residual']):9.1e} {float(r['force_right']):10.4g}")
-    text = study.run_to_table(table_path, show)        # on a stop: the table of the records done, then the error
+               f"{float(r['residual']):9.1e} {float(r['force_right']):10.4g}"
+               + ("" if si is None else " {:>12} {:>10}".format(*beads.columns(r, si))))
+
+    def table():
+        lead = [("branch", lambda r: r["branch"]), ("event", lambda r: EVENT_NAMES[int(r["event"])] or ""),
+                (parameter, lambda r: r["p"])]
+        return study.table() + ("" if si is None else beads.table(study.store.records, si, lead))
+    text = study.run_to_table(table_path, show, table)  # on a stop: the table of the records done, then the error
     records = study.store.records
     study.destroy()
     if figures and comm.getRank() == 0:

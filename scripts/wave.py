@@ -4,6 +4,12 @@
     mpiexec -n 2 python scripts/wave.py [-alpha 1.5] [-delta0 1] [-masses 1,0.5,0.333333] [-q 2*pi/15] [-A 0.5]
         [-branch acoustic|optical] [-cells_per_pi 400] [-N 90] [-sizes 30000] [-tol 1e-10] [-tol_rho 1e-4]
         [-output runs/wave.npz] [-table runs/wave.md] [-resume | -force]
+        [-beads steel -radius 4.76mm -static_force 10N [-length_scale 1um]]
+
+With -beads (hertzpetsc.units: materials, radii, the static force) the chain is that of the beads (the Hertz
+exponent 3/2, delta0 = 1 at the default length scale, the static overlap; masses from the beads) instead of -alpha,
+-delta0, -masses; -A stays in units of the length scale, and every row is also shown in SI units (frequency in Hz,
+phase speed in m/s, A in um), in a section of the table below the dimensionless one.
 
 At each q (per bead: a pattern of p masses has the wavenumber p q per cell; q N / (2 pi) whole): the wave with
 amplitude A = max |u| (eq. ad for the mass pattern, A a border row; from the linear wave of -branch for delta0 > 0,
@@ -26,6 +32,10 @@ from hertzpetsc.model import LatticeModel  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.wave import MAX_BEADS, MAX_SIZE, WaveParameters, WaveStudy  # noqa: E402
+from hertzpetsc.units import bead_options  # noqa: E402
+
+# the SI columns of a row (hertzpetsc.units.BeadChain.table)
+SI_COLUMNS = [("f", "frequency", lambda r: r["omega"]), ("phase speed", "speed", lambda r: r["omega"] / r["q"])]
 
 
 def main():
@@ -51,9 +61,10 @@ def main():
     output = opts.path("output", "runs/wave.npz", "wave file (record store)")
     mode = opts.mode()
     table_path = opts.path("table", "runs/wave.md", "table")
+    beads = bead_options(opts)
     opts.done()
     comm = PETSc.COMM_WORLD
-    model = LatticeModel.hertz(alpha, tuple(masses), delta0)
+    model = LatticeModel.hertz(alpha, tuple(masses), delta0) if beads is None else beads.model()
     study = WaveStudy(WaveParameters(model, tuple(qs), A, K, N, tuple(sizes), tol, tol_rho, branch), comm, output,
                       mode)
     prepare_outputs(comm, table_path)
@@ -62,10 +73,20 @@ def main():
     study.open()
     print0(f"# chain {model.describe()}, {branch} branch, A = {A:g}, h = pi/{K}, N = {N}"
            + (f", sizes {sizes}" if sizes else ""))
-    print0(f"# {'q':>9} {'omega':>12} {'E before':>9} {'E after':>9} {'rho - 1':>10} {'outside':>7} {'s':>6}")
+    si, table = None, None
+    if beads is not None:
+        print0(beads.summary() + f"\n# A = {beads.show('length', A)}")
+        si = [("A", "length", lambda r: A)] + SI_COLUMNS
+
+        def table():
+            return study.table() + beads.table(study.store.records, si, [("q", lambda r: r["q"]),
+                                                                          ("omega", lambda r: r["omega"])])
+    print0(f"# {'q':>9} {'omega':>12} {'E before':>9} {'E after':>9} {'rho - 1':>10} {'outside':>7} {'s':>6}"
+           + ("" if si is None else f" {'f [Hz]':>12} {'c [m/s]':>12}"))
     text = study.run_to_table(table_path, lambda r: print0(
         f"  {r['q']:9.6f} {r['omega']:12.8f} {r['E_profile']:9.1e} {r['E_refined']:9.1e} {r['rho'] - 1:10.2e} "
-        f"{r['outside']:7d} {r['seconds']:6.1f}"))
+        f"{r['outside']:7d} {r['seconds']:6.1f}" + ("" if si is None else " " + " ".join(
+            f"{v:>12}" for v in beads.columns(r, SI_COLUMNS)))), table)
     print0(text)
     if study.failed:                         # the table holds every q that converged; exit 3 names the first failure
         raise next(iter(study.failed.values()))

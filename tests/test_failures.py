@@ -114,6 +114,8 @@ DRIVERS = {
                        ("-velocities", "0.1,0.1"), ("-chain_ts_type", "bogus")),
     "pulse_decay.py": (("-N", 12, "-skip", 2, "-velocities", 1, "-output", "{t}/p.npz", "-table", "{t}/p.md"), None,
                        "output", ("-velocities", "1,1"), ("-chain_ts_type", "bogus")),
+    "beads_to_waves.py": (("-cells", "10,20,40", "-max_velocity", "0.1m/s", "-output", "{t}/b.md"), None, None,
+                          ("-cells", "10,20,20"), ("-sol_pc_type", "bogus")),
 }
 
 
@@ -420,6 +422,7 @@ OVERSIZED = {
     "bench_driven.py": ("N", "1000000000"),
     "bench_map.py": ("N", "1000000000"),
     "pulse_decay.py": ("N", "1000000000000"),
+    "beads_to_waves.py": ("cells", "10,20,1000000000000"),
 }
 
 

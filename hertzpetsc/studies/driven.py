@@ -72,6 +72,7 @@ from ..floquet import DenseFloquet
 from ..model import LatticeModel
 from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
                          check_work)
+from ..units import bead_options, parse_quantity
 from .base import Study
 
 if TYPE_CHECKING:
@@ -1293,13 +1294,15 @@ class Generation(DrivenStudy):
 
 
 # --- the drivers' shared options -------------------------------------------------------------------------------------
-def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, signal="harmonic"):
+def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, signal="harmonic", beads=False):
     """Declare and read the options that define a driven chain (for the drivers; ``opts`` an
     :class:`~hertzpetsc.options.AppOptions`): the Hertz law (-alpha, -delta0), -N, -masses, -gamma, -eta, the
     actuator's -signal (harmonic, half_sine with -width, samples with -signal_samples over one closed period),
     -amplitude, -omega and the far end -right (wall, free). Returns the :class:`~hertzpetsc.driven.Drive`
     (ParameterError naming the parameter for a value out of range: negative damping, amplitude < 0, omega <= 0,
-    a sampled signal that is not periodic)."""
+    a sampled signal that is not periodic). With ``beads``: also the chain in SI units
+    (:func:`hertzpetsc.units.bead_options`: -beads, -radius, -static_force, ...) and the actuator's -drive_amplitude
+    (a length) and -drive_frequency (in Hz) in their stead; returns (drive, the BeadChain or None)."""
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     d0 = opts.real("delta0", delta0, "precompression (static overlap; 0: the sonic vacuum)")
     n = opts.integer("N", N, "beads between the actuator and the far end", minimum=1)
@@ -1313,9 +1316,29 @@ def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, 
     a = opts.real("amplitude", amplitude, "actuator amplitude a >= 0")
     om = opts.real("omega", omega, "driving frequency omega > 0", expr=True)
     right = opts.string("right", "wall", "the far end", choices=("wall", "free"))
+    chain = None
+    if beads:
+        chain = bead_options(opts)
+        a_si = opts.string("drive_amplitude", "", "-beads: the actuator's amplitude (e.g. 1um), instead of -amplitude")
+        f_si = opts.string("drive_frequency", "", "-beads: the driving frequency (e.g. 2kHz), instead of -omega")
+        for name, given in (("drive_amplitude", a_si), ("drive_frequency", f_si)):
+            if given and chain is None:
+                raise ParameterError(f"-{name}", given, "is in SI units: give the beads (-beads) too")
+        if chain is not None:
+            for name, si in (("amplitude", "drive_amplitude"), ("omega", "drive_frequency")):
+                if opts.db.hasName(name) and opts.db.hasName(si):
+                    raise ParameterError(f"-{name}", opts.db.getString(name, ""), f"give one of -{name} "
+                                         f"(dimensionless) and -{si} (SI)")
+            if a_si:
+                a = chain.from_si("length", check_real("-drive_amplitude", parse_quantity(
+                    "-drive_amplitude", a_si, "length"), "the actuator's amplitude", 0.0, lo_open=False))
+            if f_si:
+                om = chain.from_si("angular_frequency", 2 * math.pi * check_real("-drive_frequency", parse_quantity(
+                    "-drive_frequency", f_si, "frequency"), "the driving frequency", 0.0))
     if opts.help:
-        return None
-    model = LatticeModel.hertz(alpha, tuple(masses), d0, gamma, eta)
+        return (None, None) if beads else None
+    model = LatticeModel.hertz(alpha, tuple(masses), d0, gamma, eta) if chain is None else chain.model(gamma, eta)
     waveform = {"harmonic": HarmonicWave, "half_sine": lambda: HalfSinePulses(width),
                 "samples": lambda: SampledWave(tuple(samples))}[kind]()
-    return Drive(model, n, waveform, a, om, right)
+    drive = Drive(model, n, waveform, a, om, right)
+    return (drive, chain) if beads else drive

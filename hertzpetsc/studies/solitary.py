@@ -3,7 +3,7 @@ from petsc4py import PETSc
 
 from ..errors import ParameterError, check_integers, check_real, check_reals
 from ..richardson import richardson
-from ..solitary import SolitaryParameters, configure_options, solve_solitary_wave
+from ..solitary import SolitaryParameters, configure_options, max_bead_velocity, solve_solitary_wave
 
 
 def k_alpha_extrapolated(alpha, cells=(80, 160, 320), half_length=None):
@@ -14,6 +14,19 @@ def k_alpha_extrapolated(alpha, cells=(80, 160, 320), half_length=None):
     ks = [first.k_alpha] + [solve_solitary_wave(SolitaryParameters(alpha, n, L), PETSc.COMM_SELF).k_alpha
                             for n in cells[1:]]
     return richardson(ks)[1], L
+
+
+def unit_wave_velocity(alpha=1.5, cells=(80, 160, 320), half_length=None):
+    """(v1, observed order, L): the maximal bead velocity of the unit-speed solitary wave
+    (:func:`~hertzpetsc.solitary.max_bead_velocity`) extrapolated in the grid step (Richardson with the observed
+    order) from three solves on one rank; the SI speed of a solitary wave (:meth:`hertzpetsc.units.BeadChain.
+    solitary_speed`) scales from it."""
+    first = solve_solitary_wave(SolitaryParameters(alpha, cells[0], half_length), PETSc.COMM_SELF)
+    L = first.params.half_length
+    vs = [max_bead_velocity(first)] + [max_bead_velocity(solve_solitary_wave(SolitaryParameters(alpha, n, L),
+                                                                             PETSc.COMM_SELF)) for n in cells[1:]]
+    order, v1 = richardson(vs)
+    return v1, order, L
 
 
 class SolitaryStudy:

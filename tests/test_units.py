@@ -1,0 +1,250 @@
+"""Physical units (issue 38 item 4): quantities with units, materials, the Hertz constant of two spheres, the scales
+of the dimensionless chain, the closed forms of a steel chain in SI (sound speed, cut-off) against the package's
+linear lattice converted back, the solitary wave's speed in m/s, and bad input from the API and the command line."""
+import math
+import os
+import re
+
+import numpy as np
+import pytest
+
+import hertzpetsc as hz
+from conftest import ROOT, one_error_line, run_script
+from hertzpetsc.errors import ParameterError
+from hertzpetsc.materials import MATERIALS, Material, material
+from hertzpetsc.units import Bead, BeadChain, contact_constant, parse_quantity
+
+# a steel chain as a datasheet gives it: stainless steel 316 beads of 4.76 mm radius pressed by 10 N
+E, NU, RHO, R, F0 = 193e9, 0.30, 8000.0, 4.76e-3, 10.0
+STEEL = BeadChain((Bead("steel", "4.76 mm"),), "10 N")
+
+
+def datasheet_constants(E=E, nu=NU, rho=RHO, R=R, F0=F0):
+    """K, m and K_lin of the steel chain written out from the datasheet (the formulas of the docs, not the code's)."""
+    K = 4 / 3 * (E / (2 * (1 - nu ** 2))) * math.sqrt(R / 2)
+    m = 4 / 3 * math.pi * R ** 3 * rho
+    return K, m, 1.5 * K ** (2 / 3) * F0 ** (1 / 3)
+
+
+@pytest.mark.parametrize("text, quantity, value", [
+    ("4.76 mm", "length", 4.76e-3), ("4.76mm", "length", 4.76e-3), ("3 um", "length", 3e-6),
+    ("3 \u00b5m", "length", 3e-6), ("0.5", "length", 0.5), ("193 GPa", "pressure", 193e9), ("10 N", "force", 10.0),
+    ("2.5 mN", "force", 2.5e-3), ("2 kHz", "frequency", 2000.0), ("1 ms", "time", 1e-3),
+    ("8000 kg/m^3", "density", 8000.0), ("8 g/cm^3", "density", 8000.0), ("0.1 m/s", "velocity", 0.1),
+    ("3.6 g", "mass", 3.6e-3), ("6.9e9 N/m^1.5", "contact_constant", 6.9e9), ("0.3", "dimensionless", 0.3)])
+def test_quantities_parse_to_si(text, quantity, value):
+    assert parse_quantity("x", text, quantity) == pytest.approx(value, rel=1e-14)
+
+
+@pytest.mark.parametrize("text, quantity", [("5 furlongs", "length"), ("5 N", "length"), ("", "force"),
+                                            ("ten N", "force"), ("1e400 m", "length"), ("2 kHz/", "frequency"),
+                                            ("3 Hz", "time"), ("0.3 m", "dimensionless")])
+def test_a_quantity_that_does_not_parse_is_refused_naming_it(text, quantity):
+    with pytest.raises(ParameterError) as err:
+        parse_quantity("radius", text, quantity)
+    assert err.value.name == "radius" and "e.g." in err.value.valid
+
+
+def test_materials_have_sources_and_bad_values_name_their_argument():
+    assert {"steel", "brass", "aluminium", "glass", "ptfe"} <= set(MATERIALS)
+    assert all(m.source and 0 < m.youngs and -1 < m.poisson <= 0.5 and m.density > 0 for m in MATERIALS.values())
+    assert material("Aluminum") is MATERIALS["aluminium"] and material("teflon") is MATERIALS["ptfe"]
+    for kw, name in ((dict(youngs=-1e9), "youngs"), (dict(poisson=0.6), "poisson"), (dict(poisson=-1.0), "poisson"),
+                     (dict(density=0.0), "density")):
+        with pytest.raises(ParameterError) as err:
+            Material("x", **{**dict(youngs=1e9, poisson=0.3, density=1e3), **kw})
+        assert err.value.name == name
+    Material("incompressible", 1e6, 0.5, 1e3)                 # nu = 1/2 is in (-1, 1/2]
+    with pytest.raises(ParameterError) as err:
+        Bead("unobtainium", 1e-3)
+    assert err.value.name == "material" and "steel" in err.value.valid
+    with pytest.raises(ParameterError) as err:
+        Bead.of("steel", "5 mm", youngs="-193 GPa")
+    assert err.value.name == "youngs"
+    with pytest.raises(ParameterError) as err:
+        Bead("steel", "-1 mm")
+    assert err.value.name == "radius"
+
+
+def test_the_hertz_constant_of_two_spheres_and_of_a_sphere_on_a_wall():
+    steel, ptfe = Bead("steel", R), Bead("ptfe", 2 * R)
+    K, m, _ = datasheet_constants()
+    assert contact_constant(steel, steel) == pytest.approx(K, rel=1e-14)
+    assert steel.mass == pytest.approx(m, rel=1e-14)
+    # two materials: 1/E* sums the two, 1/R* too
+    e_star = 1 / ((1 - NU ** 2) / E + (1 - 0.46 ** 2) / 1.46e9)
+    assert contact_constant(steel, ptfe) == pytest.approx(4 / 3 * e_star * math.sqrt(1 / (1 / R + 1 / (2 * R))),
+                                                          rel=1e-14)
+    # a flat wall of the same steel: R* = R
+    assert contact_constant(steel, wall=steel.material) == pytest.approx(4 / 3 * E / (2 * (1 - NU ** 2)) *
+                                                                         math.sqrt(R), rel=1e-14)
+
+
+def test_the_steel_chain_sound_speed_and_cutoff_match_their_closed_forms_in_si():
+    """The package's dimensionless lattice (delta0 = 1 at the static overlap), its linear frequencies converted to
+    SI, against c0 = 2R sqrt(K_lin / m), f_c = sqrt(K_lin / m) / pi written from the datasheet. omega(q) / q at
+    q = 1e-3 differs from c0 by q^2 / 24 = 4.2e-8 relative (and by the round-off of 1 - cos q, eps / q^2 ~ 2e-10)."""
+    K, m, k_lin = datasheet_constants()
+    model = STEEL.model()
+    assert model.delta0 == pytest.approx(1.0, rel=1e-14) and model.masses == (1.0,) and model.alpha == 1.5
+    f_c = STEEL.to_si("frequency", model.linear_frequencies(math.pi)[0])
+    assert f_c == pytest.approx(math.sqrt(k_lin / m) / math.pi, rel=1e-13)
+    assert STEEL.cutoff_frequency() == pytest.approx(f_c, rel=1e-13)
+    q = 1e-3
+    c0 = STEEL.to_si("speed", model.linear_frequencies(q)[0] / q)
+    assert c0 == pytest.approx(2 * R * math.sqrt(k_lin / m), rel=5e-8)
+    assert STEEL.sound_speed() == pytest.approx(c0, rel=5e-8)
+    # the physics does not depend on the length scale: another L gives another delta0, the same SI values
+    other = BeadChain(STEEL.beads, F0, "0.1 um")
+    assert other.model().delta0 == pytest.approx(STEEL.static_overlap / 1e-7, rel=1e-14)
+    assert other.to_si("frequency", other.model().linear_frequencies(math.pi)[0]) == pytest.approx(f_c, rel=1e-13)
+    # and the force scale at the default L is the static force
+    assert STEEL.to_si("force", 1.0) == pytest.approx(F0, rel=1e-13)
+
+
+def test_a_chain_by_value_and_a_dimer_of_two_materials():
+    K, m, k_lin = datasheet_constants()
+    by_value = BeadChain.by_value([f"{m * 1e3} g"], f"{K} N/m^1.5", f"{2 * R * 1e3} mm", "10 N")
+    assert by_value.cutoff_frequency() == pytest.approx(STEEL.cutoff_frequency(), rel=1e-12)
+    steel, ptfe = Bead("steel", R), Bead("ptfe", R)
+    dimer = BeadChain((steel, ptfe), "5 N")
+    model = dimer.model()
+    assert model.masses == pytest.approx((1.0, ptfe.mass / steel.mass), rel=1e-14)
+    # the top of the optical band (q = 0 per cell) against sqrt(2 K_lin (1/m1 + 1/m2)) / (2 pi)
+    top = max(model.linear_frequencies(q)[-1] for q in np.linspace(1e-6, math.pi, 41))
+    assert dimer.to_si("frequency", top) == pytest.approx(dimer.cutoff_frequency(), rel=1e-10)
+    with pytest.raises(ParameterError) as err:
+        BeadChain((steel, steel, ptfe), "5 N")
+    assert err.value.name == "beads" and "issue 38 item 3" in err.value.valid
+
+
+@pytest.mark.parametrize("quantity", ["length", "time", "mass", "velocity", "force", "energy", "angular_frequency",
+                                      "frequency", "damping", "speed", "wavenumber"])
+def test_to_si_and_from_si_are_inverse(quantity):
+    x = np.array([0.3, 1.0, 7.5])
+    assert np.allclose(STEEL.from_si(quantity, STEEL.to_si(quantity, x)), x, rtol=1e-14, atol=0)
+    assert STEEL.from_si(quantity, STEEL.to_si(quantity, 2.5)) == pytest.approx(2.5, rel=1e-14)
+
+
+def test_strings_with_units_convert_and_the_scales_are_consistent():
+    assert STEEL.from_si("length", "1.28093 um") == pytest.approx(1e-6 * 1.28093 / STEEL.L, rel=1e-14)
+    assert STEEL.from_si("angular_frequency", "1 kHz") == pytest.approx(2 * math.pi * 1e3 * STEEL.tau, rel=1e-14)
+    # tau^2 K L^(1/2) / m = 1: the dimensionless equation has no coefficient
+    assert STEEL.tau ** 2 * STEEL.K * STEEL.L ** 0.5 / STEEL.mass == pytest.approx(1.0, rel=1e-14)
+    assert STEEL.to_si("velocity", 1.0) == pytest.approx(STEEL.L / STEEL.tau, rel=1e-14)
+
+
+def test_bad_chains_name_their_argument():
+    cases = [(lambda: BeadChain(STEEL.beads, "-1 N"), "static_force"),
+             (lambda: BeadChain(STEEL.beads, "10 m"), "static_force"),
+             (lambda: BeadChain(STEEL.beads, 0.0), "length_scale"),
+             (lambda: BeadChain(("steel",), 1.0), "beads"),
+             (lambda: BeadChain.by_value([-1.0], 1e9, 0.01, 1.0), "masses"),
+             (lambda: BeadChain.by_value([1.0], "1e9 Pa", 0.01, 1.0), "K"),
+             (lambda: STEEL.to_si("colour", 1.0), "quantity"),
+             (lambda: STEEL.solitary_speed(0.1, 1.6), "static_force"),
+             (lambda: BeadChain(STEEL.beads, 0, "1 um").sound_speed(), "static_force"),
+             (lambda: BeadChain(STEEL.beads, 0, "1 um").solitary_speed("-1 m/s", 1.6), "max_velocity"),
+             (lambda: hz.solitary_speed(STEEL, 0.1), "static_force"),
+             (lambda: hz.solitary_speed("steel", 0.1), "chain")]
+    for call, name in cases:
+        with pytest.raises(ParameterError) as err:
+            call()
+        assert err.value.name == name, (name, err.value)
+
+
+def test_the_solitary_wave_speed_in_si():
+    """The unit-speed solitary wave's maximal bead velocity converges at second order in the grid step; the speed in
+    m/s scales as v^(1/5) and equals 2R (K/m)^(2/5) (v / v1)^(1/5) for any length scale; it lies within a few per
+    cent below Nesterenko's long-wave formula 0.9314 (4 E^2 / (pi^2 rho^2 (1 - nu^2)^2))^(1/5) v^(1/5) (the
+    continuum limit, whose maximal velocity at unit speed is (6/5)^2 = 1.44: below the lattice's, so the lattice's wave
+    is slower at the same v)."""
+    from hertzpetsc.studies.solitary import unit_wave_velocity
+    v1, order, _ = unit_wave_velocity(1.5, (40, 80, 160))
+    assert abs(order - 2) < 0.05 and 1.44 < v1 < 1.7
+    K, m, _ = datasheet_constants()
+    chain = BeadChain(STEEL.beads, 0.0, "1 um")
+    speeds = [chain.solitary_speed(v, v1) for v in (0.01, 0.1, 1.0)]
+    assert speeds == pytest.approx([2 * R * (K / m) ** 0.4 * (v / v1) ** 0.2 for v in (0.01, 0.1, 1.0)], rel=1e-13)
+    assert BeadChain(STEEL.beads, 0.0, "1 mm").solitary_speed("10 cm/s", v1) == pytest.approx(speeds[1], rel=1e-13)
+    nesterenko = 0.9314 * (4 * E ** 2 / (math.pi ** 2 * RHO ** 2 * (1 - NU ** 2) ** 2)) ** 0.2 * 0.1 ** 0.2
+    assert 0.0 < 1 - speeds[1] / nesterenko < 0.05
+    api = hz.solitary_speed(chain, [0.01, 0.1, 1.0], cells=(40, 80, 160))
+    assert api == pytest.approx(speeds, rel=1e-12)
+
+
+# --- the command line (drivers run as processes of their own: serial) ---------------------------------------------------------------------------------------------
+@pytest.mark.serial
+@pytest.mark.parametrize("script, args, option", [
+    ("wave.py", ["-beads", "unobtainium"], "-beads"),
+    ("wave.py", ["-beads", "steel", "-poisson", "0.7", "-static_force", "1N"], "-poisson"),
+    ("wave.py", ["-beads", "steel", "-youngs", "-1GPa", "-static_force", "1N"], "-youngs"),
+    ("wave.py", ["-beads", "steel", "-radius", "5 furlongs", "-static_force", "1N"], "-radius"),
+    ("wave.py", ["-beads", "steel", "-static_force", "10 m"], "-static_force"),
+    ("wave.py", ["-beads", "steel", "-static_force", "10N", "-delta0", "1"], "-delta0"),
+    ("wave.py", ["-beads", "steel,steel,ptfe", "-static_force", "10N"], "-beads"),
+    ("precompressed_branch.py", ["-beads", "steel"], "-length_scale"),
+    ("precompressed_branch.py", ["-static_force", "10N"], "-static_force"),
+    ("driven_response.py", ["-drive_frequency", "2kHz"], "-drive_frequency"),
+    ("driven_response.py", ["-beads", "steel", "-static_force", "1N", "-drive_frequency", "2 kHz/s"],
+     "-drive_frequency"),
+    ("driven_response.py", ["-beads", "steel", "-static_force", "1N", "-omega", "1", "-drive_frequency", "2kHz"],
+     "-omega"),
+])
+def test_bad_si_options_are_one_error_line_naming_them(script, args, option):
+    r = run_script(script, *args, "-check")
+    line = one_error_line(r)
+    assert r.returncode == 2 and line.startswith(f"error: invalid {option} = "), line
+
+
+@pytest.mark.serial
+def test_bad_si_options_end_every_rank_with_one_line():
+    r = run_script("wave.py", "-beads", "steel", "-poisson", "0.6", "-static_force", "1N", "-check", ranks=2)
+    assert one_error_line(r).startswith("error: invalid -poisson = ")
+
+
+@pytest.mark.serial
+def test_the_wave_driver_reports_si_beside_the_dimensionless_values(tmp_path):
+    table = tmp_path / "wave.md"
+    r = run_script("wave.py", "-beads", "steel", "-radius", "4.76mm", "-static_force", "10N", "-q", "2*pi/15",
+                   "-A", "0.5", "-cells_per_pi", "100", "-N", "30", "-output", tmp_path / "wave.npz", "-table", table)
+    assert r.returncode == 0, r.stderr
+    text = table.read_text()
+    row = re.search(r"^\| 0\.418879 \| (\S+) \| (\S+) \| (\S+) \| (\S+) \|$", text.split("## In SI units")[1], re.M)
+    omega, A_um, f, c = map(float, row.groups())
+    assert A_um == pytest.approx(0.5 * STEEL.L * 1e6, rel=1e-5)
+    assert f == pytest.approx(omega / (2 * math.pi * STEEL.tau), rel=1e-5)
+    assert c == pytest.approx(omega / (2 * math.pi / 15) * 2 * R / STEEL.tau, rel=1e-5)
+    assert "sound speed c0 = 541.9" in text          # c0 of the closed form, checked above to 1e-9
+
+
+@pytest.mark.serial
+def test_the_driven_response_takes_its_drive_in_si_and_reports_the_wall_force_in_newtons(tmp_path):
+    table = tmp_path / "driven.md"
+    r = run_script("driven_response.py", "-N", "4", "-beads", "steel", "-static_force", "10N", "-gamma", "0.05",
+                   "-drive_amplitude", "0.1um", "-drive_frequency", "10kHz", "-p_end_si", "10.5kHz", "-run_in", "10",
+                   "-max_steps", "3", "-output", tmp_path / "driven.npz", "-table", table)
+    assert r.returncode == 0, r.stderr
+    data = np.load(tmp_path / "driven.npz", allow_pickle=True)
+    rows = [line.split("|")[1:-1] for line in table.read_text().split("## In SI units")[1].splitlines()
+            if re.match(r"^\| 0 \|", line)]
+    omega = np.asarray(data["omega"], float)
+    assert len(rows) == len(omega) >= 2
+    assert float(rows[0][3]) == pytest.approx(1e4, rel=1e-5)                   # the first response at -drive_frequency
+    assert omega[0] == pytest.approx(2 * math.pi * 1e4 * STEEL.tau, rel=1e-12)
+    assert data["amplitude"][0] == pytest.approx(1e-7 / STEEL.L, rel=1e-12)
+    for row, w, f in zip(rows, omega, np.asarray(data["force_right"], float)):
+        assert float(row[3]) == pytest.approx(w / (2 * math.pi * STEEL.tau), rel=1e-5)
+        assert float(row[4]) == pytest.approx(f * F0, rel=1e-5)                   # K L^(3/2) = F0 at L = delta_s
+
+
+@pytest.mark.serial
+def test_the_page_quotes_what_beads_to_waves_prints(tmp_path):
+    """docs/from-beads-to-waves.md's tables of closed forms and solitary speeds are the driver's output."""
+    out = tmp_path / "b.md"
+    r = run_script("beads_to_waves.py", "-beads", "steel", "-radius", "4.76mm", "-static_force", "10N", "-output", out)
+    assert r.returncode == 0, r.stderr
+    page = open(os.path.join(ROOT, "docs", "from-beads-to-waves.md")).read()
+    rows = [line for line in out.read_text().splitlines() if re.match(r"^\| [0-9cs]", line)]
+    assert len(rows) == 5 and all(row in page for row in rows), [row for row in rows if row not in page]
+    assert "v1 = 1.6249441" in out.read_text() and "v1 = 1.6249441" in page

@@ -597,6 +597,20 @@ def test_grid_mode_takes_the_natural_algorithm_it_is_given():
     assert len(out[1][0]) == 3 and out[1][1] is None
 
 
+def test_a_long_grid_not_reached_is_named_in_one_short_line():
+    """The grid values not computed are named by the first two, '...' and the last (a grid may hold 10^5)."""
+    from hertzpetsc.continuation import ContinuationError
+    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), 3, HarmonicWave(), 0.05, 0.5)
+    grid = tuple(0.5 + 0.01 * k for k in range(1, 11))
+    study = ResponseCurve(ResponseParameters(drive, "omega", grid[-1], grid=grid, run_in=5, samples=0,
+                                             algorithm=Natural(max_corrector=1e-14, max_halvings=1)), COMM)
+    try:
+        with pytest.raises(ContinuationError, match=r"omega = 0\.51, 0\.52, \.\.\., 0\.6 \(10 of the 10 grid values\)"):
+            list(study.run())
+    finally:
+        study.destroy()
+
+
 @pytest.mark.serial
 @pytest.mark.parametrize("ranks", [1, 2])
 def test_a_grid_that_reaches_none_of_its_values_is_an_error_not_an_empty_table(tmp_path, ranks):

@@ -637,7 +637,10 @@ class ResponseCurve(DrivenStudy):
     def _grid_stopped(self, err, missing):
         """A grid that could not reach its values ``missing`` (the records before them are kept): the error that
         ends the run (exit status 3), naming them; also :attr:`ended` and :attr:`stop`."""
-        values = ", ".join(f"{v:g}" for v in missing)
+        shown = [f"{v:g}" for v in missing]
+        if len(shown) > 4:                              # one line, also for a long grid
+            shown = shown[:2] + ["..."] + shown[-1:]
+        values = ", ".join(shown)
         self.ended = (f"grid mode: the responses at {self.parameter} = {values} ({len(missing)} of the "
                       f"{len(self.grid)} grid values) not computed: {err}")
         self.stop = ResponseNotFound(self.ended, err)

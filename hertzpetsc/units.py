@@ -27,7 +27,11 @@ that of the unit-speed wave (:meth:`BeadChain.solitary_speed`).
 
 Strings with units (:func:`parse_quantity`): a number and an SI unit with an optional prefix (p n u m c k M G T),
 e.g. '4.76 mm', '193GPa', '10 N', '2 kHz', '1um', '8000 kg/m^3'; a bare number is in the SI unit.
-Dissipation by a measured restitution is not here: contact dissipation is issue 38 item 2.
+Dissipation in the contacts (:mod:`hertzpetsc.dissipation`, :meth:`BeadChain.contact_damping`) by its coefficient in
+SI or by a restitution e measured at an impact velocity v: Hunt-Crossley's c [s/m] is c* = c L / tau in the chain's
+units, and e gives c = (1 - e) / v; Kuwabara-Kono's eta [N s / m^(3/2)] is eta* = eta / (K tau), and e gives eta*
+from 1 - e = C eta* v*^(1/5) for the pattern's first two beads (the small-dissipation laws of
+:mod:`hertzpetsc.dissipation`, first order in 1 - e: a restitution below :data:`MIN_RESTITUTION` is refused).
 """
 from __future__ import annotations
 
@@ -41,10 +45,14 @@ from numpy.typing import ArrayLike
 import numpy as np
 
 from .errors import ParameterError, check_real, members
+from .dissipation import KINDS as CONTACT_KINDS, hunt_crossley_restitution, kuwabara_kono_restitution
 from .materials import MATERIALS, Material, material
-from .model import LatticeModel
+from .model import Damping, LatticeModel
 
 ALPHA = 1.5             # the Hertz exponent of elastic spheres
+#: the smallest restitution converted to a contact damping by the small-dissipation laws (first order in 1 - e: the
+#: coefficient's relative error is of order 1 - e, and the impact it gives has a restitution higher by about (1 - e)^2)
+MIN_RESTITUTION = 0.9
 
 # --- quantities with units -----------------------------------------------------------------------------------------
 _PREFIXES = {"p": 1e-12, "n": 1e-9, "u": 1e-6, "\u00b5": 1e-6, "\u03bc": 1e-6, "m": 1e-3, "c": 1e-2, "k": 1e3,
@@ -58,6 +66,7 @@ QUANTITIES = {
     "force": ((1, 1, -2), "N"), "pressure": ((1, -1, -2), "Pa"), "frequency": ((0, 0, -1), "Hz"),
     "density": ((1, -3, 0), "kg/m^3"), "velocity": ((0, 1, -1), "m/s"),
     "contact_constant": ((1, -0.5, -2), "N/m^1.5"), "dimensionless": ((0, 0, 0), ""),
+    "slowness": ((0, -1, 1), "s/m"), "contact_damping": ((1, -0.5, -1), "N s/m^1.5"),
 }
 _NUMBER = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 _ATOM = re.compile(r"^([A-Za-z\u00b5\u03bc]+)(?:\^([-+]?\d+(?:\.\d+)?))?$")
@@ -282,11 +291,41 @@ class BeadChain:
         """The time scale sqrt(m / (K L^(alpha-1))) [s]."""
         return math.sqrt(self.mass / (self.K * self.L ** (ALPHA - 1.0)))
 
-    def model(self, gamma: float = 0.0, eta: float = 0.0) -> LatticeModel:
+    def model(self, gamma: float = 0.0, eta: float = 0.0, contact=None) -> LatticeModel:
         """The dimensionless lattice: the Hertz law (alpha = 3/2) with delta0 = delta_s / L, masses m_n / m_0,
-        damping gamma, eta (dimensionless: gamma m / tau [kg/s] in SI)."""
-        return LatticeModel.hertz(ALPHA, tuple(m / self.mass for m in self.masses), self.static_overlap / self.L,
-                                  gamma, eta)
+        damping gamma, eta (dimensionless: gamma m / tau [kg/s] in SI) and the contact damping ``contact``
+        (:meth:`contact_damping`, or None)."""
+        model = LatticeModel.hertz(ALPHA, tuple(m / self.mass for m in self.masses), self.static_overlap / self.L)
+        return LatticeModel(model.law, model.masses, Damping(gamma, eta, contact))
+
+    def contact_damping(self, kind: str, coefficient: Optional[Quantity] = None,
+                        restitution: Optional[float] = None, velocity: Optional[Quantity] = None,
+                        clipped: bool = True):
+        """The dissipation in the contacts in the chain's units (module docstring): ``kind`` 'hunt-crossley' (c
+        [s/m]) or 'kuwabara-kono' (eta [N s/m^1.5]), given by its ``coefficient`` in SI, or by a ``restitution`` e
+        in [MIN_RESTITUTION, 1) measured at the impact ``velocity`` v [m/s] of the pattern's first two beads."""
+        if kind not in CONTACT_KINDS:
+            raise ParameterError("kind", kind, f"must be one of {', '.join(CONTACT_KINDS)}")
+        if (coefficient is None) == (restitution is None):
+            raise ParameterError("coefficient" if coefficient is not None else "restitution", None,
+                                 "give the contact damping's coefficient or a measured restitution, one of them")
+        hunt = kind == "hunt-crossley"
+        if coefficient is not None:
+            value = parse_quantity("coefficient", coefficient, "slowness" if hunt else "contact_damping")
+            value = check_real("coefficient", value, "the contact damping's coefficient", 0.0, lo_open=False)
+            scaled = value * self.L / self.tau if hunt else value / (self.K * self.tau)
+            return CONTACT_KINDS[kind](scaled, clipped)
+        e = check_real("restitution", restitution, "a measured coefficient of restitution (the small-dissipation "
+                       f"laws are first order in 1 - e)", MIN_RESTITUTION, 1.0, lo_open=False)
+        if velocity is None:
+            raise ParameterError("velocity", None, "the impact velocity [m/s] at which the restitution was measured")
+        v = check_real("velocity", parse_quantity("velocity", velocity, "velocity"), "the impact velocity [m/s]", 0.0)
+        v_star = v * self.tau / self.L
+        if hunt:
+            return CONTACT_KINDS[kind]((1.0 - e) / hunt_crossley_restitution(1.0, v_star), clipped)
+        m0, m1 = self.masses[0], self.masses[1 % len(self.masses)]
+        reduced = m0 * m1 / (m0 + m1) / self.mass
+        return CONTACT_KINDS[kind]((1.0 - e) / kuwabara_kono_restitution(1.0, v_star, reduced, ALPHA), clipped)
 
     def _factor(self, quantity):
         if quantity == "frequency":

@@ -118,6 +118,36 @@ def test_a_chain_by_value_and_a_dimer_of_two_materials():
     assert err.value.name == "beads" and "issue 38 item 3" in err.value.valid
 
 
+@pytest.mark.parametrize("kind", ["hunt-crossley", "kuwabara-kono"])
+def test_a_contact_damping_from_a_measured_restitution_gives_it_back(kind):
+    """Dissipation in the contacts given as a restitution e measured at an impact velocity v in m/s: the two beads'
+    impact computed in the chain's units with the damping derived gives e back. The small-dissipation laws are first
+    order in 1 - e: their next term makes e come back high by about (1 - e)^2 (0.97 (1 - e)^2 for Hunt-Crossley, 0.6
+    for Kuwabara-Kono at e = 0.97, 0.9), so within 1.5 (1 - e)^2; the coefficient given in SI gives the same damping."""
+    from hertzpetsc.model import Damping, LatticeModel
+    from hertzpetsc.studies.contacts import restitution
+    dimer = BeadChain((Bead("steel", R), Bead("brass", R)), "5 N")
+    e, v = 0.97, "0.1 m/s"
+    contact = dimer.contact_damping(kind, restitution=e, velocity=v)
+    model = dimer.model()
+    impact = LatticeModel(model.law.with_parameter("delta0", 0.0), model.masses, Damping(contact=contact))
+    e_back, _ = restitution(impact, dimer.from_si("velocity", v), 1e-10)
+    assert 0 < e_back - e < 1.5 * (1 - e) ** 2, e_back
+    field = "c" if kind == "hunt-crossley" else "eta"
+    # the coefficient in SI from the module docstring's scales: c* = c L / tau, eta* = eta / (K tau)
+    value = contact.c * dimer.tau / dimer.L if kind == "hunt-crossley" else contact.eta * dimer.K * dimer.tau
+    again = dimer.contact_damping(kind, coefficient=f"{value} {'s/m' if field == 'c' else 'N s/m^1.5'}")
+    assert getattr(again, field) == pytest.approx(getattr(contact, field), rel=1e-12)
+    for call, name in [(lambda: dimer.contact_damping(kind, restitution=0.5, velocity=v), "restitution"),
+                       (lambda: dimer.contact_damping(kind, restitution=e), "velocity"),
+                       (lambda: dimer.contact_damping(kind), "restitution"),
+                       (lambda: dimer.contact_damping(kind, coefficient="1 m"), "coefficient"),
+                       (lambda: dimer.contact_damping("dashpot", coefficient=1.0), "kind")]:
+        with pytest.raises(ParameterError) as err:
+            call()
+        assert err.value.name == name, (name, err.value)
+
+
 @pytest.mark.parametrize("quantity", ["length", "time", "mass", "velocity", "force", "energy", "angular_frequency",
                                       "frequency", "damping", "speed", "wavenumber"])
 def test_to_si_and_from_si_are_inverse(quantity):

@@ -40,7 +40,6 @@ from .assembly import gathered
 from .errors import (ConvergenceError, ParameterError, PetscFailure, check_instance, check_integer, check_prefix,
                      check_real)
 from .dissipation import contact_exponent
-from .hertz import HertzLaw
 from .model import Actuator, ChainSpec
 from .resources import check_chain_size
 

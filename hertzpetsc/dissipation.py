@@ -140,6 +140,18 @@ class KuwabaraKono(ContactDissipation):
 KINDS = {"hunt-crossley": HuntCrossley, "kuwabara-kono": KuwabaraKono}
 
 
+def from_description(description: dict):
+    """The contact damping a model's :meth:`~hertzpetsc.model.LatticeModel.describe` dictionary names (its
+    ``contact``, ``contact_c`` or ``contact_eta``, ``contact_clipped`` keys), or None when it names none."""
+    kind = description.get("contact")
+    if kind is None:
+        return None
+    if kind not in KINDS:
+        raise ParameterError("contact", kind, f"must be one of {', '.join(KINDS)}")
+    value = description.get("contact_c" if kind == "hunt-crossley" else "contact_eta", 0.0)
+    return KINDS[kind](value, bool(description.get("contact_clipped", True)))
+
+
 def contact_dissipation(kind: str, value: float, clipped: bool = True):
     """The contact damping named ``kind`` ('none', 'hunt-crossley' with c = value, 'kuwabara-kono' with eta = value),
     or None for 'none' (the drivers' -contact, -contact_damping, -contact_clipped)."""

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .dissipation import ContactDissipation
+from .dissipation import from_description as contact_from_description
 from .errors import ParameterError, check_integer, check_real
 from . import fpu, toda  # noqa: F401  (the package's laws, registered by name for from_description)
 from .hertz import HertzLaw
@@ -229,10 +230,12 @@ class LatticeModel:
     @classmethod
     def from_description(cls, description: dict) -> LatticeModel:
         """The model a :meth:`describe` dictionary describes (the law from the registry by name,
-        :func:`~hertzpetsc.law.from_description`; a description without ``law`` is the Hertz chain's); keys of
+        :func:`~hertzpetsc.law.from_description`; a description without ``law`` is the Hertz chain's; the damping
+        with its contact term, :func:`~hertzpetsc.dissipation.from_description`); keys of
         other objects (a chain's N, ends) are ignored."""
         return cls(law_from_description(description), tuple(description.get("masses", (1.0,))),
-                   Damping(description.get("gamma", 0.0), description.get("eta", 0.0)))
+                   Damping(description.get("gamma", 0.0), description.get("eta", 0.0),
+                           contact_from_description(description)))
 
     def law_identity(self) -> dict:
         """The law's keys in the identity of a record file that names alpha and delta0 (the precompressed families'):

@@ -16,8 +16,9 @@ from hertzpetsc.families import AmplitudeFamily, amplitude_floor, check_family_a
 from hertzpetsc.fpu import FPULaw
 from hertzpetsc.grid import ProfileGrid
 from hertzpetsc.hertz import HertzLaw
+from hertzpetsc.dissipation import HuntCrossley, KuwabaraKono
 from hertzpetsc.law import LAWS, InteractionLaw, RescaledLaw, from_description
-from hertzpetsc.model import ChainSpec, LatticeModel
+from hertzpetsc.model import ChainSpec, Damping, LatticeModel
 from hertzpetsc.richardson import richardson
 from hertzpetsc.toda import TodaLaw
 from hertzpetsc.waves import orbit_on_chain
@@ -135,7 +136,9 @@ def test_descriptions_round_trip_through_the_registry():
     assert LatticeModel.hertz(2.5, delta0=0.5).describe() == {"alpha": 2.5, "delta0": 0.5, "masses": [1.0]}
     for model in (LatticeModel.hertz(1.5), LatticeModel.hertz(2.0, (1.0, 0.5), 0.3, gamma=0.1),
                   LatticeModel(TodaLaw(1.3, 0.7), (1.0, 3.0)), LatticeModel(FPULaw(1.0, 0.25, -0.5)),
-                  LatticeModel(StiffHertz(1.5, 0.2, c=4.0))):
+                  LatticeModel(StiffHertz(1.5, 0.2, c=4.0)),
+                  LatticeModel(HertzLaw(1.5), (1.0,), Damping(0.0, 0.02, HuntCrossley(0.3, clipped=False))),
+                  LatticeModel(HertzLaw(2.0, 0.1), (1.0, 2.0), Damping(contact=KuwabaraKono(0.05)))):
         assert LatticeModel.from_description(model.describe()) == model
     assert {"hertz", "toda", "fpu", "stiff-hertz"} <= set(LAWS)
     assert from_description({"alpha": 2.0}) == HertzLaw(2.0)

@@ -123,3 +123,52 @@ def clean_options():
     yield opts
     for key in set(opts.getAll()) - before:
         opts.delValue(key)
+
+
+def chain_arrays(spec, x, t=0.0, eps=1e-7):
+    """(f, dense Jacobian, forward differences of step eps, compiled kernel or None) of the chain's right-hand side at
+    the (N, 2) state x."""
+    import numpy as np
+    from hertzpetsc.chain import Chain
+    comm = PETSc.COMM_WORLD
+    ch = Chain(spec, comm)
+    X, F, G = ch.create_state(), ch.create_state(), ch.create_state()
+    J = ch.create_jacobian()
+    try:
+        ch.set_from_array(X, x)
+        ch.rhs(None, t, X, F)
+        f0 = ch.gather(F).ravel()
+        ch.rhs_jacobian(None, t, X, J, J)
+        n = 2 * spec.N
+        dense = np.zeros((n, n))
+        lo, hi = J.getOwnershipRange()
+        dense[lo:hi] = J.getValues(np.arange(lo, hi, dtype=PETSc.IntType), np.arange(n, dtype=PETSc.IntType))
+        dense = comm.tompi4py().allreduce(dense)
+        fd = np.zeros_like(dense)
+        for k in range(n):
+            e = np.asarray(x, float).ravel().copy()
+            e[k] += eps
+            ch.set_from_array(X, e.reshape(-1, 2))
+            ch.rhs(None, t, X, G)
+            fd[:, k] = (ch.gather(G).ravel() - f0) / eps
+        return f0, dense, fd, ch.kernel
+    finally:
+        for v in (X, F, G, J):
+            v.destroy()
+        ch.destroy()
+
+
+def resolvent_differences(flow, x0, T, h):
+    """Central differences of step h of the state flow of a tangent flow (``flow.run`` with no tangents) over [0, T]
+    at x0 (N, 2): the finite-difference resolvent, column by column."""
+    import numpy as np
+    N = x0.shape[0]
+    fd = np.zeros((2 * N, 2 * N))
+    for j in range(2 * N):
+        xs = []
+        for s in (1, -1):
+            e = x0.ravel().copy()
+            e[j] += s * h
+            xs.append(flow.run(e.reshape(N, 2), T, np.zeros((N, 2, 2 * N)))[0].ravel())
+        fd[:, j] = (xs[0] - xs[1]) / (2 * h)
+    return fd

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import run_script
+from conftest import chain_arrays, resolvent_differences, run_script
 from hertzpetsc import kernels
 from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
 from hertzpetsc.dissipation import HuntCrossley, KuwabaraKono, contact_dissipation
@@ -70,34 +70,6 @@ def test_the_model_records_the_term_only_when_present_and_checks_it():
             bad()
     with pytest.raises(ParameterError, match="travelling"):
         m.require_conservative("travelling waves")
-
-
-def chain_arrays(spec, x, t=0.0):
-    """(f, dense Jacobian, forward differences h = 1e-7) of the chain at the state x."""
-    ch = Chain(spec, COMM)
-    X, F, G = ch.create_state(), ch.create_state(), ch.create_state()
-    J = ch.create_jacobian()
-    try:
-        ch.set_from_array(X, x)
-        ch.rhs_jacobian(None, t, X, J, J)
-        ch.rhs(None, t, X, F)
-        f0 = ch.gather(F).ravel()
-        dense = np.zeros((2 * spec.N, 2 * spec.N))
-        lo, hi = J.getOwnershipRange()
-        dense[lo:hi] = J.getValues(range(lo, hi), range(2 * spec.N))
-        dense = COMM.tompi4py().allreduce(dense)
-        fd = np.zeros_like(dense)
-        for k in range(2 * spec.N):
-            e = np.asarray(x, float).ravel().copy()
-            e[k] += 1e-7
-            ch.set_from_array(X, e.reshape(-1, 2))
-            ch.rhs(None, t, X, G)
-            fd[:, k] = (ch.gather(G).ravel() - f0) / 1e-7
-        return f0, dense, fd, ch.kernel
-    finally:
-        for v in (X, F, G, J):
-            v.destroy()
-        ch.destroy()
 
 
 @pytest.mark.parametrize("contact", CONTACTS)
@@ -192,14 +164,7 @@ def test_tangent_flow_and_liouville_with_contact_dissipation():
     try:
         R, _ = flow.resolvent(x0, 2.0)
         steps = flow.integrator.ts.getStepNumber()
-        fd = np.zeros_like(R)
-        for j in range(8):
-            xs = []
-            for s in (1, -1):
-                e = x0.ravel().copy()
-                e[j] += s * 1e-4
-                xs.append(flow.run(e.reshape(4, 2), 2.0, np.zeros((4, 2, 8)))[0].ravel())
-            fd[:, j] = (xs[0] - xs[1]) / 2e-4
+        fd = resolvent_differences(flow, x0, 2.0, 1e-4)
     finally:
         flow.destroy()
     assert np.max(np.abs(R - fd)) < 1e-5 * np.max(np.abs(R))

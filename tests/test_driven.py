@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import DATA, ROOT, one_error_line, run_script, script_env, shared_tmp
+from conftest import DATA, ROOT, one_error_line, resolvent_differences, run_script, script_env, shared_tmp
 from hertzpetsc.assembly import gathered
 from hertzpetsc.chain import IntegrationTolerances
 from hertzpetsc.continuation import ContinuationPoint, Natural, PseudoArclength
@@ -44,14 +44,7 @@ def test_damped_tangent_flow_is_the_derivative_of_the_flow():
     flow = TangentFlow(spec, 8, COMM, TIGHT, "floquet_")
     try:
         R, _ = flow.resolvent(x0, 2.0)
-        fd = np.zeros_like(R)
-        for j in range(8):
-            xs = []
-            for s in (1, -1):
-                e = x0.ravel().copy()
-                e[j] += s * 1e-5
-                xs.append(flow.run(e.reshape(4, 2), 2.0, np.zeros((4, 2, 8)))[0].ravel())
-            fd[:, j] = (xs[0] - xs[1]) / 2e-5
+        fd = resolvent_differences(flow, x0, 2.0, 1e-5)
     finally:
         flow.destroy()
     assert np.max(np.abs(R - fd)) < 1e-7 * np.max(np.abs(R))

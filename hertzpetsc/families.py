@@ -121,6 +121,7 @@ class AmplitudePoint:
     m1: float = float("nan")
     event: str = None          # a located point: the test function whose root it is ('gap', or a caller's test)
     bracket: tuple = None      # ... and the last bracket ((s, value), (s, value)) in s = log a around the root
+    unresolved: str = None     # ... None, or why its location stopped: bracketed only, the point an end (iterations 0)
     normalised: int = 0        # the profile c* whose measure is 1 (the family's normalisation)
 
     @property
@@ -323,9 +324,9 @@ class AmplitudeFamily(ContinuationUse):
 
     def events(self) -> list[AmplitudePoint]:
         """The points located since the last call (AmplitudePoints: the gap openings, and the roots of the caller's
-        ``tests``), each with its ``event`` and ``bracket``."""
-        return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket)
-                for cp in self.continuation.take_events()]
+        ``tests``), each with its ``event`` and ``bracket`` (``unresolved``: a root whose location failed, bracketed only)."""
+        return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket,
+                        unresolved=cp.unresolved) for cp in self.continuation.take_events()]
 
 
 class WavenumberFamily(ContinuationUse):
@@ -391,13 +392,15 @@ def uncompressed_limit(model: LatticeModel, q: float, grid: ProfileGrid, start: 
 class MassPoint:
     """One dimer wave of the mass-ratio family: m_1 = epsilon, the wave (:class:`AmplitudePoint`), the arclength
     and d epsilon / ds of the unit tangent (a sign change is a fold; nan at the starting points); ``event`` is
-    'fold' for a located fold."""
+    'fold' for a located fold (``unresolved``: why its location failed; the point is then a curve's point near it,
+    its wave's iterations 0)."""
 
     epsilon: float
     wave: AmplitudePoint
     arclength: float
     tangent_epsilon: float
     event: str = None
+    unresolved: str = None
 
 
 class MassFamily(ContinuationUse):
@@ -472,7 +475,7 @@ class MassFamily(ContinuationUse):
         except ContinuationError as err:
             raise ConvergenceError("mass-ratio continuation", err.reason, q=self.q, epsilon=err.failed) from None
         wave = self.problem.located(cp, self.continuation.parameter)
-        return MassPoint(cp.parameter, wave, cp.s, cp.dp_ds, cp.event)
+        return MassPoint(cp.parameter, wave, cp.s, cp.dp_ds, cp.event, cp.unresolved)
 
     def run(self, epsilon_end: float, max_steps: int = 400) -> Iterator[MassPoint]:
         """Yield MassPoints (and the located events) until epsilon passes epsilon_end, or after max_steps regular

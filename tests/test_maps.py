@@ -647,3 +647,39 @@ def test_a_multiplier_near_one_is_judged_on_the_refined_orbit():
         # every multiplier (the trivial group too, split by the square root of the flow's error, about 1e-8)
         rho = [float(np.max(np.abs(np.linalg.eigvals(dense.monodromy(o))))) - 1 for o in (orbit, refined)]
     assert rho[0] > 1e-6 and rho[1] < 1e-7
+
+
+def test_a_gap_opening_whose_location_fails_is_in_the_table_as_unresolved(monkeypatch, capfd):
+    """A trial of the gap opening's location whose corrector fails (log a within 0.01 of the located opening): the
+    layer dropped the opening, and the family then stopped the map with a wrong diagnosis ('a step jumped to another
+    branch'). It is now a record (located 0) at a solved end of the bracket around the opening, shown as unresolved
+    in the table, with a note; the map's amplitudes are unchanged."""
+    from hertzpetsc.errors import ConvergenceError
+    from hertzpetsc.families import FamilyProblem
+    from hertzpetsc.studies.maps import map_table
+
+    def gap_rows():
+        study = small_map((0.3, 3.0))
+        try:
+            rows = list(study.run())
+            return rows, map_table(study.arrays())
+        finally:
+            study.destroy()
+    rows, _ = gap_rows()
+    gap = next(r for r in rows if r["kind"] == KIND_GAP)
+    assert gap["located"] == 1
+    s_gap, solve = math.log(gap["a"]), FamilyProblem.solve
+
+    def blind(self, Z, row=None, value=None):
+        if row is None and value is not None and abs(value - s_gap) <= 0.01:
+            raise ConvergenceError("precompressed wave", "no convergence (blind)", log_a=value)
+        return solve(self, Z, row, value)
+    monkeypatch.setattr(FamilyProblem, "solve", blind)
+    capfd.readouterr()
+    blinded, table = gap_rows()
+    gaps = [r for r in blinded if r["kind"] == KIND_GAP]
+    assert len(gaps) == 1 and gaps[0]["located"] == 0
+    assert abs(math.log(gaps[0]["a"]) - s_gap) > 0.01                       # a solved end, outside the blind window
+    assert [r["rho"] for r in blinded if r["kind"] == KIND_POINT] == [r["rho"] for r in rows if r["kind"] == KIND_POINT]
+    assert f"| pi/3 | {gaps[0]['A']:.4f} (unresolved) |" in table
+    assert "note: the event 'gap' of log_a was not located" in capfd.readouterr().err

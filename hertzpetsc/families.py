@@ -298,10 +298,14 @@ class AmplitudeFamily(ContinuationUse):
                                    **{self._name: math.exp(err.failed)}) from None
         point = self.problem.located(cp, cp.parameter)
         if (point.gap > 0) != (self._gap > 0) and self._gap_events() == located:
-            # the gap indicator changed sign but the layer found no root between: the step crossed to another
-            # branch (precompressed_branch.py -masses 1,0.01 -q pi/4 -alpha 2 at ds = 0.1 did)
+            # the gap indicator changed sign but the layer located no root between: the step crossed to another
+            # branch (precompressed_branch.py -masses 1,0.01 -q pi/4 -alpha 2 at ds = 0.1 did; its location then
+            # fails, an unresolved root: the two points may lie on different branches)
+            failed = [cp for cp in self.continuation.events if cp.event == "gap" and cp.unresolved is not None]
+            why = (f" (its location failed between {self._name} = {math.exp(failed[-1].bracket[0][0]):.12g} and "
+                   f"{math.exp(failed[-1].bracket[1][0]):.12g}: {failed[-1].unresolved})" if failed else "")
             raise ConvergenceError("amplitude continuation", "the gap indicator changed sign with no gap opening "
-                                   "located: a step jumped to another branch (take smaller steps)", q=self.q, a=a)
+                                   f"located{why}: a step jumped to another branch (take smaller steps)", q=self.q, a=a)
         self._gap = point.gap
         return point
 
@@ -314,8 +318,8 @@ class AmplitudeFamily(ContinuationUse):
     _gap = math.nan
 
     def _gap_events(self):
-        """The number of gap openings the layer has located and not handed out yet."""
-        return sum(1 for cp in self.continuation.events if cp.event == "gap")
+        """The number of gap openings the layer has located (not unresolved) and not handed out yet."""
+        return sum(1 for cp in self.continuation.events if cp.event == "gap" and cp.unresolved is None)
 
     def points(self, amplitudes: Iterable[float]) -> Iterator[AmplitudePoint]:
         """Yield the waves at the increasing amplitudes ``amplitudes``."""

@@ -522,7 +522,8 @@ class StabilityMap(Study):
                 out[-1]["evaluations"] = probe.evaluations[event.event] - before[event.event]
             if event.unresolved is not None:
                 # its bisection stopped at a trial that failed: the record is a solved end of the bracket
-                # (located 0), the edge shown as bracketed only (the layer said why in a note)
+                # (located 0), the edge shown as bracketed only (the layer said why in a note; an unresolved gap
+                # opening stops the family: AmplitudeFamily.step_to)
                 out[-1]["located"] = 0
         return out
 
@@ -1007,12 +1008,10 @@ def compare_v1(z, old, tol=None, path="the other map"):
     return "\n".join(lines) + "\n"
 
 
-def unresolved_mark(r, i, sep=", "):
-    """A table's mark of a located record whose location failed (``located`` 0: bracketed only); '' else and for
+def unresolved_mark(r, i):
+    """The edges table's mark of an edge whose location failed (``located`` 0: bracketed only); '' else and for
     files before the field."""
-    if "located" not in r or int(r["located"][i]) != 0:
-        return ""
-    return f"{sep}unresolved" + (")" if sep.endswith("(") else "")
+    return ", unresolved" if "located" in r and int(r["located"][i]) == 0 else ""
 
 
 def _side(r, i, certified):
@@ -1080,7 +1079,7 @@ def map_table(z):
         pts = pts[np.argsort(r["a"][pts])]
         lim = np.nonzero(r["kind"] == KIND_LIMIT)[0]
         gap = np.nonzero(r["kind"] == KIND_GAP)[0]
-        gap_A = f"{float(r['A'][gap[0]]):.4f}{unresolved_mark(r, gap[0], ' (')}" if len(gap) else "n/a"
+        gap_A = f"{float(r['A'][gap[0]]):.4f}" if len(gap) else "n/a"
         cert = r.get("cert_inf", np.full(len(r["kind"]), CERT_NONE))
         points = (r["kind"] == KIND_POINT) | (r["kind"] == KIND_LIMIT)
         covered = r["modulation_inf"][points & (cert == CERT_STABLE)] if "modulation_inf" in r else []
@@ -1123,7 +1122,7 @@ def map_table(z):
              "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
              "limit; ?: an edge not located (a window found between two edges of the same kind, or a change of the "
              "verdict between the largest map amplitude and the uncompressed limit"
-             + (", or an unresolved edge or gap opening: its bracket above" if bracketed else "") + ").\n",
+             + (", or an unresolved edge: its bracket above" if bracketed else "") + ").\n",
              "| q | A_gap | N beads | infinite chain | longest modulation of the stable verdicts (beads) |",
              "|---|---|---|---|---|",
              *intervals,
@@ -1134,9 +1133,7 @@ def map_table(z):
                  "every twist sample, the certification did not close)") if certified and twists else
                 "; infinite chain: 's' stable at the twist samples (not certified between them)" if twists else "")
              + (f", '?' no verdict (the deflation's eigenvector residual above {EIGVEC_MAX:g})" if unresolved else "")
-             + ", then the uncompressed limit after '|'; A_gap: the located gap opening"
-             + (" ('unresolved': its location failed, A a solved end of its bracket)" if bracketed else "")
-             + "; largest deflated cluster |mu - 1| and "
+             + ", then the uncompressed limit after '|'; A_gap: the located gap opening; largest deflated cluster |mu - 1| and "
              "eigenvector residual over the row (what the deflation removed, and how exact it was).\n",
              "| q | A_gap | N beads | infinite chain | cluster (N) | eigenvector residual |",
              "|---|---|---|---|---|---|", *verdicts]

@@ -8,8 +8,7 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
   1 = the gap opening, where the longest bond reaches delta0, 2 = the uncompressed limit delta0 / A = 0, where a
   and A are inf), a (first sine coefficient of the normalised profile), A (max_c ||u_c||_inf), omega, omega_lin
   (the branch's linear frequency, closed form), Omega = omega A^(-(alpha-1)/2), lam, gap (the longest bond minus
-  delta0: 2 u(q/2) - delta0 for one mass), iterations (0 for a gap opening whose location failed: bracketed only,
-  the record an end of the bracket; the table says 'unresolved').
+  delta0: 2 u(q/2) - delta0 for one mass), iterations.
 * ``hertzpetsc-dimer-2`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end, ds,
   ds_max; per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u,
   norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
@@ -203,8 +202,6 @@ class AmplitudeFamilies(Study):
             out.update(offset_h=float(coef[0]), C_fit=float(coef[1]))
         if gap is not None:
             out.update(A_gap=float(gap["A"]), omega_gap=float(gap["omega"]), a_gap=float(gap["a"]))
-            if int(gap["iterations"]) == 0:         # not located: a solved end of its bracket (module docstring)
-                out["gap_unresolved"] = True
         if grid:
             out.update(A_max=float(grid[-1]["A"]), Omega_max=float(grid[-1]["Omega"]))
         if limit is not None:
@@ -235,10 +232,7 @@ class AmplitudeFamilies(Study):
                  "omega A^(-(alpha-1)/2) at the largest A; Omega0 its uncompressed limit (delta0/A = 0, same grid); "
                  "c1 = (Omega - Omega0) A / delta0 at the two largest A; rate: the exponent p of Omega - Omega0 ~ "
                  "(delta0/A)^p between them; Omega0 fit: Omega0 + c1 x + c2 x^2 (x = delta0/A) fitted over "
-                 "A >= 20 delta0, without the limit solve"
-                 + ("; A_gap 'unresolved': its location failed (a trial's corrector), A_gap a solved end of the "
-                    "bracket around it" if any(self.summary(q).get("gap_unresolved") for q in self.qs) else "")
-                 + ".\n",
+                 "A >= 20 delta0, without the limit solve.\n",
                  "| q | omega_lin | C(q) theory | C fit (c0) | A_gap | omega(A_gap) | A_max | Omega(A_max) | Omega0 | "
                  "Omega0 fit | c1 (previous A) | rate |",
                  "|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -248,8 +242,7 @@ class AmplitudeFamilies(Study):
             theory = f"{s['C_theory']:.6f}" if math.isfinite(s["C_theory"]) else "n/a"
             lines.append(f"| {q_label(q)} | {self.omega_lin(q):.6f} | {theory} | "
                          + (f"{s['C_fit']:.6f} ({s['offset_h']:.1e})" if "C_fit" in s else "n/a")
-                         + f" | {fmt('A_gap')}{' (unresolved)' if s.get('gap_unresolved') else ''} | "
-                         f"{fmt('omega_gap')} | {fmt('A_max', '{:.4g}')} | {fmt('Omega_max')} | "
+                         + f" | {fmt('A_gap')} | {fmt('omega_gap')} | {fmt('A_max', '{:.4g}')} | {fmt('Omega_max')} | "
                          f"{fmt('Omega0', '{:.8f}')} | {fmt('Omega0_fit', '{:.8f}')} | "
                          + (f"{s['c1']:.5f} ({s['c1_previous']:.5f})" if "c1" in s else "n/a")
                          + f" | {fmt('rate', '{:.4f}')} |")

@@ -370,3 +370,39 @@ def test_natural_steps_around_a_single_fold_stop_with_the_fold_named():
     finally:
         Z.destroy()
         cont.destroy()
+
+
+def test_a_fold_whose_location_fails_is_kept_at_the_curve_point_beyond_it(capfd):
+    """Pseudo-arclength through the Bratu fold with the arclength corrector failing on every point within 1e-4 in
+    lambda of the located fold (the location's trials land there, the regular steps do not): the fold was dropped
+    (no event); it is now reported, unresolved, at the curve's point beyond the other two (lambda within 1e-3 below
+    the located fold: the step's point nearest it), with a note."""
+    fold = next(p for p in run_to_fold(99) if p.event == "fold").parameter
+
+    class Blind(Bratu):
+        def solve(self, Z, row=None, value=None):
+            its = super().solve(Z, row, value)
+            if row is not None and abs(float(Z.getArray(readonly=True)[-1]) - fold) < 1e-4:
+                raise ConvergenceError("Bratu Newton", "no convergence (blind)", **{"lambda": fold})
+            return its
+    prob = Blind(99)
+    cont = Continuation(prob, PseudoArclength(ds=0.05, ds_max=0.3))
+    Z = prob.create_vec()
+    Z.set(0.0)
+    Z.getArray()[-1] = 0.5
+    capfd.readouterr()
+    try:
+        cont.start(Z)
+        cont.step_to(0.6)
+        points = []
+        for p in cont.run(max_steps=80):
+            points.append(p)
+            if p.event is None and p.parameter < 2.0 and p.dp_ds < 0:
+                break
+    finally:
+        Z.destroy()
+        cont.destroy()
+    folds = [p for p in points if p.event == "fold"]
+    assert len(folds) == 1 and getattr(folds[0], "unresolved", None) is not None
+    assert fold - 1e-3 < folds[0].parameter < fold
+    assert "note: the fold of lambda was not located" in capfd.readouterr().err

@@ -328,7 +328,8 @@ class AmplitudeFamily(ContinuationUse):
 
     def events(self) -> list[AmplitudePoint]:
         """The points located since the last call (AmplitudePoints: the gap openings, and the roots of the caller's
-        ``tests``), each with its ``event`` and ``bracket`` (``unresolved``: a root whose location failed, bracketed only)."""
+        ``tests``), each with its ``event`` and ``bracket`` (``unresolved``: a root whose location failed, bracketed
+        only)."""
         return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket,
                         unresolved=cp.unresolved) for cp in self.continuation.take_events()]
 

@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Collection, Iterator, Optional, Sequence, Unio
 
 import numpy as np
 
+from .console import note
 from .errors import ConvergenceError, ParameterError, check_integer, check_real
 
 if TYPE_CHECKING:
@@ -188,6 +189,10 @@ class ContinuationPoint:
     tests: dict = field(default_factory=dict)
     substeps: int = 1
     bracket: tuple = None      # a located root: ((p, value), (p, value)) of the last bracket, the root between them
+    # None: located to the layer's tolerance; else why the location stopped (a trial whose corrector failed): the
+    # event is only bracketed, by ``bracket`` in the parameter (None for a fold), and the point is the bracket's
+    # solved end nearest the root (a fold: the known point beyond the other two)
+    unresolved: str = None
 
 
 def _owns_last(Z):
@@ -694,8 +699,9 @@ class Continuation:
             if x is None:
                 raise ConvergenceError("fold location", "degenerate parabola", sigma=sigma1)
             return self._located(evals, x, s_origin + x, "fold")
-        except ConvergenceError:
-            return None
+        except ConvergenceError as err:
+            # the fold is kept, unresolved: at Z1, the known point beyond the other two
+            return self._unresolved("fold", Z1, s_origin + sigma1, None, err)
         finally:
             _discard(evals)
             c.destroy()
@@ -704,13 +710,16 @@ class Continuation:
         """The zero of the test function ``name`` between Z1 and Z2 (values g1, g2 of opposite signs) by the
         Illinois rule: in the projection on the chord Z1 -> Z2, or, between ``natural`` points, in the parameter
         (bisection for the tests in ``bisect``), each trial solved from the linear interpolation of Z1 and Z2, the
-        located point keeping the last bracket."""
+        located point keeping the last bracket. A trial whose corrector fails ends the location: the root is then
+        kept as bracketed only (:meth:`_unresolved`), never dropped."""
         evals, c = {}, None
+        trial = []                 # the trial being solved (a failure: inside the Illinois rule's current bracket)
         if natural:
             a, b = _parameter(Z1), _parameter(Z2)
             tol = self.locate_step if self.locate_step is not None else self.locate_tol * abs(b - a)
 
             def at(p):
+                trial[:] = [p]
                 Z = Z1.copy()
                 f = (p - a) / (b - a)
                 Z.scale(1 - f)
@@ -729,17 +738,46 @@ class Continuation:
         else:
             c, b = self._chord(Z1, Z2)
             a, tol = 0.0, self.locate_tol * b
-            at = self._on_chord(Z1, c, evals, lambda Z: self.problem.test_functions(Z)[name])
+            on_chord = self._on_chord(Z1, c, evals, lambda Z: self.problem.test_functions(Z)[name])
+
+            def at(sigma):
+                trial[:] = [sigma]
+                return on_chord(sigma)
         try:
             x, bracket = illinois(at, a, g1, b, g2, tol, self.locate_max, bisect=natural and name in self.bisect,
                                   bracket=True)
             return self._located(evals, x, s_origin + abs(x - a), name, bracket if natural else None)
-        except ConvergenceError:
-            return None
+        except ConvergenceError as err:
+            # the current bracket: the solved trials next to the failed one (the Illinois rule's evaluations all lie
+            # at or outside its bracket), in the parameter
+            known = sorted([(a, g1, Z1), (b, g2, Z2)] + [(x, v, Z) for x, (Z, _, v) in evals.items()],
+                           key=lambda e: e[0])
+            x_fail = trial[0] if trial else 0.5 * (a + b)
+            k = next((i for i in range(1, len(known)) if known[i][0] > x_fail), len(known) - 1)
+            lo, hi = known[k - 1], known[k]
+            if lo[1] * hi[1] > 0:                 # (not expected) the failed trial outside a sign change: the ends
+                lo, hi = known[0], known[-1]
+            end = min((lo, hi), key=lambda e: abs(e[1]))
+            bracket = tuple((self._p(Z), v) for _, v, Z in (lo, hi))
+            return self._unresolved(name, end[2], s_origin + abs(end[0] - a), bracket, err)
         finally:
             _discard(evals)
             if c is not None:
                 c.destroy()
+
+    def _unresolved(self, name, Z, s, bracket, err):
+        """The event ``name`` that its location could not resolve (``err``: the failed trial's ConvergenceError),
+        as the solved point Z (arclength s) with its ``bracket``, marked :attr:`ContinuationPoint.unresolved`, and
+        a note saying so: a failed location is reported, never silent."""
+        p = self._p(Z)
+        between = (f"bracketed in [{min(bracket[0][0], bracket[1][0]):.12g}, {max(bracket[0][0], bracket[1][0]):.12g}]"
+                   if bracket is not None else f"kept at the curve's point {self.problem.parameter} = {p:.12g}")
+        reason = str(err)
+        note(f"{'the fold' if name == 'fold' else 'the event ' + repr(name)} of {self.problem.parameter} was not "
+             f"located (a trial failed: {reason}); unresolved, {between}", Z.getComm())
+        return ContinuationPoint(parameter=p, s=s, dp_ds=0.0 if name == "fold" else math.nan, iterations=0,
+                                 event=name, report=self.problem.report(Z), tests=self.problem.test_functions(Z),
+                                 bracket=bracket, unresolved=reason)
 
     def take_events(self) -> list[ContinuationPoint]:
         """The points located by the natural steps since the last call (sorted by arclength)."""

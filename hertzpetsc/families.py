@@ -121,6 +121,7 @@ class AmplitudePoint:
     m1: float = float("nan")
     event: str = None          # a located point: the test function whose root it is ('gap', or a caller's test)
     bracket: tuple = None      # ... and the last bracket ((s, value), (s, value)) in s = log a around the root
+    unresolved: str = None     # ... None, or why its location stopped: bracketed only, the point an end (iterations 0)
     normalised: int = 0        # the profile c* whose measure is 1 (the family's normalisation)
 
     @property
@@ -297,10 +298,14 @@ class AmplitudeFamily(ContinuationUse):
                                    **{self._name: math.exp(err.failed)}) from None
         point = self.problem.located(cp, cp.parameter)
         if (point.gap > 0) != (self._gap > 0) and self._gap_events() == located:
-            # the gap indicator changed sign but the layer found no root between: the step crossed to another
-            # branch (precompressed_branch.py -masses 1,0.01 -q pi/4 -alpha 2 at ds = 0.1 did)
+            # the gap indicator changed sign but the layer located no root between: the step crossed to another
+            # branch (precompressed_branch.py -masses 1,0.01 -q pi/4 -alpha 2 at ds = 0.1 did; its location then
+            # fails, an unresolved root: the two points may lie on different branches)
+            failed = [cp for cp in self.continuation.events if cp.event == "gap" and cp.unresolved is not None]
+            why = (f" (its location failed between {self._name} = {math.exp(failed[-1].bracket[0][0]):.12g} and "
+                   f"{math.exp(failed[-1].bracket[1][0]):.12g}: {failed[-1].unresolved})" if failed else "")
             raise ConvergenceError("amplitude continuation", "the gap indicator changed sign with no gap opening "
-                                   "located: a step jumped to another branch (take smaller steps)", q=self.q, a=a)
+                                   f"located{why}: a step jumped to another branch (take smaller steps)", q=self.q, a=a)
         self._gap = point.gap
         return point
 
@@ -313,8 +318,8 @@ class AmplitudeFamily(ContinuationUse):
     _gap = math.nan
 
     def _gap_events(self):
-        """The number of gap openings the layer has located and not handed out yet."""
-        return sum(1 for cp in self.continuation.events if cp.event == "gap")
+        """The number of gap openings the layer has located (not unresolved) and not handed out yet."""
+        return sum(1 for cp in self.continuation.events if cp.event == "gap" and cp.unresolved is None)
 
     def points(self, amplitudes: Iterable[float]) -> Iterator[AmplitudePoint]:
         """Yield the waves at the increasing amplitudes ``amplitudes``."""
@@ -323,9 +328,10 @@ class AmplitudeFamily(ContinuationUse):
 
     def events(self) -> list[AmplitudePoint]:
         """The points located since the last call (AmplitudePoints: the gap openings, and the roots of the caller's
-        ``tests``), each with its ``event`` and ``bracket``."""
-        return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket)
-                for cp in self.continuation.take_events()]
+        ``tests``), each with its ``event`` and ``bracket`` (``unresolved``: a root whose location failed, bracketed
+        only)."""
+        return [replace(self.problem.located(cp, self.continuation.parameter), event=cp.event, bracket=cp.bracket,
+                        unresolved=cp.unresolved) for cp in self.continuation.take_events()]
 
 
 class WavenumberFamily(ContinuationUse):
@@ -391,13 +397,15 @@ def uncompressed_limit(model: LatticeModel, q: float, grid: ProfileGrid, start: 
 class MassPoint:
     """One dimer wave of the mass-ratio family: m_1 = epsilon, the wave (:class:`AmplitudePoint`), the arclength
     and d epsilon / ds of the unit tangent (a sign change is a fold; nan at the starting points); ``event`` is
-    'fold' for a located fold."""
+    'fold' for a located fold (``unresolved``: why its location failed; the point is then a curve's point near it,
+    its wave's iterations 0)."""
 
     epsilon: float
     wave: AmplitudePoint
     arclength: float
     tangent_epsilon: float
     event: str = None
+    unresolved: str = None
 
 
 class MassFamily(ContinuationUse):
@@ -472,7 +480,7 @@ class MassFamily(ContinuationUse):
         except ContinuationError as err:
             raise ConvergenceError("mass-ratio continuation", err.reason, q=self.q, epsilon=err.failed) from None
         wave = self.problem.located(cp, self.continuation.parameter)
-        return MassPoint(cp.parameter, wave, cp.s, cp.dp_ds, cp.event)
+        return MassPoint(cp.parameter, wave, cp.s, cp.dp_ds, cp.event, cp.unresolved)
 
     def run(self, epsilon_end: float, max_steps: int = 400) -> Iterator[MassPoint]:
         """Yield MassPoints (and the located events) until epsilon passes epsilon_end, or after max_steps regular

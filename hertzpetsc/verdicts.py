@@ -32,12 +32,15 @@ def unstable_intervals(z, key="rho"):
     first edge, to inf when the verdict stays unstable up to the limit (without a limit record: up to the largest
     map amplitude); nan where an edge was not located (an onset after an onset, an offset after an offset, a map
     amplitude or the limit whose verdict contradicts the last located edge: the family stepped into a window the
-    edges do not show, or the verdict changes beyond the largest map amplitude)."""
+    edges do not show, or the verdict changes beyond the largest map amplitude) and at an edge whose location
+    failed (``located`` 0: bracketed only)."""
     tol = float(z["tol_rho"])
     kind, q, A = np.asarray(z["kind"]), np.asarray(z["q"], float), np.asarray(z["A"], float)
     rho = np.asarray(z[key], float)
     edge = KIND_EDGE if key == "rho" else KIND_EDGE_INF
     onset_of = np.asarray(z["A_unstable"], float) > np.asarray(z["A_stable"], float)
+    # an edge's end of an interval: its A, nan where its location failed (files before the field: all located)
+    end = np.where(np.asarray(z["located"]) == 0, math.nan, A) if "located" in z else A
     out = {}
     for qq in sorted(set(q[(kind == KIND_POINT) & np.isfinite(rho)].tolist())):
         pts = np.nonzero(((kind == KIND_POINT) | (kind == KIND_LIMIT)) & (q == qq) & np.isfinite(rho))[0]
@@ -58,9 +61,9 @@ def unstable_intervals(z, key="rho"):
             elif onset_of[i]:
                 if start is not None:                           # unstable already: an offset between was not located
                     spans.append((start, math.nan))
-                start, seen = a, True
+                start, seen = float(end[i]), True
             else:                                               # stable before: nan, an onset between was not located
-                spans.append((math.nan if start is None else start, a))
+                spans.append((math.nan if start is None else start, float(end[i])))
                 start, seen = None, True
         if start is not None:                  # up to the uncompressed limit only if the last verdict is unstable
             last = next(i for a, is_edge, i in reversed(walk) if not is_edge)

@@ -251,6 +251,53 @@ def test_bisection_locates_a_flat_sided_root_to_the_step_and_keeps_the_bracket()
         Continuation(Bratu(5), Natural(), locate_step=0.0)
 
 
+class BlindBratu(FlatBratu):
+    """FlatBratu whose corrector fails at every lambda of ``blind`` (an interval): a bisection trial there does not
+    converge, as a wave's corrector inside a stability map's bisection may not."""
+
+    blind = (math.inf, math.inf)
+
+    def solve(self, Z, row=None, value=None):
+        lam = float(Z.getArray(readonly=True)[-1]) if value is None else value
+        if self.blind[0] <= lam <= self.blind[1]:
+            raise ConvergenceError("Bratu Newton", "no convergence (blind)", **{"lambda": lam})
+        return super().solve(Z, row, value)
+
+
+def _margin_events(prob):
+    cont = Continuation(prob, Natural(), bisect=("margin",), locate_step=1e-4)
+    Z = prob.create_vec()
+    Z.set(0.0)
+    Z.getArray()[-1] = 1.0
+    try:
+        cont.start(Z)
+        cont.step_to(3.0)
+        return cont.take_events()
+    finally:
+        Z.destroy()
+        cont.destroy()
+
+
+def test_a_root_whose_bisection_fails_is_kept_bracketed_and_unresolved(capfd):
+    """A bisection trial whose corrector fails (lambda within 0.01 of the root u_max = 1/2 + 1e-6) does not drop the
+    event (as it did): it is reported, unresolved, with the bracket of the solved trials around the root (wider than
+    the locate_step of a located one, its ends of opposite signs) and a note."""
+    located = _margin_events(BlindBratu(29))
+    assert [e.event for e in located] == ["margin"] and getattr(located[0], "unresolved", None) is None
+    root = located[0].parameter
+    prob = BlindBratu(29)
+    prob.blind = (root - 0.01, root + 0.01)
+    events = _margin_events(prob)
+    assert [e.event for e in events] == ["margin"]
+    e = events[0]
+    assert e.unresolved is not None and "blind" in e.unresolved
+    (p1, g1), (p2, g2) = e.bracket
+    assert p1 < prob.blind[0] and prob.blind[1] < p2 and g1 < 0 < g2      # the root between, the ends solved
+    assert p2 - p1 > 1e-4                                                 # not the located bracket
+    assert e.parameter in (p1, p2) and abs(e.report["u_max"] - 0.5) < 0.05  # an end, reported
+    assert "note: the event 'margin' of lambda was not located" in capfd.readouterr().err
+
+
 class Cubic(ContinuationProblem):
     """x^3 - x = p: an S-shaped curve in p, folds at x = -+1/sqrt(3), p = +-2/(3 sqrt(3)). Z = (x, p); 2x2 Newton."""
 
@@ -323,3 +370,39 @@ def test_natural_steps_around_a_single_fold_stop_with_the_fold_named():
     finally:
         Z.destroy()
         cont.destroy()
+
+
+def test_a_fold_whose_location_fails_is_kept_at_the_curve_point_beyond_it(capfd):
+    """Pseudo-arclength through the Bratu fold with the arclength corrector failing on every point within 1e-4 in
+    lambda of the located fold (the location's trials land there, the regular steps do not): the fold was dropped
+    (no event); it is now reported, unresolved, at the curve's point beyond the other two (lambda within 1e-3 below
+    the located fold: the step's point nearest it), with a note."""
+    fold = next(p for p in run_to_fold(99) if p.event == "fold").parameter
+
+    class Blind(Bratu):
+        def solve(self, Z, row=None, value=None):
+            its = super().solve(Z, row, value)
+            if row is not None and abs(float(Z.getArray(readonly=True)[-1]) - fold) < 1e-4:
+                raise ConvergenceError("Bratu Newton", "no convergence (blind)", **{"lambda": fold})
+            return its
+    prob = Blind(99)
+    cont = Continuation(prob, PseudoArclength(ds=0.05, ds_max=0.3))
+    Z = prob.create_vec()
+    Z.set(0.0)
+    Z.getArray()[-1] = 0.5
+    capfd.readouterr()
+    try:
+        cont.start(Z)
+        cont.step_to(0.6)
+        points = []
+        for p in cont.run(max_steps=80):
+            points.append(p)
+            if p.event is None and p.parameter < 2.0 and p.dp_ds < 0:
+                break
+    finally:
+        Z.destroy()
+        cont.destroy()
+    folds = [p for p in points if p.event == "fold"]
+    assert len(folds) == 1 and getattr(folds[0], "unresolved", None) is not None
+    assert fold - 1e-3 < folds[0].parameter < fold
+    assert "note: the fold of lambda was not located" in capfd.readouterr().err

@@ -647,3 +647,45 @@ def test_a_multiplier_near_one_is_judged_on_the_refined_orbit():
         # every multiplier (the trivial group too, split by the square root of the flow's error, about 1e-8)
         rho = [float(np.max(np.abs(np.linalg.eigvals(dense.monodromy(o))))) - 1 for o in (orbit, refined)]
     assert rho[0] > 1e-6 and rho[1] < 1e-7
+
+
+def test_an_edge_whose_bisection_fails_is_in_the_table_as_unresolved(monkeypatch, capfd):
+    """The bubble of test_located_bubble_is_confirmed_by_the_multipliers_on_both_sides with the family's corrector
+    failing within 1e-3 in log a of its onset: the layer dropped the onset, and the table showed the offset alone,
+    without a word. The onset is now a record (located 0) whose bracket holds the located onset, wider than the
+    bisection's 1e-3, shown 'unresolved' in the table (its interval's end '?'), with a note; the offset is
+    unchanged."""
+    from hertzpetsc.errors import ConvergenceError
+    from hertzpetsc.families import FamilyProblem
+    from hertzpetsc.studies.maps import map_table
+
+    def edges():
+        study = StabilityMap(MapParameters(LatticeModel.hertz(1.5, (1.0,), 1.0), (Q,), (0.5, 0.65), N=20,
+                                           cells_per_pi=K, tolerances=TOL, limit=False), SELF)
+        try:
+            rows = list(study.run())
+            return sorted((r for r in rows if r["kind"] == KIND_EDGE), key=lambda r: r["A"]), \
+                map_table(study.arrays())
+        finally:
+            study.destroy()
+    (onset, offset), _ = edges()
+    assert onset["located"] == offset["located"] == 1
+    s_on, solve = math.log(onset["a"]), FamilyProblem.solve
+
+    def blind(self, Z, row=None, value=None):
+        if row is None and value is not None and abs(value - s_on) <= 1e-3:
+            raise ConvergenceError("precompressed wave", "no convergence (blind)", log_a=value)
+        return solve(self, Z, row, value)
+    monkeypatch.setattr(FamilyProblem, "solve", blind)
+    capfd.readouterr()
+    found, table = edges()
+    assert len(found) == 2
+    bracketed, same = found
+    assert bracketed["located"] == 0 and same["located"] == 1 and same["A"] == offset["A"]
+    assert bracketed["a_stable"] < onset["a"] < bracketed["a_unstable"]          # the onset within its bracket
+    assert abs(math.log(bracketed["a_unstable"] / bracketed["a_stable"])) > 2e-3  # wider than the blind window
+    assert bracketed["rho_stable"] < 1e-6 < bracketed["rho_unstable"]
+    row = next(line for line in table.splitlines() if f"| {bracketed['A_stable']:.6g} |" in line)
+    assert "| onset, unresolved |" in row and "1 edge unresolved" in table
+    assert f"[?, {same['A']:.5g}]" in table
+    assert "note: the event 'chain' of log_a was not located" in capfd.readouterr().err

@@ -530,14 +530,17 @@ class ResponseCurve(DrivenStudy):
         """The records of up to ``steps`` steps of ``cont`` on ``branch`` after the record ``previous``: each located
         event (confirmed; those of ``trailing`` were recorded before a resume) before the point that follows it; on
         branch 0 a sign change (or a fold) the layer could not locate (its corrector failed on the chord: a corner of
-        the curve) is recorded on this point, bracketed between it and the previous one."""
+        the curve; the layer's unresolved event, with its note) is recorded on this point, bracketed between it and the
+        previous one."""
         trailing, pending = list(trailing), []
         mu_prev = previous["multipliers"]          # the full spectra confirm the events (records keep nmult)
         tests_prev = dict(period_doubling=float(previous["tau_pd"]), neimark_sacker=float(previous["tau_ns"]))
         dp_prev = float(previous["dp_ds"])
         for point in cont.run(until=until, max_steps=steps):
             if point.event is not None:
-                pending.append(point)
+                # an event the layer could not locate (unresolved, said in its note) is left to the bracket below
+                if point.unresolved is None:
+                    pending.append(point)
                 continue
             rec = self._record(prob, point, branch)
             mu = point.report.get("multipliers", rec["multipliers"])

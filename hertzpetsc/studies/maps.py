@@ -89,7 +89,7 @@ EIGVEC_MAX = 1e-4
 MAP_FIELDS = ("q", "m", "kind", "a", "A", "omega", "rho", "outside", "sector", "cluster", "raw_cluster", "eigvec",
               "decoupled", "rho_inf", "theta_inf", "cluster_inf", "a_stable", "a_unstable", "A_stable", "A_unstable",
               "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds", "cert_inf", "bound_inf",
-              "cert_stable", "modulation_inf", "E_chain")
+              "cert_stable", "modulation_inf", "E_chain", "located")
 # the infinite chain's certification of a record (cert_inf; cert_stable: of an edge's stable side): 1 stable between
 # the twist samples (slow.certify_twists), 0 stable samples not certified between them (unresolved), -1 none
 # (unstable, no verdict, or a file of kind -2, whose verdicts are the samples')
@@ -402,13 +402,13 @@ class StabilityMap(Study):
     Parameters = MapParameters
     FORMAT, FIELDS = MAP_FORMAT, MAP_FIELDS
     DTYPES = {"m": np.int64, "kind": np.int64, "outside": np.int64, "decoupled": np.int64, "evaluations": np.int64,
-              "cert_inf": np.int64, "cert_stable": np.int64}
+              "cert_inf": np.int64, "cert_stable": np.int64, "located": np.int64}
     ROLES = {"floquet_": ("the flow of the variational equations (the cells' maps)", ("ts",)),
              "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",)),
              "shoot_": ("the refinement's flow and Gauss-Newton where a multiplier is near 1 (-shoot_gn_max_it)",
                         ("ts",)),
              "shoot_jac_": ("the flow of the refinement's Jacobian", ("ts",))}
-    ADDED = {"E_chain": math.nan}
+    ADDED = {"E_chain": math.nan, "located": 1}
     WHAT = "stability-map file"
     NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="model's masses (-epsilon)")
 
@@ -445,7 +445,7 @@ class StabilityMap(Study):
         row = dict.fromkeys(MAP_FIELDS, nan)
         row.update(q=q, m=check_chain_wavenumber(q, self.N) if fits_chain(q, self.N) else -1, kind=kind, a=a, A=A,
                    omega=omega, outside=-1, decoupled=-1, evaluations=0, seconds=0.0, cert_inf=CERT_NONE,
-                   cert_stable=CERT_NONE)
+                   cert_stable=CERT_NONE, located=1)
         if entry is not None:
             if fits_chain(q, self.N):
                 c = probe.chain(entry)
@@ -518,9 +518,13 @@ class StabilityMap(Study):
             if kind == KIND_GAP:
                 out.append(self._row(q, KIND_GAP, event.a, event.A, event.omega))
             else:
-                edge = self._edge(q, probe, event, time.perf_counter() - t0)
-                edge["evaluations"] = probe.evaluations[event.event] - before[event.event]
-                out.append(edge)
+                out.append(self._edge(q, probe, event, time.perf_counter() - t0))
+                out[-1]["evaluations"] = probe.evaluations[event.event] - before[event.event]
+            if event.unresolved is not None:
+                # its bisection stopped at a trial that failed: the record is a solved end of the bracket
+                # (located 0), the edge shown as bracketed only (the layer said why in a note; an unresolved gap
+                # opening stops the family: AmplitudeFamily.step_to)
+                out[-1]["located"] = 0
         return out
 
     def _bubble(self, q, fam, probe, first, last):
@@ -795,14 +799,18 @@ class QBoundary(Study):
         return q_boundary_table(self.arrays())
 
 
-def _brackets(stable, unstable, mine, name):
+def _brackets(stable, unstable, mine, name, unresolved=None):
     """What the located edges' rows show of their brackets: the largest relative width |unstable - stable| / min of
-    the rows ``mine`` (a table claims the resolution its rows have, not the one asked for)."""
-    s, u = np.asarray(stable, float)[mine], np.asarray(unstable, float)[mine]
+    the rows ``mine`` (a table claims the resolution its rows have, not the one asked for); ``unresolved``: the rows
+    whose bisection failed (bracketed only), counted apart."""
+    apart = np.zeros(len(mine), bool) if unresolved is None else mine & unresolved
+    s, u = np.asarray(stable, float)[mine & ~apart], np.asarray(unstable, float)[mine & ~apart]
+    more = (f"; {int(apart.sum())} edge{'s' if apart.sum() > 1 else ''} unresolved (a bisection trial failed: "
+            f"bracketed only, its width in the table)") if apart.any() else ""
     if not len(s):
-        return "no edge located"
+        return "no edge located" + more
     width = float(np.max(np.abs(u - s) / np.minimum(s, u)))
-    return f"the {len(s)} located edges within brackets of at most {width:.1e} (relative, in {name})"
+    return f"the {len(s)} located edges within brackets of at most {width:.1e} (relative, in {name})" + more
 
 
 def q_boundary_table(z):
@@ -1000,6 +1008,12 @@ def compare_v1(z, old, tol=None, path="the other map"):
     return "\n".join(lines) + "\n"
 
 
+def unresolved_mark(r, i):
+    """The edges table's mark of an edge whose location failed (``located`` 0: bracketed only); '' else and for
+    files before the field."""
+    return ", unresolved" if "located" in r and int(r["located"][i]) == 0 else ""
+
+
 def _side(r, i, certified):
     """The edges tables' last cell: whether an infinite-chain edge's stable side is certified between its twist
     samples (certified, unresolved; 'samples' for a file before the certification; n/a for an N-bead edge)."""
@@ -1059,7 +1073,7 @@ def map_table(z):
             edges.append(f"| {q_label(q)} | {'N' if r['kind'][i] == KIND_EDGE else 'inf'} | {As:.6g} | {Au:.6g} | "
                          f"{abs(Au - As) / min(As, Au):.1e} | {float(r['rho_stable'][i]):.1e} | "
                          f"{float(r['rho_unstable'][i]):.1e} | {float(r['theta_unstable'][i]):.4f} | "
-                         f"{'onset' if Au > As else 'offset'} | {int(r['evaluations'][i])} | "
+                         f"{'onset' if Au > As else 'offset'}{unresolved_mark(r, i)} | {int(r['evaluations'][i])} | "
                          f"{_side(r, i, certified)} |")
         pts = np.nonzero(r["kind"] == KIND_POINT)[0]
         pts = pts[np.argsort(r["a"][pts])]
@@ -1075,6 +1089,7 @@ def map_table(z):
                         + (marks(r["rho_inf"], pts, lim, cert) if twists else "n/a")
                         + f" | {_largest(r['cluster'][pts]):.1e} | {_largest(r['eigvec'][pts]):.1e} |")
     amps = sorted(set(float(a) for a, k in zip(np.asarray(z["a"]), kinds) if k == KIND_POINT))
+    bracketed = "located" in z and bool(np.any(np.asarray(z["located"]) == 0))     # a location that failed
     unresolved = bool(np.any(((kinds == KIND_POINT) | (kinds == KIND_LIMIT)) & ~np.isfinite(np.asarray(z["rho"], float))))
     lines = [f"schema: {str(z.get('format', MAP_FORMAT))}; alpha = {float(z['alpha']):g}, "
              f"delta0 = {float(z['delta0']):g}, masses "
@@ -1089,13 +1104,16 @@ def map_table(z):
                  f"{MAP_FORMAT_V2}, before the twist certification)")) if twists else "not computed")
              + f"; boundary located by bisection in log a, asked to a bracket of {float(z['locate_tol']):g} "
              f"(relative, in a); "
-             + _brackets(z["A_stable"], z["A_unstable"], (kinds == KIND_EDGE) | (kinds == KIND_EDGE_INF), "A")
+             + _brackets(z["A_stable"], z["A_unstable"], (kinds == KIND_EDGE) | (kinds == KIND_EDGE_INF), "A",
+                         np.asarray(z["located"]) == 0 if "located" in z else None)
              + ".\n",
              "### Located boundary\n",
              "Each row: an amplitude where the verdict changes, between A (stable side) and A (unstable side); "
              "rho - 1 of the chain (N beads or the infinite chain) at both ends: the multipliers' distance to the unit "
              "circle on each side; Theta: the sector angle (N) or cell twist (infinite chain) of the unstable mode; "
-             "the edge is an onset (stable below, unstable above) or an offset.\n",
+             "the edge is an onset (stable below, unstable above) or an offset"
+             + (" ('unresolved': a trial of its bisection failed, the edge only bracketed by the two A)" if bracketed
+                else "") + ".\n",
              "| q | chain | A stable | A unstable | relative width | rho - 1 stable side | rho - 1 unstable side | "
              "Theta | edge | bisections | stable side between twists |",
              "|---|---|---|---|---|---|---|---|---|---|---|", *edges,
@@ -1103,7 +1121,8 @@ def map_table(z):
              "Per q, the intervals of A = ||u||_inf where the wave is unstable, between located edges (each within "
              "its bracket: widths above); 0: from below the smallest map amplitude; inf: up to the uncompressed "
              "limit; ?: an edge not located (a window found between two edges of the same kind, or a change of the "
-             "verdict between the largest map amplitude and the uncompressed limit).\n",
+             "verdict between the largest map amplitude and the uncompressed limit"
+             + (", or an unresolved edge: its bracket above" if bracketed else "") + ").\n",
              "| q | A_gap | N beads | infinite chain | longest modulation of the stable verdicts (beads) |",
              "|---|---|---|---|---|",
              *intervals,

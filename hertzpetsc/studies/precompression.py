@@ -13,7 +13,7 @@ Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.re
   ds_max; per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u,
   norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
   iterations, event (0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the
-  path); state (for -resume, the end state of every q computed, stacked in the order of ``state_q`` (m,)):
+  path; an event with iterations 0: its location failed, the record a point of the path next to it, 'unresolved'); state (for -resume, the end state of every q computed, stacked in the order of ``state_q`` (m,)):
   ``state_Z`` (m, 2, n) the last two extended vectors (u_0 whole, u_1 whole, lam, epsilon: ``state_layout`` =
   'natural'), ``state_s`` (m, 2), ``state_ds``, ``state_normalised`` (m,). Older files hold one state, of the last
   q computed (``state_q`` (), ``state_Z`` (2, n), ...; without ``state_layout``, in its writer's rank layout): they
@@ -475,6 +475,7 @@ class DimerFamilies(Study):
             if not rows:
                 continue
             events = ", ".join(f"{names[int(r['event'])]} {float(r['epsilon']):.6f}"
+                               + (" (unresolved)" if int(r.get("iterations", 1)) == 0 else "")
                                for r in _at(self.store.records, q) if int(r.get("event", 0)) != 0) or "none"
             t = np.array([float(r["tangent_epsilon"]) for r in rows])
             t = t[np.isfinite(t)]

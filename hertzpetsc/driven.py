@@ -752,9 +752,9 @@ class PeriodicShooting(ContinuationProblem):
         # the ends' positions and velocities (an actuator's motion, a wall at rest)
         (x0, v0), (xr, vr) = [(end.signal.position(t), end.signal.velocity(t)) if isinstance(end, Actuator)
                               else (0.0, 0.0) for end in (spec.left, spec.right)]
-        f_left = -(law.force(pos[:, 0] - x0) + eta * (X[:, 0, 1] - v0))
+        f_left = -(law.bond_law(-1).dV(pos[:, 0] - x0) + eta * (X[:, 0, 1] - v0))   # bonds -1, N - 1: law p - 1
         f_right = np.zeros_like(t) if spec.right == "free" else \
-            -(law.force(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))             # a free end has no bond
+            -(law.bond_law(-1).dV(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))             # a free end has no bond
         p_in, diss = [], []
         for j in range(len(t) - 1):
             self.chain.set_from_array(self.X, X[j])

@@ -1104,8 +1104,10 @@ class LinearChainPreconditioner:
 
     @staticmethod
     def applies(drive):
-        """Uniform masses and a precompressed law (V''(0) > 0: in a sonic vacuum R_lin - I is singular)."""
-        return len(set(drive.model.masses)) == 1 and drive.model.law.linear_stiffness > 0.0
+        """Uniform masses, one law in every bond and a precompressed law (V''(0) > 0: in a sonic vacuum R_lin - I is
+        singular)."""
+        return len(set(drive.model.masses)) == 1 and drive.model.bonds is None and \
+            drive.model.law.linear_stiffness > 0.0
 
     def _modes(self):
         """The transform's length and frequencies and the 2 x 2 inverses per mode, for the current drive and T."""

@@ -16,6 +16,7 @@ What the protocol carries (the defaults say what they cost when a law does not p
   :meth:`~InteractionLaw.rescaled` ``(a)`` and the frequency variable lam = omega^2 a^(1-d) (d = 1 without one).
 * :meth:`~InteractionLaw.rescaled`: the law r -> a^(-d) V'(a r): a homogeneous law is its own rescaling, any other
   is wrapped in a :class:`RescaledLaw`; Hertz knows it in closed form (the precompression divided by a).
+  :class:`ScaledLaw` is k V of a law (a bond of another contact constant, in a model's bond pattern).
 * :meth:`~InteractionLaw.contact`: where V'' may be non-zero (the rest of the bonds carry no force: the solvers skip
   them); ``separation``: the bond length at which contact is lost (Hertz's delta0; None for a law that never lets go).
 * ``linear_stiffness``: V''(0), the stiffness of small oscillations about the equilibrium (0 in a sonic vacuum):
@@ -312,23 +313,23 @@ class ScaledLaw(InteractionLaw):
             return ScaledLaw(self.base, value)
         return ScaledLaw(self.base.with_parameter(name, value), self.k)
 
-    def V(self, r):
+    def V(self, r: ArrayLike) -> np.ndarray:
         return self.k * self.base.V(r)
 
-    def dV(self, r):
+    def dV(self, r: ArrayLike) -> np.ndarray:
         return self.k * self.base.dV(r)
 
-    def d2V(self, r):
+    def d2V(self, r: ArrayLike) -> np.ndarray:
         return self.k * self.base.d2V(r)
 
-    def contact(self, r):
+    def contact(self, r: ArrayLike) -> np.ndarray:
         return self.base.contact(r)
 
-    def rescaled(self, a):
+    def rescaled(self, a: float) -> InteractionLaw:
         return ScaledLaw(self.base.rescaled(a), self.k)
 
-    def describe(self):
+    def describe(self) -> dict:
         return dict(law=self.name, k=self.k, base=self.base.describe())
 
-    def check_consistency(self):
+    def check_consistency(self) -> None:
         self.base.check_consistency()

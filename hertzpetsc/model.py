@@ -109,9 +109,10 @@ class LatticeModel:
             if not isinstance(b, InteractionLaw):
                 raise ParameterError("bonds", b, f"bond {c}: must be an InteractionLaw")
             b.check_consistency()
-            if b.degree != self.law.degree:
+            if b.degree != self.law.degree or (b.separation is None) != (self.law.separation is None):
                 raise ParameterError("bonds", b.describe(), f"bond {c}: must have the homogeneity degree of bond 0 "
-                                     f"({self.law.degree}; the wave problems rescale every bond alike)")
+                                     f"({self.law.degree}; the wave problems rescale every bond alike) and lose "
+                                     "contact as it does (a separation, or none)")
         if bonds[0] != self.law:
             raise ParameterError("law", self.law.describe(), "must be bond 0's law when bonds are given "
                                  "(LatticeModel.with_bonds)")

@@ -47,7 +47,8 @@ from numpy.typing import ArrayLike
 import numpy as np
 
 from .errors import ParameterError, check_real, members
-from .dissipation import KINDS as CONTACT_KINDS, hunt_crossley_restitution, kuwabara_kono_restitution
+from .dissipation import KINDS as CONTACT_KINDS, ContactDissipation, hunt_crossley_restitution, \
+    kuwabara_kono_restitution
 from .materials import MATERIALS, Material, material
 from .hertz import HertzLaw
 from .law import ScaledLaw
@@ -306,7 +307,8 @@ class BeadChain:
         """True when every bond of the pattern has the constant K."""
         return all(k == self.K for k in self.bond_constants)
 
-    def model(self, gamma: float = 0.0, eta: float = 0.0, contact=None) -> LatticeModel:
+    def model(self, gamma: float = 0.0, eta: float = 0.0,
+              contact: Optional[ContactDissipation] = None) -> LatticeModel:
         """The dimensionless lattice: the Hertz law (alpha = 3/2) with delta0 = delta_s / L, masses m_n / m_0,
         damping gamma, eta (dimensionless: gamma m / tau [kg/s] in SI) and the contact damping ``contact``
         (:meth:`contact_damping`, or None); bonds of different constants K_c: bond c's law
@@ -325,7 +327,7 @@ class BeadChain:
 
     def contact_damping(self, kind: str, coefficient: Optional[Quantity] = None,
                         restitution: Optional[float] = None, velocity: Optional[Quantity] = None,
-                        clipped: bool = True):
+                        clipped: bool = True) -> ContactDissipation:
         """The dissipation in the contacts in the chain's units (module docstring): ``kind`` 'hunt-crossley' (c
         [s/m]) or 'kuwabara-kono' (eta [N s/m^1.5]), given by its ``coefficient`` in SI, or by a ``restitution`` e
         in [MIN_RESTITUTION, 1) measured at the impact ``velocity`` v [m/s] of the pattern's first two beads."""

@@ -166,3 +166,17 @@ def test_a_wave_of_a_bond_pattern_on_the_chain():
     finally:
         dense.destroy()
     assert spec.trivial_spread < 1e-3 and abs(spec.rho - 1) < 1e-4
+
+
+@pytest.mark.parametrize("right", ["wall", "free"])
+def test_linear_driven_chain_of_a_bond_pattern_is_the_chains_linearisation(right):
+    """studies.driven.linear_chain's stiffness matrix with each bond's V''(0) (the actuator's bond -1 and the wall's
+    N - 1 have bond 2's law) is the chain's exact Jacobian at rest, -M^-1 Kmat, to rounding (V''(0) in closed form
+    against V'' evaluated)."""
+    from hertzpetsc.driven import Drive, HarmonicWave
+    from hertzpetsc.studies.driven import linear_chain
+    drive = Drive(PATTERN, 6, HarmonicWave(), 1e-6, 0.8, right=right)
+    M, _, Kmat, K = linear_chain(drive)
+    _, J, _, _ = chain_arrays(drive.spec(), np.zeros((6, 2)), t=math.pi / 2 / 0.8)     # the actuator at x = 0
+    assert K == PATTERN.bond_law(-1).linear_stiffness
+    assert np.allclose(J[1::2, 0::2], -np.linalg.solve(M, Kmat), rtol=1e-13, atol=1e-14)

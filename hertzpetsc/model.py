@@ -5,9 +5,9 @@
 :class:`LatticeModel` holds the interaction law between neighbours (any :class:`~hertzpetsc.law.InteractionLaw`;
 the paper's is :class:`~hertzpetsc.hertz.HertzLaw`, eq. vhertz), or one law per bond of the pattern (``bonds``:
 beads of different materials, bond n joining beads n and n + 1 with the law of bond n mod p), the masses m_n, which
-repeat a pattern (the paper's chain: all masses 1), and the damping (:class:`Damping`: on-site gamma, between neighbours eta, and a
-dissipation in the contacts, :mod:`hertzpetsc.dissipation`; none in the paper). :class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq.
-pbcl), free, a wall at rest, or an actuator whose motion is a given periodic function of time (:class:`Actuator`
+repeat a pattern (the paper's chain: all masses 1), and the damping (:class:`Damping`: on-site gamma, between
+neighbours eta, and a dissipation in the contacts, :mod:`hertzpetsc.dissipation`; none in the paper).
+:class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq. pbcl), free, a wall at rest, or an actuator whose motion is a given periodic function of time (:class:`Actuator`
 with a :class:`Harmonic`, :class:`SampledSignal` or :class:`FunctionSignal`).
 
 Every consumer (the advance-delay problem, the solitary wave, the chain's right-hand side, Jacobian, tangent flow
@@ -226,7 +226,7 @@ class LatticeModel:
     # --- the forces, as every solver evaluates them ------------------------------------------------------------
     def force(self, r: ArrayLike, first: Optional[int] = None) -> np.ndarray:
         """V'(r), the force a bond of length r exerts (eq. vhertz); with a bond pattern, r[i] (along the first
-        axis) is bond first + i's (``first`` None: ``law``'s)."""
+        axis) is bond first + i's (``first`` None: one law in every bond, a ParameterError for a bond pattern)."""
         return self._bondwise("dV", r, first)
 
     def stiffness(self, r: ArrayLike, first: Optional[int] = None) -> np.ndarray:
@@ -238,8 +238,11 @@ class LatticeModel:
         return self._bondwise("V", r, first)
 
     def _bondwise(self, what, r, first):
-        if self.bonds is None or first is None:
+        if self.bonds is None:
             return getattr(self.law, what)(r)
+        if first is None:
+            raise ParameterError("bonds", [b.describe() for b in self.bonds], "this computation evaluates one law in "
+                                 "every bond: bonds of different beads are not yet taken by it")
         r = np.asarray(r, dtype=float)
         out = np.empty_like(r)
         p = self.cell

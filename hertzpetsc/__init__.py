@@ -27,7 +27,7 @@ compat.install()           # the old import paths of moved and renamed names (he
 # module (relative to the package) -> the names it defines that the package exports
 _MODULES = {
     # the lattice model (numpy only)
-    "law": "InteractionLaw", "hertz": "HertzLaw", "toda": "TodaLaw", "fpu": "FPULaw",
+    "law": "InteractionLaw ScaledLaw", "hertz": "HertzLaw", "toda": "TodaLaw", "fpu": "FPULaw",
     "model": "LatticeModel ChainSpec Damping Actuator Harmonic SampledSignal FunctionSignal",
     # beads in SI units (issue 38)
     "materials": "Material material", "units": "Bead BeadChain contact_constant parse_quantity",

@@ -4,14 +4,15 @@ borders, and its continuation parameters.
 For a mass pattern m_0 .. m_{p-1} (the paper's chain: p = 1, m = 1) a travelling wave with per-bead wavenumber q is
 x_n(t) = u_c(q n - omega t), c = n mod p, with p odd 2 pi-periodic profiles, and eq. ad becomes
 
-    m_c omega^2 u_c'' = V'(tau_q u_{c+1} - u_c) - V'(u_c - tau_{-q} u_{c-1}),      c = 0 .. p-1 (cyclic),
+    m_c omega^2 u_c'' = V_c'(tau_q u_{c+1} - u_c) - V_{c-1}'(u_c - tau_{-q} u_{c-1}),      c = 0 .. p-1 (cyclic),
 
+V_c the law of bond c (one law for all: the model's; a bond pattern, :attr:`~hertzpetsc.model.LatticeModel.bonds`),
 discretised on the grid of :mod:`hertzpetsc.grid` (second differences D2, shift stencils tau_{+-q} of
-:class:`ShiftStencils`). For p <= 2 the reflection n -> -n keeps every bead's type and the profiles are odd
-(unknowns on (0, pi)); for p >= 3 it exchanges types, the profiles have no symmetry and are unknown on the whole
-period, with the chain's two invariances (a constant added to every bead, a translation of xi) removed by two
-gauge rows, mean(u_0) = 0 and b1(u_0) = (1/pi) int u_0 cos = 0, bordered by two unknowns multiplying the
-constants and the reference translation u' (zero at an exact solution). Two forms of the unknowns:
+:class:`ShiftStencils`). For p <= 2 with one law the reflection n -> -n keeps every bead's type and the profiles are
+odd (unknowns on (0, pi)); for p >= 3 (or bonds that differ) it exchanges types, the profiles have no symmetry and
+are unknown on the whole period, with the chain's two invariances (a constant added to every bead, a translation of
+xi) removed by two gauge rows, mean(u_0) = 0 and b1(u_0) = (1/pi) int u_0 cos = 0, bordered by two unknowns
+multiplying the constants and the reference translation u' (zero at an exact solution). Two forms of the unknowns:
 
 * **fixed frequency** (``amplitude=None``): the profiles u_c at a given omega (eq. ad: omega = 1); no border. For
   p = 1 this is the paper's problem, on the grid's own Vec layout, with its own assembled/matrix-free Jacobian.
@@ -170,7 +171,7 @@ def _sup_gradient(u, periodic):
 
 
 def _on_contact(model, f, x):
-    """f(x) on the bonds the law says may be in contact, 0 elsewhere (V' and V'' of the uncompressed law vanish
+    """f(x) on the bonds the law (or the model of one law) says may be in contact, 0 elsewhere (V' and V'' of the uncompressed law vanish
     off contact and few bonds are in contact)."""
     m = model.contact(x)
     if m.all():
@@ -200,7 +201,8 @@ class AdvanceDelayProblem(ContinuationProblem):
         if measure not in MEASURES:
             raise ParameterError("measure", measure, "must be 'a1' (first sine coefficient) or 'sup' (max |u|)")
         self.p = model.cell
-        self.full = self.p >= 3                       # no reflection symmetry: the whole period is unknown
+        # no reflection symmetry (p >= 3, or bonds that differ: n -> -n maps bond c to bond -c-1): the whole period
+        self.full = self.p >= 3 or model.bonds is not None
         if self.full and grid.parity != 0:
             from .grid import ProfileGrid
             grid = ProfileGrid(grid.K, grid.comm, parity=0)
@@ -400,12 +402,14 @@ class AdvanceDelayProblem(ContinuationProblem):
                 for c in range(p)]
 
     def _field_rows(self, diffs, lam):
-        lat, force = self.lattice, self.lattice.force
+        """Per profile c: m_c lam D2 u_c - V_c'(d+_c) + V_{c-1}'(d-_c) (bond c joins profiles c and c + 1)."""
+        bond = self.lattice.bond_law
         rows = []
         for c, (d2, dp, dm, _) in enumerate(diffs):
             coef = self.masses[c] * lam
             first = d2 if coef == 1.0 else coef * d2
-            rows.append(first - _on_contact(lat, force, dp) + _on_contact(lat, force, dm))
+            right, left = bond(c), bond(c - 1)
+            rows.append(first - _on_contact(right, right.dV, dp) + _on_contact(left, left.dV, dm))
         return rows
 
     def _measure(self, profiles_local):
@@ -508,9 +512,9 @@ class AdvanceDelayProblem(ContinuationProblem):
             self.b = _on_contact(lat, lat.stiffness, dminus)
             return
         _, _, self._lam_lin, diffs = self._evaluate(X)
-        lat = self.lattice
-        self.a = [_on_contact(lat, lat.stiffness, d[1]) for d in diffs]
-        self.b = [_on_contact(lat, lat.stiffness, d[2]) for d in diffs]
+        bond = self.lattice.bond_law
+        self.a = [_on_contact(bond(c), bond(c).d2V, d[1]) for c, d in enumerate(diffs)]
+        self.b = [_on_contact(bond(c - 1), bond(c - 1).d2V, d[2]) for c, d in enumerate(diffs)]
         self._diffs = diffs
 
     def _jacobian_blocks(self):

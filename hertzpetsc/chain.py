@@ -99,10 +99,11 @@ class Chain:
         self._take(spec)
         self._shift = None
         self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
-        # the compiled right-hand side: a law it evaluates exactly (the law says so: Hertz's form), no dissipation in
-        # the contacts, and this class's ghost rows (any other law or term, or a subclass that redefines the ghost
-        # rows or the right-hand side, evaluates in numpy)
-        compiled = self.model.law.kernel_form == "hertz" and self.model.damping.contact is None \
+        # the compiled right-hand side: one law in every bond, which it evaluates exactly (the law says so: Hertz's
+        # form), no dissipation in the contacts, and this class's ghost rows (any other law, a bond pattern or another
+        # term, or a subclass that redefines the ghost rows or the right-hand side, evaluates in numpy)
+        compiled = self.model.law.kernel_form == "hertz" and self.model.bonds is None \
+            and self.model.damping.contact is None \
             and type(self)._ghosted is Chain._ghosted and type(self).rhs_reference is Chain.rhs_reference
         lib = kernels.library() if compiled else None
         self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None
@@ -134,9 +135,11 @@ class Chain:
         kind = kernels.end_kind
         if (kind(spec.left), kind(spec.right)) != (kind(self.spec.left), kind(self.spec.right)) \
                 or type(spec.model.law) is not type(self.model.law) \
+                or (spec.model.bonds is None) != (self.model.bonds is None) \
                 or type(spec.model.damping.contact) is not type(self.model.damping.contact):
             raise ParameterError("spec", spec, "must keep the kinds of the ends (free, wall, actuator), of the "
-                                 f"law ({type(self.model.law).__name__}) and of the contact dissipation of this chain")
+                                 f"law ({type(self.model.law).__name__}; one in every bond or a bond pattern) and of "
+                                 "the contact dissipation of this chain")
         self._take(spec)
         if self.kernel is not None:
             self.kernel.set_physics(self)
@@ -279,7 +282,7 @@ class Chain:
         model = self.model
         r = self._bonds(a)                          # bond lengths x_{n+1} - x_n
         mask = self._bond_mask()
-        bond = model.force(r) * mask
+        bond = model.force(r, self.xs - 1) * mask     # r[i]: bond xs - 1 + i (its law: that bond's)
         contact = self._contact_terms(a, r, mask)
         if contact is not None:
             bond = bond + contact[0]
@@ -287,7 +290,7 @@ class Chain:
         out[:, 0] = a[1:-1, 1]
         out[:, 1] = bond[1:] - bond[:-1]
         if self.n_tangent:
-            stiff = (model.stiffness(r) * mask)[:, None]
+            stiff = (model.stiffness(r, self.xs - 1) * mask)[:, None]
             y = a[:, 2::2]                           # (nloc + 2, k) tangent displacements
             dy = y[1:] - y[:-1]
             out[:, 2::2] = a[1:-1, 3::2]
@@ -327,7 +330,7 @@ class Chain:
         a = self._ghosted(X, t)
         r = self._bonds(a)
         mask = self._bond_mask()
-        s = self.model.stiffness(r) * mask                # bond stiffness V''(x_{n+1} - x_n)
+        s = self.model.stiffness(r, self.xs - 1) * mask   # bond stiffness V''(x_{n+1} - x_n)
         inv = self.inverse_mass if self.inverse_mass is not None else np.ones(self.nloc)
         gamma, eta = self.model.damping.gamma, self.model.damping.eta
         e = eta * mask                                    # the bonds' df/d(dv): dashpots and contacts
@@ -369,7 +372,7 @@ class Chain:
         included (their positions at time t)."""
         a = self._ghosted(X, t)
         r = self._bonds(a)
-        Vb = self.model.potential(r) * self._bond_mask()
+        Vb = self.model.potential(r, self.xs - 1) * self._bond_mask()
         # each rank counts the bonds to the right of its beads, plus the bond at the left end
         kinetic = a[1:-1, 1] ** 2 if self.inverse_mass is None else a[1:-1, 1] ** 2 / self.inverse_mass
         local = 0.5 * np.sum(kinetic) + np.sum(Vb[1:])
@@ -388,7 +391,7 @@ class Chain:
         v = a[:, 1]
         dv = (v[1:] - v[:-1]) * mask
         gamma, eta = self.model.damping.gamma, self.model.damping.eta
-        f = self.model.force(r) * mask + eta * dv
+        f = self.model.force(r, self.xs - 1) * mask + eta * dv
         dissipation = gamma * np.sum(v[1:-1] ** 2) + eta * np.sum(dv[1:] ** 2)
         if self.first:
             dissipation += eta * dv[0] ** 2

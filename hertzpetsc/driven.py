@@ -752,9 +752,9 @@ class PeriodicShooting(ContinuationProblem):
         # the ends' positions and velocities (an actuator's motion, a wall at rest)
         (x0, v0), (xr, vr) = [(end.signal.position(t), end.signal.velocity(t)) if isinstance(end, Actuator)
                               else (0.0, 0.0) for end in (spec.left, spec.right)]
-        f_left = -(law.force(pos[:, 0] - x0) + eta * (X[:, 0, 1] - v0))
+        f_left = -(law.bond_law(-1).dV(pos[:, 0] - x0) + eta * (X[:, 0, 1] - v0))   # bonds -1, N - 1: law p - 1
         f_right = np.zeros_like(t) if spec.right == "free" else \
-            -(law.force(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))             # a free end has no bond
+            -(law.bond_law(-1).dV(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))             # a free end has no bond
         p_in, diss = [], []
         for j in range(len(t) - 1):
             self.chain.set_from_array(self.X, X[j])
@@ -1104,8 +1104,10 @@ class LinearChainPreconditioner:
 
     @staticmethod
     def applies(drive):
-        """Uniform masses and a precompressed law (V''(0) > 0: in a sonic vacuum R_lin - I is singular)."""
-        return len(set(drive.model.masses)) == 1 and drive.model.law.linear_stiffness > 0.0
+        """Uniform masses, one law in every bond and a precompressed law (V''(0) > 0: in a sonic vacuum R_lin - I is
+        singular)."""
+        return len(set(drive.model.masses)) == 1 and drive.model.bonds is None and \
+            drive.model.law.linear_stiffness > 0.0
 
     def _modes(self):
         """The transform's length and frequencies and the 2 x 2 inverses per mode, for the current drive and T."""

@@ -171,8 +171,8 @@ class FamilyProblem(AdvanceDelayProblem):
 
     def gap(self, profiles):
         """max bond length - delta0 over the wave (in units of u = a w; delta0: the law's ``separation``): 2 u(q/2)
-        - delta0 for a monatomic odd wave (the bond across xi = 0 is the longest); for a pattern the refined maximum of
-        tau_q u_{c+1} - u_c."""
+        - delta0 for a monatomic odd wave (the bond across xi = 0 is the longest); for a pattern the largest over c of
+        the refined maximum of tau_q u_{c+1} - u_c less bond c's separation."""
         a = self.amplitude if math.isfinite(self.amplitude) else 1.0
         h = self.grid.h
         if self.p == 1:
@@ -187,8 +187,9 @@ class FamilyProblem(AdvanceDelayProblem):
             j = int(np.argmax(r))
             a3 = r[[(j - 1) % len(r), j, (j + 1) % len(r)]]
             curv = a3[0] - 2 * a3[1] + a3[2]
-            longest = max(longest, a3[1] - (a3[0] - a3[2]) ** 2 / (8 * curv) if curv < 0 else a3[1])
-        return a * longest - self.model.law.separation
+            r_max = a3[1] - (a3[0] - a3[2]) ** 2 / (8 * curv) if curv < 0 else a3[1]
+            longest = max(longest, a * r_max - self.model.bond_law(c).separation)   # bond c's own separation
+        return longest
 
     # the caller's tests: a function of the AmplitudePoint returning {name: function of no argument} (values read
     # when the layer needs them, :class:`~hertzpetsc.continuation.LazyTests`)

@@ -16,6 +16,7 @@ What the protocol carries (the defaults say what they cost when a law does not p
   :meth:`~InteractionLaw.rescaled` ``(a)`` and the frequency variable lam = omega^2 a^(1-d) (d = 1 without one).
 * :meth:`~InteractionLaw.rescaled`: the law r -> a^(-d) V'(a r): a homogeneous law is its own rescaling, any other
   is wrapped in a :class:`RescaledLaw`; Hertz knows it in closed form (the precompression divided by a).
+  :class:`ScaledLaw` is k V of a law (a bond of another contact constant, in a model's bond pattern).
 * :meth:`~InteractionLaw.contact`: where V'' may be non-zero (the rest of the bonds carry no force: the solvers skip
   them); ``separation``: the bond length at which contact is lost (Hertz's delta0; None for a law that never lets go).
 * ``linear_stiffness``: V''(0), the stiffness of small oscillations about the equilibrium (0 in a sonic vacuum):
@@ -257,4 +258,78 @@ class RescaledLaw(InteractionLaw):
         return dict(self.base.describe(), scale=self.a)
 
     def check_consistency(self):
+        self.base.check_consistency()
+
+
+@dataclasses.dataclass(frozen=True)
+class ScaledLaw(InteractionLaw):
+    """k V(r) of a law ``base`` (k > 0): a bond of another contact constant (issue 38 item 3). Two beads whose Hertz
+    contact constant is K_c, pressed by the chain's static force F0, are in the chain's units (force scale K L^alpha)
+    the Hertz law with precompression (F0 / K_c)^(1/alpha) / L scaled by k = K_c / K. Its parameters are the base's
+    and ``k``; the compiled kernel does not evaluate it (numpy)."""
+
+    name = "scaled"
+    base: InteractionLaw
+    k: float = 1.0
+
+    def __post_init__(self):
+        base = self.base
+        if isinstance(base, dict):
+            base = from_description(base)
+        if not isinstance(base, InteractionLaw):
+            raise ParameterError("base", base, "must be an InteractionLaw")
+        object.__setattr__(self, "base", base)
+        object.__setattr__(self, "k", check_real("k", self.k, "the law's scale factor", 0.0))
+
+    @property
+    def degree(self) -> Optional[float]:
+        return self.base.degree
+
+    @property
+    def separation(self) -> Optional[float]:
+        return self.base.separation
+
+    @property
+    def reference_amplitude(self) -> float:
+        return self.base.reference_amplitude
+
+    @property
+    def linear_stiffness(self) -> float:
+        return self.k * self.base.linear_stiffness
+
+    @property
+    def taylor(self) -> tuple:
+        return tuple(self.k * t for t in self.base.taylor)
+
+    @property
+    def parameters(self) -> tuple:
+        return self.base.parameters + ("k",)
+
+    def parameter(self, name: str) -> float:
+        return self.k if name == "k" else self.base.parameter(name)
+
+    def with_parameter(self, name: str, value: float) -> InteractionLaw:
+        if name == "k":
+            return ScaledLaw(self.base, value)
+        return ScaledLaw(self.base.with_parameter(name, value), self.k)
+
+    def V(self, r: ArrayLike) -> np.ndarray:
+        return self.k * self.base.V(r)
+
+    def dV(self, r: ArrayLike) -> np.ndarray:
+        return self.k * self.base.dV(r)
+
+    def d2V(self, r: ArrayLike) -> np.ndarray:
+        return self.k * self.base.d2V(r)
+
+    def contact(self, r: ArrayLike) -> np.ndarray:
+        return self.base.contact(r)
+
+    def rescaled(self, a: float) -> InteractionLaw:
+        return ScaledLaw(self.base.rescaled(a), self.k)
+
+    def describe(self) -> dict:
+        return dict(law=self.name, k=self.k, base=self.base.describe())
+
+    def check_consistency(self) -> None:
         self.base.check_consistency()

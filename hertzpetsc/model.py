@@ -3,10 +3,11 @@
     m_n x_n'' = f_n - f_{n-1} - gamma x_n',     f_n = V'(x_{n+1} - x_n) + eta (x_{n+1}' - x_n'),
 
 :class:`LatticeModel` holds the interaction law between neighbours (any :class:`~hertzpetsc.law.InteractionLaw`;
-the paper's is :class:`~hertzpetsc.hertz.HertzLaw`, eq. vhertz), the masses m_n, which repeat a pattern (the
-paper's chain: all masses 1), and the damping (:class:`Damping`: on-site gamma, between neighbours eta, and a
-dissipation in the contacts, :mod:`hertzpetsc.dissipation`; none in the paper). :class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq.
-pbcl), free, a wall at rest, or an actuator whose motion is a given periodic function of time (:class:`Actuator`
+the paper's is :class:`~hertzpetsc.hertz.HertzLaw`, eq. vhertz), or one law per bond of the pattern (``bonds``:
+beads of different materials, bond n joining beads n and n + 1 with the law of bond n mod p), the masses m_n, which
+repeat a pattern (the paper's chain: all masses 1), and the damping (:class:`Damping`: on-site gamma, between
+neighbours eta, and a dissipation in the contacts, :mod:`hertzpetsc.dissipation`; none in the paper).
+:class:`ChainSpec` is a finite chain of that lattice: N beads and its two ends -- periodic (eq. pbcl), free, a wall at rest, or an actuator whose motion is a given periodic function of time (:class:`Actuator`
 with a :class:`Harmonic`, :class:`SampledSignal` or :class:`FunctionSignal`).
 
 Every consumer (the advance-delay problem, the solitary wave, the chain's right-hand side, Jacobian, tangent flow
@@ -70,6 +71,9 @@ class LatticeModel:
     law: InteractionLaw = field(default_factory=HertzLaw)
     masses: tuple = (1.0,)
     damping: Damping = field(default_factory=Damping)
+    #: the bonds' laws (issue 38 item 3): None, every bond has ``law``; or p laws, bond c joining beads c and c + 1
+    #: of the p-bead mass pattern (bond n of a chain: law n mod p), ``law`` then bond 0's (:meth:`with_bonds`)
+    bonds: Optional[tuple] = None
 
     def __post_init__(self):
         if not isinstance(self.law, InteractionLaw):
@@ -84,6 +88,35 @@ class LatticeModel:
         object.__setattr__(self, "masses", masses)
         if not isinstance(self.damping, Damping):
             raise ParameterError("damping", self.damping, "must be a Damping(gamma, eta)")
+        if self.bonds is not None:
+            object.__setattr__(self, "bonds", self._check_bonds(self.bonds))
+        if self.bonds is not None and self.damping.contact is not None:
+            raise ParameterError("contact", self.damping.contact.describe(), "a dissipation in the contacts needs one "
+                                 "law in every bond (bonds of different beads with contact dissipation: not yet)")
+
+    def _check_bonds(self, bonds):
+        """The bond pattern validated: p laws of one homogeneity degree (the wave problems rescale them alike), bond
+        0's the model's ``law``; None when every bond has ``law`` (the identities of uniform chains unchanged)."""
+        try:
+            bonds = tuple(bonds)
+        except TypeError:
+            raise ParameterError("bonds", bonds, "must be None or a list of one law per bond of the pattern") \
+                from None
+        if len(bonds) != self.cell:
+            raise ParameterError("bonds", len(bonds), f"must give one law per bond of the {self.cell}-bead pattern "
+                                 f"(bond c joins beads c and c + 1): {self.cell} laws")
+        for c, b in enumerate(bonds):
+            if not isinstance(b, InteractionLaw):
+                raise ParameterError("bonds", b, f"bond {c}: must be an InteractionLaw")
+            b.check_consistency()
+            if b.degree != self.law.degree or (b.separation is None) != (self.law.separation is None):
+                raise ParameterError("bonds", b.describe(), f"bond {c}: must have the homogeneity degree of bond 0 "
+                                     f"({self.law.degree}; the wave problems rescale every bond alike) and lose "
+                                     "contact as it does (a separation, or none)")
+        if bonds[0] != self.law:
+            raise ParameterError("law", self.law.describe(), "must be bond 0's law when bonds are given "
+                                 "(LatticeModel.with_bonds)")
+        return None if all(b == self.law for b in bonds) else bonds
 
     @classmethod
     def hertz(cls, alpha: float = 1.5, masses: tuple = (1.0,), delta0: float = 0.0, gamma: float = 0.0,
@@ -119,7 +152,9 @@ class LatticeModel:
 
     def with_parameter(self, name: str, value: float) -> LatticeModel:
         """The same lattice with the law's parameter ``name`` replaced by value (the law's own class; a law without
-        that parameter: ParameterError naming it)."""
+        that parameter: ParameterError naming it); with a bond pattern, in every bond's law."""
+        if self.bonds is not None:
+            return self.with_bonds([b.with_parameter(name, value) for b in self.bonds])
         return self.with_law(self.law.with_parameter(name, value))
 
     def require_linear_stiffness(self, why: str) -> None:
@@ -131,12 +166,21 @@ class LatticeModel:
             raise ParameterError("law", self.law.describe(), why.replace("a precompression > 0", "V''(0) > 0"))
 
     def with_law(self, law: InteractionLaw) -> LatticeModel:
-        """The same masses and damping with another law."""
+        """The same masses and damping with another law in every bond."""
         return LatticeModel(law, self.masses, self.damping)
 
+    def with_bonds(self, bonds: Sequence[InteractionLaw]) -> LatticeModel:
+        """The same masses and damping with bond c's law bonds[c] (one per bead of the pattern)."""
+        bonds = tuple(bonds)
+        return LatticeModel(bonds[0] if bonds else self.law, self.masses, self.damping, bonds)
+
+    def bond_law(self, c: int) -> InteractionLaw:
+        """The law of bond c (joining beads c and c + 1; any integer: the pattern repeats)."""
+        return self.law if self.bonds is None else self.bonds[c % self.cell]
+
     def with_masses(self, masses: Sequence[float]) -> LatticeModel:
-        """The same law with another mass pattern."""
-        return LatticeModel(self.law, masses, self.damping)
+        """The same laws with another mass pattern (of the same length when the bonds differ)."""
+        return LatticeModel(self.law, masses, self.damping, self.bonds)
 
     def with_delta0(self, delta0: float) -> LatticeModel:
         """The same lattice with the law's precompression delta0 replaced (Hertz's; ParameterError for a law
@@ -150,11 +194,13 @@ class LatticeModel:
 
     def with_damping(self, gamma: float = 0.0, eta: float = 0.0) -> LatticeModel:
         """The same lattice with the linear damping gamma, eta (the contact dissipation kept)."""
-        return LatticeModel(self.law, self.masses, Damping(gamma, eta, self.damping.contact))
+        return LatticeModel(self.law, self.masses, Damping(gamma, eta, self.damping.contact), self.bonds)
 
     def rescaled(self, a: float) -> LatticeModel:
         """The model whose law is r -> a^(-d) V'(a r) (:meth:`~hertzpetsc.law.InteractionLaw.rescaled`): the
         lattice seen by the rescaled profiles w = u / a of the wave problems."""
+        if self.bonds is not None:
+            return self.with_bonds([b.rescaled(a) for b in self.bonds])
         return self.with_law(self.law.rescaled(a))
 
     @property
@@ -178,17 +224,31 @@ class LatticeModel:
         return self.damping.active
 
     # --- the forces, as every solver evaluates them ------------------------------------------------------------
-    def force(self, r: ArrayLike) -> np.ndarray:
-        """V'(r), the force a bond of length r exerts (eq. vhertz)."""
-        return self.law.dV(r)
+    def force(self, r: ArrayLike, first: Optional[int] = None) -> np.ndarray:
+        """V'(r), the force a bond of length r exerts (eq. vhertz); with a bond pattern, r[i] (along the first
+        axis) is bond first + i's (``first`` None: one law in every bond, a ParameterError for a bond pattern)."""
+        return self._bondwise("dV", r, first)
 
-    def stiffness(self, r: ArrayLike) -> np.ndarray:
-        """V''(r), the bond's linearised stiffness."""
-        return self.law.d2V(r)
+    def stiffness(self, r: ArrayLike, first: Optional[int] = None) -> np.ndarray:
+        """V''(r), the bond's linearised stiffness (``first``: as :meth:`force`)."""
+        return self._bondwise("d2V", r, first)
 
-    def potential(self, r: ArrayLike) -> np.ndarray:
-        """V(r), the bond's energy (eq. ham)."""
-        return self.law.V(r)
+    def potential(self, r: ArrayLike, first: Optional[int] = None) -> np.ndarray:
+        """V(r), the bond's energy (eq. ham; ``first``: as :meth:`force`)."""
+        return self._bondwise("V", r, first)
+
+    def _bondwise(self, what, r, first):
+        if self.bonds is None:
+            return getattr(self.law, what)(r)
+        if first is None:
+            raise ParameterError("bonds", [b.describe() for b in self.bonds], "this computation evaluates one law in "
+                                 "every bond: bonds of different beads are not yet taken by it")
+        r = np.asarray(r, dtype=float)
+        out = np.empty_like(r)
+        p = self.cell
+        for c in range(p):
+            out[c::p] = getattr(self.bonds[(first + c) % p], what)(r[c::p])
+        return out
 
     def contact(self, r: ArrayLike) -> np.ndarray:
         """Bonds whose force or stiffness may be nonzero (the law's :meth:`contact`)."""
@@ -206,9 +266,9 @@ class LatticeModel:
 
     # --- closed forms of the linear lattice ----------------------------------------------------------------
     def linear_frequencies(self, q: float) -> np.ndarray:
-        """The p frequencies omega_1 <= ... <= omega_p of the linearised lattice (stiffness K = V''(0), no damping)
-        at the per-bead wavenumber q: the eigenvalues of M^-1 B, B_cc = 2K, B_{c,c+-1} = -K e^{+-iq} (indices of
-        the mass pattern, cyclic). p = 1: omega = 2 sqrt(K) sin(q/2) (the acoustic dispersion relation); p = 2:
+        """The p frequencies omega_1 <= ... <= omega_p of the linearised lattice (bond stiffnesses
+        K_c = V_c''(0), no damping) at the per-bead wavenumber q: the eigenvalues of M^-1 B (:meth:`bloch_matrix` with
+        mu+- = e^{+-iq}). p = 1: omega = 2 sqrt(K) sin(q/2) (the acoustic dispersion relation); p = 2:
         omega^2 = K [(1 + eps) -+ sqrt((1 + eps)^2 - 4 eps sin^2 q)] / eps for masses (1, eps)."""
         B = self.bloch_matrix(np.exp(1j * q), np.exp(-1j * q))
         w2 = np.sort(np.linalg.eigvals(B / np.asarray(self.masses)[:, None]).real)
@@ -216,15 +276,15 @@ class LatticeModel:
 
     def bloch_matrix(self, mu_plus: complex, mu_minus: complex) -> np.ndarray:
         """The p x p stiffness matrix of the linearised lattice on a wave with shift symbols mu+- (the lattice's:
-        e^{+-iq}; a scheme's: its stencils' symbols): B_cc = 2K, B_{c,c+-1} = -K mu+- (K = V''(0), indices of the
-        mass pattern, cyclic); real when both symbols are."""
-        K = self.law.linear_stiffness
+        e^{+-iq}; a scheme's: its stencils' symbols): B_cc = K_{c-1} + K_c, B_{c,c+1} = -K_c mu+, B_{c,c-1} =
+        -K_{c-1} mu- (K_c = V_c''(0) of bond c, indices of the mass pattern, cyclic); real when both symbols are."""
         p = self.cell
+        K = [self.bond_law(c).linear_stiffness for c in range(p)]
         B = np.zeros((p, p), dtype=np.result_type(mu_plus, mu_minus))
         for c in range(p):
-            B[c, c] += 2 * K
-            B[c, (c + 1) % p] -= K * mu_plus
-            B[c, (c - 1) % p] -= K * mu_minus
+            B[c, c] += K[c] + K[c - 1]
+            B[c, (c + 1) % p] -= K[c] * mu_plus
+            B[c, (c - 1) % p] -= K[c - 1] * mu_minus
         return B
 
     @classmethod
@@ -233,9 +293,12 @@ class LatticeModel:
         :func:`~hertzpetsc.law.from_description`; a description without ``law`` is the Hertz chain's; the damping
         with its contact term, :func:`~hertzpetsc.dissipation.from_description`); keys of
         other objects (a chain's N, ends) are ignored."""
-        return cls(law_from_description(description), tuple(description.get("masses", (1.0,))),
+        bonds = description.get("bonds")
+        bonds = None if bonds is None else tuple(law_from_description(b) for b in bonds)
+        return cls(law_from_description(description) if bonds is None else bonds[0],
+                   tuple(description.get("masses", (1.0,))),
                    Damping(description.get("gamma", 0.0), description.get("eta", 0.0),
-                           contact_from_description(description)))
+                           contact_from_description(description)), bonds)
 
     def law_identity(self) -> dict:
         """The law's keys in the identity of a record file that names alpha and delta0 (the precompressed families'):
@@ -247,7 +310,8 @@ class LatticeModel:
 
     def describe(self) -> dict:
         """The model as plain data (for record identities and file metadata); delta0 and damping only when
-        nonzero, so that the identities of the uncompressed chain's records are unchanged."""
+        nonzero, so that the identities of the uncompressed chain's records are unchanged; the bonds' laws only when
+        they differ (bond 0's law is also the model's)."""
         out = dict(self.law.describe())
         out["masses"] = list(self.masses)
         for name in ("gamma", "eta"):
@@ -255,6 +319,8 @@ class LatticeModel:
                 out[name] = getattr(self.damping, name)
         if self.damping.contact is not None:
             out.update(self.damping.contact.describe())
+        if self.bonds is not None:
+            out["bonds"] = [b.describe() for b in self.bonds]
         return out
 
 

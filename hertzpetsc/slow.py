@@ -40,7 +40,8 @@ def zone_directions(model, x0, q):
     centred on q n = 0 mod 2 pi)."""
     M, p = len(x0), model.cell
     x, v = x0[:, 0], x0[:, 1]
-    acc = (model.force(np.roll(x, -1) - x) - model.force(x - np.roll(x, 1))) / model.mass(np.arange(M))  # eq. nc
+    bond = model.force(np.roll(x, -1) - x, 0)           # bond n = x_{n+1} - x_n, its law that of bond n mod p
+    acc = (bond - np.roll(bond, 1)) / model.mass(np.arange(M))  # eq. nc
     zone = np.floor(q * np.arange(M) / (2 * math.pi) + 1e-12).astype(int)
     n_zones = int(zone.max()) + 1
     f, t = np.zeros((n_zones, 2 * M)), np.zeros((n_zones, p, 2 * M))

@@ -16,7 +16,9 @@ vhertz, alpha = 3/2): masses m_n / m_0 and precompression delta0 = delta_s / L. 
 L = delta_s (so delta0 = 1) unless a length scale is given; the sonic vacuum (F0 = 0) has no intrinsic length and
 needs one. Forces scale by K L^(3/2), velocities by L / tau, angular frequencies by 1 / tau, and the wavenumber q
 (per bead) by the spacing of the beads' centres (R_n + R_{n+1}: touching beads; the static overlap, a few
-micrometres, is neglected in the spacing).
+micrometres, is neglected in the spacing). Bonds of different beads (a pattern such as steel, steel, PTFE) have
+constants K_c of their own: K is bond 0's and bond c is the Hertz law of overlap (F0 / K_c)^(2/3) / L scaled by
+K_c / K (:meth:`BeadChain.model`, one law per bond: :attr:`hertzpetsc.model.LatticeModel.bonds`).
 
 Closed forms (:meth:`BeadChain.sound_speed`, :meth:`BeadChain.cutoff_frequency`): the linearised bond stiffness
 K_lin = (3/2) K^(2/3) F0^(1/3), the long-wave sound speed c0 = a sqrt(K_lin / m_mean) (a the spacing) and the
@@ -48,6 +50,8 @@ from .errors import ParameterError, check_real, members
 from .dissipation import KINDS as CONTACT_KINDS, ContactDissipation, hunt_crossley_restitution, \
     kuwabara_kono_restitution
 from .materials import MATERIALS, Material, material
+from .hertz import HertzLaw
+from .law import ScaledLaw
 from .model import Damping, LatticeModel
 
 ALPHA = 1.5             # the Hertz exponent of elastic spheres
@@ -212,8 +216,10 @@ class BeadChain:
     package's dimensionless units with the length scale ``length_scale`` [m] (default: the static overlap
     delta_s = (F0/K)^(2/3); needed when F0 = 0). Or, by value: ``masses`` [kg] of the pattern, the contact
     constant ``K`` [N/m^1.5] of every bond and the ``spacing`` of the beads' centres [m] (:meth:`by_value`).
-    Every bond of the pattern must have the same K (a pattern of two materials alternating does); bonds of
-    different beads are issue 38 item 3."""
+    Bonds of different beads (e.g. steel, steel, PTFE) have their own constants K_c (:attr:`bond_constants`, bond c
+    joining beads c and c + 1); K is then bond 0's, the scale of the chain's units, and bond c's law in them is the
+    Hertz law with precompression (F0 / K_c)^(2/3) / L scaled by K_c / K (:meth:`model`). A pattern of one bead, or
+    of two alternating, has equal bonds."""
 
     beads: tuple = ()
     static_force: float = 0.0
@@ -233,15 +239,9 @@ class BeadChain:
                     raise ParameterError("beads", b, "must be a list of Bead(material, radius)")
             p = len(beads)
             bonds = [contact_constant(beads[c], beads[(c + 1) % p]) for c in range(p)]
-            if max(bonds) - min(bonds) > 1e-12 * max(bonds):
-                raise ParameterError("beads", ", ".join(f"{b.material.name} R = {b.radius:g} m" for b in beads),
-                                     "the bonds of this pattern have different contact constants ("
-                                     + ", ".join(f"{k:.4g}" for k in bonds) + " N/m^1.5): bonds of different beads "
-                                     "are issue 38 item 3, not yet built; a pattern of two beads alternating, or "
-                                     "of one, has equal bonds")
             object.__setattr__(self, "beads", beads)
             object.__setattr__(self, "masses", tuple(b.mass for b in beads))
-            object.__setattr__(self, "K", float(np.mean(bonds)))
+            object.__setattr__(self, "K", float(np.mean(bonds) if _equal(bonds) else bonds[0]))
             object.__setattr__(self, "spacing", float(np.mean([beads[c].radius + beads[(c + 1) % p].radius
                                                                for c in range(p)])))
         else:
@@ -292,12 +292,38 @@ class BeadChain:
         """The time scale sqrt(m / (K L^(alpha-1))) [s]."""
         return math.sqrt(self.mass / (self.K * self.L ** (ALPHA - 1.0)))
 
-    def model(self, gamma: float = 0.0, eta: float = 0.0, contact: Optional[ContactDissipation] = None) -> LatticeModel:
+    @property
+    def bond_constants(self) -> tuple:
+        """The contact constants K_c [N/m^1.5] of the pattern's bonds (bond c: beads c and c + 1); all K when the
+        chain is given by value or its bonds are equal."""
+        p = len(self.masses)
+        if not self.beads:
+            return (self.K,) * p
+        bonds = [contact_constant(self.beads[c], self.beads[(c + 1) % p]) for c in range(p)]
+        return (self.K,) * p if _equal(bonds) else tuple(bonds)
+
+    @property
+    def equal_bonds(self) -> bool:
+        """True when every bond of the pattern has the constant K."""
+        return all(k == self.K for k in self.bond_constants)
+
+    def model(self, gamma: float = 0.0, eta: float = 0.0,
+              contact: Optional[ContactDissipation] = None) -> LatticeModel:
         """The dimensionless lattice: the Hertz law (alpha = 3/2) with delta0 = delta_s / L, masses m_n / m_0,
         damping gamma, eta (dimensionless: gamma m / tau [kg/s] in SI) and the contact damping ``contact``
-        (:meth:`contact_damping`, or None)."""
+        (:meth:`contact_damping`, or None); bonds of different constants K_c: bond c's law
+        k_c V'(r) with k_c = K_c / K and V the Hertz law of precompression (F0 / K_c)^(2/3) / L
+        (:class:`~hertzpetsc.law.ScaledLaw`), since K_c [(d_c - x)^(3/2) - d_c^(3/2)] = K L^(3/2) k_c
+        [(d_c / L - X)^(3/2) - (d_c / L)^(3/2)], d_c = (F0 / K_c)^(2/3)."""
         model = LatticeModel.hertz(ALPHA, tuple(m / self.mass for m in self.masses), self.static_overlap / self.L)
-        return LatticeModel(model.law, model.masses, Damping(gamma, eta, contact))
+        model = LatticeModel(model.law, model.masses, Damping(gamma, eta, contact))
+        if self.equal_bonds:
+            return model
+        bonds = []
+        for Kc in self.bond_constants:
+            law = HertzLaw(ALPHA, (self.static_force / Kc) ** (2.0 / 3.0) / self.L)
+            bonds.append(law if Kc == self.K else ScaledLaw(law, Kc / self.K))
+        return model.with_bonds(bonds)
 
     def contact_damping(self, kind: str, coefficient: Optional[Quantity] = None,
                         restitution: Optional[float] = None, velocity: Optional[Quantity] = None,
@@ -368,9 +394,13 @@ class BeadChain:
         return ALPHA * self.K ** (1.0 / ALPHA) * self.static_force ** (1.0 - 1.0 / ALPHA)
 
     def sound_speed(self) -> float:
-        """c0 = a sqrt(K_lin / m_mean) [m/s], the long-wave speed of the precompressed chain (a the spacing)."""
+        """c0 = a sqrt(K_lin / m_mean) [m/s], the long-wave speed of the precompressed chain (a the spacing); bonds
+        that differ: K_lin the stiffness of the pattern's bonds in series, 1 / K_lin = mean(1 / K_lin,c)."""
         self._require_force("the sound speed")
-        return self.spacing * math.sqrt(self.linear_stiffness / float(np.mean(self.masses)))
+        k = self.linear_stiffness if self.equal_bonds else 1.0 / float(np.mean(
+            [1.0 / (ALPHA * Kc ** (1.0 / ALPHA) * self.static_force ** (1.0 - 1.0 / ALPHA))
+             for Kc in self.bond_constants]))
+        return self.spacing * math.sqrt(k / float(np.mean(self.masses)))
 
     def cutoff_frequency(self) -> float:
         """The highest frequency of linear waves [Hz]: f_c = (1/pi) sqrt(K_lin / m) for one bead, the top of the
@@ -433,6 +463,8 @@ class BeadChain:
         """The chain and its scales as plain data (SI)."""
         out = dict(K=self.K, static_force=self.static_force, static_overlap=self.static_overlap,
                    masses=list(self.masses), spacing=self.spacing, L=self.L, tau=self.tau)
+        if not self.equal_bonds:
+            out["bond_constants"] = list(self.bond_constants)
         if self.beads:
             out["beads"] = [dict(material=b.material.name, radius=b.radius, youngs=b.material.youngs,
                                  poisson=b.material.poisson, density=b.material.density) for b in self.beads]
@@ -450,6 +482,11 @@ class BeadChain:
             lines.append(f"# sound speed c0 = {self.sound_speed():.6g} m/s, cut-off f_c = "
                          f"{self.cutoff_frequency():.6g} Hz (closed forms)")
         return "\n".join(lines)
+
+
+def _equal(constants):
+    """True when the contact constants agree to round-off (a pattern of two beads alternating: K_01 = K_10)."""
+    return max(constants) - min(constants) <= 1e-12 * max(constants)
 
 
 # --- the drivers' options ----------------------------------------------------------------------------------------

@@ -129,8 +129,17 @@ def orbit_on_chain(point: "BranchPoint", spec: ChainSpec, phase: float = 0.0, ti
 
 
 def same_lattice(a, b, rtol=1e-12):
-    """The same masses and damping, and laws whose parameters agree to ``rtol`` (a rescaled law is rounded)."""
-    da, db = a.describe(), b.describe()
-    return type(a.law) is type(b.law) and da.keys() == db.keys() and all(
-        da[k] == db[k] if isinstance(da[k], str) or isinstance(db[k], str) else
-        np.allclose(da[k], db[k], rtol=rtol, atol=0.0) for k in da)
+    """The same masses and damping, and laws whose parameters agree to ``rtol`` (a rescaled law is rounded; a bond
+    pattern's laws each)."""
+    return type(a.law) is type(b.law) and _close(a.describe(), b.describe(), rtol)
+
+
+def _close(x, y, rtol):
+    if isinstance(x, dict) or isinstance(y, dict):
+        return isinstance(x, dict) and isinstance(y, dict) and x.keys() == y.keys() and \
+            all(_close(x[k], y[k], rtol) for k in x)
+    if isinstance(x, str) or isinstance(y, str):
+        return x == y
+    if isinstance(x, list) and x and isinstance(x[0], dict):
+        return isinstance(y, list) and len(x) == len(y) and all(_close(u, v, rtol) for u, v in zip(x, y))
+    return bool(np.allclose(x, y, rtol=rtol, atol=0.0))

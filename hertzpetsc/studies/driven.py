@@ -752,7 +752,8 @@ class ResponseCurve(DrivenStudy):
 # --- small-amplitude resonances of the precompressed chain ---------------------------------------------------------
 def linear_chain(drive):
     """(M, C, Kmat, f) of the linearised chain of a drive with a harmonic actuator at the left and a wall (or free
-    end) at the right: M x'' + C x' + Kmat x = Re(f e^{i omega t}) with f = (K + i omega eta) a e_1, K = V''(0)."""
+    end) at the right: M x'' + C x' + Kmat x = Re(f e^{i omega t}) with f = (K + i omega eta) a e_1, K = V''(0) (of the
+    actuator's bond, -1, when the bonds differ; Kmat then with each bond's V''(0))."""
     model, N = drive.model, drive.N
     K = model.law.linear_stiffness
     L = 2 * np.eye(N) - np.eye(N, k=1) - np.eye(N, k=-1)
@@ -760,7 +761,14 @@ def linear_chain(drive):
         L[-1, -1] = 1.0
     M = np.diag(model.mass(np.arange(N)))
     C = model.damping.gamma * np.eye(N) + model.damping.eta * L
-    return M, C, K * L, K
+    if model.bonds is None:
+        return M, C, K * L, K
+    # bonds of different laws: bond n (beads n, n + 1; -1 the actuator's, N - 1 the wall's) of stiffness K_n
+    Kb = np.array([model.bond_law(n).linear_stiffness for n in range(-1, N)])
+    if drive.right == "free":
+        Kb[-1] = 0.0
+    Kmat = np.diag(Kb[:-1] + Kb[1:]) - np.diag(Kb[1:-1], 1) - np.diag(Kb[1:-1], -1)
+    return M, C, Kmat, float(Kb[0])
 
 
 def linear_response(drive, omega=None):

@@ -32,7 +32,7 @@ from .dissipation import from_description as contact_from_description
 from .errors import ParameterError, check_integer, check_real
 from . import fpu, toda  # noqa: F401  (the package's laws, registered by name for from_description)
 from .hertz import HertzLaw
-from .law import InteractionLaw
+from .law import InteractionLaw, ScaledLaw
 from .law import from_description as law_from_description
 
 BOUNDARIES = ("periodic", "free", "fixed")
@@ -124,6 +124,16 @@ class LatticeModel:
         """The Hertzian chain with exponent alpha (eq. vhertz), the given mass pattern, precompression delta0 >= 0
         (static overlap of neighbours; 0 is the paper's uncompressed chain) and damping gamma, eta >= 0."""
         return cls(HertzLaw(alpha, delta0), masses, Damping(gamma, eta))
+
+    def with_hertz_bonds(self, overlaps: Sequence[float], constants: Sequence[float]) -> "LatticeModel":
+        """The same masses and damping with a pattern of Hertz bonds of this model's exponent (issue 38 item 3): bond
+        c has the precompression ``overlaps[c]`` and the contact constant ``constants[c]`` relative to the force
+        scale (1: the Hertz law itself; else :class:`~hertzpetsc.law.ScaledLaw`)."""
+        if len(overlaps) != len(constants):
+            raise ParameterError("constants", constants, f"one per bond ({len(overlaps)} overlaps)")
+        laws = [HertzLaw(self.alpha, d) if k == 1.0 else ScaledLaw(HertzLaw(self.alpha, d), k)
+                for d, k in zip(overlaps, constants)]
+        return self.with_bonds(laws)
 
     # --- the parameters the studies continue in (one place each) ----------------------------------------------
     @property

@@ -50,8 +50,6 @@ from .errors import ParameterError, check_real, members
 from .dissipation import KINDS as CONTACT_KINDS, ContactDissipation, hunt_crossley_restitution, \
     kuwabara_kono_restitution
 from .materials import MATERIALS, Material, material
-from .hertz import HertzLaw
-from .law import ScaledLaw
 from .model import Damping, LatticeModel
 
 ALPHA = 1.5             # the Hertz exponent of elastic spheres
@@ -319,11 +317,9 @@ class BeadChain:
         model = LatticeModel(model.law, model.masses, Damping(gamma, eta, contact))
         if self.equal_bonds:
             return model
-        bonds = []
-        for Kc in self.bond_constants:
-            law = HertzLaw(ALPHA, (self.static_force / Kc) ** (2.0 / 3.0) / self.L)
-            bonds.append(law if Kc == self.K else ScaledLaw(law, Kc / self.K))
-        return model.with_bonds(bonds)
+        constants = self.bond_constants
+        return model.with_hertz_bonds([(self.static_force / Kc) ** (2.0 / 3.0) / self.L for Kc in constants],
+                                      [1.0 if Kc == self.K else Kc / self.K for Kc in constants])
 
     def contact_damping(self, kind: str, coefficient: Optional[Quantity] = None,
                         restitution: Optional[float] = None, velocity: Optional[Quantity] = None,

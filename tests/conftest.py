@@ -172,3 +172,28 @@ def resolvent_differences(flow, x0, T, h):
             xs.append(flow.run(e.reshape(N, 2), T, np.zeros((N, 2, 2 * N)))[0].ravel())
         fd[:, j] = (xs[0] - xs[1]) / (2 * h)
     return fd
+
+
+def dense_and_slepc_agree(drive, p, extra=None):
+    """The response of ``drive`` at its parameter value p (run in from rest for 10 periods) by the dense bordered
+    Newton and by Newton-Krylov agree to 1e-9, both to residual 1e-10; their four dominant multipliers, LAPACK on the
+    dense monodromy and SLEPc on the matrix-free one, agree to 1e-8 after a gap of 1e-3 in modulus.
+    ``extra(dense, mf, mu_dense)``: the caller's further checks, before the solvers are destroyed."""
+    import numpy as np
+    from hertzpetsc.driven import PeriodicShooting
+    comm = PETSc.COMM_WORLD
+    dense = PeriodicShooting(drive, comm)
+    mf = PeriodicShooting(drive, comm, jacobian="mf", floquet="slepc", nev=4)
+    try:
+        x0 = dense.run_in(np.zeros((drive.N, 2)), 10)
+        rd, rm = dense.solve_response(x0), mf.solve_response(x0)
+        assert rd.residual < 1e-10 and rm.residual < 1e-10
+        assert np.max(np.abs(rd.x - rm.x)) < 1e-9 * np.max(np.abs(rd.x))
+        mu_d, mu_s = dense.multipliers(x=rd.x, p=p), mf.multipliers(x=rd.x, p=p)
+        assert np.abs(mu_d[3]) - np.abs(mu_d[4]) > 1e-3          # a gap after the fourth
+        assert np.max(np.abs(np.sort_complex(mu_d[:4]) - np.sort_complex(mu_s[:4]))) < 1e-8
+        if extra is not None:
+            extra(dense, mf, mu_d)
+    finally:
+        dense.destroy()
+        mf.destroy()

@@ -66,9 +66,10 @@ def lambda_c():
     return 8 * y * y / math.cosh(y) ** 2
 
 
-def bratu_from_rest(n, algorithm, lam):
-    """The Bratu problem on n points, its continuation and the start vector (u = 0, lambda = lam)."""
-    prob = Bratu(n)
+def bratu_from_rest(n, algorithm, lam, problem=None):
+    """The Bratu problem on n points (or a subclass ``problem``), its continuation and the start vector (u = 0,
+    lambda = lam)."""
+    prob = (problem or Bratu)(n)
     cont = Continuation(prob, algorithm)
     Z = prob.create_vec()
     Z.set(0.0)
@@ -76,8 +77,8 @@ def bratu_from_rest(n, algorithm, lam):
     return prob, cont, Z
 
 
-def run_to_fold(n, algorithm=None):
-    prob, cont, Z = bratu_from_rest(n, algorithm or PseudoArclength(ds=0.05, ds_max=0.3), 0.5)
+def run_to_fold(n, algorithm=None, problem=None):
+    prob, cont, Z = bratu_from_rest(n, algorithm or PseudoArclength(ds=0.05, ds_max=0.3), 0.5, problem)
     try:
         cont.start(Z)
         cont.step_to(0.6)
@@ -385,23 +386,8 @@ def test_a_fold_whose_location_fails_is_kept_at_the_curve_point_beyond_it(capfd)
             if row is not None and abs(float(Z.getArray(readonly=True)[-1]) - fold) < 1e-4:
                 raise ConvergenceError("Bratu Newton", "no convergence (blind)", **{"lambda": fold})
             return its
-    prob = Blind(99)
-    cont = Continuation(prob, PseudoArclength(ds=0.05, ds_max=0.3))
-    Z = prob.create_vec()
-    Z.set(0.0)
-    Z.getArray()[-1] = 0.5
     capfd.readouterr()
-    try:
-        cont.start(Z)
-        cont.step_to(0.6)
-        points = []
-        for p in cont.run(max_steps=80):
-            points.append(p)
-            if p.event is None and p.parameter < 2.0 and p.dp_ds < 0:
-                break
-    finally:
-        Z.destroy()
-        cont.destroy()
+    points = run_to_fold(99, problem=Blind)
     folds = [p for p in points if p.event == "fold"]
     assert len(folds) == 1 and getattr(folds[0], "unresolved", None) is not None
     assert fold - 1e-3 < folds[0].parameter < fold

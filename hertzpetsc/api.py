@@ -19,24 +19,23 @@ from typing import TYPE_CHECKING, Any, Mapping, Optional, Sequence, Union
 import numpy as np
 from petsc4py import PETSc
 
-from .bloch import SymmetricFloquet
 from .branch import Branch, BranchPoint
 from .driven import Drive, Response
 from .errors import ParameterError, check_flag, check_instance, check_integer, check_integers, check_real
 from .families import AmplitudePoint
 from .families import wave_at as _wave_at
 from .families import wave_of_amplitude
-from .floquet import DenseFloquet, DominantFloquet, Spectrum
+from .floquet import Spectrum
 from .grid import ProfileGrid
 from .model import ChainSpec, LatticeModel
 from .options import call_options
 from .qbranch import ContinuationParameters
 from .resources import check_chain_size
+from .roles import FLOQUET_ROUTES, floquet_route
 from .shooting import Refinement
 from .shooting import refine as _refine
 from .units import BeadChain
 from .studies.branch import BranchStudy
-from .studies.floquet import METHODS
 from .waves import Orbit, orbit_on_chain
 
 if TYPE_CHECKING:
@@ -138,21 +137,15 @@ def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = No
     ``options``: per-call solver options (prefix ``floquet_``: ``floquet_ts_*``, with ``slepc`` ``floquet_eps_*``).
     Collective."""
     check_instance("orbit", orbit, Orbit, "an Orbit (hz.orbit, hz.wave, hz.refine(...).orbit)")
-    if method not in METHODS:
-        raise ParameterError("method", method, f"must be one of {', '.join(METHODS)}")
+    if method not in FLOQUET_ROUTES:
+        raise ParameterError("method", method, f"must be one of {', '.join(FLOQUET_ROUTES)}")
     if tol_rho is not None:
         tol_rho = check_real("tol_rho", tol_rho, "the verdict's threshold on rho - 1", lo=0.0, hi=1.0)
     if nev is not None:
         nev = check_integer("nev", nev, 1, "the multipliers kept", hi=2 * orbit.N)
     comm = _comm(comm)
     with call_options(options):
-        if method == "symmetric":
-            solver = SymmetricFloquet(orbit.spec.model, comm)
-        elif method == "dense":
-            solver = DenseFloquet(orbit.spec, comm)
-        else:
-            solver = DominantFloquet(orbit.spec, comm, nev if nev is not None else 10)
-        with solver:
+        with floquet_route(method, orbit.spec, comm, nev if nev is not None else 10) as solver:
             return solver.spectrum(orbit, tol_rho, nev)
 
 

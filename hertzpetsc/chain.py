@@ -41,6 +41,7 @@ from .errors import (ConvergenceError, ParameterError, PetscFailure, check_insta
                      check_real)
 from .dissipation import contact_exponent
 from .model import Actuator, ChainSpec
+from .options import user_set
 from .resources import check_chain_size
 
 # The options prefix of the TS of simulations (long runs, compactons on the chain); the refinement's and the
@@ -504,7 +505,7 @@ class ChainIntegrator:
         self.initial_step = ts.getTimeStep()     # flows that measure something start from it every time
         # the step limit of each integration: -<prefix>ts_max_steps if given, else max_steps if set, else the budget
         # of MIN_STEPS and STEP_LIMIT_FACTOR
-        self.user_max_steps = ts.getMaxSteps() if PETSc.Options(prefix).hasName("ts_max_steps") else None
+        self.user_max_steps = ts.getMaxSteps() if user_set(prefix, ("ts_max_steps",)) else None
         self.max_steps = None
         rtol, atol = ts.getTolerances()
         for name, value, what in (("rtol", rtol, "the integration tolerance"), ("atol", atol, "the integration "
@@ -639,14 +640,3 @@ class _TSAdapt:
     def set_dt_max(self, hmax):
         self._call("TSAdaptSetStepLimits", self.handle, float(PETSc.DEFAULT), float(hmax))
 
-
-def configure_options(spec, comm, prefix=CHAIN_PREFIX, tolerances=None):
-    """Read and check the TS options under ``prefix`` on a small chain of ``spec``'s lattice, for studies that
-    build their integrators later (a bad value fails here, before any computation)."""
-    n = max(3, comm.getSize(), spec.model.cell)
-    n += (-n) % spec.model.cell
-    chain = Chain(spec.with_length(n), comm)
-    try:
-        ChainIntegrator(chain, tolerances, prefix).destroy()
-    finally:
-        chain.destroy()

@@ -30,7 +30,10 @@ NAMES: dict[str, dict[str, tuple[str, str]]] = {
     "hertzpetsc.errors": {"BranchFileError": ("hertzpetsc.errors", "RecordFileError"),
                           "RunFileError": ("hertzpetsc.errors", "RecordFileError")},
     # the -check of record files moved down to the record store (issue 39: options no longer imports a study)
-    "hertzpetsc.studies.base": {"check_stores": ("hertzpetsc.records", "check_stores")},
+    "hertzpetsc.studies.base": {"check_stores": ("hertzpetsc.records", "check_stores"),
+                                # the solver roles' probe and Floquet routes moved to their registry (issue 39)
+                                "configure_roles": ("hertzpetsc.roles", "configure")},
+    "hertzpetsc.studies.floquet": {"METHODS": ("hertzpetsc.roles", "FLOQUET_ROUTES")},
 }
 
 # {old module path: module now}: modules that moved down a layer (issue 39)

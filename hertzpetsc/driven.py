@@ -65,6 +65,7 @@ from .errors import ConvergenceError, ParameterError, check_integer, check_real
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal, Signal
+from .options import user_set
 from .tangent import MonodromyModShift, TangentFlow, liouville_integral
 
 DRIVE_PREFIX = "drive_"
@@ -805,8 +806,7 @@ class PeriodicShooting(ContinuationProblem):
         snes.setJacobian(self.formJacobian, self.J, self.J)
         snes.setTolerances(rtol=1e-30, stol=1e-30, max_it=20)
         snes.setConvergenceTest(self._converged)
-        opts = PETSc.Options()
-        self._user_set = {k for k in ("atol", "rtol", "stol", "max_it") if opts.hasName(prefix + "snes_" + k)}
+        self._user_set = user_set(prefix + "snes_", ("atol", "rtol", "stol", "max_it"))
         snes.setFromOptions()
         return snes
 
@@ -1348,11 +1348,3 @@ class BranchFamily:
         a, b = phis[k] - 2 * math.pi / 256, phis[k] + 2 * math.pi / 256
         return -golden_maximum(lambda ph: -f(ph), a, b, 1e-9)[1]
 
-
-def configure_options(comm, prefix=DRIVE_PREFIX, floquet_prefix=FLOQUET_PREFIX):
-    """Read and check the options of every solver role of the driven studies (SNES and TS ``drive_``, TS and EPS
-    ``floquet_``) on a tiny driven chain, for studies that build their problems later: a bad value fails here,
-    before any computation."""
-    drive = Drive(LatticeModel.hertz(1.5, delta0=1.0, gamma=0.1), max(2, comm.getSize()), HarmonicWave(), 0.1, 1.0)
-    for kw in (dict(jacobian="dense", floquet="dense"), dict(jacobian="mf", floquet="slepc", nev=1)):
-        PeriodicShooting(drive, comm, prefix=prefix, floquet_prefix=floquet_prefix, **kw).destroy()

@@ -396,6 +396,13 @@ class AppOptions:
         raise OptionError(f"unknown option -{name}" + (f" {value}" if value else "") + more + hint)
 
 
+def user_set(prefix, names):
+    """The ``names`` (without ``prefix``) the user set under ``prefix``: where one is, the code's default (one
+    computed per solve: a tolerance from the residual's round-off floor, a step limit from the interval) does not
+    apply. The one check of the kind (:func:`inserted_options` inserts defaults that do not vary)."""
+    return {name for name in names if PETSc.Options().hasName(prefix + name)}
+
+
 @contextlib.contextmanager
 def inserted_options(prefix, defaults, override=False):
     """Insert ``defaults`` ({name: value}, names without ``prefix``) into the options database for the duration of

@@ -216,13 +216,6 @@ def _solve(params, comm, prefix):
                         tail=tail, wall_time=time.perf_counter() - t0)
 
 
-def configure_options(comm, prefix=SOL_PREFIX):
-    """Read and check the options under ``prefix`` by configuring the SNES of a small solitary-wave problem, for
-    studies that solve later (a bad value fails here, before any computation)."""
-    with _compacton_start(SolitaryParameters(1.5, 2, 3.0), comm) as (prob, X, J):
-        create_snes(prob, J, prefix).destroy()
-
-
 @contextmanager
 def _compacton_start(params, comm):
     """(problem, X, J) of a solve: X the continuum compacton on the grid, J its Jacobian; freed on exit."""

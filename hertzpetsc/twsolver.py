@@ -22,7 +22,7 @@ from petsc4py import PETSc
 from .assembly import RowAssembler, StencilGather
 from .branch import SolveStats
 from .errors import ConvergenceError, ParameterError
-from .options import inserted_options
+from .options import inserted_options, user_set
 
 TW_PREFIX = "tw_"
 
@@ -290,8 +290,6 @@ class TravellingWaveSolver:
     -<prefix>snes_rtol/atol/stol/max_it. Every solve takes at least one Newton iteration.
     """
 
-    _TOLERANCE_OPTIONS = dict(rtol="snes_rtol", atol="snes_atol", stol="snes_stol", max_it="snes_max_it")
-
     def __init__(self, grid, prefix=TW_PREFIX, solver=None, layout=None, extended=False):
         self.grid, self.prefix = grid, prefix
         self.solver = tw_solver(prefix, solver)
@@ -314,7 +312,7 @@ class TravellingWaveSolver:
         if self.jacobian_kind not in ("aij", "shell"):
             raise ParameterError(f"-{prefix}jacobian", self.jacobian_kind, "must be 'aij' (assembled, for LU and "
                                  "algebraic preconditioners) or 'shell' (matrix-free)")
-        self._user_set = {k for k, name in self._TOLERANCE_OPTIONS.items() if opts.hasName(prefix + name)}
+        self._user_set = user_set(prefix + "snes_", ("rtol", "atol", "stol", "max_it"))
 
     def _function(self, snes, X, F):
         self.problem.formFunction(snes, X, F)
@@ -374,12 +372,4 @@ def solve_travelling_wave(problem, u, prefix=TW_PREFIX, tolerances=None, solver=
         return tws.solve(problem, u, tolerances)
     finally:
         tws.destroy()
-
-
-def configure_options(comm, prefix=TW_PREFIX):
-    """Read and check the options under ``prefix`` by configuring a travelling-wave SNES on a small grid, for
-    studies that build their solvers later (a bad value fails here, before any computation)."""
-    from .grid import ProfileGrid
-    tws = TravellingWaveSolver(ProfileGrid(max(8, 2 * comm.getSize() + 2), comm), prefix)
-    tws.destroy()
 

@@ -21,7 +21,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.solitary import configure_options  # noqa: E402
+from hertzpetsc.roles import configure, uses  # noqa: E402
 from hertzpetsc.studies.solitary import unit_wave_velocity  # noqa: E402
 from hertzpetsc.units import BeadChain, bead_options, parse_quantity  # noqa: E402
 
@@ -30,7 +30,7 @@ Q_SOUND = 1e-3
 
 
 def main():
-    opts = AppOptions(__doc__, {"sol_": ("solitary-wave SNES", ("snes",))})
+    opts = AppOptions(__doc__, uses("sol_"))
     velocities = opts.string("max_velocity", "0.01m/s,0.1m/s,1m/s", "maximal bead velocities of the solitary "
                              "waves, comma-separated")
     cells = opts.numbers("cells", "80,160,320", "three grids n of the solitary wave (step 1/n, even), for the "
@@ -52,7 +52,7 @@ def main():
                              "precompression > 0")
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, output)
-    configure_options(comm)
+    configure(uses("sol_"), comm)
     opts.check_unused()
 
     model = chain.model()

@@ -37,13 +37,13 @@ from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
+from hertzpetsc.roles import uses  # noqa: E402
 from hertzpetsc.waves import fits_chain  # noqa: E402
 from hertzpetsc.studies.compacton_stability import (DEFAULT_QS, TOL_UNSTABLE, CompactonStabilityScan,  # noqa: E402
                                                     ring_spectrum)
 
 PI_50 = 0.06283185307179587        # the figure's second spectrum: the q nearest pi/50
-ROLES = dict(CompactonStabilityScan.ROLES, floquet_=("the ring check: the dense monodromy of the same compacton on "
-                                                     "N = 2 pi / q beads", ("ts",)))
+ROLES = dict(CompactonStabilityScan.ROLES, **uses(floquet_=("ts",)))     # the ring check's dense monodromy
 
 
 def main():

@@ -21,10 +21,10 @@ from hertzpetsc.qbranch import ContinuationParameters  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0, run_metadata  # noqa: E402
 from hertzpetsc.progress import Progress  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
+from hertzpetsc.roles import uses  # noqa: E402
 from hertzpetsc.studies.branch import BranchStudy  # noqa: E402
 
-ROLES = {"tw_": ("travelling-wave SNES (-tw_solver direct|nk, -tw_jacobian aij|shell)", ("snes",)),
-         "sol_": ("solitary-wave SNES, for k_alpha in the figures", ("snes",))}
+ROLES = uses("tw_", "sol_")
 
 
 def main():

@@ -34,7 +34,8 @@ from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
-from hertzpetsc.studies.floquet import METHODS, FloquetScan  # noqa: E402
+from hertzpetsc.roles import FLOQUET_ROUTES  # noqa: E402
+from hertzpetsc.studies.floquet import FloquetScan  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
 EIGEN_Q = (("3pi/10", 3 * math.pi / 10), ("7pi/25", 7 * math.pi / 25), ("9pi/50", 9 * math.pi / 50),
@@ -50,7 +51,7 @@ def main():
     qs = opts.numbers("q", "", "wavenumbers (default: every refined q)", valid=(lambda q: q > 0, "> 0"),
                       distinct=True, minimum_count=0)
     method = opts.string("method", "symmetric", "symmetric or dense (all 2N), slepc (the nev dominant)",
-                         choices=METHODS)
+                         choices=FLOQUET_ROUTES)
     nev = opts.integer("nev", 10, "multipliers of the slepc route", minimum=1, maximum=2 * N)
     tol_rho = opts.real("tol_rho", 1e-4, "unstable when rho - 1 > tol_rho", valid=(lambda x: x > 0, "> 0"))
     check_q = opts.real("check_q", 9 * math.pi / 50, "q of the rho(Phi_q) = rho(F_q)^(N/m) check", expr=True)

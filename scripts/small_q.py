@@ -26,10 +26,11 @@ import numpy as np  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0, run_metadata  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_json  # noqa: E402
+from hertzpetsc.roles import uses  # noqa: E402
 from hertzpetsc.studies.branch import SmallQParameters, SmallQStudy  # noqa: E402
 from hertzpetsc.studies.solitary import k_alpha_extrapolated  # noqa: E402
 
-ROLES = {"tw_": ("travelling-wave SNES", ("snes",)), "sol_": ("solitary-wave SNES (k_alpha)", ("snes",))}
+ROLES = uses("tw_", "sol_")
 
 
 def main():

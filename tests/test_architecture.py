@@ -37,13 +37,12 @@ ARGV = {"hertzpetsc.start": "the drivers' first call: PETSc started with the com
         "hertzpetsc.kernels": "python -m hertzpetsc.kernels, the kernel's build command"}
 # where the options database is read besides setFromOptions (PETSc.Options()), and why (DESIGN.md, "Invariants")
 OPTIONS_READERS = {
-    "hertzpetsc.options": "the drivers' declared options, -help, unused and inconsistent options",
+    "hertzpetsc.options": "the drivers' declared options, -help, unused and inconsistent options; user_set (the "
+                          "one check of which options the user set: the code's defaults only where none is)",
     "hertzpetsc.start": "-h and --help kept for AppOptions",
-    "hertzpetsc.twsolver": "-<prefix>solver and -<prefix>jacobian (the code's own role options); snes_type and the "
-                           "tolerances the user set (the code's defaults only where none is)",
-    "hertzpetsc.chain": "-<prefix>rhs_compiled; whether -<prefix>ts_max_steps was given (else the step limit)",
+    "hertzpetsc.twsolver": "-<prefix>solver and -<prefix>jacobian (the code's own role options); snes_type",
+    "hertzpetsc.chain": "-<prefix>rhs_compiled",
     "hertzpetsc.shooting": "-shoot_gn_max_it, the Gauss-Newton's iteration limit",
-    "hertzpetsc.driven": "the drive_snes_ tolerances the user set (the code's defaults only where none is)",
     "hertzpetsc.studies.base": "the roles' number-changing options, part of a record file's identity",
 }
 # where files are written: the record store and its atomic writers; the paper pipeline's step logs (a child's output)
@@ -477,6 +476,16 @@ def test_plots_argv_and_options_only_where_design_says(sources):
     assert not readers, f"the options database read outside {sorted(OPTIONS_READERS)}: {readers}"
     unused = [m for m in OPTIONS_READERS if not attribute_uses({m: sources[m]}, "PETSc.Options", set())]
     assert not unused, f"OPTIONS_READERS lists modules that read no option: {unused}"
+
+
+def test_every_solver_prefix_is_a_declared_role(sources):
+    """A solver role is declared once, in hertzpetsc.roles.REGISTRY: every ``*_PREFIX = "..."`` of the package is one
+    of its prefixes."""
+    from hertzpetsc.roles import REGISTRY
+    constants = {node.value.value for text in sources.values() for node in ast.walk(ast.parse(text))
+                 if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name)
+                 and node.targets[0].id.endswith("_PREFIX") and isinstance(node.value, ast.Constant)}
+    assert len(constants) >= 13 and constants <= set(REGISTRY), sorted(constants - set(REGISTRY))
 
 
 def test_every_study_is_on_the_base(sources):

@@ -228,6 +228,16 @@ def test_schema_examples_run_with_numpy_alone(monkeypatch):
     assert ran >= 10, ran                                    # every example on a committed file printed its result
 
 
+def test_the_solver_prefix_table_is_the_registry():
+    """README's table of solver prefixes is hertzpetsc.roles.markdown_table(), row for row (no PETSc imported)."""
+    from hertzpetsc.roles import markdown_table
+    with open(PAGES[0]) as f:
+        section = f.read().split("## Solver prefixes", 1)[1]
+    table = next(block for block in section.split("\n\n") if block.startswith("| prefix"))
+    assert table == markdown_table(), "README's solver prefixes differ from hertzpetsc.roles.REGISTRY: paste " \
+        "markdown_table() into README.md"
+
+
 def test_scripts_named_in_the_docs_exist():
     named = set()
     for p in PAGES:

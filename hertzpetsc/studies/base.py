@@ -7,7 +7,7 @@ A study is a loop over parameters whose records are written as they are computed
   their options alike, so an error names ``-field`` on the command line and ``field`` in the API);
 * ``FORMAT``, ``FIELDS`` (and ``DTYPES``, ``SHAPES``): the record kind and the per-record fields, which the record
   store, the file schema and the identity checks read;
-* ``ROLES``: the solver roles it configures, ``{prefix: (description, ("snes" | "ts" | "eps" | "pep", ...))}``;
+* ``ROLES``: the solver roles it configures, from the registry (:func:`hertzpetsc.roles.uses`);
   drivers hand them to :class:`~hertzpetsc.options.AppOptions` (``-help`` lists them; unknown options are
   matched against them).
 
@@ -29,6 +29,7 @@ from ..dealing import dealt
 from ..errors import HertzPetscError, ParameterError, check_choice, check_instance
 from ..progress import Progress
 from ..records import MODES, MemoryRecords, NpzRecords, file_digest, given, pending, write_text
+from ..roles import configure
 
 if TYPE_CHECKING:
     import numpy as np
@@ -140,8 +141,8 @@ class Study:
 
     def configure(self) -> None:
         """Read and check the options of every solver role now, so that a bad value fails before any computation
-        (:func:`configure_roles`)."""
-        configure_roles(self.ROLES, self.comm)
+        (:func:`hertzpetsc.roles.configure`)."""
+        configure(self.ROLES, self.comm)
 
     def destroy(self) -> None:
         """Free the PETSc objects the study holds (none by default)."""
@@ -179,29 +180,6 @@ def run_to_table(study, path, show=None, text=None):
     out = text()
     write_text(path, out, study.comm)
     return out
-
-
-def configure_roles(roles, comm):
-    """Build a small solver of each kind of each role under its prefix (``setFromOptions`` reads and checks the
-    options database), then free it: the one early options check of the studies. SNES roles are the
-    travelling-wave solver (``-<prefix>solver direct|nk`` included), TS roles the chain's integrator, EPS/PEP
-    roles SLEPc's solvers."""
-    from ..chain import configure_options as configure_ts
-    from ..model import ChainSpec, LatticeModel
-    from ..options import make_solver_object
-    from ..twsolver import configure_options as configure_snes
-    for prefix, (_, kinds) in roles.items():
-        for kind in kinds:
-            if kind == "snes":
-                configure_snes(comm, prefix)
-            elif kind == "ts":
-                configure_ts(ChainSpec(LatticeModel(), 3, "free"), comm, prefix)
-            else:
-                obj = make_solver_object(kind, prefix, comm)
-                try:
-                    obj.setFromOptions()
-                finally:
-                    obj.destroy()
 
 
 def plain(params):

@@ -19,15 +19,16 @@ from ..model import LatticeModel
 from ..records import is_checking, load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
 from ..richardson import richardson
+from ..roles import configure, uses
 from ..twsolver import TW_PREFIX
-from .base import Study, configure_roles
+from .base import Study
 
 if TYPE_CHECKING:
     from petsc4py import PETSc
 
     from ..diagnostics import WaveDiagnostics
 
-TW_ROLE = {TW_PREFIX: ("the travelling-wave SNES (-tw_solver direct|nk, -tw_jacobian aij|shell)", ("snes",))}
+TW_ROLE = uses(TW_PREFIX)
 
 
 class BranchStudy(Study):
@@ -105,7 +106,7 @@ class ConvergenceStudy(Study):
         check_memory(cells[-1], self.comm, name="cells")
         self.model, self.M, self.cells, self.prefix = model, M, cells, prefix
         self.values = {}
-        configure_roles({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
+        configure({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
 
     def run(self):
         """Compute the branch on every grid; yields K after each."""
@@ -241,7 +242,7 @@ class SmallQStudy(Study):
         self.prefix, self.progress = prefix, progress
         self.continuation = ContinuationParameters(model=params.model, M=1, cells_per_pi=params.grid(0).cells_per_pi(
             params.q_first))
-        configure_roles({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
+        configure({prefix: TW_ROLE[TW_PREFIX]}, self.comm)
 
     def _check_memory(self, params):
         """check_memory of the finest level's grid at q_stop, refused as q_stop with the smallest q_stop that fits

@@ -23,6 +23,7 @@ from ..model import ChainSpec, LatticeModel
 from ..resources import chain_seconds, check_chain_memory, check_work
 from ..options import inserted_options
 from ..records import check_kind, load_npz, on_rank0
+from ..roles import uses
 from .base import Study
 from .compacton_stability import STABILITY_FORMAT, exact_compacton, fmt_multiplier, q_text
 
@@ -80,7 +81,7 @@ class CompactonDynamics(Study):
 
     FORMAT, FIELDS = DYNAMICS_FORMAT, DYN_FIELDS + ("rest", "a", "b", "dist", "deviation")
     DTYPES = {"kind": str, "steps": np.int64, "mu3": complex}
-    ROLES = {"cdyn_": ("the long free chain's TS", ("ts",)), "cwin_": ("the window flows", ("ts",))}
+    ROLES = uses("cdyn_", "cwin_")
     WHAT = "compacton dynamics file"
 
     def __init__(self, records: Sequence[Mapping], model: LatticeModel, comm: Optional[PETSc.Comm] = None,

@@ -35,6 +35,7 @@ from ..errors import (ParameterError, check_flag, check_instance, check_integer,
 from ..model import ChainSpec
 from ..resources import MAX_DENSE_BEADS
 from ..richardson import richardson
+from ..roles import uses
 from .base import ContinuedScan, point_key
 
 if TYPE_CHECKING:
@@ -80,9 +81,7 @@ class CompactonStabilityScan(ContinuedScan):
     FORMAT, FIELDS = STABILITY_FORMAT, FIELDS + ("multipliers", "dominant", "state")
     DTYPES = {"multipliers": complex, "dominant": complex, "iterations": np.int64, "unstable": np.int64,
               "slepc_products": np.int64, "slepc_nev": np.int64, "core_first": np.int64, "core_last": np.int64}
-    ROLES = {"cwin_": ("the window map's flows (state and tangents)", ("ts",)),
-             "ccheck_": ("the independent flow of the residual check", ("ts",)),
-             "cstab_": ("the window map's dominant multipliers (Krylov-Schur on the weighted shell)", ("eps",))}
+    ROLES = uses("cwin_", "ccheck_", "cstab_")
     WHAT, LABELS = "compacton stability file", ("nev",)
 
     def __init__(self, branches: Sequence[Branch], qs: Sequence[float], comm: Optional[PETSc.Comm] = None,

@@ -5,13 +5,13 @@ import math
 import time
 from dataclasses import dataclass
 
-from ..chain import configure_options
 from ..branch import Branch
 from ..errors import ParameterError, check_instance, check_integer, check_real, check_reals, members
 from ..resources import chain_seconds, check_chain_memory, check_work
 from ..model import ChainSpec
 from ..compacton import (CompactonScales, chain_length, compacton_train, extension_residuals, lattice_checks,
                          placement, simulate_on_chain, train_span)
+from ..roles import configure, uses
 
 HEADER = ("| h | q | compactons | F(q) | N(q) | eq. ad residual: extended / period / 2 delta h^-2 | max \\|xdot\\| "
           "ahead | max \\|x - x(0)\\| ahead | arrival delay (dt) | c measured (c = 1) | shift error | gap error | "
@@ -79,7 +79,7 @@ class CompactonStudy:
         check_work("travel", travel, seconds, f"the {2 * len(branches) * len(qs)} compacton runs")
         self.cases = []
         if branches:
-            configure_options(ChainSpec(branches[0].model, 3, "free"), comm)
+            configure(uses("chain_"), comm, ChainSpec(branches[0].model, 3, "free"))
 
     def run(self):
         """Yield each :class:`CompactonCase` as it is done."""

@@ -35,11 +35,12 @@ from ..dissipation import KINDS, contact_dissipation, hunt_crossley_restitution,
 from ..errors import ConvergenceError, ParameterError, check_flag, check_integer, check_real, check_reals
 from ..model import ChainSpec, Damping, LatticeModel
 from ..resources import check_chain_size
+from ..roles import uses
 from .base import Study
 
 RESTITUTION_FORMAT = "hertzpetsc-restitution-1"
 PULSE_FORMAT = "hertzpetsc-pulse-1"
-ROLES = {"chain_": ("the impact's and the pulse's flows", ("ts",))}
+ROLES = uses("chain_")
 # an impact is followed in steps of its undamped duration over this, until the contact opens
 IMPACT_CHUNKS = 64
 MAX_IMPACT_DURATIONS = 1000

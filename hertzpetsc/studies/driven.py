@@ -65,13 +65,14 @@ from ..continuation import (Continuation, ContinuationError, ContinuationPoint, 
 from ..dealing import dealt
 from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, HalfSinePulses,
                       HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of, check_dense_beads,
-                      configure_options, crossing, local_wave, neutral_saddle, refined_profile, switch_to_doubled,
+                      crossing, local_wave, neutral_saddle, refined_profile, switch_to_doubled,
                       verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError, check_integer, check_real
 from ..floquet import DenseFloquet
 from ..model import LatticeModel
 from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
                          check_work)
+from ..roles import configure, uses
 from ..units import bead_options, parse_quantity
 from .base import Study
 
@@ -165,7 +166,6 @@ def _drive(drive):
     return drive
 
 
-_DRIVE_ROLE = ("Newton on P(X) - X and the state flow", ("snes", "ts"))
 # The tables' sentence on units (every driven table's header).
 UNITS = ("Units: those of eq. nc (the masses as given, 1 by default, and the contact force (delta0 - r)_+^alpha with "
          "coefficient 1): omega in radians per time unit, the driving period 2 pi / omega")
@@ -217,7 +217,7 @@ class DrivenStudy(Study):
 
     def configure(self) -> None:
         """Nothing left to check: the options of ``drive_`` and ``floquet_`` are read when the study is built (its
-        shooting problem, or :func:`~hertzpetsc.driven.configure_options`)."""
+        shooting problem, or their probe, :func:`hertzpetsc.roles.configure`)."""
 
 
 # --- frequency and amplitude responses --------------------------------------------------------------------------
@@ -333,8 +333,7 @@ class ResponseCurve(DrivenStudy):
     stop = None                    # a note; grid: the error raised) and the ContinuationError that stopped it
     DTYPES = {"branch": np.int64, "periods": np.int64, "event": np.int64, "confirmed": np.int64,
               "iterations": np.int64, "outside": np.int64, "multipliers": complex}
-    ROLES = {"drive_": ("Newton on P(X) - X (bordered) and the state flow", ("snes", "ts")),
-             "floquet_": ("the tangent flow (Jacobian, multipliers) and SLEPc's eigensolver", ("ts", "eps"))}
+    ROLES = uses("drive_", "floquet_")
     WHAT = "driven-response file"
 
     @overload
@@ -858,7 +857,7 @@ class LinearResonances(DrivenStudy):
     Parameters = ResonanceParameters
     FORMAT, FIELDS = RESONANCE_FORMAT, RESONANCE_FIELDS
     DTYPES = {"k": np.int64, "evaluations": np.int64}
-    ROLES = {"drive_": _DRIVE_ROLE, "floquet_": ("the tangent flow (Jacobian, multipliers)", ("ts",))}
+    ROLES = uses("drive_", floquet_=("ts",))
     WHAT = "driven-resonances file"
 
     @overload
@@ -1005,8 +1004,7 @@ class WaveEnds(DrivenStudy):
     Parameters = WaveEndsParameters
     FORMAT, FIELDS = WAVE_ENDS_FORMAT, WAVE_ENDS_FIELDS
     DTYPES = {"m": np.int64, "N": np.int64, "iterations": np.int64, "outside": np.int64, "multipliers": complex}
-    ROLES = {"drive_": _DRIVE_ROLE,
-             "floquet_": ("the tangent flows (Jacobian, multipliers, periodic chain)", ("ts",))}
+    ROLES = uses("drive_", floquet_=("ts",))
     WHAT, RENAMED = "driven wave-ends file", {"qs": "q"}
     LABELS = ("branch", "refined", "rtols")         # not the file names, nor rtols: a resume may add tolerances
 
@@ -1026,7 +1024,7 @@ class WaveEnds(DrivenStudy):
         self.qs, self.sizes, self.rtols = list(p.q), list(p.sizes), list(p.rtols)
         self.samples, self.nmult = p.samples, p.nmult
         self.SHAPES = {"multipliers": (self.nmult,)}
-        configure_options(self.comm)
+        configure(uses("drive_"), self.comm)
         self._rho_periodic = {}
 
     def constants(self) -> dict:
@@ -1168,7 +1166,7 @@ class Generation(DrivenStudy):
     Parameters = GenerationParameters
     FORMAT, FIELDS = GENERATION_FORMAT, GENERATION_FIELDS
     DTYPES = {"waveform": np.int64, "ok": np.int64, "iterations": np.int64}
-    ROLES = {"drive_": _DRIVE_ROLE, "floquet_": ("the tangent flow and SLEPc's eigensolver", ("ts", "eps"))}
+    ROLES = uses("drive_", "floquet_")
     WHAT, RENAMED = "driven-generation file", {"waveforms": "signals"}
     LABELS = ("branch",)
 
@@ -1193,7 +1191,7 @@ class Generation(DrivenStudy):
         self.width, self.bulk = p.width, p.bulk
         self.run_in, self.tol, self.rtol, self.samples = p.run_in, p.tol, p.rtol, p.samples
         self.SHAPES = {"A_n": (self.N,), "q_n": (self.N,), "D_n": (self.N,)}
-        configure_options(PETSc.COMM_SELF)
+        configure(uses("drive_"), PETSc.COMM_SELF)
 
     def constants(self) -> dict:
         p = self.params

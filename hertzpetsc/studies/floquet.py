@@ -29,9 +29,10 @@ from ..chain import IntegrationTolerances
 from ..dealing import dealt
 from ..errors import (ParameterError, RecordFileError, check_choice, check_instance, check_integer, check_integers,
                       check_real, check_reals)
-from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, DominantFloquet, dense_multipliers, spectral_radius
+from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
 from ..records import check_kind, given, load_npz
+from ..roles import FLOQUET_ROUTES, floquet_route, uses
 from ..verdicts import critical_wavenumbers
 from ..waves import orbit_on_chain
 from .base import Study
@@ -46,7 +47,6 @@ if TYPE_CHECKING:
 FLOQUET_FORMAT = "hertzpetsc-floquet-1"
 FLOQUET_FIELDS = ("q", "rho", "outside", "trivial_spread", "growth", "refined", "seconds")
 BLOCH_FORMAT = "hertzpetsc-bloch-1"
-METHODS = ("symmetric", "dense", "slepc")
 BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "slepc_products", "slepc_seconds")
 # what the table prints besides, recorded since; a file written before lacks them: -1 (integers) or nan on load
 BLOCH_DETAIL = {"runs": -1, "columns": -1, "propagated": -1, "res_products": -1, "res_seconds": math.nan,
@@ -113,15 +113,15 @@ class FloquetScan(Study):
 
     FORMAT, FIELDS = FLOQUET_FORMAT, FLOQUET_FIELDS + ("multipliers",)
     DTYPES = {"outside": np.int64, "refined": np.int64, "multipliers": complex}
-    ROLES = {"floquet_": ("Floquet spectra: the variational flow and the eigensolver", ("ts", "eps"))}
+    ROLES = uses("floquet_")
     WHAT = "Floquet file"
 
     def __init__(self, branch: Branch, N: int, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
                  mode: str = "new", refined: Optional[RefinedStates] = None, qs: Optional[Sequence[float]] = None,
                  method: str = "symmetric", nev: int = 10, tol_rho: float = TOL_RHO,
                  tolerances: IntegrationTolerances = FLOQUET_TOLERANCES) -> None:
-        if method not in METHODS:
-            raise ParameterError("-method", method, "must be one of " + ", ".join(METHODS))
+        if method not in FLOQUET_ROUTES:
+            raise ParameterError("-method", method, "must be one of " + ", ".join(FLOQUET_ROUTES))
         super().__init__(None, comm, output, mode)
         check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
         _check_scan(refined, tol_rho, tolerances)
@@ -132,9 +132,8 @@ class FloquetScan(Study):
         self.qs, self.restriction = _select_wavenumbers(branch, N, qs, refined)
         self.SHAPES = {"multipliers": (2 * N,)}
         self.spectra = {}
-        self.solver = (SymmetricFloquet(branch.model, PETSc.COMM_SELF, tolerances) if method == "symmetric" else
-                       DenseFloquet(self.spec, self.comm, tolerances) if method == "dense" else
-                       DominantFloquet(self.spec, self.comm, nev, tolerances, warm=True))
+        self.solver = floquet_route(method, self.spec, PETSc.COMM_SELF if method == "symmetric" else self.comm, nev,
+                                    tolerances, warm=True)
 
     LABELS = ("note",)
 
@@ -266,8 +265,7 @@ class BlochScan(Study):
     FORMAT, FIELDS = BLOCH_FORMAT, BLOCH_FIELDS + ("dominant", "dominant_theta") + tuple(BLOCH_DETAIL)
     DTYPES = {"N": np.int64, "outside": np.int64, "slepc_products": np.int64, "dominant": complex, "runs": np.int64,
               "columns": np.int64, "propagated": np.int64, "res_products": np.int64}
-    ROLES = {"floquet_": ("Bloch sectors and full-chain checks: the variational flow, the seeded eigensolver",
-                          ("ts", "eps"))}
+    ROLES = uses("floquet_")
     WHAT, LABELS, ADDED = "Bloch file", ("split", "refined_file"), BLOCH_DETAIL
 
     def __init__(self, branch: Branch, refined: RefinedStates, sizes: Sequence[int], qs: Sequence[float],

@@ -19,6 +19,7 @@ from ..chain import CHAIN_PREFIX, Chain, ChainIntegrator
 from ..errors import ParameterError, check_instance, check_integer, check_real
 from ..resources import INTEGRATE_SECONDS, chain_seconds, check_chain_memory, check_work
 from ..records import write_json
+from ..roles import uses
 from ..simulation import (check_times, decode, first_crossing, snapshot_record, snapshot_store, state_digest,
                           wave_deviation)
 from ..waves import Orbit
@@ -63,7 +64,7 @@ class LongRun(Study):
     ``output`` (TS prefix ``chain_``; default RK 8(7), rtol 1e-12, atol 1e-14 as the paper). ``mode='resume'``
     continues a killed run from its last snapshot, with the integrator's step, to the same trajectory."""
 
-    ROLES = {CHAIN_PREFIX: ("the chain's integrator", ("ts",))}
+    ROLES = uses(CHAIN_PREFIX)
     WHAT = "run directory"
 
     def __init__(self, orbit: Orbit, t_final: float, snapshots_per_T: int, output: str,

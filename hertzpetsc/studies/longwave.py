@@ -8,7 +8,8 @@ from petsc4py import PETSc
 from ..branch import Branch
 from ..errors import check_instance, check_integer, check_real
 from ..longwave import compare_with_branch
-from ..solitary import SolitaryParameters, configure_options, solve_solitary_wave
+from ..roles import configure, uses
+from ..solitary import SolitaryParameters, solve_solitary_wave
 
 Q_REPORT = 10     # the branch points with the 10 smallest q
 
@@ -26,7 +27,7 @@ class LongWaveStudy:
         self.params = SolitaryParameters(branch.alpha, cells_per_unit)
         self.order = sorted(branch.points, key=lambda p: p.q)[:count]
         self.smallest = self.order[0]
-        configure_options(PETSc.COMM_SELF)
+        configure(uses("sol_"), PETSc.COMM_SELF)
 
     @functools.cached_property
     def wave(self):

@@ -66,6 +66,7 @@ from ..qbranch import regrid_half_profile
 from ..records import RecordFileError, check_kind, given, load_npz, on_rank0
 from ..resources import check_memory
 from ..richardson import extrapolate
+from ..roles import uses
 from ..shooting import Refiner
 from ..slow import CERT_MARGIN, DeflatedSectors, crossing_search, twist_scan
 from ..symmetry import WaveSymmetry
@@ -403,11 +404,7 @@ class StabilityMap(Study):
     FORMAT, FIELDS = MAP_FORMAT, MAP_FIELDS
     DTYPES = {"m": np.int64, "kind": np.int64, "outside": np.int64, "decoupled": np.int64, "evaluations": np.int64,
               "cert_inf": np.int64, "cert_stable": np.int64, "located": np.int64}
-    ROLES = {"floquet_": ("the flow of the variational equations (the cells' maps)", ("ts",)),
-             "precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",)),
-             "shoot_": ("the refinement's flow and Gauss-Newton where a multiplier is near 1 (-shoot_gn_max_it)",
-                        ("ts",)),
-             "shoot_jac_": ("the flow of the refinement's Jacobian", ("ts",))}
+    ROLES = uses("precomp_", "shoot_", "shoot_jac_", floquet_=("ts",))
     ADDED = {"E_chain": math.nan, "located": 1}
     WHAT = "stability-map file"
     NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="model's masses (-epsilon)")
@@ -689,7 +686,7 @@ class QBoundary(Study):
     FORMAT, FIELDS = QMAP_FORMAT, QMAP_FIELDS
     DTYPES = {"M": np.int64, "kind": np.int64, "grid": np.int64, "evaluations": np.int64, "cert_inf": np.int64,
               "cert_stable": np.int64}
-    ROLES = {k: StabilityMap.ROLES[k] for k in ("floquet_", "precomp_")}      # no refinement (NEAR_ONE)
+    ROLES = uses("precomp_", floquet_=("ts",))      # no refinement (NEAR_ONE)
     WHAT = "boundary-in-q file"
     NAMES = dict(levels="A (-A)", grid_q="q (-m with -N, and -q)")
     locate, N = ("infinite",), 0

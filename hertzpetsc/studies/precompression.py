@@ -39,6 +39,7 @@ from ..advdelay import check_branch, check_wavenumber
 from ..model import ChainSpec, LatticeModel
 from ..families import AmplitudeFamily, MassFamily, check_amplitude, check_family_amplitude, uncompressed_limit
 from ..resources import check_memory
+from ..roles import uses
 from ..twsolver import tw_solver
 from .base import Study
 from ..richardson import extrapolate
@@ -127,7 +128,7 @@ class AmplitudeFamilies(Study):
     Parameters = AmplitudeParameters
     FORMAT, FIELDS = PRECOMPRESSED_FORMAT, PRECOMPRESSED_FIELDS
     DTYPES = {"kind": np.int64, "iterations": np.int64}
-    ROLES = {"precomp_": ("the Newton solve of each precompressed wave (-precomp_solver direct|nk)", ("snes",))}
+    ROLES = uses("precomp_")
     WHAT = "precompressed-wave file"
 
     def __init__(self, params: AmplitudeParameters, comm: Optional[PETSc.Comm] = None,
@@ -313,9 +314,7 @@ class DimerFamilies(Study):
     Parameters = DimerParameters
     FORMAT, FIELDS = DIMER_FORMAT, DIMER_FIELDS
     DTYPES = {"iterations": np.int64, "event": np.int64}
-    ROLES = {"dimer_": ("the pseudo-arclength Newton in epsilon (-dimer_solver direct|nk)", ("snes",)),
-             "dimer_natural_": ("the natural continuation to the starting waves (-dimer_natural_solver direct|nk)",
-                                ("snes",))}
+    ROLES = uses("dimer_", "dimer_natural_")
     WHAT = "dimer file"
 
     def __init__(self, params: DimerParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,

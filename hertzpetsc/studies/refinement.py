@@ -39,6 +39,7 @@ from ..dealing import dealt
 from ..errors import ParameterError, RecordFileError, check_instance, check_integer, check_real, check_reals
 from ..model import ChainSpec
 from ..records import check_kind, given, load_npz, on_rank0
+from ..roles import uses
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
 from ..symmetry import WaveSymmetry
 from ..waves import chain_wavenumbers, check_chain_wavenumber, orbit_on_chain
@@ -137,9 +138,7 @@ class RefinementScan(Study):
     """
 
     FORMAT, FIELDS, ADDED = REFINED_FORMAT, REFINED_FIELDS + tuple(REFINED_ADDED) + ("x",), REFINED_ADDED
-    ROLES = {"shoot_": ("refinement: its flows and Gauss-Newton (-shoot_gn_max_it 20)", ("ts",)),
-             "shoot_jac_": ("the flow of the refinement's Jacobian (rtol 1e-10)", ("ts",)),
-             "chain_": ("the paper's flow (rtol 1e-12) for E before and after", ("ts",))}
+    ROLES = uses("shoot_", "shoot_jac_", "chain_")
     WHAT, LABELS = "refinement file", ("branch",)
 
     def __init__(self, branch: Branch, branch_path: str, N: int, comm: Optional[PETSc.Comm] = None,

@@ -65,6 +65,7 @@ from ..chain import IntegrationTolerances
 from ..model import ChainSpec
 from ..resources import check_memory
 from ..richardson import richardson
+from ..roles import uses
 from ..shooting import SHOOT_PREFIX, Refiner, relative_residual
 from ..slow import DeflatedSectors
 from ..stencil import full_period
@@ -169,10 +170,7 @@ class SlowInstabilityScan(Study):
 
     FORMAT, FIELDS = SLOW_FORMAT, SLOW_FIELDS
     DTYPES = {"m": np.int64, "verdict": np.int64}
-    ROLES = {"cm_": ("the co-moving quadratic eigenproblem", ("pep",)),
-             "tw_": ("the travelling-wave SNES (profiles on the finer grids)", ("snes",)),
-             "shoot_": ("the refinement's flow", ("ts",)), "shoot_jac_": ("the refinement Jacobian's flow", ("ts",)),
-             "floquet_": ("the flow of the cell's sector maps", ("ts",))}
+    ROLES = uses("cm_", "tw_", "shoot_", "shoot_jac_", floquet_=("ts",))
     WHAT, LABELS = "slow-instability file", ("branch",)
 
     def __init__(self, branch: Branch, branch_path: str, N: int, comm: Optional[PETSc.Comm] = None,

@@ -3,7 +3,8 @@ from petsc4py import PETSc
 
 from ..errors import ParameterError, check_integers, check_real, check_reals
 from ..richardson import richardson
-from ..solitary import SolitaryParameters, configure_options, max_bead_velocity, solve_solitary_wave
+from ..roles import configure, uses
+from ..solitary import SolitaryParameters, max_bead_velocity, solve_solitary_wave
 
 
 def k_alpha_extrapolated(alpha, cells=(80, 160, 320), half_length=None):
@@ -48,7 +49,7 @@ class SolitaryStudy:
         self.half_length = float(half_length)
         self.results = {}
         self.finest = {}
-        configure_options(comm)
+        configure(uses("sol_"), comm)
 
     def run(self):
         """Solve for every alpha; yields alpha after each."""

@@ -31,6 +31,7 @@ from ..compacton_window import WINDOW_PREFIX, WINDOW_TOLERANCES, embed
 from ..errors import ParameterError, check_integer, check_real, check_reals
 from ..model import LatticeModel
 from ..resources import MAX_DENSE_BEADS
+from ..roles import uses
 from ..solitary import SOL_PREFIX, SolitaryParameters, solve_solitary_wave
 from ..solitary_family import (PrecompressionContinuation, essential_radius, guess_from_solitary,
                                precompression_at_unit_speed, symplectic_product, tail_rate, unit_lattice,
@@ -49,9 +50,7 @@ FIELDS = ("alpha", "c0", "delta0", "kappa", "residual", "residual_check", "itera
           "log_slope_fd", "speed", "H_unit", "dHdc_unit", "jordan_mean", "jordan_split", "jordan_translation",
           "jordan_generalized", "max_nontrivial", "essential", "eta", "points", "unstable", "tail_front", "tail_rear",
           "doubling_change", "seconds")
-ROLES = {WINDOW_PREFIX: ("the window map's flows (state and tangents)", ("ts",)),
-         CHECK_PREFIX: ("the independent flow of the residual check", ("ts",)),
-         SOL_PREFIX: ("eq. adr (the uncompressed wave the continuation starts from)", ("snes",))}
+ROLES = uses(WINDOW_PREFIX, CHECK_PREFIX, SOL_PREFIX)
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
 from ..resources import check_memory
+from ..roles import uses
 from ..shooting import Refiner
 from ..twsolver import tw_solver
 from ..waves import check_chain_wavenumber, orbit_on_chain
@@ -104,11 +105,7 @@ class WaveStudy(Study):
     Parameters = WaveParameters
     FORMAT, FIELDS = WAVE_FORMAT, WAVE_FIELDS
     DTYPES = {"m": np.int64, "iterations": np.int64, "outside": np.int64, "unstable": np.int64}
-    ROLES = {"precomp_": ("the wave of a precompressed chain (-precomp_solver direct|nk)", ("snes",)),
-             "tw_": ("the uncompressed chain's branch to q (-tw_solver direct|nk)", ("snes",)),
-             "shoot_": ("the refinement's flow and Gauss-Newton (-shoot_gn_max_it)", ("ts",)),
-             "shoot_jac_": ("the flow of the refinement's Jacobian", ("ts",)),
-             "floquet_": ("the Bloch sectors' variational flows", ("ts",))}
+    ROLES = uses("precomp_", "tw_", "shoot_", "shoot_jac_", floquet_=("ts",))
     WHAT, ADDED = "wave file", {"E_floor": math.nan}
 
     def __init__(self, params: WaveParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,

@@ -35,10 +35,6 @@ from .records import check_stores, name_path, prepare_outputs
 # seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
 ABORT_GRACE = 3.0
 
-# PETSc objects a solver role is made of, for -help and for the names of known options.
-ROLE_OBJECTS = {"snes": "SNES (with its KSP, PC and line search)", "ts": "TS (time stepper and its adaptor)",
-                "eps": "SLEPc EPS (eigensolver with its ST, KSP, PC)", "pep": "SLEPc PEP (polynomial eigensolver)"}
-
 
 def _lib():
     """The PETSc shared library, as loaded by petsc4py (for the calls petsc4py does not wrap)."""
@@ -76,13 +72,9 @@ def petsc_message(err):
 
 def make_solver_object(kind, prefix, comm=PETSc.COMM_SELF):
     """A bare solver of ``kind`` (snes, ts, eps, pep) under ``prefix``."""
-    if kind == "snes":
-        obj = PETSc.SNES().create(comm=comm)
-    elif kind == "ts":
-        obj = PETSc.TS().create(comm=comm)
-    else:
+    if kind in ("eps", "pep"):
         from slepc4py import SLEPc
-        obj = (SLEPc.EPS() if kind == "eps" else SLEPc.PEP()).create(comm=comm)
+    obj = getattr(SLEPc if kind in ("eps", "pep") else PETSc, kind.upper())().create(comm=comm)
     obj.setOptionsPrefix(prefix)
     return obj
 
@@ -130,8 +122,8 @@ def known_solver_options(roles):
 class AppOptions:
     """Typed, declared application options (no prefix) in the PETSc options database.
 
-    ``doc``: the driver's description for -help; ``roles``: the solver prefixes the driver configures, as
-    {prefix: (description, ("snes", ...))}. Each reader declares the option (for -help and for the unknown-option
+    ``doc``: the driver's description for -help; ``roles``: the solver roles the driver configures, as
+    {prefix: (its line of -help, ("snes", ...))} (:func:`hertzpetsc.roles.uses`). Each reader declares the option (for -help and for the unknown-option
     check) and returns its validated value; under -help it returns the default without validating.
     """
 
@@ -318,8 +310,7 @@ class AppOptions:
                          f"    [{valid}]" + (f"  {text}" if text else ""))
         if self.roles:
             lines += ["", "Solver prefixes (every PETSc option of these objects, e.g. -tw_snes_monitor):"]
-            for prefix, (description, kinds) in self.roles.items():
-                lines.append(f"  -{prefix}*   {description}: " + "; ".join(ROLE_OBJECTS[k] for k in kinds))
+            lines += [f"  -{prefix}*   {description}" for prefix, (description, _) in self.roles.items()]
         return "\n".join(lines)
 
     def done(self):

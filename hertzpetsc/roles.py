@@ -1,13 +1,8 @@
-"""The solver roles, each declared once: its options prefix, what it solves, the PETSc objects it is made of, the
-code's defaults (the paper's) and its probe.
-
-A study or driver names the roles it configures (:func:`uses`: ``{prefix: (role, kinds)}``, the shape
-:class:`~hertzpetsc.options.AppOptions` takes for ``-help`` and the unknown-option check); :func:`configure` builds
-each role's solvers on a tiny problem and calls ``setFromOptions`` (a bad value fails before anything is computed);
-:func:`floquet_route` makes the Floquet solver of a route's name (prefix ``floquet_``); :func:`markdown_table` is the
-README's table of prefixes. The code sets a role's defaults on its objects before ``setFromOptions`` (the user's
-options win); defaults PETSc's set-up would not take that way go in with :func:`~hertzpetsc.options.inserted_options`,
-and a default computed per solve applies where :func:`~hertzpetsc.options.user_set` says the user set none.
+"""The solver roles, each declared once (:data:`REGISTRY`): prefix, what it solves, PETSc objects, the code's
+defaults (the paper's: set on the objects before ``setFromOptions``, or by :func:`~hertzpetsc.options.inserted_options`,
+or per solve where :func:`~hertzpetsc.options.user_set` finds none given) and probe. Studies and drivers name theirs
+(:func:`uses`), which ``-help`` and the unknown-option check read; :func:`configure` probes them before computing;
+:func:`floquet_route` makes a Floquet route; :func:`markdown_table` is README's table.
 """
 from __future__ import annotations
 
@@ -37,19 +32,20 @@ class Role:
     own: tuple = ()
     probe: Optional[Callable] = None
 
-    def objects(self) -> str:
-        return ", ".join(KIND_OBJECTS[k] for k in self.kinds) + \
+    def objects(self, kinds=None) -> str:
+        """The PETSc objects of ``kinds`` (default: all the role's) and the role's own options, in Markdown."""
+        return ", ".join(KIND_OBJECTS[k] for k in kinds or self.kinds) + \
             "".join(f"; `-{self.prefix}{o.replace('|', chr(92) + '|')}`" for o in self.own)
 
 
-def _probe_snes(comm, prefix, spec):
+def _probe_snes(comm, prefix, spec, kind=None):
     """The travelling-wave SNES (``-<prefix>solver direct|nk`` included) on a small grid."""
     from .grid import ProfileGrid
     from .twsolver import TravellingWaveSolver
     TravellingWaveSolver(ProfileGrid(max(8, 2 * comm.getSize() + 2), comm), prefix).destroy()
 
 
-def _probe_ts(comm, prefix, spec):
+def _probe_ts(comm, prefix, spec, kind=None):
     """The chain's integrator on a small chain of ``spec``'s lattice (default: the Hertz chain)."""
     from .chain import Chain, ChainIntegrator
     from .model import ChainSpec, LatticeModel
@@ -62,19 +58,18 @@ def _probe_ts(comm, prefix, spec):
         chain.destroy()
 
 
-def _probe_bare(kind):
-    def probe(comm, prefix, spec):
-        """A bare SLEPc solver of the kind under ``prefix``."""
-        from .options import make_solver_object
-        obj = make_solver_object(kind, prefix, comm)
-        try:
-            obj.setFromOptions()
-        finally:
-            obj.destroy()
-    return probe
+def _probe_slepc(comm, prefix, spec, kind):
+    """A bare SLEPc solver (eps, pep) under ``prefix``."""
+    from .options import make_solver_object
+    obj = make_solver_object(kind, prefix, comm)
+    try:
+        obj.setFromOptions()
+    finally:
+        obj.destroy()
 
 
-PROBES = {"snes": _probe_snes, "ts": _probe_ts, "eps": _probe_bare("eps"), "pep": _probe_bare("pep")}
+# the probe of each kind of solver: probe(comm, prefix, spec, kind)
+PROBES = {"snes": _probe_snes, "ts": _probe_ts, "eps": _probe_slepc, "pep": _probe_slepc}
 
 
 def _probe_solitary(comm, prefix, spec):
@@ -129,11 +124,14 @@ REGISTRY = {r.prefix: r for r in (
 
 
 def uses(*prefixes: str, **kinds: tuple) -> dict:
-    """``{prefix: (what it solves, kinds)}`` of the registry's roles ``prefixes`` (and of ``kinds``' keys, with only
-    those kinds of solver: e.g. ``floquet_=("ts",)`` where no eigensolver is made): a study's ``ROLES``."""
-    roles = [REGISTRY[prefix] for prefix in prefixes + tuple(kinds)]
-    return {r.prefix: (r.role.replace("`", "") + "".join(f", -{r.prefix}{o}" for o in r.own),
-                       tuple(kinds.get(r.prefix, r.kinds))) for r in roles}
+    """``{prefix: (its line of -help, kinds)}`` of the registry's roles ``prefixes`` (and of ``kinds``' keys, with
+    only those kinds of solver: e.g. ``floquet_=("ts",)`` where no eigensolver is made): a study's ``ROLES``."""
+    out = {}
+    for r in [REGISTRY[prefix] for prefix in prefixes + tuple(kinds)]:
+        used = tuple(kinds.get(r.prefix, r.kinds))
+        text = f"{r.role} ({r.objects(used)}); defaults: {r.defaults}"
+        out[r.prefix] = (text.replace("`", "").replace(chr(92), ""), used)
+    return out
 
 
 def configure(roles: dict, comm: PETSc.Comm, spec=None) -> None:
@@ -146,7 +144,7 @@ def configure(roles: dict, comm: PETSc.Comm, spec=None) -> None:
             role.probe(comm, prefix, spec)
         else:
             for kind in kinds:
-                PROBES[kind](comm, prefix, spec)
+                PROBES[kind](comm, prefix, spec, kind)
 
 
 def floquet_route(method: str, spec, comm: PETSc.Comm, nev: int = 10, tolerances=None, **slepc):

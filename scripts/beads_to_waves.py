@@ -7,7 +7,7 @@ solitary wave's speed in m/s at given maximal bead velocities (the uncompressed 
         [-max_velocity 0.01m/s,0.1m/s,1m/s] [-cells 80,160,320] [-output runs/beads_to_waves.md]
 
 -beads: materials of hertzpetsc.materials (steel, chrome_steel, brass, aluminium, glass, ptfe, or custom with
--youngs, -poisson, -density); the solitary wave needs one material. Solver prefix: -sol_ (the solitary wave's SNES).
+-youngs, -poisson, -density); the solitary wave needs one material.
 The numbers of docs/from-beads-to-waves.md are this driver's default output.
 """
 import math

@@ -14,9 +14,8 @@ refined, symmetry multipliers deflated); unstable when rho - 1 > -tol_rho. Where
 grid q, the edge is located by bisection in q, each sample the q / 2 pi of fewest beads per cell in the middle third
 of the bracket (at most -max_cell), to a relative bracket -locate_tol / 2. The amplitudes are dealt to the ranks.
 Table: the located edges with rho - 1 on both sides, and the grid's verdicts; figure boundary_in_q.png (with -map, a
-map file of precompression_map.py, on the plane with that map's located edges). Solver prefixes: -precomp_ (the wave
-solves), -floquet_ (the flows of the cell maps). -render computes nothing: it rewrites -table and the figure from
--output.
+map file of precompression_map.py, on the plane with that map's located edges). -render computes nothing: it
+rewrites -table and the figure from -output.
 """
 import math
 import os
@@ -35,11 +34,9 @@ from hertzpetsc.records import check_kind, load_npz, on_rank0, prepare_outputs, 
 from hertzpetsc.studies.maps import (MAX_MAP_BEADS, QB_MAX_CELL, QMAP_FORMAT, QMAP_FORMAT_V1, QBoundary,  # noqa: E402
                                      QBoundaryParameters, check_same_chain, q_boundary_table, read_map)
 
-ROLES = QBoundary.ROLES
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, QBoundary.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
     levels = opts.numbers("A", "0.1,0.3,1,1.5,2,3,5,10,30,100,inf", "amplitudes A = max |u| (inf: the uncompressed "

@@ -17,8 +17,6 @@ fitted decay rate of |rest| is compared with ln|mu_3| (per script-T = 1), the ph
 Pairs (-pairs_q, skipped with -no_pairs): the compacton of the branch point, unrefined or refined at the same gap, alone
 and as front/rear of a pair -spacing beads apart, run until the rear one has passed -pairs_travel beads beyond
 the front one's start; errors against the exact translation.
-Solver prefixes: -cdyn_ (the chain TS; its error norm defaults to -cdyn_ts_adapt_wnormtype infinity), -cwin_
-(the window flows giving the modes and the refined pair compactons).
 """
 import math
 import sys
@@ -35,11 +33,9 @@ from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.compacton_dynamics import CompactonDynamics  # noqa: E402
 from hertzpetsc.studies.compacton_pairs import CompactonPairs  # noqa: E402
 
-ROLES = CompactonDynamics.ROLES
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, CompactonDynamics.ROLES)
     stability = opts.path("stability", "results/compacton_stability.npz", "compacton stability file")
     alpha = opts.real("alpha", 1.5, "Hertz exponent of the compactons", valid=(lambda a: a > 1, "> 1"))
     qs = opts.numbers("q", "7*pi/25,pi/50,0", "wavenumbers in the stability file (0: the solitary wave)",

@@ -16,8 +16,6 @@ Jordan pair at 1, the dominant nontrivial multipliers, the unstable ones, their 
 Krylov-Schur on the exponentially weighted shell (weight exp(eta j); -nev multipliers at most, only those above
 2 exp(-eta)) against LAPACK. Each (alpha, q) runs on one rank; the alphas of a continuation step are dealt to the
 ranks.
-Solver prefixes: -cwin_ (TS of the window flows), -ccheck_ (TS of the independent residual check), -cstab_
-(the EPS: -cstab_eps_*), -floquet_ (the ring check's flow).
 Ring check (-ring_q, skipped with -no_ring): the exact compacton of the first alpha at each -ring_q on a periodic
 chain of 2 pi / q beads, which is the paper's periodic wave: rho(F_q) with the feedback, against the isolated one.
 """

@@ -13,7 +13,6 @@ Delta = a p q and rest behind, unchanged profile (hertzpetsc.compacton.lattice_c
 after every case; the figures come from the first branch and the first q. -theta is the extra phase between the
 two compactons (theta = q d, d >= min(0, 2 - F(q)) beads; the paper's fig. graphulin uses 2); -c the velocity in
 beads per unit time (it fixes the amplitude a = (c q)^(2/(alpha-1))).
-Solver prefix: -chain_ (TS; default RK 8(7), rtol 1e-12, atol 1e-14).
 """
 import sys
 
@@ -31,7 +30,7 @@ from hertzpetsc.studies.compactons import CompactonStudy  # noqa: E402
 
 
 def main():
-    opts = AppOptions(__doc__, {"chain_": ("the chain's TS", ("ts",))})
+    opts = AppOptions(__doc__, CompactonStudy.ROLES)
     paths = opts.path("branches", "results/branch_alpha1.5.npz", "branch files (comma-separated)")
     qs = opts.numbers("q", "7*pi/25,pi/10", "wavenumbers, each <= q_k", valid=(lambda q: q > 0, "> 0"),
                       distinct=True)

@@ -5,9 +5,7 @@
 
 Writes the branch file (-output) point by point; -resume continues it, -force overwrites it. Prints one line per
 converged point on rank 0: q, Newton iterations, residual, ||u||_inf, N(q), script-T(q), sub-steps.
-Solver prefixes: -tw_ (the travelling-wave SNES and its KSP/PC: -tw_solver direct|nk, -tw_jacobian aij|shell,
--tw_snes_type qn, -tw_snes_monitor, -tw_ksp_type gmres, ...), -sol_ (the solitary wave giving k_alpha for the
-figures). A grid that would not fit in memory is refused up front with an estimate (hertzpetsc.resources).
+A grid that would not fit in memory is refused up front with an estimate (hertzpetsc.resources).
 """
 import math
 import sys
@@ -24,11 +22,9 @@ from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.roles import uses  # noqa: E402
 from hertzpetsc.studies.branch import BranchStudy  # noqa: E402
 
-ROLES = uses("tw_", "sol_")
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, uses("tw_", "sol_"))
     params = ContinuationParameters(
         alpha=opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1")),
         M=opts.integer("M", 50, "target wavenumbers q = m pi / M", minimum=1),

@@ -7,7 +7,7 @@
 Computes the branch q = pi -> pi/M on each grid h = pi/K, and for those of q = pi, 3pi/10, 7pi/25, 9pi/50, pi/50
 that are on it (q = m pi / M) reports ||u||_inf, p(q), N(q), T(q) on each grid, the observed order
 log2(|d_{h,h/2}| / |d_{h/2,h/4}|) on the three finest grids, and the Richardson extrapolation
-X_{h/2} + (X_{h/2} - X_h)/3. Solver prefix: -tw_ (travelling-wave SNES).
+X_{h/2} + (X_{h/2} - X_h)/3.
 """
 import sys
 
@@ -23,7 +23,7 @@ from hertzpetsc.studies.branch import ConvergenceStudy  # noqa: E402
 
 
 def main():
-    opts = AppOptions(__doc__, {"tw_": ("travelling-wave SNES", ("snes",))})
+    opts = AppOptions(__doc__, ConvergenceStudy.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
     M = opts.integer("M", 50, "target wavenumbers q = m pi / M", minimum=1)
     cells = opts.numbers("cells", "250,500,1000,2000,4000", "grids K (h = pi/K), at least three, all different",

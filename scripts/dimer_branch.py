@@ -8,8 +8,7 @@
 Per-bead wavenumber q, one odd profile per bead of the cell (u: mass 1, v: mass epsilon), fixed amplitude a (first
 sine coefficient of u). From the monatomic wave at epsilon = 1 (two natural steps), pseudo-arclength in
 (u, v, lam, epsilon) through folds in epsilon, until epsilon passes epsilon_end or max_steps. Table: epsilon
-reached, omega at both ends, ||v|| / ||u||, folds. Figure: dimer_epsilon.png. Solver prefixes: -dimer_ (the
-arclength Newton), -dimer_natural_ (the first natural steps).
+reached, omega at both ends, ||v|| / ||u||, folds. Figure: dimer_epsilon.png.
 """
 import math
 import sys
@@ -25,11 +24,9 @@ from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.precompression import DimerFamilies, DimerParameters  # noqa: E402
 
-ROLES = DimerFamilies.ROLES
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, DimerFamilies.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
     qs = opts.numbers("q", "3*pi/10", "per-bead wavenumbers in (0, pi/2)",

@@ -13,8 +13,7 @@ frequency, amplitude and damping.
 
 Each case: -run_in driving periods from rest, Newton (dense Jacobian for N <= 200, Newton-Krylov above), the
 multipliers, then the response sampled -samples times per period. The cases are dealt to the ranks. Records:
-schema hertzpetsc-driven-generation-1. Solver prefixes: -drive_ (Newton SNES and state flow), -floquet_ (tangent
-flow, SLEPc for N > 200).
+schema hertzpetsc-driven-generation-1.
 """
 import sys
 
@@ -29,11 +28,9 @@ from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.driven import WAVEFORMS, Generation, GenerationParameters  # noqa: E402
 
-ROLES = Generation.ROLES
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, Generation.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file (the travelling-wave family)")
     N = opts.integer("N", 60, "beads", minimum=1)
     alpha = opts.real("alpha", 1.5, "Hertz exponent (must be the branch's)", valid=(lambda x: x > 1, "> 1"))

@@ -13,8 +13,7 @@ With -beads (hertzpetsc.units) the chain is that of the beads pressed by -static
 console and in a section of the table in SI units.
 For each mode k: the peak of the last bead's amplitude over omega near omega_k (golden section) from Newton-shooting
 periodic responses of the Hertz chain, and from the damped linear chain; the multipliers at the peak against
-exp(T lambda) of the linear damped chain. Records: schema hertzpetsc-driven-resonances-1. Solver prefixes: -drive_
-(Newton SNES and state flow), -floquet_ (tangent flow).
+exp(T lambda) of the linear damped chain. Records: schema hertzpetsc-driven-resonances-1.
 """
 import sys
 
@@ -27,7 +26,6 @@ from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.driven import LinearResonances, ResonanceParameters, drive_options  # noqa: E402
 
-ROLES = LinearResonances.ROLES
 # the SI columns of a mode (hertzpetsc.units.BeadChain.table)
 SI_COLUMNS = [("f_k", "frequency", lambda r: r["omega_k"]), ("peak linear", "frequency",
                                                                   lambda r: r["peak_linear"]),
@@ -35,7 +33,7 @@ SI_COLUMNS = [("f_k", "frequency", lambda r: r["omega_k"]), ("peak linear", "fre
 
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, LinearResonances.ROLES)
     drive, beads = drive_options(opts, N=20, delta0=1.0, gamma=0.01, amplitude=1e-6, omega=1.0, beads=True)
     modes = opts.numbers("modes", "", "mode numbers k (default: all 1..N)", expr=False, kind=int,
                          valid=(lambda k: k >= 1, ">= 1"), distinct=True, minimum_count=0)

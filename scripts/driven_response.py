@@ -30,8 +30,6 @@ from hertzpetsc.studies.driven import (EVENT_NAMES, ResponseCurve, ResponseParam
                                        corner_arclength, drive_options)
 from hertzpetsc.units import parse_quantity  # noqa: E402
 
-ROLES = ResponseCurve.ROLES
-
 
 def si_p_end(text, kind, opts, beads):
     """-p_end_si in SI units (refused without -beads, or with -p_end)."""
@@ -42,7 +40,7 @@ def si_p_end(text, kind, opts, beads):
 
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, ResponseCurve.ROLES)
     drive, beads = drive_options(opts, beads=True)
     parameter = opts.string("parameter", "omega", "continuation parameter", choices=("omega", "amplitude"))
     p_end = opts.real("p_end", 0.3, "end value of the parameter", expr=True)

@@ -12,7 +12,6 @@ Beads 1..N of the periodic chain of P beads (the refinement file's) between actu
 of the wave (its profile sampled from the refined chain on >= -samples points); Newton from the wave; all 2N
 multipliers over tau = 2 pi / omega; rho(F_q)^(P/m) of the periodic chain for comparison; each at every flow
 tolerance of -rtols (the convergence of the multipliers). Records: schema hertzpetsc-driven-wave-ends-1.
-Solver prefixes: -drive_ (Newton SNES and state flow), -floquet_ (tangent flows).
 """
 import math
 import sys
@@ -29,11 +28,9 @@ from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.studies.driven import WaveEnds, WaveEndsParameters  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
-ROLES = WaveEnds.ROLES
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, WaveEnds.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     refined_path = opts.path("refined", "results/refined_N100.npz", "refinement file (the periodic chain's waves)")
     qs = opts.numbers("q", "5*pi/50,9*pi/50,13*pi/50,14*pi/50,15*pi/50,16*pi/50,20*pi/50,30*pi/50,40*pi/50",

@@ -15,7 +15,6 @@ Krylov-Schur started from those modes. rho excludes the four trivial multipliers
 counts |lambda| > 1 + tol_rho over all 2N multipliers. -reference: a Floquet scan file whose rho(N = 100) the
 table quotes. Flow tolerances: the paper's (rtol 1e-12, atol 1e-14; -floquet_ts_rtol / -floquet_ts_atol
 override). Records go to -npz as they are computed (-resume continues).
-Solver prefix: -floquet_ (TS of the variational equations -floquet_ts_*, the seeded eigensolver -floquet_eps_*).
 """
 import sys
 

@@ -17,7 +17,6 @@ tol_rho = 1e-4 keeps a factor 10. -check_q: rho(Phi_q) of the full-period monodr
 Routes: symmetric (default; all 2N multipliers from the wave's cell of N/gcd(m,N) beads over its shortest time
 symmetry, by Bloch sectors, each q on one rank and the q dealt to the ranks: hertzpetsc.symmetry), dense (LAPACK
 dgeev on the assembled F_q, the paper's route) and slepc (Krylov-Schur on the shell operator, the nev dominant).
-Solver prefix: -floquet_ (the flow of the variational equations -floquet_ts_*, the eigensolver -floquet_eps_*).
 """
 import math
 import sys

@@ -11,7 +11,6 @@ multiples of script-T the deviation from the exact travelling wave D(t) = ||S^k 
 computed (paper: stable at q = 3pi/10 over t ~ 4000, destroyed near t ~ 360 at q = 7pi/25). Writes
 ``summary.json`` in the output directory: destruction time (first D > 0.1), the times D first exceeds 1e-6,
 1e-3, max D, relative energy drift. An existing run directory is only continued (-resume) or overwritten (-force).
-Solver prefix: -chain_ (TS; default -chain_ts_rk_type 8vr, -chain_ts_rtol 1e-12, -chain_ts_atol 1e-14).
 """
 import json
 import math
@@ -32,7 +31,7 @@ from hertzpetsc.waves import orbit_on_chain  # noqa: E402
 
 
 def main():
-    opts = AppOptions(__doc__, {"chain_": ("the chain's TS", ("ts",))})
+    opts = AppOptions(__doc__, LongRun.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     q = opts.real("q", 3 * math.pi / 10, "wavenumber (a branch point with N q / (2 pi) integer)", expr=True,
                   valid=(lambda x: x > 0, "> 0"))

@@ -7,7 +7,7 @@ the composite approximation (eq. solapprox); the rescaled norm ||u||_inf q^(2/(a
 
 Errors are relative to k_alpha: over the period, and over |xi - pi| <= window (the paper: agreement in a domain
 of width ~0.2 around pi). Figures approxz.png (zoom near pi, with the inner solution) and approx.png (the
-composite over the period) at the smallest q of the branch. Solver prefix: -sol_ (the solitary-wave SNES).
+composite over the period) at the smallest q of the branch.
 """
 import math
 import sys
@@ -24,7 +24,7 @@ from hertzpetsc.studies.longwave import LongWaveStudy  # noqa: E402
 
 
 def main():
-    opts = AppOptions(__doc__, {"sol_": ("solitary-wave SNES", ("snes",))})
+    opts = AppOptions(__doc__, LongWaveStudy.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     n = opts.integer("cells_per_unit", 160, "grid of the solitary wave (delta = 1/n, even)", minimum=2,
                      maximum=10 ** 5)

@@ -22,8 +22,6 @@ With -beads (hertzpetsc.units) the chain is that of the beads pressed by -static
 -masses; a and A in units of the length scale, by default the static overlap: delta0 = 1), and every row is also
 shown in SI units (A in um, frequency in Hz, phase speed in m/s); the table gets a section in SI units: per q, the
 first and last amplitude of the grid and the gap opening.
-Solver prefix: -precomp_ (the bordered Newton: -precomp_snes_*, -precomp_ksp_*,
--precomp_pc_*).
 """
 import math
 import sys
@@ -42,7 +40,6 @@ from hertzpetsc.studies.precompression import (KIND_GAP, KIND_GRID, AmplitudeFam
                                                 AmplitudeParameters)
 from hertzpetsc.units import bead_options  # noqa: E402
 
-ROLES = AmplitudeFamilies.ROLES
 # the SI columns of a row (hertzpetsc.units.BeadChain.table)
 SI_COLUMNS = [("A", "length", lambda r: r["A"]), ("f", "frequency", lambda r: r["omega"]),
               ("phase speed", "speed", lambda r: r["omega"] / r["q"])]
@@ -60,7 +57,7 @@ def si_rows(records):
 
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, AmplitudeFamilies.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
     masses = opts.numbers("masses", "1", "the repeating mass pattern", valid=(lambda m: m > 0, "> 0"))

@@ -18,8 +18,7 @@ rho - 1 > tol_rho. Where the verdict of a chain of -locate (chain, infinite, or 
 its root is located by bisection in log a to a relative bracket -locate_tol; the gap opening is located on the way;
 the uncompressed limit closes each q. With -epsilon != 1 the chain is the dimer (masses 1, epsilon), the waves its
 acoustic ones. The q are dealt to the ranks. Table: the located boundary with rho - 1 on both sides, and the
-verdicts; figure precompression_map.png. Solver prefixes: -precomp_ (the wave solves), -floquet_ (the flows of
-the cell maps, -floquet_ts_*), -shoot_ and -shoot_jac_ (the refinement).
+verdicts; figure precompression_map.png.
 
 -render computes nothing: it rewrites -table (and the figure) from the file -output, of this kind or of kind
 hertzpetsc-precompression-map-1 (the maps before issue 23: rho - 1 per (q, a) on the dense route); such a file is
@@ -46,14 +45,13 @@ from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MAP_FORMAT_V2, MapParameters
                                      check_comparable, compare_v1, map_format, map_table, map_v1_as_v2, read_map)
 from hertzpetsc.studies.precompression import amplitude_grid  # noqa: E402
 
-ROLES = StabilityMap.ROLES
 # the options that define the computation (refused with -render, which reads it from the file)
 COMPUTATION = ("alpha", "delta0", "N", "epsilon", "m", "q", "a", "a_min", "a_max", "ds", "cells_per_pi", "rtol",
                "tol_rho", "twists", "locate", "locate_tol")
 
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, StabilityMap.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
     N = opts.integer("N", 100, "beads of the periodic chain", minimum=3)

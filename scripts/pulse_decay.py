@@ -9,7 +9,7 @@ decay law (A^p linear in the bead index: p = -1 Hunt-Crossley, p = -1/5 Kuwabara
 A free chain of N beads at rest, bead 0 launched at each velocity v0; the amplitude A_n of bead n is its largest
 velocity (sampled every -sample, the peak interpolated by a parabola); the decay law fitted over beads
 -skip..N - 1 - -skip: the exponent p whose A^p is most nearly linear, and d(A^p)/dn per unit damping at the law's p
-(the same for every v0 where the law holds). Records: schema hertzpetsc-pulse-1. Solver prefix: -chain_ (the flow).
+(the same for every v0 where the law holds). Records: schema hertzpetsc-pulse-1.
 """
 import sys
 

@@ -13,8 +13,6 @@ with both flows; r(q). -method symmetric (default) refines on the wave's cell of
 time symmetry (the state is then exactly invariant under it), each q on one rank and the q dealt to the ranks; full
 is the paper's Gauss-Newton on the whole chain over script-T. The refined states are written after each q
 (-resume skips the q already in -output). Figure: errors.png (fig. errors).
-Solver prefixes: -shoot_ (the refinement: its flows -shoot_ts_* and -shoot_gn_max_it), -shoot_jac_ (the flow of
-its Jacobian: -shoot_jac_ts_*), -chain_ (the paper's flow for E: -chain_ts_*).
 """
 import math
 import sys

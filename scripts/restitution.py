@@ -8,8 +8,7 @@ and its small-dissipation law (Hunt-Crossley: 1 - e = c v; Kuwabara-Kono: 1 - e 
 
 Two free beads touching at rest overlap, bead 1 at velocity v towards bead 2; the flow until the contact opens;
 e = (v2 - v1) / v after it, at rtol and 100 rtol (the refinement). -damping is Hunt-Crossley's c or Kuwabara-Kono's
-eta; -unclipped lets a contact pull (the original papers' form). Records: schema hertzpetsc-restitution-1. Solver
-prefix: -chain_ (the impacts' flows).
+eta; -unclipped lets a contact pull (the original papers' form). Records: schema hertzpetsc-restitution-1.
 """
 import sys
 

@@ -18,8 +18,6 @@ q against rho(F_q) of -reference, and the monodromy route at -convergence_q agai
 flow's tolerance (both appended to the table; computed on every run, on rank 0). Records are written
 after each q (-resume continues).
 Figure: slow_instabilities.png (gamma(q) on a log scale with the target resolution drawn; -figure_name renames it).
-Solver prefixes: -cm_ (the co-moving PEP: -cm_pep_*, -cm_st_*), -tw_ (profiles on the finer grids), -shoot_ and
--shoot_jac_ (the refinement), -floquet_ (the flow of the sector maps: -floquet_ts_*).
 """
 import math
 import os

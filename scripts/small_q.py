@@ -11,7 +11,6 @@ level) is rewritten atomically; -resume continues a killed run from it. The tabl
 ||u||_inf q^(2/(alpha-1)) on each level, its observed order and extrapolated value against k_alpha of the
 solitary wave (extrapolated in its own grid step), and the extrapolated ||u||_inf, p(q), N(q). Figure smallq.png:
 the product on each level and extrapolated, against q, with k_alpha (a JSON summary beside the table).
-Solver prefixes: -tw_ (travelling-wave SNES), -sol_ (solitary wave).
 """
 import math
 import os
@@ -30,11 +29,9 @@ from hertzpetsc.roles import uses  # noqa: E402
 from hertzpetsc.studies.branch import SmallQParameters, SmallQStudy  # noqa: E402
 from hertzpetsc.studies.solitary import k_alpha_extrapolated  # noqa: E402
 
-ROLES = uses("tw_", "sol_")
-
 
 def main():
-    opts = AppOptions(__doc__, ROLES)
+    opts = AppOptions(__doc__, uses("tw_", "sol_"))
     params = SmallQParameters(
         alpha=opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1")),
         q_stop=opts.real("q_stop", math.pi / 400, "smallest wavenumber, in (0, pi/50]", expr=True,

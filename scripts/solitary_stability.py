@@ -14,8 +14,6 @@ d ln H / d ln c at fixed lattice from the Jordan vectors and from H along the fa
 of precompression 1, and the truncation: the tails at the window's ends and the changes in a window of 2M beads.
 -M 0 takes the fewest beads whose ends see the tails of the largest c0 at -tail. Each alpha runs on one rank; the
 alphas of a continuation step are dealt to the ranks.
-Solver prefixes: -cwin_ (TS of the window flows), -ccheck_ (TS of the independent residual check), -sol_ (SNES of
-eq. adr).
 """
 import sys
 

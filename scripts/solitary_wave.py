@@ -7,7 +7,7 @@ domain length.
 
 For each alpha: k_alpha on grids delta = 1/n (n in -cells) at L = -half_length, the observed order and the Richardson
 extrapolation (h^2); and k_alpha for L in -lengths at the finest n. Figure ondesol.png: r(s) and y(s) for the
-first alpha on the finest grid. Solver prefix: -sol_ (the solitary-wave SNES, e.g. -sol_snes_monitor).
+first alpha on the finest grid.
 """
 import sys
 
@@ -23,7 +23,7 @@ from hertzpetsc.studies.solitary import SolitaryStudy  # noqa: E402
 
 
 def main():
-    opts = AppOptions(__doc__, {"sol_": ("solitary-wave SNES", ("snes",))})
+    opts = AppOptions(__doc__, SolitaryStudy.ROLES)
     alphas = opts.numbers("alphas", "1.5,2,2.5", "Hertz exponents", expr=False, valid=(lambda a: a > 1, "> 1"),
                           distinct=True)
     cells = opts.numbers("cells", "10,20,40,80,160", "grids n (delta = 1/n, even), at least three, all different",

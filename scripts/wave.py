@@ -17,8 +17,7 @@ the pattern's lowest or highest frequency at q, and from the paper's branch for 
 periodic chain of N beads, refined by Gauss-Newton on its cell (E before and after), its Floquet multipliers
 modulo shift from the Bloch sectors of the wave's cell on N beads and on each longer chain of -sizes. One line
 and one table row per q; a q that does not converge is named below the table, the others go on, and the
-driver exits with status 3; a family that folds before A says at which A and which branch to try. Solver prefixes: -precomp_ (the precompressed wave), -tw_ (the branch), -shoot_ and
--shoot_jac_ (the refinement), -floquet_ (the sectors' flows).
+driver exits with status 3; a family that folds before A says at which A and which branch to try.
 """
 import math
 import sys

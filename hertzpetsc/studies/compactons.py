@@ -48,6 +48,8 @@ class CompactonStudy:
     when the study is built), each run at ``c`` beads per unit time on a free chain with ``margin`` beads of rest
     behind, until the whole train has passed ``travel`` beads (TS prefix ``chain_``)."""
 
+    ROLES = uses("chain_")
+
     def __init__(self, branches, qs, comm, theta=2.0, c=1.0, margin=10, travel=100, dt_snapshot=0.05):
         branches = [check_instance("branches", b, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
                     for b in members("branches", branches, "Branches")]
@@ -79,7 +81,7 @@ class CompactonStudy:
         check_work("travel", travel, seconds, f"the {2 * len(branches) * len(qs)} compacton runs")
         self.cases = []
         if branches:
-            configure(uses("chain_"), comm, ChainSpec(branches[0].model, 3, "free"))
+            configure(self.ROLES, comm, ChainSpec(branches[0].model, 3, "free"))
 
     def run(self):
         """Yield each :class:`CompactonCase` as it is done."""

@@ -324,8 +324,7 @@ class ResponseCurve(DrivenStudy):
     reached ends the run with a :class:`ResponseNotFound` naming the values not computed, the records before it
     kept). The first response: Newton from rest after ``run_in`` driving periods (0: from rest; not found: a
     :class:`ResponseNotFound` with the run-in's residual). ``switch``: steps taken on the
-    period-doubled branch from each confirmed period doubling (branch switching). Solver prefixes: ``drive_`` (SNES
-    and state flow), ``floquet_`` (tangent flow, EPS). Records: module docstring."""
+    period-doubled branch from each confirmed period doubling (branch switching). Records: module docstring."""
 
     Parameters = ResponseParameters
     FORMAT, FIELDS = RESPONSE_FORMAT, RESPONSE_FIELDS

@@ -18,6 +18,8 @@ class LongWaveStudy:
     """Errors of eq. solapprox and of the inner solution, relative to k_alpha, at the ``count`` smallest q (computed
     when first asked for: building the study checks its arguments and the options of ``sol_``)."""
 
+    ROLES = uses("sol_")
+
     def __init__(self, branch, cells_per_unit=160, window=0.1, count=Q_REPORT):
         check_instance("branch", branch, Branch, "a Branch (Branch.load(path), hz.compute_branch)")
         window = check_real("window", window, "the half-width of the window around xi = pi", 0.0, math.pi,
@@ -27,7 +29,7 @@ class LongWaveStudy:
         self.params = SolitaryParameters(branch.alpha, cells_per_unit)
         self.order = sorted(branch.points, key=lambda p: p.q)[:count]
         self.smallest = self.order[0]
-        configure(uses("sol_"), PETSc.COMM_SELF)
+        configure(self.ROLES, PETSc.COMM_SELF)
 
     @functools.cached_property
     def wave(self):

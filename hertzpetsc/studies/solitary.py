@@ -35,6 +35,8 @@ class SolitaryStudy:
     L = ``half_length``, the observed order and the Richardson value (delta^2); and k_alpha for L in ``lengths`` at
     the finest n."""
 
+    ROLES = uses("sol_")
+
     def __init__(self, alphas, cells, lengths, comm, half_length=8.0):
         alphas = check_reals("alphas", alphas, "Hertz exponents", 1.0, distinct=True)
         cells = sorted(check_integers("cells", cells, 2, "grids n (delta = 1/n, even)"))
@@ -49,7 +51,7 @@ class SolitaryStudy:
         self.half_length = float(half_length)
         self.results = {}
         self.finest = {}
-        configure(uses("sol_"), comm)
+        configure(self.ROLES, comm)
 
     def run(self):
         """Solve for every alpha; yields alpha after each."""

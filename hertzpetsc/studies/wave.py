@@ -98,9 +98,7 @@ class WaveParameters:
 
 
 class WaveStudy(Study):
-    """The wave, its refinement and its multipliers at each q (module docstring). Solver roles: ``precomp_`` (the
-    wave, a precompressed chain) or ``tw_`` (the uncompressed monatomic chain's branch to q), ``shoot_`` and
-    ``shoot_jac_`` (the refinement's flows), ``floquet_`` (the Bloch sectors' flows). Collective over ``comm``."""
+    """The wave, its refinement and its multipliers at each q (module docstring). Collective over ``comm``."""
 
     Parameters = WaveParameters
     FORMAT, FIELDS = WAVE_FORMAT, WAVE_FIELDS

@@ -11,9 +11,7 @@ modulus in one place. Routes: :class:`DenseFloquet` (all 2N by LAPACK, as the pa
 Bloch sectors of the wave's cell, any N = L M) and :class:`hertzpetsc.slow.DeflatedSectors` (symmetry multipliers
 deflated). Translation and time shift give four trivial multipliers at 1 (Jordan blocks), which an orbit off by
 epsilon splits by about sqrt(epsilon): :func:`trivial_multipliers` identifies them (a deflated route knows its own).
-
-Options: the prefix ``floquet_`` holds the flow of the variational equations (``-floquet_ts_rtol`` ...) and the
-eigensolver (``-floquet_eps_nev`` ...).
+The routes by name: :func:`hertzpetsc.roles.floquet_route`; the role ``floquet_``: :data:`hertzpetsc.roles.REGISTRY`.
 """
 from __future__ import annotations
 

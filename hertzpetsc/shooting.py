@@ -28,11 +28,8 @@ Where the iteration stops above the target (no decrease with a fresh Jacobian, o
 measured at the refined state (:meth:`ShiftMap.floor`: S X(script-T) by the same flow with its tolerances divided by
 ``FLOOR_FACTOR``, E_floor the difference of the two, relative to ||X(0)||): the refinement is accepted *at the flow's
 floor* when E <= tol + E_floor (the excess over the target is not resolved by the flow) and says so
-(:class:`Refinement` ``E_floor``, ``E_fine``); else it did not converge.
-
-Options: the refinement's flows and Gauss-Newton live under the prefix ``shoot_`` (``-shoot_ts_rtol``, ...,
-``-shoot_gn_max_it``), its Jacobian's flow under ``shoot_jac_``; E(q) measured with the paper's flow uses the
-simulations' prefix ``chain_``.
+(:class:`Refinement` ``E_floor``, ``E_fine``); else it did not converge. Roles ``shoot_``, ``shoot_jac_``, ``chain_``
+(E with the paper's flow): :data:`hertzpetsc.roles.REGISTRY`.
 """
 from __future__ import annotations
 

@@ -412,13 +412,14 @@ class Kind:
 
     def schema(self):
         """The schema page's table of the kind (docs/schemas.md, generated from the columns)."""
-        lines = ["| name | shape | unit | meaning |", "|---|---|---|---|", f"| `format` | () | | `\"{self.name}\"` |"]
+        lines = ["| name | shape | unit | meaning |", "|---|---|---|---|", f"| `format` | () | - | `\"{self.name}\"` |"]
         for c in self.columns:
-            shape = f"({c.shape.strip('()')})" if c.constant else f"(P{', ' + c.shape.strip('()') if c.shape else ''})"
+            dims = ([] if c.constant else ["P"]) + [d.strip() for d in c.shape.strip("()").split(",") if d.strip()]
+            shape = "(" + ", ".join(dims) + ("," if len(dims) == 1 else "") + ")"
             kind = "" if np.dtype(c.dtype).kind == "f" else " " + {"i": "int", "U": "str", "c": "complex",
                                                                      "b": "bool"}.get(np.dtype(c.dtype).kind, "")
-            lines.append(f"| `{c.name}` | {shape}{kind} | {c.unit} | {c.description}"
-                         f"{' (absent from some files)' if c.optional else ''} |")
+            absent = " (absent from some files)" if c.optional and "absent" not in c.description else ""
+            lines.append(f"| `{c.name}` | {shape}{kind} | {c.unit or '-'} | {c.description}{absent} |")
         return "\n".join(lines)
 
 

@@ -103,6 +103,9 @@ def test_every_file_a_driver_writes_names_its_provenance(work, tmp_path):
         check_provenance(about, {name: about["inputs"][name]["path"] for name in inputs})
         assert os.path.basename(about["argv"][0]) == script and about["ranks"] == ranks, (path, about)
         assert set(about["inputs"]) == set(inputs), (path, about["inputs"])
+    with h5py.File(tmp_path / "r.h5", "r") as f:          # a kind declared with its columns: units and meanings
+        assert f["wall_time"].attrs["units"] == "s" and f["x"].attrs["description"].startswith("refined state")
+        assert set(json.loads(f["__columns__"][()].decode())) >= set(f) - {"format", "__provenance__", "__columns__"}
     with open(run / "run.json") as f:
         about = json.load(f)["provenance"]
     check_provenance(about)

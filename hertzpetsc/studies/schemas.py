@@ -11,8 +11,8 @@ PAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.absp
 
 def kinds() -> dict:
     """{kind name: Kind} of every record kind declared with its columns."""
-    from . import floquet, refinement, wave  # noqa: F401  (the modules that declare kinds with columns: importing
-    # one registers them)
+    # the modules that declare kinds with columns (importing one registers its kinds)
+    from . import compacton_pairs, floquet, refinement, wave  # noqa: F401
     return dict(KINDS)
 
 

@@ -322,9 +322,9 @@ def provenance(inputs=None, call=None, comm=None, digests=None):
     """What made a file, written by the record store into every file it writes (``__provenance__``, JSON): the
     package's version and git commit (None outside a work tree), the command line (``argv``) and, for a study,
     the call that built it (``call``), the software versions (Python, numpy, PETSc, SLEPc, MPI and their bindings),
-    the number of ranks of ``comm``, the date (UTC, ISO 8601) and the input files read ({name: {path, sha256}}: the
-    ``inputs`` {name: path}, or their ``digests`` already computed by :func:`input_digests`). Collective when
-    ``inputs`` are given (their digests are read by rank 0)."""
+    the number of ranks of ``comm``, the date the run opened the file (UTC, ISO 8601) and the input files read
+    ({name: {path, sha256}}: the ``inputs`` {name: path}, or their ``digests`` already computed by
+    :func:`input_digests`). Collective unless ``digests`` are given (rank 0 reads the inputs)."""
     import datetime
     import sys
     from . import __version__

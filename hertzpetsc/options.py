@@ -14,7 +14,6 @@ import ctypes
 import difflib
 import math
 import os
-import platform
 import re
 import signal
 import subprocess
@@ -27,10 +26,10 @@ from typing import Any, Iterator, Optional
 import numpy as np
 from petsc4py import PETSc
 
-from . import __version__, kernels
+from . import kernels
 from .console import print0
 from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure, RecordFileError, Terminated
-from .records import check_stores, name_path, prepare_outputs
+from .records import check_stores, name_path, prepare_outputs, provenance
 
 # seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
 ABORT_GRACE = 3.0
@@ -473,18 +472,9 @@ def check_ranks_agree(comm):
 
 
 def run_metadata(**extra):
-    """Software versions and run context recorded in output files."""
-    import petsc4py
-    meta = dict(hertzpetsc=__version__, petsc=".".join(map(str, PETSc.Sys.getVersion())),
-                petsc4py=petsc4py.__version__, numpy=np.__version__, python=platform.python_version(),
-                ranks=PETSc.COMM_WORLD.getSize(), argv=sys.argv, created=time.strftime("%Y-%m-%dT%H:%M:%S%z"))
-    try:
-        import slepc4py
-        meta["slepc4py"] = slepc4py.__version__
-    except ImportError:  # pragma: no cover - slepc4py is part of the stack, but not needed here
-        pass
-    meta.update(extra)
-    return meta
+    """The run's provenance (:func:`hertzpetsc.records.provenance`, the one builder) and ``extra``: a branch file's
+    ``meta``, a small-q summary's."""
+    return dict(provenance(comm=PETSc.COMM_WORLD), **extra)
 
 
 def _exit(code, message, collective):

@@ -29,6 +29,8 @@ import json
 import os
 import weakref
 import zipfile
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -224,18 +226,217 @@ def remove_stale_temporaries(path):
             pass
 
 
+def _sha256(path):
+    import hashlib
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
 def file_digest(path, comm=None, what="input file"):
     """sha256 of a file's content (rank 0 reads it; every rank gets the digest): an input's identity in the
     records made from it, so that a resume from another input is refused, naming it."""
-    import hashlib
+    return on_rank0(comm, _sha256, path, what=f"cannot read {what} {path!r}")
 
-    def digest():
-        h = hashlib.sha256()
-        with open(path, "rb") as f:
-            for chunk in iter(lambda: f.read(1 << 20), b""):
-                h.update(chunk)
-        return h.hexdigest()
-    return on_rank0(comm, digest, what=f"cannot read {what} {path!r}")
+
+def input_digests(inputs, comm=None):
+    """{name: {"path", "sha256"}} of the input files ``{name: path}`` that exist (a path naming no file, e.g. the
+    label of a branch computed in memory, has none), as rank 0 sees them: the one record of what a run read, in a
+    study's identity (``<name>_sha256``) and in every file's :func:`provenance`. Collective."""
+    def digests():
+        return {name: dict(path=str(path), sha256=_sha256(path)) for name, path in (inputs or {}).items()
+                if path and os.path.isfile(path)}
+    return on_rank0(comm, digests, what=f"cannot read the input files {sorted((inputs or {}).values())}")
+
+
+PROVENANCE = "__provenance__"      # the entry of every record file that says what made it (JSON)
+COLUMNS = "__columns__"            # the entry that names each entry's unit and meaning (JSON, from a kind's columns)
+ABOUT = (PROVENANCE, COLUMNS)      # entries about the file, not records or constants
+
+
+def _git_commit(directory):
+    """The commit checked out where ``directory`` lies (read from .git, no subprocess: a fork under MPI is not
+    safe everywhere), or None outside a git work tree."""
+    directory = os.path.abspath(directory)
+    while not os.path.exists(os.path.join(directory, ".git")):
+        if os.path.dirname(directory) == directory:
+            return None
+        directory = os.path.dirname(directory)
+    try:
+        git = os.path.join(directory, ".git")
+        if os.path.isfile(git):                         # a worktree or submodule: "gitdir: <path>"
+            with open(git) as f:
+                git = os.path.join(directory, f.read().split("gitdir:", 1)[1].strip())
+        common = git
+        if os.path.isfile(os.path.join(git, "commondir")):
+            with open(os.path.join(git, "commondir")) as f:
+                common = os.path.join(git, f.read().strip())
+        with open(os.path.join(git, "HEAD")) as f:
+            head = f.read().strip()
+        if not head.startswith("ref:"):
+            return head
+        ref = head.split(None, 1)[1]
+        for base in (git, common):
+            if os.path.isfile(os.path.join(base, ref)):
+                with open(os.path.join(base, ref)) as f:
+                    return f.read().strip()
+        with open(os.path.join(common, "packed-refs")) as f:
+            for line in f:
+                if line.rstrip().endswith(" " + ref):
+                    return line.split()[0]
+    except (OSError, IndexError):
+        pass
+    return None
+
+
+def _software():
+    """Versions of the package's stack: the bindings always, the libraries (PETSc, SLEPc, MPI) where the run has
+    started PETSc (nothing is initialised for this)."""
+    import platform
+    import sys
+    out = dict(python=platform.python_version(), numpy=np.__version__)
+    for name in ("petsc4py", "slepc4py", "mpi4py"):
+        try:
+            out[name] = __import__(name).__version__
+        except ImportError:
+            out[name] = None
+    if "petsc4py.PETSc" in sys.modules:
+        from petsc4py import PETSc
+        out["petsc"] = ".".join(map(str, PETSc.Sys.getVersion()))
+        try:
+            from slepc4py import SLEPc
+            out["slepc"] = ".".join(map(str, SLEPc.Sys.getVersion()))
+        except ImportError:
+            pass
+        try:
+            from mpi4py import MPI
+            out["mpi"] = MPI.Get_library_version().splitlines()[0].split(",")[0].strip()
+        except ImportError:
+            pass
+    return out
+
+
+def provenance(inputs=None, call=None, comm=None, digests=None):
+    """What made a file, written by the record store into every file it writes (``__provenance__``, JSON): the
+    package's version and git commit (None outside a work tree), the command line (``argv``) and, for a study,
+    the call that built it (``call``), the software versions (Python, numpy, PETSc, SLEPc, MPI and their bindings),
+    the number of ranks of ``comm``, the date the run opened the file (UTC, ISO 8601) and the input files read
+    ({name: {path, sha256}}: the ``inputs`` {name: path}, or their ``digests`` already computed by
+    :func:`input_digests`). Collective unless ``digests`` are given (rank 0 reads the inputs)."""
+    import datetime
+    import sys
+    from . import __version__
+    mpi = mpi_comm(comm)
+    return dict(hertzpetsc=__version__, commit=_git_commit(os.path.dirname(__file__)), argv=list(sys.argv),
+                call=call, ranks=1 if mpi is None else mpi.Get_size(), **_software(),
+                created=datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
+                inputs=digests if digests is not None else input_digests(inputs, comm))
+
+
+def file_provenance(data):
+    """The provenance of a loaded record file (a dict of its arrays, or an AppendRecords header) as a dict, or None
+    for a file written before provenance was recorded."""
+    value = data.get(PROVENANCE, data.get("provenance"))
+    if value is None:
+        return None
+    return json.loads(str(value)) if not isinstance(value, dict) else value
+
+
+def resumed_provenance(new, old):
+    """``new`` with the provenance of the runs that wrote the resumed file before (``earlier``, oldest first)."""
+    if not old:
+        return new
+    earlier = list(old.get("earlier", [])) + [{k: v for k, v in old.items() if k != "earlier"}]
+    return dict(new, earlier=earlier)
+
+
+# --- record kinds declared once -----------------------------------------------------------------------------------
+UNITS = {"1": "dimensionless: the scaled chain's units (unit mass, the law's scale; time as in eq. ad)",
+         "s": "seconds of wall-clock time", "count": "a whole number", "": "a label or code (no unit)"}
+
+
+@dataclass(frozen=True)
+class Column:
+    """One entry of a record kind: its ``name`` in the file, a one-line ``description``, its ``unit`` (a key of
+    :data:`UNITS`), numpy ``dtype``, ``format`` (how a table shows a value), ``shape`` (beyond the record axis, as
+    the schema page writes it: "(s,)", "(K+1,)") and whether it is a ``constant`` (once per file) or a field (one
+    value per record). ``optional``: absent from some files (a label only some files have, a field added later)."""
+
+    name: str
+    description: str
+    unit: str = "1"
+    dtype: Any = float
+    format: str = ".6g"
+    shape: str = ""
+    constant: bool = False
+    optional: bool = False
+
+    def __post_init__(self):
+        if self.unit not in UNITS:
+            raise ValueError(f"column {self.name!r}: unit {self.unit!r} is not one of {sorted(UNITS)}")
+
+
+class Kind:
+    """A record kind (``hertzpetsc-<kind>-<n>``) declared once: its columns drive the record store's fields and
+    dtypes, the units and meanings written into each file (``__columns__``; HDF5 attributes ``units`` and
+    ``description``), the rows of a table (:meth:`cell`) and the schema page's table (:meth:`schema`)."""
+
+    def __init__(self, name, columns):
+        self.name, self.columns = name, tuple(columns)
+        names = [c.name for c in self.columns]
+        if len(set(names)) != len(names):
+            raise ValueError(f"kind {name}: a column declared twice")
+        self.by_name = {c.name: c for c in self.columns}
+        KINDS[name] = self
+
+    @property
+    def fields(self):
+        """The per-record fields, in declaration order."""
+        return tuple(c.name for c in self.columns if not c.constant)
+
+    @property
+    def dtypes(self):
+        return {c.name: c.dtype for c in self.columns if c.dtype is not float}
+
+    def about(self):
+        """{name: {unit, description, dtype}} of every column: the file's ``__columns__``."""
+        return {c.name: dict(unit=c.unit, description=c.description, dtype=np.dtype(c.dtype).str,
+                             constant=c.constant) for c in self.columns}
+
+    def cell(self, name, value):
+        """``value`` of column ``name`` as a table shows it (its ``format``)."""
+        return format(self.by_name[name].dtype(value) if self.by_name[name].dtype is not str else str(value),
+                      self.by_name[name].format)
+
+    def schema(self):
+        """The schema page's table of the kind (docs/schemas.md, generated from the columns)."""
+        lines = ["| name | shape | unit | meaning |", "|---|---|---|---|", f"| `format` | () | - | `\"{self.name}\"` |"]
+        for c in self.columns:
+            dims = ([] if c.constant else ["P"]) + [d.strip() for d in c.shape.strip("()").split(",") if d.strip()]
+            shape = "(" + ", ".join(dims) + ("," if len(dims) == 1 else "") + ")"
+            kind = "" if np.dtype(c.dtype).kind == "f" else " " + {"i": "int", "U": "str", "c": "complex",
+                                                                     "b": "bool"}.get(np.dtype(c.dtype).kind, "")
+            absent = " (absent from some files)" if c.optional and "absent" not in c.description else ""
+            lines.append(f"| `{c.name}` | {shape}{kind} | {c.unit or '-'} | {c.description}{absent} |")
+        return "\n".join(lines)
+
+
+KINDS = {}          # {kind name: Kind}: the kinds declared so far (each study module declares its own)
+
+
+def schema_page(text, kinds=None):
+    """``text`` (docs/schemas.md) with the table between ``<!-- columns KIND -->`` and ``<!-- end columns -->``
+    replaced by that kind's :meth:`Kind.schema`: the page's tables are generated from the declarations."""
+    import re
+    kinds = KINDS if kinds is None else kinds
+
+    def table(m):
+        if m.group(1) not in kinds:
+            raise ValueError(f"docs/schemas.md names the columns of {m.group(1)}, which no module declares")
+        return f"<!-- columns {m.group(1)} -->\n{kinds[m.group(1)].schema()}\n<!-- end columns -->"
+    return re.sub(r"<!-- columns (\S+) -->\n.*?<!-- end columns -->", table, text, flags=re.S)
 
 
 HDF5_SUFFIXES = (".h5", ".hdf5")
@@ -307,12 +508,15 @@ class RecordStore:
 
     what = "record file"
 
-    def __init__(self, path, kind, identity, comm=None, mode="new"):
+    def __init__(self, path, kind, identity, comm=None, mode="new", about=None):
         if mode not in MODES:
             raise ParameterError("mode", mode, f"must be one of {', '.join(MODES)}")
         self.path, self.kind, self.identity, self.comm, self.mode = path, kind, dict(identity), comm, mode
         self.state = {}            # arrays that are replaced, not stacked (e.g. the profiles a resume starts from)
-        self.records, self.state = on_rank0(comm, self._open, what=f"cannot open {self.what} {path!r}")
+        # what made the file (:func:`provenance`; ``about`` given: the caller's, {} for none), kept with the
+        # provenance of the runs before on a resume
+        self.provenance = provenance(comm=comm) if about is None else dict(about)
+        self.records, self.state, self.provenance = on_rank0(comm, self._open, what=f"cannot open {self.what} {path!r}")
 
     def _open(self):
         """Load or start the store on rank 0: (records, state)."""
@@ -328,11 +532,11 @@ class RecordStore:
         else:
             records = []
         if _CHECKING:
-            return records, self.state
+            return records, self.state, self.provenance
         self._prepare()
         self.records = records
         self._start(records)
-        return records, self.state
+        return records, self.state, self.provenance
 
     def append(self, record):
         """Add one record and write it (collective: rank 0 writes, every rank raises if that failed); returns it."""
@@ -370,11 +574,11 @@ class NpzRecords(RecordStore):
     """
 
     def __init__(self, path, kind, constants, identity, fields, comm=None, mode="new", dtypes=None, shapes=None,
-                 what="record file", added=None, names=None):
+                 what="record file", added=None, names=None, about=None, columns=None):
         self.constants, self.fields, self.names = dict(constants), tuple(fields), names
         self.dtypes, self.shapes, self.added = dict(dtypes or {}), dict(shapes or {}), dict(added or {})
-        self.what = what
-        super().__init__(path, kind, identity, comm, mode)
+        self.what, self.columns = what, columns
+        super().__init__(path, kind, identity, comm, mode, about)
 
     def append(self, record, state=None):
         """Add one record (and replace the given ``state`` arrays), then write (collective); returns it."""
@@ -395,6 +599,7 @@ class NpzRecords(RecordStore):
         if any(len(data[f]) != P for f in present):
             raise RecordFileError(f"{self.what} {given(self.path)} is corrupt: inconsistent array shapes")
         self.state = {k[len("state_"):]: data[k] for k in data if k.startswith("state_")}
+        self.provenance = resumed_provenance(self.provenance, file_provenance(data))
         return [{f: data[f][i] if f in data else self.added[f] for f in self.fields} for i in range(P)]
 
     def _start(self, records):
@@ -402,20 +607,27 @@ class NpzRecords(RecordStore):
 
     def arrays(self):
         """The archive's content as it is written: constants, ``format``, the stacked fields and the state."""
-        return npz_arrays(self.kind, self.constants, self.fields, self.records, self.state, self.dtypes, self.shapes)
+        return npz_arrays(self.kind, self.constants, self.fields, self.records, self.state, self.dtypes, self.shapes,
+                          self.provenance, self.columns)
 
     def _write_last(self):
         write_npz(self.path, self.arrays())
 
 
-def npz_arrays(kind, constants, fields, records, state=None, dtypes=None, shapes=None):
+def npz_arrays(kind, constants, fields, records, state=None, dtypes=None, shapes=None, about=None, columns=None):
     """The arrays of a record archive: ``format``, the constants, each field stacked over the records (with its
-    dtype; P = 0 keeps the per-record ``shapes``), and the state arrays under ``state_<name>``."""
+    dtype; P = 0 keeps the per-record ``shapes``), the state arrays under ``state_<name>``, the provenance
+    ``about`` (:func:`provenance`) as JSON under ``__provenance__`` and, for a kind with declared ``columns``
+    (a :class:`Kind`), their units and meanings as JSON under ``__columns__``."""
     dtypes, shapes = dtypes or {}, shapes or {}
     clash = set(constants) & set(fields)
-    if clash or "format" in set(constants) | set(fields):
+    if clash or {"format", *ABOUT} & (set(constants) | set(fields)):
         raise ValueError(f"a record archive's constants and fields must have different names: {sorted(clash)}")
     out = {"format": np.array(kind)}
+    if about:
+        out[PROVENANCE] = np.array(json.dumps(about, default=str))
+    if columns is not None:
+        out[COLUMNS] = np.array(json.dumps(columns.about()))
     for k, v in constants.items():
         out[k] = np.asarray(v)
     for f in fields:
@@ -433,8 +645,9 @@ class MemoryRecords(NpzRecords):
 
     what = "in-memory records"
 
-    def __init__(self, kind, constants, fields, comm=None, dtypes=None, shapes=None):
-        super().__init__(None, kind, constants, constants, fields, comm, "new", dtypes, shapes, self.what)
+    def __init__(self, kind, constants, fields, comm=None, dtypes=None, shapes=None, columns=None):
+        super().__init__(None, kind, constants, constants, fields, comm, "new", dtypes, shapes, self.what, about={},
+                         columns=columns)
 
     def _exists(self):
         return False
@@ -464,13 +677,20 @@ def _h5py():
 
 
 def _write_h5(path, arrays):
+    """The HDF5 layout: one dataset per array; each dataset that ``__columns__`` describes carries the attributes
+    ``units`` and ``description``."""
     h5py = _h5py()
+    about = json.loads(str(arrays[COLUMNS])) if COLUMNS in arrays else {}
 
     def write(f):
         with h5py.File(f, "w") as h5:
             for name, value in arrays.items():
                 value = np.asarray(value)
-                h5.create_dataset(name, data=np.char.encode(value, "utf-8") if value.dtype.kind == "U" else value)
+                dataset = h5.create_dataset(name, data=np.char.encode(value, "utf-8") if value.dtype.kind == "U"
+                                            else value)
+                if name in about:
+                    dataset.attrs["units"] = about[name]["unit"]
+                    dataset.attrs["description"] = about[name]["description"]
     _replace_atomically(path, write)
 
 
@@ -539,7 +759,9 @@ class AppendRecords(RecordStore):
 
     def _start(self, records):
         if self.mode != "resume":
-            _replace_atomically(self.header_path, lambda f: f.write(json.dumps(self.header, indent=1).encode()))
+            header = dict(self.header, provenance=self.provenance)     # a resumed run's header is the first run's
+            _replace_atomically(self.header_path, lambda f: f.write(json.dumps(header, indent=1,
+                                                                               default=str).encode()))
             open(self.data_path, "wb").close()
 
     def append(self, record):

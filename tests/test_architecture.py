@@ -33,7 +33,7 @@ REPORTING = {"hertzpetsc.console", "hertzpetsc.options"}
 PLOTTING = {"hertzpetsc.plotting", "hertzpetsc.api"}
 # where sys.argv may be read, and why
 ARGV = {"hertzpetsc.start": "the drivers' first call: PETSc started with the command line",
-        "hertzpetsc.options": "run_metadata records the command line in output files",
+        "hertzpetsc.records": "provenance records the command line in every output file",
         "hertzpetsc.kernels": "python -m hertzpetsc.kernels, the kernel's build command"}
 # where the options database is read besides setFromOptions (PETSc.Options()), and why (DESIGN.md, "Invariants")
 OPTIONS_READERS = {

@@ -75,6 +75,43 @@ def test_long_run_and_dynamics_figures(work):
     assert "| run | 1.2566 | 1.2627 | refined |" in (work / "lr.md").read_text()
 
 
+def test_every_file_a_driver_writes_names_its_provenance(work, tmp_path):
+    """The results files of the drivers (npz and HDF5 record files, a run directory's header), reread with numpy,
+    h5py or json alone, name what made them: the version and commit, the driver's command line, the stack's
+    versions, the ranks, the date, and the digests of the files the run read."""
+    import json
+    import h5py
+    from test_records import check_provenance
+    r = run_script("refine_branch.py", "-branch", work / "b.npz", "-N", 20, "-q", "0.4*pi", "-output",
+                   tmp_path / "r.h5", "-table", tmp_path / "r.md", ranks=2)
+    assert r.returncode == 0, r.stderr
+    r = run_script("restitution.py", "-velocities", "0.01", "-output", tmp_path / "e.npz", "-table", tmp_path / "e.md")
+    assert r.returncode == 0, r.stderr
+    run = work / "run"
+    if not (run / "run.json").exists():
+        assert run_script("long_run.py", "-branch", work / "b.npz", "-q", "0.4*pi", "-N", 20, "-t_final", 6,
+                          "-refined", work / "r.npz", "-output", run).returncode == 0
+    files = {work / "b.npz": ("continuation.py", {}, 1), work / "r.npz": ("refine_branch.py", {"branch"}, 1),
+             tmp_path / "r.h5": ("refine_branch.py", {"branch"}, 2), tmp_path / "e.npz": ("restitution.py", {}, 1)}
+    for path, (script, inputs, ranks) in files.items():
+        if path.suffix == ".h5":
+            with h5py.File(path, "r") as f:
+                about = json.loads(f["__provenance__"][()].decode())
+        else:
+            with np.load(path) as z:
+                about = json.loads(str(z["__provenance__"]))
+        check_provenance(about, {name: about["inputs"][name]["path"] for name in inputs})
+        assert os.path.basename(about["argv"][0]) == script and about["ranks"] == ranks, (path, about)
+        assert set(about["inputs"]) == set(inputs), (path, about["inputs"])
+    with h5py.File(tmp_path / "r.h5", "r") as f:          # a kind declared with its columns: units and meanings
+        assert f["wall_time"].attrs["units"] == "s" and f["x"].attrs["description"].startswith("refined state")
+        assert set(json.loads(f["__columns__"][()].decode())) >= set(f) - {"format", "__provenance__", "__columns__"}
+    with open(run / "run.json") as f:
+        about = json.load(f)["provenance"]
+    check_provenance(about)
+    assert os.path.basename(about["argv"][0]) == "long_run.py"
+
+
 def test_section_3_1_3_3_and_appendix_drivers(work, tmp_path):
     r = run_script("convergence_h.py", "-M", 10, "-cells", "100,200,400", "-output", tmp_path / "c.md")
     assert r.returncode == 0, r.stderr

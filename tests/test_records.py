@@ -1,5 +1,6 @@
 """The record store and the branch file: schema, atomic rewrite, modes, identities, resume, readable with numpy
 alone, clear errors (serial and under mpiexec -n 2: rank 0 writes, every rank sees the same records)."""
+import json
 import math
 import os
 
@@ -12,7 +13,8 @@ from hertzpetsc.branch import POINT_FIELDS, Branch, BranchPoint, SolveStats, bra
 from hertzpetsc.diagnostics import WaveDiagnostics
 from hertzpetsc.errors import ParameterError, RecordFileError
 from hertzpetsc.model import LatticeModel
-from hertzpetsc.records import AppendRecords, NpzRecords, load_npz, prepare_output, write_text
+from hertzpetsc.records import (AppendRecords, NpzRecords, file_provenance, load_npz, prepare_output, provenance,
+                                write_text)
 
 COMM = PETSc.COMM_WORLD
 
@@ -139,6 +141,80 @@ def test_state_arrays_are_replaced_and_resumed(tmp_path):
     assert [float(r["q"]) for r in again.records] == [1.0, 0.5] and np.array_equal(again.state["u"], np.arange(5.0))
 
 
+def git_head():
+    """The commit of this checkout by git itself (None outside a work tree or without git)."""
+    import subprocess
+    try:
+        r = subprocess.run(["git", "rev-parse", "HEAD"], cwd=os.path.dirname(__file__), capture_output=True,
+                           text=True, timeout=30)
+    except OSError:
+        return None
+    return r.stdout.strip() if r.returncode == 0 else None
+
+
+def check_provenance(about, inputs=None):
+    """A file's provenance names the package's version and commit, the command line, the stack's versions, the
+    ranks, a date (UTC, within the last hour) and the digests of ``inputs`` ({name: path})."""
+    import datetime
+    import hashlib
+    import hertzpetsc
+    from mpi4py import MPI
+    assert about["hertzpetsc"] == hertzpetsc.__version__ and about["commit"] == git_head()
+    assert about["argv"] and about["petsc"] == ".".join(map(str, PETSc.Sys.getVersion()))
+    assert about["slepc"].startswith("3.") and about["mpi4py"] and about["mpi"] == \
+        MPI.Get_library_version().splitlines()[0].split(",")[0].strip()
+    created = datetime.datetime.fromisoformat(about["created"])
+    age = datetime.datetime.now(datetime.timezone.utc) - created
+    assert created.utcoffset() == datetime.timedelta(0) and datetime.timedelta(0) <= age < datetime.timedelta(hours=1)
+    for name, path in (inputs or {}).items():
+        with open(path, "rb") as f:
+            assert about["inputs"][name] == dict(path=str(path), sha256=hashlib.sha256(f.read()).hexdigest())
+
+
+@pytest.mark.parametrize("suffix", [".npz", ".h5"])
+def test_every_record_file_names_its_provenance_and_keeps_it_on_resume(tmp_path, suffix):
+    """A record file says what made it (``__provenance__``, JSON, read with numpy or h5py alone); a resume adds
+    its own and keeps the first run's under ``earlier``; a file written before has none and still resumes."""
+    d = shared_tmp(tmp_path)
+    source = os.path.join(d, "input.txt")
+    if COMM.getRank() == 0:
+        with open(source, "w") as f:
+            f.write("an input file")
+    COMM.tompi4py().Barrier()
+    path = os.path.join(d, "p" + suffix)
+    NpzRecords(path, "test-1", dict(a=1), dict(a=1), ("q",), COMM,
+               about=provenance(dict(source=source), "test()", COMM)).append(dict(q=1.0))
+    if suffix == ".npz":
+        with np.load(path) as z:                       # numpy alone
+            about = json.loads(str(z["__provenance__"]))
+    else:
+        h5py = pytest.importorskip("h5py")
+        with h5py.File(path, "r") as f:                # h5py alone
+            about = json.loads(f["__provenance__"][()].decode())
+    COMM.tompi4py().Barrier()                          # every rank has read it before the resume rewrites it
+    check_provenance(about, dict(source=source))
+    assert about["ranks"] == COMM.getSize() and about["call"] == "test()"
+    NpzRecords(path, "test-1", dict(a=1), dict(a=1), ("q",), COMM, "resume").append(dict(q=0.5))
+    again = file_provenance(load_npz(path, "x"))
+    check_provenance(again)
+    assert again["earlier"] == [about] and again["call"] is None and again["inputs"] == {}
+    if suffix == ".npz":                               # a file of before: no provenance, resumed, given one
+        old = os.path.join(d, "old.npz")
+        if COMM.getRank() == 0:
+            np.savez(old, format=np.array("test-1"), a=np.array(1), q=np.array([1.0]))
+        COMM.tompi4py().Barrier()
+        assert file_provenance(load_npz(old, "x")) is None
+        NpzRecords(old, "test-1", dict(a=1), dict(a=1), ("q",), COMM, "resume").append(dict(q=0.5))
+        assert "earlier" not in file_provenance(load_npz(old, "x"))
+
+
+def test_a_run_directory_names_its_provenance(tmp_path):
+    d = os.path.join(shared_tmp(tmp_path), "run")
+    AppendRecords(d, "test-log-1", dict(N=2), dict(N=2), 3, COMM).append([1.0, 2.0, 3.0])
+    with open(os.path.join(d, "run.json")) as f:
+        check_provenance(json.load(f)["provenance"])
+
+
 def test_identity_difference_names_the_parameter_that_sets_the_key(tmp_path):
     """A key that is not the parameter's name (the solitary scan stores c0 as sound_speeds) is named with the
     parameter and option that set it; other keys as they are."""
@@ -228,7 +304,7 @@ def test_hdf5_record_files_have_the_same_fields_and_identity_checks(tmp_path):
         if a[k].dtype.kind in "fi":
             assert np.array_equal(a[k], b[k]) or k in ("wall_time",), k
         else:
-            assert str(a[k]) == str(b[k]) or k == "meta", k
+            assert str(a[k]) == str(b[k]) or k in ("meta", "__provenance__"), k
     with h5py.File(f"{d}/b.h5", "r") as f:                 # plain HDF5: datasets by name
         assert f["u"].shape == a["u"].shape and f["format"][()] == b"hertzpetsc-branch-1"
     with pytest.raises(RecordFileError, match="alpha"):

@@ -259,6 +259,72 @@ def test_wave_study_of_a_trimer_in_memory():
         WaveParameters(LatticeModel.hertz(1.5, masses=(1.0, 0.5)), (2 * math.pi / 15,), N=30)
 
 
+def test_the_wave_file_holds_the_wave_its_state_and_its_multipliers(tmp_path):
+    """A wave file holds what its rows are about, read back with numpy (h = pi/100) or h5py (h = pi/200) alone: the
+    profiles u_c on the whole period (max |u| is the amplitude A asked for, within the grid maximum's error
+    h^2/8 max |u''|), the refined state on the chain (x_n(0) = u_{n mod p}(q n) at the beads where q n is a grid
+    point, up to the refinement's correction of the profile's O(h^2) error: a quarter at h/2), the dominant
+    nontrivial multipliers (|the first| is rho, the same numbers, by decreasing modulus); and the units and meanings
+    of every entry (``__columns__``, HDF5 attributes ``units`` and ``description``)."""
+    import json
+    from conftest import shared_tmp
+    from hertzpetsc.studies.wave import DOMINANT, WAVE_KIND, WaveParameters, WaveStudy
+    N, q, A = 30, 2 * math.pi / 15, 0.5
+    corrections = []
+    for K, suffix in ((100, ".npz"), (200, ".h5")):
+        path = f"{shared_tmp(tmp_path)}/w{suffix}"
+        (row,) = list(WaveStudy(WaveParameters(TRIMER, (q,), A, K, N, (), 1e-10), COMM, path).run())
+        COMM.tompi4py().Barrier()
+        if suffix == ".npz":
+            with np.load(path) as z:
+                data, about = {k: z[k] for k in z.files}, json.loads(str(z["__columns__"]))
+        else:
+            h5py = pytest.importorskip("h5py")
+            with h5py.File(path, "r") as f:
+                data, about = {k: f[k][()] for k in f}, json.loads(f["__columns__"][()].decode())
+                attrs = {k: dict(f[k].attrs) for k in f}
+            assert attrs["omega"] == dict(units="1", description=WAVE_KIND.by_name["omega"].description)
+            assert attrs["seconds"]["units"] == "s" and attrs["u"]["description"].startswith("the wave's profiles")
+        entries = set(data) - {"format", "__provenance__", "__columns__"}
+        assert entries <= set(about), entries - set(about)
+        assert all(about[k]["description"] and about[k]["unit"] in ("1", "s", "count", "") for k in entries)
+        u, x, dominant = data["u"][0], data["state"][0], data["dominant"][0]
+        assert u.shape == (3, 2 * K) and x.shape == (N, 2) and dominant.shape == (DOMINANT,)
+        assert np.array_equal(data["xi"], np.arange(2 * K) * math.pi / K)
+        d2 = np.abs(np.roll(u, -1, axis=1) - 2 * u + np.roll(u, 1, axis=1)).max()
+        assert abs(np.abs(u).max() - A) <= d2 / 8
+        on_grid = [n for n in range(N) if abs(q * n * K / math.pi - round(q * n * K / math.pi)) < 1e-9]
+        assert len(on_grid) == 10
+        corrections.append(max(abs(x[n, 0] - u[n % 3, round(q * n * K / math.pi) % (2 * K)]) for n in on_grid))
+        assert abs(dominant[0]) == pytest.approx(float(data["rho"][0]), rel=1e-14)
+        assert float(data["rho"][0]) == pytest.approx(row["rho"], rel=1e-14)
+        assert np.all(np.diff(np.abs(dominant)) <= 1e-12)
+    assert 3.0 < corrections[0] / corrections[1] < 5.0, corrections
+
+
+def test_a_wave_file_written_before_the_objects_resumes_with_nan_there(tmp_path):
+    """The committed fixture (written before u, state and dominant) opens, resumes with nothing to compute, keeps
+    its numbers, and is rewritten with NaN in the new fields."""
+    import shutil
+    from conftest import DATA, shared_tmp
+    from hertzpetsc.records import load_npz
+    from hertzpetsc.studies.wave import WaveParameters, WaveStudy
+    old = load_npz(f"{DATA}/wave.npz", "x")
+    path = f"{shared_tmp(tmp_path)}/w.npz"
+    if COMM.getRank() == 0:
+        shutil.copy(f"{DATA}/wave.npz", path)
+    COMM.tompi4py().Barrier()
+    params = WaveParameters(LatticeModel.hertz(1.5, tuple(old["masses"]), delta0=1.0), tuple(old["q"]), 0.5, 400, 60,
+                            (30000,), 1e-10, 1e-4)
+    study = WaveStudy(params, COMM, path, "resume")
+    assert list(study.run()) == []
+    new = load_npz(path, "x")
+    for k in old:
+        assert np.array_equal(old[k], new[k]), k
+    assert np.isnan(new["u"]).all() and np.isnan(new["state"]).all() and np.isnan(new["dominant"]).all()
+    assert new["u"].shape == (2, 3, 800) and new["dominant"].dtype == complex
+
+
 def test_a_wave_list_goes_on_past_a_q_that_does_not_converge():
     """A q whose refinement does not reach its target (tol 1e-14 in one Gauss-Newton iteration, which leaves E
     near 1e-11) is left out and named below the table; the study goes on to the next q, and the finished records

@@ -28,7 +28,7 @@ from petsc4py import PETSc
 from ..dealing import dealt
 from ..errors import HertzPetscError, ParameterError, check_choice, check_instance
 from ..progress import Progress
-from ..records import MODES, MemoryRecords, NpzRecords, file_digest, given, pending, write_text
+from ..records import MODES, MemoryRecords, NpzRecords, given, input_digests, pending, provenance, write_text
 from ..roles import configure
 
 if TYPE_CHECKING:
@@ -47,6 +47,7 @@ class Study:
     LABELS = ()                # constants that are not part of the identity (file names, notes)
     ADDED = {}                 # {field: value} of fields added after files were written (NpzRecords ``added``)
     NAMES = {}                 # {identity key: "parameter (-option)"} where the key is not the parameter's name
+    COLUMNS = None             # the record kind's columns (records.Kind): units and meanings in the file
     store = None
 
     def __init__(self, params: Any, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
@@ -78,9 +79,20 @@ class Study:
         the input files."""
         out = {k: v for k, v in self.constants().items() if k not in self.LABELS}
         # an input path that names no file (e.g. the label of a branch computed in memory) has no hash
-        out.update({f"{name}_sha256": file_digest(path, self.comm) for name, path in self.inputs().items()
-                    if path and os.path.isfile(path)}, solver_options=solver_options(self.ROLES))
+        out.update({f"{name}_sha256": d["sha256"] for name, d in self.digests().items()},
+                   solver_options=solver_options(self.ROLES))
         return out
+
+    def digests(self) -> dict:
+        """:func:`~hertzpetsc.records.input_digests` of :meth:`inputs`, read once (collective)."""
+        if getattr(self, "_digests", None) is None:
+            self._digests = input_digests(self.inputs(), self.comm)
+        return self._digests
+
+    def call(self) -> str:
+        """The call that built the study, as the file's provenance records it."""
+        return f"{type(self).__module__}.{type(self).__name__}({self.params!r}, output={self.output!r}, " \
+               f"mode={self.mode!r})"
 
     def open(self) -> Study:
         """Open the record store once (collective)."""
@@ -97,10 +109,13 @@ class Study:
     def _open(self):
         """The record store: the file of ``output`` in ``mode`` (constants and identity), or memory."""
         if self.output is None:
-            return MemoryRecords(self.FORMAT, self.constants(), self.FIELDS, self.comm, self.DTYPES, self.SHAPES)
+            return MemoryRecords(self.FORMAT, self.constants(), self.FIELDS, self.comm, self.DTYPES, self.SHAPES,
+                                 self.COLUMNS)
         identity = self.identity()
+        about = provenance(call=self.call(), comm=self.comm, digests=self.digests())
         return NpzRecords(self.output, self.FORMAT, dict(self.constants(), **identity), identity, self.FIELDS,
-                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT, self.ADDED, self.names())
+                          self.comm, self.mode, self.DTYPES, self.SHAPES, self.WHAT, self.ADDED, self.names(),
+                          about, self.COLUMNS)
 
     def names(self) -> dict:
         """How the user sets each identity key whose name is not a parameter's (:func:`check_identity`): ``NAMES``,

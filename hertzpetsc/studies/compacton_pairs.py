@@ -14,6 +14,7 @@ from ..compacton_window import DEFAULT_REAR, CompactonRefiner, CompactonWindow, 
 from ..branch import Branch
 from ..errors import ParameterError, check_instance, check_integer, check_real
 from ..model import ChainSpec
+from ..records import Column, Kind
 from ..resources import MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_work
 from .base import Study
 from .compacton_dynamics import DYNAMICS_SECONDS, DYNAMICS_TOLERANCES, CompactonDynamics, dynamics_integrator
@@ -24,7 +25,31 @@ if TYPE_CHECKING:
     from ..chain import IntegrationTolerances
 
 PAIRS_FORMAT = "hertzpetsc-compacton-pairs-1"
-PAIR_FIELDS = ("case", "rear", "front", "error_x", "error_v", "debris_v", "seconds")
+PAIRS_KIND = Kind(PAIRS_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("q", "wavenumber of the branch point", constant=True),
+    Column("h", "grid step of the branch", constant=True),
+    Column("spacing", "beads between the rear and the front window", "count", np.int64, "d", constant=True),
+    Column("travel", "beads travelled beyond the spacing (the run lasts spacing + travel)", "count", np.int64, "d",
+           constant=True),
+    Column("M", "window beads", "count", np.int64, "d", constant=True),
+    Column("N", "beads of the free chain", "count", np.int64, "d", constant=True),
+    Column("gap", "the common gap Delta = a p q", constant=True),
+    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
+           "s", constant=True, optional=True),
+    Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
+           "before it)", "", str, "s", constant=True, optional=True),
+    Column("case", "`single` or `two`", "", str, "s"),
+    Column("rear", "the rear compacton: `unrefined` (the branch profile), `refined` (the window map's fixed point) "
+           "or '' (none)", "", str, "s"),
+    Column("front", "the front compacton, as `rear`", "", str, "s"),
+    Column("error_x", "max over all beads of \\|X(T) - X(0) translated by T beads\\| in x, relative to D",
+           format=".2e"),
+    Column("error_v", "the same in v, relative to v_peak", format=".2e"),
+    Column("debris_v", "max \\|v\\| behind the rear compacton / v_peak", format=".2e"),
+    Column("seconds", "wall time", "s", format=".1f"),
+))
+PAIR_FIELDS = PAIRS_KIND.fields
 PAIR_CASES = (("single", "", "unrefined"), ("single", "", "refined"), ("two", "unrefined", "unrefined"),
               ("two", "refined", "refined"), ("two", "unrefined", "refined"), ("two", "refined", "unrefined"))
 
@@ -36,7 +61,7 @@ class CompactonPairs(Study):
     beyond the front one's start. Errors against the exactly translated initial chain (x relative to D, v to
     v_peak) and the debris left behind the rear compacton (max |v| / v_peak)."""
 
-    FORMAT, FIELDS, DTYPES = PAIRS_FORMAT, PAIR_FIELDS, {"case": str, "rear": str, "front": str}
+    FORMAT, FIELDS, DTYPES, COLUMNS = PAIRS_FORMAT, PAIR_FIELDS, PAIRS_KIND.dtypes, PAIRS_KIND
     ROLES = CompactonDynamics.ROLES
     WHAT, LABELS = "compacton pairs file", ("N", "gap")
 

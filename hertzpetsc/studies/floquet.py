@@ -31,7 +31,7 @@ from ..errors import (ParameterError, RecordFileError, check_choice, check_insta
                       check_real, check_reals)
 from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
-from ..records import check_kind, given, load_npz
+from ..records import Column, Kind, check_kind, given, load_npz
 from ..roles import FLOQUET_ROUTES, floquet_route, uses
 from ..verdicts import critical_wavenumbers
 from ..waves import orbit_on_chain
@@ -45,7 +45,32 @@ if TYPE_CHECKING:
     from .refinement import RefinedStates
 
 FLOQUET_FORMAT = "hertzpetsc-floquet-1"
-FLOQUET_FIELDS = ("q", "rho", "outside", "trivial_spread", "growth", "refined", "seconds")
+FLOQUET_KIND = Kind(FLOQUET_FORMAT, (
+    Column("N", "beads of the periodic chain", "count", np.int64, "d", constant=True),
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("tol_rho", "verdict threshold: unstable when rho - 1 > tol_rho", constant=True),
+    Column("method", "`symmetric`, `dense` or `slepc`", "", str, "s", constant=True),
+    Column("refined_file", "the refinement file of the waves ('' for the unrefined branch waves)", "", str, "s",
+           constant=True),
+    Column("note", "which waves were scanned (e.g. `refined waves`)", "", str, "s", constant=True),
+    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
+           "s", constant=True, optional=True),
+    Column("refined_sha256", "sha256 of the refinement file's content, when there is one (absent from files written "
+           "before it)", "", str, "s", constant=True, optional=True),
+    Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
+           "before it)", "", str, "s", constant=True, optional=True),
+    Column("q", "wavenumbers", format=".6f"),
+    Column("rho", "spectral radius of F_q, the four trivial multipliers excluded", format=".8f"),
+    Column("outside", "multipliers with \\|mu\\| > 1 + tol_rho", "count", np.int64, "d"),
+    Column("trivial_spread", "spread of the four trivial multipliers around 1 (the orbit error's sqrt)",
+           format=".1e"),
+    Column("growth", "ln(rho) / script-T, the growth rate per unit time", format=".2e"),
+    Column("refined", "1 if the refined wave was used", "", np.int64, "d"),
+    Column("seconds", "wall time of the q", "s", format=".1f"),
+    Column("multipliers", "all multipliers (the `slepc` route: its `nev`, padded with nan)", dtype=complex,
+           shape="2N"),
+))
+FLOQUET_FIELDS = FLOQUET_KIND.fields[:-1]
 BLOCH_FORMAT = "hertzpetsc-bloch-1"
 BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "slepc_products", "slepc_seconds")
 # what the table prints besides, recorded since; a file written before lacks them: -1 (integers) or nan on load
@@ -111,8 +136,7 @@ class FloquetScan(Study):
     eigensolver ``-floquet_eps_*``). ``output`` None: the records are kept in memory.
     """
 
-    FORMAT, FIELDS = FLOQUET_FORMAT, FLOQUET_FIELDS + ("multipliers",)
-    DTYPES = {"outside": np.int64, "refined": np.int64, "multipliers": complex}
+    FORMAT, FIELDS, DTYPES, COLUMNS = FLOQUET_FORMAT, FLOQUET_KIND.fields, FLOQUET_KIND.dtypes, FLOQUET_KIND
     ROLES = uses("floquet_")
     WHAT = "Floquet file"
 

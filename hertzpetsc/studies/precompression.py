@@ -38,6 +38,7 @@ from ..grid import ProfileGrid, check_cells_per_pi
 from ..advdelay import check_branch, check_wavenumber
 from ..model import ChainSpec, LatticeModel
 from ..families import AmplitudeFamily, MassFamily, check_amplitude, check_family_amplitude, uncompressed_limit
+from ..records import Column, Kind
 from ..resources import check_memory
 from ..roles import uses
 from ..twsolver import tw_solver
@@ -51,7 +52,34 @@ if TYPE_CHECKING:
     from petsc4py import PETSc
 
 PRECOMPRESSED_FORMAT = "hertzpetsc-precompressed-1"
-PRECOMPRESSED_FIELDS = ("q", "kind", "a", "A", "omega", "omega_lin", "Omega", "lam", "gap", "iterations")
+PRECOMPRESSED_KIND = Kind(PRECOMPRESSED_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("delta0", "precompression (static overlap)", constant=True),
+    Column("cells_per_pi", "grid h = pi / cells_per_pi", "count", np.int64, "d", constant=True),
+    Column("a_min", "the amplitude grid a_min exp(k ds) up to a_max: its first a", constant=True),
+    Column("a_max", "its last a", constant=True),
+    Column("ds", "its step in s = log a", constant=True),
+    Column("masses", "the repeating masses: only for a mass pattern (files since 2026-11-28)", shape="p",
+           constant=True, optional=True),
+    Column("branch", "the linear branch the family starts from (`acoustic` or `optical`): only for a mass pattern",
+           "", str, "s", constant=True, optional=True),
+    Column("solver_options", "numeric-changing options under `-precomp_` (files since b3184da)", "", str, "s",
+           constant=True, optional=True),
+    Column("q", "wavenumber", format=".6f"),
+    Column("kind", "0 = a point of the s = log a grid, 1 = the gap opening (the longest bond reaches delta0: "
+           "2 u(q/2) = delta0 for one mass), 2 = the uncompressed limit delta0 / A = 0 (a and A are inf)", "",
+           np.int64, "d"),
+    Column("a", "first sine coefficient of u (of the normalised profile for a pattern)", format=".6g"),
+    Column("A", "\\|\\|u\\|\\|_inf (the largest over the pattern's profiles)", format=".6g"),
+    Column("omega", "frequency", format=".8f"),
+    Column("omega_lin", "the branch's linear frequency (closed form)", format=".8f"),
+    Column("Omega", "omega A^(-(alpha-1)/2)", format=".8f"),
+    Column("lam", "omega^2 / a^(alpha-1), the rescaled unknown", format=".8f"),
+    Column("gap", "the longest bond minus delta0, 2 u(q/2) - delta0 for one mass (0 at the gap opening)",
+           format=".3e"),
+    Column("iterations", "Newton iterations", "count", np.int64, "d"),
+))
+PRECOMPRESSED_FIELDS = PRECOMPRESSED_KIND.fields
 DIMER_FORMAT = "hertzpetsc-dimer-2"
 DIMER_FIELDS = ("q", "epsilon", "omega", "omega_acoustic", "arclength", "tangent_epsilon", "norm_u", "norm_v",
                 "v1", "v2", "iterations", "event")
@@ -126,8 +154,8 @@ class AmplitudeFamilies(Study):
     located on the way, and the uncompressed limit on the same grid. Records per point (module docstring)."""
 
     Parameters = AmplitudeParameters
-    FORMAT, FIELDS = PRECOMPRESSED_FORMAT, PRECOMPRESSED_FIELDS
-    DTYPES = {"kind": np.int64, "iterations": np.int64}
+    FORMAT, FIELDS, COLUMNS = PRECOMPRESSED_FORMAT, PRECOMPRESSED_FIELDS, PRECOMPRESSED_KIND
+    DTYPES = PRECOMPRESSED_KIND.dtypes
     ROLES = uses("precomp_")
     WHAT = "precompressed-wave file"
 

@@ -38,7 +38,7 @@ from ..branch import Branch
 from ..dealing import dealt
 from ..errors import ParameterError, RecordFileError, check_instance, check_integer, check_real, check_reals
 from ..model import ChainSpec
-from ..records import check_kind, given, load_npz, on_rank0
+from ..records import Column, Kind, check_kind, given, load_npz, on_rank0
 from ..roles import uses
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
 from ..symmetry import WaveSymmetry
@@ -50,8 +50,34 @@ if TYPE_CHECKING:
     from ..waves import Orbit
 
 REFINED_FORMAT = "hertzpetsc-refined-1"
-REFINED_FIELDS = ("q", "E_before_paper_flow", "E_before", "E_after", "E_after_paper_flow", "r", "iterations",
-                  "jacobians", "wall_time", "sigma_min")
+REFINED_KIND = Kind(REFINED_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("N", "beads of the periodic chain", "count", np.int64, "d", constant=True),
+    Column("branch", "path of the branch file the waves came from (a label)", "", str, "s", constant=True),
+    Column("tol", "target E of the refinement", constant=True),
+    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
+           "s", constant=True, optional=True),
+    Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
+           "before it)", "", str, "s", constant=True, optional=True),
+    Column("q", "wavenumbers 2 pi m / N", format=".6f"),
+    Column("E_before_paper_flow", "E(q) of the interpolated branch wave with the paper's flow (rtol 1e-12, atol "
+           "1e-14)", format=".2e"),
+    Column("E_before", "E(q) of the interpolated branch wave, tight flow (rtol 1e-14)", format=".2e"),
+    Column("E_after", "E(q) of the refined state, tight flow", format=".2e"),
+    Column("E_after_paper_flow", "E(q) of the refined state with the paper's flow", format=".2e"),
+    Column("r", "relative size of the last Gauss-Newton step (the paper's r(q))", format=".2e"),
+    Column("iterations", "Gauss-Newton iterations (stored as floats)", "count", format=".0f"),
+    Column("jacobians", "Jacobian evaluations (stored as floats)", "count", format=".0f"),
+    Column("wall_time", "seconds", "s", format=".1f"),
+    Column("sigma_min", "smallest singular value of the phase-conditioned Jacobian", format=".2e"),
+    Column("E_after_floor", "where the refinement stopped above `tol` at the tight flow's floor (`E_after` <= `tol` "
+           "+ `E_after_floor`): that flow's own error in S X(script-T) at the refined state; NaN at every other q "
+           "(files written before these fields: read as NaN)", format=".0e"),
+    Column("E_after_fine", "there, `E_after` measured with the tight flow's tolerances divided by 10; NaN "
+           "elsewhere", format=".2e"),
+    Column("x", "refined state (x_n, xdot_n) at t = 0", shape="N, 2"),
+))
+REFINED_FIELDS = REFINED_KIND.fields[:10]
 # fields added after files were written (a file without them: NaN, no q at the flow's floor)
 REFINED_ADDED = {"E_after_floor": math.nan, "E_after_fine": math.nan}
 
@@ -137,7 +163,7 @@ class RefinementScan(Study):
     file ``output`` as soon as its round is done (kept in memory when ``output`` is None).
     """
 
-    FORMAT, FIELDS, ADDED = REFINED_FORMAT, REFINED_FIELDS + tuple(REFINED_ADDED) + ("x",), REFINED_ADDED
+    FORMAT, FIELDS, ADDED, COLUMNS = REFINED_FORMAT, REFINED_KIND.fields, REFINED_ADDED, REFINED_KIND
     ROLES = uses("shoot_", "shoot_jac_", "chain_")
     WHAT, LABELS = "refinement file", ("branch",)
 

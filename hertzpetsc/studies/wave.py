@@ -11,9 +11,11 @@ beads), omega (of the refined wave), E_profile (E(q) of the wave interpolated fr
 (where E_refined > tol: the refinement's flow's own error at the refined state, within which it was accepted;
 NaN elsewhere and in files written before it), iterations (Gauss-Newton), rho (the largest multiplier modulus,
 trivial ones excluded), outside (multipliers with |mu| > 1 + tol_rho), spread (of the trivial multipliers),
-unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on each longer chain, in the order of ``sizes``), seconds.
-A wave of the optical branch of a mass pattern has the constant branch = 'optical' (the acoustic waves' files have
-none, as before it).
+unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on each longer chain, in the order of ``sizes``), seconds; and
+the objects the rows are about: u (the wave's p profiles on the whole period, on the grid ``xi``), state (the
+refined (N, 2) state on the chain) and dominant (the largest nontrivial multipliers modulo shift). Files written
+before those hold NaN there. A wave of the optical branch of a mass pattern has the constant branch = 'optical'
+(the acoustic waves' files have none, as before it). The columns are declared once, in :data:`WAVE_KIND`.
 """
 from __future__ import annotations
 
@@ -32,9 +34,11 @@ from ..families import FamilyFold, check_amplitude, check_family_amplitude, wave
 from ..floquet import TOL_RHO
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..model import ChainSpec, LatticeModel
+from ..records import Column, Kind
 from ..resources import check_memory
 from ..roles import uses
 from ..shooting import Refiner
+from ..stencil import full_period
 from ..twsolver import tw_solver
 from ..waves import check_chain_wavenumber, orbit_on_chain
 from .base import Study
@@ -44,8 +48,49 @@ if TYPE_CHECKING:
     from petsc4py import PETSc
 
 WAVE_FORMAT = "hertzpetsc-wave-1"
-WAVE_FIELDS = ("q", "m", "omega", "E_profile", "E_refined", "iterations", "rho", "outside", "spread", "unstable",
-               "rho_sizes", "seconds", "E_floor")
+DOMINANT = 8                 # the nontrivial multipliers of largest modulus kept per wave
+WAVE_KIND = Kind(WAVE_FORMAT, (
+    Column("alpha", "Hertz exponent (absent for another law)", constant=True, optional=True),
+    Column("delta0", "precompression (absent when 0)", constant=True, optional=True),
+    Column("law", "a chain of another law than Hertz's (API only): its name (`toda`, `fpu`, ...), its parameters "
+           "(`k`, `b`, ...) beside it instead of `alpha`, `delta0`; `LatticeModel.from_description` of the constants "
+           "is the file's model (a file without `law` is Hertz's)", "", str, "s", constant=True, optional=True),
+    Column("masses", "the mass pattern", shape="p", constant=True),
+    Column("branch", "`optical` for the waves of a pattern's optical family (`-branch optical`); absent for the "
+           "acoustic ones", "", str, "s", constant=True, optional=True),
+    Column("A", "amplitude max \\|u\\|", constant=True),
+    Column("cells_per_pi", "grid h = pi / cells_per_pi", "count", np.int64, "d", constant=True),
+    Column("N", "beads of the refinement's chain", "count", np.int64, "d", constant=True),
+    Column("sizes", "the longer chains of the Bloch spectra", "count", np.int64, "d", "s", constant=True),
+    Column("tol", "the refinement's target E", constant=True),
+    Column("tol_rho", "unstable when rho - 1 > tol_rho", constant=True),
+    Column("solver_options", "number-changing options under the study's prefixes", "", str, "s", constant=True),
+    Column("xi", "the grid of the profiles `u`: j h on [0, 2 pi) (absent from files written before `u`)",
+           shape="2K", constant=True, optional=True),
+    Column("q", "per-bead wavenumber", format=".6f"),
+    Column("m", "wavelengths on N beads", "count", np.int64, "d"),
+    Column("omega", "frequency of the refined wave", format=".8f"),
+    Column("E_profile", "E(q) of the wave interpolated from the grid", format=".1e"),
+    Column("E_refined", "E(q) of the refined wave", format=".1e"),
+    Column("iterations", "Gauss-Newton iterations", "count", np.int64, "d"),
+    Column("rho", "largest nontrivial multiplier modulus", format=".8f"),
+    Column("outside", "multipliers with \\|mu\\| > 1 + tol_rho", "count", np.int64, "d"),
+    Column("spread", "the trivial multipliers' spread from 1", format=".1e"),
+    Column("unstable", "the verdict: 1 if rho - 1 > tol_rho", "", np.int64, "d"),
+    Column("rho_sizes", "rho on each longer chain, in the order of `sizes`", shape="s", format=".8f"),
+    Column("seconds", "wall time", "s", format=".1f"),
+    Column("E_floor", "where `E_refined` > `tol`: the refinement flow's own error at the refined state, within which "
+           "the refinement was accepted at that flow's floor; NaN elsewhere (and in files written before this field)",
+           format=".0e"),
+    Column("u", "the wave's profiles u_c(xi), bead n on profile n mod p (xi = q n - omega t), on the whole period: "
+           "the solution of eq. ad the row is about (NaN in files written before it)", shape="p, 2K"),
+    Column("state", "the refined initial state (x_n, x_n') of the N beads (eq. twper; NaN in files written before "
+           "it)", shape="N, 2"),
+    Column("dominant", f"the {DOMINANT} nontrivial multipliers modulo shift of largest modulus (Bloch sectors; "
+           "\\|dominant[0]\\| = rho; NaN past the spectrum's end and in files written before it)", "1", complex,
+           shape=str(DOMINANT)),
+))
+WAVE_FIELDS = WAVE_KIND.fields
 MAX_BEADS = 2000             # the refinement's dense Jacobian has (2 M)^2 entries on the wave's cell
 MAX_SIZE = 10 ** 6           # beads of the longer chains (Bloch sectors: the cell's cost times the sectors)
 
@@ -101,15 +146,20 @@ class WaveStudy(Study):
     """The wave, its refinement and its multipliers at each q (module docstring). Collective over ``comm``."""
 
     Parameters = WaveParameters
-    FORMAT, FIELDS = WAVE_FORMAT, WAVE_FIELDS
-    DTYPES = {"m": np.int64, "iterations": np.int64, "outside": np.int64, "unstable": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = WAVE_FORMAT, WAVE_FIELDS, WAVE_KIND.dtypes, WAVE_KIND
+    LABELS = ("xi",)           # the profiles' grid: set by cells_per_pi
     ROLES = uses("precomp_", "tw_", "shoot_", "shoot_jac_", floquet_=("ts",))
     WHAT, ADDED = "wave file", {"E_floor": math.nan}
 
     def __init__(self, params: WaveParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
                  mode: str = "new") -> None:
         super().__init__(params, comm, output, mode)
-        self.SHAPES = {"rho_sizes": (len(params.sizes),)}
+        K2, p = 2 * params.cells_per_pi, params.model.cell
+        self.SHAPES = {"rho_sizes": (len(params.sizes),), "u": (p, K2), "state": (params.N, 2),
+                       "dominant": (DOMINANT,)}
+        # a file written before the profiles, states and multipliers resumes with NaN in their place
+        self.ADDED = dict(self.ADDED, **{k: np.full(self.SHAPES[k], math.nan, dtype=complex if k == "dominant" else
+                                                    float) for k in ("u", "state", "dominant")})
         check_memory(params.cells_per_pi, self.comm, tw_solver("precomp_"), profiles=params.model.cell)
 
     def configure(self) -> None:
@@ -121,7 +171,8 @@ class WaveStudy(Study):
     def constants(self) -> dict:
         p = self.params
         return dict(p.model.describe(), A=p.A, cells_per_pi=p.cells_per_pi, N=p.N, sizes=list(p.sizes), tol=p.tol,
-                    tol_rho=p.tol_rho, **({} if p.branch == "acoustic" else dict(branch=p.branch)))
+                    tol_rho=p.tol_rho, **({} if p.branch == "acoustic" else dict(branch=p.branch)),
+                    xi=np.arange(2 * p.cells_per_pi) * math.pi / p.cells_per_pi)
 
     def compute(self, q: float) -> dict:
         """The wave at q (:func:`~hertzpetsc.families.wave_of_amplitude`) refined on N beads, its spectra."""
@@ -136,11 +187,16 @@ class WaveStudy(Study):
         with SymmetricFloquet(p.model, self.comm) as floquet:
             s = floquet.spectrum(refined.orbit, p.tol_rho)
             longer = [floquet.spectrum(refined.orbit.tiled(L // p.N), p.tol_rho).rho for L in p.sizes]
+        K2 = 2 * p.cells_per_pi
+        u = np.array([scale * (np.asarray(w) if len(w) == K2 else full_period(w)) for w in point.profiles])
+        nontrivial = np.delete(s.multipliers, s.trivial)[:DOMINANT]
+        dominant = np.full(DOMINANT, math.nan, dtype=complex)
+        dominant[:len(nontrivial)] = nontrivial
         return dict(q=q, m=orbit.m, omega=refined.orbit.omega, E_profile=E0, E_refined=refined.E,
                     E_floor=refined.E_floor, iterations=refined.iterations, rho=s.rho, outside=s.outside,
                     spread=s.trivial_spread, unstable=int(s.rho - 1 > p.tol_rho),
                     rho_sizes=np.array(longer, dtype=float),
-                    seconds=time.perf_counter() - t0)
+                    seconds=time.perf_counter() - t0, u=u, state=refined.orbit.x, dominant=dominant)
 
     def run(self) -> Iterator[dict]:
         """The records of the q not yet in the file; a q whose wave or refinement does not converge is left out

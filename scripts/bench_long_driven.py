@@ -4,7 +4,8 @@
 short enough, the dense route (all 2N by LAPACK), on 1 and 2 ranks.
 
     python scripts/bench_long_driven.py [-sizes 200,1000] [-ranks 1,2] [-omega 1] [-gamma 0.05] [-delta0 1]
-        [-amplitude 0.2] [-run_in 30] [-routes radius,slepc,dense] [-nev 8] [-dense_max 200] [-slepc_max 1000]
+        [-amplitude 0.2] [-run_in 30] [-routes radius,slepc,dense] [-nev 4] [-radius_nev 16] [-dense_max 200]
+        [-slepc_max 1000]
         [-radius_N10000 0.998] [-timeout 600] [-output runs/bench_long_driven.md] [-records FILE] [-resume | -force]
         [-floquet_radius r -floquet_eps_tol ... (the Floquet role's options, passed to every worker)]
 
@@ -72,7 +73,8 @@ def main():
     amplitude = opts.real("amplitude", 0.2, "actuator amplitude", valid=(lambda x: x > 0, "> 0"))
     run_in = opts.integer("run_in", 30, "periods from rest before Newton-Krylov", minimum=0)
     routes = opts.words("routes", "radius,slepc,dense", "routes measured", choices=("radius", "slepc", "dense"))
-    nev = opts.integer("nev", 8, "slepc: dominant multipliers; radius: the most outside the radius", minimum=1)
+    nev = opts.integer("nev", 4, "slepc: the dominant multipliers", minimum=1)
+    cap = opts.integer("radius_nev", 16, "radius: the most multipliers outside the radius", minimum=1)
     dense_max = opts.integer("dense_max", 200, "largest N of the dense route", minimum=0, maximum=MAX_DENSE_BEADS)
     slepc_max = opts.integer("slepc_max", 1000, "largest N of the slepc route", minimum=0)
     big_radius = opts.real("radius_N10000", 0.998, "the radius at N = 10000 (unless -floquet_radius)",
@@ -97,7 +99,7 @@ def main():
     me = os.path.abspath(__file__)
     T = 2 * math.pi / omega
     rec = BenchRecords(records_path, "hertzpetsc-bench-long-driven-1",
-                       dict(omega=omega, gamma=gamma, delta0=delta0, amplitude=amplitude, run_in=run_in, nev=nev,
+                       dict(omega=omega, gamma=gamma, delta0=delta0, amplitude=amplitude, run_in=run_in, nev=nev, cap=cap,
                             floquet=floquet_args, big_radius=big_radius), mode)
     lines = [f"Multipliers of long driven chains; {machine(repeats)}. One BLAS thread per process. Timings taken "
              "while other jobs loaded the machine are indicative only.\n",
@@ -105,7 +107,7 @@ def main():
              f"a = {amplitude:g}, omega = {omega:g}, wall; {run_in} periods from rest, then Newton-Krylov shooting "
              f"to 1e-10 (flows rtol {RTOL:g}). The phonons' circle |mu| = e^(-gamma T / 2) = "
              f"{math.exp(-gamma * T / 2):.6f}; the default radius e^(-gamma T / 4) = {math.exp(-gamma * T / 4):.6f}. "
-             "Routes: radius (every multiplier outside r, at most -nev; SLEPc Krylov-Schur with the region |mu| > r "
+             f"Routes: radius (every multiplier outside r, at most {cap}; SLEPc Krylov-Schur with the region |mu| > r "
              f"and the closure test), slepc (the {nev} dominant, the route before), dense (all 2N, LAPACK). "
              "'wall': the multipliers alone (the response's time beside it); 'products': tangent-flow products "
              "(single columns); 'found': multipliers returned; 'largest': their moduli (at most 6). "
@@ -123,7 +125,8 @@ def main():
             if route != "radius":
                 args = [a for i, a in enumerate(args) if a != "-floquet_radius"
                         and (i == 0 or args[i - 1] != "-floquet_radius")]
-            req = dict(N=N, omega=omega, gamma=gamma, delta0=delta0, amplitude=amplitude, run_in=run_in, nev=nev)
+            req = dict(N=N, omega=omega, gamma=gamma, delta0=delta0, amplitude=amplitude, run_in=run_in,
+                       nev=cap if route == "radius" else nev)
             for n in ranks:
                 res = rec.measure(f"{N} {route} {n}", lambda: best_of(repeats, me, route, req, n, timeout,
                                                                       petsc_args=args))

@@ -98,7 +98,7 @@ def main():
                        f"run-ins of {run_in} periods on {N} beads")
     me = os.path.abspath(__file__)
     T = 2 * math.pi / omega
-    rec = BenchRecords(records_path, "hertzpetsc-bench-long-driven-1",
+    rec = BenchRecords(records_path, "hertzpetsc-bench-longdriven-1",
                        dict(omega=omega, gamma=gamma, delta0=delta0, amplitude=amplitude, run_in=run_in, nev=nev, cap=cap,
                             floquet=floquet_args, big_radius=big_radius), mode)
     lines = [f"Multipliers of long driven chains; {machine(repeats)}. One BLAS thread per process. Timings taken "

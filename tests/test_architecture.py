@@ -44,6 +44,7 @@ OPTIONS_READERS = {
     "hertzpetsc.chain": "-<prefix>rhs_compiled; whether -<prefix>ts_max_steps was given (else the step limit)",
     "hertzpetsc.shooting": "-shoot_gn_max_it, the Gauss-Newton's iteration limit",
     "hertzpetsc.driven": "the drive_snes_ tolerances the user set (the code's defaults only where none is)",
+    "hertzpetsc.floquet": "-<prefix>radius, the radius route's r (every multiplier outside it)",
     "hertzpetsc.studies.base": "the roles' number-changing options, part of a record file's identity",
 }
 # where files are written: the record store and its atomic writers; the paper pipeline's step logs (a child's output)

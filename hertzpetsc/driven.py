@@ -668,6 +668,8 @@ class PeriodicShooting(ContinuationProblem):
         self._steps_last = 0           # and the steps of its flow
         self.inexact = inexact
         self._snes = self._make_snes(prefix)
+        if floquet == "radius" and self.dominant.fixed_radius is not None:     # refused before any flow
+            self._radius_check(spec, self.T_of(drive))
 
     # --- layout ---------------------------------------------------------------------------------------------------
     def create_vec(self) -> PETSc.Vec:
@@ -724,6 +726,14 @@ class PeriodicShooting(ContinuationProblem):
     @property
     def T(self) -> float:
         return self.periods * self.drive.period
+
+    def _radius_check(self, spec, T):
+        """ParameterError naming -floquet_radius when it does not exceed the phonons' circle at the period T."""
+        rho_c = phonon_radius(spec, T)
+        if not self.dominant.fixed_radius > rho_c:
+            self.destroy()
+            raise ParameterError("-%sradius" % self.dominant.prefix, self.dominant.fixed_radius,
+                                 f"the radius must exceed the phonons' modulus e^(-gamma T / 2) = {rho_c:.6g}")
 
     def T_of(self, drive):
         """The response's period for ``drive``."""

@@ -101,8 +101,8 @@ def test_unresolved_when_more_lie_outside_than_the_cap(options):
     with pytest.raises(ConvergenceError, match="unresolved"):
         _outside(drive, x, nev=1)
     options(floquet_radius=0.2)
-    with pytest.raises(ParameterError, match="floquet_radius"):
-        _outside(drive, x)
+    with pytest.raises(ParameterError, match="floquet_radius"):           # when the problem is built
+        PeriodicShooting(drive, COMM, jacobian="mf", floquet="radius")
 
 
 def test_partial_test_functions_keep_their_sign_when_a_pair_enters():

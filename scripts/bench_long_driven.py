@@ -132,6 +132,7 @@ def main():
                                                                       petsc_args=args))
                 if res is None:
                     lines.append(f"| {N} | {route} | {n} | | not finished (> {timeout} s) | | | | | |")
+                    print(lines[-1], flush=True)
                     continue
                 r = f"{res['radius']:.6g}" if res.get("radius") is not None else ""
                 largest = ", ".join(f"{v:.6f}" for v in res["moduli"][:6])

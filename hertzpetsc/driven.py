@@ -26,8 +26,12 @@ a looser state flow (INEXACT_FRACTION); dG/dp a forward difference with one stat
 natural and pseudo-arclength algorithms (:mod:`hertzpetsc.continuation`) continue responses in omega or a through folds.
 
 Floquet multipliers mu of a response are the eigenvalues of R(kT; 0): all 2N by LAPACK on the dense monodromy
-(:class:`~hertzpetsc.floquet.DenseFloquet`, the tangents resolved too, the Newton Jacobian's where it is one) or the
-dominant ones by SLEPc Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`). A
+(:class:`~hertzpetsc.floquet.DenseFloquet`, the tangents resolved too, the Newton Jacobian's where it is one), the
+dominant ones by SLEPc Krylov-Schur on the matrix-free monodromy (:class:`~hertzpetsc.floquet.DominantFloquet`), or
+every multiplier outside a radius r (``floquet='radius'``, long chains: the same solver with its region and stopping
+test; r from ``-floquet_radius``, else :func:`default_radius`, halfway in log between the circle of a damped chain's
+phonons (:func:`phonon_radius`) and the unit circle; a spectrum not closed outside r is a ConvergenceError,
+'unresolved'). A
 driven chain has no symmetry multipliers (the actuator breaks translation and time shift). Liouville: prod mu = det R =
 exp(-kT tr(M^-1 C)), C the damping matrix (:func:`damping_trace`), and without dashpots R^T J R = e^{-c kT} J
 (:func:`conformal_rate`); with contact dissipation (a damping that depends on the state) log det R = int tr Df dt
@@ -87,7 +91,7 @@ INEXACT_FRACTION = 1e-1
 # Steps a state flow over one driving period may take before it counts as failed (-drive_ts_max_steps overrides).
 MAX_STEPS_PER_FLOW = 200000
 JACOBIANS = ("dense", "mf")
-FLOQUET_METHODS = ("dense", "slepc", "none")
+FLOQUET_METHODS = ("dense", "slepc", "radius", "none")
 # Multipliers within this distance of the unit circle are 'neutral' (the default resolution of the verdicts; the
 # measured one, from a looser flow, is ResponseFloquet.resolution).
 TOL_MU = 1e-6
@@ -390,6 +394,21 @@ def damping_trace(spec):
     return float(np.sum((m.damping.gamma + m.damping.eta * deg) / m.mass(np.arange(spec.N))))
 
 
+def phonon_radius(spec, T):
+    """exp(-gamma T / (2 m_max)): the largest modulus of the multipliers of the underdamped phonons of the chain
+    linearised about rest with its on-site damping gamma (dashpots and contact dissipation damp them further; the
+    overdamped long waves are real multipliers nearer 1), the circle the multipliers of a long driven chain crowd on
+    (its part far from the actuator is at rest). 1 without on-site damping."""
+    return math.exp(-0.5 * T * spec.model.damping.gamma / float(np.max(spec.model.mass(np.arange(spec.model.cell)))))
+
+
+def default_radius(spec, T):
+    """The radius r of the multipliers wanted outside (``floquet='radius'``): sqrt(:func:`phonon_radius`), halfway
+    in log between the phonons' circle and the unit circle (e^{-gamma T / 4} with uniform masses). 1 for a chain
+    without on-site damping: then every multiplier outside the unit circle, and -floquet_radius must exceed 1."""
+    return math.sqrt(phonon_radius(spec, T))
+
+
 def conformal_rate(spec):
     """c with R^T J_M R = e^{-c T} J_M for the monodromy of ``spec`` (J_M the symplectic form sum_n m_n dx_n ^ dv_n):
     0 undamped, gamma / m for on-site damping with uniform masses (y = e^{-c t / 2} z makes the variational
@@ -453,6 +472,8 @@ def check_eigenpairs(op, mu, vectors, spec, T, where, tol=TOL_MU):
     mu = np.asarray(mu, complex)
     V = np.asarray(vectors, complex)
     N, k = spec.N, V.shape[1]
+    if not k:                                  # the radius route found nothing outside its radius
+        return
     RY = op.apply(np.concatenate([V.real, V.imag], axis=1).reshape(N, 2, 2 * k)).reshape(2 * N, 2 * k)
     res = np.linalg.norm(RY[:, :k] + 1j * RY[:, k:] - V * mu, axis=0) / (np.abs(mu) * np.linalg.norm(V, axis=0))
     worst = int(np.argmax(res))
@@ -460,7 +481,7 @@ def check_eigenpairs(op, mu, vectors, spec, T, where, tol=TOL_MU):
         raise ConvergenceError(what, f"eigen-residual on an independent flow: ||R v - mu v|| / |mu| ||v|| = "
                                f"{res[worst]:.2g} > {tol:.0e} for mu = {mu[worst]:.8g}", **where)
     c = conformal_rate(spec)
-    if c is not None and not np.max(np.abs(mu)) >= math.exp(-0.5 * c * T) * (1 - tol):
+    if c is not None and k and not np.max(np.abs(mu)) >= math.exp(-0.5 * c * T) * (1 - tol):
         raise ConvergenceError(what, f"symplecticity: rho = {np.max(np.abs(mu)):.8g} < e^(-cT/2) = "
                                f"{math.exp(-0.5 * c * T):.8g} (multipliers in pairs of product e^(-cT), c = {c:g})",
                                **where)
@@ -531,11 +552,15 @@ def _signed_min(values):
     return float(np.sign(np.prod(v / mag).real) * np.min(mag))
 
 
-def test_functions(mu):
-    """{'period_doubling': tau_PD, 'neimark_sacker': tau_NS} of the multipliers ``mu`` (module docstring)."""
+def test_functions(mu, partial=False):
+    """{'period_doubling': tau_PD, 'neimark_sacker': tau_NS} of the multipliers ``mu`` (module docstring).
+    ``partial``: ``mu`` are the multipliers outside a radius r < 1, a set that changes along a curve; tau_NS then has
+    the factors 1 - mu_i mu_j (the same zeros), so that a multiplier entering the set (|mu| = r: a complex pair's
+    own factor 1 - r^2 > 0, its others |1 - mu mu_j|^2 > 0) does not change its sign."""
     mu = np.asarray(mu, dtype=complex)
     i, j = np.triu_indices(len(mu), 1)
-    return {"period_doubling": _signed_min(1.0 + mu), "neimark_sacker": _signed_min(mu[i] * mu[j] - 1.0)}
+    ns = 1.0 - mu[i] * mu[j] if partial else mu[i] * mu[j] - 1.0
+    return {"period_doubling": _signed_min(1.0 + mu), "neimark_sacker": _signed_min(ns)}
 
 
 def neutral_saddle(mu):
@@ -578,7 +603,8 @@ class PeriodicShooting(ContinuationProblem):
 
     ``jacobian``: 'dense' (R from 2N tangent columns, LU) or 'mf' (tangent-flow products, GMRES); ``floquet``:
     multipliers for the test functions and reports, 'dense' (all 2N, the Jacobian's monodromy), 'slepc' (``nev``
-    dominant ones) or 'none'. ``tol``: the shooting tolerance on ||G||_inf / max(||X||_inf, amplitude).
+    dominant ones), 'radius' (every one outside a radius: :func:`default_radius` or ``-floquet_radius``, at most
+    ``nev``) or 'none'. ``tol``: the shooting tolerance on ||G||_inf / max(||X||_inf, amplitude).
     ``inexact``: the residuals of iterates far from the response from a looser state flow (:meth:`_evaluation_rtol`).
     """
 
@@ -624,7 +650,8 @@ class PeriodicShooting(ContinuationProblem):
         self.product = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, ftol, floquet_prefix, shift=0) \
             if jacobian == "mf" else None
         self.dominant = DominantFloquet(spec, comm, min(nev, 2 * spec.N), ftol, floquet_prefix, shift=0,
-                                        vectors=True) if floquet == "slepc" else None
+                                        vectors=True, radius=default_radius(spec, self.T_of(drive))
+                                        if floquet == "radius" else None) if floquet in ("slepc", "radius") else None
         self.mpi = comm.tompi4py()
         self.last_rank = comm.getRank() == comm.getSize() - 1
         self.nloc = 2 * self.chain.nloc
@@ -632,6 +659,7 @@ class PeriodicShooting(ContinuationProblem):
         self._mono = None              # (x, p, R, version, accurate, steps of its flow) of the last dense monodromy
         self._checked = None           # the version of the last monodromy whose closed forms were checked
         self._spectra = {}             # key of (x, p) -> multipliers
+        self.radius = None             # the radius of the last spectrum outside one (floquet 'radius')
         self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
         self._tight = False            # the corrector's retry: Jacobians from the fully resolved flow
         self._solves, self._assembled, self._mono_version = 0, None, 0
@@ -641,6 +669,8 @@ class PeriodicShooting(ContinuationProblem):
         self._steps_last = 0           # and the steps of its flow
         self.inexact = inexact
         self._snes = self._make_snes(prefix)
+        if floquet == "radius" and self.dominant.fixed_radius is not None:     # refused before any flow
+            self._radius_check(spec, self.T_of(drive))
 
     # --- layout ---------------------------------------------------------------------------------------------------
     def create_vec(self) -> PETSc.Vec:
@@ -697,6 +727,18 @@ class PeriodicShooting(ContinuationProblem):
     @property
     def T(self) -> float:
         return self.periods * self.drive.period
+
+    def _radius_check(self, spec, T):
+        """ParameterError naming -floquet_radius when it does not exceed the phonons' circle at the period T."""
+        rho_c = phonon_radius(spec, T)
+        if not self.dominant.fixed_radius > rho_c:
+            self.destroy()
+            raise ParameterError("-%sradius" % self.dominant.prefix, self.dominant.fixed_radius,
+                                 f"the radius must exceed the phonons' modulus e^(-gamma T / 2) = {rho_c:.6g}")
+
+    def T_of(self, drive):
+        """The response's period for ``drive``."""
+        return self.periods * drive.period
 
     # --- the map ----------------------------------------------------------------------------------------------
     def flow(self, X: PETSc.Vec) -> int:
@@ -1058,10 +1100,22 @@ class PeriodicShooting(ContinuationProblem):
                 check_monodromy(R, spec, self.T, self.tangent_rtol, self._mono[5], {self.parameter: float(p)}, trace)
                 self._checked = self._mono[3]
             mu = dense_multipliers(R)
-        elif self.floquet_kind == "slepc":
+        elif self.floquet_kind in ("slepc", "radius"):
+            if self.floquet_kind == "radius":
+                spec = self.drive.spec()
+                self.dominant.cluster = phonon_radius(spec, self.T)
+                if self.dominant.fixed_radius is None:
+                    self.dominant.radius = default_radius(spec, self.T)
             res = self.dominant.spectrum(Response(self.drive, self.periods, x, math.nan))
             self.counters["products"] += res.work["products"] + 2 * len(res.multipliers)
             mu = res.multipliers
+            if self.floquet_kind == "radius" and not res.work["resolved"]:
+                raise ConvergenceError("the multipliers outside a radius (prefix -%s)" % self.dominant.prefix,
+                                       f"unresolved: {len(mu)} outside r = {res.work['radius']:.6g} converged, the "
+                                       f"spectrum not closed there (EPS reason {res.work['reason']}; more than "
+                                       f"-{self.dominant.prefix}eps_nev = {self.dominant.nev} outside, or the "
+                                       "restarts ran out)", **{self.parameter: float(p)})
+            self.radius = res.work.get("radius")
             check_eigenpairs(self.dominant.op, mu, self.dominant.vectors, self.drive.spec(), self.T,
                              {self.parameter: float(p)})
         else:
@@ -1072,15 +1126,18 @@ class PeriodicShooting(ContinuationProblem):
     def test_functions(self, Z: PETSc.Vec) -> dict[str, float]:
         if self.floquet_kind == "none":
             return {}
-        return test_functions(self.multipliers(Z))
+        return test_functions(self.multipliers(Z), partial=self.floquet_kind == "radius")
 
     def report(self, Z: PETSc.Vec) -> dict:
         x, p = self.state(Z)
         out = dict(x=x, periods=self.periods)
         if self.floquet_kind != "none":
             mu = self.multipliers(x=x, p=p)
-            rho = float(np.max(np.abs(mu)))
+            # the radius route: rho <= r when no multiplier lies outside r (r itself reported: an upper bound)
+            rho = float(np.max(np.abs(mu))) if len(mu) else self.radius
             out.update(multipliers=mu, rho=rho, verdict=verdict(rho), **counts(mu))
+            if self.floquet_kind == "radius":
+                out["radius"] = self.radius
         return out
 
     def destroy(self) -> None:

@@ -38,6 +38,9 @@ N_TRIVIAL = 4
 # Stability criterion: an O(eps) orbit error splits double multipliers by O(sqrt(eps)); with eps ~ 1e-10 (refined
 # E plus the flow's error) that is ~1e-5, and 1e-4 keeps a factor 10.
 TOL_RHO = 1e-4
+# The radius route's closure (DominantFloquet.closed): the Krylov space has magnified whatever lies outside the
+# radius r against the cluster inside (radius rho_c) by at least 1 / CLOSURE, (r / rho_c)^products >= 1 / CLOSURE.
+CLOSURE = 1e-4
 # The flow of the spectra along the refined waves (as tight as the refinement's).
 FLOQUET_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
 
@@ -178,12 +181,24 @@ class DominantFloquet(FloquetSolver):
     ``shift``: the shift S in beads (1: F_q of a travelling wave; 0: the plain monodromy R(T; 0) of a driven chain);
     ``vectors``: keep the eigenvectors of the last solve (:attr:`vectors`, (2N, nev) on every rank, in the order of
     the returned multipliers).
+
+    ``radius`` r (or ``-floquet_radius``, which takes precedence; also settable per solve, :attr:`radius`): every
+    multiplier outside the circle |mu| = r instead of the ``nev`` largest (``nev`` then caps their number). The EPS
+    accepts only Ritz values outside r (a region, the complement of the disk: :func:`largest_magnitude`) and stops
+    when every Ritz value of its Krylov space (dimension ncv, after at least one restart) outside r has converged:
+    the spectrum is then complete outside r to that space's resolution (``work['resolved']``). It is unresolved
+    when ``nev`` multipliers outside r converged (more may lie outside) or the restarts ran out with Ritz values
+    outside r not converged. Krylov methods converge to a multiplier at the rate |mu| / rho_c per product, rho_c the
+    radius of the cluster inside (a damped chain's phonons: e^{-gamma T / 2}), so a multiplier just outside r shows
+    as a Ritz value outside r only after about ln(1/eps) / ln(r / rho_c) products: with ``cluster`` = rho_c given
+    (:attr:`cluster`, per solve) the test also waits for (rho_c / r)^products <= :data:`CLOSURE` (r <= rho_c
+    refused), so r between the cluster and the unit circle decides the cost.
     """
 
     def __init__(self, spec: ChainSpec, comm: PETSc.Comm, nev: int = 10,
                  tolerances: IntegrationTolerances = FLOQUET_TOLERANCES, prefix: str = FLOQUET_PREFIX,
                  ncv: Optional[int] = None, tol: float = 1e-10, warm: bool = False, shift: int = 1,
-                 vectors: bool = False) -> None:
+                 vectors: bool = False, radius: Optional[float] = None) -> None:
         dim = 2 * check_instance("spec", spec, ChainSpec, "a ChainSpec").N
         if not (check_integer("nev", nev, 1, "the number of multipliers") <= dim):
             raise ParameterError("nev", nev, f"must be an integer in [1, 2N] = [1, {dim}]")
@@ -192,10 +207,27 @@ class DominantFloquet(FloquetSolver):
         tol = check_real("tol", tol, "the eigensolver's relative tolerance", 0.0, 1.0)
         self.prefix, self.warm, self.start, self.previous = prefix, check_flag("warm", warm), [], []
         self.keep_vectors, self.vectors = check_flag("vectors", vectors), None
+        from petsc4py import PETSc
+        given = PETSc.Options(prefix).getString("radius") if PETSc.Options(prefix).hasName("radius") else None
+        if given is not None:
+            try:
+                given = float(given)
+            except ValueError:
+                pass
+            given = radius = check_real("-%sradius" % prefix, given, "the radius outside which every multiplier is "
+                                        "wanted", 0.0)
+        elif radius is not None:
+            radius = check_real("radius", radius, "the radius outside which every multiplier is wanted", 0.0)
+        self.fixed_radius = given                # the option's, which a caller's default does not replace
+        self.radius, self.cluster, self._products0 = radius, None, 0
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
+        # the radius route stops with fewer than nev converged: below the whole space (SLEPc's eigenvectors of such
+        # a stop after the Krylov space spanned everything are not the pairs'; check_eigenpairs would refuse them)
+        cap = dim if radius is None else max(nev, dim - 1)
         self.eps = largest_magnitude(self.op.base.comm, prefix, nev,
-                                     min(dim, max(2 * nev + 20, 60) if ncv is None else ncv), tol)
+                                     min(cap, max(2 * nev + 20, 60)) if ncv is None else ncv, tol,
+                                     None if radius is None else self)
         self.nev = self.eps.getDimensions()[0]
         if self.nev > dim:
             self.destroy()
@@ -224,8 +256,16 @@ class DominantFloquet(FloquetSolver):
         if self.start or self.previous:
             eps.setInitialSpace(self.start or self.previous)
         self.start = []
+        if self.radius is not None:
+            if self.cluster is not None and not self.radius > self.cluster:
+                raise ParameterError("-%sradius" % self.prefix, self.radius, "the radius must exceed the modulus of "
+                                     f"the cluster of multipliers inside, {self.cluster:.6g}")
+            self.eps.getRG().setEllipseParameters(0.0, float(self.radius), 1.0)
+            self._products0 = products0
         eps.solve()
         nconv = eps.getConverged()
+        if self.radius is not None:
+            return self._outside(orbit, tol_rho, nconv, products0)
         if nconv < self.nev:
             raise ConvergenceError("Floquet eigensolver (prefix -%s)" % self.prefix,
                                    f"{nconv} of {self.nev} multipliers converged ({eps.getConvergedReason()})",
@@ -251,6 +291,57 @@ class DominantFloquet(FloquetSolver):
         return Spectrum(values, False, tol_rho, work=dict(converged=nconv, iterations=eps.getIterationNumber(),
                                                           products=op.products - products0))
 
+    def closed(self, eps, its, max_it, nconv, nev):
+        """The stopping test of the radius route (:func:`largest_magnitude`): converged when every Ritz value of the
+        Krylov space outside the radius has converged (after at least one restart), or when ``nev`` have (the cap:
+        unresolved); diverged when the restarts ran out. Decided on rank 0 (the projected problem is replicated)."""
+        from slepc4py import SLEPc
+        reason = SLEPc.EPS.ConvergedReason
+        ds = eps.getDS()
+        n = ds.getDimensions()[0]
+        A = ds.getMat(SLEPc.DS.MatType.A)
+        try:
+            H = A.getDenseArray()[:n, :n].copy()
+        finally:
+            ds.restoreMat(SLEPc.DS.MatType.A, A)
+        outside = int(np.sum(np.abs(np.linalg.eigvals(H)) > self.radius)) if n else 0
+        products = self.op.products - self._products0
+        resolved = self.cluster is None or products * math.log(self.radius / self.cluster) >= -math.log(CLOSURE)
+        if nconv >= nev:
+            out = reason.CONVERGED_TOL
+        elif its >= 2 and resolved and nconv >= outside:
+            out = reason.CONVERGED_USER
+        elif its >= max_it:
+            out = reason.DIVERGED_ITS
+        else:
+            out = reason.ITERATING
+        return self.op.base.comm.tompi4py().bcast(out, root=0)
+
+    def _outside(self, orbit, tol_rho, nconv, products0):
+        """The multipliers outside the radius of the last solve, their eigenvectors kept; ``work['resolved']``: the
+        stopping test closed the spectrum outside r (module docstring of the class)."""
+        from slepc4py import SLEPc
+        eps, A, r = self.eps, self.A, float(self.radius)
+        values = np.array([eps.getEigenvalue(i) for i in range(nconv)], dtype=complex)
+        keep = [int(i) for i in np.argsort(-np.abs(values), kind="stable") if abs(values[i]) > r]
+        reason = eps.getConvergedReason()
+        resolved = reason == SLEPc.EPS.ConvergedReason.CONVERGED_USER or \
+            (reason == SLEPc.EPS.ConvergedReason.CONVERGED_TOL and len(keep) < nconv)
+        from .assembly import gathered
+        vr, vi = A.createVecRight(), A.createVecRight()
+        try:
+            columns = []
+            for i in keep:
+                eps.getEigenvector(i, vr, vi)
+                columns.append(gathered(vr) + 1j * gathered(vi))
+        finally:
+            vr.destroy()
+            vi.destroy()
+        self.vectors = np.array(columns).T if columns else np.zeros((A.getSize()[0], 0), complex)
+        return Spectrum(values[keep], False, tol_rho, work=dict(
+            converged=nconv, iterations=eps.getIterationNumber(), products=self.op.products - products0, radius=r,
+            resolved=bool(resolved), reason=int(reason)))
+
     def destroy(self) -> None:
         self._release()
         self.eps.destroy()
@@ -258,9 +349,11 @@ class DominantFloquet(FloquetSolver):
         self.op.destroy()
 
 
-def largest_magnitude(comm, prefix, nev, ncv, tol):
+def largest_magnitude(comm, prefix, nev, ncv, tol, outside=None):
     """A Krylov-Schur EPS for the multipliers of largest magnitude (the package's one set-up of the dominant routes:
-    Floquet, compacton window), configured from the options database under ``prefix`` once."""
+    Floquet, compacton window), configured from the options database under ``prefix`` once. ``outside``: a
+    :class:`DominantFloquet` with a radius r: the region |mu| > r (an RG ellipse, complemented; ``-prefix_rg_*``) and
+    its stopping test :meth:`DominantFloquet.closed`."""
     from slepc4py import SLEPc
     eps = SLEPc.EPS().create(comm=comm)
     eps.setOptionsPrefix(prefix)
@@ -269,5 +362,11 @@ def largest_magnitude(comm, prefix, nev, ncv, tol):
     eps.setWhichEigenpairs(SLEPc.EPS.Which.LARGEST_MAGNITUDE)
     eps.setDimensions(nev=nev, ncv=ncv)
     eps.setTolerances(tol=tol, max_it=500)
+    if outside is not None:
+        rg = eps.getRG()
+        rg.setType(SLEPc.RG.Type.ELLIPSE)
+        rg.setEllipseParameters(0.0, float(outside.radius), 1.0)
+        rg.setComplement(True)
+        eps.setStoppingTest(outside.closed)
     eps.setFromOptions()
     return eps

@@ -54,8 +54,9 @@ def main():
     points = opts.integer("points", 200, "grid mode: number of parameter values (start and p_end included)", minimum=2)
     periods = opts.integer("periods", 1, "response period in driving periods", minimum=1)
     jacobian = opts.string("jacobian", "dense", "Newton's Jacobian", choices=("dense", "mf"))
-    floquet = opts.string("floquet", "dense", "multipliers", choices=("dense", "slepc", "none"))
-    nev = opts.integer("nev", 8, "SLEPc: dominant multipliers", minimum=1)
+    floquet = opts.string("floquet", "dense", "multipliers (radius: every one outside -floquet_radius, long chains)",
+                          choices=("dense", "slepc", "radius", "none"))
+    nev = opts.integer("nev", 8, "SLEPc: dominant multipliers (radius: at most this many outside)", minimum=1)
     tol = opts.real("tol", 1e-10, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     ds = opts.real("ds", 0.02, "first arclength step")

@@ -146,6 +146,7 @@ def test_small_q_driver(tmp_path):
     ("bench_chain.py", ("-sizes", 20, "-refine_N", 20), ("| 20 |", 3)),
     ("bench_newton.py", ("-cells", "100,200", "-logview_cells", 0), ("| pi*", 4)),
     ("bench_driven.py", ("-N", 2, "-points", 3, "-run_in", 2, "-workloads", "sweep"), ("| hertzpetsc", 2)),
+    ("bench_long_driven.py", ("-sizes", 20, "-ranks", 1, "-run_in", 2, "-routes", "radius,dense"), ("| 20 |", 2)),
 ])
 def test_benchmark_drivers(tmp_path, script, args, rows):
     out = tmp_path / "bench.md"

@@ -741,6 +741,9 @@ class ResponseCurve(DrivenStudy):
             stable = sum(1 for r in br if float(r["rho"]) < 1 - TOL_MU)
             verdicts = f"stable (rho < 1 - {TOL_MU:g}) at {stable}" \
                 if any(math.isfinite(float(r["rho"])) for r in br) else "multipliers not computed (floquet none)"
+            if str(self.store.constants.get("floquet", "")) == "radius" and verdicts[0] == "s":
+                verdicts += (" (floquet radius: every multiplier outside a radius r < 1, -floquet_radius or the "
+                             "default e^(-gamma T / 4); rho = r where none lies outside)")
             forces = [float(r["force_right"]) for r in br if math.isfinite(float(r["force_right"]))]
             force = f"max force_right {max(forces):.4g}" if forces else "force_right not computed (samples 0)"
             lines += ["", f"Branch 0: {span}; {verdicts}; {worst}; {force}."]

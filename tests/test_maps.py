@@ -649,6 +649,28 @@ def test_a_multiplier_near_one_is_judged_on_the_refined_orbit():
     assert rho[0] > 1e-6 and rho[1] < 1e-7
 
 
+def test_a_weak_infinite_chain_instability_is_judged_on_the_refined_cell_orbit():
+    """alpha = 3/2, 12pi/25 (a cell of 25 beads) at a = 1.01 (A = 1.041, past the gap opening at 0.896): the twist
+    scan of the Richardson cell orbit finds rho - 1 of a few 1e-6 at small twists (the zones' translations, near 1
+    over the twists, split by the orbit's error as on N beads), and the map said unstable there on the infinite
+    chain while the 100-bead chain, refined, is stable. A weak instability (tol_rho < rho - 1 < NEAR_ONE) is now
+    judged on the cell orbit refined by Gauss-Newton, with the flow at FINE_FLOW (E_cell recorded)."""
+    from hertzpetsc.studies.maps import MAP_TOL_RHO, REFINE_TOL
+    model, q, K = LatticeModel.hertz(1.5, (1.0,), 1.0), 12 * math.pi / 25, 1000
+    study = StabilityMap(MapParameters(model, (q,), (1.01,), N=100, cells_per_pi=K, tolerances=TOL, locate=(),
+                                       limit=False, twists=512), SELF)
+    try:
+        [row] = [r for r in study.run() if r["kind"] == KIND_POINT]
+        sym = wave_cell(q, model.cell)
+        [(a, w, lam)] = richardson_waves(model, q, [1.01], K)
+        cell = wave_orbit(model, q, a, w, lam, sym.M, math.pi / K)
+        unrefined = twist_scan(study.route(model), cell, -(-512 // sym.M), floor=MAP_TOL_RHO)
+    finally:
+        study.destroy()
+    assert unrefined.rho_max - 1 > MAP_TOL_RHO                # the map's verdict before: unstable
+    assert row["E_cell"] <= REFINE_TOL and row["rho_inf"] - 1 < MAP_TOL_RHO
+
+
 def test_an_edge_whose_bisection_fails_is_in_the_table_as_unresolved(monkeypatch, capfd):
     """The bubble of test_located_bubble_is_confirmed_by_the_multipliers_on_both_sides with the family's corrector
     failing within 1e-3 in log a of its onset: the layer dropped the onset, and the table showed the offset alone,

@@ -90,7 +90,7 @@ EIGVEC_MAX = 1e-4
 MAP_FIELDS = ("q", "m", "kind", "a", "A", "omega", "rho", "outside", "sector", "cluster", "raw_cluster", "eigvec",
               "decoupled", "rho_inf", "theta_inf", "cluster_inf", "a_stable", "a_unstable", "A_stable", "A_unstable",
               "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds", "cert_inf", "bound_inf",
-              "cert_stable", "modulation_inf", "E_chain", "located")
+              "cert_stable", "modulation_inf", "E_chain", "located", "E_cell")
 # the infinite chain's certification of a record (cert_inf; cert_stable: of an edge's stable side): 1 stable between
 # the twist samples (slow.certify_twists), 0 stable samples not certified between them (unresolved), -1 none
 # (unstable, no verdict, or a file of kind -2, whose verdicts are the samples')
@@ -275,10 +275,12 @@ class MapProbe:
                                                   measure=self.measure)
         return self._companion
 
-    @property
-    def refiner(self):
-        if self._refiner is None:
-            self._refiner = Refiner(ChainSpec(self.model, self.study.N), PETSc.COMM_SELF, REFINE_TOL)
+    def refiner(self, N):
+        """The Gauss-Newton refiner of orbits on N beads (the chain's, or the infinite chain's cell)."""
+        if self._refiner is None or self._refiner.spec.N != N:
+            if self._refiner is not None:
+                self._refiner.destroy()
+            self._refiner = Refiner(ChainSpec(self.model, N), PETSc.COMM_SELF, REFINE_TOL)
         return self._refiner
 
     def entry(self, point):
@@ -321,7 +323,7 @@ class MapProbe:
             E = math.nan
             if np.min(np.abs(spec.multipliers[~spec.known] - 1), initial=math.inf) < NEAR_ONE:
                 # a nearly defective pair at 1: the verdict of the refined orbit (NEAR_ONE)
-                refined = self.refiner.refine(orbit)
+                refined = self.refiner(st.N).refine(orbit)
                 orbit, E = refined.orbit, refined.E
                 spec = st.route(self.model, fine=True).spectrum(orbit, st.tol_rho)
             sectors = spec.work["sectors"]
@@ -343,8 +345,15 @@ class MapProbe:
             st, e = self.study, self.wave(entry)
             sym = wave_cell(self.q, self.model.cell)
             cell = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], sym.M, math.pi / st.K)
-            scan = twist_scan(st.route(self.model), cell, max(2, -(-st.twists // sym.M)), hints=self.hints,
-                              floor=st.tol_rho)
+            n_grid = max(2, -(-st.twists // sym.M))
+            scan = twist_scan(st.route(self.model), cell, n_grid, hints=self.hints, floor=st.tol_rho)
+            E = math.nan
+            if st.tol_rho < scan.rho_max - 1 < NEAR_ONE:
+                # a weak instability: the long-wave multipliers near 1 (the zones' translations over the twists)
+                # are split by the orbit's error as on N beads (NEAR_ONE): the verdict of the refined cell orbit
+                refined = self.refiner(sym.M).refine(cell)
+                cell, E = refined.orbit, refined.E
+                scan = twist_scan(st.route(self.model, fine=True), cell, n_grid, hints=self.hints, floor=st.tol_rho)
             if scan.rho_max - 1 > st.tol_rho:
                 self.hints = ([scan.theta] + [h for h in self.hints if abs(h - scan.theta) > 1e-9])[:3]
             entry["omega"] = cell.omega
@@ -352,7 +361,7 @@ class MapProbe:
             entry["infinite"] = dict(rho=scan.rho_max, theta=scan.theta, cluster=scan.cluster, M=sym.M,
                                      decoupled=scan.decoupled, cert=certification(scan),
                                      bound=c.bound if c is not None else math.nan,
-                                     modulation=2 * math.pi * sym.M / scan.theta_min)
+                                     modulation=2 * math.pi * sym.M / scan.theta_min, E=E)
             self.evaluations["infinite"] += 1
         return entry["infinite"]
 
@@ -405,7 +414,7 @@ class StabilityMap(Study):
     DTYPES = {"m": np.int64, "kind": np.int64, "outside": np.int64, "decoupled": np.int64, "evaluations": np.int64,
               "cert_inf": np.int64, "cert_stable": np.int64, "located": np.int64}
     ROLES = uses("precomp_", "shoot_", "shoot_jac_", floquet_=("ts",))
-    ADDED = {"E_chain": math.nan, "located": 1}
+    ADDED = {"E_chain": math.nan, "located": 1, "E_cell": math.nan}
     WHAT = "stability-map file"
     NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="model's masses (-epsilon)")
 
@@ -457,7 +466,7 @@ class StabilityMap(Study):
             if self.twists:
                 i = probe.infinite(entry)
                 row.update(rho_inf=i["rho"], theta_inf=i["theta"], cluster_inf=i["cluster"], cert_inf=i["cert"],
-                           bound_inf=i["bound"], modulation_inf=i["modulation"],
+                           bound_inf=i["bound"], modulation_inf=i["modulation"], E_cell=i["E"],
                            decoupled=int(i["decoupled"]) if row["decoupled"] < 0 else row["decoupled"])
             row["omega"] = entry.get("omega", omega)
         return row

@@ -1126,7 +1126,7 @@ class LinearChainPreconditioner:
         w2 = model.law.linear_stiffness * lam / m
         eta = model.damping.eta
         if model.damping.contact is not None:     # the contacts at rest (overlap delta0): a dashpot df_d/d(dv)
-            eta = eta + float(model.damping.contact.bond_terms(model.law, np.zeros(1), np.zeros(1))[2][0])
+            eta = eta + model.damping.contact.linear_dashpot(model.law)
         half = 0.5 * (model.damping.gamma + eta * lam) / m
         s = np.sqrt(half * half - w2 + 0j)
         decay, cosh = np.exp(-half * T), np.cosh(s * T)

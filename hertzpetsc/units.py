@@ -534,3 +534,69 @@ def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_
         return BeadChain(tuple(beads), force, length or None)
     except ParameterError as err:
         raise ParameterError(f"-{err.name}", err.value, err.valid) from None
+
+
+def contact_options(opts, chain: Optional[BeadChain] = None, si: bool = False) -> Optional[ContactDissipation]:
+    """Declare and read the options of a dissipation in the contacts (:mod:`hertzpetsc.dissipation`; the driven
+    drivers): -contact none|hunt-crossley|kuwabara-kono (also spelt with '_'), -contact_damping (Hunt-Crossley's c
+    or Kuwabara-Kono's eta in the chain's units), -unclipped (a contact may pull); with ``si`` (a driver that takes
+    -beads) also -contact_coefficient (the coefficient in SI: c in s/m, eta in N s/m^1.5) or -restitution e with
+    -impact_velocity v (a restitution measured at that impact velocity), converted by
+    :meth:`BeadChain.contact_damping` for ``chain`` (refused without -beads). Returns the contact damping, or None
+    (-contact none, the default: no option of a contact may then be given)."""
+    kind = opts.string("contact", "none", "dissipation in the contacts: none, " + ", ".join(CONTACT_KINDS)
+                       + " (or with '_')")
+    value = opts.real("contact_damping", 0.0, "-contact: Hunt-Crossley c or Kuwabara-Kono eta (the chain's units)",
+                      valid=(lambda x: x >= 0, ">= 0"))
+    unclipped = opts.flag("unclipped", "-contact: let a contact pull (no clipping of the contact force at 0)")
+    named = ["contact_damping", "unclipped"]
+    if si:
+        coefficient = opts.string("contact_coefficient", "", "-contact with -beads: the coefficient in SI units "
+                                  "(Hunt-Crossley c, e.g. 0.05s/m; Kuwabara-Kono eta in N s/m^1.5)")
+        restitution = opts.string("restitution", "", "-contact with -beads: a coefficient of restitution in "
+                                  f"[{MIN_RESTITUTION:g}, 1), measured at -impact_velocity, instead of a coefficient")
+        velocity = opts.string("impact_velocity", "", "-restitution: the impact velocity it was measured at "
+                               "(e.g. 0.1m/s)")
+        named += ["contact_coefficient", "restitution", "impact_velocity"]
+    if opts.help:
+        return None
+    kind = kind.strip().replace("_", "-")
+    if kind == "none":
+        given = [name for name in named if opts.db.hasName(name)]
+        if given:
+            raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "describes a dissipation in the "
+                                 "contacts: give -contact (" + ", ".join(CONTACT_KINDS) + ") too")
+        return None
+    if kind not in CONTACT_KINDS:
+        raise ParameterError("-contact", kind, "must be one of none, " + ", ".join(CONTACT_KINDS))
+    clipped = not unclipped
+    given = [name for name in ("contact_damping", "contact_coefficient", "restitution")[:3 if si else 1]
+             if opts.db.hasName(name)]
+    if len(given) != 1:
+        raise ParameterError("-contact", kind, "give its damping by one of -contact_damping (the chain's units)"
+                             + (", -contact_coefficient (SI) or -restitution with -impact_velocity (with -beads)"
+                                if si else "") + (f"; not both -{given[0]} and -{given[1]}" if given else ""))
+    if given[0] == "contact_damping":
+        return CONTACT_KINDS[kind](value, clipped)
+    if chain is None:
+        raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "is in SI units: give the beads "
+                             "(-beads) too, or -contact_damping in the chain's units")
+    if given[0] == "restitution":
+        try:
+            e = float(restitution)
+        except ValueError:
+            raise ParameterError("-restitution", restitution, "must be a number in "
+                                 f"[{MIN_RESTITUTION:g}, 1)") from None
+        if not velocity:
+            raise ParameterError("-impact_velocity", None, "-restitution needs the impact velocity it was measured "
+                                 "at (e.g. 0.1m/s)")
+        args = dict(restitution=e, velocity=velocity)
+    else:
+        if velocity:
+            raise ParameterError("-impact_velocity", velocity, "goes with -restitution, not -contact_coefficient")
+        args = dict(coefficient=coefficient)
+    try:
+        return chain.contact_damping(kind, clipped=clipped, **args)
+    except ParameterError as err:
+        name = {"coefficient": "contact_coefficient", "velocity": "impact_velocity"}.get(err.name, err.name)
+        raise ParameterError(f"-{name}", err.value, err.valid) from None

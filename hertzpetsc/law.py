@@ -333,3 +333,4 @@ class ScaledLaw(InteractionLaw):
 
     def check_consistency(self) -> None:
         self.base.check_consistency()
+

@@ -27,7 +27,7 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
-from hertzpetsc.model import Damping, LatticeModel  # noqa: E402
+from hertzpetsc.model import Damping, LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.driven import WAVEFORMS, Generation, GenerationParameters  # noqa: E402
@@ -41,6 +41,7 @@ def main():
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file (the travelling-wave family)")
     N = opts.integer("N", 60, "beads", minimum=1)
     alpha = opts.real("alpha", 1.5, "Hertz exponent (must be the branch's)", valid=(lambda x: x > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     delta0 = opts.real("delta0", 0.0, "precompression")
     eta = opts.real("eta", 0.0, "damping between neighbours")
     contact = contact_options(opts)

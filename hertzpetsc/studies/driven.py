@@ -69,7 +69,7 @@ from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, H
                       verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError, check_integer, check_real
 from ..floquet import DenseFloquet
-from ..model import Damping, LatticeModel
+from ..model import Damping, LatticeModel, law_options
 from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
                          check_work)
 from ..units import bead_options, contact_options, parse_quantity
@@ -836,9 +836,9 @@ class ResonanceParameters:
 
     def __post_init__(self):
         drive = _drive(self.drive)
-        if not drive.model.delta0 > 0:
+        if not drive.model.law.linear_stiffness > 0:
             raise ParameterError("delta0", drive.model.delta0, "the linear resonances need a precompressed chain "
-                                 "(delta0 > 0)")
+                                 "(delta0 > 0; another law: V''(0) > 0)")
         if not drive.model.damped:
             raise ParameterError("gamma", drive.gamma, "the resonances need a damped chain, gamma > 0 (or eta > 0): "
                                  "undamped, the response at omega_k is unbounded and not isolated (the multiplier 1)")
@@ -941,11 +941,12 @@ class LinearResonances(DrivenStudy):
         contact = "" if contact is None else ", contact dissipation " + ", ".join(
             f"{k} = {v}" for k, v in contact.describe().items()) + f" (linearised at rest: a dashpot " \
             f"{contact.linear_dashpot(d.model.law):.6g} in every bond, with eta in the linear chain)"
-        lines = [f"schema: {RESONANCE_FORMAT}; precompressed chain alpha = {d.model.alpha:g}, delta0 = "
-                 f"{d.model.delta0:g} (K = V''(0) = {d.model.law.linear_stiffness:.6g}), N = {d.N}, masses "
-                 f"{list(d.model.masses)}, gamma = {d.model.damping.gamma:g}, eta = {d.model.damping.eta:g}{contact}; "
-                 f"actuator "
-                 f"a cos(omega t), a = {d.amplitude:g}; right end {d.right}.\n",
+        law = f"alpha = {d.model.alpha:g}, delta0 = {d.model.delta0:g}" if d.model.law.name == "hertz" else \
+            ", ".join(f"{k} = {v}" for k, v in d.model.law.describe().items())
+        lines = [f"schema: {RESONANCE_FORMAT}; precompressed chain {law} (K = V''(0) = "
+                 f"{d.model.law.linear_stiffness:.6g}), N = {d.N}, masses {list(d.model.masses)}, gamma = "
+                 f"{d.model.damping.gamma:g}, eta = {d.model.damping.eta:g}{contact}; actuator a cos(omega t), a = "
+                 f"{d.amplitude:g}; right end {d.right}.\n",
                  f"{UNITS}. k: mode number; omega_k: normal modes of the undamped linear chain (closed form); "
                  "peak (linear): maximum over omega of the last bead's |X_N| for the damped linear chain (complex "
                  "solve, golden section); peak (shooting): the same from periodic responses of the Hertz chain (Newton "
@@ -1328,7 +1329,8 @@ def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, 
     actuator's -signal (harmonic, half_sine with -width, samples with -signal_samples over one closed period),
     -amplitude, -omega, the far end -right (wall, free) and a dissipation in the contacts
     (:func:`hertzpetsc.units.contact_options`: -contact, -contact_damping, -unclipped; with beads also
-    -contact_coefficient, -restitution, -impact_velocity). Returns the :class:`~hertzpetsc.driven.Drive`
+    -contact_coefficient, -restitution, -impact_velocity); -law with -law_<parameter> for another law than Hertz
+    (:func:`hertzpetsc.model.law_options`). Returns the :class:`~hertzpetsc.driven.Drive`
     (ParameterError naming the parameter for a value out of range: negative damping, amplitude < 0, omega <= 0,
     a sampled signal that is not periodic). With ``beads``: also the chain in SI units
     (:func:`hertzpetsc.units.bead_options`: -beads, -radius, -static_force, ...) and the actuator's -drive_amplitude
@@ -1366,9 +1368,12 @@ def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, 
                 om = chain.from_si("angular_frequency", 2 * math.pi * check_real("-drive_frequency", parse_quantity(
                     "-drive_frequency", f_si, "frequency"), "the driving frequency", 0.0))
     contact = contact_options(opts, chain, si=beads)
+    law = law_options(opts)
     if opts.help:
         return (None, None) if beads else None
     model = LatticeModel.hertz(alpha, tuple(masses), d0, gamma, eta) if chain is None else chain.model(gamma, eta)
+    if law is not None:
+        model = LatticeModel(law, tuple(masses), Damping(gamma, eta))
     if contact is not None:
         model = LatticeModel(model.law, model.masses, Damping(gamma, eta, contact), model.bonds)
     waveform = {"harmonic": HarmonicWave, "half_sine": lambda: HalfSinePulses(width),

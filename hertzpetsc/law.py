@@ -333,4 +333,3 @@ class ScaledLaw(InteractionLaw):
 
     def check_consistency(self) -> None:
         self.base.check_consistency()
-

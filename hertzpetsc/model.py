@@ -578,8 +578,9 @@ def law_options(opts, supported: bool = True, hertz_options: tuple = ("alpha", "
     line's laws by name (e.g. -law toda -law_k 1 -law_b 2; a parameter not given keeps the law's default). Returns
     the law, or None for Hertz (the driver's own -alpha, -delta0 as before; -law_<parameter> is not taken then). A
     driver whose computation is Hertz's alone (``supported`` False) declares -law only and refuses any other law;
-    -beads (a Hertz chain) and the driver's Hertz options ``hertz_options`` (-alpha, -delta0) are refused beside another law, a -law_<parameter> the law has
-    not, and a value the law refuses: one ParameterError naming the option."""
+    -beads (a Hertz chain) and the driver's Hertz options ``hertz_options`` (-alpha, -delta0) are refused beside
+    another law, a -law_<parameter> the law has not, and a value the law refuses: one ParameterError naming the
+    option."""
     if not supported:
         name = opts.string("law", "hertz", "the interaction law: hertz only in this driver (-alpha, -delta0)")
         if not opts.help and name.strip() != "hertz":

@@ -258,7 +258,7 @@ def test_small_amplitude_driven_response_is_the_linear_chain_with_the_contacts_d
     O((a / delta0)^2) (its ratio between the two amplitudes 4, within 10 %; below (a / delta0)^2 itself, while the
     linear chain without the contacts' dashpot is off by O(1)). The multipliers against exp(T lambda) of the linear
     chain (Liouville checked by the integral of tr Df) to O(a^2) too; the energy balance (mean input power = mean
-    dissipation, contacts included) to the periodic trapezoid's spectral accuracy on 64 samples."""
+    dissipation, contacts included) to the periodic trapezoid's spectral accuracy on 64 samples; the end forces."""
     from hertzpetsc.driven import PeriodicShooting
     from hertzpetsc.studies.driven import bond_dashpot, linear_multipliers, linear_response
     model = LatticeModel(HertzLaw(1.5, 1.0), (1.0, 0.7), Damping(0.02, 0.0, contact))
@@ -274,6 +274,13 @@ def test_small_amplitude_driven_response_is_the_linear_chain_with_the_contacts_d
             X = linear_response(drive)
             errors.append(np.max(np.abs(first - X)) / np.max(np.abs(X)))
             assert errors[-1] < a * a
+            # the forces on the wall and the actuator (the contacts' tension included): the largest over the
+            # period, |K + i omega g| |X_N| and |K + i omega g| |X_1 - a| to O(a / delta0) (the static offset of the
+            # quadratic terms; without the contacts' term 1.6 % off)
+            d = prob.diagnostics(r.x, 64)
+            dashpot = (model.law.linear_stiffness + 1j * drive.omega * bond_dashpot(model))
+            assert abs(d["force_right"] / abs(dashpot * X[-1]) - 1) < a
+            assert abs(d["force_left"] / abs(dashpot * (X[0] - a)) - 1) < a
             without = linear_response(Drive(LatticeModel(model.law, model.masses, Damping(0.02)), 2,
                                             HarmonicWave(), a, 0.9))
             assert np.max(np.abs(without - X)) > 0.1 * np.max(np.abs(X))
@@ -281,7 +288,6 @@ def test_small_amplitude_driven_response_is_the_linear_chain_with_the_contacts_d
                 mu = prob.multipliers(x=r.x, p=drive.omega)
                 assert np.max(np.abs(np.sort_complex(mu) - np.sort_complex(linear_multipliers(drive, prob.T)))) \
                     < 10 * a * a
-                d = prob.diagnostics(r.x, 64)
                 assert abs(d["power_in"] - d["dissipation"]) < 1e-10 * d["dissipation"]
         finally:
             prob.destroy()

@@ -201,7 +201,7 @@ _SCALES = {
     "length": ("m", (1, 0, 0, 0)), "time": ("s", (0, 1, 0, 0)), "mass": ("kg", (0, 0, 1, 0)),
     "velocity": ("m/s", (1, -1, 0, 0)), "force": ("N", (1, -2, 1, 0)), "energy": ("J", (2, -2, 1, 0)),
     "angular_frequency": ("rad/s", (0, -1, 0, 0)), "damping": ("kg/s", (0, -1, 1, 0)),
-    "speed": ("m/s", (0, -1, 0, 1)), "wavenumber": ("rad/m", (0, 0, 0, -1)),
+    "speed": ("m/s", (0, -1, 0, 1)), "wavenumber": ("rad/m", (0, 0, 0, -1)), "power": ("W", (2, -3, 1, 0)),
 }
 # how drivers show them: displacements in um, frequencies in Hz, speeds in m/s, forces in N
 DISPLAY = {"length": ("um", 1e6), "frequency": ("Hz", 1.0), "velocity": ("m/s", 1.0), "speed": ("m/s", 1.0),
@@ -464,6 +464,52 @@ class BeadChain:
         if self.beads:
             out["beads"] = [dict(material=b.material.name, radius=b.radius, youngs=b.material.youngs,
                                  poisson=b.material.poisson, density=b.material.density) for b in self.beads]
+        return out
+
+    # --- the API's results in SI ---------------------------------------------------------------------------
+    def check_chain(self, model, what: str = "the chain"):
+        """ParameterError unless ``model`` is these beads' chain (law, bonds and masses; the damping may be any)."""
+        mine = self.model()
+        if (model.law, model.bonds, model.masses) != (mine.law, mine.bonds, mine.masses):
+            raise ParameterError("beads", self.describe().get("beads", self.masses), f"{what} is not on these beads' "
+                                 f"chain (its model {model.describe()}, the beads' {mine.describe()})")
+
+    def wave_si(self, orbit) -> dict:
+        """A travelling wave (:class:`~hertzpetsc.waves.Orbit`: ``hz.wave(model, ..., beads=chain)``,
+        ``hz.refine(...).orbit``) on these beads in SI units: frequency [Hz], angular_frequency [rad/s], period
+        [s] (2 pi / omega), phase_speed [m/s] (omega / q beads per unit time), wavenumber [rad/m] (q per bead
+        spacing), amplitude [m] (the wave's size max |u|), and at t = 0 the beads' displacement [m] and velocity
+        [m/s] from rest (N each) and the contact forces [N] of the N bonds of the periodic chain (static force
+        included: F0 - K L^(3/2) V'(r), bond n joining beads n, n + 1)."""
+        self.check_chain(orbit.spec.model, "the wave")
+        model, x = orbit.spec.model, np.asarray(orbit.x, float)
+        r = np.roll(x[:, 0], -1) - x[:, 0]            # periodic: bond N - 1 joins beads N - 1 and 0
+        force = self.static_force - self.to_si("force", np.asarray(model.force(r, 0), float))
+        omega = float(orbit.omega)
+        return dict(frequency=self.to_si("frequency", omega), angular_frequency=self.to_si("angular_frequency", omega),
+                    period=self.to_si("time", 2 * math.pi / omega), phase_speed=self.to_si("speed", omega / orbit.q),
+                    wavenumber=self.to_si("wavenumber", orbit.q), amplitude=self.to_si("length", orbit.amplitude),
+                    displacement=self.to_si("length", x[:, 0]), velocity=self.to_si("velocity", x[:, 1]),
+                    force=force)
+
+    def response_si(self, response) -> dict:
+        """A periodic response of a driven chain of these beads (:class:`~hertzpetsc.driven.Response`, from
+        ``hz.response(drive, ..., beads=chain)``) in SI units: frequency [Hz] and period [s] of the drive and of the
+        response (k periods), drive_amplitude [m], the state at t = 0 (displacement [m], velocity [m/s]); from its
+        record when it has one: force_right, force_left [N] (the largest force on the wall and on the actuator beyond
+        the static force F0), amp_first, amp_last, amp_max [m] (bead amplitudes), power_in, dissipation [W] (means
+        over the period), as ``scripts/driven_response.py -beads`` shows them."""
+        self.check_chain(response.drive.model, "the response")
+        x = np.asarray(response.x, float)
+        out = dict(frequency=self.to_si("frequency", response.omega), period=self.to_si("time", response.T),
+                   drive_amplitude=self.to_si("length", response.drive.amplitude),
+                   displacement=self.to_si("length", x[:, 0]), velocity=self.to_si("velocity", x[:, 1]))
+        rec = response.record or {}
+        for name, quantity in (("force_right", "force"), ("force_left", "force"), ("amp_first", "length"),
+                               ("amp_last", "length"), ("amp_max", "length"), ("power_in", "power"),
+                               ("dissipation", "power")):
+            if name in rec:
+                out[name] = self.to_si(quantity, float(rec[name]))
         return out
 
     def summary(self) -> str:

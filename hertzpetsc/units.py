@@ -467,14 +467,14 @@ class BeadChain:
         return out
 
     # --- the API's results in SI ---------------------------------------------------------------------------
-    def check_chain(self, model, what: str = "the chain"):
+    def check_chain(self, model: LatticeModel, what: str = "the chain") -> None:
         """ParameterError unless ``model`` is these beads' chain (law, bonds and masses; the damping may be any)."""
         mine = self.model()
         if (model.law, model.bonds, model.masses) != (mine.law, mine.bonds, mine.masses):
             raise ParameterError("beads", self.describe().get("beads", self.masses), f"{what} is not on these beads' "
                                  f"chain (its model {model.describe()}, the beads' {mine.describe()})")
 
-    def wave_si(self, orbit) -> dict:
+    def wave_si(self, orbit: Any) -> dict:
         """A travelling wave (:class:`~hertzpetsc.waves.Orbit`: ``hz.wave(model, ..., beads=chain)``,
         ``hz.refine(...).orbit``) on these beads in SI units: frequency [Hz], angular_frequency [rad/s], period
         [s] (2 pi / omega), phase_speed [m/s] (omega / q beads per unit time), wavenumber [rad/m] (q per bead
@@ -492,7 +492,7 @@ class BeadChain:
                     displacement=self.to_si("length", x[:, 0]), velocity=self.to_si("velocity", x[:, 1]),
                     force=force)
 
-    def response_si(self, response) -> dict:
+    def response_si(self, response: Any) -> dict:
         """A periodic response of a driven chain of these beads (:class:`~hertzpetsc.driven.Response`, from
         ``hz.response(drive, ..., beads=chain)``) in SI units: frequency [Hz] and period [s] of the drive and of the
         response (k periods), drive_amplitude [m], the state at t = 0 (displacement [m], velocity [m/s]); from its

@@ -81,15 +81,23 @@ def wave_at(model: LatticeModel, q: float, A: float, cells_per_pi: int = 400, br
         return _wave_at(model, q, A, grid, branch=branch)
 
 
-def wave(model: LatticeModel, q: float, A: float, N: int, cells_per_pi: int = 400,
+def wave(model: Optional[LatticeModel], q: float, A: float, N: int, cells_per_pi: int = 400,
          comm: Optional[PETSc.Comm] = None, branch: str = "acoustic",
-         options: Optional[Mapping[str, Any]] = None) -> Orbit:
+         options: Optional[Mapping[str, Any]] = None, beads: Optional[BeadChain] = None) -> Orbit:
     """The travelling wave of any ``model`` (Hertz exponent, precompression, mass pattern) with per-bead wavenumber
     q and amplitude A = max |u|, on a periodic chain of N beads (N q / 2 pi wavelengths, whole pattern cells): an
     :class:`~hertzpetsc.waves.Orbit` (state, script-T) ready for :func:`refine` and :func:`multipliers`.
     ``branch``: the linear wave a precompressed pattern's family starts from ('acoustic' or 'optical', as in
     :func:`wave_at`). ``options``: per-call solver options (prefix ``precomp_`` with precompression, else ``tw_``).
-    Collective."""
+    ``beads``: a :class:`~hertzpetsc.units.BeadChain` whose chain this is (``model`` None: ``beads.model()``; else
+    refused unless it is the beads' chain); A in its length scale; the wave in SI (Hz, s, m/s, m, N):
+    ``beads.wave_si(orbit)``, also of the refined orbit. Collective."""
+    if beads is not None:
+        check_instance("beads", beads, BeadChain, "a BeadChain (hertzpetsc.units.BeadChain)")
+        model = beads.model() if model is None else model
+        beads.check_chain(model, "the model")
+    elif model is None:
+        raise ParameterError("model", None, "give the LatticeModel (or the beads: beads=BeadChain(...))")
     with call_options(options):
         point, scale = wave_of_amplitude(model, q, A, ProfileGrid(cells_per_pi, _comm(comm)), branch=branch)
     return orbit_on_chain(point, ChainSpec(model, N), scale=scale)
@@ -152,7 +160,7 @@ def multipliers(orbit: Orbit, method: str = "symmetric", nev: Optional[int] = No
 def response(drive: Drive, omega: Union[float, Sequence[float]], periods: int = 1, run_in: int = 50,
              tol: float = 1e-10, rtol: float = 1e-12, jacobian: str = "dense", floquet: str = "dense", nev: int = 8,
              samples: int = 64, comm: Optional[PETSc.Comm] = None,
-             options: Optional[Mapping[str, Any]] = None) -> list[Response]:
+             options: Optional[Mapping[str, Any]] = None, beads: Optional[BeadChain] = None) -> list[Response]:
     """The periodic responses of the driven chain ``drive`` (:class:`~hertzpetsc.driven.Drive`) at the driving
     frequencies ``omega`` (one or several, distinct), with their Floquet multipliers: the grid mode of
     :class:`~hertzpetsc.studies.driven.ResponseCurve` (records in memory): the first response Newton's from the state
@@ -166,9 +174,14 @@ def response(drive: Drive, omega: Union[float, Sequence[float]], periods: int = 
     amplitudes and power balance (0: none). One :class:`~hertzpetsc.driven.Response` per frequency, in order, with
     ``.multipliers``, ``.rho`` and ``.record``; a ConvergenceError (a ContinuationError: the last response found)
     if a frequency's response is not found. ``options``: per-call solver options (prefixes ``drive_``,
-    ``floquet_``). Collective."""
+    ``floquet_``). ``beads``: the :class:`~hertzpetsc.units.BeadChain` of the drive's chain (refused unless it is
+    its model): each record then also has ``si``, the response in SI units (:meth:`BeadChain.response_si
+    <hertzpetsc.units.BeadChain.response_si>`: Hz, s, m, m/s, N, W). Collective."""
     from .studies.driven import ResponseCurve, ResponseParameters
     check_instance("drive", drive, Drive, "a Drive (hertzpetsc.driven.Drive)")
+    if beads is not None:
+        check_instance("beads", beads, BeadChain, "a BeadChain (hertzpetsc.units.BeadChain)")
+        beads.check_chain(drive.model, "the drive")
     omegas = [check_real("omega", w, "the driving frequency", lo=0.0) for w in np.atleast_1d(omega).tolist()]
     if not omegas or len(set(omegas)) < len(omegas):
         raise ParameterError("omega", omega, "one or more distinct driving frequencies")
@@ -189,6 +202,8 @@ def response(drive: Drive, omega: Union[float, Sequence[float]], periods: int = 
         mu = mu[np.isfinite(mu)] if floquet != "none" else None
         out.append(Response(drive.with_parameter("omega", float(rec["omega"])), int(rec["periods"]),
                             np.asarray(rec["x"]), float(rec["residual"]), int(rec["iterations"]), mu, rec))
+        if beads is not None:
+            rec["si"] = beads.response_si(out[-1])
     return out
 
 

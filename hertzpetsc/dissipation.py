@@ -66,6 +66,13 @@ class ContactDissipation:
     def describe(self) -> dict:
         raise NotImplementedError
 
+    def linear_dashpot(self, law) -> float:
+        """The dashpot of a bond linearised at rest, at the overlap delta0 (the precompression): df_d/d(dv) =
+        g(delta0) (Hunt-Crossley (3/2) c K delta0^alpha, Kuwabara-Kono eta delta0^(alpha - 1), K = 1; 0 in the
+        sonic vacuum); df_d/dr = -g'(delta0) dv vanishes at rest. A small-amplitude motion of a precompressed chain
+        sees it as a dashpot eta in every bond (the linear response of a driven chain, its preconditioner)."""
+        return float(self.bond_terms(law, np.zeros(1), np.zeros(1))[2][0])
+
     def bond_terms(self, law, r: ArrayLike, dv: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(f_d, df_d/dr, df_d/d(dv)) of bonds of length r and velocity difference dv (arrays of one shape; dv may
         have a trailing axis of columns only through the caller): 0 out of contact; where clipped f_d = P = d^alpha,

@@ -798,6 +798,10 @@ class PeriodicShooting(ContinuationProblem):
         f_left = -(law.bond_law(-1).dV(pos[:, 0] - x0) + eta * (X[:, 0, 1] - v0))   # bonds -1, N - 1: law p - 1
         f_right = np.zeros_like(t) if spec.right == "free" else \
             -(law.bond_law(-1).dV(xr - pos[:, -1]) + eta * (vr - X[:, -1, 1]))             # a free end has no bond
+        if law.damping.contact is not None:            # the contacts' tension f_d(r, dv) in the end bonds too
+            f_left = f_left - law.damping.contact.bond_terms(law.law, pos[:, 0] - x0, X[:, 0, 1] - v0)[0]
+            if spec.right != "free":
+                f_right = f_right - law.damping.contact.bond_terms(law.law, xr - pos[:, -1], vr - X[:, -1, 1])[0]
         p_in, diss = [], []
         for j in range(len(t) - 1):
             self.chain.set_from_array(self.X, X[j])
@@ -1183,7 +1187,7 @@ class LinearChainPreconditioner:
         w2 = model.law.linear_stiffness * lam / m
         eta = model.damping.eta
         if model.damping.contact is not None:     # the contacts at rest (overlap delta0): a dashpot df_d/d(dv)
-            eta = eta + float(model.damping.contact.bond_terms(model.law, np.zeros(1), np.zeros(1))[2][0])
+            eta = eta + model.damping.contact.linear_dashpot(model.law)
         half = 0.5 * (model.damping.gamma + eta * lam) / m
         s = np.sqrt(half * half - w2 + 0j)
         decay, cosh = np.exp(-half * T), np.cosh(s * T)

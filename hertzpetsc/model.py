@@ -21,7 +21,7 @@ model).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
@@ -32,7 +32,7 @@ from .dissipation import from_description as contact_from_description
 from .errors import ParameterError, check_integer, check_real
 from . import fpu, toda  # noqa: F401  (the package's laws, registered by name for from_description)
 from .hertz import HertzLaw
-from .law import InteractionLaw, ScaledLaw
+from .law import LAWS, InteractionLaw, ScaledLaw
 from .law import from_description as law_from_description
 
 BOUNDARIES = ("periodic", "free", "fixed")
@@ -558,3 +558,70 @@ class ChainSpec:
             elif end is not None and end != ("free" if self.boundary == "free" else "wall"):
                 out[side] = end
         return out
+
+
+# --- the drivers' options --------------------------------------------------------------------------------------------
+def _command_line_laws() -> dict:
+    """The registered laws a command line can build (:data:`hertzpetsc.law.LAWS`; the package's own are imported
+    by this module): those whose parameters are all numbers with defaults (not the wrappers of another law)."""
+    out = {}
+    for name, cls in sorted(LAWS.items()):
+        fs = fields(cls)
+        if all(isinstance(f.default, (int, float)) and not isinstance(f.default, bool) for f in fs):
+            out[name] = tuple(f.name for f in fs)
+    return out
+
+
+def law_options(opts, supported: bool = True, hertz_options: tuple = ("alpha", "delta0")) -> Optional[InteractionLaw]:
+    """Declare and read the options of an interaction law (``opts`` an AppOptions): -law NAME (a registered law,
+    :data:`hertzpetsc.law.LAWS`; hertz by default) and -law_<parameter> value for each parameter of the command
+    line's laws by name (e.g. -law toda -law_k 1 -law_b 2; a parameter not given keeps the law's default). Returns
+    the law, or None for Hertz (the driver's own -alpha, -delta0 as before; -law_<parameter> is not taken then). A
+    driver whose computation is Hertz's alone (``supported`` False) declares -law only and refuses any other law;
+    -beads (a Hertz chain) and the driver's Hertz options ``hertz_options`` (-alpha, -delta0) are refused beside
+    another law, a -law_<parameter> the law has not, and a value the law refuses: one ParameterError naming the
+    option."""
+    if not supported:
+        name = opts.string("law", "hertz", "the interaction law: hertz only in this driver (-alpha, -delta0)")
+        if not opts.help and name.strip() != "hertz":
+            raise ParameterError("-law", name, "this driver computes the Hertz chain only (-alpha, -delta0): other "
+                                 "laws go through scripts/wave.py, driven_response.py and driven_resonances.py, or "
+                                 "the API")
+        return None
+    laws = _command_line_laws()
+    params = sorted({p for n, ps in laws.items() if n != "hertz" for p in ps})
+    name = opts.string("law", "hertz", "the interaction law: " + "; ".join(
+        f"{n} ({', '.join(ps)})" for n, ps in laws.items()) + " (hertz: by -alpha, -delta0)")
+    given = {p: opts.string(f"law_{p}", "", f"-law: the law's parameter {p} (default: the law's)") for p in params}
+    if opts.help:
+        return None
+    name = name.strip()
+    given = {p: v for p, v in given.items() if opts.db.hasName(f"law_{p}")}
+    if name not in laws:
+        raise ParameterError("-law", name, "must be one of " + ", ".join(laws))
+    if name == "hertz":
+        if given:
+            p = next(iter(given))
+            raise ParameterError(f"-law_{p}", given[p], "the Hertz law is given by -alpha, -delta0 (-law_<parameter> "
+                                 "goes with another -law)")
+        return None
+    for other in hertz_options + ("beads",):
+        if opts.db.hasName(other):
+            raise ParameterError(f"-{other}", opts.db.getString(other, ""), f"is the Hertz law's: with -law {name} "
+                                 "give its parameters " + ", ".join(f"-law_{p}" for p in laws[name]))
+    values = {}
+    for p, text in given.items():
+        if p not in laws[name]:
+            raise ParameterError(f"-law_{p}", text, f"is not a parameter of the {name} law (its parameters: "
+                                 + ", ".join(laws[name]) + ")")
+        try:
+            values[p] = float(text)
+        except ValueError:
+            raise ParameterError(f"-law_{p}", text, "must be a number") from None
+    try:
+        law = LAWS[name](**values)
+        law.check_consistency()
+    except ParameterError as err:
+        raise ParameterError(f"-law_{err.name}" if err.name in laws[name] else "-law", err.value, err.valid) \
+            from None
+    return law

@@ -201,7 +201,7 @@ _SCALES = {
     "length": ("m", (1, 0, 0, 0)), "time": ("s", (0, 1, 0, 0)), "mass": ("kg", (0, 0, 1, 0)),
     "velocity": ("m/s", (1, -1, 0, 0)), "force": ("N", (1, -2, 1, 0)), "energy": ("J", (2, -2, 1, 0)),
     "angular_frequency": ("rad/s", (0, -1, 0, 0)), "damping": ("kg/s", (0, -1, 1, 0)),
-    "speed": ("m/s", (0, -1, 0, 1)), "wavenumber": ("rad/m", (0, 0, 0, -1)),
+    "speed": ("m/s", (0, -1, 0, 1)), "wavenumber": ("rad/m", (0, 0, 0, -1)), "power": ("W", (2, -3, 1, 0)),
 }
 # how drivers show them: displacements in um, frequencies in Hz, speeds in m/s, forces in N
 DISPLAY = {"length": ("um", 1e6), "frequency": ("Hz", 1.0), "velocity": ("m/s", 1.0), "speed": ("m/s", 1.0),
@@ -466,6 +466,52 @@ class BeadChain:
                                  poisson=b.material.poisson, density=b.material.density) for b in self.beads]
         return out
 
+    # --- the API's results in SI ---------------------------------------------------------------------------
+    def check_chain(self, model: LatticeModel, what: str = "the chain") -> None:
+        """ParameterError unless ``model`` is these beads' chain (law, bonds and masses; the damping may be any)."""
+        mine = self.model()
+        if (model.law, model.bonds, model.masses) != (mine.law, mine.bonds, mine.masses):
+            raise ParameterError("beads", self.describe().get("beads", self.masses), f"{what} is not on these beads' "
+                                 f"chain (its model {model.describe()}, the beads' {mine.describe()})")
+
+    def wave_si(self, orbit: Any) -> dict:
+        """A travelling wave (:class:`~hertzpetsc.waves.Orbit`: ``hz.wave(model, ..., beads=chain)``,
+        ``hz.refine(...).orbit``) on these beads in SI units: frequency [Hz], angular_frequency [rad/s], period
+        [s] (2 pi / omega), phase_speed [m/s] (omega / q beads per unit time), wavenumber [rad/m] (q per bead
+        spacing), amplitude [m] (the wave's size max |u|), and at t = 0 the beads' displacement [m] and velocity
+        [m/s] from rest (N each) and the contact forces [N] of the N bonds of the periodic chain (static force
+        included: F0 - K L^(3/2) V'(r), bond n joining beads n, n + 1)."""
+        self.check_chain(orbit.spec.model, "the wave")
+        model, x = orbit.spec.model, np.asarray(orbit.x, float)
+        r = np.roll(x[:, 0], -1) - x[:, 0]            # periodic: bond N - 1 joins beads N - 1 and 0
+        force = self.static_force - self.to_si("force", np.asarray(model.force(r, 0), float))
+        omega = float(orbit.omega)
+        return dict(frequency=self.to_si("frequency", omega), angular_frequency=self.to_si("angular_frequency", omega),
+                    period=self.to_si("time", 2 * math.pi / omega), phase_speed=self.to_si("speed", omega / orbit.q),
+                    wavenumber=self.to_si("wavenumber", orbit.q), amplitude=self.to_si("length", orbit.amplitude),
+                    displacement=self.to_si("length", x[:, 0]), velocity=self.to_si("velocity", x[:, 1]),
+                    force=force)
+
+    def response_si(self, response: Any) -> dict:
+        """A periodic response of a driven chain of these beads (:class:`~hertzpetsc.driven.Response`, from
+        ``hz.response(drive, ..., beads=chain)``) in SI units: frequency [Hz] and period [s] of the drive and of the
+        response (k periods), drive_amplitude [m], the state at t = 0 (displacement [m], velocity [m/s]); from its
+        record when it has one: force_right, force_left [N] (the largest force on the wall and on the actuator beyond
+        the static force F0), amp_first, amp_last, amp_max [m] (bead amplitudes), power_in, dissipation [W] (means
+        over the period), as ``scripts/driven_response.py -beads`` shows them."""
+        self.check_chain(response.drive.model, "the response")
+        x = np.asarray(response.x, float)
+        out = dict(frequency=self.to_si("frequency", response.omega), period=self.to_si("time", response.T),
+                   drive_amplitude=self.to_si("length", response.drive.amplitude),
+                   displacement=self.to_si("length", x[:, 0]), velocity=self.to_si("velocity", x[:, 1]))
+        rec = response.record or {}
+        for name, quantity in (("force_right", "force"), ("force_left", "force"), ("amp_first", "length"),
+                               ("amp_last", "length"), ("amp_max", "length"), ("power_in", "power"),
+                               ("dissipation", "power")):
+            if name in rec:
+                out[name] = self.to_si(quantity, float(rec[name]))
+        return out
+
     def summary(self) -> str:
         """Lines stating the chain, its constants and scales (the drivers print them)."""
         what = " / ".join(f"{b.material.name} R = {b.radius * 1e3:g} mm" for b in self.beads) if self.beads \
@@ -534,3 +580,69 @@ def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_
         return BeadChain(tuple(beads), force, length or None)
     except ParameterError as err:
         raise ParameterError(f"-{err.name}", err.value, err.valid) from None
+
+
+def contact_options(opts, chain: Optional[BeadChain] = None, si: bool = False) -> Optional[ContactDissipation]:
+    """Declare and read the options of a dissipation in the contacts (:mod:`hertzpetsc.dissipation`; the driven
+    drivers): -contact none|hunt-crossley|kuwabara-kono (also spelt with '_'), -contact_damping (Hunt-Crossley's c
+    or Kuwabara-Kono's eta in the chain's units), -unclipped (a contact may pull); with ``si`` (a driver that takes
+    -beads) also -contact_coefficient (the coefficient in SI: c in s/m, eta in N s/m^1.5) or -restitution e with
+    -impact_velocity v (a restitution measured at that impact velocity), converted by
+    :meth:`BeadChain.contact_damping` for ``chain`` (refused without -beads). Returns the contact damping, or None
+    (-contact none, the default: no option of a contact may then be given)."""
+    kind = opts.string("contact", "none", "dissipation in the contacts: none, " + ", ".join(CONTACT_KINDS)
+                       + " (or with '_')")
+    value = opts.real("contact_damping", 0.0, "-contact: Hunt-Crossley c or Kuwabara-Kono eta (the chain's units)",
+                      valid=(lambda x: x >= 0, ">= 0"))
+    unclipped = opts.flag("unclipped", "-contact: let a contact pull (no clipping of the contact force at 0)")
+    named = ["contact_damping", "unclipped"]
+    if si:
+        coefficient = opts.string("contact_coefficient", "", "-contact with -beads: the coefficient in SI units "
+                                  "(Hunt-Crossley c, e.g. 0.05s/m; Kuwabara-Kono eta in N s/m^1.5)")
+        restitution = opts.string("restitution", "", "-contact with -beads: a coefficient of restitution in "
+                                  f"[{MIN_RESTITUTION:g}, 1), measured at -impact_velocity, instead of a coefficient")
+        velocity = opts.string("impact_velocity", "", "-restitution: the impact velocity it was measured at "
+                               "(e.g. 0.1m/s)")
+        named += ["contact_coefficient", "restitution", "impact_velocity"]
+    if opts.help:
+        return None
+    kind = kind.strip().replace("_", "-")
+    if kind == "none":
+        given = [name for name in named if opts.db.hasName(name)]
+        if given:
+            raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "describes a dissipation in the "
+                                 "contacts: give -contact (" + ", ".join(CONTACT_KINDS) + ") too")
+        return None
+    if kind not in CONTACT_KINDS:
+        raise ParameterError("-contact", kind, "must be one of none, " + ", ".join(CONTACT_KINDS))
+    clipped = not unclipped
+    given = [name for name in ("contact_damping", "contact_coefficient", "restitution")[:3 if si else 1]
+             if opts.db.hasName(name)]
+    if len(given) != 1:
+        raise ParameterError("-contact", kind, "give its damping by one of -contact_damping (the chain's units)"
+                             + (", -contact_coefficient (SI) or -restitution with -impact_velocity (with -beads)"
+                                if si else "") + (f"; not both -{given[0]} and -{given[1]}" if given else ""))
+    if given[0] == "contact_damping":
+        return CONTACT_KINDS[kind](value, clipped)
+    if chain is None:
+        raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "is in SI units: give the beads "
+                             "(-beads) too, or -contact_damping in the chain's units")
+    if given[0] == "restitution":
+        try:
+            e = float(restitution)
+        except ValueError:
+            raise ParameterError("-restitution", restitution, "must be a number in "
+                                 f"[{MIN_RESTITUTION:g}, 1)") from None
+        if not velocity:
+            raise ParameterError("-impact_velocity", None, "-restitution needs the impact velocity it was measured "
+                                 "at (e.g. 0.1m/s)")
+        args = dict(restitution=e, velocity=velocity)
+    else:
+        if velocity:
+            raise ParameterError("-impact_velocity", velocity, "goes with -restitution, not -contact_coefficient")
+        args = dict(coefficient=coefficient)
+    try:
+        return chain.contact_damping(kind, clipped=clipped, **args)
+    except ParameterError as err:
+        name = {"coefficient": "contact_coefficient", "velocity": "impact_velocity"}.get(err.name, err.name)
+        raise ParameterError(f"-{name}", err.value, err.valid) from None

@@ -28,7 +28,7 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
-from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import check_kind, load_npz, on_rank0, prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.maps import (MAX_MAP_BEADS, QB_MAX_CELL, QMAP_FORMAT, QMAP_FORMAT_V1, QBoundary,  # noqa: E402
@@ -38,6 +38,7 @@ from hertzpetsc.studies.maps import (MAX_MAP_BEADS, QB_MAX_CELL, QMAP_FORMAT, QM
 def main():
     opts = AppOptions(__doc__, QBoundary.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
     levels = opts.numbers("A", "0.1,0.3,1,1.5,2,3,5,10,30,100,inf", "amplitudes A = max |u| (inf: the uncompressed "
                           "limit)", expr=False, valid=(lambda x: x > 0, "> 0"), distinct=True)

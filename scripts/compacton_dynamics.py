@@ -26,6 +26,7 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
+from hertzpetsc.model import law_options  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
@@ -38,6 +39,7 @@ def main():
     opts = AppOptions(__doc__, CompactonDynamics.ROLES)
     stability = opts.path("stability", "results/compacton_stability.npz", "compacton stability file")
     alpha = opts.real("alpha", 1.5, "Hertz exponent of the compactons", valid=(lambda a: a > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     qs = opts.numbers("q", "7*pi/25,pi/50,0", "wavenumbers in the stability file (0: the solitary wave)",
                       valid=(lambda q: q >= 0, ">= 0"), distinct=True)
     if opts.flag("no_dynamics", "only the two-compacton test"):

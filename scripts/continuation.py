@@ -15,6 +15,7 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
+from hertzpetsc.model import law_options  # noqa: E402
 from hertzpetsc.qbranch import ContinuationParameters  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0, run_metadata  # noqa: E402
 from hertzpetsc.progress import Progress  # noqa: E402
@@ -25,6 +26,7 @@ from hertzpetsc.studies.branch import BranchStudy  # noqa: E402
 
 def main():
     opts = AppOptions(__doc__, uses("tw_", "sol_"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     params = ContinuationParameters(
         alpha=opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1")),
         M=opts.integer("M", 50, "target wavenumbers q = m pi / M", minimum=1),

@@ -16,7 +16,7 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
-from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_output  # noqa: E402
 from hertzpetsc.studies.branch import ConvergenceStudy  # noqa: E402
@@ -25,6 +25,7 @@ from hertzpetsc.studies.branch import ConvergenceStudy  # noqa: E402
 def main():
     opts = AppOptions(__doc__, ConvergenceStudy.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     M = opts.integer("M", 50, "target wavenumbers q = m pi / M", minimum=1)
     cells = opts.numbers("cells", "250,500,1000,2000,4000", "grids K (h = pi/K), at least three, all different",
                          expr=False, kind=int, valid=(lambda K: K >= 4, ">= 4"), distinct=True, minimum_count=3)

@@ -19,7 +19,7 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
-from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.precompression import DimerFamilies, DimerParameters  # noqa: E402
@@ -28,6 +28,7 @@ from hertzpetsc.studies.precompression import DimerFamilies, DimerParameters  # 
 def main():
     opts = AppOptions(__doc__, DimerFamilies.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
     qs = opts.numbers("q", "3*pi/10", "per-bead wavenumbers in (0, pi/2)",
                       valid=(lambda q: 0 < q < math.pi / 2, "in (0, pi/2)"), distinct=True)

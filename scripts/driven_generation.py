@@ -6,11 +6,14 @@ travelling waves (local wavenumber and amplitude, shape distance, decay along th
 frequency, amplitude and damping.
 
     mpiexec -n 2 python scripts/driven_generation.py [-branch results/branch_alpha1.5.npz] [-N 60] [-alpha 1.5]
-        [-delta0 0] [-eta 0] [-signals harmonic,half_sine] [-width 0.5] [-omegas 0.2,0.3,0.5]
+        [-delta0 0] [-eta 0] [-contact hunt-crossley|kuwabara-kono -contact_damping c [-unclipped]]
+        [-signals harmonic,half_sine] [-width 0.5] [-omegas 0.2,0.3,0.5]
         [-amplitudes 0.1,0.5] [-gammas 0.02,0.05] [-run_in 60] [-tol 1e-9] [-rtol 1e-12] [-bulk 0.25,0.75]
         [-samples 128] [-output runs/driven_generation.npz] [-table runs/driven_generation.md]
         [-figures figures] [-resume | -force]
 
+-contact adds a dissipation in the contacts (hertzpetsc.dissipation: Hunt-Crossley c or Kuwabara-Kono eta given by
+-contact_damping, in the chain's units; a contact never pulls unless -unclipped) to the damping of every case.
 Each case: -run_in driving periods from rest, Newton (dense Jacobian for N <= 200, Newton-Krylov above), the
 multipliers, then the response sampled -samples times per period. The cases are dealt to the ranks. Records:
 schema hertzpetsc-driven-generation-1.
@@ -23,10 +26,11 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.branch import Branch  # noqa: E402
-from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.model import Damping, LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.driven import WAVEFORMS, Generation, GenerationParameters  # noqa: E402
+from hertzpetsc.units import contact_options  # noqa: E402
 
 
 def main():
@@ -34,8 +38,10 @@ def main():
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file (the travelling-wave family)")
     N = opts.integer("N", 60, "beads", minimum=1)
     alpha = opts.real("alpha", 1.5, "Hertz exponent (must be the branch's)", valid=(lambda x: x > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     delta0 = opts.real("delta0", 0.0, "precompression")
     eta = opts.real("eta", 0.0, "damping between neighbours")
+    contact = contact_options(opts)
     signals = opts.words("signals", "harmonic,half_sine", "actuator waveforms", choices=WAVEFORMS)
     width = opts.real("width", 0.5, "half_sine: pulse duration in periods")
     omegas = opts.numbers("omegas", "0.2,0.3,0.5", "driving frequencies", valid=(lambda x: x > 0, "> 0"),
@@ -56,6 +62,8 @@ def main():
     prepare_outputs(comm, table_path, figures=figures)
     branch = Branch.load(branch_path, comm)
     model = LatticeModel.hertz(alpha, (1.0,), delta0, 0.0, eta)
+    if contact is not None:
+        model = LatticeModel(model.law, model.masses, Damping(0.0, eta, contact))
     study = Generation(GenerationParameters(branch, model, N, tuple(signals), tuple(omegas), tuple(amps),
                                             tuple(gammas), run_in, tol, rtol, tuple(bulk), samples, width,
                                             branch_path), comm, output, mode)

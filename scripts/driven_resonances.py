@@ -7,10 +7,16 @@ alpha delta0^(alpha - 1)) and the damped linear chain's response (closed form: t
         [-amplitude 1e-6] [-modes 1,2,...] [-golden 40] [-tol 1e-10] [-rtol 1e-12]
         [-output runs/driven_resonances.npz] [-table runs/driven_resonances.md] [-figures figures]
         [-resume | -force] [-beads steel -radius 4.76mm -static_force 10N -drive_amplitude 1nm]
+        [-contact hunt-crossley|kuwabara-kono -contact_damping c | -contact_coefficient 0.05s/m |
+         -restitution 0.95 -impact_velocity 0.1m/s] [-unclipped]
 
 With -beads (hertzpetsc.units) the chain is that of the beads pressed by -static_force (instead of -alpha, -delta0,
 -masses; -drive_amplitude instead of -amplitude), and every mode is also shown with its frequencies in Hz, in the
 console and in a section of the table in SI units.
+-contact adds a dissipation in the contacts (Hunt-Crossley c or Kuwabara-Kono eta by -contact_damping in the chain's
+units; with -beads by -contact_coefficient in SI or a restitution measured at an impact velocity): the linear chain
+then has, in every bond, the contact's dashpot linearised at the static overlap ((3/2) c delta0^alpha, resp.
+eta delta0^(alpha - 1)) beside -eta.
 For each mode k: the peak of the last bead's amplitude over omega near omega_k (golden section) from Newton-shooting
 periodic responses of the Hertz chain, and from the damped linear chain; the multipliers at the peak against
 exp(T lambda) of the linear damped chain. Records: schema hertzpetsc-driven-resonances-1.

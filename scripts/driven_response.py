@@ -12,6 +12,11 @@ In SI units (hertzpetsc.units): -beads steel -radius 4.76mm -static_force 10N -d
 -drive_frequency 10kHz [-p_end_si 12kHz] define the chain and the drive instead of -alpha, -delta0, -masses,
 -amplitude, -omega (-gamma, -eta stay dimensionless: gamma m / tau in kg/s); each row is also shown with the
 parameter in Hz (or um) and the force on the wall beyond the static force in N, and the table gets a section in SI units.
+
+Dissipation in the contacts (hertzpetsc.dissipation; beside -gamma, -eta): -contact hunt-crossley|kuwabara-kono with
+-contact_damping c (Hunt-Crossley's c or Kuwabara-Kono's eta in the chain's units); with -beads instead
+-contact_coefficient 0.05s/m (SI) or -restitution 0.95 -impact_velocity 0.1m/s (a measured restitution); a contact
+never pulls unless -unclipped. The multipliers' Liouville check then integrates tr Df along the orbit.
 """
 import math
 import os

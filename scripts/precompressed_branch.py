@@ -33,7 +33,7 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
 from hertzpetsc.hertz import check_delta0  # noqa: E402
-from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.precompression import (KIND_GAP, KIND_GRID, AmplitudeFamilies,  # noqa: E402
@@ -60,6 +60,7 @@ def main():
     opts = AppOptions(__doc__, AmplitudeFamilies.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
+    law_options(opts, supported=False)      # -law: refused but hertz (the study's families are Hertz's)
     masses = opts.numbers("masses", "1", "the repeating mass pattern", valid=(lambda m: m > 0, "> 0"))
     branch = opts.string("branch", "acoustic", "the linear branch the families start from",
                          choices=("acoustic", "optical"))

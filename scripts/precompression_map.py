@@ -37,7 +37,7 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.chain import IntegrationTolerances  # noqa: E402
-from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.errors import RecordFileError  # noqa: E402
@@ -53,6 +53,7 @@ COMPUTATION = ("alpha", "delta0", "N", "epsilon", "m", "q", "a", "a_min", "a_max
 def main():
     opts = AppOptions(__doc__, StabilityMap.ROLES)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
     N = opts.integer("N", 100, "beads of the periodic chain", minimum=3)
     epsilon = opts.real("epsilon", 1.0, "mass of every second bead (1: monatomic chain; else the dimer's acoustic "

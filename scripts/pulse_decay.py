@@ -18,6 +18,7 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
+from hertzpetsc.model import law_options  # noqa: E402
 from hertzpetsc.dissipation import KINDS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
@@ -35,6 +36,7 @@ def main():
     skip = opts.integer("skip", 20, "beads left out of the fit at each end", minimum=0)
     sample = opts.real("sample", 0.02, "sampling interval of the velocities", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     rtol = opts.real("rtol", 1e-10, "flow tolerance", valid=(lambda x: 0 < x < 1e-4, "in (0, 1e-4)"))
     output = opts.path("output", "runs/pulse_decay.npz", "pulse file (record store)")
     mode = opts.mode()

@@ -17,6 +17,7 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
+from hertzpetsc.model import law_options  # noqa: E402
 from hertzpetsc.dissipation import KINDS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
@@ -31,6 +32,7 @@ def main():
     velocities = opts.numbers("velocities", "1e-3,3e-3,1e-2,3e-2,0.1,0.3,1", "impact velocities", expr=False,
                               valid=(lambda v: v > 0, "> 0"), distinct=True)
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     masses = opts.numbers("masses", "1,1", "the two beads' masses", expr=False, valid=(lambda m: m > 0, "> 0"),
                           minimum_count=2)
     rtol = opts.real("rtol", 1e-11, "flow tolerance (also 100 rtol: the refinement)",

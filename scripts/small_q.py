@@ -23,6 +23,7 @@ from petsc4py import PETSc  # noqa: E402
 
 import numpy as np  # noqa: E402
 
+from hertzpetsc.model import law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0, run_metadata  # noqa: E402
 from hertzpetsc.records import prepare_outputs, write_json  # noqa: E402
 from hertzpetsc.roles import uses  # noqa: E402
@@ -32,6 +33,7 @@ from hertzpetsc.studies.solitary import k_alpha_extrapolated  # noqa: E402
 
 def main():
     opts = AppOptions(__doc__, uses("tw_", "sol_"))
+    law_options(opts, supported=False)      # -law: refused but hertz
     params = SmallQParameters(
         alpha=opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1")),
         q_stop=opts.real("q_stop", math.pi / 400, "smallest wavenumber, in (0, pi/50]", expr=True,

@@ -4,12 +4,16 @@
     mpiexec -n 2 python scripts/wave.py [-alpha 1.5] [-delta0 1] [-masses 1,0.5,0.333333] [-q 2*pi/15] [-A 0.5]
         [-branch acoustic|optical] [-cells_per_pi 400] [-N 90] [-sizes 30000] [-tol 1e-10] [-tol_rho 1e-4]
         [-output runs/wave.npz] [-table runs/wave.md] [-resume | -force]
-        [-beads steel -radius 4.76mm -static_force 10N [-length_scale 1um]]
+        [-beads steel -radius 4.76mm -static_force 10N [-length_scale 1um]] [-law toda -law_k 1 -law_b 1]
 
 With -beads (hertzpetsc.units: materials, radii, the static force) the chain is that of the beads (the Hertz
 exponent 3/2, delta0 = 1 at the default length scale, the static overlap; masses from the beads) instead of -alpha,
 -delta0, -masses; -A stays in units of the length scale, and every row is also shown in SI units (frequency in Hz,
 phase speed in m/s, A in um), in a section of the table below the dimensionless one.
+
+-law NAME (hertzpetsc.law's registry: toda, fpu, ...; hertz by default, given by -alpha, -delta0) with its parameters
+-law_<name> value (e.g. -law toda -law_k 1 -law_b 2; -law fpu -law_k 1 -law_alpha 0.5 -law_beta 1; a parameter not
+given keeps the law's default) computes the waves of another interaction law: instead of -alpha, -delta0 and -beads.
 
 At each q (per bead: a pattern of p masses has the wavenumber p q per cell; q N / (2 pi) whole): the wave with
 amplitude A = max |u| (eq. ad for the mass pattern, A a border row; from the linear wave of -branch for delta0 > 0,
@@ -27,7 +31,7 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
-from hertzpetsc.model import LatticeModel  # noqa: E402
+from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.wave import MAX_BEADS, MAX_SIZE, WaveParameters, WaveStudy  # noqa: E402
@@ -60,10 +64,13 @@ def main():
     output = opts.path("output", "runs/wave.npz", "wave file (record store)")
     mode = opts.mode()
     table_path = opts.path("table", "runs/wave.md", "table")
+    law = law_options(opts)
     beads = bead_options(opts)
     opts.done()
     comm = PETSc.COMM_WORLD
     model = LatticeModel.hertz(alpha, tuple(masses), delta0) if beads is None else beads.model()
+    if law is not None:
+        model = LatticeModel(law, tuple(masses))
     study = WaveStudy(WaveParameters(model, tuple(qs), A, K, N, tuple(sizes), tol, tol_rho, branch), comm, output,
                       mode)
     prepare_outputs(comm, table_path)

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from petsc4py import PETSc
 
-from conftest import chain_arrays, dense_and_slepc_agree, resolvent_differences, run_script
+from conftest import chain_arrays, dense_and_slepc_agree, one_error_line, resolvent_differences, run_script
 from hertzpetsc import kernels
 from hertzpetsc.chain import Chain, ChainIntegrator, IntegrationTolerances
 from hertzpetsc.dissipation import HuntCrossley, KuwabaraKono, contact_dissipation
@@ -246,3 +246,92 @@ def test_the_drivers_write_their_tables(tmp_path):
     assert r.returncode == 0, r.stderr
     with np.load(tmp_path / "p.npz") as z:
         assert z["amplitude"].shape == (1, 16) and str(z["format"]) == "hertzpetsc-pulse-1"
+
+
+@pytest.mark.parametrize("contact", [HuntCrossley(0.2), KuwabaraKono(0.3)])
+def test_small_amplitude_driven_response_is_the_linear_chain_with_the_contacts_dashpot(contact):
+    """At a precompressed chain (delta0 = 1) the contact dissipation linearises to a dashpot g(delta0) in every bond
+    (Hunt-Crossley (3/2) c delta0^(3/2), Kuwabara-Kono eta delta0^(1/2): 0.3 here, 15 times gamma): the first
+    harmonics of the Hertz chain's periodic responses (shooting) at actuator amplitudes a = 2e-4, 4e-4 against the
+    damped linear chain's complex amplitudes (studies.driven.linear_response). The quadratic terms of the law and of
+    g(d) dv make harmonics 0 and 2 at O(a^2), which return to the first at O(a^3): the relative difference is
+    O((a / delta0)^2) (its ratio between the two amplitudes 4, within 10 %; below (a / delta0)^2 itself, while the
+    linear chain without the contacts' dashpot is off by O(1)). The multipliers against exp(T lambda) of the linear
+    chain (Liouville checked by the integral of tr Df) to O(a^2) too; the energy balance (mean input power = mean
+    dissipation, contacts included) to the periodic trapezoid's spectral accuracy on 64 samples; the end forces."""
+    from hertzpetsc.driven import PeriodicShooting
+    from hertzpetsc.studies.driven import bond_dashpot, linear_multipliers, linear_response
+    model = LatticeModel(HertzLaw(1.5, 1.0), (1.0, 0.7), Damping(0.02, 0.0, contact))
+    assert bond_dashpot(model) == pytest.approx(0.3, rel=1e-15)
+    errors = []
+    for a in (2e-4, 4e-4):
+        drive = Drive(model, 2, HarmonicWave(), a, 0.9)
+        prob = PeriodicShooting(drive, COMM, tolerances=IntegrationTolerances(1e-12, 1e-20))
+        try:
+            r = prob.solve_response(np.zeros((2, 2)))
+            t, x = prob.trajectory(r.x, 64)
+            first = 2.0 / 64 * np.sum(x[:-1, :, 0] * np.exp(-1j * drive.omega * t[:-1])[:, None], axis=0)
+            X = linear_response(drive)
+            errors.append(np.max(np.abs(first - X)) / np.max(np.abs(X)))
+            assert errors[-1] < a * a
+            # the forces on the wall and the actuator (the contacts' tension included): the largest over the
+            # period, |K + i omega g| |X_N| and |K + i omega g| |X_1 - a| to O(a / delta0) (the static offset of the
+            # quadratic terms; without the contacts' term 1.6 % off)
+            d = prob.diagnostics(r.x, 64)
+            dashpot = (model.law.linear_stiffness + 1j * drive.omega * bond_dashpot(model))
+            assert abs(d["force_right"] / abs(dashpot * X[-1]) - 1) < a
+            assert abs(d["force_left"] / abs(dashpot * (X[0] - a)) - 1) < a
+            without = linear_response(Drive(LatticeModel(model.law, model.masses, Damping(0.02)), 2,
+                                            HarmonicWave(), a, 0.9))
+            assert np.max(np.abs(without - X)) > 0.1 * np.max(np.abs(X))
+            if a == 4e-4:
+                mu = prob.multipliers(x=r.x, p=drive.omega)
+                assert np.max(np.abs(np.sort_complex(mu) - np.sort_complex(linear_multipliers(drive, prob.T)))) \
+                    < 10 * a * a
+                assert abs(d["power_in"] - d["dissipation"]) < 1e-10 * d["dissipation"]
+        finally:
+            prob.destroy()
+    assert 3.6 < errors[1] / errors[0] < 4.4
+
+
+@pytest.mark.serial
+def test_the_driven_drivers_take_contact_dissipation_from_the_command_line(tmp_path):
+    """driven_resonances.py -contact (and the beads' route by a measured restitution): the drive recorded holds the
+    contact damping the API builds (units.BeadChain.contact_damping), and the multipliers at the shooting peak match
+    the linear chain with the contacts' dashpot (mu error ~ a^2 at the peak, at most 25 a^2 seen, + the flow's
+    tolerance; without the dashpot the
+    linear multipliers differ by O(T g(delta0))). Bad contact options: one error line naming the option."""
+    import json
+    from hertzpetsc.units import BeadChain, Bead
+    r = run_script("driven_resonances.py", "-N", 2, "-modes", 1, "-golden", 6, "-contact", "hunt_crossley",
+                   "-contact_damping", 0.1, "-output", tmp_path / "s.npz", "-table", tmp_path / "s.md",
+                   "-figures", "")
+    assert r.returncode == 0, r.stderr
+    assert "contact = hunt-crossley, contact_c = 0.1" in (tmp_path / "s.md").read_text()
+    with np.load(tmp_path / "s.npz") as z:
+        assert json.loads(str(z["drive"]))["contact_c"] == 0.1 and float(z["mu_error"][0]) < 1e-8
+    r = run_script("driven_resonances.py", "-beads", "steel", "-static_force", "10N", "-N", 2, "-modes", 1,
+                   "-golden", 6, "-drive_amplitude", "0.01nm", "-contact", "kuwabara-kono", "-restitution", 0.95,
+                   "-impact_velocity", "0.1m/s", "-output", tmp_path / "b.npz", "-table", tmp_path / "b.md",
+                   "-figures", "")
+    assert r.returncode == 0, r.stderr
+    expected = BeadChain((Bead.of("steel", "4.76mm"),), "10N").contact_damping(
+        "kuwabara-kono", restitution=0.95, velocity="0.1m/s")
+    with np.load(tmp_path / "b.npz") as z:
+        model = json.loads(str(z["drive"]))
+        a = model["amplitude"]            # 0.01 nm / L, L the static overlap (~ 1 um): a ~ 1e-5
+        assert model["contact_eta"] == pytest.approx(expected.eta, rel=1e-14)
+        assert float(z["mu_error"][0]) < 100 * a * a + 1e-9
+    for args, needle in ((("-contact_damping", 0.1), "invalid -contact_damping"),
+                         (("-contact", "hunt-crossley"), "invalid -contact"),
+                         (("-contact", "coulomb", "-contact_damping", 1), "invalid -contact = 'coulomb'"),
+                         (("-contact", "hunt-crossley", "-contact_damping", 1, "-restitution", 0.95,
+                           "-impact_velocity", 1), "invalid -contact"),
+                         (("-contact", "hunt-crossley", "-restitution", 0.95, "-impact_velocity", 1),
+                          "invalid -restitution"),
+                         (("-beads", "steel", "-static_force", "1N", "-contact", "hunt-crossley", "-restitution", 0.5,
+                           "-impact_velocity", "1m/s"), "invalid -restitution = 0.5")):
+        r = run_script("driven_response.py", *args, "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md",
+                       ranks=2 if "coulomb" in args else 1, timeout=120, cwd=tmp_path)
+        assert r.returncode == 2 and needle in one_error_line(r), (args, r.stderr)
+    assert not (tmp_path / "r.npz").exists()

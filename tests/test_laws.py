@@ -312,3 +312,42 @@ def test_a_script_with_a_law_whose_force_and_potential_disagree_ends_in_one_erro
     line = one_error_line(result)
     assert result.returncode == 2
     assert "invalid law = {'law': 'halved', 'k': 2.0}" in line and "force V' disagrees" in line, line
+
+
+@pytest.mark.serial
+def test_a_law_from_the_command_line(tmp_path):
+    """scripts/wave.py -law toda -law_b 2: the wave the driver computes is the API's (hz.wave_at on the model
+    LatticeModel(TodaLaw(b=2)): the same computation, omega to 1e-10 under the different order of a run), and its
+    file names the law and its parameters; driven_resonances.py -law toda: the normal mode 2 sqrt(V''(0)) sin(pi/6)
+    = 1 of two beads (Toda's V''(0) = k = 1). Other drivers refuse the law, and bad -law options are one error line
+    naming the option."""
+    import hertzpetsc as hz
+    from conftest import one_error_line, run_script
+    q, A = 2 * math.pi / 10, 0.3
+    r = run_script("wave.py", "-law", "toda", "-law_b", 2, "-q", "2*pi/10", "-A", A, "-N", 10, "-cells_per_pi", 100,
+                   "-output", tmp_path / "w.npz", "-table", tmp_path / "w.md")
+    assert r.returncode == 0, r.stderr
+    point = hz.wave_at(LatticeModel(TodaLaw(1.0, 2.0)), q, A, cells_per_pi=100, comm=PETSc.COMM_SELF)
+    with np.load(tmp_path / "w.npz") as z:
+        assert str(z["law"]) == "toda" and float(z["b"]) == 2.0 and float(z["k"]) == 1.0
+        assert abs(float(z["omega"][0]) - point.omega) < 1e-10 and float(z["E_refined"][0]) < 1e-10
+    r = run_script("driven_resonances.py", "-law", "toda", "-N", 2, "-modes", 1, "-golden", 6, "-output",
+                   tmp_path / "s.npz", "-table", tmp_path / "s.md", "-figures", "")
+    assert r.returncode == 0 and "precompressed chain law = toda, k = 1.0, b = 1.0" in (tmp_path / "s.md").read_text()
+    with np.load(tmp_path / "s.npz") as z:
+        assert abs(float(z["omega_k"][0]) - 1.0) < 1e-13
+    for script, args, needle in (
+            ("wave.py", ("-law", "morse"), "invalid -law = 'morse'"),
+            ("wave.py", ("-law", "toda", "-alpha", 2), "invalid -alpha"),
+            ("wave.py", ("-law", "toda", "-law_beta", 1), "invalid -law_beta"),
+            ("wave.py", ("-law", "toda", "-law_b", -1), "invalid -law_b"),
+            ("wave.py", ("-law", "fpu", "-law_alpha", "x"), "invalid -law_alpha"),
+            ("wave.py", ("-law_k", 2), "invalid -law_k"),
+            ("wave.py", ("-law", "toda", "-beads", "steel"), "invalid -beads"),
+            ("driven_response.py", ("-law", "toda", "-delta0", 1), "invalid -delta0"),
+            ("precompression_map.py", ("-law", "toda"), "invalid -law = 'toda'"),
+            ("continuation.py", ("-law", "fpu"), "invalid -law = 'fpu'")):
+        r = run_script(script, *args, "-output", tmp_path / "x.npz", "-table", tmp_path / "x.md", timeout=120,
+                       cwd=tmp_path)
+        assert r.returncode == 2 and needle in one_error_line(r), (script, args, r.stderr)
+    assert not (tmp_path / "x.npz").exists()

@@ -296,3 +296,42 @@ def test_the_page_quotes_what_beads_to_waves_prints(tmp_path):
     rows = [line for line in out.read_text().splitlines() if re.match(r"^\| [0-9cs]", line)]
     assert len(rows) == 5 and all(row in page for row in rows), [row for row in rows if row not in page]
     assert "v1 = 1.6249441" in out.read_text() and "v1 = 1.6249441" in page
+
+
+def test_the_api_reports_waves_and_responses_in_si():
+    """hz.wave(None, ..., beads=chain) on a steel chain pressed by 10 N and chain.wave_si: at A = 1e-3 (of the
+    static overlap) the frequency at q = pi is the cut-off f_c and the phase speed at q = pi/10 is
+    c0 sin(q/2) / (q/2) (units' closed forms) up to the grid's O(h^2) (relative 4.1e-5 at h = pi/100, 1.0e-5 at
+    pi/200: observed order 2) and the amplitude's O(A^2) = 1e-6: Richardson's extrapolation of the two within 1e-6;
+    the bonds' forces at t = 0 are F0 - K_lin (x_{n+1} - x_n) to O(A^2 F0). hz.response(..., beads=chain): the
+    drive's frequency in Hz given back, and the wall's force beyond F0 is K_lin |X_N| in N (the linear chain's
+    amplitude in metres) to O(a). A model that is not the beads' dimensionless chain is refused, naming ``beads``."""
+    from hertzpetsc.driven import Drive, HarmonicWave
+    from hertzpetsc.studies.driven import linear_response
+    chain = BeadChain((Bead.of("steel", "4.76mm"),), "10N")
+    A = 1e-3
+    for q, N, closed in ((math.pi, 2, lambda si: si["frequency"] / chain.cutoff_frequency()),
+                         (math.pi / 10, 20, lambda si: si["phase_speed"] / (chain.sound_speed() * math.sin(q / 2)
+                                                                            / (q / 2)))):
+        ratio = []
+        for cells in (100, 200):
+            orbit = hz.wave(None, q, A, N, cells_per_pi=cells, beads=chain)
+            si = chain.wave_si(orbit)
+            ratio.append(closed(si) - 1)
+            assert si["period"] == pytest.approx(1 / si["frequency"], rel=1e-14)
+            assert si["amplitude"] == pytest.approx(A * chain.L, rel=1e-14)
+            assert si["wavenumber"] == pytest.approx(q / chain.spacing, rel=1e-14)
+            strain = np.roll(si["displacement"], -1) - si["displacement"]
+            assert np.max(np.abs(si["force"] - (10.0 - chain.linear_stiffness * strain))) < 10 * A * A * 10.0
+        assert 3.6 < ratio[0] / ratio[1] < 4.4 and abs((4 * ratio[1] - ratio[0]) / 3) < 1e-6
+    with pytest.raises(ParameterError, match="invalid beads"):
+        hz.wave(LatticeModel.hertz(1.5, delta0=0.5), math.pi, A, 2, beads=chain)   # not delta0 = 1 of the beads
+    a, f = chain.from_si("length", "1nm"), 10e3
+    drive = Drive(chain.model(gamma=0.05), 3, HarmonicWave(), a, chain.from_si("angular_frequency", 2 * math.pi * f))
+    (response,) = hz.response(drive, drive.omega, run_in=5, floquet="none", beads=chain)
+    si = response.record["si"]
+    assert si["frequency"] == pytest.approx(f, rel=1e-12) and si["drive_amplitude"] == pytest.approx(1e-9, rel=1e-12)
+    X = linear_response(drive)
+    wall = chain.linear_stiffness * chain.to_si("length", abs(X[-1]))
+    assert abs(si["force_right"] / wall - 1) < 10 * a
+    assert si["dissipation"] == pytest.approx(si["power_in"], rel=1e-9) and si["power_in"] > 0

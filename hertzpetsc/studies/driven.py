@@ -69,11 +69,11 @@ from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, H
                       verdict, wave_ends_drive)
 from ..errors import ConvergenceError, ParameterError, check_integer, check_real
 from ..floquet import DenseFloquet
-from ..model import LatticeModel
+from ..model import Damping, LatticeModel, law_options
 from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
                          check_work)
 from ..roles import configure, uses
-from ..units import bead_options, parse_quantity
+from ..units import bead_options, contact_options, parse_quantity
 from .base import Study
 
 if TYPE_CHECKING:
@@ -751,17 +751,26 @@ class ResponseCurve(DrivenStudy):
 
 
 # --- small-amplitude resonances of the precompressed chain ---------------------------------------------------------
+def bond_dashpot(model):
+    """The dashpot of every bond of the chain linearised at rest: eta and, with a contact dissipation, its
+    linearisation at the overlap delta0 (:meth:`~hertzpetsc.dissipation.ContactDissipation.linear_dashpot`:
+    Hunt-Crossley (3/2) c delta0^alpha, Kuwabara-Kono eta_c delta0^(alpha - 1))."""
+    contact = model.damping.contact
+    return model.damping.eta + (0.0 if contact is None else contact.linear_dashpot(model.law))
+
+
 def linear_chain(drive):
     """(M, C, Kmat, f) of the linearised chain of a drive with a harmonic actuator at the left and a wall (or free
     end) at the right: M x'' + C x' + Kmat x = Re(f e^{i omega t}) with f = (K + i omega eta) a e_1, K = V''(0) (of the
-    actuator's bond, -1, when the bonds differ; Kmat then with each bond's V''(0))."""
+    actuator's bond, -1, when the bonds differ; Kmat then with each bond's V''(0)) and eta the bonds' dashpot, the
+    contacts' linearised damping included (:func:`bond_dashpot`)."""
     model, N = drive.model, drive.N
     K = model.law.linear_stiffness
     L = 2 * np.eye(N) - np.eye(N, k=1) - np.eye(N, k=-1)
     if drive.right == "free":
         L[-1, -1] = 1.0
     M = np.diag(model.mass(np.arange(N)))
-    C = model.damping.gamma * np.eye(N) + model.damping.eta * L
+    C = model.damping.gamma * np.eye(N) + bond_dashpot(model) * L
     if model.bonds is None:
         return M, C, K * L, K
     # bonds of different laws: bond n (beads n, n + 1; -1 the actuator's, N - 1 the wall's) of stiffness K_n
@@ -777,7 +786,7 @@ def linear_response(drive, omega=None):
     M, C, Kmat, K = linear_chain(drive)
     w = drive.omega if omega is None else omega
     f = np.zeros(drive.N, complex)
-    f[0] = (K + 1j * w * drive.model.damping.eta) * drive.amplitude
+    f[0] = (K + 1j * w * bond_dashpot(drive.model)) * drive.amplitude
     return np.linalg.solve(-w * w * M + 1j * w * C + Kmat, f)
 
 
@@ -828,9 +837,9 @@ class ResonanceParameters:
 
     def __post_init__(self):
         drive = _drive(self.drive)
-        if not drive.model.delta0 > 0:
+        if not drive.model.law.linear_stiffness > 0:
             raise ParameterError("delta0", drive.model.delta0, "the linear resonances need a precompressed chain "
-                                 "(delta0 > 0)")
+                                 "(delta0 > 0; another law: V''(0) > 0)")
         if not drive.model.damped:
             raise ParameterError("gamma", drive.gamma, "the resonances need a damped chain, gamma > 0 (or eta > 0): "
                                  "undamped, the response at omega_k is unbounded and not isolated (the multiplier 1)")
@@ -929,10 +938,16 @@ class LinearResonances(DrivenStudy):
 
     def table(self) -> str:
         d = self.drive
-        lines = [f"schema: {RESONANCE_FORMAT}; precompressed chain alpha = {d.model.alpha:g}, delta0 = "
-                 f"{d.model.delta0:g} (K = V''(0) = {d.model.law.linear_stiffness:.6g}), N = {d.N}, masses "
-                 f"{list(d.model.masses)}, gamma = {d.model.damping.gamma:g}, eta = {d.model.damping.eta:g}; actuator "
-                 f"a cos(omega t), a = {d.amplitude:g}; right end {d.right}.\n",
+        contact = d.model.damping.contact
+        contact = "" if contact is None else ", contact dissipation " + ", ".join(
+            f"{k} = {v}" for k, v in contact.describe().items()) + f" (linearised at rest: a dashpot " \
+            f"{contact.linear_dashpot(d.model.law):.6g} in every bond, with eta in the linear chain)"
+        law = f"alpha = {d.model.alpha:g}, delta0 = {d.model.delta0:g}" if d.model.law.name == "hertz" else \
+            ", ".join(f"{k} = {v}" for k, v in d.model.law.describe().items())
+        lines = [f"schema: {RESONANCE_FORMAT}; precompressed chain {law} (K = V''(0) = "
+                 f"{d.model.law.linear_stiffness:.6g}), N = {d.N}, masses {list(d.model.masses)}, gamma = "
+                 f"{d.model.damping.gamma:g}, eta = {d.model.damping.eta:g}{contact}; actuator a cos(omega t), a = "
+                 f"{d.amplitude:g}; right end {d.right}.\n",
                  f"{UNITS}. k: mode number; omega_k: normal modes of the undamped linear chain (closed form); "
                  "peak (linear): maximum over omega of the last bead's |X_N| for the damped linear chain (complex "
                  "solve, golden section); peak (shooting): the same from periodic responses of the Hertz chain (Newton "
@@ -1312,7 +1327,10 @@ def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, 
     """Declare and read the options that define a driven chain (for the drivers; ``opts`` an
     :class:`~hertzpetsc.options.AppOptions`): the Hertz law (-alpha, -delta0), -N, -masses, -gamma, -eta, the
     actuator's -signal (harmonic, half_sine with -width, samples with -signal_samples over one closed period),
-    -amplitude, -omega and the far end -right (wall, free). Returns the :class:`~hertzpetsc.driven.Drive`
+    -amplitude, -omega, the far end -right (wall, free) and a dissipation in the contacts
+    (:func:`hertzpetsc.units.contact_options`: -contact, -contact_damping, -unclipped; with beads also
+    -contact_coefficient, -restitution, -impact_velocity); -law with -law_<parameter> for another law than Hertz
+    (:func:`hertzpetsc.model.law_options`). Returns the :class:`~hertzpetsc.driven.Drive`
     (ParameterError naming the parameter for a value out of range: negative damping, amplitude < 0, omega <= 0,
     a sampled signal that is not periodic). With ``beads``: also the chain in SI units
     (:func:`hertzpetsc.units.bead_options`: -beads, -radius, -static_force, ...) and the actuator's -drive_amplitude
@@ -1349,9 +1367,15 @@ def drive_options(opts, N=20, delta0=0.0, gamma=0.05, amplitude=0.5, omega=1.0, 
             if f_si:
                 om = chain.from_si("angular_frequency", 2 * math.pi * check_real("-drive_frequency", parse_quantity(
                     "-drive_frequency", f_si, "frequency"), "the driving frequency", 0.0))
+    contact = contact_options(opts, chain, si=beads)
+    law = law_options(opts)
     if opts.help:
         return (None, None) if beads else None
     model = LatticeModel.hertz(alpha, tuple(masses), d0, gamma, eta) if chain is None else chain.model(gamma, eta)
+    if law is not None:
+        model = LatticeModel(law, tuple(masses), Damping(gamma, eta))
+    if contact is not None:
+        model = LatticeModel(model.law, model.masses, Damping(gamma, eta, contact), model.bonds)
     waveform = {"harmonic": HarmonicWave, "half_sine": lambda: HalfSinePulses(width),
                 "samples": lambda: SampledWave(tuple(samples))}[kind]()
     drive = Drive(model, n, waveform, a, om, right)

@@ -20,7 +20,7 @@ say() { echo "[build $(date -u +%H:%M:%S)] $*" | tee -a "$LOG"; }
 if [ "${HZ_NO_APT:-0}" != 1 ]; then
     say "Debian packages: compilers, BLAS/LAPACK, MUMPS, ScaLAPACK, Open MPI headers"
     DEBIAN_FRONTEND=noninteractive apt-get install -y --no-install-recommends gfortran g++ libopenblas-dev \
-        libmumps-dev libscalapack-openmpi-dev libopenmpi-dev openmpi-bin python3-venv python3-dev >>"$LOG" 2>&1
+        libmumps-dev libscalapack-openmpi-dev libopenmpi-dev openmpi-bin python3-venv python3-dev patchelf >>"$LOG" 2>&1
 fi
 [ -x "$PREFIX/bin/python" ] || python3 -m venv "$PREFIX"
 PY="$PREFIX/bin/python"

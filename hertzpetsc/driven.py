@@ -736,7 +736,7 @@ class PeriodicShooting(ContinuationProblem):
             raise ParameterError("-%sradius" % self.dominant.prefix, self.dominant.fixed_radius,
                                  f"the radius must exceed the phonons' modulus e^(-gamma T / 2) = {rho_c:.6g}")
 
-    def T_of(self, drive):
+    def T_of(self, drive: Drive) -> float:
         """The response's period for ``drive``."""
         return self.periods * drive.period
 

@@ -29,6 +29,7 @@ from .tangent import MonodromyModShift, TangentFlow
 
 if TYPE_CHECKING:
     from petsc4py import PETSc
+    from slepc4py import SLEPc
 
     from .model import ChainSpec
     from .waves import Orbit
@@ -291,7 +292,7 @@ class DominantFloquet(FloquetSolver):
         return Spectrum(values, False, tol_rho, work=dict(converged=nconv, iterations=eps.getIterationNumber(),
                                                           products=op.products - products0))
 
-    def closed(self, eps, its, max_it, nconv, nev):
+    def closed(self, eps: "SLEPc.EPS", its: int, max_it: int, nconv: int, nev: int) -> int:
         """The stopping test of the radius route (:func:`largest_magnitude`): converged when every Ritz value of the
         Krylov space outside the radius has converged (after at least one restart), or when ``nev`` have (the cap:
         unresolved); diverged when the restarts ran out. Decided on rank 0 (the projected problem is replicated)."""

@@ -115,10 +115,11 @@ def public_functions():
 
 def namespace():
     """The names an annotation may use besides its module's own (those imported for type checking only among
-    them): typing's, PETSc, numpy, ArrayLike, matplotlib and every class of the package's modules."""
+    them): typing's, PETSc, SLEPc, numpy, ArrayLike, matplotlib and every class of the package's modules."""
     import matplotlib.axes
     import matplotlib.figure
-    names = dict(vars(typing), PETSc=PETSc, np=np, ArrayLike=numpy.typing.ArrayLike, matplotlib=matplotlib)
+    from slepc4py import SLEPc
+    names = dict(vars(typing), PETSc=PETSc, SLEPc=SLEPc, np=np, ArrayLike=numpy.typing.ArrayLike, matplotlib=matplotlib)
     for info in pkgutil.walk_packages(hertzpetsc.__path__, "hertzpetsc."):
         if info.name.rsplit(".", 1)[-1].startswith("_"):             # the compiled kernel's library
             continue

@@ -49,6 +49,17 @@ if TYPE_CHECKING:
 
 WAVE_FORMAT = "hertzpetsc-wave-1"
 DOMINANT = 8                 # the nontrivial multipliers of largest modulus kept per wave
+# moduli equal to this relative resolution rank as equal (a stable wave's are all 1 to round-off), ordered then by
+# their argument: the kept set does not follow the run's round-off (ranks, a resumed run)
+DOMINANT_RESOLUTION = 1e-8
+
+
+def dominant_multipliers(mu):
+    """The :data:`DOMINANT` multipliers of largest modulus among ``mu``, moduli ranked to
+    :data:`DOMINANT_RESOLUTION` and equal ones ordered by argument (rounded likewise)."""
+    mu = np.asarray(mu, dtype=complex)
+    key = np.lexsort((np.round(np.angle(mu) / DOMINANT_RESOLUTION), -np.round(np.abs(mu) / DOMINANT_RESOLUTION)))
+    return mu[key][:DOMINANT]
 WAVE_KIND = Kind(WAVE_FORMAT, (
     Column("alpha", "Hertz exponent (absent for another law)", constant=True, optional=True),
     Column("delta0", "precompression (absent when 0)", constant=True, optional=True),
@@ -87,7 +98,8 @@ WAVE_KIND = Kind(WAVE_FORMAT, (
     Column("state", "the refined initial state (x_n, x_n') of the N beads (eq. twper; NaN in files written before "
            "it)", shape="N, 2"),
     Column("dominant", f"the {DOMINANT} nontrivial multipliers modulo shift of largest modulus (Bloch sectors; "
-           "\\|dominant[0]\\| = rho; NaN past the spectrum's end and in files written before it)", "1", complex,
+           "\\|dominant[0]\\| = rho to 1e-8, moduli equal to 1e-8 ordered by argument; NaN past the spectrum's end and in "
+           "files written before it)", "1", complex,
            shape=str(DOMINANT)),
 ))
 WAVE_FIELDS = WAVE_KIND.fields
@@ -189,7 +201,7 @@ class WaveStudy(Study):
             longer = [floquet.spectrum(refined.orbit.tiled(L // p.N), p.tol_rho).rho for L in p.sizes]
         K2 = 2 * p.cells_per_pi
         u = np.array([scale * (np.asarray(w) if len(w) == K2 else full_period(w)) for w in point.profiles])
-        nontrivial = np.delete(s.multipliers, s.trivial)[:DOMINANT]
+        nontrivial = dominant_multipliers(np.delete(s.multipliers, s.trivial))
         dominant = np.full(DOMINANT, math.nan, dtype=complex)
         dominant[:len(nontrivial)] = nontrivial
         return dict(q=q, m=orbit.m, omega=refined.orbit.omega, E_profile=E0, E_refined=refined.E,

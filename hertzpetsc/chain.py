@@ -363,7 +363,7 @@ class Chain:
             J.assemble()
 
     def create_jacobian(self) -> PETSc.Mat:
-        J = self.da.createMatrix()
+        J = self.da.createMat()
         J.setOption(PETSc.Mat.Option.NEW_NONZERO_ALLOCATION_ERR, False)
         return J
 

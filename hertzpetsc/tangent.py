@@ -66,7 +66,7 @@ class TangentFlow:
             self.integrator.integrate(self.Z, 0.0, T, dt=self.integrator.initial_step)
         finally:
             if monitor is not None:
-                ts.cancelMonitor()
+                ts.monitorCancel()
         z = self.aug.gather(self.Z)
         return z[:, :2].copy(), z[:, 2:].reshape(N, k, 2).transpose(0, 2, 1).copy()
 

@@ -265,7 +265,7 @@ class MapProbe:
     def __init__(self, study, q, model=None, measure="a1"):
         self.study, self.q, self.measure = study, q, measure
         self.model = study.model if model is None else model
-        self._companion = self._refiner = None
+        self._companion, self._refiners = None, {}
         self.cache, self.hints, self.evaluations = {}, [], {name: 0 for name in TESTS}
 
     @property
@@ -276,12 +276,10 @@ class MapProbe:
         return self._companion
 
     def refiner(self, N):
-        """The Gauss-Newton refiner of orbits on N beads (the chain's, or the infinite chain's cell)."""
-        if self._refiner is None or self._refiner.spec.N != N:
-            if self._refiner is not None:
-                self._refiner.destroy()
-            self._refiner = Refiner(ChainSpec(self.model, N), PETSc.COMM_SELF, REFINE_TOL)
-        return self._refiner
+        """The Gauss-Newton refiner of orbits on N beads (the chain's, or the infinite chain's cell), built once."""
+        if N not in self._refiners:
+            self._refiners[N] = Refiner(ChainSpec(self.model, N), PETSc.COMM_SELF, REFINE_TOL)
+        return self._refiners[N]
 
     def entry(self, point):
         key = math.log(point.a)
@@ -372,8 +370,8 @@ class MapProbe:
     def destroy(self):
         if self._companion is not None:
             self._companion.destroy()
-        if self._refiner is not None:
-            self._refiner.destroy()
+        for refiner in self._refiners.values():
+            refiner.destroy()
 
 
 def limit_probe(study, q, grid, probe, point):

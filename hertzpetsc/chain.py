@@ -37,8 +37,8 @@ from petsc4py import PETSc
 
 from . import kernels
 from .assembly import gathered
-from .errors import (ConvergenceError, ParameterError, PetscFailure, check_instance, check_integer, check_prefix,
-                     check_real)
+from .errors import (ConvergenceError, ParameterError, PetscFailure, callbacks_raise, check_instance, check_integer,
+                     check_prefix, check_real)
 from .dissipation import contact_exponent
 from .model import Actuator, ChainSpec
 from .options import user_set
@@ -569,7 +569,8 @@ class ChainIntegrator:
         if self.compiled:                     # no Python during the solve: a signal ends it through the kernel
             kernels.watch_signals()
         try:
-            ts.solve(X)
+            with callbacks_raise():
+                ts.solve(X)
         except PETSc.Error as err:
             if err.ierr != OVERFLOW_ERROR:
                 raise

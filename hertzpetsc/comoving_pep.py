@@ -11,7 +11,7 @@ import scipy.sparse as sp
 from petsc4py import PETSc
 
 from .assembly import gathered
-from .errors import ConvergenceError, check_signals
+from .errors import ConvergenceError, callbacks_raise, check_signals
 from .options import inserted_options
 
 COMOVING_PREFIX = "cm_"
@@ -89,7 +89,8 @@ class ComovingPEP:
                 pep.setTarget(float(target))
                 if nev > self.nev:
                     pep.setDimensions(nev=nev, ncv=max(2 * nev + 10, 40))
-                pep.solve()
+                with callbacks_raise():
+                    pep.solve()
                 nconv = pep.getConverged()
                 if nconv < min(nev, self.nev):
                     raise ConvergenceError("co-moving PEP (prefix -%s)" % self.prefix, f"{nconv} of {nev} eigenpairs "

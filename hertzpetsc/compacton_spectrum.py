@@ -18,7 +18,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import gathered
-from .errors import ConvergenceError, check_integer, check_real
+from .errors import ConvergenceError, callbacks_raise, check_integer, check_real
 from .floquet import Spectrum, largest_magnitude
 
 STABILITY_PREFIX = "cstab_"
@@ -141,7 +141,8 @@ class WindowStability:
         t0 = time.perf_counter()
         try:
             self.eps.setOperators(A)
-            self.eps.solve()
+            with callbacks_raise():
+                self.eps.solve()
             nconv = self.eps.getConverged()
             if nconv < self.eps.getDimensions()[0]:
                 raise ConvergenceError(f"window EPS (prefix -{self.prefix}eps_)", int(self.eps.getConvergedReason()),

@@ -65,7 +65,7 @@ from petsc4py import PETSc
 from .assembly import gathered
 from .chain import Chain, ChainIntegrator, IntegrationTolerances
 from .continuation import ContinuationProblem, _parameter, golden_maximum, set_parameter
-from .errors import ConvergenceError, ParameterError, check_integer, check_real
+from .errors import ConvergenceError, ParameterError, callbacks_raise, check_integer, check_real
 from .floquet import FLOQUET_PREFIX, DenseFloquet, DominantFloquet, dense_multipliers
 from .resources import MAX_DENSE_BEADS, check_chain_memory
 from .model import Actuator, ChainSpec, Harmonic, LatticeModel, SampledSignal, Signal
@@ -1031,7 +1031,8 @@ class PeriodicShooting(ContinuationProblem):
                 Z0.copy(Z)
                 self._last_fnorm, self._solves, self._f_last = math.inf, self._solves + 1, None
                 try:
-                    self._snes.solve(None, Z)
+                    with callbacks_raise():
+                        self._snes.solve(None, Z)
                 except PETSc.Error as err:
                     if not singular_factor(err):
                         raise

@@ -22,6 +22,7 @@ import ctypes
 import math
 import numbers
 import signal
+from contextlib import contextmanager
 from typing import Any, Collection, Optional, Union
 
 
@@ -196,6 +197,34 @@ def check_signals(*args):
     monitor of a solver that calls no Python otherwise (SLEPc's PEP on assembled matrices), so that a signal ends it
     within an iteration. Takes and ignores the monitor's arguments."""
     ctypes.pythonapi.PyErr_CheckSignals()
+
+
+def unwrapped(err: BaseException) -> BaseException:
+    """The error behind ``err`` as petsc4py 3.18 raises it. Newer petsc4py/slepc4py (3.26) report an exception raised
+    in a Python callback as a PETSc.Error of code 101 or -1, and some calls' errors as a SystemError, each chained to
+    what it wraps by ``__cause__``; 3.18 raises the callback's exception or the PETSc.Error itself."""
+    seen, e = set(), err
+    while e.__cause__ is not None and id(e) not in seen:
+        seen.add(id(e))
+        wrapper = isinstance(e, SystemError) or (type(e).__name__ == "Error" and getattr(e, "ierr", 0) in (101, -1))
+        if not wrapper:
+            break
+        e = e.__cause__
+    return e
+
+
+@contextmanager
+def callbacks_raise():
+    """Around a PETSc call whose callbacks are Python (right-hand sides, residuals, shell products, monitors): an
+    exception raised in a callback leaves it as itself (a ParameterError, KeyboardInterrupt, :class:`Terminated`
+    ...), and PETSc's own errors as PETSc.Error, whatever the petsc4py version (:func:`unwrapped`)."""
+    try:
+        yield
+    except Exception as err:
+        inner = unwrapped(err)
+        if inner is err:
+            raise
+        raise inner from None
 
 
 class PetscFailure(HertzPetscError, RuntimeError):

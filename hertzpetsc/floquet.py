@@ -23,7 +23,8 @@ from typing import TYPE_CHECKING, Optional, Sequence
 import numpy as np
 
 from .chain import IntegrationTolerances
-from .errors import ConvergenceError, ParameterError, check_flag, check_instance, check_integer, check_real
+from .errors import (ConvergenceError, ParameterError, callbacks_raise, check_flag, check_instance, check_integer,
+                     check_real)
 from .model import ChainSpec
 from .tangent import MonodromyModShift, TangentFlow
 
@@ -263,7 +264,8 @@ class DominantFloquet(FloquetSolver):
                                      f"the cluster of multipliers inside, {self.cluster:.6g}")
             self.eps.getRG().setEllipseParameters(0.0, float(self.radius), 1.0)
             self._products0 = products0
-        eps.solve()
+        with callbacks_raise():
+            eps.solve()
         nconv = eps.getConverged()
         if self.radius is not None:
             return self._outside(orbit, tol_rho, nconv, products0)

@@ -28,7 +28,8 @@ from petsc4py import PETSc
 
 from . import kernels
 from .console import print0
-from .errors import HertzPetscError, OptionError, ParameterError, PetscFailure, RecordFileError, Terminated
+from .errors import (HertzPetscError, OptionError, ParameterError, PetscFailure, RecordFileError, Terminated,
+                     unwrapped)
 from .records import check_stores, name_path, prepare_outputs, provenance
 
 # seconds the other ranks give rank 0 to report an error they all hit before they report it themselves
@@ -90,29 +91,36 @@ def print_solver_help(roles):
             obj.destroy()
 
 
-def known_solver_options(roles):
-    """The option names PETSc reads for the objects of each role, from its own -help output (captured)."""
+def solver_help_text(roles):
+    """PETSc's own -help text for the objects of each role, captured (PETSc prints an object's help once per
+    process, and only while the database holds a bare ``-help``: ``-help solvers`` is one only for 3.18)."""
     opts = PETSc.Options()
-    had_help = opts.hasName("help")
+    had_help = opts.getString("help", None) if opts.hasName("help") else False
     libc = ctypes.CDLL(None)
-    names = set()
     with tempfile.TemporaryFile() as sink:
         libc.fflush(None)
         sys.stdout.flush()
         saved = os.dup(1)
         os.dup2(sink.fileno(), 1)
         try:
-            if not had_help:
-                opts.setValue("help", None)
+            opts.delValue("help")
+            opts.setValue("help", None)
             print_solver_help(roles)
         finally:
             libc.fflush(None)
             os.dup2(saved, 1)
             os.close(saved)
-            if not had_help:
-                opts.delValue("help")
+            opts.delValue("help")
+            if had_help is not False:
+                opts.setValue("help", had_help)
         sink.seek(0)
-        text = sink.read().decode(errors="replace")
+        return sink.read().decode(errors="replace")
+
+
+def known_solver_options(roles):
+    """The option names PETSc reads for the objects of each role, from its own -help output (captured)."""
+    text = solver_help_text(roles)
+    names = set()
     for prefix in roles:
         names.update(re.findall(r"-(" + re.escape(prefix) + r"[A-Za-z0-9_]+)", text))
     return names
@@ -328,7 +336,8 @@ class AppOptions:
         if self.roles and self.db.getString("help", "") == "solvers":
             print0("\nPETSc's options of these solvers (their defaults before the code's own):")
             if PETSc.COMM_WORLD.getRank() == 0:          # the objects are made on COMM_SELF: one rank prints
-                print_solver_help({p: kinds for p, (_, kinds) in self.roles.items()})
+                roles = {p: kinds for p, (_, kinds) in self.roles.items()}
+                print(solver_help_text(roles), end="", flush=True)
         elif self.roles:
             print0("\nPETSc's own options of each solver role: -help solvers")
         sys.stdout.flush()
@@ -572,10 +581,14 @@ def guarded_main(main):
 
 def _interruption(err):
     """The signal number behind ``err``: a KeyboardInterrupt or :class:`Terminated`, also one that an error in a
-    ``finally`` block replaced (a solver object destroyed in the state the interruption left it in: PETSc error 58),
+    ``finally`` block replaced (a solver object destroyed in the state the interruption left it in: PETSc error 58)
+    or a PETSc call wrapped (:func:`~hertzpetsc.errors.unwrapped`),
     or a solve that the compiled kernel ended for a signal whose handler did not raise; else None."""
-    seen = set()
-    while err is not None and id(err) not in seen:
+    seen, todo = set(), [err]
+    while todo:
+        err = todo.pop()
+        if err is None or id(err) in seen:
+            continue
         if isinstance(err, KeyboardInterrupt):
             return signal.SIGINT
         if isinstance(err, Terminated):
@@ -583,13 +596,14 @@ def _interruption(err):
         if isinstance(err, PETSc.Error) and err.ierr == kernels.SIGNAL_ERROR and kernels.last_signal:
             return kernels.last_signal
         seen.add(id(err))
-        err = err.__context__
+        todo += [err.__context__, err.__cause__]      # __cause__: a callback's exception, as petsc4py 3.26 wraps it
     return None
 
 
 def _report(err):
     """The one error line and exit status of an exception that ended ``main`` (:func:`guarded_main`)."""
     signum = _interruption(err)
+    err = unwrapped(err)
     if signum is not None:
         # under mpiexec the signal is either the user's, forwarded to every rank, or mpiexec ending the ranks of a
         # job that another rank aborted after printing its error: end quietly. The finally blocks ran; the exit

@@ -23,7 +23,7 @@ import numpy as np
 from petsc4py import PETSc
 
 from .assembly import RowAssembler, StencilGather
-from .errors import ConvergenceError, ParameterError, check_integer, check_real
+from .errors import ConvergenceError, ParameterError, callbacks_raise, check_integer, check_real
 from .grid import ProfileGrid
 from .hertz import check_alpha
 from .model import LatticeModel
@@ -197,7 +197,8 @@ def _solve(params, comm, prefix):
     with _compacton_start(params, comm) as (prob, X, J):
         snes = create_snes(prob, J, prefix, dict(rtol=1e-13, atol=atol, stol=1e-14, max_it=100))
         try:
-            snes.solve(None, X)
+            with callbacks_raise():
+                snes.solve(None, X)
             reason, its, fnorm = snes.getConvergedReason(), snes.getIterationNumber(), snes.getFunctionNorm()
             r = prob.grid.half_profile(X)
         finally:

@@ -21,7 +21,7 @@ from petsc4py import PETSc
 
 from .assembly import RowAssembler, StencilGather
 from .branch import SolveStats
-from .errors import ConvergenceError, ParameterError
+from .errors import ConvergenceError, ParameterError, callbacks_raise
 from .options import inserted_options, user_set
 
 TW_PREFIX = "tw_"
@@ -314,6 +314,12 @@ class TravellingWaveSolver:
                                  "algebraic preconditioners) or 'shell' (matrix-free)")
         self._user_set = user_set(prefix + "snes_", ("rtol", "atol", "stol", "max_it"))
 
+    def _reset(self):
+        """After a solve that an exception left (a callback's, a signal's): its work vectors may still be locked
+        (petsc4py >= 3.2x checks), so they are freed and the next solve makes new ones."""
+        self.snes.reset()
+        self.snes.setFunction(self._function, self.F)
+
     def _function(self, snes, X, F):
         self.problem.formFunction(snes, X, F)
 
@@ -338,7 +344,12 @@ class TravellingWaveSolver:
         problem.preconditioner = self.pc_context if isinstance(self.pc_context, BlockSecondDifferencePC) else None
         self.snes.setJacobian(self._jacobian, J, J)
         try:
-            self.snes.solve(None, u)
+            try:
+                with callbacks_raise():
+                    self.snes.solve(None, u)
+            except BaseException:
+                self._reset()
+                raise
             snes = self.snes
             result = SolveStats(reason=int(snes.getConvergedReason()),
                                  iterations=snes.getIterationNumber(),

@@ -56,7 +56,10 @@ def test_damped_tangent_flow_is_the_derivative_of_the_flow():
 def test_undamped_undriven_chain_gives_back_the_previous_numbers():
     """The refined wave of the record of the previous implementation (N = 20, q = 3 pi/10): the same Floquet
     multipliers modulo shift, on one rank as the record was made (the undamped code path is unchanged: the same
-    numbers to round-off; across ranks see test_floquet)."""
+    numbers to round-off; across ranks see test_floquet). Another PETSc's flow differs by its steps' round-off: the
+    multipliers away from 1 and the mean of the 8 at 1 (the symmetries' defective cluster, well conditioned as a whole)
+    keep 1e-11 and 1e-12 (3.26 against the 3.18 record: 3.7e-12, 1e-13); the cluster's members, rho among them, move
+    by the square root of those differences, so rho is held to 1e-7 (3.26: 8.6e-9; 3.18: the record's own numbers)."""
     prev = np.load(os.path.join(ROOT, "tests", "data", "previous_records.npz"))
     spec = ChainSpec(LatticeModel.hertz(1.5), 20)
     dense = DenseFloquet(spec, PETSc.COMM_SELF)
@@ -66,8 +69,12 @@ def test_undamped_undriven_chain_gives_back_the_previous_numbers():
         sp = dense.spectrum(orbit)
     finally:
         dense.destroy()
-    assert np.max(np.abs(np.sort_complex(sp.multipliers) - np.sort_complex(prev["refined_multipliers"]))) < 1e-12
-    assert abs(sp.rho - float(prev["refined_rho"])) < 1e-12
+    mu, ref = sp.multipliers, prev["refined_multipliers"]
+    at_one, ref_at_one = mu[np.abs(mu - 1) < 1e-4], ref[np.abs(ref - 1) < 1e-4]
+    assert len(at_one) == len(ref_at_one) == 8 and abs(at_one.mean() - ref_at_one.mean()) < 1e-12
+    far, ref_far = np.sort_complex(mu[np.abs(mu - 1) >= 1e-4]), np.sort_complex(ref[np.abs(ref - 1) >= 1e-4])
+    assert np.max(np.abs(far - ref_far)) < 1e-11
+    assert abs(sp.rho - float(prev["refined_rho"])) < 1e-7
 
 
 def test_small_amplitude_response_is_the_linear_closed_form():
@@ -166,7 +173,7 @@ def test_the_drive_is_never_jumped():
             ts.setMonitor(lambda ts, i, t, X: steps.append(ts.getTimeStep()))
             r = prob.solve_response(x0)
             mu = prob.multipliers(x=r.x, p=orbit.omega)
-            ts.cancelMonitor()
+            ts.monitorCancel()
             assert prob.dense.flow.integrator.max_step == pytest.approx(push / STEPS_PER_PUSH, rel=1e-14)
             assert 0 < max(steps) <= push / STEPS_PER_PUSH * (1 + 1e-12)
         finally:
@@ -223,7 +230,7 @@ def test_signals_declare_the_time_scale_that_limits_every_flow():
             integ.ts.setMonitor(lambda ts, i, t, X: steps.append(ts.getTimeStep()))
             prob.monodromy(np.zeros((6, 2)), 2.0, accurate=integ is not prob.jacobian_flow.integrator)
             prob.map(np.zeros((6, 2)))
-            integ.ts.cancelMonitor()
+            integ.ts.monitorCancel()
             assert 0 < max(steps) <= 0.1 * math.pi / STEPS_PER_PUSH * (1 + 1e-12)
             prob._mono = None
     finally:

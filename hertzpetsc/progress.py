@@ -47,7 +47,7 @@ class Progress:
     def left(self, done: float) -> Optional[float]:
         """Seconds left at the pace so far (None before any progress, or past the total)."""
         ran = done - self.start
-        if ran <= 0 or done > self.total:
+        if not ran > 0 or done > self.total:            # (a start of nan: nothing known to pace by)
             return None
         return (self.clock() - self.t0) * (self.total - done) / ran
 

@@ -54,7 +54,8 @@ def main():
         print0(f"resuming {output} at t = {run.resumed_at:.6g} ({len(run.store.records)} snapshots)")
     print0(f"# q = {orbit.q:.6f}, N = {N}, script-T = {orbit.T:.6f}, initial state: {orbit.source}, "
            f"t_final = {t_final}")
-    progress = Progress(t_final, "time units", "long run", start=run.resumed_at, comm=comm)
+    start = run.resumed_at if run.store.records else 0.0          # (resumed_at: nan for a new run)
+    progress = Progress(t_final, "time units", "long run", start=start, comm=comm)
 
     def show(t, drift, steps):
         print0(f"  t = {t:10.3f}  energy drift {drift:+.2e}  steps {steps}")

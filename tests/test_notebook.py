@@ -226,6 +226,10 @@ def test_progress_estimates_the_time_left_on_rank_0_of_a_terminal_only():
     assert tty.text == (line + "\n" if line else "")
     assert p.update(4) is None and p.update(4, force=True) == (p.line(4) if COMM.getRank() == 0 else None)
     assert duration(7384) == "2 h 3 min" and duration(59.6) == "1 min 0 s"
+    # a start of nan (a new long run's resumed_at: Open MPI's ranks write to a terminal even into a log file): a
+    # line without an estimate, not a ValueError (hz.sh paper's long run at t = 240, after its first 30 s)
+    unknown = Progress(10, "time units", start=float("nan"), stream=Terminal(True), clock=lambda: now[0])
+    assert unknown.left(3) is None and unknown.update(3, force=True) in (None, unknown.line(3))
     pipe = Terminal(False)
     quiet = Progress(10, stream=pipe, interval=0.0, clock=lambda: now[0])
     assert quiet.update(5, force=True) is None and pipe.text == ""

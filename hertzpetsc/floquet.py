@@ -26,6 +26,7 @@ from .chain import IntegrationTolerances
 from .errors import (ConvergenceError, ParameterError, callbacks_raise, check_flag, check_instance, check_integer,
                      check_real)
 from .model import ChainSpec
+from .options import user_set
 from .tangent import MonodromyModShift, TangentFlow
 
 if TYPE_CHECKING:
@@ -210,7 +211,7 @@ class DominantFloquet(FloquetSolver):
         self.prefix, self.warm, self.start, self.previous = prefix, check_flag("warm", warm), [], []
         self.keep_vectors, self.vectors = check_flag("vectors", vectors), None
         from petsc4py import PETSc
-        given = PETSc.Options(prefix).getString("radius") if PETSc.Options(prefix).hasName("radius") else None
+        given = PETSc.Options(prefix).getString("radius") if user_set(prefix, ("radius",)) else None
         if given is not None:
             try:
                 given = float(given)

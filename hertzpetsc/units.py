@@ -546,8 +546,9 @@ def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_
     chain's scale). What a driver cannot compute is refused with the reason given (a ParameterError naming the
     option; each reason says which command computes it): ``refused`` any chain of beads, ``one_bead`` a pattern of
     several beads, ``equal_bonds`` bonds of different contact constants, ``free`` a static force (a free chain)."""
-    names = opts.string("beads", beads, "bead materials of the pattern, comma-separated, from " + ", ".join(MATERIALS)
-                        + " or custom (none: the dimensionless chain of -delta0, -masses)")
+    names = opts.string("beads", beads, f"refused by this driver: {refused}" if refused else "bead materials of the "
+                        "pattern, comma-separated, from " + ", ".join(MATERIALS) + " or custom (none: the "
+                        "dimensionless chain of -delta0, -masses)")
     radius = opts.string("radius", "4.76mm", "-beads: radius, or one per bead (e.g. 4.76mm)")
     youngs = opts.string("youngs", "", "-beads: Young's modulus (e.g. 193GPa), replacing the table's")
     poisson = opts.string("poisson", "", "-beads: Poisson ratio in (-1, 0.5], replacing the table's")

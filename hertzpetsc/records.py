@@ -596,7 +596,8 @@ class NpzRecords(RecordStore):
         data = load_npz(self.path, self.what)
         check_kind(data, self.path, self.kind, self.what)
         check_identity({k: data[k].item() if data[k].ndim == 0 else data[k].tolist()
-                        for k in list(self.identity) + [k for k in ABSENT if k not in self.identity] if k in data},
+                        for k in list(self.identity) + [k for k in ABSENT if k not in self.identity
+                                                         and k not in self.fields] if k in data},
                        self.identity, self.path, self.names)
         missing = [f for f in self.fields if f not in data and f not in self.added]
         if missing:

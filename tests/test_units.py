@@ -400,6 +400,11 @@ def test_restitution_and_pulse_take_beads_and_report_si(tmp_path):
     for v_si, ei in zip((1e-3, 3e-3), e):
         cv = 0.2 * v_si                                     # the law's error is of order (c v)^2: relative c v
         assert abs((1 - ei) / cv - 1) < 2 * cv
+    # resumed (the record field 'law' is not the identity's absent key 'law', records.ABSENT)
+    r = run_script("restitution.py", "-beads", "steel,brass", "-contact_coefficient", "0.2s/m", "-impact_velocities",
+                   "1mm/s,3mm/s", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md", "-resume")
+    assert r.returncode == 0, r.stderr
+    assert len(si_rows((tmp_path / "r.md").read_text())) == 2
     r = run_script("pulse_decay.py", "-beads", "steel", "-contact_coefficient", "0.05s/m", "-striker_velocities",
                    "0.1m/s", "-N", 12, "-skip", 2, "-output", tmp_path / "p.npz", "-table", tmp_path / "p.md")
     assert r.returncode == 0, r.stderr

@@ -302,9 +302,10 @@ class LatticeModel:
     def from_description(cls, description: dict) -> LatticeModel:
         """The model a :meth:`describe` dictionary describes (the law from the registry by name,
         :func:`~hertzpetsc.law.from_description`; a description without ``law`` is the Hertz chain's; the damping
-        with its contact term, :func:`~hertzpetsc.dissipation.from_description`); keys of
-        other objects (a chain's N, ends) are ignored."""
+        with its contact term, :func:`~hertzpetsc.dissipation.from_description`; ``bonds`` a list, or its JSON as
+        :meth:`law_identity` writes it); keys of other objects (a chain's N, ends) are ignored."""
         bonds = description.get("bonds")
+        bonds = json.loads(bonds) if isinstance(bonds, str) else bonds
         bonds = None if bonds is None else tuple(law_from_description(b) for b in bonds)
         return cls(law_from_description(description) if bonds is None else bonds[0],
                    tuple(description.get("masses", (1.0,))),

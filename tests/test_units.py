@@ -511,6 +511,8 @@ def test_the_map_refuses_what_it_cannot_compute_and_files_name_the_bonds():
 
     patterned = BeadChain((Bead("steel", R), Bead("steel", R), Bead("ptfe", R)), "10 N").model()
     assert patterned.bonds is not None
+    # the identity's keys reopen as the model (the bonds' JSON as a file holds it)
+    assert LatticeModel.from_description(dict(patterned.law_identity(), masses=list(patterned.masses))) == patterned
     q = 2 * math.pi * 3 / 20
     tolerances = IntegrationTolerances(rtol=1e-10, atol=1e-12)
     for model in (LatticeModel(StiffHertz(1.5, 1.0, c=3.0)), patterned):

@@ -601,12 +601,11 @@ def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_
     return chain
 
 
-def si_numbers(opts, chain: Optional[BeadChain], name: str, quantity: str, help: str, instead: str,
-               parse: str = "") -> Optional[list]:
-    """Declare and read -``name``, a comma-separated list of values in SI units of ``quantity`` (a key of
-    :data:`_SCALES`, parsed as ``parse`` of :data:`QUANTITIES`, default the same) for a driver with -beads, e.g.
-    -impact_velocities 1mm/s,1cm/s: the dimensionless values (:meth:`BeadChain.from_si`), or None when not given.
-    Refused without -beads (``chain`` None) and beside the dimensionless option -``instead``."""
+def si_numbers(opts, chain: Optional[BeadChain], name: str, quantity: str, help: str, instead: str) -> Optional[list]:
+    """Declare and read -``name``, a comma-separated list of positive values in SI units of ``quantity`` (a key of
+    both :data:`_SCALES` and :data:`QUANTITIES`: length, velocity) for a driver with -beads, e.g. -impact_velocities
+    1mm/s,1cm/s: the dimensionless values (:meth:`BeadChain.from_si`), or None when not given. Refused without
+    -beads (``chain`` None) and beside the dimensionless option -``instead``."""
     text = opts.string(name, "", f"-beads: {help} in SI units, comma-separated, instead of -{instead}")
     if opts.help or not text.strip():
         return None
@@ -615,7 +614,8 @@ def si_numbers(opts, chain: Optional[BeadChain], name: str, quantity: str, help:
     if opts.db.hasName(instead):
         raise ParameterError(f"-{instead}", opts.db.getString(instead, ""), f"give one of -{instead} (dimensionless) "
                              f"and -{name} (SI)")
-    values = [parse_quantity(f"-{name}", v.strip(), parse or quantity) for v in text.split(",")]
+    values = [check_real(f"-{name}", parse_quantity(f"-{name}", v.strip(), quantity), f"every value of -{name}", 0.0)
+              for v in text.split(",")]
     return [float(chain.from_si(quantity, v)) for v in values]
 
 

@@ -244,6 +244,7 @@ def test_the_solitary_wave_speed_in_si():
     ("restitution.py", ["-beads", "steel", "-contact_coefficient", "0.1 N"], "-contact_coefficient"),
     ("restitution.py", ["-beads", "steel", "-damping", "0.1", "-contact_coefficient", "0.1s/m"], "-damping"),
     ("pulse_decay.py", ["-beads", "steel", "-striker_velocities", "1 kHz"], "-striker_velocities"),
+    ("restitution.py", ["-beads", "steel", "-impact_velocities", "1m/s,-1m/s"], "-impact_velocities"),
     ("precompression_map.py", ["-beads", "steel", "-static_force", "1N", "-epsilon", "0.5"], "-epsilon"),
     ("boundary_in_q.py", ["-beads", "steel", "-static_force", "1N", "-A", "1", "-A_si", "1um"], "-A"),
     ("boundary_in_q.py", ["-A_si", "1um"], "-A_si"),

@@ -468,6 +468,13 @@ def test_the_map_of_a_steel_chain_is_the_hertz_map_of_its_model_and_reports_si(t
                    "-m", "3,4", *args, "-resume")
     line = one_error_line(r)
     assert "delta0 = 1.0 there" in line and "-static_force and -length_scale with -beads" in line, line
+    # two materials alternating (one contact constant in every bond): the dimer map of their mass ratio
+    r = run_script("precompression_map.py", "-beads", "steel,brass", "-static_force", "10N", "-m", 3, *args[:-6],
+                   "-output", tmp_path / "d.npz", "-table", tmp_path / "d.md", "-figures", "")
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "d.npz") as z:
+        ratio = Bead("brass", R).mass / Bead("steel", R).mass
+        assert list(z["masses"]) == pytest.approx([1.0, ratio], rel=1e-14) and float(z["delta0"]) == 1.0
 
 
 @pytest.mark.serial

@@ -20,6 +20,7 @@ model).
 """
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import dataclass, field, fields
 from typing import Callable, Optional, Sequence, Union
@@ -301,9 +302,10 @@ class LatticeModel:
     def from_description(cls, description: dict) -> LatticeModel:
         """The model a :meth:`describe` dictionary describes (the law from the registry by name,
         :func:`~hertzpetsc.law.from_description`; a description without ``law`` is the Hertz chain's; the damping
-        with its contact term, :func:`~hertzpetsc.dissipation.from_description`); keys of
-        other objects (a chain's N, ends) are ignored."""
+        with its contact term, :func:`~hertzpetsc.dissipation.from_description`; ``bonds`` a list, or its JSON as
+        :meth:`law_identity` writes it); keys of other objects (a chain's N, ends) are ignored."""
         bonds = description.get("bonds")
+        bonds = json.loads(bonds) if isinstance(bonds, str) else bonds
         bonds = None if bonds is None else tuple(law_from_description(b) for b in bonds)
         return cls(law_from_description(description) if bonds is None else bonds[0],
                    tuple(description.get("masses", (1.0,))),
@@ -313,10 +315,14 @@ class LatticeModel:
     def law_identity(self) -> dict:
         """The law's keys in the identity of a record file that names alpha and delta0 (the precompressed families'):
         those two, as Hertz files always had them, and for any other law its description too (name, parameters), so
-        that its file reopens as that law (:meth:`from_description`)."""
+        that its file reopens as that law (:meth:`from_description`); bonds of laws of their own (a pattern of beads of
+        different contact constants) add ``bonds``, their descriptions (a file without it has none:
+        :data:`hertzpetsc.records.ABSENT`)."""
         out = dict(alpha=self.alpha, delta0=self.delta0)
         law = self.law.describe()
-        return out if "law" not in law else dict(out, **law)
+        out = out if "law" not in law else dict(out, **law)
+        return out if self.bonds is None else dict(out, bonds=json.dumps([b.describe() for b in self.bonds],
+                                                                          sort_keys=True))
 
     def describe(self) -> dict:
         """The model as plain data (for record identities and file metadata); delta0 and damping only when

@@ -483,14 +483,20 @@ def _same(a, b):
 
 
 # identity keys whose absence from a file has a meaning: the files of the Hertz chain name no law
-ABSENT = {"law": "hertz"}
-ABSENT_WHAT = {"law": "law is Hertz's"}
+ABSENT = {"law": "hertz", "bonds": None}
+ABSENT_WHAT = {"law": "law is Hertz's", "bonds": "bonds all have the model's law"}
 
 
 def check_identity(stored, wanted, path, names=None):
     """Every identity key in both must agree; keys the stored file lacks (older files) are not compared, but for
     those of :data:`ABSENT` (a file without ``law`` is of the Hertz law). A difference names the key and, where
     ``names`` has one, the parameter and option that set it."""
+    for key, value in ABSENT.items():               # the file names one, the request none: the request is the default
+        if key in stored and key not in wanted and not _same(stored[key], value):
+            by = f", set by {names[key]}" if names and key in names else ""
+            raise RecordFileError(f"{given(path)} holds another computation: {key} = {stored[key]!r} there, none "
+                                  f"requested (its {ABSENT_WHAT[key]}){by} (rerun with the same model, or without "
+                                  "-resume and with -force (mode 'force' in the API) to start afresh)")
     for key, value in wanted.items():
         if key not in stored and key in ABSENT and value != ABSENT[key]:
             raise RecordFileError(f"{given(path)} holds another computation: {key} = {value!r} requested, where the "
@@ -589,8 +595,10 @@ class NpzRecords(RecordStore):
     def _load(self):
         data = load_npz(self.path, self.what)
         check_kind(data, self.path, self.kind, self.what)
-        check_identity({k: data[k].item() if data[k].ndim == 0 else data[k].tolist() for k in self.identity
-                        if k in data}, self.identity, self.path, self.names)
+        check_identity({k: data[k].item() if data[k].ndim == 0 else data[k].tolist()
+                        for k in list(self.identity) + [k for k in ABSENT if k not in self.identity
+                                                         and k not in self.fields] if k in data},
+                       self.identity, self.path, self.names)
         missing = [f for f in self.fields if f not in data and f not in self.added]
         if missing:
             raise RecordFileError(f"{self.what} {given(self.path)} is corrupt: missing {missing}")

@@ -535,23 +535,34 @@ def _equal(constants):
 BEAD_OPTIONS = ("beads", "radius", "youngs", "poisson", "density", "static_force", "length_scale")
 
 
-def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_force="0N") -> Optional[BeadChain]:
+def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_force="0N", length_scale="",
+                 refused="", one_bead="", equal_bonds="", free="") -> Optional[BeadChain]:
     """Declare and read the options of a chain in SI units (``opts`` an AppOptions): -beads (materials of the
     pattern, e.g. steel or steel,ptfe; 'custom' with -youngs, -poisson, -density), -radius (one, or one per bead),
     -youngs, -poisson, -density (replace the table's values), -static_force, -length_scale. Returns the
     :class:`BeadChain`, or None without -beads (the dimensionless options alone, as before). With -beads the
     dimensionless options ``replaces`` (the exponent, -delta0, -masses) may not be given: the beads define them.
-    ``beads``, ``static_force``: the defaults (a driver whose chain is always one of beads)."""
-    names = opts.string("beads", beads, "bead materials of the pattern, comma-separated, from " + ", ".join(MATERIALS)
-                        + " or custom (none: the dimensionless chain of -delta0, -masses)")
+    ``beads``, ``static_force``, ``length_scale``: the defaults (a driver whose chain is always one of beads; a free
+    chain's scale). What a driver cannot compute is refused with the reason given (a ParameterError naming the
+    option; each reason says which command computes it): ``refused`` any chain of beads, ``one_bead`` a pattern of
+    several beads, ``equal_bonds`` bonds of different contact constants, ``free`` a static force (a free chain)."""
+    names = opts.string("beads", beads, f"refused by this driver: {refused}" if refused else "bead materials of the "
+                        "pattern, comma-separated, from " + ", ".join(MATERIALS) + " or custom (none: the "
+                        "dimensionless chain of -delta0, -masses)")
     radius = opts.string("radius", "4.76mm", "-beads: radius, or one per bead (e.g. 4.76mm)")
     youngs = opts.string("youngs", "", "-beads: Young's modulus (e.g. 193GPa), replacing the table's")
     poisson = opts.string("poisson", "", "-beads: Poisson ratio in (-1, 0.5], replacing the table's")
     density = opts.string("density", "", "-beads: density (e.g. 8000kg/m^3), replacing the table's")
     force = opts.string("static_force", static_force, "-beads: the static force pressing the chain (precompression)")
-    length = opts.string("length_scale", "", "-beads: the length scale (default: the static overlap, so that "
-                         "delta0 = 1; needed when -static_force is 0)")
+    length = opts.string("length_scale", length_scale, "-beads: the length scale (default: " + (
+        length_scale if length_scale else "the static overlap, so that delta0 = 1; needed when -static_force is 0")
+        + ")")
     if opts.help:
+        return None
+    if refused:
+        given = [name for name in BEAD_OPTIONS if opts.db.hasName(name)]
+        if given:
+            raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), refused)
         return None
     if not names.strip():
         given = [name for name in BEAD_OPTIONS[1:] if opts.db.hasName(name)]
@@ -559,12 +570,16 @@ def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_
             raise ParameterError(f"-{given[0]}", opts.db.getString(given[0], ""), "describes beads: give -beads "
                                  "(e.g. steel) too")
         return None
+    if free and opts.db.hasName("static_force"):
+        raise ParameterError("-static_force", force, free)
     for name in replaces:
         if opts.db.hasName(name):
             raise ParameterError(f"-{name}", opts.db.getString(name, ""), "is defined by -beads (the Hertz exponent "
                                  "3/2, the precompression by -static_force, the masses by the beads): give one or "
                                  "the other")
     kinds = [v.strip() for v in names.split(",")]
+    if one_bead and len(kinds) > 1:
+        raise ParameterError("-beads", names, one_bead)
     radii = [v.strip() for v in radius.split(",")]
     if len(radii) not in (1, len(kinds)) or "" in radii:
         raise ParameterError("-radius", radius, f"give one radius or one per bead ({len(kinds)})")
@@ -577,9 +592,31 @@ def bead_options(opts, replaces=("alpha", "delta0", "masses"), beads="", static_
             raise ParameterError(f"-{'beads' if err.name == 'material' else err.name}", err.value, err.valid) \
                 from None
     try:
-        return BeadChain(tuple(beads), force, length or None)
+        chain = BeadChain(tuple(beads), force, length or None)
     except ParameterError as err:
         raise ParameterError(f"-{err.name}", err.value, err.valid) from None
+    if equal_bonds and not chain.equal_bonds:
+        raise ParameterError("-beads", names, f"its bonds have different contact constants ("
+                             + ", ".join(f"{k:.4g}" for k in chain.bond_constants) + " N/m^1.5): " + equal_bonds)
+    return chain
+
+
+def si_numbers(opts, chain: Optional[BeadChain], name: str, quantity: str, help: str, instead: str) -> Optional[list]:
+    """Declare and read -``name``, a comma-separated list of positive values in SI units of ``quantity`` (a key of
+    both :data:`_SCALES` and :data:`QUANTITIES`: length, velocity) for a driver with -beads, e.g. -impact_velocities
+    1mm/s,1cm/s: the dimensionless values (:meth:`BeadChain.from_si`), or None when not given. Refused without
+    -beads (``chain`` None) and beside the dimensionless option -``instead``."""
+    text = opts.string(name, "", f"-beads: {help} in SI units, comma-separated, instead of -{instead}")
+    if opts.help or not text.strip():
+        return None
+    if chain is None:
+        raise ParameterError(f"-{name}", text, f"is in SI units: give the beads (-beads) too, or -{instead}")
+    if opts.db.hasName(instead):
+        raise ParameterError(f"-{instead}", opts.db.getString(instead, ""), f"give one of -{instead} (dimensionless) "
+                             f"and -{name} (SI)")
+    values = [check_real(f"-{name}", parse_quantity(f"-{name}", v.strip(), quantity), f"every value of -{name}", 0.0)
+              for v in text.split(",")]
+    return [float(chain.from_si(quantity, v)) for v in values]
 
 
 def contact_options(opts, chain: Optional[BeadChain] = None, si: bool = False) -> Optional[ContactDissipation]:

@@ -16,6 +16,12 @@ of the bracket (at most -max_cell), to a relative bracket -locate_tol / 2. The a
 Table: the located edges with rho - 1 on both sides, and the grid's verdicts; figure boundary_in_q.png (with -map, a
 map file of precompression_map.py, on the plane with that map's located edges). -render computes nothing: it
 rewrites -table and the figure from -output.
+
+With -beads (hertzpetsc.units: one material; the boundary in q is located for monatomic chains) the chain is that
+of the beads pressed by -static_force (Hertz alpha = 3/2, delta0 = 1 at the default length scale) instead of
+-alpha, -delta0, and -A_si gives the amplitudes in SI units (e.g. 0.5um,1um) instead of -A; the table adds a
+section in SI units (A in um, f in Hz, the phase speed omega / q in m/s, the located edges' wavenumbers per metre
+of chain). -render takes no -beads (the file holds the dimensionless chain).
 """
 import math
 import os
@@ -33,6 +39,22 @@ from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import check_kind, load_npz, on_rank0, prepare_outputs, write_text  # noqa: E402
 from hertzpetsc.studies.maps import (MAX_MAP_BEADS, QB_MAX_CELL, QMAP_FORMAT, QMAP_FORMAT_V1, QBoundary,  # noqa: E402
                                      QBoundaryParameters, check_same_chain, q_boundary_table, read_map)
+from hertzpetsc.verdicts import KIND_EDGE_INF  # noqa: E402
+from hertzpetsc.units import BEAD_OPTIONS, bead_options, si_numbers  # noqa: E402
+
+# the SI section with -beads: the records of finite amplitude (nan where a column does not apply)
+SI_COLUMNS = [("A", "length", lambda r: r["A"]), ("f", "frequency", lambda r: _wave(r, r["omega"])),
+              ("c", "speed", lambda r: _wave(r, float(r["omega"]) / float(r["q"]))),
+              ("k_stable", "wavenumber", lambda r: r["q_stable"]), ("k_unstable", "wavenumber", lambda r: r["q_unstable"])]
+
+
+def _wave(r, value):
+    """A wave's value of a record, nan for a located edge (its two sides are in the edge's other columns)."""
+    return math.nan if int(r["kind"]) in (KIND_EDGE_INF,) else value
+
+
+SI_LEAD = [("A", lambda r: r["A"]), ("kind", lambda r: str(int(r["kind"]))), ("q", lambda r: r["q"]),
+           ("rho - 1", lambda r: float(r["rho_inf"]) - 1)]
 
 
 def main():
@@ -60,7 +82,15 @@ def main():
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/boundary_in_q.npz", "boundary-in-q file", "runs/boundary_in_q.md", "boundary_in_q.png")
     render = opts.render_flag()
+    beads = bead_options(opts, ("alpha", "delta0"), one_bead="the boundary in q is located for monatomic chains (a "
+                         "pattern's map in amplitude: scripts/precompression_map.py -beads, its waves: scripts/wave.py "
+                         "-beads)")
+    si_levels = si_numbers(opts, beads, "A_si", "length", "amplitudes A = max |u| (e.g. 1um)", "A")
     opts.done()
+    if si_levels is not None:
+        levels = si_levels
+    model = LatticeModel.hertz(alpha, delta0=delta0) if beads is None else beads.model()
+    alpha, delta0 = model.alpha, model.delta0
     comm = PETSc.COMM_WORLD
     zmap = read_map(map_path, comm) if map_path else None
     if render:
@@ -70,7 +100,7 @@ def main():
                 check_same_chain(zmap, z["alpha"], z["delta0"], map_path)
             return z
         opts.render(mode, read, lambda z: write_figure_and_table(comm, z, zmap, table_path, figures), table_path,
-                    figures)
+                    figures, BEAD_OPTIONS + ("A_si",))
         return
     if zmap is not None:
         check_same_chain(zmap, alpha, delta0, map_path)
@@ -79,7 +109,7 @@ def main():
                              "which to locate")
     prepare_outputs(comm, table_path, figures=figures)
     qs = [2 * math.pi * m / N for m in ms] + list(extra_q)
-    study = QBoundary(QBoundaryParameters(LatticeModel.hertz(alpha, delta0=delta0), tuple(levels), tuple(qs), K,
+    study = QBoundary(QBoundaryParameters(model, tuple(levels), tuple(qs), K,
                                           IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho, twists,
                                           locate_tol, max_cell), comm, output, mode)
     study.configure()
@@ -87,10 +117,17 @@ def main():
     study.open()
     print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, h = pi/{K} and pi/{2 * K}, rtol {rtol:g}, "
            f"{len(study.params.A)} amplitudes, {len(study.params.q)} grid q, twists {twists}")
+    table = None
+    if beads is not None:
+        print0(beads.summary())
+
+        def table():
+            return study.table() + beads.table([r for r in study.store.records if math.isfinite(float(r["A"]))],
+                                               SI_COLUMNS, SI_LEAD)
     print0(f"# {'A':>8} {'kind':>4} {'q':>10} {'cell':>5} {'rho - 1':>10} {'Theta':>7} {'s':>6}")
     text = study.run_to_table(table_path, lambda r: print0(      # on a stop: the table of the records done
         f"  {r['A']:8.4g} {r['kind']:4d} {r['q']:10.6f} {r['M']:5d} {r['rho_inf'] - 1:10.3e} "
-        f"{r['theta_inf']:7.4f} {r['seconds']:6.1f}"))
+        f"{r['theta_inf']:7.4f} {r['seconds']:6.1f}"), table)
     z = study.arrays()
     study.destroy()
     figure_and_table(comm, z, zmap, table_path, figures, text)

@@ -9,6 +9,10 @@ Per-bead wavenumber q, one odd profile per bead of the cell (u: mass 1, v: mass 
 sine coefficient of u). From the monatomic wave at epsilon = 1 (two natural steps), pseudo-arclength in
 (u, v, lam, epsilon) through folds in epsilon, until epsilon passes epsilon_end or max_steps. Table: epsilon
 reached, omega at both ends, ||v|| / ||u||, folds. Figure: dimer_epsilon.png.
+
+-beads is refused: the continuation varies the second bead's mass epsilon, which no pattern of beads (one mass
+ratio) does; the waves of a dimer of given beads (e.g. steel,brass) in SI units are scripts/wave.py's and
+scripts/precompressed_branch.py's -beads.
 """
 import math
 import sys
@@ -23,6 +27,7 @@ from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.precompression import DimerFamilies, DimerParameters  # noqa: E402
+from hertzpetsc.units import bead_options  # noqa: E402
 
 
 def main():
@@ -40,6 +45,9 @@ def main():
     ds_max = opts.real("ds_max", 0.1, "largest arclength step", valid=(lambda x: x > 0, "> 0"))
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/dimer.npz", "dimer file", "runs/dimer.md", "dimer_epsilon.png")
+    bead_options(opts, refused="this driver continues the mass ratio epsilon from 1, which no pattern of beads does "
+                 "(one ratio): the waves of a dimer of given beads in SI units are scripts/wave.py -beads steel,brass "
+                 "and scripts/precompressed_branch.py -beads steel,brass")
     opts.done()
     for q in qs:
         check_wavenumber(q, math.pi / K)

@@ -26,6 +26,13 @@ not resumed (-resume refuses it and says so); the options that define the comput
 refused with -render. -resume refuses a file of other parameters, the amplitudes (-a, -ds grid) included.
 -compare FILE (a map of kind -1 of the same alpha, delta0, masses, N, cells_per_pi and rtol, else refused) adds to
 the table the verdicts of both maps at the (q, a) both computed, at that file's threshold.
+
+With -beads (hertzpetsc.units: one material, or two alternating, whose bonds have one contact constant) the chain
+is that of the beads pressed by -static_force (Hertz alpha = 3/2, delta0 = 1 at the default length scale, the
+masses from the beads) instead of -alpha, -delta0, -epsilon; the table adds a section in SI units (A, A_stable,
+A_unstable in um, f in Hz, the phase speed omega / q in m/s). A pattern whose bonds differ (e.g. steel,steel,ptfe)
+is refused: the map's uncompressed limit is of one law in every bond (scripts/wave.py -beads computes its waves
+and multipliers). -render takes no -beads (the file holds the dimensionless chain).
 """
 import math
 import os
@@ -44,10 +51,25 @@ from hertzpetsc.errors import RecordFileError  # noqa: E402
 from hertzpetsc.studies.maps import (MAP_FORMAT_V1, MAP_FORMAT_V2, MapParameters, StabilityMap, TESTS,  # noqa: E402
                                      check_comparable, compare_v1, map_format, map_table, map_v1_as_v2, read_map)
 from hertzpetsc.studies.precompression import amplitude_grid  # noqa: E402
+from hertzpetsc.verdicts import KIND_EDGE, KIND_EDGE_INF  # noqa: E402
+from hertzpetsc.units import BEAD_OPTIONS, bead_options  # noqa: E402
 
 # the options that define the computation (refused with -render, which reads it from the file)
 COMPUTATION = ("alpha", "delta0", "N", "epsilon", "m", "q", "a", "a_min", "a_max", "ds", "cells_per_pi", "rtol",
-               "tol_rho", "twists", "locate", "locate_tol")
+               "tol_rho", "twists", "locate", "locate_tol") + BEAD_OPTIONS
+# the SI section with -beads: the records of finite amplitude (nan where a column does not apply)
+SI_COLUMNS = [("A", "length", lambda r: r["A"]), ("f", "frequency", lambda r: _wave(r, r["omega"])),
+              ("c", "speed", lambda r: _wave(r, float(r["omega"]) / float(r["q"]))),
+              ("A_stable", "length", lambda r: r["A_stable"]), ("A_unstable", "length", lambda r: r["A_unstable"])]
+
+
+def _wave(r, value):
+    """A wave's value of a record, nan for a located edge (its two sides are in the edge's other columns)."""
+    return math.nan if int(r["kind"]) in (KIND_EDGE, KIND_EDGE_INF,) else value
+
+
+SI_LEAD = [("q", lambda r: r["q"]), ("kind", lambda r: str(int(r["kind"]))), ("a", lambda r: r["a"]),
+           ("rho - 1", lambda r: float(r["rho"]) - 1)]
 
 
 def main():
@@ -85,6 +107,8 @@ def main():
     compare = opts.path("compare", "", "a map of kind hertzpetsc-precompression-map-1 to compare the verdicts with "
                         "(none if empty)")
     render = opts.render_flag(" (either kind)")
+    beads = bead_options(opts, ("alpha", "delta0", "epsilon"), equal_bonds="the map's uncompressed limit is of one "
+                         "law in every bond; the waves and multipliers of such a pattern are scripts/wave.py -beads")
     opts.done()
     comm = PETSc.COMM_WORLD
     if compare and map_format(compare, comm) != MAP_FORMAT_V1:
@@ -104,7 +128,10 @@ def main():
     qs = [2 * math.pi * m / N for m in ms] + list(extra_q)
     grid = amplitude_grid(a_min, a_max, ds) if ds > 0 else []
     masses = (1.0,) if epsilon == 1.0 else (1.0, epsilon)
-    study = StabilityMap(MapParameters(LatticeModel.hertz(alpha, masses, delta0), qs, tuple(amps) + tuple(grid), N, K,
+    model = LatticeModel.hertz(alpha, masses, delta0) if beads is None else beads.model()
+    if beads is not None:
+        alpha, delta0, masses = model.alpha, model.delta0, model.masses
+    study = StabilityMap(MapParameters(model, qs, tuple(amps) + tuple(grid), N, K,
                                        IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho, twists,
                                        tuple(w for w in locate if w != "none"), locate_tol), comm, output, mode)
     if compare:                                        # before any computation: a map of the same computation
@@ -114,20 +141,25 @@ def main():
     study.open()
     print0(f"# N = {N}, alpha = {alpha:g}, delta0 = {delta0:g}, masses {', '.join(f'{m:g}' for m in masses)}, "
            f"h = pi/{K} and pi/{2 * K}, rtol {rtol:g}, {len(study.a_values)} amplitudes, twists {twists}")
+    if beads is not None:
+        print0(beads.summary())
     print0(f"# {'q':>8} {'kind':>4} {'a':>10} {'A':>10} {'rho - 1':>10} {'inf - 1':>10} {'s':>6}")
     # the table of this run's records, also when an error stops it (then with the error below it)
     study.run_to_table(table_path, lambda r: print0(
         f"  {r['q']:8.5f} {r['kind']:4d} {r['a']:10.5g} {r['A']:10.5g} {r['rho'] - 1:10.3e} "
         f"{r['rho_inf'] - 1:10.3e} {r['seconds']:6.1f}"))
     z = study.arrays()
+    si = "" if beads is None else beads.table([r for r in study.store.records if math.isfinite(float(r["a"]))],
+                                              SI_COLUMNS, SI_LEAD)
     study.destroy()
-    write_figure_and_table(comm, z, table_path, figures, compare)
+    write_figure_and_table(comm, z, table_path, figures, compare, si)
 
 
-def write_figure_and_table(comm, z, table_path, figures, compare=""):
+def write_figure_and_table(comm, z, table_path, figures, compare="", si=""):
     text = map_table(z)
     if compare and str(z["format"]) != MAP_FORMAT_V1:
         text += compare_v1(z, read_map(compare, comm), path=compare)
+    text += si
     write_text(table_path, text, comm)
     if figures and comm.getRank() == 0:
         from hertzpetsc import plotting

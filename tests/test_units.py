@@ -238,11 +238,48 @@ def test_the_solitary_wave_speed_in_si():
      "-drive_frequency"),
     ("driven_response.py", ["-beads", "steel", "-static_force", "1N", "-omega", "1", "-drive_frequency", "2kHz"],
      "-omega"),
+    ("restitution.py", ["-impact_velocities", "1m/s"], "-impact_velocities"),
+    ("restitution.py", ["-contact_coefficient", "0.1s/m"], "-contact_coefficient"),
+    ("restitution.py", ["-beads", "steel", "-velocities", "1", "-impact_velocities", "1m/s"], "-velocities"),
+    ("restitution.py", ["-beads", "steel", "-contact_coefficient", "0.1 N"], "-contact_coefficient"),
+    ("restitution.py", ["-beads", "steel", "-damping", "0.1", "-contact_coefficient", "0.1s/m"], "-damping"),
+    ("pulse_decay.py", ["-beads", "steel", "-striker_velocities", "1 kHz"], "-striker_velocities"),
+    ("restitution.py", ["-beads", "steel", "-impact_velocities", "1m/s,-1m/s"], "-impact_velocities"),
+    ("precompression_map.py", ["-beads", "steel", "-static_force", "1N", "-epsilon", "0.5"], "-epsilon"),
+    ("boundary_in_q.py", ["-beads", "steel", "-static_force", "1N", "-A", "1", "-A_si", "1um"], "-A"),
+    ("boundary_in_q.py", ["-A_si", "1um"], "-A_si"),
 ])
 def test_bad_si_options_are_one_error_line_naming_them(script, args, option):
     r = run_script(script, *args, "-check")
     line = one_error_line(r)
     assert r.returncode == 2 and line.startswith(f"error: invalid {option} = "), line
+
+
+# the drivers whose computation cannot take a given chain of beads refuse it, saying why and which command gives it
+REFUSED = [
+    ("dimer_branch.py", ["-beads", "steel"], "-beads", "scripts/wave.py -beads"),
+    ("pulse_decay.py", ["-beads", "steel,ptfe"], "-beads", "scripts/wave.py -beads"),
+    ("pulse_decay.py", ["-beads", "steel", "-static_force", "1N"], "-static_force", "free"),
+    ("restitution.py", ["-beads", "steel,brass,ptfe"], "-beads", "two beads"),
+    ("restitution.py", ["-beads", "steel", "-static_force", "1N"], "-static_force", "free"),
+    ("driven_generation.py", ["-beads", "steel,ptfe", "-static_force", "1N"], "-beads",
+     "scripts/driven_response.py -beads"),
+    ("precompression_map.py", ["-beads", "steel,steel,ptfe", "-static_force", "1N"], "-beads",
+     "scripts/wave.py -beads"),
+    ("precompression_map.py", ["-render", "-beads", "steel", "-static_force", "1N"], "-beads", "-render"),
+    ("boundary_in_q.py", ["-beads", "steel,brass", "-static_force", "1N"], "-beads",
+     "scripts/precompression_map.py -beads"),
+]
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("script, args, option, says", REFUSED)
+def test_a_chain_of_beads_a_driver_cannot_compute_is_refused_on_every_rank(script, args, option, says, tmp_path):
+    r = run_script(script, *args, "-output", tmp_path / "x.npz", "-table", tmp_path / "x.md", ranks=2,
+                   timeout=120, cwd=tmp_path)
+    line = one_error_line(r)
+    assert r.returncode == 2 and line.startswith(f"error: invalid {option} = ") and says in line, line
+    assert not (tmp_path / "x.npz").exists()
 
 
 @pytest.mark.serial
@@ -335,3 +372,169 @@ def test_the_api_reports_waves_and_responses_in_si():
     wall = chain.linear_stiffness * chain.to_si("length", abs(X[-1]))
     assert abs(si["force_right"] / wall - 1) < 10 * a
     assert si["dissipation"] == pytest.approx(si["power_in"], rel=1e-9) and si["power_in"] > 0
+
+
+def si_rows(text):
+    """The rows of the section "In SI units" of a driver's table (cells as strings)."""
+    lines = [line for line in text.split("## In SI units")[1].splitlines() if line.startswith("|")]
+    return [line.split("|")[1:-1] for line in lines[2:]]            # below the header and its rule
+
+
+@pytest.mark.serial
+def test_restitution_and_pulse_take_beads_and_report_si(tmp_path):
+    """A steel-brass impact with Hunt-Crossley c = 0.2 s/m at 1 and 3 mm/s: the masses are the beads', the
+    velocities and the damping converted (v* = v tau / L, c* = c L / tau), and 1 - e = c v (dimensionless in any
+    units) to first order in c v; a pulse into a steel chain at 0.1 m/s: its amplitudes (bead velocities) in m/s are
+    the records' times L / tau."""
+    steel, brass = Bead("steel", R), Bead("brass", R)
+    chain = BeadChain((steel, brass), 0.0, "1 um")
+    r = run_script("restitution.py", "-beads", "steel,brass", "-contact_coefficient", "0.2s/m", "-impact_velocities",
+                   "1mm/s,3mm/s", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md")
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "r.npz") as z:
+        assert list(z["masses"]) == pytest.approx([1.0, brass.mass / steel.mass], rel=1e-14)
+        assert float(z["damping"]) == pytest.approx(0.2 * chain.L / chain.tau, rel=1e-14)
+        v, e = np.asarray(z["v"], float), np.asarray(z["e"], float)
+    assert v == pytest.approx(np.array([1e-3, 3e-3]) * chain.tau / chain.L, rel=1e-14)
+    rows = si_rows((tmp_path / "r.md").read_text())
+    assert [float(row[4]) for row in rows] == pytest.approx([1e-3, 3e-3], rel=1e-5)
+    for v_si, ei in zip((1e-3, 3e-3), e):
+        cv = 0.2 * v_si                                     # the law's error is of order (c v)^2: relative c v
+        assert abs((1 - ei) / cv - 1) < 2 * cv
+    # resumed (the record field 'law' is not the identity's absent key 'law', records.ABSENT)
+    r = run_script("restitution.py", "-beads", "steel,brass", "-contact_coefficient", "0.2s/m", "-impact_velocities",
+                   "1mm/s,3mm/s", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md", "-resume")
+    assert r.returncode == 0, r.stderr
+    assert len(si_rows((tmp_path / "r.md").read_text())) == 2
+    r = run_script("pulse_decay.py", "-beads", "steel", "-contact_coefficient", "0.05s/m", "-striker_velocities",
+                   "0.1m/s", "-N", 12, "-skip", 2, "-output", tmp_path / "p.npz", "-table", tmp_path / "p.md")
+    assert r.returncode == 0, r.stderr
+    chain = BeadChain((steel,), 0.0, "1 um")
+    with np.load(tmp_path / "p.npz") as z:
+        assert float(z["v0"][0]) == pytest.approx(0.1 * chain.tau / chain.L, rel=1e-14)
+        A = np.asarray(z["amplitude"][0], float)
+    (row,) = si_rows((tmp_path / "p.md").read_text())
+    assert [float(x) for x in row[2:]] == pytest.approx([0.1, A[2] * chain.L / chain.tau,
+                                                         A[9] * chain.L / chain.tau], rel=1e-5)
+
+
+@pytest.mark.serial
+def test_driven_generation_takes_beads_and_reports_si(tmp_path):
+    """The generation study on a steel chain pressed by 10 N is the dimensionless one of delta0 = 1 (the record's
+    model), its table's SI section the records converted: f = omega / (2 pi tau), a and A bulk times L (in um),
+    gamma times m / tau."""
+    from conftest import DATA
+    r = run_script("driven_generation.py", "-branch", f"{DATA}/branch_alpha1.5.npz", "-beads", "steel",
+                   "-static_force", "10N", "-N", 8, "-signals", "half_sine", "-omegas", 0.5, "-amplitudes", 0.1,
+                   "-gammas", 0.1, "-run_in", 10, "-output", tmp_path / "g.npz", "-table", tmp_path / "g.md",
+                   "-figures", "")
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "g.npz") as z:
+        assert str(z["model"]) == '{"alpha": 1.5, "delta0": 1.0, "masses": [1.0]}'
+        amp_bulk, ok = float(z["amp_bulk"][0]), int(z["ok"][0])
+    (row,) = si_rows((tmp_path / "g.md").read_text())
+    assert row[0].strip() == "half_sine" and ok == 1
+    f, a_um, gamma, A_um = (float(x) for x in row[5:9])
+    assert f == pytest.approx(0.5 / (2 * math.pi * STEEL.tau), rel=1e-5)
+    assert a_um == pytest.approx(0.1 * STEEL.L * 1e6, rel=1e-5)
+    assert gamma == pytest.approx(0.1 * STEEL.mass / STEEL.tau, rel=1e-5)
+    assert A_um == pytest.approx(amp_bulk * STEEL.L * 1e6, rel=1e-5)
+
+
+@pytest.mark.serial
+def test_the_map_of_a_steel_chain_is_the_hertz_map_of_its_model_and_reports_si(tmp_path):
+    """-beads steel -static_force 10N is the chain delta0 = 1: the map's file names the model as the Hertz maps
+    always did (alpha, delta0, masses: no law, no bonds), so that -resume with -delta0 1 continues it and a file made
+    before the model's identity was extended reads as this one; the same beads at another length scale (delta0 =
+    delta_s / 1 um) are another model, refused naming delta0 and the options that set it. The SI section: A in um,
+    f in Hz of the records."""
+    args = ["-N", 20, "-a", 0.5, "-cells_per_pi", 100, "-rtol", "1e-10", "-output", tmp_path / "m.npz", "-table",
+            tmp_path / "m.md", "-figures", ""]
+    r = run_script("precompression_map.py", "-beads", "steel", "-static_force", "10N", "-m", 3, *args)
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "m.npz") as z:
+        assert "law" not in z and "bonds" not in z
+        assert (float(z["alpha"]), float(z["delta0"]), list(z["masses"])) == (1.5, 1.0, [1.0])
+        A, omega, kind = (np.asarray(z[k], float) for k in ("A", "omega", "kind"))
+    rows = si_rows((tmp_path / "m.md").read_text())
+    finite = np.isfinite(A)
+    assert len(rows) == int(np.sum(finite)) >= 1
+    for row, Ai, wi in zip(rows, A[finite], omega[finite]):
+        assert float(row[4]) == pytest.approx(Ai * STEEL.L * 1e6, rel=1e-5)
+        assert float(row[5]) == pytest.approx(wi / (2 * math.pi * STEEL.tau), rel=1e-5)
+    r = run_script("precompression_map.py", "-delta0", 1, "-m", "3,4", *args, "-resume")
+    assert r.returncode == 0, r.stderr
+    r = run_script("precompression_map.py", "-beads", "steel", "-static_force", "10N", "-length_scale", "1um",
+                   "-m", "3,4", *args, "-resume")
+    line = one_error_line(r)
+    assert "delta0 = 1.0 there" in line and "-static_force and -length_scale with -beads" in line, line
+    # two materials alternating (one contact constant in every bond): the dimer map of their mass ratio
+    r = run_script("precompression_map.py", "-beads", "steel,brass", "-static_force", "10N", "-m", 3, *args[:-6],
+                   "-output", tmp_path / "d.npz", "-table", tmp_path / "d.md", "-figures", "")
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "d.npz") as z:
+        ratio = Bead("brass", R).mass / Bead("steel", R).mass
+        assert list(z["masses"]) == pytest.approx([1.0, ratio], rel=1e-14) and float(z["delta0"]) == 1.0
+
+
+@pytest.mark.serial
+def test_the_boundary_in_q_takes_beads_and_amplitudes_in_si(tmp_path):
+    """The boundary in q of a steel chain at A = 3.8 um (-A_si): the level is 3.8 um / L, the grid's SI rows the
+    records' f = omega / (2 pi tau) and c = omega / q beads per unit time in m/s, a located edge's wavenumbers per
+    metre its q over the beads' spacing."""
+    r = run_script("boundary_in_q.py", "-beads", "steel", "-static_force", "10N", "-A_si", "3.8um", "-N", 20, "-m",
+                   "3,4", "-cells_per_pi", 100, "-twists", 16, "-locate_tol", 0.1, "-max_cell", 20, "-output",
+                   tmp_path / "q.npz", "-table", tmp_path / "q.md", "-figures", "")
+    assert r.returncode == 0, r.stderr
+    with np.load(tmp_path / "q.npz") as z:
+        kind, A, q, omega = (np.asarray(z[k], float) for k in ("kind", "A", "q", "omega"))
+        q_stable = np.asarray(z["q_stable"], float)
+    assert A == pytest.approx(np.full(len(A), 3.8e-6 / STEEL.L), rel=1e-14)
+    rows = si_rows((tmp_path / "q.md").read_text())
+    assert len(rows) == len(A) and 2 in kind                 # the edge between q = 3pi/10 and 2pi/5 located
+    spacing = 2 * R
+    for row, k, qi, wi, qs in zip(rows, kind, q, omega, q_stable):
+        assert float(row[4]) == pytest.approx(3.8, rel=1e-5)
+        if k == 2:
+            assert float(row[7]) == pytest.approx(qs / spacing, rel=1e-5) and row[5].strip() == "nan"
+        else:
+            assert float(row[5]) == pytest.approx(wi / (2 * math.pi * STEEL.tau), rel=1e-5)
+            assert float(row[6]) == pytest.approx(wi / qi * spacing / STEEL.tau, rel=1e-5)
+
+
+def test_the_map_refuses_what_it_cannot_compute_and_files_name_the_bonds():
+    """The map and the boundary in q are of the Hertz law in every bond (their uncompressed limit is that law's): a
+    law of its own (here a stiffer Hertz contact, precompressed) and a steel-steel-PTFE pattern (bonds of their own
+    constants) are refused naming the model; a Hertz model's identity is the keys the map files always had. A record
+    file of the pattern names its bonds (law_identity): resumed as the plain Hertz chain of the same masses it is
+    refused, and the other way round."""
+    import tempfile
+
+    from hertzpetsc.chain import IntegrationTolerances
+    from hertzpetsc.errors import RecordFileError
+    from hertzpetsc.studies.maps import MapParameters, QBoundaryParameters, StabilityMap
+    from hertzpetsc.studies.precompression import AmplitudeFamilies, AmplitudeParameters
+    from petsc4py import PETSc
+    from test_laws import StiffHertz
+
+    patterned = BeadChain((Bead("steel", R), Bead("steel", R), Bead("ptfe", R)), "10 N").model()
+    assert patterned.bonds is not None
+    # the identity's keys reopen as the model (the bonds' JSON as a file holds it)
+    assert LatticeModel.from_description(dict(patterned.law_identity(), masses=list(patterned.masses))) == patterned
+    q = 2 * math.pi * 3 / 20
+    tolerances = IntegrationTolerances(rtol=1e-10, atol=1e-12)
+    for model in (LatticeModel(StiffHertz(1.5, 1.0, c=3.0)), patterned):
+        with pytest.raises(ParameterError, match="invalid model = .*Hertz chain, one law in every bond"):
+            MapParameters(model, (q,), (0.5,), N=60 if model is patterned else 20, cells_per_pi=100)
+        with pytest.raises(ParameterError, match="invalid model = "):
+            QBoundaryParameters(model, (1.0,), (q,), cells_per_pi=100, tolerances=tolerances)
+    plain = LatticeModel.hertz(1.5, patterned.masses, patterned.delta0)
+    study = StabilityMap(MapParameters(LatticeModel.hertz(1.5, (1.0,), 1.0), (q,), (0.5,), N=20, cells_per_pi=100))
+    assert list(study.constants())[:3] == ["alpha", "delta0", "masses"] and "law" not in study.constants()
+    with tempfile.TemporaryDirectory() as tmp:
+        for first, second in ((plain, patterned), (patterned, plain)):
+            path = os.path.join(tmp, "a.npz")
+            params = [AmplitudeParameters(m, (math.pi / 5,), 100, 1e-3, 2e-3, 0.5) for m in (first, second)]
+            AmplitudeFamilies(params[0], PETSc.COMM_SELF, path, "force").open()
+            with pytest.raises(RecordFileError, match="bonds"):
+                AmplitudeFamilies(params[1], PETSc.COMM_SELF, path, "resume").open()

@@ -188,8 +188,16 @@ class MapParameters:
 
 
 def _check_shared(params):
-    """The checks the map and the boundary in q share: a precompressed model, the grid, tol_rho and locate_tol."""
+    """The checks the map and the boundary in q share: a precompressed model of the Hertz law in every bond (the
+    uncompressed limit delta0 / A = 0 and the gap opening are that law's: another law, or bonds of laws of their own,
+    is refused), the grid, tol_rho and locate_tol."""
     _check_delta0_positive(params.model)
+    law = params.model.law.describe()
+    if "law" in law or params.model.bonds is not None:
+        raise ParameterError("model", params.model.describe(), "the stability map and its boundaries are of the "
+                             "precompressed Hertz chain, one law in every bond (the uncompressed limit delta0 / A = 0 "
+                             "and the gap opening are that law's): another law's or bond pattern's waves and "
+                             "multipliers are scripts/wave.py's (-law, -beads) and hertzpetsc.api.wave's")
     object.__setattr__(params, "cells_per_pi", check_cells_per_pi(params.cells_per_pi))
     check_instance("tolerances", params.tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
     object.__setattr__(params, "tol_rho", check_real("tol_rho", params.tol_rho, "the verdict's threshold", 0.0))
@@ -414,7 +422,9 @@ class StabilityMap(Study):
     ROLES = uses("precomp_", "shoot_", "shoot_jac_", floquet_=("ts",))
     ADDED = {"E_chain": math.nan, "located": 1, "E_cell": math.nan}
     WHAT = "stability-map file"
-    NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="model's masses (-epsilon)")
+    NAMES = dict(amplitudes="a (-a, with the -ds grid)", masses="model's masses (-epsilon, or -beads)",
+                 alpha="model's Hertz exponent (-alpha)", delta0="model's precompression (-delta0, or -static_force "
+                 "and -length_scale with -beads)", law="model's law", bonds="model's bonds (-beads)")
 
     def __init__(self, params: MapParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
                  mode: str = "new") -> None:
@@ -427,8 +437,8 @@ class StabilityMap(Study):
         self._routes = {}
 
     def constants(self) -> dict:
-        return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses), N=self.N,
-                    cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists,
+        return dict(self.model.law_identity(), masses=list(self.model.masses), N=self.N, cells_per_pi=self.K,
+                    rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists,
                     locate=",".join(self.locate) or "none", locate_tol=self.locate_tol, amplitudes=self.a_values)
 
     def route(self, model: LatticeModel, fine: bool = False) -> DeflatedSectors:
@@ -695,7 +705,7 @@ class QBoundary(Study):
               "cert_stable": np.int64}
     ROLES = uses("precomp_", floquet_=("ts",))      # no refinement (NEAR_ONE)
     WHAT = "boundary-in-q file"
-    NAMES = dict(levels="A (-A)", grid_q="q (-m with -N, and -q)")
+    NAMES = dict(StabilityMap.NAMES, levels="A (-A)", grid_q="q (-m with -N, and -q)")
     locate, N = ("infinite",), 0
     route = StabilityMap.route
 
@@ -710,9 +720,8 @@ class QBoundary(Study):
 
     def constants(self) -> dict:
         p = self.params
-        return dict(alpha=self.model.alpha, delta0=self.model.delta0, masses=list(self.model.masses),
-                    levels=list(p.A), grid_q=list(p.q), cells_per_pi=self.K, rtol=self.tolerances.rtol,
-                    tol_rho=self.tol_rho, twists=self.twists, locate_tol=p.locate_tol, max_cell=p.max_cell)
+        return dict(self.model.law_identity(), masses=list(self.model.masses), levels=list(p.A), grid_q=list(p.q),
+                    cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists, locate_tol=p.locate_tol, max_cell=p.max_cell)
 
     def evaluate(self, x: Fraction, A: float) -> dict:
         """The record of the wave at q = 2 pi x (x a Fraction), amplitude A, on the infinite chain."""

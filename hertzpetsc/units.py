@@ -619,6 +619,25 @@ def si_numbers(opts, chain: Optional[BeadChain], name: str, quantity: str, help:
     return [float(chain.from_si(quantity, v)) for v in values]
 
 
+def impact_damping(opts, chain: Optional[BeadChain], contact: str, damping: float, coefficient: str) -> float:
+    """The contact damping of the free-chain studies (restitution, pulse decay): ``damping`` (-damping, the chain's
+    units), or with -beads (``chain``) the SI ``coefficient`` (-contact_coefficient: Hunt-Crossley c in s/m,
+    Kuwabara-Kono eta in N s/m^1.5) in the chain's units; one of them."""
+    if not coefficient:
+        return damping
+    if chain is None:
+        raise ParameterError("-contact_coefficient", coefficient, "is in SI units: give the beads (-beads) too, or "
+                             "-damping")
+    if opts.db.hasName("damping"):
+        raise ParameterError("-damping", opts.db.getString("damping", ""), "give one of -damping "
+                             "(dimensionless) and -contact_coefficient (SI)")
+    try:
+        law = chain.contact_damping(contact, coefficient=coefficient)
+    except ParameterError as err:
+        raise ParameterError("-contact_coefficient", err.value, err.valid) from None
+    return law.c if contact == "hunt-crossley" else law.eta
+
+
 def contact_options(opts, chain: Optional[BeadChain] = None, si: bool = False) -> Optional[ContactDissipation]:
     """Declare and read the options of a dissipation in the contacts (:mod:`hertzpetsc.dissipation`; the driven
     drivers): -contact none|hunt-crossley|kuwabara-kono (also spelt with '_'), -contact_damping (Hunt-Crossley's c

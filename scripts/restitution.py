@@ -32,7 +32,7 @@ from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.contacts import ROLES, Restitution, RestitutionParameters  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
-from hertzpetsc.units import bead_options, si_numbers  # noqa: E402
+from hertzpetsc.units import bead_options, impact_damping, si_numbers  # noqa: E402
 
 
 def main():
@@ -64,18 +64,7 @@ def main():
                                  "beads: give one material (both beads) or two")
         alpha, masses = 1.5, beads.model().masses * (3 - len(beads.masses))
         velocities = velocities if si_velocities is None else si_velocities
-        if coefficient:
-            if opts.db.hasName("damping"):
-                raise ParameterError("-damping", opts.db.getString("damping", ""), "give one of -damping "
-                                     "(dimensionless) and -contact_coefficient (SI)")
-            try:
-                law = beads.contact_damping(contact, coefficient=coefficient)
-            except ParameterError as err:
-                raise ParameterError("-contact_coefficient", err.value, err.valid) from None
-            damping = law.c if contact == "hunt-crossley" else law.eta
-    elif coefficient:
-        raise ParameterError("-contact_coefficient", coefficient, "is in SI units: give the beads (-beads) too, or "
-                             "-damping")
+    damping = impact_damping(opts, beads, contact, damping, coefficient)
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path)
     study = Restitution(RestitutionParameters(contact, damping, tuple(velocities), not unclipped, alpha,

@@ -671,6 +671,60 @@ def test_a_weak_infinite_chain_instability_is_judged_on_the_refined_cell_orbit()
     assert row["E_cell"] <= REFINE_TOL and row["rho_inf"] - 1 < MAP_TOL_RHO
 
 
+def test_a_published_weak_verdict_is_judged_again_on_the_refined_cell_orbit(tmp_path, monkeypatch):
+    """A map computed as before the refinement of weak verdicts (NEAR_ONE at tol_rho: no refinement) at alpha = 3/2,
+    pi/2 (a cell of 4 beads), a = 1 (A = 1.029, past the gap opening): its infinite-chain record is a weak
+    instability (rho - 1 a few 1e-6, the zones' translations split by the Richardson orbit's error) with no E_cell.
+    The re-judging study reads that file, recomputes the record's Richardson cell orbit (its rho reproduced) and
+    judges it on the orbit refined to E <= REFINE_TOL: stable (rho - 1 ~ 1e-7), the verdict changed in the table. A
+    record already refined (E_cell finite) is not judged again."""
+    from hertzpetsc.studies import maps
+    from hertzpetsc.studies.rejudge import MapRejudging, RejudgeParameters, weak_records
+    model, q, tol = LatticeModel.hertz(1.5, (1.0,), 1.0), math.pi / 2, maps.MAP_TOL_RHO
+    path = str(tmp_path / "map.npz")
+    with monkeypatch.context() as m:
+        m.setattr(maps, "NEAR_ONE", tol)                          # the maps before the refinement
+        study = StabilityMap(MapParameters(model, (q,), (1.0,), N=4, cells_per_pi=1000, tolerances=TOL, locate=(),
+                                           limit=False, twists=512), SELF, path)
+        try:
+            [old] = [r for r in study.run() if r["kind"] == KIND_POINT]
+        finally:
+            study.destroy()
+    assert tol < old["rho_inf"] - 1 < maps.NEAR_ONE and math.isnan(old["E_cell"])
+    again = MapRejudging(RejudgeParameters(path), SELF, str(tmp_path / "rejudged.npz"))
+    try:
+        [row] = list(again.run())
+        table = again.table()
+    finally:
+        again.destroy()
+    # the Richardson cell orbit's number reproduced: the same wave, its scan with the old twist as a hint (the
+    # golden-section refinement of the maxima ends within 1e-3 of a grid step: 4e-4 of rho - 1 here)
+    assert row["rho_old"] == old["rho_inf"]
+    assert abs(row["rho_unrefined"] - old["rho_inf"]) <= 1e-2 * (old["rho_inf"] - 1)
+    assert row["E_cell"] <= maps.REFINE_TOL and row["rho_new"] - 1 < tol
+    assert "1 records judged again; 1 verdicts changed" in table
+    z = dict(np.load(path))
+    assert list(weak_records(z)[0]) == [row["index"]]
+    z["E_cell"] = np.where(np.arange(len(z["kind"])) == row["index"], 1e-13, np.asarray(z["E_cell"], float))
+    assert not len(weak_records(z)[0])
+
+
+def test_the_boundary_in_q_judges_a_weak_verdict_on_the_refined_cell_orbit():
+    """The boundary in q reads the map's probe (MapProbe.infinite): at alpha = 3/2, pi/2, A = 1.0288 (the map's
+    a = 1 of the test above) its record is judged on the refined cell orbit and says so (E_cell), and the
+    refiner's prefixes are among its roles (their options read, in the file's identity)."""
+    from fractions import Fraction
+    from hertzpetsc.studies.maps import MAP_TOL_RHO, REFINE_TOL, QBoundary, QBoundaryParameters
+    model = LatticeModel.hertz(1.5, (1.0,), 1.0)
+    study = QBoundary(QBoundaryParameters(model, (1.0288,), (math.pi / 2,), cells_per_pi=1000, tolerances=TOL), SELF)
+    try:
+        row = study.evaluate(Fraction(1, 4), 1.0288)
+    finally:
+        study.destroy()
+    assert row["E_cell"] <= REFINE_TOL and row["rho_inf"] - 1 < MAP_TOL_RHO
+    assert {"shoot_", "shoot_jac_"} <= set(QBoundary.ROLES)
+
+
 def test_an_edge_whose_bisection_fails_is_in_the_table_as_unresolved(monkeypatch, capfd):
     """The bubble of test_located_bubble_is_confirmed_by_the_multipliers_on_both_sides with the family's corrector
     failing within 1e-3 in log a of its onset: the layer dropped the onset, and the table showed the offset alone,

@@ -49,7 +49,7 @@ def main():
     study.configure()
     opts.check_unused()
     study.open()
-    print0(f"# {source}: {len(study.todo)} weak infinite-chain records to judge again "
+    print0(f"# {source}: {len(study.todo)} weak infinite-chain verdicts to judge again "
            f"({study.planned()} not in {output} yet)")
     print0(f"# {'index':>5} {'q':>8} {'A':>10} {'old - 1':>10} {'unrefined':>10} {'new - 1':>10} {'E_cell':>8} "
            f"{'s':>6}")

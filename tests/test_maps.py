@@ -704,9 +704,24 @@ def test_a_published_weak_verdict_is_judged_again_on_the_refined_cell_orbit(tmp_
     assert row["E_cell"] <= maps.REFINE_TOL and row["rho_new"] - 1 < tol
     assert "1 records judged again; 1 verdicts changed" in table
     z = dict(np.load(path))
-    assert list(weak_records(z)[0]) == [row["index"]]
+    assert weak_records(z)[0] == [(row["index"], 0)]
     z["E_cell"] = np.where(np.arange(len(z["kind"])) == row["index"], 1e-13, np.asarray(z["E_cell"], float))
     assert not len(weak_records(z)[0])
+
+
+def test_the_weak_verdicts_to_judge_again_include_an_unrefined_edges_unstable_end():
+    """In a map written before E_cell an infinite-chain edge whose record is its stable end holds a weak verdict at
+    its unstable end (rho_unstable at a_unstable: alpha = 2, 12pi/25, the onset at A = 1.075 had 3.0e-6 there): it
+    is judged again (side 1), as a record's own weak rho_inf is (side 0); strong instabilities, stable verdicts, the
+    N-bead edges and a map whose weak evaluations were refined (E_cell) are not."""
+    from hertzpetsc.studies.rejudge import weak_records
+    from hertzpetsc.verdicts import KIND_EDGE_INF
+    z = dict(tol_rho=1e-6, kind=np.array([KIND_POINT, KIND_EDGE_INF, KIND_EDGE_INF, KIND_EDGE, KIND_POINT]),
+             rho_inf=1 + np.array([3e-6, 1e-11, 2e-6, 1e-11, 5e-3]), a=np.array([1.0, 1.02, 1.03, 1.04, 2.0]),
+             a_unstable=np.array([np.nan, 1.021, 1.03, 1.041, np.nan]),
+             rho_unstable=np.array([np.nan, 3e-6, 2e-6, 3e-6, np.nan]))
+    assert weak_records(z)[0] == [(0, 0), (1, 1), (2, 0)]
+    assert weak_records(dict(z, E_cell=np.full(5, np.nan)))[0] == [(0, 0), (2, 0)]
 
 
 def test_the_boundary_in_q_judges_a_weak_verdict_on_the_refined_cell_orbit():

@@ -42,7 +42,7 @@ from .maps import (CERT_NONE, CERT_STABLE, CERT_UNRESOLVED, MAP_FORMAT, MAP_FORM
                    QMAP_FORMAT, QMAP_FORMAT_V1, REFINE_TOL, MapProbe, StabilityMap, saved_as_dealt, wave_cell)
 
 REJUDGE_FORMAT = "hertzpetsc-map-rejudging-1"
-REJUDGE_FIELDS = ("index", "kind", "q", "a", "A", "omega", "rho_old", "theta_old", "rho_unrefined", "rho_new",
+REJUDGE_FIELDS = ("index", "side", "kind", "q", "a", "A", "omega", "rho_old", "theta_old", "rho_unrefined", "rho_new",
                   "theta_new", "cert_new", "bound_new", "modulation_new", "E_cell", "M", "seconds")
 # the source kinds whose records carry an infinite-chain verdict at their own (q, a): a map's points and edges; a
 # boundary in q's evaluations and edges (judged at q_unstable)
@@ -64,9 +64,11 @@ class RejudgeParameters:
 
 
 def weak_records(z):
-    """(indices of the records of the arrays ``z`` to judge again, indices of the weak limit records left): the
-    infinite-chain verdicts with tol_rho < rho_inf - 1 < NEAR_ONE judged without the refinement (no ``E_cell``, or
-    nan)."""
+    """([(index, side)] of the verdicts of the arrays ``z`` to judge again, indices of the weak limit records left):
+    the infinite-chain verdicts with tol_rho < rho - 1 < NEAR_ONE judged without the refinement: a record's own
+    (side 0: ``rho_inf``, no ``E_cell`` or nan) and, in a map written before ``E_cell`` (whose every weak evaluation
+    was unrefined), the unstable end of an infinite-chain edge whose record is its stable end (side 1:
+    ``rho_unstable`` at ``a_unstable``)."""
     tol = float(z["tol_rho"])
     excess = np.asarray(z["rho_inf"], float) - 1
     refined = np.isfinite(np.asarray(z["E_cell"], float)) if "E_cell" in z else np.zeros(len(excess), bool)
@@ -74,7 +76,12 @@ def weak_records(z):
     weak = (excess > tol) & (excess < NEAR_ONE) & ~refined & np.isin(kind, JUDGED_KINDS + (KIND_LIMIT,))
     level = np.asarray(z["A"] if "grid" in z else z["a"], float)
     limit = (kind == KIND_LIMIT) | ~np.isfinite(level)
-    return np.nonzero(weak & ~limit)[0], np.nonzero(weak & limit)[0]
+    out = [(int(i), 0) for i in np.nonzero(weak & ~limit)[0]]
+    if "grid" not in z and "E_cell" not in z:
+        ru, au, a = (np.asarray(z[k], float) for k in ("rho_unstable", "a_unstable", "a"))
+        side = (kind == KIND_EDGE_INF) & (ru > tol) & (ru < NEAR_ONE) & (np.abs(au - a) > 1e-12 * a)
+        out += [(int(i), 1) for i in np.nonzero(side)[0]]
+    return sorted(out), np.nonzero(weak & limit)[0]
 
 
 class MapRejudging(Study):
@@ -83,7 +90,7 @@ class MapRejudging(Study):
 
     Parameters = RejudgeParameters
     FORMAT, FIELDS = REJUDGE_FORMAT, REJUDGE_FIELDS
-    DTYPES = {"index": np.int64, "kind": np.int64, "cert_new": np.int64, "M": np.int64}
+    DTYPES = {"index": np.int64, "side": np.int64, "kind": np.int64, "cert_new": np.int64, "M": np.int64}
     ROLES = StabilityMap.ROLES
     WHAT = "re-judging file"
     LABELS = ("source",)
@@ -122,20 +129,27 @@ class MapRejudging(Study):
     def inputs(self) -> dict:
         return {"source": self.params.source}
 
-    def point(self, i: int) -> tuple[float, float]:
-        """(q, amplitude) where record i of the source is judged: a map's (q, a), a boundary's (q, A) (an edge's
-        unstable end)."""
-        z = self.z
+    def point(self, item: tuple) -> tuple[float, float]:
+        """(q, amplitude) where the verdict ``item`` = (index, side) of the source is judged: a map's (q, a) (side 1:
+        a_unstable), a boundary's (q, A) (an edge's unstable end)."""
+        z, (i, side) = self.z, item
         if self.boundary:
             q = float(z["q_unstable"][i]) if int(z["kind"][i]) == KIND_EDGE_INF else float(z["q"][i])
             return q, float(z["A"][i])
-        return float(z["q"][i]), float(z["a"][i])
+        return float(z["q"][i]), float(z["a_unstable" if side else "a"][i])
+
+    def old(self, item: tuple) -> tuple[float, float]:
+        """(rho, twist) of the verdict ``item`` in the source."""
+        z, (i, side) = self.z, item
+        if side:
+            return 1 + float(z["rho_unstable"][i]), float(z["theta_unstable"][i])
+        return float(z["rho_inf"][i]), float(z["theta_inf"][i])
 
     def jobs(self) -> list[float]:
         """The wavenumbers of the records to judge, each once (to 1e-12)."""
         out = []
-        for i in self.todo:
-            q = self.point(i)[0]
+        for item in self.todo:
+            q = self.point(item)[0]
             if not any(abs(q - x) <= 1e-12 * q for x in out):
                 out.append(q)
         return sorted(out)
@@ -143,26 +157,28 @@ class MapRejudging(Study):
     def compute(self, q: float) -> list[dict]:
         """The records of the source at q judged again (on this rank), by increasing amplitude."""
         z = self.z
-        mine = sorted((i for i in self.todo if abs(self.point(i)[0] - q) <= 1e-12 * q), key=lambda i: self.point(i)[1])
+        mine = sorted((item for item in self.todo if abs(self.point(item)[0] - q) <= 1e-12 * q),
+                      key=lambda item: self.point(item)[1])
         grid = ProfileGrid(self.K, PETSc.COMM_SELF)
         probe = MapProbe(self, q, measure="sup" if self.boundary else "a1", refine_all=True)
         family = None if self.boundary else AmplitudeFamily(self.model, q, grid)
         judged, rows = {}, []
         try:
-            for i in mine:
+            for item in mine:
                 t0 = time.perf_counter()
-                amplitude = self.point(i)[1]
+                (i, side), amplitude = item, self.point(item)[1]
+                rho_old, theta_old = self.old(item)
                 key = round(amplitude, 12)
                 if key not in judged:
                     point = wave_at(self.model, q, amplitude, grid) if self.boundary else family.step_to(amplitude)
                     entry = probe.entry(point)
-                    probe.hints = [float(z["theta_inf"][i])]        # the twist of the old verdict
+                    probe.hints = [theta_old]                       # the twist of the old verdict
                     judged[key] = (probe.wave(entry), probe.infinite(entry))
                 e, scan = judged[key]
-                rows.append(dict(index=int(i), kind=int(z["kind"][i]), q=q,
+                rows.append(dict(index=i, side=side, kind=int(z["kind"][i]), q=q,
                                  a=math.nan if self.boundary else e["point"].a, A=e["A"],
-                                 omega=e.get("omega", math.nan), rho_old=float(z["rho_inf"][i]),
-                                 theta_old=float(z["theta_inf"][i]), rho_unrefined=scan["unrefined"],
+                                 omega=e.get("omega", math.nan), rho_old=rho_old, theta_old=theta_old,
+                                 rho_unrefined=scan["unrefined"],
                                  rho_new=scan["rho"], theta_new=scan["theta"], cert_new=scan["cert"],
                                  bound_new=scan["bound"], modulation_new=scan["modulation"], E_cell=scan["E"],
                                  M=scan["M"], seconds=time.perf_counter() - t0))
@@ -177,8 +193,8 @@ class MapRejudging(Study):
         return 1.0 + math.ceil(self.twists / M) * (M / 20) ** 3
 
     def _left(self):
-        done = {int(r["index"]) for r in self.store.records}
-        return [i for i in self.todo if int(i) not in done]
+        done = {(int(r["index"]), int(r["side"])) for r in self.store.records}
+        return [item for item in self.todo if item not in done]
 
     def planned(self) -> Optional[int]:
         return len(self._left()) if self.store is not None else len(self.todo)
@@ -189,7 +205,8 @@ class MapRejudging(Study):
         self.open()
         left = {self.point(i)[0] for i in self._left()}
         todo = [q for q in self.jobs() if any(abs(q - x) <= 1e-12 * q for x in left)]
-        yield from saved_as_dealt(self, todo, [self.cost(q) for q in todo], lambda r: int(r["index"]),
+        yield from saved_as_dealt(self, todo, [self.cost(q) for q in todo],
+                                  lambda r: (int(r["index"]), int(r["side"])),
                                   lambda r, q: abs(float(r["q"]) - q) <= 1e-12 * q)
 
     def table(self) -> str:
@@ -230,7 +247,8 @@ def rejudging_table(z) -> str:
              + (f"max |new - old| of rho - 1: {float(np.max(diff)):.2e}" if n else "none to judge")
              + (f"; {int(z['limits_left'])} weak records of the uncompressed limit not judged again"
                 if int(z["limits_left"]) else "") + ".\n",
-             "Columns: the source's record (index, kind), q, A = ||u||_inf, a (first sine coefficient), rho - 1 in "
+             "Columns: the source's record (index; 'unstable end': the unstable end of an infinite-chain edge whose "
+             "record is its stable end, rho_unstable at a_unstable; kind), q, A = ||u||_inf, a (first sine coefficient), rho - 1 in "
              "the source, rho - 1 of the Richardson cell orbit recomputed now (unrefined: the source's number "
              "reproduced), rho - 1 on the refined cell orbit, the cell twist Theta of its largest multiplier, E_cell, "
              "the verdicts (unstable when rho - 1 > tol_rho; a stable verdict certified between the twist samples or "
@@ -239,7 +257,7 @@ def rejudging_table(z) -> str:
              "| old verdict | new verdict | modulations (beads) |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for i in np.lexsort((np.asarray(z["a"], float), np.asarray(z["q"], float))):
-        lines.append(f"| {int(z['index'][i])} | {SOURCE_KINDS.get(int(z['kind'][i]), str(int(z['kind'][i])))} | "
+        lines.append(f"| {int(z['index'][i])}{' (unstable end)' if int(z['side'][i]) else ''} | {SOURCE_KINDS.get(int(z['kind'][i]), str(int(z['kind'][i])))} | "
                      f"{q_label(float(z['q'][i]))} ({float(z['q'][i]):.6f}) | {float(z['A'][i]):.6g} | "
                      f"{float(z['a'][i]):.6g} | {old[i]:.2e} | {float(z['rho_unrefined'][i]) - 1:.2e} | "
                      f"{new[i]:.2e} | {float(z['theta_new'][i]):.4f} | {float(z['E_cell'][i]):.1e} | unstable | "

@@ -233,6 +233,7 @@ def rejudging_table(z) -> str:
     n = len(np.asarray(z["index"]))
     old, new = np.asarray(z["rho_old"], float) - 1, np.asarray(z["rho_new"], float) - 1
     changed = [i for i in range(n) if not new[i] > tol]          # every source record here was unstable
+    kept = [i for i in range(n) if new[i] > tol]
     diff = np.abs(new - old)
     source = str(z["source"])
     lines = [f"schema: {REJUDGE_FORMAT}; the weak infinite-chain verdicts (tol_rho = {tol:g} < rho - 1 < NEAR_ONE = "
@@ -243,21 +244,26 @@ def rejudging_table(z) -> str:
              f"{int(z['twists'])} per pi) on the cell orbit refined by Gauss-Newton to E <= "
              f"{float(z['refine_tol']):g} (column E_cell) and scanned again with the flow at rtol "
              f"{float(z['rtol']) / 100:g} (the file's {float(z['rtol']):g} / 100).\n",
-             f"{n} records judged again; {len(changed)} verdicts changed (unstable before, stable or unresolved now); "
-             + (f"max |new - old| of rho - 1: {float(np.max(diff)):.2e}" if n else "none to judge")
+             f"{n} verdicts judged again; {len(changed)} changed (unstable before, stable or unresolved now)"
+             + (": " + ", ".join(f"{q_label(float(z['q'][i]))} at A = {float(z['A'][i]):.6g}" for i in changed)
+                if changed else "")
+             + (f"; max |new - old| of rho - 1: {float(np.max(diff)):.2e}" if n else "; none to judge")
+             + (f"; the {len(kept)} unchanged: rho - 1 within {float(np.max(diff[kept] / old[kept])):.1e} relative of "
+                f"the source's (the old twist among the hints, the scan's maxima refined again)" if kept else "")
              + (f"; {int(z['limits_left'])} weak records of the uncompressed limit not judged again"
                 if int(z["limits_left"]) else "") + ".\n",
              "Columns: the source's record (index; 'unstable end': the unstable end of an infinite-chain edge whose "
-             "record is its stable end, rho_unstable at a_unstable; kind), q, A = ||u||_inf, a (first sine coefficient), rho - 1 in "
-             "the source, rho - 1 of the Richardson cell orbit recomputed now (unrefined: the source's number "
-             "reproduced), rho - 1 on the refined cell orbit, the cell twist Theta of its largest multiplier, E_cell, "
-             "the verdicts (unstable when rho - 1 > tol_rho; a stable verdict certified between the twist samples or "
-             "unresolved) and the longest modulation (beads) the new scan covers.\n",
+             "record is its stable end, rho_unstable at a_unstable; kind), q, A = ||u||_inf, a (first sine "
+             "coefficient), rho - 1 in the source, rho - 1 of the Richardson cell orbit recomputed now (unrefined: "
+             "the source's number reproduced), rho - 1 on the refined cell orbit, the cell twist Theta of its "
+             "largest multiplier, E_cell, the verdicts (unstable when rho - 1 > tol_rho; a stable verdict certified "
+             "between the twist samples or unresolved) and the longest modulation (beads) the new scan covers.\n",
              "| index | kind | q | A | a | old rho - 1 | unrefined rho - 1 | new rho - 1 | Theta | E_cell "
              "| old verdict | new verdict | modulations (beads) |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for i in np.lexsort((np.asarray(z["a"], float), np.asarray(z["q"], float))):
-        lines.append(f"| {int(z['index'][i])}{' (unstable end)' if int(z['side'][i]) else ''} | {SOURCE_KINDS.get(int(z['kind'][i]), str(int(z['kind'][i])))} | "
+        end = " (unstable end)" if int(z["side"][i]) else ""
+        lines.append(f"| {int(z['index'][i])}{end} | {SOURCE_KINDS.get(int(z['kind'][i]), str(int(z['kind'][i])))} | "
                      f"{q_label(float(z['q'][i]))} ({float(z['q'][i]):.6f}) | {float(z['A'][i]):.6g} | "
                      f"{float(z['a'][i]):.6g} | {old[i]:.2e} | {float(z['rho_unrefined'][i]) - 1:.2e} | "
                      f"{new[i]:.2e} | {float(z['theta_new'][i]):.4f} | {float(z['E_cell'][i]):.1e} | unstable | "

@@ -724,6 +724,33 @@ def test_the_weak_verdicts_to_judge_again_include_an_unrefined_edges_unstable_en
     assert weak_records(dict(z, E_cell=np.full(5, np.nan)))[0] == [(0, 0), (2, 0)]
 
 
+@pytest.mark.serial
+def test_rejudge_driver_on_one_and_two_ranks_resumes_and_renders(tmp_path):
+    """scripts/rejudge_map.py on a small map of kind -2 (tests/data, 3pi/10 on 20 beads): its one weak verdict (an
+    infinite-chain edge's, rho - 1 = 1.45e-5) judged again, the same record on 1 and 2 ranks; -resume adds nothing,
+    -render rewrites the same table; the provenance names the source's digest."""
+    import json
+    source = os.path.join(DATA, "map_v2_small.npz")
+    tables = []
+    for ranks in (1, 2):
+        out = tmp_path / f"r{ranks}.npz"
+        r = run_script("rejudge_map.py", "-source", source, "-output", out, "-table", tmp_path / f"r{ranks}.md",
+                       ranks=ranks)
+        assert r.returncode == 0, r.stderr
+        tables.append((tmp_path / f"r{ranks}.md").read_text())
+    one, two = (dict(np.load(tmp_path / f"r{n}.npz")) for n in (1, 2))
+    assert list(one["index"]) == list(two["index"]) == [0] and one["rho_new"][0] - 1 > float(one["tol_rho"])
+    assert abs(one["rho_new"][0] - two["rho_new"][0]) <= 1e-12 and one["E_cell"][0] <= 1e-11
+    assert "1 verdicts judged again; 0 changed" in tables[0]
+    about = json.loads(str(one["__provenance__"]))
+    assert about["inputs"]["source"]["sha256"] == str(one["source_sha256"])
+    r = run_script("rejudge_map.py", "-source", source, "-output", tmp_path / "r1.npz", "-table",
+                   tmp_path / "again.md", "-resume")
+    assert r.returncode == 0 and "(0 not in" in r.stdout, r.stderr
+    r = run_script("rejudge_map.py", "-render", "-output", tmp_path / "r1.npz", "-table", tmp_path / "render.md")
+    assert r.returncode == 0 and (tmp_path / "render.md").read_text() == tables[0], r.stderr
+
+
 def test_the_boundary_in_q_judges_a_weak_verdict_on_the_refined_cell_orbit():
     """The boundary in q reads the map's probe (MapProbe.infinite): at alpha = 3/2, pi/2, A = 1.0288 (the map's
     a = 1 of the test above) its record is judged on the refined cell orbit and says so (E_cell), and the

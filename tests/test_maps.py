@@ -724,6 +724,23 @@ def test_the_weak_verdicts_to_judge_again_include_an_unrefined_edges_unstable_en
     assert weak_records(dict(z, E_cell=np.full(5, np.nan)))[0] == [(0, 0), (2, 0)]
 
 
+def test_a_rejudging_table_of_a_stopped_run_says_what_is_not_judged_yet():
+    """The table of a re-judging file holding 2 of its source's 3 weak verdicts (a run stopped, or in progress) says
+    so; the changed verdict is named with its q and A, the unchanged one's relative agreement given."""
+    from hertzpetsc.studies.rejudge import REJUDGE_FIELDS, rejudging_table
+    z = {k: np.array([0.0, 0.0]) for k in REJUDGE_FIELDS}
+    z.update(index=np.array([4, 7]), side=np.array([0, 1]), kind=np.array([KIND_POINT, 2]),
+             q=np.array([math.pi / 2, math.pi / 5]), A=np.array([1.0288, 0.3]), a=np.array([1.0, 0.29]),
+             rho_old=1 + np.array([3e-6, 5e-4]), rho_new=1 + np.array([2e-7, 5.5e-4]), cert_new=np.array([0, -1]),
+             rho_unrefined=1 + np.array([3e-6, 5e-4]))
+    z.update(tol_rho=1e-6, near_one=1e-3, refine_tol=1e-11, source="x.npz", source_format="m", alpha=1.5,
+             delta0=1.0, masses=np.array([1.0]), cells_per_pi=1000, twists=512, rtol=1e-11, weak=3, limits_left=0)
+    text = rejudging_table(z)
+    assert "2 verdicts judged again; 1 changed (unstable before, stable or unresolved now): pi/2 at A = 1.0288" in text
+    assert "rho - 1 within 1.0e-01 relative" in text and "1 of the source's 3 weak verdicts not judged yet" in text
+    assert "| 7 (unstable end) | edge (inf) | pi/5" in text and "| unstable | unresolved |" in text
+
+
 @pytest.mark.serial
 def test_rejudge_driver_on_one_and_two_ranks_resumes_and_renders(tmp_path):
     """scripts/rejudge_map.py on a small map of kind -2 (tests/data, 3pi/10 on 20 beads): its one weak verdict (an

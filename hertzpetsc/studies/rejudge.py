@@ -251,7 +251,9 @@ def rejudging_table(z) -> str:
              + (f"; the {len(kept)} unchanged: rho - 1 within {float(np.max(diff[kept] / old[kept])):.1e} relative of "
                 f"the source's (the old twist among the hints, the scan's maxima refined again)" if kept else "")
              + (f"; {int(z['limits_left'])} weak records of the uncompressed limit not judged again"
-                if int(z["limits_left"]) else "") + ".\n",
+                if int(z["limits_left"]) else "")
+             + (f"; {int(z['weak']) - n} of the source's {int(z['weak'])} weak verdicts not judged yet (the run "
+                f"stopped before them: -resume continues it)" if n < int(z["weak"]) else "") + ".\n",
              "Columns: the source's record (index; 'unstable end': the unstable end of an infinite-chain edge whose "
              "record is its stable end, rho_unstable at a_unstable; kind), q, A = ||u||_inf, a (first sine "
              "coefficient), rho - 1 in the source, rho - 1 of the Richardson cell orbit recomputed now (unrefined: "

@@ -247,7 +247,7 @@ def rejudging_table(z) -> str:
              f"{n} verdicts judged again; {len(changed)} changed (unstable before, stable or unresolved now)"
              + (": " + ", ".join(f"{q_label(float(z['q'][i]))} at A = {float(z['A'][i]):.6g}" for i in changed)
                 if changed else "")
-             + (f"; max |new - old| of rho - 1: {float(np.max(diff)):.2e}" if n else "; none to judge")
+             + (f"; max |new - old| of rho - 1: {float(np.max(diff)):.2e}" if n else "; none to judge" if not int(z["weak"]) else "")
              + (f"; the {len(kept)} unchanged: rho - 1 within {float(np.max(diff[kept] / old[kept])):.1e} relative of "
                 f"the source's (the old twist among the hints, the scan's maxima refined again)" if kept else "")
              + (f"; {int(z['limits_left'])} weak records of the uncompressed limit not judged again"

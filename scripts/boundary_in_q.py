@@ -10,7 +10,8 @@ amplitudes A = ||u||_inf (issue 23: the boundary in A at each q is precompressio
 At each amplitude A (inf: the uncompressed limit) and each grid wavenumber (q = 2 pi m / N and -q): the wave with
 max |u| = A (a border row of eq. ad; Richardson combination of h = pi/K and pi/(2K), K = -cells_per_pi) and rho over
 every Bloch parameter of the infinite chain (the cell twists of its wave, bead-level step <= pi/-twists, maxima
-refined, symmetry multipliers deflated); unstable when rho - 1 > -tol_rho. Where the verdict changes between two
+refined, symmetry multipliers deflated; a weak instability, rho - 1 < 1e-3, judged on the cell orbit refined by
+Gauss-Newton with the flow at rtol/100, as in precompression_map.py); unstable when rho - 1 > -tol_rho. Where the verdict changes between two
 grid q, the edge is located by bisection in q, each sample the q / 2 pi of fewest beads per cell in the middle third
 of the bracket (at most -max_cell), to a relative bracket -locate_tol / 2. The amplitudes are dealt to the ranks.
 Table: the located edges with rho - 1 on both sides, and the grid's verdicts; figure boundary_in_q.png (with -map, a

@@ -83,6 +83,8 @@ DRIVERS = {
                                "{t}/m.md"), None, "output", ("-m", "3,3"), ("-floquet_ts_type", "bogus")),
     "boundary_in_q.py": (("-A", 3, "-m", "18,20", "-cells_per_pi", 100, "-output", "{t}/q.npz", "-table",
                           "{t}/q.md"), None, "output", ("-m", "18,18"), ("-floquet_ts_type", "bogus")),
+    "rejudge_map.py": (("-source", f"{DATA}/map_v2_small.npz", "-output", "{t}/r.npz", "-table", "{t}/r.md"),
+                       "source", "output", None, ("-floquet_ts_type", "bogus")),
     "slow_instabilities.py": (("-branch", BRANCH, "-N", 30, "-q", "2*pi/5", "-grids", "100,200,400", "-n_theta", 3,
                                "-n_twist", 1, "-reference", "none", "-convergence_q", "2*pi/5", "-output", "{t}/s.npz",
                                "-table", "{t}/s.md"), "branch", "output", ("-grids", "100,200"),

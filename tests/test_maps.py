@@ -671,6 +671,119 @@ def test_a_weak_infinite_chain_instability_is_judged_on_the_refined_cell_orbit()
     assert row["E_cell"] <= REFINE_TOL and row["rho_inf"] - 1 < MAP_TOL_RHO
 
 
+def test_a_published_weak_verdict_is_judged_again_on_the_refined_cell_orbit(tmp_path, monkeypatch):
+    """A map computed as before the refinement of weak verdicts (NEAR_ONE at tol_rho: no refinement) at alpha = 3/2,
+    pi/2 (a cell of 4 beads), a = 1 (A = 1.029, past the gap opening): its infinite-chain record is a weak
+    instability (rho - 1 a few 1e-6, the zones' translations split by the Richardson orbit's error) with no E_cell.
+    The re-judging study reads that file, recomputes the record's Richardson cell orbit (its rho reproduced) and
+    judges it on the orbit refined to E <= REFINE_TOL: stable (rho - 1 ~ 1e-7), the verdict changed in the table. A
+    record already refined (E_cell finite) is not judged again."""
+    from hertzpetsc.studies import maps
+    from hertzpetsc.studies.rejudge import MapRejudging, RejudgeParameters, weak_records
+    model, q, tol = LatticeModel.hertz(1.5, (1.0,), 1.0), math.pi / 2, maps.MAP_TOL_RHO
+    path = str(tmp_path / "map.npz")
+    with monkeypatch.context() as m:
+        m.setattr(maps, "NEAR_ONE", tol)                          # the maps before the refinement
+        study = StabilityMap(MapParameters(model, (q,), (1.0,), N=4, cells_per_pi=1000, tolerances=TOL, locate=(),
+                                           limit=False, twists=512), SELF, path)
+        try:
+            [old] = [r for r in study.run() if r["kind"] == KIND_POINT]
+        finally:
+            study.destroy()
+    assert tol < old["rho_inf"] - 1 < maps.NEAR_ONE and math.isnan(old["E_cell"])
+    again = MapRejudging(RejudgeParameters(path), SELF, str(tmp_path / "rejudged.npz"))
+    try:
+        [row] = list(again.run())
+        table = again.table()
+    finally:
+        again.destroy()
+    # the Richardson cell orbit's number reproduced: the same wave, its scan with the old twist as a hint (the
+    # golden-section refinement of the maxima ends within 1e-3 of a grid step: 4e-4 of rho - 1 here)
+    assert row["rho_old"] == old["rho_inf"]
+    assert abs(row["rho_unrefined"] - old["rho_inf"]) <= 1e-2 * (old["rho_inf"] - 1)
+    assert row["E_cell"] <= maps.REFINE_TOL and row["rho_new"] - 1 < tol
+    assert "1 verdicts judged again; 1 changed (unstable before, stable or unresolved now): pi/2 at A = 1.0288" in table
+    z = dict(np.load(path))
+    assert weak_records(z)[0] == [(row["index"], 0)]
+    z["E_cell"] = np.where(np.arange(len(z["kind"])) == row["index"], 1e-13, np.asarray(z["E_cell"], float))
+    assert not len(weak_records(z)[0])
+
+
+def test_the_weak_verdicts_to_judge_again_include_an_unrefined_edges_unstable_end():
+    """In a map written before E_cell an infinite-chain edge whose record is its stable end holds a weak verdict at
+    its unstable end (rho_unstable at a_unstable: alpha = 2, 12pi/25, the onset at A = 1.075 had 3.0e-6 there): it
+    is judged again (side 1), as a record's own weak rho_inf is (side 0); strong instabilities, stable verdicts, the
+    N-bead edges and a map whose weak evaluations were refined (E_cell) are not."""
+    from hertzpetsc.studies.rejudge import weak_records
+    from hertzpetsc.verdicts import KIND_EDGE_INF
+    z = dict(tol_rho=1e-6, kind=np.array([KIND_POINT, KIND_EDGE_INF, KIND_EDGE_INF, KIND_EDGE, KIND_POINT]),
+             rho_inf=1 + np.array([3e-6, 1e-11, 2e-6, 1e-11, 5e-3]), a=np.array([1.0, 1.02, 1.03, 1.04, 2.0]),
+             a_unstable=np.array([np.nan, 1.021, 1.03, 1.041, np.nan]),
+             rho_unstable=np.array([np.nan, 3e-6, 2e-6, 3e-6, np.nan]))
+    assert weak_records(z)[0] == [(0, 0), (1, 1), (2, 0)]
+    assert weak_records(dict(z, E_cell=np.full(5, np.nan)))[0] == [(0, 0), (2, 0)]
+
+
+def test_a_rejudging_table_of_a_stopped_run_says_what_is_not_judged_yet():
+    """The table of a re-judging file holding 2 of its source's 3 weak verdicts (a run stopped, or in progress) says
+    so; the changed verdict is named with its q and A, the unchanged one's relative agreement given."""
+    from hertzpetsc.studies.rejudge import REJUDGE_FIELDS, rejudging_table
+    z = {k: np.array([0.0, 0.0]) for k in REJUDGE_FIELDS}
+    z.update(index=np.array([4, 7]), side=np.array([0, 1]), kind=np.array([KIND_POINT, 2]),
+             q=np.array([math.pi / 2, math.pi / 5]), A=np.array([1.0288, 0.3]), a=np.array([1.0, 0.29]),
+             rho_old=1 + np.array([3e-6, 5e-4]), rho_new=1 + np.array([2e-7, 5.5e-4]), cert_new=np.array([0, -1]),
+             rho_unrefined=1 + np.array([3e-6, 5e-4]))
+    z.update(tol_rho=1e-6, near_one=1e-3, refine_tol=1e-11, source="x.npz", source_format="m", alpha=1.5,
+             delta0=1.0, masses=np.array([1.0]), cells_per_pi=1000, twists=512, rtol=1e-11, weak=3, limits_left=0)
+    text = rejudging_table(z)
+    assert "2 verdicts judged again; 1 changed (unstable before, stable or unresolved now): pi/2 at A = 1.0288" in text
+    assert "rho - 1 within 1.0e-01 relative" in text and "1 of the source's 3 weak verdicts not judged yet" in text
+    assert "| 7 (unstable end) | edge (inf) | pi/5" in text and "| unstable | unresolved |" in text
+
+
+@pytest.mark.serial
+def test_rejudge_driver_on_one_and_two_ranks_resumes_and_renders(tmp_path):
+    """scripts/rejudge_map.py on a small map of kind -2 (tests/data, 3pi/10 on 20 beads): its one weak verdict (an
+    infinite-chain edge's, rho - 1 = 1.45e-5) judged again, the same record on 1 and 2 ranks; -resume adds nothing,
+    -render rewrites the same table; the provenance names the source's digest."""
+    import json
+    source = os.path.join(DATA, "map_v2_small.npz")
+    tables = []
+    for ranks in (1, 2):
+        out = tmp_path / f"r{ranks}.npz"
+        r = run_script("rejudge_map.py", "-source", source, "-output", out, "-table", tmp_path / f"r{ranks}.md",
+                       ranks=ranks)
+        assert r.returncode == 0, r.stderr
+        tables.append((tmp_path / f"r{ranks}.md").read_text())
+    one, two = (dict(np.load(tmp_path / f"r{n}.npz")) for n in (1, 2))
+    assert list(one["index"]) == list(two["index"]) == [0] and one["rho_new"][0] - 1 > float(one["tol_rho"])
+    assert abs(one["rho_new"][0] - two["rho_new"][0]) <= 1e-12 and one["E_cell"][0] <= 1e-11
+    assert "1 verdicts judged again; 0 changed" in tables[0]
+    about = json.loads(str(one["__provenance__"]))
+    assert about["inputs"]["source"]["sha256"] == str(one["source_sha256"])
+    r = run_script("rejudge_map.py", "-source", source, "-output", tmp_path / "r1.npz", "-table",
+                   tmp_path / "again.md", "-resume")
+    assert r.returncode == 0 and "(0 not in" in r.stdout, r.stderr
+    r = run_script("rejudge_map.py", "-render", "-output", tmp_path / "r1.npz", "-table", tmp_path / "render.md")
+    assert r.returncode == 0 and (tmp_path / "render.md").read_text() == tables[0], r.stderr
+
+
+def test_the_boundary_in_q_judges_a_weak_verdict_on_the_refined_cell_orbit():
+    """The boundary in q reads the map's probe (MapProbe.infinite): at alpha = 3/2, pi/2, A = 1.0288 (the map's
+    a = 1 of the test above) its record is judged on the refined cell orbit and says so (E_cell), and the
+    refiner's prefixes are among its roles (their options read, in the file's identity)."""
+    from fractions import Fraction
+    from hertzpetsc.studies.maps import MAP_TOL_RHO, REFINE_TOL, QBoundary, QBoundaryParameters
+    model = LatticeModel.hertz(1.5, (1.0,), 1.0)
+    study = QBoundary(QBoundaryParameters(model, (1.0288,), (math.pi / 2,), cells_per_pi=1000, tolerances=TOL), SELF)
+    try:
+        row = study.evaluate(Fraction(1, 4), 1.0288)
+    finally:
+        study.destroy()
+    assert row["E_cell"] <= REFINE_TOL and row["rho_inf"] - 1 < MAP_TOL_RHO
+    assert {"shoot_", "shoot_jac_"} <= set(QBoundary.ROLES)
+
+
 def test_an_edge_whose_bisection_fails_is_in_the_table_as_unresolved(monkeypatch, capfd):
     """The bubble of test_located_bubble_is_confirmed_by_the_multipliers_on_both_sides with the family's corrector
     failing within 1e-3 in log a of its onset: the layer dropped the onset, and the table showed the offset alone,

@@ -268,11 +268,14 @@ class RichardsonCompanion:
 class MapProbe:
     """The test functions of one q's amplitude family (module docstring): per amplitude the Richardson wave, its
     deflated spectrum on N beads and its twist scan on the infinite chain, each computed once, when first read;
-    ``measure``: what the family's a is (:class:`~hertzpetsc.families.AmplitudeFamily`)."""
+    ``measure``: what the family's a is (:class:`~hertzpetsc.families.AmplitudeFamily`); ``refine_all``: every
+    infinite-chain verdict on the refined cell orbit, not only the weak ones (:data:`NEAR_ONE`; the re-judging of a
+    map's weak records, :mod:`hertzpetsc.studies.rejudge`)."""
 
-    def __init__(self, study, q, model=None, measure="a1"):
+    def __init__(self, study, q, model=None, measure="a1", refine_all=False):
         self.study, self.q, self.measure = study, q, measure
         self.model = study.model if model is None else model
+        self.refine_all = refine_all
         self._companion, self._refiners = None, {}
         self.cache, self.hints, self.evaluations = {}, [], {name: 0 for name in TESTS}
 
@@ -353,8 +356,8 @@ class MapProbe:
             cell = wave_orbit(self.model, self.q, entry["point"].a, e["w"], e["lam"], sym.M, math.pi / st.K)
             n_grid = max(2, -(-st.twists // sym.M))
             scan = twist_scan(st.route(self.model), cell, n_grid, hints=self.hints, floor=st.tol_rho)
-            E = math.nan
-            if st.tol_rho < scan.rho_max - 1 < NEAR_ONE:
+            E, unrefined = math.nan, scan.rho_max
+            if self.refine_all or st.tol_rho < scan.rho_max - 1 < NEAR_ONE:
                 # a weak instability: the long-wave multipliers near 1 (the zones' translations over the twists)
                 # are split by the orbit's error as on N beads (NEAR_ONE): the verdict of the refined cell orbit
                 refined = self.refiner(sym.M).refine(cell)
@@ -367,7 +370,7 @@ class MapProbe:
             entry["infinite"] = dict(rho=scan.rho_max, theta=scan.theta, cluster=scan.cluster, M=sym.M,
                                      decoupled=scan.decoupled, cert=certification(scan),
                                      bound=c.bound if c is not None else math.nan,
-                                     modulation=2 * math.pi * sym.M / scan.theta_min, E=E)
+                                     modulation=2 * math.pi * sym.M / scan.theta_min, E=E, unrefined=unrefined)
             self.evaluations["infinite"] += 1
         return entry["infinite"]
 
@@ -633,7 +636,7 @@ QMAP_FORMAT = "hertzpetsc-boundary-q-2"
 QMAP_FORMAT_V1 = "hertzpetsc-boundary-q-1"
 QMAP_FIELDS = ("A", "q", "M", "kind", "grid", "omega", "rho_inf", "theta_inf", "cluster_inf", "q_stable",
                "q_unstable", "rho_stable", "rho_unstable", "theta_unstable", "evaluations", "seconds", "cert_inf",
-               "bound_inf", "cert_stable", "modulation_inf")
+               "bound_inf", "cert_stable", "modulation_inf", "E_cell")
 # the uncompressed limit of a level A = inf is reached from the family's wave at this amplitude (delta0 units)
 LIMIT_FROM_A = 1000.0
 # the largest cell of a bisection wavenumber by default: the twist scans' dense 2M x 2M sector maps grow as M^2 in
@@ -694,7 +697,8 @@ class QBoundaryParameters:
 class QBoundary(Study):
     """The infinite chain's stability boundary located in q at fixed amplitudes A (issue 23): at each A the wave at
     every grid q (:func:`~hertzpetsc.families.wave_at`, A a border row; Richardson pair h = pi/K, pi/(2K)) and its
-    twist scan (:meth:`MapProbe.infinite`); where the verdict changes between two grid q, bisection in q through the
+    twist scan (:meth:`MapProbe.infinite`: a weak instability judged on the refined cell orbit, ``E_cell``, as in the
+    map); where the verdict changes between two grid q, bisection in q through the
     simplest fraction q / 2 pi of the middle third of the bracket (its cell the fewest beads) until the bracket is at
     most ``locate_tol`` / 2 relative. Each A on one rank (the levels are dealt); every evaluation a record (kind 0;
     ``grid`` 1 for the grid q), each located edge a record of kind 2 with both sides. Prefixes as the map's."""
@@ -703,7 +707,8 @@ class QBoundary(Study):
     FORMAT, FIELDS = QMAP_FORMAT, QMAP_FIELDS
     DTYPES = {"M": np.int64, "kind": np.int64, "grid": np.int64, "evaluations": np.int64, "cert_inf": np.int64,
               "cert_stable": np.int64}
-    ROLES = uses("precomp_", floquet_=("ts",))      # no refinement (NEAR_ONE)
+    ROLES = StabilityMap.ROLES                      # the weak verdicts on the refined cell orbit (NEAR_ONE)
+    ADDED = {"E_cell": math.nan}
     WHAT = "boundary-in-q file"
     NAMES = dict(StabilityMap.NAMES, levels="A (-A)", grid_q="q (-m with -N, and -q)")
     locate, N = ("infinite",), 0
@@ -745,7 +750,7 @@ class QBoundary(Study):
         return dict(dict.fromkeys(QMAP_FIELDS, math.nan), A=A, q=q, M=scan["M"], kind=KIND_POINT, grid=0,
                     omega=entry.get("omega", math.nan), rho_inf=scan["rho"], theta_inf=scan["theta"],
                     cluster_inf=scan["cluster"], cert_inf=scan["cert"], bound_inf=scan["bound"],
-                    modulation_inf=scan["modulation"],
+                    modulation_inf=scan["modulation"], E_cell=scan["E"],
                     cert_stable=CERT_NONE, evaluations=1, seconds=time.perf_counter() - t0)
 
     def unstable(self, row: Mapping) -> bool:

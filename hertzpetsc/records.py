@@ -410,6 +410,21 @@ class Kind:
         return format(self.by_name[name].dtype(value) if self.by_name[name].dtype is not str else str(value),
                       self.by_name[name].format)
 
+    def row(self, record, *cells):
+        """A Markdown table row of ``record``: each of ``cells`` is a column's name (the record's value in the
+        column's format) or a cell already written (anything else, as ``str`` writes it)."""
+        return "| " + " | ".join(self.cell(c, record[c]) if isinstance(c, str) and c in self.by_name else str(c)
+                                 for c in cells) + " |"
+
+    def check(self, arrays):
+        """(missing, undeclared) of a record archive's ``arrays`` (a loaded file, :func:`npz_arrays`): the declared
+        columns it lacks (but the ``optional`` ones) and its entries that no column declares (but ``format``, the
+        provenance, the columns and the ``state_*`` arrays)."""
+        missing = [c.name for c in self.columns if c.name not in arrays and not c.optional]
+        undeclared = [k for k in arrays if k not in self.by_name and k != "format" and k not in ABOUT
+                      and not k.startswith("state_")]
+        return missing, undeclared
+
     def schema(self):
         """The schema page's table of the kind (docs/schemas.md, generated from the columns)."""
         lines = ["| name | shape | unit | meaning |", "|---|---|---|---|", f"| `format` | () | - | `\"{self.name}\"` |"]
@@ -468,6 +483,35 @@ def check_kind(data, path, kind, what):
     if stored != kind:
         found = f"a {stored!r} file" if stored else "not a hertzpetsc record file"
         raise RecordFileError(f"{given(path)} is {found}, but a {what} ({kind!r}) is expected here")
+
+
+def read_kind(path, kind, what, error=RecordFileError):
+    """The arrays of a record file of ``kind`` (a :class:`Kind`) as a dict: :func:`load_npz`, :func:`check_kind`,
+    and every declared column there but the ``optional`` ones (files written before those), else ``error`` naming
+    ``what``."""
+    data = load_npz(path, what, error)
+    check_kind(data, path, kind.name, what)
+    missing = kind.check(data)[0]
+    if missing:
+        raise error(f"{what} {given(path)} is corrupt: missing {missing}")
+    return data
+
+
+def typed_records(data, kind):
+    """The records of a loaded file ``data`` of ``kind`` (a :class:`Kind`) as a list of {field: value}, each value
+    of its column's dtype (a number as a Python number, an array as an array); the fields the file lacks (optional
+    ones) are left out."""
+    fields = [kind.by_name[f] for f in kind.fields if f in data]
+    if not fields:
+        return []
+    return [{c.name: _typed(np.asarray(data[c.name][i]), c.dtype) for c in fields}
+            for i in range(len(data[fields[0].name]))]
+
+
+def _typed(value, dtype):
+    if value.ndim:
+        return value.astype(dtype, copy=False)
+    return str(value) if dtype is str else np.dtype(dtype).type(value).item()
 
 
 def _same(a, b):

@@ -420,9 +420,11 @@ class Kind:
         """(missing, undeclared) of a record archive's ``arrays`` (a loaded file, :func:`npz_arrays`): the declared
         columns it lacks (but the ``optional`` ones) and its entries that no column declares (but ``format``, the
         provenance, the columns and the ``state_*`` arrays)."""
+        import re
+        patterns = [re.sub(r"<[^>]*>", ".+", re.escape(c.name)) for c in self.columns if "<" in c.name]   # one per x
         missing = [c.name for c in self.columns if c.name not in arrays and not c.optional]
         undeclared = [k for k in arrays if k not in self.by_name and k != "format" and k not in ABOUT
-                      and not k.startswith("state_")]
+                      and not k.startswith("state_") and not any(re.fullmatch(p, k) for p in patterns)]
         return missing, undeclared
 
     def schema(self):

@@ -72,9 +72,9 @@ REFINED_KIND = Kind(REFINED_FORMAT, (
     Column("sigma_min", "smallest singular value of the phase-conditioned Jacobian", format=".2e"),
     Column("E_after_floor", "where the refinement stopped above `tol` at the tight flow's floor (`E_after` <= `tol` "
            "+ `E_after_floor`): that flow's own error in S X(script-T) at the refined state; NaN at every other q "
-           "(files written before these fields: read as NaN)", format=".0e"),
+           "(files written before these fields: read as NaN)", format=".0e", optional=True),
     Column("E_after_fine", "there, `E_after` measured with the tight flow's tolerances divided by 10; NaN "
-           "elsewhere", format=".2e"),
+           "elsewhere", format=".2e", optional=True),
     Column("x", "refined state (x_n, xdot_n) at t = 0", shape="N, 2"),
 ))
 REFINED_FIELDS = REFINED_KIND.fields[:10]

@@ -92,15 +92,15 @@ WAVE_KIND = Kind(WAVE_FORMAT, (
     Column("seconds", "wall time", "s", format=".1f"),
     Column("E_floor", "where `E_refined` > `tol`: the refinement flow's own error at the refined state, within which "
            "the refinement was accepted at that flow's floor; NaN elsewhere (and in files written before this field)",
-           format=".0e"),
+           format=".0e", optional=True),
     Column("u", "the wave's profiles u_c(xi), bead n on profile n mod p (xi = q n - omega t), on the whole period: "
-           "the solution of eq. ad the row is about (NaN in files written before it)", shape="p, 2K"),
+           "the solution of eq. ad the row is about (NaN in files written before it)", shape="p, 2K", optional=True),
     Column("state", "the refined initial state (x_n, x_n') of the N beads (eq. twper; NaN in files written before "
-           "it)", shape="N, 2"),
+           "it)", shape="N, 2", optional=True),
     Column("dominant", f"the {DOMINANT} nontrivial multipliers modulo shift of largest modulus (Bloch sectors; "
            "\\|dominant[0]\\| = rho to 1e-8, moduli equal to 1e-8 ordered by argument; NaN past the spectrum's end and in "
            "files written before it)", "1", complex,
-           shape=str(DOMINANT)),
+           shape=str(DOMINANT), optional=True),
 ))
 WAVE_FIELDS = WAVE_KIND.fields
 MAX_BEADS = 2000             # the refinement's dense Jacobian has (2 M)^2 entries on the wave's cell

@@ -8,7 +8,9 @@ import pytest
 
 from conftest import DATA, SCRIPTS, run_script
 from hertzpetsc.branch import Branch
-from hertzpetsc.studies.refinement import RefinedStates
+from hertzpetsc.records import read_kind
+from hertzpetsc.studies.floquet import BLOCH_KIND, FLOQUET_KIND
+from hertzpetsc.studies.refinement import REFINED_KIND, RefinedStates
 
 pytestmark = pytest.mark.serial
 
@@ -49,6 +51,7 @@ def test_refinement_driver_resumes(work):
                    work / "r2.md", "-resume")
     assert r.returncode == 0, r.stderr
     assert len(RefinedStates.load(str(work / "r2.npz")).q) == 8            # the other 6 q = 2 pi m / 20 added
+    assert REFINED_KIND.check(read_kind(str(work / "r2.npz"), REFINED_KIND, "x")) == ([], [])
 
 
 def test_floquet_drivers(work):
@@ -62,6 +65,8 @@ def test_floquet_drivers(work):
                    work / "f.npz")
     assert r.returncode == 0, r.stderr
     assert "| 40 | 2pi/5 | 8 |" in (work / "fl.md").read_text()
+    for name, kind in (("f", FLOQUET_KIND), ("fl", BLOCH_KIND)):            # the files hold the declared columns
+        assert kind.check(read_kind(str(work / f"{name}.npz"), kind, "x")) == ([], []), name
 
 
 def test_long_run_and_dynamics_figures(work):

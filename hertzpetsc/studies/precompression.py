@@ -81,8 +81,33 @@ PRECOMPRESSED_KIND = Kind(PRECOMPRESSED_FORMAT, (
 ))
 PRECOMPRESSED_FIELDS = PRECOMPRESSED_KIND.fields
 DIMER_FORMAT = "hertzpetsc-dimer-2"
-DIMER_FIELDS = ("q", "epsilon", "omega", "omega_acoustic", "arclength", "tangent_epsilon", "norm_u", "norm_v",
-                "v1", "v2", "iterations", "event")
+DIMER_KIND = Kind(DIMER_FORMAT, (
+    Column("alpha", "Hertz exponent (absent for another law)", constant=True, optional=True),
+    Column("delta0", "precompression (absent for another law)", constant=True, optional=True),
+    Column("law", "a chain of another law than Hertz's: its name, its parameters beside it (absent for Hertz's)",
+           "", str, "s", constant=True, optional=True),
+    Column("cells_per_pi", "grid h = pi / cells_per_pi", "count", np.int64, "d", constant=True),
+    Column("a", "fixed amplitude (first sine coefficient of the heavy bead's profile u)", constant=True),
+    Column("epsilon_end", "the continuation stops once epsilon passes it", constant=True),
+    Column("ds", "first arclength step", constant=True),
+    Column("ds_max", "largest arclength step", constant=True),
+    Column("solver_options", "numeric-changing options under `-dimer_` and `-dimer_natural_`", "", str, "s",
+           constant=True, optional=True),
+    Column("q", "per-bead wavenumber"),
+    Column("epsilon", "mass ratio (masses 1, epsilon)", format=".5f"),
+    Column("omega", "frequency", format=".6f"),
+    Column("omega_acoustic", "the linear acoustic frequency (closed form)", format=".6f"),
+    Column("arclength", "arclength s"),
+    Column("tangent_epsilon", "d epsilon / ds (a sign change is a fold)"),
+    Column("norm_u", "\\|\\|u_0\\|\\|_inf (heavy bead)"),
+    Column("norm_v", "\\|\\|u_1\\|\\|_inf (light bead)"),
+    Column("v1", "first sine coefficient of the light bead's profile", format=".4f"),
+    Column("v2", "second sine coefficient of the light bead's profile", format=".4f"),
+    Column("iterations", "Newton iterations", "count", np.int64, "d"),
+    Column("event", "0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the path",
+           "", np.int64, "d"),
+))
+DIMER_FIELDS = DIMER_KIND.fields
 EVENT_CODES = {None: 0, "fold": 1, "gap": 2}
 KIND_GRID, KIND_GAP, KIND_LIMIT = 0, 1, 2
 
@@ -340,8 +365,7 @@ class DimerFamilies(Study):
     the table says where it stopped."""
 
     Parameters = DimerParameters
-    FORMAT, FIELDS = DIMER_FORMAT, DIMER_FIELDS
-    DTYPES = {"iterations": np.int64, "event": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = DIMER_FORMAT, DIMER_FIELDS, DIMER_KIND.dtypes, DIMER_KIND
     ROLES = uses("dimer_", "dimer_natural_")
     WHAT = "dimer file"
 
@@ -508,11 +532,10 @@ class DimerFamilies(Study):
             t = t[np.isfinite(t)]
             folds = int(np.sum(np.sign(t[1:]) != np.sign(t[:-1]))) if len(t) > 1 else 0
             last = rows[-1]
-            lines.append(f"| {q_label(q)} | {len(rows)} | {float(last['epsilon']):.5f} "
-                         f"({min(float(r['epsilon']) for r in rows):.5f}) | {float(rows[0]['omega']):.6f} | "
-                         f"{float(last['omega']):.6f} | {float(last['norm_v']) / float(last['norm_u']):.4f} | "
-                         f"{float(last['v1']):.4f}, {float(last['v2']):.4f} | {folds} | "
-                         f"{float(last['omega_acoustic']):.6f} | {events} |")
+            c = {k: DIMER_KIND.cell(k, last[k]) for k in ("epsilon", "v1", "v2")}
+            lines.append(DIMER_KIND.row(last, q_label(q), len(rows), f"{c['epsilon']} ({min(r['epsilon'] for r in rows):.5f})",
+                                        f"{rows[0]['omega']:.6f}", "omega", f"{last['norm_v'] / last['norm_u']:.4f}",
+                                        f"{c['v1']}, {c['v2']}", folds, "omega_acoustic", events))
         for q, why in self.stopped.items():
             lines.append(f"\nq = {q_label(q)}: stopped: {why}")
         for q in self.qs:

@@ -1,6 +1,6 @@
 """The two-compacton test of section 3.3 (eq. extens2), each compacton unrefined or refined at the same gap, to
-locate the source of the 2-compacton error. File ``hertzpetsc-compacton-pairs-1``: constants alpha, q, h, spacing,
-travel, M, N, gap; per record: case, rear, front, error_x, error_v, debris_v, seconds."""
+locate the source of the 2-compacton error. File ``hertzpetsc-compacton-pairs-1``, its columns declared in
+:data:`PAIRS_KIND`."""
 from __future__ import annotations
 
 import math

@@ -7,7 +7,8 @@ down through the requested q (natural continuation in q, :mod:`hertzpetsc.contin
 independent flow (another Runge-Kutta pair and tolerance), all 2M window multipliers (LAPACK), the Jordan pair at 1
 (mean, split, J v1 = v1, solvability of (J - 1) v2 = v1), the dominant nontrivial multipliers, the unstable ones,
 the change of the dominant multipliers when M is doubled, and SLEPc's dominant multipliers on the weighted
-shell against the dense ones. File ``hertzpetsc-compacton-stability-1`` (npz), its columns declared in :data:`STABILITY_KIND`.
+shell against the dense ones. File ``hertzpetsc-compacton-stability-1`` (npz), its columns declared in
+:data:`STABILITY_KIND`.
 :func:`ring_spectrum`: the same compacton on the ring of 2 pi / q beads. The dynamics
 of perturbed compactons and the two-compacton test: :mod:`~hertzpetsc.studies.compacton_dynamics`,
 :mod:`~hertzpetsc.studies.compacton_pairs`.
@@ -69,7 +70,8 @@ STABILITY_KIND = Kind(STABILITY_FORMAT, (
     Column("tol_unstable", "unstable when \\|mu\\| > 1 + tol_unstable", constant=True),
     Column("rtol", "flow tolerance of the window map (prefix `-cwin_`)", constant=True),
     Column("branch_alpha<a>_sha256", "content hash of the branch file of each alpha a of the scan "
-           "(`branch_alpha1.5_sha256`, `branch_alpha2_sha256`, `branch_alpha2.5_sha256` in the paper's)", "", str, "s", constant=True, optional=True),
+           "(`branch_alpha1.5_sha256`, `branch_alpha2_sha256`, `branch_alpha2.5_sha256` in the paper's)", "", str, "s",
+           constant=True, optional=True),
     Column("solver_options", "number-changing options under `-cwin_`, `-ccheck_`, `-cstab_`", "", str, "s",
            constant=True, optional=True),
     Column("alpha", "Hertz exponent", format="g"),

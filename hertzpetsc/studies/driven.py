@@ -11,43 +11,9 @@ the input files (a resume from another input file or with other solver tolerance
 files written before the last two keys were added lack them and still resume. The call of before (loose
 arguments) is still accepted (:meth:`DrivenStudy.legacy`).
 
-Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues):
-
-* ``hertzpetsc-driven-response-1`` (:class:`ResponseCurve`): constants ``drive`` (JSON of the drive at the start),
-  parameter, p_end, base_periods (k of branch 0), jacobian, floquet, tol, rtol, mode ('arclength' or 'grid'), N,
-  nmult; per record: branch (0: the continued branch; j >= 1: the branch switched onto at the j-th confirmed period
-  doubling, period 2 k), periods, p (the parameter), omega, amplitude, s (arclength; the grid mode: the parameter
-  distance), dp_ds (nan on the grid), event (0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by
-  the layer; on a regular point (dp_ds finite, on the grid always): a crossing bracketed between this point and the
-  previous one, which the layer could not locate), confirmed (1: the multipliers of the regular points on both
-  sides, or of two responses close to a located event on either side of it, differ as the event says; 0: they do
-  not (e.g. a neutral saddle for tau_NS); -1: regular point), iterations, residual (||P^k(X) - X||_inf / scale:
-  from Newton's last evaluation, or measured again), rho, outside (|mu| > 1 + 1e-6),
-  tau_pd, tau_ns (the test functions), force_right, force_left (largest compressive force of the end bonds over the
-  period: the force transmitted to the wall; nan without samples), amp_first, amp_last, amp_max (bead amplitudes
-  (max - min)/2), power_in, dissipation (means over the period), half_residual (even k: ||P^(k/2)(X) - X||_inf /
-  scale, large for a genuine period-k response; nan for odd k), multipliers (nmult complex, the largest, nan
-  padded), x (N, 2) the state at t = 0.
-* ``hertzpetsc-driven-resonances-1`` (:class:`LinearResonances`): constants drive, modes; per record (one per mode
-  k): k, omega_k (normal mode, closed form), peak_linear (the peak of the last bead's amplitude |X_N(omega)| of the
-  damped linear chain, complex solve), peak_shooting (the same from shooting responses of the Hertz chain),
-  amp_linear, amp_shooting (|X_N| at the peaks, per unit drive amplitude), mu_error (max distance of the sorted
-  multipliers at the shooting peak to exp(T lambda), lambda the eigenvalues of the linear damped chain),
-  evaluations (shooting solves).
-* ``hertzpetsc-driven-wave-ends-1`` (:class:`WaveEnds`): constants alpha, P (beads of the periodic chain of the
-  refined waves), branch, refined, samples, rtols; per record (q, N, rtol): q, m, N, rtol, imposed (residual of the
-  refined wave itself in the driven chain), residual (after Newton), moved (relative distance Newton moved it),
-  iterations, rho (the driven finite chain over tau = 2 pi / omega), outside, rho_periodic (rho(F_q)^(P/m): the
-  periodic chain over tau), multipliers (nmult).
-* ``hertzpetsc-driven-generation-1`` (:class:`Generation`): constants model, N, branch, bulk, run_in, width; per record
-  (one per waveform, omega, amplitude, gamma): waveform (0 harmonic, 1 half-sine train), omega, amplitude, gamma, ok (1:
-  a periodic response converged), runin_residual (||P(X) - X|| / scale after the run-in: a motion that has not settled
-  to a periodic one keeps it large), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan),
-  amp_first, decay (-d ln A_n / dn over the bulk), q_bulk (median local wavenumber over the bulk), q_spread (its
-  interquartile range), amp_bulk (median A_n), family_ratio (median A_n / A(q_n, omega): 1 for the branch's wave at that
-  frequency), distance (median shape distance D_n to the branch's wave U_{q_n} over the bulk), distance_slope
-  (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic (median
-  (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
+Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues), their columns
+declared in :data:`RESPONSE_KIND` (:class:`ResponseCurve`), :data:`RESONANCE_KIND` (:class:`LinearResonances`),
+:data:`WAVE_ENDS_KIND` (:class:`WaveEnds`) and :data:`GENERATION_KIND` (:class:`Generation`).
 """
 from __future__ import annotations
 
@@ -107,23 +73,27 @@ RESPONSE_KIND = Kind(RESPONSE_FORMAT, (
     Column("nmult", "multipliers kept per record", constant=True, **_INT),
     _OPTIONS,
     Column("branch", "0: the continued branch; j >= 1: the branch switched onto at the j-th confirmed period "
-           "doubling", **_CODE),
+           "doubling (period 2 k)", **_CODE),
     Column("periods", "the response's period in driving periods", **_INT),
     Column("p", "parameter value", format=".8f"),
     Column("omega", "driving frequency"),
     Column("amplitude", "driving amplitude"),
     Column("s", "arclength (grid: parameter distance)"),
     Column("dp_ds", "dp/ds (nan on a grid)"),
-    Column("event", "0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker", **_CODE),
-    Column("confirmed", "events: 1 if the multipliers on both sides differ as the event says, else 0; -1 regular "
-           "points", **_CODE),
+    Column("event", "0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by the layer; on a regular "
+           "point (dp_ds finite; on a grid always): a crossing bracketed between it and the previous one", **_CODE),
+    Column("confirmed", "events: 1 if the multipliers of the regular points on both sides (or of two responses "
+           "close to a located event) differ as the event says, else 0 (e.g. a neutral saddle); -1 regular points",
+           **_CODE),
     Column("iterations", "Newton iterations", **_INT),
-    Column("residual", "\\|\\|P^k(X) - X\\|\\|_inf / scale", format=".1e"),
+    Column("residual", "\\|\\|P^k(X) - X\\|\\|_inf / scale (from Newton's last evaluation, or measured again)",
+           format=".1e"),
     Column("rho", "largest \\|multiplier\\| of the monodromy over the response period k 2 pi / omega", format=".6f"),
     Column("outside", "multipliers with \\|mu\\| > 1 + 1e-6", **_INT),
     Column("tau_pd", "the period-doubling test function"),
     Column("tau_ns", "the Neimark-Sacker test function"),
-    Column("force_right", "largest compressive force of the last bond over the period (nan without samples)",
+    Column("force_right", "largest compressive force of the last bond over the period: the force on the wall (nan "
+           "without samples)",
            format=".4g"),
     Column("force_left", "largest compressive force of the first bond over the period (nan without samples)",
            format=".4g"),
@@ -132,8 +102,9 @@ RESPONSE_KIND = Kind(RESPONSE_FORMAT, (
     Column("amp_max", "largest bead amplitude (max - min)/2", format=".4g"),
     Column("power_in", "mean input power over the period"),
     Column("dissipation", "mean dissipation over the period"),
-    Column("half_residual", "even periods k: \\|\\|P^(k/2)(X) - X\\|\\| / scale (nan otherwise)"),
-    Column("multipliers", "the largest multipliers (zero-padded)", "1", complex, shape="nmult"),
+    Column("half_residual", "even periods k: \\|\\|P^(k/2)(X) - X\\|\\| / scale, large for a genuine period-k "
+           "response (nan otherwise)"),
+    Column("multipliers", "the largest multipliers (nan-padded)", "1", complex, shape="nmult"),
     Column("x", "the response's state at t = 0 (positions, velocities)", shape="N, 2"),
 ))
 RESPONSE_FIELDS = RESPONSE_KIND.fields
@@ -153,13 +124,15 @@ RESONANCE_KIND = Kind(RESONANCE_FORMAT, (
     _OPTIONS,
     Column("k", "mode number", **_INT),
     Column("omega_k", "normal-mode frequency of the undamped linear chain (closed form)", format=".8f"),
-    Column("peak_linear", "frequency of the last bead's largest amplitude: damped linear chain", format=".8f"),
+    Column("peak_linear", "frequency of the last bead's largest amplitude: damped linear chain (complex solve)",
+           format=".8f"),
     Column("peak_shooting", "the same for the Hertz chain by shooting", format=".8f"),
     Column("amp_linear", "\\|X_N\\| / a at the linear peak: the first harmonic's amplitude of x_N(t) per unit "
            "actuator amplitude", format=".6g"),
     Column("amp_shooting", "the same at the shooting peak (the Fourier coefficient over the period from 64 samples; "
            "files before issue 37: hypot(x_N(0), x_N'(0)/omega))", format=".6g"),
-    Column("mu_error", "largest distance of the response's multipliers to exp(T lambda) of the linear chain",
+    Column("mu_error", "largest distance of the response's sorted multipliers to exp(T lambda) of the linear "
+           "damped chain",
            format=".1e"),
     Column("evaluations", "periodic responses computed for the peak", **_INT),
 ))
@@ -206,21 +179,22 @@ GENERATION_KIND = Kind(GENERATION_FORMAT, (
     Column("amplitude", "driving amplitude", format="g"),
     Column("gamma", "on-site damping", format="g"),
     Column("ok", "1: a periodic response was found", **_CODE),
-    Column("runin_residual", "residual after the run-in", format=".1e"),
+    Column("runin_residual", "\\|\\|P(X) - X\\|\\| / scale after the run-in (large: not settled to a periodic "
+           "motion)", format=".1e"),
     Column("residual", "residual after Newton"),
     Column("iterations", "Newton iterations", **_INT),
     Column("rho", "largest \\|multiplier\\| over the driving period 2 pi / omega", format=".4f"),
-    Column("verdict", "1 stable, 0 neutral, -1 unstable (stored as a float)", ""),
+    Column("verdict", "1 stable, 0 neutral, -1 unstable, nan (stored as a float)", ""),
     Column("amp_first", "first bead's amplitude"),
     Column("decay", "-d ln A_n / dn over the bulk", format=".3f"),
     Column("q_bulk", "median local wavenumber over the bulk", format=".4f"),
     Column("q_spread", "interquartile range of the local wavenumbers over the bulk", format=".3f"),
     Column("amp_bulk", "median bulk amplitude", format=".3g"),
-    Column("family_ratio", "its median ratio to the branch wave's at that q and frequency", format=".3g"),
-    Column("distance", "median RMS distance of the normalised bead motion to the branch profile", format=".3f"),
+    Column("family_ratio", "median A_n / A(q_n, omega): 1 for the branch's wave at that frequency", format=".3g"),
+    Column("distance", "median shape distance D_n to the branch's wave U_{q_n} over the bulk", format=".3f"),
     Column("distance_slope", "its slope along the chain", format=".1e"),
-    Column("strain_static", "median static strain (< 0 compressed)", format=".2e"),
-    Column("strain_dynamic", "median dynamic strain amplitude", format=".2e"),
+    Column("strain_static", "median mean strain x_{n+1} - x_n over the bulk (< 0 compressed)", format=".2e"),
+    Column("strain_dynamic", "median (max - min)/2 of x_{n+1} - x_n", format=".2e"),
     Column("A_n", "per bead: amplitude", shape="N"),
     Column("q_n", "per bead: local wavenumber", shape="N"),
     Column("D_n", "per bead: distance to the branch profile", shape="N"),
@@ -1427,12 +1401,13 @@ class Generation(DrivenStudy):
                                                            float(r["omega"]))):
             case = (WAVEFORMS[int(r["waveform"])], "omega", "amplitude", "gamma")
             if not int(r["ok"]):
-                lines.append(GENERATION_KIND.row(r, *case, f"no (run-in residual {r['runin_residual']:.1e})") + " |" * 11)
+                no = f"no (run-in residual {r['runin_residual']:.1e})"
+                lines.append(GENERATION_KIND.row(r, *case, no) + " |" * 11)
                 continue
-            lines.append(GENERATION_KIND.row(r, *case, "yes", "rho", "q_bulk",
-                                             f"{self.linear_wavenumber(r['omega'], r['strain_static']):.4f}", "q_spread",
-                                             "amp_bulk", "family_ratio", "distance", "distance_slope", "decay",
-                                             "strain_static", "strain_dynamic"))
+            q_lin = f"{self.linear_wavenumber(r['omega'], r['strain_static']):.4f}"
+            lines.append(GENERATION_KIND.row(r, *case, "yes", "rho", "q_bulk", q_lin, "q_spread", "amp_bulk",
+                                             "family_ratio", "distance", "distance_slope", "decay", "strain_static",
+                                             "strain_dynamic"))
         return "\n".join(lines) + "\n"
 
 

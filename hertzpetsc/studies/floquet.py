@@ -1,12 +1,8 @@
 """Floquet studies of section 3.5: the scan of rho(F_q) along the branch on N beads (q_c, q_m), and the long-chain
 spectra by Bloch sectors.
 
-Both write their records as they go. The Floquet file (``hertzpetsc-floquet-1``, npz): constants N, alpha,
-tol_rho, method, refined_file (path or ''), note; per q: q, rho (trivial multipliers excluded), outside (|mu| > 1 +
-tol_rho), trivial_spread, growth (ln rho / script-T), multipliers (2N, nan-padded for the SLEPc route),
-refined (1 if the refined wave was used), seconds. The Bloch file (``hertzpetsc-bloch-1``): per (N, q): N, q,
-rho, rho_cell (sector theta = 0), outside, dominant (nev complex multipliers), dominant_theta (theta / 2 pi),
-residual, seconds, slepc_products, slepc_seconds.
+Both write their records as they go: the Floquet file and the Bloch file, their columns declared in
+:data:`FLOQUET_KIND` and :data:`BLOCH_KIND`.
 
 A stability verdict is only given for the waves it is computed on: with a refinement file, every scanned q must
 be in it (a list naming an unrefined q is an error; without a list the scan is restricted to the refined q,

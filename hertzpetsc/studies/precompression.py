@@ -1,24 +1,10 @@
 """Studies of precompressed and dimer chains (issue 16): amplitude families at fixed q from the linear wave to
 the uncompressed limit, the gap opening, dimer families in the mass ratio; the waves of the stability map.
 
-Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.records.NpzRecords`):
-
-* ``hertzpetsc-precompressed-1`` (:class:`AmplitudeFamilies`): constants alpha, delta0, cells_per_pi, a_min,
-  a_max, ds (and masses, branch for a mass pattern); per record: q, kind (0 = a point of the s = log a grid,
-  1 = the gap opening, where the longest bond reaches delta0, 2 = the uncompressed limit delta0 / A = 0, where a
-  and A are inf), a (first sine coefficient of the normalised profile), A (max_c ||u_c||_inf), omega, omega_lin
-  (the branch's linear frequency, closed form), Omega = omega A^(-(alpha-1)/2), lam, gap (the longest bond minus
-  delta0: 2 u(q/2) - delta0 for one mass), iterations.
-* ``hertzpetsc-dimer-2`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end, ds,
-  ds_max; per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u,
-  norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
-  iterations, event (0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the
-  path; an event with iterations 0: its location failed, the record a point of the path next to it, 'unresolved'); state (for -resume, the end state of every q computed, stacked in the order of ``state_q`` (m,)):
-  ``state_Z`` (m, 2, n) the last two extended vectors (u_0 whole, u_1 whole, lam, epsilon: ``state_layout`` =
-  'natural'), ``state_s`` (m, 2), ``state_ds``, ``state_normalised`` (m,). Older files hold one state, of the last
-  q computed (``state_q`` (), ``state_Z`` (2, n), ...; without ``state_layout``, in its writer's rank layout): they
-  resume that q, and a resume that must continue another q is refused. A ``hertzpetsc-dimer-1`` file (no event, no
-  state) is read for its tables; it cannot be resumed.
+Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.records.NpzRecords`), their columns
+declared in :data:`PRECOMPRESSED_KIND` (:class:`AmplitudeFamilies`) and :data:`DIMER_KIND` (:class:`DimerFamilies`,
+with the end state of every q computed, for -resume; older files hold one state, of the last q, and resume that q
+only; a ``hertzpetsc-dimer-1`` file is read for its tables and cannot be resumed).
 
 The stability map in (q, A) (record kind ``hertzpetsc-precompression-map-2``) is :mod:`hertzpetsc.studies.maps`,
 on the waves of :func:`richardson_wave` / :func:`wave_orbit` here.
@@ -533,9 +519,10 @@ class DimerFamilies(Study):
             folds = int(np.sum(np.sign(t[1:]) != np.sign(t[:-1]))) if len(t) > 1 else 0
             last = rows[-1]
             c = {k: DIMER_KIND.cell(k, last[k]) for k in ("epsilon", "v1", "v2")}
-            lines.append(DIMER_KIND.row(last, q_label(q), len(rows), f"{c['epsilon']} ({min(r['epsilon'] for r in rows):.5f})",
-                                        f"{rows[0]['omega']:.6f}", "omega", f"{last['norm_v'] / last['norm_u']:.4f}",
-                                        f"{c['v1']}, {c['v2']}", folds, "omega_acoustic", events))
+            reached = f"{c['epsilon']} ({min(r['epsilon'] for r in rows):.5f})"
+            lines.append(DIMER_KIND.row(last, q_label(q), len(rows), reached, f"{rows[0]['omega']:.6f}", "omega",
+                                        f"{last['norm_v'] / last['norm_u']:.4f}", f"{c['v1']}, {c['v2']}", folds,
+                                        "omega_acoustic", events))
         for q, why in self.stopped.items():
             lines.append(f"\nq = {q_label(q)}: stopped: {why}")
         for q in self.qs:

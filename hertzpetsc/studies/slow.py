@@ -344,8 +344,9 @@ class SlowInstabilityScan(Study):
         for r in rows:
             m = int(r["m"])
             g = " / ".join(f"{v:.1e}" for v in np.asarray(r["gamma_cm"]))
-            mono = [SLOW_KIND.cell(k, r[k]) for k in ("gamma_mono", "raw_cluster_mono", "cluster_mono", "eigvec_mono")] \
-                + [f"{r['E_orbit']:.1e} / {r['E_short']:.1e}"] if m > 0 else ["n/a"] * 5
+            mono = [SLOW_KIND.cell(k, r[k]) for k in ("gamma_mono", "raw_cluster_mono", "cluster_mono",
+                                                      "eigvec_mono")] + [f"{r['E_orbit']:.1e} / {r['E_short']:.1e}"] \
+                if m > 0 else ["n/a"] * 5
             verdict = {1: f"slowly unstable, gamma = {r['gamma_cm_extrapolated']:.2g}", 0: "stable within resolution",
                        2: "unresolved (refine the grids)"}[int(r["verdict"])]
             lines.append(SLOW_KIND.row(r, f"{q_label(float(r['q']))} ({r['q']:.4f})", m if m > 0 else "-", "theta_cm",

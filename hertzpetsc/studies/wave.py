@@ -3,19 +3,10 @@ mass pattern), wavenumbers q and an amplitude A = max |u|, the travelling wave (
 row), put on a periodic chain of N beads, refined by Gauss-Newton on its cell (section 3.4) and its Floquet
 multipliers modulo shift from the Bloch sectors of its cell (section 3.5), on N beads and on longer chains L N.
 
-Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues): constants the model's description
-(:meth:`~hertzpetsc.model.LatticeModel.describe`: Hertz's alpha, delta0 when > 0; any other law its name ``law`` and
-parameters; the file's model is ``LatticeModel.from_description`` of them), masses, A,
-cells_per_pi, N, sizes (the longer chains), tol, tol_rho, solver_options; per record: q, m (wavelengths on N
-beads), omega (of the refined wave), E_profile (E(q) of the wave interpolated from the grid), E_refined, E_floor
-(where E_refined > tol: the refinement's flow's own error at the refined state, within which it was accepted;
-NaN elsewhere and in files written before it), iterations (Gauss-Newton), rho (the largest multiplier modulus,
-trivial ones excluded), outside (multipliers with |mu| > 1 + tol_rho), spread (of the trivial multipliers),
-unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on each longer chain, in the order of ``sizes``), seconds; and
-the objects the rows are about: u (the wave's p profiles on the whole period, on the grid ``xi``), state (the
-refined (N, 2) state on the chain) and dominant (the largest nontrivial multipliers modulo shift). Files written
-before those hold NaN there. A wave of the optical branch of a mass pattern has the constant branch = 'optical'
-(the acoustic waves' files have none, as before it). The columns are declared once, in :data:`WAVE_KIND`.
+Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues), its columns declared once in
+:data:`WAVE_KIND`: the model's description (the file's model is ``LatticeModel.from_description`` of it), the
+rows' numbers and the objects they are about (the wave's profiles, the refined state, the dominant multipliers; NaN
+in files written before those).
 """
 from __future__ import annotations
 

@@ -421,10 +421,13 @@ class Kind:
         columns it lacks (but the ``optional`` ones) and its entries that no column declares (but ``format``, the
         provenance, the columns and the ``state_*`` arrays)."""
         import re
-        patterns = [re.sub(r"<[^>]*>", ".+", re.escape(c.name)) for c in self.columns if "<" in c.name]   # one per x
-        missing = [c.name for c in self.columns if c.name not in arrays and not c.optional]
+        patterns = {c.name: re.sub(r"<[^>]*>", ".+", re.escape(c.name)) for c in self.columns if "<" in c.name}
+
+        def has(name):                  # a name <x> stands for one entry per x
+            return name in arrays or name in patterns and any(re.fullmatch(patterns[name], k) for k in arrays)
+        missing = [c.name for c in self.columns if not has(c.name) and not c.optional]
         undeclared = [k for k in arrays if k not in self.by_name and k != "format" and k not in ABOUT
-                      and not k.startswith("state_") and not any(re.fullmatch(p, k) for p in patterns)]
+                      and not k.startswith("state_") and not any(re.fullmatch(p, k) for p in patterns.values())]
         return missing, undeclared
 
     def schema(self):

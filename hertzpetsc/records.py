@@ -411,10 +411,13 @@ class Kind:
                       self.by_name[name].format)
 
     def row(self, record, *cells):
-        """A Markdown table row of ``record``: each of ``cells`` is a column's name (the record's value in the
-        column's format) or a cell already written (anything else, as ``str`` writes it)."""
-        return "| " + " | ".join(self.cell(c, record[c]) if isinstance(c, str) and c in self.by_name else str(c)
-                                 for c in cells) + " |"
+        """A Markdown table row of ``record``: in each of ``cells`` (a string, or anything ``str`` writes) every
+        ``{name}`` of a column is replaced by the record's value in the column's format (:meth:`cell`)."""
+        import re
+
+        def fill(m):
+            return self.cell(m.group(1), record[m.group(1)]) if m.group(1) in self.by_name else m.group(0)
+        return "| " + " | ".join(re.sub(r"\{(\w+)\}", fill, str(c)) for c in cells) + " |"
 
     def check(self, arrays):
         """(missing, undeclared) of a record archive's ``arrays`` (a loaded file, :func:`npz_arrays`): the declared
@@ -761,14 +764,15 @@ def _load_h5(path, what, error):
 class AppendRecords(RecordStore):
     """Fixed-length float64 records appended to ``directory/<data>``, with a JSON header ``directory/<header>``.
 
-    The header holds the identity (and whatever else describes the records). Each append is flushed and fsynced,
+    The header holds the identity (and whatever else describes the records; ``columns``, a :class:`Kind`: the
+    units and meanings of its keys and of the records' parts, under ``columns``). Each append is flushed and fsynced,
     so a killed run loses at most the record in flight; a partial trailing record is dropped on resume.
     """
 
     def __init__(self, directory, kind, header, identity, record_length, comm=None, mode="new",
-                 header_name="run.json", data_name="records.f64", what="run directory"):
+                 header_name="run.json", data_name="records.f64", what="run directory", columns=None):
         self.directory = directory
-        self.header = dict(header, format=kind)
+        self.header = dict(header, format=kind, **({} if columns is None else {"columns": columns.about()}))
         self.record_length = int(record_length)
         self.header_path = os.path.join(directory, header_name)
         self.data_path = os.path.join(directory, data_name)

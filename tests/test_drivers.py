@@ -1,5 +1,6 @@
 """Every driver in scripts/ run once as a subprocess on tiny inputs (the library's studies are tested in-process):
 it reads its options, runs, writes its files, and the paper's numbers come out of the main command."""
+import json
 import math
 import os
 
@@ -7,8 +8,9 @@ import numpy as np
 import pytest
 
 from conftest import DATA, SCRIPTS, run_script
-from hertzpetsc.branch import Branch
+from hertzpetsc.branch import BRANCH_KIND, Branch
 from hertzpetsc.records import read_kind
+from hertzpetsc.simulation import LONGRUN_KIND
 from hertzpetsc.studies.floquet import BLOCH_KIND, FLOQUET_KIND
 from hertzpetsc.studies.refinement import REFINED_KIND, RefinedStates
 
@@ -65,7 +67,7 @@ def test_floquet_drivers(work):
                    work / "f.npz")
     assert r.returncode == 0, r.stderr
     assert "| 40 | 2pi/5 | 8 |" in (work / "fl.md").read_text()
-    for name, kind in (("f", FLOQUET_KIND), ("fl", BLOCH_KIND)):            # the files hold the declared columns
+    for name, kind in (("b", BRANCH_KIND), ("f", FLOQUET_KIND), ("fl", BLOCH_KIND)):   # the declared columns
         assert kind.check(read_kind(str(work / f"{name}.npz"), kind, "x")) == ([], []), name
 
 
@@ -78,6 +80,10 @@ def test_long_run_and_dynamics_figures(work):
     assert r.returncode == 0, r.stderr
     assert {p.name for p in (work / "dyn").iterdir()} == {"run_snapshot.png", "run_forces.png", "deviation.png"}
     assert "| run | 1.2566 | 1.2627 | refined |" in (work / "lr.md").read_text()
+    with open(run / "run.json") as f:
+        header = json.load(f)                       # the keys and the records' parts, declared once
+    assert set(header["columns"]) == {c.name for c in LONGRUN_KIND.columns}
+    assert {c.name for c in LONGRUN_KIND.columns if c.constant} <= set(header)
 
 
 def test_every_file_a_driver_writes_names_its_provenance(work, tmp_path):

@@ -350,7 +350,7 @@ def test_an_error_raised_on_every_rank_keeps_its_fields():
 
 # --- record kinds declared once ---------------------------------------------------------------------------------
 def test_a_kinds_rows_check_and_typed_reader(tmp_path):
-    """Kind.row writes each named column in its format and any other cell as given; Kind.check names the declared
+    """Kind.row writes each {column} of its cells in the column's format, the rest as given; Kind.check names the declared
     columns a file lacks and the entries it has that no column declares (a name <x> standing for one per x);
     read_kind refuses a file of another kind or without a declared column, naming it; typed_records gives each value
     its column's dtype."""
@@ -365,7 +365,8 @@ def test_a_kinds_rows_check_and_typed_reader(tmp_path):
     records = [dict(q=0.5, m=3, mu=1 + 2j, tag="a", x=[1.0, 2.0]), dict(q=1.25, m=4, mu=0.5j, tag="bc", x=[3.0, 4.0])]
     arrays = npz_arrays(kind.name, dict(alpha=1.5, input_branch_sha256="0" * 64), kind.fields, records,
                         dtypes=kind.dtypes, columns=kind)
-    assert kind.row(records[1], "q", "m", "tag", f"{abs(records[1]['mu']):.1f}", 7) == "| 1.2500 | 4 | bc | 0.5 | 7 |"
+    assert kind.row(records[1], "{q}", "{m} ({tag})", "tag", f"{abs(records[1]['mu']):.1f}", 7, "{other}") == \
+        "| 1.2500 | 4 (bc) | tag | 0.5 | 7 | {other} |"          # a literal that names a column stays a literal
     assert kind.check(arrays) == ([], [])
     assert kind.check(dict(arrays, extra=np.zeros(2))) == ([], ["extra"])
     assert kind.check({k: v for k, v in arrays.items() if k != "m"}) == (["m"], [])

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Iterator, Mapping, Optional
 
 import numpy as np
 
-from ..branch import BRANCH_FORMAT, POINT_FIELDS, Branch, BranchPoint, branch_store
+from ..branch import BRANCH_FORMAT, BRANCH_KIND, Branch, BranchPoint, branch_store
 from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
                             paper_targets)
 from ..errors import (ParameterError, RecordFileError, check_instance, check_integer, check_integers, check_prefix,
@@ -41,7 +41,7 @@ class BranchStudy(Study):
     """
 
     Parameters = ContinuationParameters
-    FORMAT, FIELDS = BRANCH_FORMAT, POINT_FIELDS + ("u",)
+    FORMAT, FIELDS, COLUMNS = BRANCH_FORMAT, BRANCH_KIND.fields, BRANCH_KIND
     ROLES = TW_ROLE
     WHAT = "branch file"
 

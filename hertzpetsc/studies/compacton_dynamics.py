@@ -240,12 +240,12 @@ class CompactonDynamics(Study):
                  "\\|delta\\|(T) | max \\|v\\| left behind / v_peak | TS steps | s |",
                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in sorted(self.store.records, key=lambda r: (-float(r["q"]), str(r["kind"]))):
-            ln3, c = math.log(abs(r["mu3"])), {k: DYNAMICS_KIND.cell(k, r[k]) for k in DYNAMICS_KIND.fields[3:-5]}
+            ln3 = math.log(abs(r["mu3"]))
             lines.append(DYNAMICS_KIND.row(
-                r, q_text(float(r["q"])), "kind", fmt_multiplier(complex(r["mu3"])),
-                f"{c['rate']} ({c['rate_first']}-{c['rate_last']})", f"{ln3:.4f}", f"{r['rate'] / ln3:.4f}",
-                "rest_floor", "rest_max_late", f"{c['b_start']} -> {c['b_end']}", f"{c['a_end']} / {c['a_predicted']}",
-                "dist_end", "behind_v", "steps", "seconds"))
+                r, q_text(float(r["q"])), "{kind}", fmt_multiplier(complex(r["mu3"])),
+                "{rate} ({rate_first}-{rate_last})", f"{ln3:.4f}", f"{r['rate'] / ln3:.4f}", "{rest_floor}",
+                "{rest_max_late}", "{b_start} -> {b_end}", "{a_end} / {a_predicted}", "{dist_end}", "{behind_v}",
+                "{steps}", "{seconds}"))
         return "\n".join(lines) + "\n"
 
     def destroy(self) -> None:

@@ -254,13 +254,11 @@ class CompactonStabilityScan(ContinuedScan):
                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in self.rows():
             dom = ", ".join(fmt_multiplier(v) for v in r["dominant"][:3])
-            c = {k: STABILITY_KIND.cell(k, r[k]) for k in STABILITY_KIND.fields[:-3]}
             lines.append(STABILITY_KIND.row(
-                r, "alpha", q_text(float(r["q"])), "gap", "D", f"{c['core_first']}-{c['core_last']}",
-                f"{c['residual']} / {c['residual_check']}", "iterations", f"{c['jordan_mean']} ({c['jordan_split']})",
-                f"{c['jordan_translation']}, {c['jordan_generalized']}", dom, "max_nontrivial",
-                int(r["unstable"]) or "none", "doubling_change", f"{c['slepc_change']} ({c['slepc_nev']}, "
-                f"{c['slepc_products']})", "seconds"))
+                r, "{alpha}", q_text(float(r["q"])), "{gap}", "{D}", "{core_first}-{core_last}",
+                "{residual} / {residual_check}", "{iterations}", "{jordan_mean} ({jordan_split})",
+                "{jordan_translation}, {jordan_generalized}", dom, "{max_nontrivial}", int(r["unstable"]) or "none",
+                "{doubling_change}", "{slepc_change} ({slepc_nev}, {slepc_products})", "{seconds}"))
         return "\n".join(lines) + "\n"
 
     def summary(self) -> str:

@@ -209,8 +209,8 @@ class Restitution(Study):
                  "", "| v | e | abs de | 1 - e | law 1 - e | (1 - e) / law |", "|---|---|---|---|---|---|"]
         for r in self.rows():
             e = float(r["e"])
-            lines.append(RESTITUTION_KIND.row(r, "v", "e", f"{abs(e - r['e_coarse']):.1e}", f"{1 - e:.6e}", "law",
-                                              f"{(1 - e) / r['law']:.6f}"))
+            lines.append(RESTITUTION_KIND.row(r, "{v}", "{e}", f"{abs(e - r['e_coarse']):.1e}", f"{1 - e:.6e}",
+                                              "{law}", f"{(1 - e) / r['law']:.6f}"))
         if len(self.records) >= 2:
             slope, expected, ratio = self.fit()
             lines += ["", f"fit on the three smallest v: 1 - e ~ v^{slope:.4f} (law: v^{expected:.4f}); (1 - e) / law "
@@ -353,6 +353,6 @@ class PulseDecay(Study):
                  "| v0 | " + " | ".join(f"A_{n}" for n in marks) + " | p fitted | d(A^p)/dn / damping | misfit |",
                  "|---|" + "---|" * (len(marks) + 3)]
         for r in sorted(self.records, key=lambda r: -float(r["v0"])):
-            lines.append(PULSE_KIND.row(r, "v0", *(f"{r['amplitude'][n]:.6f}" for n in marks), "p_fit", "slope",
-                                        "misfit"))
+            lines.append(PULSE_KIND.row(r, "{v0}", *(f"{r['amplitude'][n]:.6f}" for n in marks), "{p_fit}", "{slope}",
+                                        "{misfit}"))
         return "\n".join(lines) + "\n"

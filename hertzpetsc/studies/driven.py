@@ -824,8 +824,8 @@ class ResponseCurve(DrivenStudy):
             dp = float(r["dp_ds"])
             if int(r["event"]) and (not arclength or (math.isfinite(dp) and dp != 0.0)):
                 name += " (bracketed)"
-            lines.append(RESPONSE_KIND.row(r, "branch", "periods", name, "p", "confirmed", "rho", "residual",
-                                           "force_right", "amp_max"))
+            lines.append(RESPONSE_KIND.row(r, "{branch}", "{periods}", name, "{p}", "{confirmed}", "{rho}",
+                                           "{residual}", "{force_right}", "{amp_max}"))
         for j in sorted({int(r["branch"]) for r in recs}):
             br = self.branch_records(j)
             span = f"{len(br)} points, {self.parameter} from {float(br[0]['p']):.6g} to {float(br[-1]['p']):.6g}"
@@ -1053,9 +1053,10 @@ class LinearResonances(DrivenStudy):
                  "| k | omega_k | peak (linear) | peak - omega_k | peak (shooting) | shooting - linear | "
                  "|X_N|/a linear | |X_N|/a shooting | mu error | solves |", "|---|---|---|---|---|---|---|---|---|---|"]
         for r in sorted(self.store.records, key=lambda r: int(r["k"])):
-            lines.append(RESONANCE_KIND.row(r, "k", "omega_k", "peak_linear", f"{r['peak_linear'] - r['omega_k']:.2e}",
-                                            "peak_shooting", f"{r['peak_shooting'] - r['peak_linear']:.1e}",
-                                            "amp_linear", "amp_shooting", "mu_error", "evaluations"))
+            lines.append(RESONANCE_KIND.row(r, "{k}", "{omega_k}", "{peak_linear}",
+                                            f"{r['peak_linear'] - r['omega_k']:.2e}", "{peak_shooting}",
+                                            f"{r['peak_shooting'] - r['peak_linear']:.1e}", "{amp_linear}",
+                                            "{amp_shooting}", "{mu_error}", "{evaluations}"))
         return "\n".join(lines) + "\n"
 
     def destroy(self) -> None:
@@ -1198,9 +1199,9 @@ class WaveEnds(DrivenStudy):
                  "| q | m | N | rtol | imposed | residual | moved | rho | outside | rho periodic | driven / periodic |",
                  "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in recs:
-            lines.append(WAVE_ENDS_KIND.row(r, f"{q_label(float(r['q']))} ({r['q']:.4f})", "m", "N", "rtol", "imposed",
-                                            "residual", "moved", "rho", "outside", "rho_periodic",
-                                            f"{r['rho'] / r['rho_periodic']:.4f}"))
+            lines.append(WAVE_ENDS_KIND.row(r, f"{q_label(float(r['q']))} ({r['q']:.4f})", "{m}", "{N}", "{rtol}",
+                                            "{imposed}", "{residual}", "{moved}", "{rho}", "{outside}",
+                                            "{rho_periodic}", f"{r['rho'] / r['rho_periodic']:.4f}"))
         return "\n".join(lines) + "\n"
 
 
@@ -1399,15 +1400,15 @@ class Generation(DrivenStudy):
                  "decay | static strain | dynamic strain |", "|---" * 16 + "|"]
         for r in sorted(self.store.records, key=lambda r: (int(r["waveform"]), float(r["gamma"]), float(r["amplitude"]),
                                                            float(r["omega"]))):
-            case = (WAVEFORMS[int(r["waveform"])], "omega", "amplitude", "gamma")
+            case = (WAVEFORMS[int(r["waveform"])], "{omega}", "{amplitude}", "{gamma}")
             if not int(r["ok"]):
                 no = f"no (run-in residual {r['runin_residual']:.1e})"
                 lines.append(GENERATION_KIND.row(r, *case, no) + " |" * 11)
                 continue
             q_lin = f"{self.linear_wavenumber(r['omega'], r['strain_static']):.4f}"
-            lines.append(GENERATION_KIND.row(r, *case, "yes", "rho", "q_bulk", q_lin, "q_spread", "amp_bulk",
-                                             "family_ratio", "distance", "distance_slope", "decay", "strain_static",
-                                             "strain_dynamic"))
+            lines.append(GENERATION_KIND.row(r, *case, "yes", "{rho}", "{q_bulk}", q_lin, "{q_spread}", "{amp_bulk}",
+                                             "{family_ratio}", "{distance}", "{distance_slope}", "{decay}",
+                                             "{strain_static}", "{strain_dynamic}"))
         return "\n".join(lines) + "\n"
 
 

@@ -55,12 +55,12 @@ FLOQUET_KIND = Kind(FLOQUET_FORMAT, (
            "before it)", "", str, "s", constant=True, optional=True),
     Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
            "before it)", "", str, "s", constant=True, optional=True),
-    Column("q", "wavenumbers", format=".6f"),
+    Column("q", "wavenumbers", format=".4f"),
     Column("rho", "spectral radius of F_q, the four trivial multipliers excluded", format=".8f"),
     Column("outside", "multipliers with \\|mu\\| > 1 + tol_rho", "count", np.int64, "d"),
     Column("trivial_spread", "spread of the four trivial multipliers around 1 (the orbit error's sqrt)",
            format=".1e"),
-    Column("growth", "ln(rho) / script-T, the growth rate per unit time", format=".2e"),
+    Column("growth", "ln(rho) / script-T, the growth rate per unit time", format=".4f"),
     Column("refined", "1 if the refined wave was used", "", np.int64, "d"),
     Column("seconds", "wall time of the q", "s", format=".1f"),
     Column("multipliers", "all multipliers (the `slepc` route: its `nev`, padded with nan)", dtype=complex,
@@ -262,9 +262,8 @@ class FloquetScan(Study):
             # the SLEPc route sees nev multipliers only: when all are outside, more may be; the trivial ones unseen
             outside, spread = int(r["outside"]), float(r["trivial_spread"])
             outside = f">= {outside}" if self.method == "slepc" and outside >= self.nev else str(outside)
-            lines.append(f"| {float(r['q']):.4f} | {float(r['rho']):.8f} | {outside} | "
-                         f"{'n/a' if math.isnan(spread) else format(spread, '.1e')} | {float(r['growth']):.4f} | "
-                         f"{'refined' if int(r['refined']) else 'branch'} |")
+            lines.append(FLOQUET_KIND.row(r, "{q}", "{rho}", outside, "n/a" if math.isnan(spread) else f"{spread:.1e}",
+                                          "{growth}", "refined" if int(r["refined"]) else "branch"))
         if not len(rows):
             return "\n".join(lines) + "\n"
         # a wave whose trivial multipliers spread by more than tol_rho (an unrefined one) cannot be judged there
@@ -443,9 +442,9 @@ class BlochScan(Study):
                 slepc = (f"{int(r['slepc_products'])}, {float(r['slepc_seconds']):.1f}, "
                          + (f"{dist:.1e}" if math.isfinite(dist) else "*"))
             older = older or r["res_products"] < 0 or slepc.endswith("*")
-            lines.append(BLOCH_KIND.row(r, "N", q_label(q), int(round(N * q / (2 * math.pi))), "rho", "rho_cell",
-                                        f"{ref:.8f}" if ref is not None else "n/a", "outside", work, "seconds",
-                                        f"{BLOCH_KIND.cell('residual', r['residual'])} {res_detail}", slepc))
+            lines.append(BLOCH_KIND.row(r, "{N}", q_label(q), int(round(N * q / (2 * math.pi))), "{rho}", "{rho_cell}",
+                                        f"{ref:.8f}" if ref is not None else "n/a", "{outside}", work, "{seconds}",
+                                        "{residual} " + res_detail, slepc))
             dom = ", ".join(f"{abs(v):.6f} @ {np.angle(v) / math.pi:+.4f} [{t:.3f}]"
                             for v, t in zip(r["dominant"], r["dominant_theta"]))
             dominant.append(f"- N = {N}, q = {q_label(q)}: {dom}")

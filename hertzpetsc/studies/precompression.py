@@ -518,11 +518,10 @@ class DimerFamilies(Study):
             t = t[np.isfinite(t)]
             folds = int(np.sum(np.sign(t[1:]) != np.sign(t[:-1]))) if len(t) > 1 else 0
             last = rows[-1]
-            c = {k: DIMER_KIND.cell(k, last[k]) for k in ("epsilon", "v1", "v2")}
-            reached = f"{c['epsilon']} ({min(r['epsilon'] for r in rows):.5f})"
-            lines.append(DIMER_KIND.row(last, q_label(q), len(rows), reached, f"{rows[0]['omega']:.6f}", "omega",
-                                        f"{last['norm_v'] / last['norm_u']:.4f}", f"{c['v1']}, {c['v2']}", folds,
-                                        "omega_acoustic", events))
+            least = min(r["epsilon"] for r in rows)
+            lines.append(DIMER_KIND.row(last, q_label(q), len(rows), f"{{epsilon}} ({least:.5f})",
+                                        f"{rows[0]['omega']:.6f}", "{omega}", f"{last['norm_v'] / last['norm_u']:.4f}",
+                                        "{v1}, {v2}", folds, "{omega_acoustic}", events))
         for q, why in self.stopped.items():
             lines.append(f"\nq = {q_label(q)}: stopped: {why}")
         for q in self.qs:

@@ -38,13 +38,13 @@ REFINED_KIND = Kind(REFINED_FORMAT, (
            "s", constant=True, optional=True),
     Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
            "before it)", "", str, "s", constant=True, optional=True),
-    Column("q", "wavenumbers 2 pi m / N", format=".6f"),
+    Column("q", "wavenumbers 2 pi m / N", format=".4f"),
     Column("E_before_paper_flow", "E(q) of the interpolated branch wave with the paper's flow (rtol 1e-12, atol "
            "1e-14)", format=".2e"),
     Column("E_before", "E(q) of the interpolated branch wave, tight flow (rtol 1e-14)", format=".2e"),
     Column("E_after", "E(q) of the refined state, tight flow", format=".2e"),
     Column("E_after_paper_flow", "E(q) of the refined state with the paper's flow", format=".2e"),
-    Column("r", "relative size of the last Gauss-Newton step (the paper's r(q))", format=".2e"),
+    Column("r", "relative size of the last Gauss-Newton step (the paper's r(q))", format=".1e"),
     Column("iterations", "Gauss-Newton iterations (stored as floats)", "count", format=".0f"),
     Column("jacobians", "Jacobian evaluations (stored as floats)", "count", format=".0f"),
     Column("wall_time", "seconds", "s", format=".1f"),
@@ -203,10 +203,9 @@ class RefinementScan(Study):
                               f"own error at the refined state, {r['E_after_floor']:.1e} (its S X(script-T) against "
                               f"the same flow's at a tenth of its tolerances, which gives E = "
                               f"{r['E_after_fine']:.2e}).")
-            lines.append(f"| {q:.4f} | {int(round(q * N / (2 * math.pi)))} | {r['E_before_paper_flow']:.2e} | "
-                         f"{r['E_before']:.2e} | {r['E_after']:.2e}{' (floor)' if floor else ''} | "
-                         f"{r['E_after_paper_flow']:.2e} | {r['r']:.1e} | {int(r['iterations'])} | "
-                         f"{int(r['jacobians'])} |")
+            lines.append(REFINED_KIND.row(r, "{q}", int(round(q * N / (2 * math.pi))), "{E_before_paper_flow}",
+                                          "{E_before}", "{E_after}" + (" (floor)" if floor else ""),
+                                          "{E_after_paper_flow}", "{r}", "{iterations}", "{jacobians}"))
         if floors:
             lines += ["", "Refined to the tight flow's floor (the iteration stopped above the target E <= "
                       f"{self.tol:g}; hertzpetsc.shooting):"] + floors

@@ -344,14 +344,13 @@ class SlowInstabilityScan(Study):
         for r in rows:
             m = int(r["m"])
             g = " / ".join(f"{v:.1e}" for v in np.asarray(r["gamma_cm"]))
-            mono = [SLOW_KIND.cell(k, r[k]) for k in ("gamma_mono", "raw_cluster_mono", "cluster_mono",
-                                                      "eigvec_mono")] + [f"{r['E_orbit']:.1e} / {r['E_short']:.1e}"] \
+            mono = ["{gamma_mono}", "{raw_cluster_mono}", "{cluster_mono}", "{eigvec_mono}", "{E_orbit} / {E_short}"] \
                 if m > 0 else ["n/a"] * 5
             verdict = {1: f"slowly unstable, gamma = {r['gamma_cm_extrapolated']:.2g}", 0: "stable within resolution",
                        2: "unresolved (refine the grids)"}[int(r["verdict"])]
-            lines.append(SLOW_KIND.row(r, f"{q_label(float(r['q']))} ({r['q']:.4f})", m if m > 0 else "-", "theta_cm",
-                                       g, *mono, "band_cm", f"{r['slope_cm']:.1e} / {r['slope_whitham']:.2f}",
-                                       "resolution", verdict))
+            lines.append(SLOW_KIND.row(r, f"{q_label(float(r['q']))} ({r['q']:.4f})", m if m > 0 else "-",
+                                       "{theta_cm}", g, *mono, "{band_cm}", "{slope_cm} / {slope_whitham}",
+                                       "{resolution}", verdict))
         return "\n".join(lines) + "\n"
 
 

@@ -244,12 +244,11 @@ class SolitaryStabilityScan(ContinuedScan):
             unit = (f"{float(r['speed']):.6f}, {float(r['dHdc_unit']):.6g}" if math.isfinite(float(r["speed"]))
                     else "(scale-free)")
             dom = ", ".join(fmt_multiplier(v) for v in r["dominant"][:3])
-            c = {k: SOLITARY_KIND.cell(k, r[k]) for k in SOLITARY_KIND.fields[:-3]}
             lines.append(SOLITARY_KIND.row(
-                r, "alpha", "c0", mach, "delta0", "kappa", f"{c['residual']} / {c['residual_check']}",
-                f"{c['jordan_mean']} ({c['jordan_split']})", dom, f"{c['essential']} ({c['eta']})", "points",
-                int(r["unstable"]) or "none", "H", f"{c['log_slope']} / {fd_text}", unit,
-                f"{c['tail_front']} / {c['tail_rear']}", "doubling_change", "seconds"))
+                r, "{alpha}", "{c0}", mach, "{delta0}", "{kappa}", "{residual} / {residual_check}",
+                "{jordan_mean} ({jordan_split})", dom, "{essential} ({eta})", "{points}", int(r["unstable"]) or "none",
+                "{H}", "{log_slope} / " + fd_text, unit, "{tail_front} / {tail_rear}", "{doubling_change}",
+                "{seconds}"))
         return "\n".join(lines) + "\n"
 
     def summary(self):

@@ -226,11 +226,9 @@ class WaveStudy(Study):
             extra = "".join(f" {float(v) - 1:.2e} |" for v in np.atleast_1d(r["rho_sizes"]))
             # above the target: accepted within the refinement flow's own error (hertzpetsc.shooting)
             floor = "" if math.isnan(float(r["E_floor"])) else f" (flow's floor {float(r['E_floor']):.0e})"
-            lines.append(f"| {float(r['q']):.6f} | {int(r['m'])} | {float(r['omega']):.8f} | "
-                         f"{float(r['E_profile']):.1e} | {float(r['E_refined']):.1e}{floor} | "
-                         f"{float(r['rho']) - 1:.2e} | {int(r['outside'])} | {float(r['spread']):.1e} | "
-                         f"{'unstable' if int(r['unstable']) else 'stable within ' + format(p.tol_rho, 'g')} |"
-                         + extra)
+            lines.append(WAVE_KIND.row(r, "{q}", "{m}", "{omega}", "{E_profile}", "{E_refined}" + floor,
+                                       f"{r['rho'] - 1:.2e}", "{outside}", "{spread}",
+                                       "unstable" if int(r["unstable"]) else f"stable within {p.tol_rho:g}") + extra)
         lines += [f"\nNot computed{'' if isinstance(err, FamilyFold) else ' (-resume retries it)'}: q = {q:.6f}: "
                   f"{err}" for q, err in sorted(getattr(self, "failed", {}).items())]
         return "\n".join(lines) + "\n"

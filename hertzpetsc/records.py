@@ -398,7 +398,8 @@ class Kind:
 
     @property
     def dtypes(self):
-        return {c.name: c.dtype for c in self.columns if c.dtype is not float}
+        """{field: dtype} of the per-record fields that are not float64 (the record store's ``dtypes``)."""
+        return {c.name: c.dtype for c in self.columns if c.dtype is not float and not c.constant}
 
     def about(self):
         """{name: {unit, description, dtype}} of every column: the file's ``__columns__``."""

@@ -6,37 +6,8 @@ compactons, the long-wave comparison, the figures) takes a :class:`BranchPoint` 
 
 The branch file is a numpy ``.npz`` archive (``numpy.load(path)``), rewritten atomically after every converged
 point by the record store (:class:`hertzpetsc.records.NpzRecords`), so a killed run leaves the last complete
-file. Schema (P = number of points, K = cells_per_pi):
-
-=================  ===========  ==================================================================
-name               shape        meaning
-=================  ===========  ==================================================================
-format             ()           the string ``hertzpetsc-branch-1``
-alpha              ()           Hertz exponent (eq. vhertz)
-cells_per_pi       ()           K; grid step h = pi / K
-h                  ()           grid step
-M                  ()           target wavenumbers are q = m pi / M (and q_stop)
-q                  (P,)         wavenumber, decreasing from pi
-xi                 (K+1,)       grid points j h on the half period [0, pi]
-u                  (P, K+1)     profile u(xi; q) on [0, pi]; u is odd and 2 pi-periodic (u(2 pi - xi) = -u(xi))
-norm_inf           (P,)         ||u||_inf (parabolic refinement of the grid maximum)
-slope              (P,)         p(q) = u'(0), the free-flight slope
-ell                (P,)         free-flight half-length ell(q)
-N                  (P,)         N(q) = 2 (pi - ell) / q (eq. defnq)
-F                  (P,)         F(q) = 2 ell / q
-T                  (P,)         inverse velocity script-T(q) = q ||u||_inf^((alpha-1)/2) (eq. invv)
-omega_A0           (P,)         omega(q, A0), A0 = ||u0||_inf (eq. dispers)
-rescaled_norm      (P,)         ||u||_inf q^(2/(alpha-1)) (-> k_alpha, eq. normscaling)
-snes_iterations    (P,)         Newton iterations at this q (last sub-step)
-ksp_iterations     (P,)         linear iterations at this q (last sub-step)
-residual_norm      (P,)         final ||R(u)||_2 of the discrete eq. ad
-snes_reason        (P,)         PETSc converged reason
-substeps           (P,)         continuation sub-steps used to reach q from the previous point (1 = no reduction)
-wall_time          (P,)         seconds spent on this point
-meta               ()           JSON string: software versions, ranks, options, creation time
-model              ()           JSON string: the model's description (LatticeModel.describe: law by name, its
-                                parameters, masses, damping); absent for the uncompressed monatomic Hertz chain
-=================  ===========  ==================================================================
+file. Its columns (P = number of points, K = cells_per_pi; u is odd and 2 pi-periodic, u(2 pi - xi) = -u(xi))
+are declared in :data:`BRANCH_KIND`.
 
 A resumed file must have the same alpha, cells_per_pi and M (and model, where it has one): its identity. The file
 reopens with its model (:meth:`Branch.load`).
@@ -53,17 +24,44 @@ import numpy as np
 from .diagnostics import WaveDiagnostics, crossing
 from .errors import ParameterError, RecordFileError
 from .model import LatticeModel
-from .records import MemoryRecords, NpzRecords, check_kind, load_npz, on_rank0
+from .records import Column, Kind, MemoryRecords, NpzRecords, on_rank0, read_kind
 from .stencil import full_period
 
 if TYPE_CHECKING:
     from petsc4py import PETSc
 
 BRANCH_FORMAT = "hertzpetsc-branch-1"
-SCALARS = ("alpha", "cells_per_pi", "h", "M")
-STAT_FIELDS = ("snes_iterations", "ksp_iterations", "residual_norm", "snes_reason", "substeps", "wall_time")
-POINT_FIELDS = ("q",) + WaveDiagnostics.names() + STAT_FIELDS
-INT_FIELDS = ("snes_iterations", "ksp_iterations", "snes_reason", "substeps")
+_INT = dict(unit="count", dtype=np.int64, format="d")
+BRANCH_KIND = Kind(BRANCH_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("cells_per_pi", "the grid: h = pi / cells_per_pi", constant=True, **_INT),
+    Column("h", "grid step pi / cells_per_pi", constant=True),
+    Column("M", "the targets q = m pi / M", constant=True, **_INT),
+    Column("xi", "grid points j h on [0, pi]", shape="K+1", constant=True),
+    Column("meta", "JSON: the run's provenance when the branch was started (the keys of `__provenance__`: software "
+           "versions `hertzpetsc`, `petsc`, `petsc4py`, `slepc4py`, `numpy`, `python`, ..., `ranks`, `argv`, "
+           "`created`), `params`, `prefix`", "", str, "s", constant=True),
+    Column("model", "JSON: the model's description (law by name and parameters, masses, damping) for a branch of "
+           "another model than the uncompressed monatomic Hertz chain (API only); absent for it; part of the "
+           "identity; `Branch.load` rebuilds it", "", str, "s", constant=True, optional=True),
+    Column("q", "wavenumbers, decreasing from pi"),
+    Column("norm_inf", "\\|\\|u\\|\\|_inf (parabolic refinement of the grid maximum)"),
+    Column("slope", "p(q) = u'(0), the free-flight slope"),
+    Column("ell", "free-flight half-length ell(q) (cubic location of the sign change of the shift differences)"),
+    Column("N", "N(q) = 2 (pi - ell)/q (eq. defnq)"),
+    Column("F", "F(q) = 2 ell/q"),
+    Column("T", "inverse velocity script-T(q) = q \\|\\|u\\|\\|_inf^((alpha-1)/2) (eq. invv)"),
+    Column("omega_A0", "omega(q, A0), A0 = \\|\\|u0\\|\\|_inf (eq. dispers)"),
+    Column("rescaled_norm", "\\|\\|u\\|\\|_inf q^(2/(alpha-1)) (tends to k_alpha, eq. normscaling)"),
+    Column("snes_iterations", "SNES iterations at that q (last sub-step)", **_INT),
+    Column("ksp_iterations", "KSP iterations at that q (last sub-step)", **_INT),
+    Column("residual_norm", "final \\|\\|R(u)\\|\\|_2 of the discrete eq. ad at that q (last sub-step)"),
+    Column("snes_reason", "PETSc's converged reason at that q", "", np.int64, "d"),
+    Column("substeps", "continuation sub-steps used to reach q (1 = no step reduction)", **_INT),
+    Column("wall_time", "seconds spent on the point", "s", format=".1f"),
+    Column("u", "profiles u(xi; q) on [0, pi]", shape="K+1"),
+))
+POINT_FIELDS = BRANCH_KIND.fields[:-1]
 
 
 @dataclass(frozen=True)
@@ -203,12 +201,7 @@ class Branch:
         communicator, rank 0 reads it and every rank gets the branch (or the error)."""
         if comm is not None:
             return on_rank0(comm, cls.load, path, None, min_points, what=f"cannot read branch file {path!r}")
-        data = load_npz(path, "branch file")
-        check_kind(data, path, BRANCH_FORMAT, "branch file")
-        required = set(SCALARS) | set(POINT_FIELDS) | {"u", "xi", "meta"}
-        missing = required - set(data)
-        if missing:
-            raise RecordFileError(f"branch file {path!r} is corrupt: missing {sorted(missing)}")
+        data = read_kind(path, BRANCH_KIND, "branch file")
         P = len(data["q"])
         if P < min_points:
             raise RecordFileError(f"branch file {path!r} holds {P} point(s), {min_points} needed (an interrupted "
@@ -234,9 +227,9 @@ class Branch:
 def branch_store(path, branch, comm, mode):
     """The record store of a branch file for ``branch`` (its model, grid and M; its meta is written): resuming
     needs the same alpha, cells_per_pi and M. Collective. ``path`` None: the records are kept in memory."""
-    layout = dict(dtypes={k: np.int64 for k in INT_FIELDS}, shapes={"u": (branch.cells_per_pi + 1,)})
+    layout = dict(dtypes=BRANCH_KIND.dtypes, shapes={"u": (branch.cells_per_pi + 1,)}, columns=BRANCH_KIND)
     if path is None:
-        return MemoryRecords(BRANCH_FORMAT, branch.constants(), POINT_FIELDS + ("u",), comm, **layout)
+        return MemoryRecords(BRANCH_FORMAT, branch.constants(), BRANCH_KIND.fields, comm, **layout)
     return NpzRecords(path, BRANCH_FORMAT, branch.constants(),
                       dict(alpha=branch.alpha, cells_per_pi=branch.cells_per_pi, M=branch.M, **branch.model_entry()),
-                      POINT_FIELDS + ("u",), comm, mode, what="branch file", **layout)
+                      BRANCH_KIND.fields, comm, mode, what="branch file", **layout)

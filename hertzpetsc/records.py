@@ -398,7 +398,8 @@ class Kind:
 
     @property
     def dtypes(self):
-        return {c.name: c.dtype for c in self.columns if c.dtype is not float}
+        """{field: dtype} of the per-record fields that are not float64 (the record store's ``dtypes``)."""
+        return {c.name: c.dtype for c in self.columns if c.dtype is not float and not c.constant}
 
     def about(self):
         """{name: {unit, description, dtype}} of every column: the file's ``__columns__``."""
@@ -409,6 +410,29 @@ class Kind:
         """``value`` of column ``name`` as a table shows it (its ``format``)."""
         return format(self.by_name[name].dtype(value) if self.by_name[name].dtype is not str else str(value),
                       self.by_name[name].format)
+
+    def row(self, record, *cells):
+        """A Markdown table row of ``record``: in each of ``cells`` (a string, or anything ``str`` writes) every
+        ``{name}`` of a column is replaced by the record's value in the column's format (:meth:`cell`)."""
+        import re
+
+        def fill(m):
+            return self.cell(m.group(1), record[m.group(1)]) if m.group(1) in self.by_name else m.group(0)
+        return "| " + " | ".join(re.sub(r"\{(\w+)\}", fill, str(c)) for c in cells) + " |"
+
+    def check(self, arrays):
+        """(missing, undeclared) of a record archive's ``arrays`` (a loaded file, :func:`npz_arrays`): the declared
+        columns it lacks (but the ``optional`` ones) and its entries that no column declares (but ``format``, the
+        provenance, the columns and the ``state_*`` arrays)."""
+        import re
+        patterns = {c.name: re.sub(r"<[^>]*>", ".+", re.escape(c.name)) for c in self.columns if "<" in c.name}
+
+        def has(name):                  # a name <x> stands for one entry per x
+            return name in arrays or name in patterns and any(re.fullmatch(patterns[name], k) for k in arrays)
+        missing = [c.name for c in self.columns if not has(c.name) and not c.optional]
+        undeclared = [k for k in arrays if k not in self.by_name and k != "format" and k not in ABOUT
+                      and not k.startswith("state_") and not any(re.fullmatch(p, k) for p in patterns.values())]
+        return missing, undeclared
 
     def schema(self):
         """The schema page's table of the kind (docs/schemas.md, generated from the columns)."""
@@ -468,6 +492,35 @@ def check_kind(data, path, kind, what):
     if stored != kind:
         found = f"a {stored!r} file" if stored else "not a hertzpetsc record file"
         raise RecordFileError(f"{given(path)} is {found}, but a {what} ({kind!r}) is expected here")
+
+
+def read_kind(path, kind, what, error=RecordFileError):
+    """The arrays of a record file of ``kind`` (a :class:`Kind`) as a dict: :func:`load_npz`, :func:`check_kind`,
+    and every declared column there but the ``optional`` ones (files written before those), else ``error`` naming
+    ``what``."""
+    data = load_npz(path, what, error)
+    check_kind(data, path, kind.name, what)
+    missing = kind.check(data)[0]
+    if missing:
+        raise error(f"{what} {given(path)} is corrupt: missing {missing}")
+    return data
+
+
+def typed_records(data, kind):
+    """The records of a loaded file ``data`` of ``kind`` (a :class:`Kind`) as a list of {field: value}, each value
+    of its column's dtype (a number as a Python number, an array as an array); the fields the file lacks (optional
+    ones) are left out."""
+    fields = [kind.by_name[f] for f in kind.fields if f in data]
+    if not fields:
+        return []
+    return [{c.name: _typed(np.asarray(data[c.name][i]), c.dtype) for c in fields}
+            for i in range(len(data[fields[0].name]))]
+
+
+def _typed(value, dtype):
+    if value.ndim:
+        return value.astype(dtype, copy=False)
+    return str(value) if dtype is str else np.dtype(dtype).type(value).item()
 
 
 def _same(a, b):
@@ -720,14 +773,15 @@ def _load_h5(path, what, error):
 class AppendRecords(RecordStore):
     """Fixed-length float64 records appended to ``directory/<data>``, with a JSON header ``directory/<header>``.
 
-    The header holds the identity (and whatever else describes the records). Each append is flushed and fsynced,
+    The header holds the identity (and whatever else describes the records; ``columns``, a :class:`Kind`: the
+    units and meanings of its keys and of the records' parts, under ``columns``). Each append is flushed and fsynced,
     so a killed run loses at most the record in flight; a partial trailing record is dropped on resume.
     """
 
     def __init__(self, directory, kind, header, identity, record_length, comm=None, mode="new",
-                 header_name="run.json", data_name="records.f64", what="run directory"):
+                 header_name="run.json", data_name="records.f64", what="run directory", columns=None):
         self.directory = directory
-        self.header = dict(header, format=kind)
+        self.header = dict(header, format=kind, **({} if columns is None else {"columns": columns.about()}))
         self.record_length = int(record_length)
         self.header_path = os.path.join(directory, header_name)
         self.data_path = os.path.join(directory, data_name)

@@ -16,9 +16,30 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import ParameterError, RecordFileError, check_real
-from .records import AppendRecords
+from .records import AppendRecords, Column, Kind
 
 LONGRUN_FORMAT = "hertzpetsc-longrun-2"
+# run.json's keys (constants) and the parts of each snapshot record, in their order (fields)
+LONGRUN_KIND = Kind(LONGRUN_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("N", "beads of the periodic chain", "count", int, "d", constant=True),
+    Column("boundary", "`periodic`", "", str, "s", constant=True),
+    Column("q", "wavenumber of the wave", constant=True),
+    Column("T", "script-T (eq. invv)", constant=True),
+    Column("initial_state", "`refined` or the branch", "", str, "s", constant=True),
+    Column("initial_state_sha256", "digest of the initial (N, 2) float64 state", "", str, "s", constant=True),
+    Column("snapshot_dt", "script-T / snapshots_per_T", constant=True),
+    Column("rtol", "the flow's relative tolerance", constant=True),
+    Column("atol", "the flow's absolute tolerance", constant=True),
+    Column("ts", "the TS and RK types", "", str, "s", constant=True),
+    Column("masses", "the mass pattern", shape="p", constant=True),
+    Column("t", "time of the snapshot"),
+    Column("energy", "the chain's energy"),
+    Column("dt", "the step the integrator starts the next interval with (what makes a resume repeat the "
+           "uninterrupted run)"),
+    Column("x", "positions x_1 .. x_N", shape="N"),
+    Column("xdot", "velocities xdot_1 .. xdot_N", shape="N"),
+))
 HEADER, DATA = "run.json", "snapshots.f64"
 # header keys that define a run: resuming requires them to be equal
 IDENTITY = ("alpha", "N", "boundary", "initial_state_sha256", "snapshot_dt", "rtol", "atol", "ts")
@@ -52,7 +73,8 @@ def snapshot_store(directory, header, comm, mode):
             raise RecordFileError(f"{directory!r} was written by an older hertzpetsc (no integrator step in its "
                                   "records): it can be read, but not resumed exactly; rerun with -force")
     return AppendRecords(directory, LONGRUN_FORMAT, header, {k: header[k] for k in IDENTITY},
-                         record_length(header["N"]), comm, mode, HEADER, DATA, what="run directory")
+                         record_length(header["N"]), comm, mode, HEADER, DATA, what="run directory",
+                         columns=LONGRUN_KIND)
 
 
 def snapshot_record(t, energy, dt, state):

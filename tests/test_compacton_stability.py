@@ -18,7 +18,9 @@ from hertzpetsc.compacton_window import CompactonRefiner, CompactonWindow, embed
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.model import ChainSpec, LatticeModel
 from hertzpetsc.studies.compacton_dynamics import CompactonDynamics
-from hertzpetsc.studies.compacton_stability import exact_compacton
+from hertzpetsc.records import read_kind
+from hertzpetsc.studies.compacton_dynamics import DYNAMICS_KIND
+from hertzpetsc.studies.compacton_stability import STABILITY_KIND, exact_compacton
 
 BRANCH = f"{DATA}/branch_alpha1.5.npz"
 M, REAR = 12, 3
@@ -213,10 +215,12 @@ def test_drivers_smoke_and_errors(tmp_path):
     text = (tmp_path / "cs.md").read_text()
     assert "| 1.5 | 2: 0.62832 - 1.7593 |" in text and "none" in text
     assert (tmp_path / "compacton_stability_mu.png").exists()
+    assert STABILITY_KIND.check(read_kind(str(out), STABILITY_KIND, "x")) == ([], [])     # exactly the declared columns
     d = run_script("compacton_dynamics.py", "-stability", out, "-q", "pi/5", "-N", 60, "-n0", 5, "-travel", 30,
                    "-kinds", "mode", "-output", tmp_path / "dyn.npz", "-table", tmp_path / "dyn.md",
                    "-figures", tmp_path, "-no_pairs", timeout=120)
     assert d.returncode == 0, d.stderr
+    assert DYNAMICS_KIND.check(read_kind(str(tmp_path / "dyn.npz"), DYNAMICS_KIND, "x")) == ([], [])
     row = [line for line in (tmp_path / "dyn.md").read_text().splitlines() if "| mode |" in line][0]
     ratio = float(row.split("|")[6])
     assert abs(ratio - 1) < 0.1            # the decay of the mode follows ln|mu_3| (full runs: within 0.2%)

@@ -14,7 +14,8 @@ from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.grid import ProfileGrid
 from hertzpetsc.model import ChainSpec, LatticeModel
 from hertzpetsc.families import AmplitudeFamily, MassFamily
-from hertzpetsc.studies.precompression import wave_orbit
+from hertzpetsc.records import read_kind
+from hertzpetsc.studies.precompression import DIMER_KIND, wave_orbit
 
 COMM = PETSc.COMM_WORLD
 Q = 0.3 * math.pi
@@ -125,6 +126,7 @@ def test_dimer_driver(tmp_path):
     d = np.load(tmp_path / "d1.npz")
     regular = d["event"] == 0
     assert str(d["format"]) == "hertzpetsc-dimer-2" and regular.sum() == 6 and d["epsilon"][0] == 1.0
+    assert DIMER_KIND.check(read_kind(str(tmp_path / "d1.npz"), DIMER_KIND, "x")) == ([], [])   # as declared
     assert "-max_steps = 4 reached at epsilon" in (tmp_path / "d1.md").read_text()     # the table says it stopped early
     assert run_script("dimer_branch.py", *common, "-max_steps", "2", *out(2), timeout=120).returncode == 0
     assert (np.load(tmp_path / "d2.npz")["event"] == 0).sum() == 4

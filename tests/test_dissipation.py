@@ -15,7 +15,9 @@ from hertzpetsc.errors import ConvergenceError, ParameterError
 from hertzpetsc.hertz import HertzLaw
 from hertzpetsc.law import RescaledLaw
 from hertzpetsc.model import Actuator, ChainSpec, Damping, Harmonic, LatticeModel
-from hertzpetsc.studies.contacts import PulseDecay, PulseParameters, Restitution, RestitutionParameters, line_misfit
+from hertzpetsc.records import read_kind
+from hertzpetsc.studies.contacts import (PULSE_KIND, RESTITUTION_KIND, PulseDecay, PulseParameters, Restitution,
+                                        RestitutionParameters, line_misfit)
 from hertzpetsc.tangent import TangentFlow, liouville_integral
 
 COMM = PETSc.COMM_WORLD
@@ -246,6 +248,8 @@ def test_the_drivers_write_their_tables(tmp_path):
     assert r.returncode == 0, r.stderr
     with np.load(tmp_path / "p.npz") as z:
         assert z["amplitude"].shape == (1, 16) and str(z["format"]) == "hertzpetsc-pulse-1"
+    for path, kind in ((tmp_path / "r.npz", RESTITUTION_KIND), (tmp_path / "p.npz", PULSE_KIND)):
+        assert kind.check(read_kind(str(path), kind, "record file")) == ([], [])     # each entry declared, as written
 
 
 @pytest.mark.parametrize("contact", [HuntCrossley(0.2), KuwabaraKono(0.3)])

@@ -20,10 +20,11 @@ from hertzpetsc.driven import test_functions as tau_functions        # not colle
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.floquet import DenseFloquet
 from hertzpetsc.model import Actuator, ChainSpec, Harmonic, LatticeModel
-from hertzpetsc.studies.driven import (EVENTS, Generation, GenerationParameters, LinearResonances,
-                                       ResonanceParameters, ResponseCurve, ResponseParameters, WaveEnds,
-                                       WaveEndsParameters, linear_chain, linear_multipliers, linear_response,
-                                       normal_modes)
+from hertzpetsc.records import read_kind
+from hertzpetsc.studies.driven import (EVENTS, GENERATION_KIND, RESONANCE_KIND, RESPONSE_KIND, WAVE_ENDS_KIND,
+                                       Generation, GenerationParameters, LinearResonances, ResonanceParameters,
+                                       ResponseCurve, ResponseParameters, WaveEnds, WaveEndsParameters, linear_chain,
+                                       linear_multipliers, linear_response, normal_modes)
 from hertzpetsc.tangent import TangentFlow
 
 COMM = PETSc.COMM_WORLD
@@ -838,6 +839,8 @@ def test_driven_drivers_run(tmp_path):
                    "-gammas", 0.1, "-run_in", 10, "-output", tmp_path / "g.npz", "-table", tmp_path / "g.md",
                    "-figures", tmp_path, ranks=2)
     assert r.returncode == 0 and "| half_sine | 0.5 | 0.1 | 0.1 | yes |" in (tmp_path / "g.md").read_text(), r.stderr
+    for name, kind in (("r", RESPONSE_KIND), ("s", RESONANCE_KIND), ("w", WAVE_ENDS_KIND), ("g", GENERATION_KIND)):
+        assert kind.check(read_kind(str(tmp_path / f"{name}.npz"), kind, "x")) == ([], []), name   # as declared
 
 
 @pytest.mark.serial

@@ -1,5 +1,6 @@
 """Every driver in scripts/ run once as a subprocess on tiny inputs (the library's studies are tested in-process):
 it reads its options, runs, writes its files, and the paper's numbers come out of the main command."""
+import json
 import math
 import os
 
@@ -7,8 +8,11 @@ import numpy as np
 import pytest
 
 from conftest import DATA, SCRIPTS, run_script
-from hertzpetsc.branch import Branch
-from hertzpetsc.studies.refinement import RefinedStates
+from hertzpetsc.branch import BRANCH_KIND, Branch
+from hertzpetsc.records import read_kind
+from hertzpetsc.simulation import LONGRUN_KIND
+from hertzpetsc.studies.floquet import BLOCH_KIND, FLOQUET_KIND
+from hertzpetsc.studies.refinement import REFINED_KIND, RefinedStates
 
 pytestmark = pytest.mark.serial
 
@@ -49,6 +53,7 @@ def test_refinement_driver_resumes(work):
                    work / "r2.md", "-resume")
     assert r.returncode == 0, r.stderr
     assert len(RefinedStates.load(str(work / "r2.npz")).q) == 8            # the other 6 q = 2 pi m / 20 added
+    assert REFINED_KIND.check(read_kind(str(work / "r2.npz"), REFINED_KIND, "x")) == ([], [])
 
 
 def test_floquet_drivers(work):
@@ -62,6 +67,8 @@ def test_floquet_drivers(work):
                    work / "f.npz")
     assert r.returncode == 0, r.stderr
     assert "| 40 | 2pi/5 | 8 |" in (work / "fl.md").read_text()
+    for name, kind in (("b", BRANCH_KIND), ("f", FLOQUET_KIND), ("fl", BLOCH_KIND)):   # the declared columns
+        assert kind.check(read_kind(str(work / f"{name}.npz"), kind, "x")) == ([], []), name
 
 
 def test_long_run_and_dynamics_figures(work):
@@ -73,6 +80,10 @@ def test_long_run_and_dynamics_figures(work):
     assert r.returncode == 0, r.stderr
     assert {p.name for p in (work / "dyn").iterdir()} == {"run_snapshot.png", "run_forces.png", "deviation.png"}
     assert "| run | 1.2566 | 1.2627 | refined |" in (work / "lr.md").read_text()
+    with open(run / "run.json") as f:
+        header = json.load(f)                       # the keys and the records' parts, declared once
+    assert set(header["columns"]) == {c.name for c in LONGRUN_KIND.columns}
+    assert {c.name for c in LONGRUN_KIND.columns if c.constant} <= set(header)
 
 
 def test_every_file_a_driver_writes_names_its_provenance(work, tmp_path):

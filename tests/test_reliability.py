@@ -16,6 +16,8 @@ from petsc4py import PETSc
 from conftest import ROOT, SCRIPTS, one_error_line, script_env, shared_tmp
 from hertzpetsc.errors import ConvergenceError
 from hertzpetsc.qbranch import BranchContinuation, ContinuationParameters
+from hertzpetsc.records import read_kind
+from hertzpetsc.studies.paper import PAPER_KIND
 
 
 def _cmdline(pid):
@@ -66,6 +68,8 @@ def test_sigterm_ends_the_pipeline_step_and_its_ranks_then_resume_finishes(tmp_p
     r = subprocess.run(args + ["-resume"], env=script_env(), capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert r.returncode == 0, r.stderr
     assert "convergence_h" in r.stdout
+    progress = read_kind(str(tmp_path / "p.npz"), PAPER_KIND, "progress file")     # the declared columns
+    assert PAPER_KIND.check(progress) == ([], []) and [str(e) for e in progress["event"]].count("done") == 1
 
 
 @pytest.mark.serial

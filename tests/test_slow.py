@@ -18,7 +18,7 @@ from hertzpetsc.records import load_npz
 from hertzpetsc.richardson import richardson
 from hertzpetsc.shooting import Refiner
 from hertzpetsc.slow import DeflatedSectors
-from hertzpetsc.studies.slow import SLOW_TOLERANCES
+from hertzpetsc.studies.slow import SLOW_KIND, SLOW_TOLERANCES
 from hertzpetsc.waves import orbit_on_chain
 
 
@@ -145,6 +145,7 @@ def test_driver_runs_resumes_and_refuses_bad_input(tmp_path):
                    tmp_path / "one.md")
     assert r.returncode == 0, r.stderr
     two, one = load_npz(str(tmp_path / "two.npz"), "x"), load_npz(str(tmp_path / "one.npz"), "x")
+    assert SLOW_KIND.check(two) == ([], [])                    # the file holds exactly the declared columns
     assert sorted(two["m"].tolist()) == [-1, 6] and np.isnan(two["gamma_mono"][two["m"] < 0]).all()
     i = int(np.nonzero(two["m"] == 6)[0][0])
     # each q is computed on one rank: the same arithmetic on any number of ranks, up to the threads of the dense

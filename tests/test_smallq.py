@@ -9,7 +9,8 @@ from conftest import shared_tmp
 from hertzpetsc.qbranch import BranchContinuation, ContinuationParameters, regrid_half_profile
 from hertzpetsc.errors import ParameterError
 from hertzpetsc.richardson import richardson
-from hertzpetsc.studies.branch import SmallQParameters, SmallQStudy
+from hertzpetsc.records import read_kind
+from hertzpetsc.studies.branch import SMALLQ_KIND, SmallQParameters, SmallQStudy
 
 COMM = PETSc.COMM_WORLD
 
@@ -86,6 +87,7 @@ def test_a_killed_small_q_run_resumes_to_the_same_table(tmp_path):
     resumed = SmallQStudy(p, f"{d}/part.npz", COMM, "resume")
     list(resumed.run())
     assert resumed.table(1.3568) == full.table(1.3568)
+    assert SMALLQ_KIND.check(read_kind(f"{d}/part.npz", SMALLQ_KIND, "x")) == ([], [])      # as declared
     with pytest.raises(Exception, match="another computation"):
         SmallQStudy(SmallQParameters(q_first=math.pi / 10, q_stop=math.pi / 20, per_halving=2, cells_per_q=10),
                     f"{d}/part.npz", COMM, "resume").open()

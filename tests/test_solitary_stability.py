@@ -23,7 +23,8 @@ from hertzpetsc.solitary_family import (PrecompressionContinuation, _radius, ess
                                         precompression_at_unit_speed, sound_speed, symplectic_product, tail_rate,
                                         unit_lattice, weighted_multipliers, window_beads, window_energy)
 from hertzpetsc.studies.solitary import k_alpha_extrapolated
-from hertzpetsc.studies.solitary_stability import SolitaryStabilityParameters, SolitaryStabilityScan
+from hertzpetsc.records import read_kind
+from hertzpetsc.studies.solitary_stability import SOLITARY_KIND, SolitaryStabilityParameters, SolitaryStabilityScan
 
 SELF = PETSc.COMM_SELF
 
@@ -214,5 +215,6 @@ def test_driver_on_two_ranks_and_errors(tmp_path):
     text = (tmp_path / "s.md").read_text()
     assert "| 2 | 2: 0 ... 0.5 |" in text and "stable" in text
     assert (tmp_path / "solitary_stability.png").exists()
+    assert SOLITARY_KIND.check(read_kind(str(tmp_path / "s.npz"), SOLITARY_KIND, "x")) == ([], [])   # as declared
     e = run_script("solitary_stability.py", "-c0", "1.2", "-output", tmp_path / "x.npz", timeout=60)
     assert "-c0" in one_error_line(e) and "[0, 1)" in one_error_line(e)

@@ -9,14 +9,14 @@ from typing import TYPE_CHECKING, Iterator, Mapping, Optional
 
 import numpy as np
 
-from ..branch import BRANCH_FORMAT, POINT_FIELDS, Branch, BranchPoint, branch_store
+from ..branch import BRANCH_FORMAT, BRANCH_KIND, Branch, BranchPoint, branch_store
 from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
                             paper_targets)
 from ..errors import (ParameterError, RecordFileError, check_instance, check_integer, check_integers, check_prefix,
                       check_real)
 from ..hertz import check_alpha
 from ..model import LatticeModel
-from ..records import is_checking, load_npz, npz_arrays, on_rank0, write_npz
+from ..records import Column, Kind, is_checking, load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
 from ..richardson import richardson
 from ..roles import configure, uses
@@ -41,7 +41,7 @@ class BranchStudy(Study):
     """
 
     Parameters = ContinuationParameters
-    FORMAT, FIELDS = BRANCH_FORMAT, POINT_FIELDS + ("u",)
+    FORMAT, FIELDS, COLUMNS = BRANCH_FORMAT, BRANCH_KIND.fields, BRANCH_KIND
     ROLES = TW_ROLE
     WHAT = "branch file"
 
@@ -140,7 +140,25 @@ class ConvergenceStudy(Study):
 
 # --- small q ------------------------------------------------------------------------------------------------------
 SMALLQ_FORMAT = "hertzpetsc-smallq-1"
-SMALLQ_FIELDS = ("norm_inf", "slope", "N", "F", "rescaled_norm")
+SMALLQ_KIND = Kind(SMALLQ_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("q_stop", "the smallest target q", constant=True),
+    Column("q_first", "the first target q: the targets are q_first 2^(-i/per_halving) down to q_stop", constant=True),
+    Column("per_halving", "targets per halving of q", "count", np.int64, "d", constant=True),
+    Column("cells_per_q", "level l keeps q/h >= cells_per_q 2^l", "count", np.int64, "d", constant=True),
+    Column("levels", "the grid levels", "count", np.int64, "d", constant=True),
+    Column("solver_options", "number-changing options under `-tw_` (absent from files written before it)", "", str,
+           "s", constant=True, optional=True),
+    Column("level", "grid level (0 = coarsest)", "count", np.int64, "d"),
+    Column("q", "wavenumber"),
+    Column("K", "cells_per_pi of the grid at that q (h = pi/K)", "count", np.int64, "d"),
+    Column("norm_inf", "\\|\\|u\\|\\|_inf, as in the branch file"),
+    Column("slope", "p(q) = u'(0), as in the branch file"),
+    Column("N", "N(q), as in the branch file"),
+    Column("F", "F(q), as in the branch file"),
+    Column("rescaled_norm", "\\|\\|u\\|\\|_inf q^(2/(alpha-1)) (-> k_alpha)"),
+))
+SMALLQ_FIELDS = SMALLQ_KIND.fields[3:]
 
 
 @dataclass(frozen=True)
@@ -215,8 +233,8 @@ def _legacy_smallq_progress(path, params):
             if key + f"seed{j}_q" in data:
                 for part in ("q", "K", "u"):
                     state[f"{key}seed{j}_{part}"] = data[key + f"seed{j}_{part}"]
-    write_npz(path, npz_arrays(SMALLQ_FORMAT, params.identity(), ("level", "q", "K") + SMALLQ_FIELDS, records, state,
-                               {"level": np.int64, "K": np.int64}))
+    write_npz(path, npz_arrays(SMALLQ_FORMAT, params.identity(), SMALLQ_KIND.fields, records, state,
+                               SMALLQ_KIND.dtypes))
     return True
 
 
@@ -230,8 +248,7 @@ class SmallQStudy(Study):
     """
 
     Parameters = SmallQParameters
-    FORMAT, FIELDS = SMALLQ_FORMAT, ("level", "q", "K") + SMALLQ_FIELDS
-    DTYPES = {"level": np.int64, "K": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = SMALLQ_FORMAT, SMALLQ_KIND.fields, SMALLQ_KIND.dtypes, SMALLQ_KIND
     ROLES = TW_ROLE
     WHAT = "progress file"
 

@@ -1,10 +1,7 @@
 """Does the window spectrum (:mod:`hertzpetsc.studies.compacton_stability`) predict the dynamics (section 3.3,
 Discussion)? :class:`CompactonDynamics` puts an exact compacton on a long free chain, perturbs it and splits the
-moving window's deviation with the Jordan vectors. File
-``hertzpetsc-compacton-dynamics-1``: constants alpha, N, n0, travel, amplitude, rtol, M; per record: q, kind,
-mu3, rate (fitted decay of |rest| per bead), rate_first, rate_last, rest_floor, rest_max_late, a_end,
-a_predicted, b_start, b_end, dist_end, behind_v, seconds, steps, and the series rest, a, b, dist (travel + 1)
-and deviation (travel + 1, M).
+moving window's deviation with the Jordan vectors. File ``hertzpetsc-compacton-dynamics-1``, its columns declared
+in :data:`DYNAMICS_KIND`.
 """
 from __future__ import annotations
 
@@ -22,10 +19,10 @@ from ..errors import ParameterError, check_integer, check_real
 from ..model import ChainSpec, LatticeModel
 from ..resources import chain_seconds, check_chain_memory, check_work
 from ..options import inserted_options
-from ..records import check_kind, load_npz, on_rank0
+from ..records import Column, Kind, on_rank0, read_kind
 from ..roles import uses
 from .base import Study
-from .compacton_stability import STABILITY_FORMAT, exact_compacton, fmt_multiplier, q_text
+from .compacton_stability import STABILITY_KIND, exact_compacton, fmt_multiplier, q_text
 
 DYNAMICS_FORMAT = "hertzpetsc-compacton-dynamics-1"
 DYNAMICS_PREFIX = "cdyn_"
@@ -47,8 +44,7 @@ def stability_records(path: str, alpha: float, qs: Sequence[float], comm: PETSc.
     """The records of the compacton stability file ``path`` at ``alpha`` and each of ``qs`` (read on rank 0; a
     ParameterError naming -q and what the file has where it has no compacton)."""
     def read():
-        data = load_npz(path, "compacton stability file")
-        check_kind(data, path, STABILITY_FORMAT, "compacton stability file")
+        data = read_kind(path, STABILITY_KIND, "compacton stability file")
         return {k: data[k] for k in ("alpha", "q", "gap", "residual", "iterations", "dominant", "state")}
     data = on_rank0(comm, read, what=f"cannot read compacton stability file {path!r}")
     out = []
@@ -65,9 +61,38 @@ def stability_records(path: str, alpha: float, qs: Sequence[float], comm: PETSc.
     return out
 
 
-DYN_FIELDS = ("q", "kind", "mu3", "rate", "rate_first", "rate_last",
-              "rest_floor", "rest_max_late", "a_end", "a_predicted", "b_start", "b_end", "dist_end", "behind_v",
-              "seconds", "steps")
+DYNAMICS_KIND = Kind(DYNAMICS_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("N", "beads of the free chain", "count", np.int64, "d", constant=True),
+    Column("n0", "starting bead", "count", np.int64, "d", constant=True),
+    Column("travel", "beads travelled (T)", "count", np.int64, "d", constant=True),
+    Column("amplitude", "size of the perturbation, relative to D and v_peak", constant=True),
+    Column("rtol", "flow tolerance (prefix `-cdyn_`)", constant=True),
+    Column("M", "window beads", "count", np.int64, "d", constant=True),
+    Column("stability_sha256", "sha256 of the stability file the compactons were read from (absent from files "
+           "written before it)", "", str, "s", constant=True, optional=True),
+    Column("solver_options", "number-changing options under `-cdyn_`, `-cwin_` (absent from files written before "
+           "it)", "", str, "s", constant=True, optional=True),
+    Column("q", "wavenumber"),
+    Column("kind", "`mode` (the mu_3 eigenvector) or `noise` (Gaussian)", "", str, "s"),
+    Column("mu3", "the dominant nontrivial multiplier", "1", complex),
+    Column("rate", "fitted decay rate of \\|rest\\| per bead, over k = rate_first .. rate_last", format=".4f"),
+    Column("rate_first", "first k of the fit", "count", format=".0f"),
+    Column("rate_last", "last k of the fit", "count", format=".0f"),
+    Column("rest_floor", "median of \\|rest\\| over k >= T/2", format=".1e"),
+    Column("rest_max_late", "max of \\|rest\\| over k >= 50", format=".1e"),
+    Column("a_end", "the phase a(T)", format=".3e"),
+    Column("a_predicted", "its linear prediction a_10 + (T - 10) b_10", format=".3e"),
+    Column("b_start", "the speed coefficient b at k = 10", format=".3e"),
+    Column("b_end", "the speed coefficient b at T", format=".3e"),
+    Column("dist_end", "\\|delta\\|(T), relative", format=".1e"),
+    Column("behind_v", "max \\|v\\| of the beads left behind / v_peak", format=".1e"),
+    Column("seconds", "wall time", "s", format=".1f"),
+    Column("steps", "TS steps", "count", np.int64, "d"),
+    *(Column(k, f"the series {k} over k = 0 .. T: delta_k = a v1 + b v2 + rest (Jordan vectors of mu = 1), max "
+             "norms relative", shape="T+1") for k in ("rest", "a", "b", "dist")),
+    Column("deviation", "\\|rest\\| per window bead (moving frame)", shape="T+1, M"),
+))
 
 
 class CompactonDynamics(Study):
@@ -79,8 +104,7 @@ class CompactonDynamics(Study):
     |rest| ~ |mu_3|^k down to the flow's floor. Records keyed by (q, kind); ``source``: the stability file the
     records were read from (its content is part of the identity)."""
 
-    FORMAT, FIELDS = DYNAMICS_FORMAT, DYN_FIELDS + ("rest", "a", "b", "dist", "deviation")
-    DTYPES = {"kind": str, "steps": np.int64, "mu3": complex}
+    FORMAT, FIELDS, DTYPES, COLUMNS = DYNAMICS_FORMAT, DYNAMICS_KIND.fields, DYNAMICS_KIND.dtypes, DYNAMICS_KIND
     ROLES = uses("cdyn_", "cwin_")
     WHAT = "compacton dynamics file"
 
@@ -216,13 +240,12 @@ class CompactonDynamics(Study):
                  "\\|delta\\|(T) | max \\|v\\| left behind / v_peak | TS steps | s |",
                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in sorted(self.store.records, key=lambda r: (-float(r["q"]), str(r["kind"]))):
-            rate, ln3 = float(r["rate"]), math.log(abs(complex(r["mu3"])))
-            lines.append(f"| {q_text(float(r['q']))} | {r['kind']} | {fmt_multiplier(complex(r['mu3']))} | {rate:.4f} "
-                         f"({float(r['rate_first']):.0f}-{float(r['rate_last']):.0f}) | {ln3:.4f} | "
-                         f"{rate / ln3:.4f} | {float(r['rest_floor']):.1e} | {float(r['rest_max_late']):.1e} | "
-                         f"{float(r['b_start']):.3e} -> {float(r['b_end']):.3e} | {float(r['a_end']):.3e} / "
-                         f"{float(r['a_predicted']):.3e} | {float(r['dist_end']):.1e} | {float(r['behind_v']):.1e} | "
-                         f"{int(r['steps'])} | {float(r['seconds']):.1f} |")
+            ln3 = math.log(abs(r["mu3"]))
+            lines.append(DYNAMICS_KIND.row(
+                r, q_text(float(r["q"])), "{kind}", fmt_multiplier(complex(r["mu3"])),
+                "{rate} ({rate_first}-{rate_last})", f"{ln3:.4f}", f"{r['rate'] / ln3:.4f}", "{rest_floor}",
+                "{rest_max_late}", "{b_start} -> {b_end}", "{a_end} / {a_predicted}", "{dist_end}", "{behind_v}",
+                "{steps}", "{seconds}"))
         return "\n".join(lines) + "\n"
 
     def destroy(self) -> None:

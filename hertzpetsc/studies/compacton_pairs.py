@@ -1,6 +1,6 @@
 """The two-compacton test of section 3.3 (eq. extens2), each compacton unrefined or refined at the same gap, to
-locate the source of the 2-compacton error. File ``hertzpetsc-compacton-pairs-1``: constants alpha, q, h, spacing,
-travel, M, N, gap; per record: case, rear, front, error_x, error_v, debris_v, seconds."""
+locate the source of the 2-compacton error. File ``hertzpetsc-compacton-pairs-1``, its columns declared in
+:data:`PAIRS_KIND`."""
 from __future__ import annotations
 
 import math
@@ -44,9 +44,9 @@ PAIRS_KIND = Kind(PAIRS_FORMAT, (
            "or '' (none)", "", str, "s"),
     Column("front", "the front compacton, as `rear`", "", str, "s"),
     Column("error_x", "max over all beads of \\|X(T) - X(0) translated by T beads\\| in x, relative to D",
-           format=".2e"),
-    Column("error_v", "the same in v, relative to v_peak", format=".2e"),
-    Column("debris_v", "max \\|v\\| behind the rear compacton / v_peak", format=".2e"),
+           format=".1e"),
+    Column("error_v", "the same in v, relative to v_peak", format=".1e"),
+    Column("debris_v", "max \\|v\\| behind the rear compacton / v_peak", format=".1e"),
     Column("seconds", "wall time", "s", format=".1f"),
 ))
 PAIR_FIELDS = PAIRS_KIND.fields
@@ -156,8 +156,8 @@ class CompactonPairs(Study):
                  "| compactons | rear | front | profile error x | profile error v | debris behind / v_peak | s |",
                  "|---|---|---|---|---|---|---|"]
         for r in self.store.records:
-            lines.append(f"| {r['case']} | {r['rear'] or '-'} | {r['front']} | {float(r['error_x']):.1e} | "
-                         f"{float(r['error_v']):.1e} | {float(r['debris_v']):.1e} | {float(r['seconds']):.1f} |")
+            lines.append(PAIRS_KIND.row(r, "{case}", r["rear"] or "-", "{front}", "{error_x}", "{error_v}",
+                                        "{debris_v}", "{seconds}"))
         return "\n".join(lines) + "\n"
 
     def destroy(self) -> None:

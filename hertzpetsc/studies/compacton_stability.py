@@ -7,11 +7,9 @@ down through the requested q (natural continuation in q, :mod:`hertzpetsc.contin
 independent flow (another Runge-Kutta pair and tolerance), all 2M window multipliers (LAPACK), the Jordan pair at 1
 (mean, split, J v1 = v1, solvability of (J - 1) v2 = v1), the dominant nontrivial multipliers, the unstable ones,
 the change of the dominant multipliers when M is doubled, and SLEPc's dominant multipliers on the weighted
-shell against the dense ones. File ``hertzpetsc-compacton-stability-1`` (npz): constants M, rear, eta, nev,
-tol_unstable, rtol; per record: alpha, q, gap, D, residual, residual_check, iterations, jordan_mean, jordan_split,
-jordan_translation, jordan_generalized, max_nontrivial, unstable, doubling_change, slepc_change,
-slepc_products, slepc_nev, core_first, core_last, seconds, multipliers (2M, all, by modulus), dominant (NDOM
-nontrivial), state (M, 2). :func:`ring_spectrum`: the same compacton on the ring of 2 pi / q beads. The dynamics
+shell against the dense ones. File ``hertzpetsc-compacton-stability-1`` (npz), its columns declared in
+:data:`STABILITY_KIND`.
+:func:`ring_spectrum`: the same compacton on the ring of 2 pi / q beads. The dynamics
 of perturbed compactons and the two-compacton test: :mod:`~hertzpetsc.studies.compacton_dynamics`,
 :mod:`~hertzpetsc.studies.compacton_pairs`.
 """
@@ -33,6 +31,7 @@ from ..branch import Branch
 from ..errors import (ParameterError, check_flag, check_instance, check_integer, check_real, check_reals,
                       members)
 from ..model import ChainSpec
+from ..records import Column, Kind
 from ..resources import MAX_DENSE_BEADS
 from ..richardson import richardson
 from ..roles import uses
@@ -49,9 +48,51 @@ NDOM = 6
 TOL_UNSTABLE = 1e-8
 DEFAULT_QS = ("1.5, 1.3, 1.1, 3*pi/10, 7*pi/25, 0.7, 9*pi/50, 0.45, pi/10, 0.2, pi/25, pi/50, pi/100, pi/200, "
               "pi/400, pi/800, pi/1600, pi/3200, pi/6400")
-FIELDS = ("alpha", "q", "gap", "D", "residual", "residual_check", "iterations", "jordan_mean", "jordan_split",
-          "jordan_translation", "jordan_generalized", "max_nontrivial", "unstable", "doubling_change",
-          "slepc_change", "slepc_products", "slepc_nev", "core_first", "core_last", "seconds")
+_IDENT = "the window's residual max\\|G(Y) - Y\\|"
+# the columns of a travelling window's spectrum, shared with the solitary stability file
+RESIDUAL_COLUMNS = (
+    Column("residual", f"{_IDENT} under the refinement's flow", format=".1e"),
+    Column("residual_check", f"{_IDENT} under the independent flow (`-ccheck_`)", format=".1e"),
+    Column("iterations", "Gauss-Newton iterations", "count", np.int64, "d"))
+JORDAN_COLUMNS = (
+    Column("jordan_mean", "mean of the Jordan pair at 1", format=".12f"),
+    Column("jordan_split", "split of the Jordan pair at 1", format=".0e"),
+    Column("jordan_translation", "\\|J v1 - v1\\| / \\|v1\\|", format=".0e"),
+    Column("jordan_generalized", "residual of (J - 1) v2 = v1", format=".0e"),
+    Column("max_nontrivial", "largest \\|mu\\| without the Jordan pair", format=".6f"))
+UNSTABLE = Column("unstable", "multipliers with \\|mu\\| > 1 + tol_unstable", "count", np.int64, "d")
+SECONDS = Column("seconds", "wall time", "s", format=".1f")
+STABILITY_KIND = Kind(STABILITY_FORMAT, (
+    Column("M", "beads of the travelling window", "count", np.int64, "d", constant=True),
+    Column("rear", "resting beads kept behind the core", "count", np.int64, "d", constant=True),
+    Column("eta", "weight exp(eta n) of the SLEPc shell W J W^-1", constant=True),
+    Column("nev", "largest number of SLEPc multipliers asked for", "count", np.int64, "d", constant=True),
+    Column("tol_unstable", "unstable when \\|mu\\| > 1 + tol_unstable", constant=True),
+    Column("rtol", "flow tolerance of the window map (prefix `-cwin_`)", constant=True),
+    Column("branch_alpha<a>_sha256", "content hash of the branch file of each alpha a of the scan "
+           "(`branch_alpha1.5_sha256`, `branch_alpha2_sha256`, `branch_alpha2.5_sha256` in the paper's)", "", str, "s",
+           constant=True, optional=True),
+    Column("solver_options", "number-changing options under `-cwin_`, `-ccheck_`, `-cstab_`", "", str, "s",
+           constant=True, optional=True),
+    Column("alpha", "Hertz exponent", format="g"),
+    Column("q", "wavenumber (0: the solitary wave)"),
+    Column("gap", "Delta = a p q, the gap of the resting lattice (eq. defvit)", format=".6g"),
+    Column("D", "the shift 2 pi a p of every bead the compacton passes", format=".6f"),
+    *RESIDUAL_COLUMNS, *JORDAN_COLUMNS, UNSTABLE,
+    Column("doubling_change", "change of the pair's mean and the three dominant multipliers when M is doubled",
+           format=".1e"),
+    Column("slepc_change", "SLEPc's distance to the LAPACK multipliers", format=".1e"),
+    Column("slepc_products", "SLEPc's shell products", "count", np.int64, "d"),
+    Column("slepc_nev", "SLEPc's nev", "count", np.int64, "d"),
+    Column("core_first", "first bead of the window's core (the bonds that close during a period)", "count",
+           np.int64, "d"),
+    Column("core_last", "last bead of the window's core", "count", np.int64, "d"),
+    SECONDS,
+    Column("multipliers", "all window multipliers (LAPACK), by modulus", "1", complex, shape="2M"),
+    Column("dominant", "the dominant nontrivial ones (mu_3, mu_4, ...), zero-padded", "1", complex, shape="6"),
+    Column("state", "the exact compacton: window state (y, v) in gap-lattice coordinates y_n = x_n - Delta n",
+           shape="M, 2"),
+))
 
 
 def scan_sequence(branch, qs, solitary=True):
@@ -78,9 +119,7 @@ class CompactonStabilityScan(ContinuedScan):
     the records do not depend on the number of ranks. Prefixes: ``cwin_`` (the window flows), ``ccheck_`` (the
     independent residual flow), ``cstab_`` (the EPS: ``-cstab_eps_*``)."""
 
-    FORMAT, FIELDS = STABILITY_FORMAT, FIELDS + ("multipliers", "dominant", "state")
-    DTYPES = {"multipliers": complex, "dominant": complex, "iterations": np.int64, "unstable": np.int64,
-              "slepc_products": np.int64, "slepc_nev": np.int64, "core_first": np.int64, "core_last": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = STABILITY_FORMAT, STABILITY_KIND.fields, STABILITY_KIND.dtypes, STABILITY_KIND
     ROLES = uses("cwin_", "ccheck_", "cstab_")
     WHAT, LABELS = "compacton stability file", ("nev",)
 
@@ -215,14 +254,11 @@ class CompactonStabilityScan(ContinuedScan):
                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in self.rows():
             dom = ", ".join(fmt_multiplier(v) for v in r["dominant"][:3])
-            lines.append(f"| {float(r['alpha']):g} | {q_text(float(r['q']))} | {float(r['gap']):.6g} | "
-                         f"{float(r['D']):.6f} | {int(r['core_first'])}-{int(r['core_last'])} | "
-                         f"{float(r['residual']):.1e} / {float(r['residual_check']):.1e} | {int(r['iterations'])} | "
-                         f"{float(r['jordan_mean']):.12f} ({float(r['jordan_split']):.0e}) | "
-                         f"{float(r['jordan_translation']):.0e}, {float(r['jordan_generalized']):.0e} | {dom} | "
-                         f"{float(r['max_nontrivial']):.6f} | {int(r['unstable']) or 'none'} | "
-                         f"{float(r['doubling_change']):.1e} | {float(r['slepc_change']):.1e} "
-                         f"({int(r['slepc_nev'])}, {int(r['slepc_products'])}) | {float(r['seconds']):.1f} |")
+            lines.append(STABILITY_KIND.row(
+                r, "{alpha}", q_text(float(r["q"])), "{gap}", "{D}", "{core_first}-{core_last}",
+                "{residual} / {residual_check}", "{iterations}", "{jordan_mean} ({jordan_split})",
+                "{jordan_translation}, {jordan_generalized}", dom, "{max_nontrivial}", int(r["unstable"]) or "none",
+                "{doubling_change}", "{slepc_change} ({slepc_nev}, {slepc_products})", "{seconds}"))
         return "\n".join(lines) + "\n"
 
     def summary(self) -> str:

@@ -3,10 +3,7 @@ restitution of a two-bead impact against the impact velocity, and a pulse launch
 
 :class:`Restitution` (record kind ``hertzpetsc-restitution-1``, one record per impact velocity v): two free beads of
 masses m1, m2 touching at rest overlap 0, bead 1 at velocity v towards bead 2; the flow (prefix ``chain_``) until
-the contact opens (free flight after it); e = (v2 - v1)_after / v. Fields: ``v``, ``e`` (flow at ``rtol``),
-``e_coarse`` (at 100 rtol: the refinement), ``law`` (1 - e of the small-dissipation law:
-:func:`~hertzpetsc.dissipation.hunt_crossley_restitution` c v, or
-:func:`~hertzpetsc.dissipation.kuwabara_kono_restitution` C eta v^((alpha - 1)/(alpha + 1))), ``steps``. The table
+the contact opens (free flight after it); e = (v2 - v1)_after / v (columns: :data:`RESTITUTION_KIND`). The table
 fits the law over the smallest velocities: Hunt-Crossley's coefficient (1 - e)/v -> c, Kuwabara-Kono's exponent of
 1 - e ~ v^p -> (alpha - 1)/(alpha + 1) (1/5 for Hertz) and its constant.
 
@@ -15,9 +12,7 @@ N beads at rest, free ends, bead 0 launched at v0; ``amplitude`` (N values) is t
 (the leading pulse; sampled every ``sample`` time units, the peak interpolated by a parabola through the three
 samples around it). The adiabatic decay of a solitary wave of speed amplitude A whose energy (~ A^2) is lost bond
 by bond (loss per bond from the wave's scaling x -> a x, t -> a^(-(alpha-1)/2) t) is A^p linear in n:
-p = -1 for Hunt-Crossley, (1 - alpha)/(alpha + 1) (-1/5) for Kuwabara-Kono. Fields: ``v0``, ``amplitude``, ``p_fit`` (the exponent whose A^p is most nearly
-linear in n over beads ``skip``..N - ``skip``), ``slope`` (d A^p / dn at the law's p, per unit damping: constant
-across v0 at the law's p) and ``misfit`` (the relative RMS deviation of A^p from its line, at the law's p).
+p = -1 for Hunt-Crossley, (1 - alpha)/(alpha + 1) (-1/5) for Kuwabara-Kono (columns: :data:`PULSE_KIND`).
 """
 from __future__ import annotations
 
@@ -34,12 +29,44 @@ from ..dealing import dealt
 from ..dissipation import KINDS, contact_dissipation, hunt_crossley_restitution, kuwabara_kono_restitution
 from ..errors import ConvergenceError, ParameterError, check_flag, check_integer, check_real, check_reals
 from ..model import ChainSpec, Damping, LatticeModel
+from ..records import Column, Kind
 from ..resources import check_chain_size
 from ..roles import uses
 from .base import Study
 
 RESTITUTION_FORMAT = "hertzpetsc-restitution-1"
 PULSE_FORMAT = "hertzpetsc-pulse-1"
+_DISSIPATION = (
+    Column("contact", '`"hunt-crossley"` or `"kuwabara-kono"`', "", str, "s", constant=True),
+    Column("damping", "Hunt-Crossley's c or Kuwabara-Kono's eta", constant=True),
+    Column("clipped", "True: a contact never pulls", "", bool, constant=True),
+    Column("alpha", "Hertz exponent", constant=True))
+_OPTIONS = Column("solver_options", "the options given under `-chain_` that change numbers", "", str, "s",
+                  constant=True)
+RESTITUTION_KIND = Kind(RESTITUTION_FORMAT, _DISSIPATION + (
+    Column("velocities", "the impact velocities asked for", shape="K", constant=True),
+    Column("masses", "the two beads' masses", shape="2", constant=True),
+    Column("rtol", "flow tolerance (the refinement at 100 rtol)", constant=True),
+    _OPTIONS,
+    Column("v", "impact velocity (relative)", format=".4g"),
+    Column("e", "coefficient of restitution at rtol", format=".12f"),
+    Column("e_coarse", "coefficient of restitution at 100 rtol", format=".12f"),
+    Column("law", "1 - e of the small-dissipation law (c v; C eta v^((alpha-1)/(alpha+1)))", format=".6e"),
+    Column("steps", "the flow's steps (at rtol and 100 rtol together)", "count", np.int64, "d")))
+PULSE_KIND = Kind(PULSE_FORMAT, _DISSIPATION + (
+    Column("velocities", "the striker velocities asked for", shape="K", constant=True),
+    Column("N", "beads", "count", np.int64, "d", constant=True),
+    Column("skip", "beads left out of the fit at each end", "count", np.int64, "d", constant=True),
+    Column("sample", "sampling interval of the velocities", constant=True),
+    Column("rtol", "flow tolerance", constant=True),
+    _OPTIONS,
+    Column("v0", "striker velocity (bead 0)", format="g"),
+    Column("amplitude", "largest velocity of each bead (parabolic peak of the samples)", shape="N", format=".6f"),
+    Column("p_fit", "the exponent p whose A^p is most nearly linear in n over the fitted beads", format=".4f"),
+    Column("slope", "d(A^p)/dn per unit damping at the law's p (-1 Hunt-Crossley, (1-alpha)/(1+alpha) "
+           "Kuwabara-Kono)", format=".6g"),
+    Column("misfit", "RMS deviation of A^p from its line over its range, at the law's p", format=".1e"),
+    Column("steps", "the flow's steps", "count", np.int64, "d")))
 ROLES = uses("chain_")
 # an impact is followed in steps of its undamped duration over this, until the contact opens
 IMPACT_CHUNKS = 64
@@ -127,9 +154,8 @@ class Restitution(Study):
     """The coefficient of restitution against the impact velocity (module docstring)."""
 
     Parameters = RestitutionParameters
-    FORMAT = RESTITUTION_FORMAT
-    FIELDS = ("v", "e", "e_coarse", "law", "steps")
-    DTYPES = {"steps": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = RESTITUTION_FORMAT, RESTITUTION_KIND.fields, RESTITUTION_KIND.dtypes, \
+        RESTITUTION_KIND
     ROLES = ROLES
     WHAT = "restitution file"
 
@@ -182,9 +208,9 @@ class Restitution(Study):
                  f"{p.rtol:.0e} and {100 * p.rtol:.0e} (|de|: the refinement); small-dissipation law 1 - e = {law}",
                  "", "| v | e | abs de | 1 - e | law 1 - e | (1 - e) / law |", "|---|---|---|---|---|---|"]
         for r in self.rows():
-            e, law_v = float(r["e"]), float(r["law"])
-            lines.append(f"| {float(r['v']):.4g} | {e:.12f} | {abs(e - float(r['e_coarse'])):.1e} | {1 - e:.6e} | "
-                         f"{law_v:.6e} | {(1 - e) / law_v:.6f} |")
+            e = float(r["e"])
+            lines.append(RESTITUTION_KIND.row(r, "{v}", "{e}", f"{abs(e - r['e_coarse']):.1e}", f"{1 - e:.6e}",
+                                              "{law}", f"{(1 - e) / r['law']:.6f}"))
         if len(self.records) >= 2:
             slope, expected, ratio = self.fit()
             lines += ["", f"fit on the three smallest v: 1 - e ~ v^{slope:.4f} (law: v^{expected:.4f}); (1 - e) / law "
@@ -277,9 +303,7 @@ class PulseDecay(Study):
     """A pulse's amplitude along a long chain with contact dissipation, and its decay law (module docstring)."""
 
     Parameters = PulseParameters
-    FORMAT = PULSE_FORMAT
-    FIELDS = ("v0", "amplitude", "p_fit", "slope", "misfit", "steps")
-    DTYPES = {"steps": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = PULSE_FORMAT, PULSE_KIND.fields, PULSE_KIND.dtypes, PULSE_KIND
     ROLES = ROLES
     WHAT = "pulse file"
 
@@ -329,7 +353,6 @@ class PulseDecay(Study):
                  "| v0 | " + " | ".join(f"A_{n}" for n in marks) + " | p fitted | d(A^p)/dn / damping | misfit |",
                  "|---|" + "---|" * (len(marks) + 3)]
         for r in sorted(self.records, key=lambda r: -float(r["v0"])):
-            A = np.asarray(r["amplitude"])
-            lines.append(f"| {float(r['v0']):g} | " + " | ".join(f"{A[n]:.6f}" for n in marks) +
-                         f" | {float(r['p_fit']):.4f} | {float(r['slope']):.6g} | {float(r['misfit']):.1e} |")
+            lines.append(PULSE_KIND.row(r, "{v0}", *(f"{r['amplitude'][n]:.6f}" for n in marks), "{p_fit}", "{slope}",
+                                        "{misfit}"))
         return "\n".join(lines) + "\n"

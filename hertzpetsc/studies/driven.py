@@ -11,43 +11,9 @@ the input files (a resume from another input file or with other solver tolerance
 files written before the last two keys were added lack them and still resume. The call of before (loose
 arguments) is still accepted (:meth:`DrivenStudy.legacy`).
 
-Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues):
-
-* ``hertzpetsc-driven-response-1`` (:class:`ResponseCurve`): constants ``drive`` (JSON of the drive at the start),
-  parameter, p_end, base_periods (k of branch 0), jacobian, floquet, tol, rtol, mode ('arclength' or 'grid'), N,
-  nmult; per record: branch (0: the continued branch; j >= 1: the branch switched onto at the j-th confirmed period
-  doubling, period 2 k), periods, p (the parameter), omega, amplitude, s (arclength; the grid mode: the parameter
-  distance), dp_ds (nan on the grid), event (0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by
-  the layer; on a regular point (dp_ds finite, on the grid always): a crossing bracketed between this point and the
-  previous one, which the layer could not locate), confirmed (1: the multipliers of the regular points on both
-  sides, or of two responses close to a located event on either side of it, differ as the event says; 0: they do
-  not (e.g. a neutral saddle for tau_NS); -1: regular point), iterations, residual (||P^k(X) - X||_inf / scale:
-  from Newton's last evaluation, or measured again), rho, outside (|mu| > 1 + 1e-6),
-  tau_pd, tau_ns (the test functions), force_right, force_left (largest compressive force of the end bonds over the
-  period: the force transmitted to the wall; nan without samples), amp_first, amp_last, amp_max (bead amplitudes
-  (max - min)/2), power_in, dissipation (means over the period), half_residual (even k: ||P^(k/2)(X) - X||_inf /
-  scale, large for a genuine period-k response; nan for odd k), multipliers (nmult complex, the largest, nan
-  padded), x (N, 2) the state at t = 0.
-* ``hertzpetsc-driven-resonances-1`` (:class:`LinearResonances`): constants drive, modes; per record (one per mode
-  k): k, omega_k (normal mode, closed form), peak_linear (the peak of the last bead's amplitude |X_N(omega)| of the
-  damped linear chain, complex solve), peak_shooting (the same from shooting responses of the Hertz chain),
-  amp_linear, amp_shooting (|X_N| at the peaks, per unit drive amplitude), mu_error (max distance of the sorted
-  multipliers at the shooting peak to exp(T lambda), lambda the eigenvalues of the linear damped chain),
-  evaluations (shooting solves).
-* ``hertzpetsc-driven-wave-ends-1`` (:class:`WaveEnds`): constants alpha, P (beads of the periodic chain of the
-  refined waves), branch, refined, samples, rtols; per record (q, N, rtol): q, m, N, rtol, imposed (residual of the
-  refined wave itself in the driven chain), residual (after Newton), moved (relative distance Newton moved it),
-  iterations, rho (the driven finite chain over tau = 2 pi / omega), outside, rho_periodic (rho(F_q)^(P/m): the
-  periodic chain over tau), multipliers (nmult).
-* ``hertzpetsc-driven-generation-1`` (:class:`Generation`): constants model, N, branch, bulk, run_in, width; per record
-  (one per waveform, omega, amplitude, gamma): waveform (0 harmonic, 1 half-sine train), omega, amplitude, gamma, ok (1:
-  a periodic response converged), runin_residual (||P(X) - X|| / scale after the run-in: a motion that has not settled
-  to a periodic one keeps it large), residual, iterations, rho, verdict (1 stable, 0 neutral, -1 unstable, nan),
-  amp_first, decay (-d ln A_n / dn over the bulk), q_bulk (median local wavenumber over the bulk), q_spread (its
-  interquartile range), amp_bulk (median A_n), family_ratio (median A_n / A(q_n, omega): 1 for the branch's wave at that
-  frequency), distance (median shape distance D_n to the branch's wave U_{q_n} over the bulk), distance_slope
-  (dD_n / dn), strain_static (median mean strain c_{n+1} - c_n over the bulk; < 0: compression), strain_dynamic (median
-  (max - min)/2 of x_{n+1} - x_n), and per bead A_n, q_n, D_n (N each).
+Record files (npz, :class:`~hertzpetsc.records.NpzRecords`, written as they go, ``-resume`` continues), their columns
+declared in :data:`RESPONSE_KIND` (:class:`ResponseCurve`), :data:`RESONANCE_KIND` (:class:`LinearResonances`),
+:data:`WAVE_ENDS_KIND` (:class:`WaveEnds`) and :data:`GENERATION_KIND` (:class:`Generation`).
 """
 from __future__ import annotations
 
@@ -70,6 +36,7 @@ from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, H
 from ..errors import ConvergenceError, ParameterError, check_integer, check_real
 from ..floquet import DenseFloquet
 from ..model import Damping, LatticeModel, law_options
+from ..records import Column, Kind
 from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
                          check_work)
 from ..roles import configure, uses
@@ -84,24 +51,155 @@ if TYPE_CHECKING:
 GOLDEN = (math.sqrt(5) - 1) / 2     # the interval of a golden-section search shrinks by this per evaluation
 
 RESPONSE_FORMAT = "hertzpetsc-driven-response-1"
-RESPONSE_FIELDS = ("branch", "periods", "p", "omega", "amplitude", "s", "dp_ds", "event", "confirmed", "iterations",
-                   "residual", "rho", "outside", "tau_pd", "tau_ns", "force_right", "force_left", "amp_first",
-                   "amp_last", "amp_max", "power_in", "dissipation", "half_residual", "multipliers", "x")
+_OPTIONS = Column("solver_options", "the options given under `-drive_` and `-floquet_` that change numbers "
+                  "(`name=value ...`; absent from files before issue 37)", "", str, "s", constant=True, optional=True)
+_SHA = {name: Column(f"{name}_sha256", f"SHA-256 of the {what} file's content (absent from files before issue 37)",
+                     "", str, "s", constant=True, optional=True) for name, what in (("branch", "branch"),
+                                                                                   ("refined", "refinement"))}
+_STR, _INT = dict(unit="", dtype=str, format="s"), dict(unit="count", dtype=np.int64, format="d")
+_CODE = dict(unit="", dtype=np.int64, format="d")
+RESPONSE_KIND = Kind(RESPONSE_FORMAT, (
+    Column("drive", "JSON: the chain and its driving (alpha, delta0, masses, gamma, eta, N, waveform, amplitude, "
+           "omega, far end) at the start", constant=True, **_STR),
+    Column("parameter", "the continuation parameter (`omega` or `amplitude`)", constant=True, **_STR),
+    Column("p_end", "the continuation parameter's end value", constant=True),
+    Column("base_periods", "period of the continued responses, in driving periods", constant=True, **_INT),
+    Column("jacobian", "Newton's Jacobian (`dense`, `mf`)", constant=True, **_STR),
+    Column("floquet", "the multipliers' route (`dense`, `slepc`, `none`)", constant=True, **_STR),
+    Column("tol", "shooting tolerance (relative)", constant=True),
+    Column("rtol", "flow tolerance (atol = rtol/100)", constant=True),
+    Column("mode", "`arclength` or `grid`", constant=True, **_STR),
+    Column("N", "beads", constant=True, **_INT),
+    Column("nmult", "multipliers kept per record", constant=True, **_INT),
+    _OPTIONS,
+    Column("branch", "0: the continued branch; j >= 1: the branch switched onto at the j-th confirmed period "
+           "doubling (period 2 k)", **_CODE),
+    Column("periods", "the response's period in driving periods", **_INT),
+    Column("p", "parameter value", format=".8f"),
+    Column("omega", "driving frequency"),
+    Column("amplitude", "driving amplitude"),
+    Column("s", "arclength (grid: parameter distance)"),
+    Column("dp_ds", "dp/ds (nan on a grid)"),
+    Column("event", "0 regular, 1 fold, 2 period doubling, 3 Neimark-Sacker, located by the layer; on a regular "
+           "point (dp_ds finite; on a grid always): a crossing bracketed between it and the previous one", **_CODE),
+    Column("confirmed", "events: 1 if the multipliers of the regular points on both sides (or of two responses "
+           "close to a located event) differ as the event says, else 0 (e.g. a neutral saddle); -1 regular points",
+           **_CODE),
+    Column("iterations", "Newton iterations", **_INT),
+    Column("residual", "\\|\\|P^k(X) - X\\|\\|_inf / scale (from Newton's last evaluation, or measured again)",
+           format=".1e"),
+    Column("rho", "largest \\|multiplier\\| of the monodromy over the response period k 2 pi / omega", format=".6f"),
+    Column("outside", "multipliers with \\|mu\\| > 1 + 1e-6", **_INT),
+    Column("tau_pd", "the period-doubling test function"),
+    Column("tau_ns", "the Neimark-Sacker test function"),
+    Column("force_right", "largest compressive force of the last bond over the period: the force on the wall (nan "
+           "without samples)",
+           format=".4g"),
+    Column("force_left", "largest compressive force of the first bond over the period (nan without samples)",
+           format=".4g"),
+    Column("amp_first", "amplitude (max - min)/2 of the first bead", format=".4g"),
+    Column("amp_last", "amplitude (max - min)/2 of the last bead", format=".4g"),
+    Column("amp_max", "largest bead amplitude (max - min)/2", format=".4g"),
+    Column("power_in", "mean input power over the period"),
+    Column("dissipation", "mean dissipation over the period"),
+    Column("half_residual", "even periods k: \\|\\|P^(k/2)(X) - X\\|\\| / scale, large for a genuine period-k "
+           "response (nan otherwise)"),
+    Column("multipliers", "the largest multipliers (nan-padded)", "1", complex, shape="nmult"),
+    Column("x", "the response's state at t = 0 (positions, velocities)", shape="N, 2"),
+))
+RESPONSE_FIELDS = RESPONSE_KIND.fields
 EVENTS = {None: 0, "fold": 1, "period_doubling": 2, "neimark_sacker": 3}
 # An event the neighbouring points do not confirm is checked on responses this fraction of its distance to the
 # nearer neighbour away from it, on either side.
 CONFIRM_DISTANCE = 0.05
 EVENT_NAMES = {v: k for k, v in EVENTS.items()}
 RESONANCE_FORMAT = "hertzpetsc-driven-resonances-1"
-RESONANCE_FIELDS = ("k", "omega_k", "peak_linear", "peak_shooting", "amp_linear", "amp_shooting", "mu_error",
-                    "evaluations")
+RESONANCE_KIND = Kind(RESONANCE_FORMAT, (
+    Column("drive", "JSON: the chain and its driving", constant=True, **_STR),
+    Column("modes", "the mode numbers asked for", shape="K", constant=True, **_INT),
+    Column("tol", "shooting tolerance", constant=True),
+    Column("rtol", "flow tolerance", constant=True),
+    Column("golden", "golden-section steps per peak (absent from files before issue 37)", constant=True,
+           optional=True, **_INT),
+    _OPTIONS,
+    Column("k", "mode number", **_INT),
+    Column("omega_k", "normal-mode frequency of the undamped linear chain (closed form)", format=".8f"),
+    Column("peak_linear", "frequency of the last bead's largest amplitude: damped linear chain (complex solve)",
+           format=".8f"),
+    Column("peak_shooting", "the same for the Hertz chain by shooting", format=".8f"),
+    Column("amp_linear", "\\|X_N\\| / a at the linear peak: the first harmonic's amplitude of x_N(t) per unit "
+           "actuator amplitude", format=".6g"),
+    Column("amp_shooting", "the same at the shooting peak (the Fourier coefficient over the period from 64 samples; "
+           "files before issue 37: hypot(x_N(0), x_N'(0)/omega))", format=".6g"),
+    Column("mu_error", "largest distance of the response's sorted multipliers to exp(T lambda) of the linear "
+           "damped chain",
+           format=".1e"),
+    Column("evaluations", "periodic responses computed for the peak", **_INT),
+))
+RESONANCE_FIELDS = RESONANCE_KIND.fields
 WAVE_ENDS_FORMAT = "hertzpetsc-driven-wave-ends-1"
-WAVE_ENDS_FIELDS = ("q", "m", "N", "rtol", "imposed", "residual", "moved", "iterations", "rho", "outside",
-                    "rho_periodic", "multipliers")
+WAVE_ENDS_KIND = Kind(WAVE_ENDS_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("P", "beads of the periodic chain of the refined waves", constant=True, **_INT),
+    Column("branch", "the branch file read (a label)", constant=True, **_STR),
+    Column("refined", "the refinement file read (a label)", constant=True, **_STR),
+    Column("samples", "least number of points of the sampled wave profile", constant=True, **_INT),
+    Column("rtols", "the flow tolerances", shape="R", constant=True),
+    _SHA["branch"], _SHA["refined"], _OPTIONS,
+    Column("q", "wavenumber per bead (x_n = U(q n - omega t))"),
+    Column("m", "wavelengths on the periodic chain", **_INT),
+    Column("N", "beads of the driven chain", **_INT),
+    Column("rtol", "flow tolerance", format=".0e"),
+    Column("imposed", "\\|\\|P(X) - X\\|\\|_inf / \\|\\|X\\|\\|_inf of the refined wave", format=".1e"),
+    Column("residual", "the same after Newton", format=".1e"),
+    Column("moved", "how far Newton moved the state (relative)", format=".1e"),
+    Column("iterations", "Newton iterations", **_INT),
+    Column("rho", "largest \\|multiplier\\| of the driven chain over 2 pi / omega", format=".8f"),
+    Column("outside", "multipliers outside the circle", **_INT),
+    Column("rho_periodic", "rho(F_q)^(P/m) of the periodic chain over the same time", format=".8f"),
+    Column("multipliers", "the largest multipliers", "1", complex, shape="nmult"),
+))
+WAVE_ENDS_FIELDS = WAVE_ENDS_KIND.fields
 GENERATION_FORMAT = "hertzpetsc-driven-generation-1"
-GENERATION_FIELDS = ("waveform", "omega", "amplitude", "gamma", "ok", "runin_residual", "residual", "iterations",
-                     "rho", "verdict", "amp_first", "decay", "q_bulk", "q_spread", "amp_bulk", "family_ratio",
-                     "distance", "distance_slope", "strain_static", "strain_dynamic", "A_n", "q_n", "D_n")
+GENERATION_KIND = Kind(GENERATION_FORMAT, (
+    Column("model", "JSON: alpha, masses (and delta0, eta when set)", constant=True, **_STR),
+    Column("N", "beads", constant=True, **_INT),
+    Column("branch", "the branch file of the travelling waves compared with (a label)", constant=True, **_STR),
+    Column("bulk", "the bulk: fractions (lo, hi) of the chain", shape="2", constant=True),
+    Column("run_in", "periods of run-in from rest", constant=True, **_INT),
+    Column("width", "half-sine pulse width (periods)", constant=True),
+    Column("tol", "shooting tolerance (absent from files before issue 37)", constant=True, optional=True),
+    Column("rtol", "flow tolerance (atol = rtol a / 100; absent from files before issue 37)", constant=True,
+           optional=True),
+    Column("samples", "samples per period (absent from files before issue 37)", constant=True, optional=True,
+           **_INT),
+    _SHA["branch"], _OPTIONS,
+    Column("waveform", "0 harmonic, 1 half-sine pulses", **_CODE),
+    Column("omega", "driving frequency", format="g"),
+    Column("amplitude", "driving amplitude", format="g"),
+    Column("gamma", "on-site damping", format="g"),
+    Column("ok", "1: a periodic response was found", **_CODE),
+    Column("runin_residual", "\\|\\|P(X) - X\\|\\| / scale after the run-in (large: not settled to a periodic "
+           "motion)", format=".1e"),
+    Column("residual", "residual after Newton"),
+    Column("iterations", "Newton iterations", **_INT),
+    Column("rho", "largest \\|multiplier\\| over the driving period 2 pi / omega", format=".4f"),
+    Column("verdict", "1 stable, 0 neutral, -1 unstable, nan (stored as a float)", ""),
+    Column("amp_first", "first bead's amplitude"),
+    Column("decay", "-d ln A_n / dn over the bulk", format=".3f"),
+    Column("q_bulk", "median local wavenumber over the bulk", format=".4f"),
+    Column("q_spread", "interquartile range of the local wavenumbers over the bulk", format=".3f"),
+    Column("amp_bulk", "median bulk amplitude", format=".3g"),
+    Column("family_ratio", "median A_n / A(q_n, omega): 1 for the branch's wave at that frequency", format=".3g"),
+    Column("distance", "median shape distance D_n to the branch's wave U_{q_n} over the bulk", format=".3f"),
+    Column("distance_slope", "its slope along the chain", format=".1e"),
+    Column("strain_static", "median mean strain x_{n+1} - x_n over the bulk (< 0 compressed)", format=".2e"),
+    Column("strain_dynamic", "median (max - min)/2 of x_{n+1} - x_n", format=".2e"),
+    Column("A_n", "per bead: amplitude", shape="N"),
+    Column("q_n", "per bead: local wavenumber", shape="N"),
+    Column("D_n", "per bead: distance to the branch profile", shape="N"),
+))
+GENERATION_FIELDS = GENERATION_KIND.fields
 WAVEFORMS = ("harmonic", "half_sine")
 
 
@@ -327,11 +425,9 @@ class ResponseCurve(DrivenStudy):
     period-doubled branch from each confirmed period doubling (branch switching). Records: module docstring."""
 
     Parameters = ResponseParameters
-    FORMAT, FIELDS = RESPONSE_FORMAT, RESPONSE_FIELDS
+    FORMAT, FIELDS, DTYPES, COLUMNS = RESPONSE_FORMAT, RESPONSE_FIELDS, RESPONSE_KIND.dtypes, RESPONSE_KIND
     ended = None                   # why the continuation stopped before p_end, when it did (arclength: also said in
     stop = None                    # a note; grid: the error raised) and the ContinuationError that stopped it
-    DTYPES = {"branch": np.int64, "periods": np.int64, "event": np.int64, "confirmed": np.int64,
-              "iterations": np.int64, "outside": np.int64, "multipliers": complex}
     ROLES = uses("drive_", "floquet_")
     WHAT = "driven-response file"
 
@@ -728,9 +824,8 @@ class ResponseCurve(DrivenStudy):
             dp = float(r["dp_ds"])
             if int(r["event"]) and (not arclength or (math.isfinite(dp) and dp != 0.0)):
                 name += " (bracketed)"
-            lines.append(f"| {int(r['branch'])} | {int(r['periods'])} | {name} | {float(r['p']):.8f} | "
-                         f"{int(r['confirmed'])} | {float(r['rho']):.6f} | {float(r['residual']):.1e} | "
-                         f"{float(r['force_right']):.4g} | {float(r['amp_max']):.4g} |")
+            lines.append(RESPONSE_KIND.row(r, "{branch}", "{periods}", name, "{p}", "{confirmed}", "{rho}",
+                                           "{residual}", "{force_right}", "{amp_max}"))
         for j in sorted({int(r["branch"]) for r in recs}):
             br = self.branch_records(j)
             span = f"{len(br)} points, {self.parameter} from {float(br[0]['p']):.6g} to {float(br[-1]['p']):.6g}"
@@ -866,8 +961,7 @@ class LinearResonances(DrivenStudy):
     docstring)."""
 
     Parameters = ResonanceParameters
-    FORMAT, FIELDS = RESONANCE_FORMAT, RESONANCE_FIELDS
-    DTYPES = {"k": np.int64, "evaluations": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = RESONANCE_FORMAT, RESONANCE_FIELDS, RESONANCE_KIND.dtypes, RESONANCE_KIND
     ROLES = uses("drive_", floquet_=("ts",))
     WHAT = "driven-resonances file"
 
@@ -959,10 +1053,10 @@ class LinearResonances(DrivenStudy):
                  "| k | omega_k | peak (linear) | peak - omega_k | peak (shooting) | shooting - linear | "
                  "|X_N|/a linear | |X_N|/a shooting | mu error | solves |", "|---|---|---|---|---|---|---|---|---|---|"]
         for r in sorted(self.store.records, key=lambda r: int(r["k"])):
-            lines.append(f"| {int(r['k'])} | {float(r['omega_k']):.8f} | {float(r['peak_linear']):.8f} | "
-                         f"{float(r['peak_linear']) - float(r['omega_k']):.2e} | {float(r['peak_shooting']):.8f} | "
-                         f"{float(r['peak_shooting']) - float(r['peak_linear']):.1e} | {float(r['amp_linear']):.6g} | "
-                         f"{float(r['amp_shooting']):.6g} | {float(r['mu_error']):.1e} | {int(r['evaluations'])} |")
+            lines.append(RESONANCE_KIND.row(r, "{k}", "{omega_k}", "{peak_linear}",
+                                            f"{r['peak_linear'] - r['omega_k']:.2e}", "{peak_shooting}",
+                                            f"{r['peak_shooting'] - r['peak_linear']:.1e}", "{amp_linear}",
+                                            "{amp_shooting}", "{mu_error}", "{evaluations}"))
         return "\n".join(lines) + "\n"
 
     def destroy(self) -> None:
@@ -1019,8 +1113,7 @@ class WaveEnds(DrivenStudy):
     tolerance)."""
 
     Parameters = WaveEndsParameters
-    FORMAT, FIELDS = WAVE_ENDS_FORMAT, WAVE_ENDS_FIELDS
-    DTYPES = {"m": np.int64, "N": np.int64, "iterations": np.int64, "outside": np.int64, "multipliers": complex}
+    FORMAT, FIELDS, DTYPES, COLUMNS = WAVE_ENDS_FORMAT, WAVE_ENDS_FIELDS, WAVE_ENDS_KIND.dtypes, WAVE_ENDS_KIND
     ROLES = uses("drive_", floquet_=("ts",))
     WHAT, RENAMED = "driven wave-ends file", {"qs": "q"}
     LABELS = ("branch", "refined", "rtols")         # not the file names, nor rtols: a resume may add tolerances
@@ -1106,10 +1199,9 @@ class WaveEnds(DrivenStudy):
                  "| q | m | N | rtol | imposed | residual | moved | rho | outside | rho periodic | driven / periodic |",
                  "|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in recs:
-            lines.append(f"| {q_label(float(r['q']))} ({float(r['q']):.4f}) | {int(r['m'])} | {int(r['N'])} | "
-                         f"{float(r['rtol']):.0e} | {float(r['imposed']):.1e} | {float(r['residual']):.1e} | "
-                         f"{float(r['moved']):.1e} | {float(r['rho']):.8f} | {int(r['outside'])} | "
-                         f"{float(r['rho_periodic']):.8f} | {float(r['rho']) / float(r['rho_periodic']):.4f} |")
+            lines.append(WAVE_ENDS_KIND.row(r, f"{q_label(float(r['q']))} ({r['q']:.4f})", "{m}", "{N}", "{rtol}",
+                                            "{imposed}", "{residual}", "{moved}", "{rho}", "{outside}",
+                                            "{rho_periodic}", f"{r['rho'] / r['rho_periodic']:.4f}"))
         return "\n".join(lines) + "\n"
 
 
@@ -1181,8 +1273,7 @@ class Generation(DrivenStudy):
     chain, and the static and dynamic strains. The cases are dealt to the ranks (each on one rank)."""
 
     Parameters = GenerationParameters
-    FORMAT, FIELDS = GENERATION_FORMAT, GENERATION_FIELDS
-    DTYPES = {"waveform": np.int64, "ok": np.int64, "iterations": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = GENERATION_FORMAT, GENERATION_FIELDS, GENERATION_KIND.dtypes, GENERATION_KIND
     ROLES = uses("drive_", "floquet_")
     WHAT, RENAMED = "driven-generation file", {"waveforms": "signals"}
     LABELS = ("branch",)
@@ -1309,16 +1400,15 @@ class Generation(DrivenStudy):
                  "decay | static strain | dynamic strain |", "|---" * 16 + "|"]
         for r in sorted(self.store.records, key=lambda r: (int(r["waveform"]), float(r["gamma"]), float(r["amplitude"]),
                                                            float(r["omega"]))):
-            case = (f"| {WAVEFORMS[int(r['waveform'])]} | {float(r['omega']):g} | {float(r['amplitude']):g} | "
-                    f"{float(r['gamma']):g} | ")
+            case = (WAVEFORMS[int(r["waveform"])], "{omega}", "{amplitude}", "{gamma}")
             if not int(r["ok"]):
-                lines.append(case + f"no (run-in residual {float(r['runin_residual']):.1e}) | | | | | | | | | | | |")
+                no = f"no (run-in residual {r['runin_residual']:.1e})"
+                lines.append(GENERATION_KIND.row(r, *case, no) + " |" * 11)
                 continue
-            lines.append(case + f"yes | {float(r['rho']):.4f} | {float(r['q_bulk']):.4f} | "
-                         f"{self.linear_wavenumber(float(r['omega']), float(r['strain_static'])):.4f} | "
-                         f"{float(r['q_spread']):.3f} | {float(r['amp_bulk']):.3g} | {float(r['family_ratio']):.3g} | "
-                         f"{float(r['distance']):.3f} | {float(r['distance_slope']):.1e} | {float(r['decay']):.3f} | "
-                         f"{float(r['strain_static']):.2e} | {float(r['strain_dynamic']):.2e} |")
+            q_lin = f"{self.linear_wavenumber(r['omega'], r['strain_static']):.4f}"
+            lines.append(GENERATION_KIND.row(r, *case, "yes", "{rho}", "{q_bulk}", q_lin, "{q_spread}", "{amp_bulk}",
+                                             "{family_ratio}", "{distance}", "{distance_slope}", "{decay}",
+                                             "{strain_static}", "{strain_dynamic}"))
         return "\n".join(lines) + "\n"
 
 

@@ -1,12 +1,8 @@
 """Floquet studies of section 3.5: the scan of rho(F_q) along the branch on N beads (q_c, q_m), and the long-chain
 spectra by Bloch sectors.
 
-Both write their records as they go. The Floquet file (``hertzpetsc-floquet-1``, npz): constants N, alpha,
-tol_rho, method, refined_file (path or ''), note; per q: q, rho (trivial multipliers excluded), outside (|mu| > 1 +
-tol_rho), trivial_spread, growth (ln rho / script-T), multipliers (2N, nan-padded for the SLEPc route),
-refined (1 if the refined wave was used), seconds. The Bloch file (``hertzpetsc-bloch-1``): per (N, q): N, q,
-rho, rho_cell (sector theta = 0), outside, dominant (nev complex multipliers), dominant_theta (theta / 2 pi),
-residual, seconds, slepc_products, slepc_seconds.
+Both write their records as they go: the Floquet file and the Bloch file, their columns declared in
+:data:`FLOQUET_KIND` and :data:`BLOCH_KIND`.
 
 A stability verdict is only given for the waves it is computed on: with a refinement file, every scanned q must
 be in it (a list naming an unrefined q is an error; without a list the scan is restricted to the refined q,
@@ -59,12 +55,12 @@ FLOQUET_KIND = Kind(FLOQUET_FORMAT, (
            "before it)", "", str, "s", constant=True, optional=True),
     Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
            "before it)", "", str, "s", constant=True, optional=True),
-    Column("q", "wavenumbers", format=".6f"),
+    Column("q", "wavenumbers", format=".4f"),
     Column("rho", "spectral radius of F_q, the four trivial multipliers excluded", format=".8f"),
     Column("outside", "multipliers with \\|mu\\| > 1 + tol_rho", "count", np.int64, "d"),
     Column("trivial_spread", "spread of the four trivial multipliers around 1 (the orbit error's sqrt)",
            format=".1e"),
-    Column("growth", "ln(rho) / script-T, the growth rate per unit time", format=".2e"),
+    Column("growth", "ln(rho) / script-T, the growth rate per unit time", format=".4f"),
     Column("refined", "1 if the refined wave was used", "", np.int64, "d"),
     Column("seconds", "wall time of the q", "s", format=".1f"),
     Column("multipliers", "all multipliers (the `slepc` route: its `nev`, padded with nan)", dtype=complex,
@@ -72,8 +68,44 @@ FLOQUET_KIND = Kind(FLOQUET_FORMAT, (
 ))
 FLOQUET_FIELDS = FLOQUET_KIND.fields[:-1]
 BLOCH_FORMAT = "hertzpetsc-bloch-1"
-BLOCH_FIELDS = ("N", "q", "rho", "rho_cell", "outside", "residual", "seconds", "slepc_products", "slepc_seconds")
-# what the table prints besides, recorded since; a file written before lacks them: -1 (integers) or nan on load
+_INT = dict(unit="count", dtype=np.int64, format="d")
+BLOCH_KIND = Kind(BLOCH_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("M", "beads of the refined wave that is tiled (the refinement file's N)", constant=True, **_INT),
+    Column("nev", "dominant multipliers kept and checked on the full chain", constant=True, **_INT),
+    Column("tol_rho", "outside the circle: \\|lambda\\| > 1 + tol_rho", constant=True),
+    Column("split", "`sectors` (dealt to the ranks) or `beads` (each sector over all ranks)", "", str, "s",
+           constant=True),
+    Column("rtol", "flow tolerance", constant=True),
+    Column("refined_file", "the refinement file of the cell (a label)", "", str, "s", constant=True),
+    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
+           "s", constant=True, optional=True),
+    Column("refined_sha256", "sha256 of the refinement file's content (absent from files written before it)", "",
+           str, "s", constant=True, optional=True),
+    Column("solver_options", "number-changing options under `-floquet_` (absent from files written before it)", "",
+           str, "s", constant=True, optional=True),
+    Column("N", "beads of the long chain (a multiple of M)", **_INT),
+    Column("q", "wavenumber"),
+    Column("rho", "rho(F_q) on N beads, trivial multipliers excluded", format=".8f"),
+    Column("rho_cell", "the sector theta = 0, i.e. rho of the M-bead chain", format=".8f"),
+    Column("outside", "multipliers with \\|lambda\\| > 1 + tol_rho among all 2N", **_INT),
+    Column("residual", "max relative \\|\\|F Y - lambda Y\\|\\| of the tiled dominant modes on the full chain "
+           "(matrix-free)", format=".1e"),
+    Column("seconds", "time of the Bloch sectors", "s", format=".1f"),
+    Column("slepc_products", "seeded SLEPc on the full chain: shell products (-1: not run)", **_INT),
+    Column("slepc_seconds", "its seconds (nan: not run)", "s", format=".1f"),
+    Column("dominant", "the nev dominant multipliers", "1", complex, shape="nev"),
+    Column("dominant_theta", "their Bloch parameter theta / 2 pi per M-bead cell", shape="nev"),
+    # what the table prints besides, recorded since; a file written before lacks them: -1 or nan on load
+    Column("runs", "Bloch work: TS runs in all", optional=True, **_INT),
+    Column("columns", "Bloch work: tangent columns in all", optional=True, **_INT),
+    Column("propagated", "1: every sector from the cell propagator on 3 cells", "", np.int64, "d",
+           optional=True),
+    Column("res_products", "the residual check: shell products", optional=True, **_INT),
+    Column("res_seconds", "the residual check: seconds", "s", format=".1f", optional=True),
+    Column("slepc_dist", "max distance of SLEPc's multipliers to the Bloch ones (nan: not run)",
+           format=".1e", optional=True),
+))
 BLOCH_DETAIL = {"runs": -1, "columns": -1, "propagated": -1, "res_products": -1, "res_seconds": math.nan,
                 "slepc_dist": math.nan}
 
@@ -230,9 +262,8 @@ class FloquetScan(Study):
             # the SLEPc route sees nev multipliers only: when all are outside, more may be; the trivial ones unseen
             outside, spread = int(r["outside"]), float(r["trivial_spread"])
             outside = f">= {outside}" if self.method == "slepc" and outside >= self.nev else str(outside)
-            lines.append(f"| {float(r['q']):.4f} | {float(r['rho']):.8f} | {outside} | "
-                         f"{'n/a' if math.isnan(spread) else format(spread, '.1e')} | {float(r['growth']):.4f} | "
-                         f"{'refined' if int(r['refined']) else 'branch'} |")
+            lines.append(FLOQUET_KIND.row(r, "{q}", "{rho}", outside, "n/a" if math.isnan(spread) else f"{spread:.1e}",
+                                          "{growth}", "refined" if int(r["refined"]) else "branch"))
         if not len(rows):
             return "\n".join(lines) + "\n"
         # a wave whose trivial multipliers spread by more than tol_rho (an unrefined one) cannot be judged there
@@ -286,9 +317,7 @@ class BlochScan(Study):
     """All 2N multipliers of F_q on N = L M beads from Bloch sectors of the refined M-bead wave, the residuals of
     the dominant modes on the full chain (matrix-free) and, for N in ``slepc_sizes``, seeded SLEPc (sec. 3.5)."""
 
-    FORMAT, FIELDS = BLOCH_FORMAT, BLOCH_FIELDS + ("dominant", "dominant_theta") + tuple(BLOCH_DETAIL)
-    DTYPES = {"N": np.int64, "outside": np.int64, "slepc_products": np.int64, "dominant": complex, "runs": np.int64,
-              "columns": np.int64, "propagated": np.int64, "res_products": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = BLOCH_FORMAT, BLOCH_KIND.fields, BLOCH_KIND.dtypes, BLOCH_KIND
     ROLES = uses("floquet_")
     WHAT, LABELS, ADDED = "Bloch file", ("split", "refined_file"), BLOCH_DETAIL
 
@@ -413,10 +442,9 @@ class BlochScan(Study):
                 slepc = (f"{int(r['slepc_products'])}, {float(r['slepc_seconds']):.1f}, "
                          + (f"{dist:.1e}" if math.isfinite(dist) else "*"))
             older = older or r["res_products"] < 0 or slepc.endswith("*")
-            lines.append(f"| {N} | {q_label(q)} | {int(round(N * q / (2 * math.pi)))} | {float(r['rho']):.8f} | "
-                         f"{float(r['rho_cell']):.8f} | {f'{ref:.8f}' if ref is not None else 'n/a'} | "
-                         f"{int(r['outside'])} | {work} | {float(r['seconds']):.1f} | "
-                         f"{float(r['residual']):.1e} {res_detail} | {slepc} |")
+            lines.append(BLOCH_KIND.row(r, "{N}", q_label(q), int(round(N * q / (2 * math.pi))), "{rho}", "{rho_cell}",
+                                        f"{ref:.8f}" if ref is not None else "n/a", "{outside}", work, "{seconds}",
+                                        "{residual} " + res_detail, slepc))
             dom = ", ".join(f"{abs(v):.6f} @ {np.angle(v) / math.pi:+.4f} [{t:.3f}]"
                             for v, t in zip(r["dominant"], r["dominant_theta"]))
             dominant.append(f"- N = {N}, q = {q_label(q)}: {dom}")

@@ -14,13 +14,16 @@ import sys
 import time
 from dataclasses import dataclass
 
-import numpy as np
-
 from ..errors import HertzPetscError, ParameterError, RecordFileError
 from ..options import run_child
-from ..records import NpzRecords, make_directory, prepare_output
+from ..records import Column, Kind, NpzRecords, make_directory, prepare_output
 
 PAPER_FORMAT = "hertzpetsc-paper-1"
+PAPER_KIND = Kind(PAPER_FORMAT, (
+    Column("steps", "the steps of this pipeline, comma-separated", "", str, "s", constant=True),
+    Column("name", "a step", "", str, "s"),
+    Column("event", "`started` or `done`", "", str, "s"),
+    Column("seconds", "the step's wall time (0 for `started`)", "s", format=".0f")))
 
 
 class StepFailure(HertzPetscError):
@@ -285,8 +288,8 @@ class PaperPipeline:
             self._lock.flush()
             names = ",".join(s.name for s in self.steps)
             self.store = NpzRecords(self.progress, PAPER_FORMAT, dict(steps=names), dict(steps=names),
-                                    ("name", "event", "seconds"), None, self.mode,
-                                    dtypes={"name": np.str_, "event": np.str_}, what="pipeline progress file")
+                                    PAPER_KIND.fields, None, self.mode, dtypes=PAPER_KIND.dtypes,
+                                    what="pipeline progress file", columns=PAPER_KIND)
             make_directory(os.path.join(self.logs, "log"), "log")
         return self
 

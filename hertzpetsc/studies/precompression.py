@@ -1,24 +1,10 @@
 """Studies of precompressed and dimer chains (issue 16): amplitude families at fixed q from the linear wave to
 the uncompressed limit, the gap opening, dimer families in the mass ratio; the waves of the stability map.
 
-Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.records.NpzRecords`):
-
-* ``hertzpetsc-precompressed-1`` (:class:`AmplitudeFamilies`): constants alpha, delta0, cells_per_pi, a_min,
-  a_max, ds (and masses, branch for a mass pattern); per record: q, kind (0 = a point of the s = log a grid,
-  1 = the gap opening, where the longest bond reaches delta0, 2 = the uncompressed limit delta0 / A = 0, where a
-  and A are inf), a (first sine coefficient of the normalised profile), A (max_c ||u_c||_inf), omega, omega_lin
-  (the branch's linear frequency, closed form), Omega = omega A^(-(alpha-1)/2), lam, gap (the longest bond minus
-  delta0: 2 u(q/2) - delta0 for one mass), iterations.
-* ``hertzpetsc-dimer-2`` (:class:`DimerFamilies`): constants alpha, delta0, cells_per_pi, a, epsilon_end, ds,
-  ds_max; per record: q, epsilon, omega, omega_acoustic (linear, closed form), arclength, tangent_epsilon, norm_u,
-  norm_v (||u_0||_inf, ||u_1||_inf), v1, v2 (first and second sine coefficients of the light bead's profile),
-  iterations, event (0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the
-  path; an event with iterations 0: its location failed, the record a point of the path next to it, 'unresolved'); state (for -resume, the end state of every q computed, stacked in the order of ``state_q`` (m,)):
-  ``state_Z`` (m, 2, n) the last two extended vectors (u_0 whole, u_1 whole, lam, epsilon: ``state_layout`` =
-  'natural'), ``state_s`` (m, 2), ``state_ds``, ``state_normalised`` (m,). Older files hold one state, of the last
-  q computed (``state_q`` (), ``state_Z`` (2, n), ...; without ``state_layout``, in its writer's rank layout): they
-  resume that q, and a resume that must continue another q is refused. A ``hertzpetsc-dimer-1`` file (no event, no
-  state) is read for its tables; it cannot be resumed.
+Record files (npz, written as they go, -resume continues, :class:`~hertzpetsc.records.NpzRecords`), their columns
+declared in :data:`PRECOMPRESSED_KIND` (:class:`AmplitudeFamilies`) and :data:`DIMER_KIND` (:class:`DimerFamilies`,
+with the end state of every q computed, for -resume; older files hold one state, of the last q, and resume that q
+only; a ``hertzpetsc-dimer-1`` file is read for its tables and cannot be resumed).
 
 The stability map in (q, A) (record kind ``hertzpetsc-precompression-map-2``) is :mod:`hertzpetsc.studies.maps`,
 on the waves of :func:`richardson_wave` / :func:`wave_orbit` here.
@@ -81,8 +67,33 @@ PRECOMPRESSED_KIND = Kind(PRECOMPRESSED_FORMAT, (
 ))
 PRECOMPRESSED_FIELDS = PRECOMPRESSED_KIND.fields
 DIMER_FORMAT = "hertzpetsc-dimer-2"
-DIMER_FIELDS = ("q", "epsilon", "omega", "omega_acoustic", "arclength", "tangent_epsilon", "norm_u", "norm_v",
-                "v1", "v2", "iterations", "event")
+DIMER_KIND = Kind(DIMER_FORMAT, (
+    Column("alpha", "Hertz exponent (absent for another law)", constant=True, optional=True),
+    Column("delta0", "precompression (absent for another law)", constant=True, optional=True),
+    Column("law", "a chain of another law than Hertz's: its name, its parameters beside it (absent for Hertz's)",
+           "", str, "s", constant=True, optional=True),
+    Column("cells_per_pi", "grid h = pi / cells_per_pi", "count", np.int64, "d", constant=True),
+    Column("a", "fixed amplitude (first sine coefficient of the heavy bead's profile u)", constant=True),
+    Column("epsilon_end", "the continuation stops once epsilon passes it", constant=True),
+    Column("ds", "first arclength step", constant=True),
+    Column("ds_max", "largest arclength step", constant=True),
+    Column("solver_options", "numeric-changing options under `-dimer_` and `-dimer_natural_`", "", str, "s",
+           constant=True, optional=True),
+    Column("q", "per-bead wavenumber"),
+    Column("epsilon", "mass ratio (masses 1, epsilon)", format=".5f"),
+    Column("omega", "frequency", format=".6f"),
+    Column("omega_acoustic", "the linear acoustic frequency (closed form)", format=".6f"),
+    Column("arclength", "arclength s"),
+    Column("tangent_epsilon", "d epsilon / ds (a sign change is a fold)"),
+    Column("norm_u", "\\|\\|u_0\\|\\|_inf (heavy bead)"),
+    Column("norm_v", "\\|\\|u_1\\|\\|_inf (light bead)"),
+    Column("v1", "first sine coefficient of the light bead's profile", format=".4f"),
+    Column("v2", "second sine coefficient of the light bead's profile", format=".4f"),
+    Column("iterations", "Newton iterations", "count", np.int64, "d"),
+    Column("event", "0: a point of the path, 1: a located fold of epsilon, 2: the gap opening located on the path",
+           "", np.int64, "d"),
+))
+DIMER_FIELDS = DIMER_KIND.fields
 EVENT_CODES = {None: 0, "fold": 1, "gap": 2}
 KIND_GRID, KIND_GAP, KIND_LIMIT = 0, 1, 2
 
@@ -340,8 +351,7 @@ class DimerFamilies(Study):
     the table says where it stopped."""
 
     Parameters = DimerParameters
-    FORMAT, FIELDS = DIMER_FORMAT, DIMER_FIELDS
-    DTYPES = {"iterations": np.int64, "event": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = DIMER_FORMAT, DIMER_FIELDS, DIMER_KIND.dtypes, DIMER_KIND
     ROLES = uses("dimer_", "dimer_natural_")
     WHAT = "dimer file"
 
@@ -508,11 +518,10 @@ class DimerFamilies(Study):
             t = t[np.isfinite(t)]
             folds = int(np.sum(np.sign(t[1:]) != np.sign(t[:-1]))) if len(t) > 1 else 0
             last = rows[-1]
-            lines.append(f"| {q_label(q)} | {len(rows)} | {float(last['epsilon']):.5f} "
-                         f"({min(float(r['epsilon']) for r in rows):.5f}) | {float(rows[0]['omega']):.6f} | "
-                         f"{float(last['omega']):.6f} | {float(last['norm_v']) / float(last['norm_u']):.4f} | "
-                         f"{float(last['v1']):.4f}, {float(last['v2']):.4f} | {folds} | "
-                         f"{float(last['omega_acoustic']):.6f} | {events} |")
+            least = min(r["epsilon"] for r in rows)
+            lines.append(DIMER_KIND.row(last, q_label(q), len(rows), f"{{epsilon}} ({least:.5f})",
+                                        f"{rows[0]['omega']:.6f}", "{omega}", f"{last['norm_v'] / last['norm_u']:.4f}",
+                                        "{v1}, {v2}", folds, "{omega_acoustic}", events))
         for q, why in self.stopped.items():
             lines.append(f"\nq = {q_label(q)}: stopped: {why}")
         for q in self.qs:

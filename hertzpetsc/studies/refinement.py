@@ -1,29 +1,8 @@
 """The refinement scan of section 3.4: E(q) of the branch waves on a periodic chain before and after Gauss-Newton
 refinement, and the refinement file that the Floquet, Bloch and long-run studies read the refined waves from.
 
-The refinement file is a numpy ``.npz`` archive (record store, rewritten atomically after each q):
-
-=====================  =========  ======================================================================
-name                   shape      meaning
-=====================  =========  ======================================================================
-format                 ()         ``hertzpetsc-refined-1``
-alpha, N               ()         Hertz exponent, beads of the periodic chain
-branch                 ()         path of the branch file the waves came from
-tol                    ()         target E of the refinement
-q                      (P,)       wavenumbers 2 pi m / N
-x                      (P, N, 2)  refined (x_n, xdot_n)
-E_before, E_after      (P,)       E(q) of the interpolated branch wave / of the refined state, tight flow
-E_before_paper_flow    (P,)       the same with the paper's flow (rtol 1e-12, atol 1e-14)
-E_after_paper_flow     (P,)
-E_after_floor          (P,)       where E_after > tol: the tight flow's own error at the refined state (E_after <=
-                                  tol + E_after_floor: accepted at the flow's floor); NaN elsewhere
-E_after_fine           (P,)       where E_after > tol: E_after with the tight flow's tolerances divided by 10; NaN
-                                  elsewhere
-r                      (P,)       relative size of the last Gauss-Newton step (the paper's r(q))
-iterations, jacobians  (P,)       Gauss-Newton iterations, Jacobian evaluations
-wall_time              (P,)       seconds
-sigma_min              (P,)       smallest singular value of the phase-conditioned Jacobian
-=====================  =========  ======================================================================
+The refinement file is a numpy ``.npz`` archive (record store, rewritten atomically after each q), its columns
+declared in :data:`REFINED_KIND`.
 """
 from __future__ import annotations
 
@@ -38,7 +17,7 @@ from ..branch import Branch
 from ..dealing import dealt
 from ..errors import ParameterError, RecordFileError, check_instance, check_integer, check_real, check_reals
 from ..model import ChainSpec
-from ..records import Column, Kind, check_kind, given, load_npz, on_rank0
+from ..records import Column, Kind, given, on_rank0, read_kind
 from ..roles import uses
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
 from ..symmetry import WaveSymmetry
@@ -59,25 +38,24 @@ REFINED_KIND = Kind(REFINED_FORMAT, (
            "s", constant=True, optional=True),
     Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
            "before it)", "", str, "s", constant=True, optional=True),
-    Column("q", "wavenumbers 2 pi m / N", format=".6f"),
+    Column("q", "wavenumbers 2 pi m / N", format=".4f"),
     Column("E_before_paper_flow", "E(q) of the interpolated branch wave with the paper's flow (rtol 1e-12, atol "
            "1e-14)", format=".2e"),
     Column("E_before", "E(q) of the interpolated branch wave, tight flow (rtol 1e-14)", format=".2e"),
     Column("E_after", "E(q) of the refined state, tight flow", format=".2e"),
     Column("E_after_paper_flow", "E(q) of the refined state with the paper's flow", format=".2e"),
-    Column("r", "relative size of the last Gauss-Newton step (the paper's r(q))", format=".2e"),
+    Column("r", "relative size of the last Gauss-Newton step (the paper's r(q))", format=".1e"),
     Column("iterations", "Gauss-Newton iterations (stored as floats)", "count", format=".0f"),
     Column("jacobians", "Jacobian evaluations (stored as floats)", "count", format=".0f"),
     Column("wall_time", "seconds", "s", format=".1f"),
     Column("sigma_min", "smallest singular value of the phase-conditioned Jacobian", format=".2e"),
     Column("E_after_floor", "where the refinement stopped above `tol` at the tight flow's floor (`E_after` <= `tol` "
            "+ `E_after_floor`): that flow's own error in S X(script-T) at the refined state; NaN at every other q "
-           "(files written before these fields: read as NaN)", format=".0e"),
+           "(files written before these fields: read as NaN)", format=".0e", optional=True),
     Column("E_after_fine", "there, `E_after` measured with the tight flow's tolerances divided by 10; NaN "
-           "elsewhere", format=".2e"),
+           "elsewhere", format=".2e", optional=True),
     Column("x", "refined state (x_n, xdot_n) at t = 0", shape="N, 2"),
 ))
-REFINED_FIELDS = REFINED_KIND.fields[:10]
 # fields added after files were written (a file without them: NaN, no q at the flow's floor)
 REFINED_ADDED = {"E_after_floor": math.nan, "E_after_fine": math.nan}
 
@@ -95,12 +73,7 @@ class RefinedStates:
         """Read a refinement file (with a communicator: on rank 0, the result or the error on every rank)."""
         if comm is not None:
             return on_rank0(comm, cls.load, path, what=f"cannot read refinement file {path!r}")
-        data = load_npz(path, "refinement file")
-        check_kind(data, path, REFINED_FORMAT, "refinement file")
-        missing = set(REFINED_FIELDS + ("x",)) - set(data)
-        if missing:
-            raise RecordFileError(f"refinement file {path!r} is corrupt: missing {sorted(missing)}")
-        return cls(path, data)
+        return cls(path, read_kind(path, REFINED_KIND, "refinement file"))
 
     def column(self, name: str) -> np.ndarray:
         """A field over the file's q (a field added after the file was written: its default)."""
@@ -230,10 +203,9 @@ class RefinementScan(Study):
                               f"own error at the refined state, {r['E_after_floor']:.1e} (its S X(script-T) against "
                               f"the same flow's at a tenth of its tolerances, which gives E = "
                               f"{r['E_after_fine']:.2e}).")
-            lines.append(f"| {q:.4f} | {int(round(q * N / (2 * math.pi)))} | {r['E_before_paper_flow']:.2e} | "
-                         f"{r['E_before']:.2e} | {r['E_after']:.2e}{' (floor)' if floor else ''} | "
-                         f"{r['E_after_paper_flow']:.2e} | {r['r']:.1e} | {int(r['iterations'])} | "
-                         f"{int(r['jacobians'])} |")
+            lines.append(REFINED_KIND.row(r, "{q}", int(round(q * N / (2 * math.pi))), "{E_before_paper_flow}",
+                                          "{E_before}", "{E_after}" + (" (floor)" if floor else ""),
+                                          "{E_after_paper_flow}", "{r}", "{iterations}", "{jacobians}"))
         if floors:
             lines += ["", "Refined to the tight flow's floor (the iteration stopped above the target E <= "
                       f"{self.tol:g}; hertzpetsc.shooting):"] + floors

@@ -12,7 +12,9 @@ PAGE = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.absp
 def kinds() -> dict:
     """{kind name: Kind} of every record kind declared with its columns."""
     # the modules that declare kinds with columns (importing one registers its kinds)
-    from . import compacton_pairs, floquet, precompression, refinement, wave  # noqa: F401
+    from .. import simulation  # noqa: F401
+    from . import (branch, compacton_dynamics, compacton_pairs, compacton_stability, contacts, driven,  # noqa: F401
+                   floquet, paper, precompression, refinement, slow, solitary_stability, wave)
     return dict(KINDS)
 
 

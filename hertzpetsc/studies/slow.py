@@ -19,31 +19,8 @@ eigenvalues that the scheme keeps on the axis exactly, lambda -> -conj(lambda); 
 flow's and the orbit's error after deflation). The long-wave end: the largest Re lambda / theta of the eigenvalues
 near 0 at a small theta, against the 2x2 Whitham prediction from omega(q, A) (:func:`whitham_slope`).
 
-The record file (npz, record store ``hertzpetsc-slow-1``): constants alpha, N, branch, grids (K), n_theta,
-n_twist, refine_tol, rtol, target, theta_longwave; per q:
-
-=====================  ======================================================================================
-q, m                   wavenumber; wavelengths on N beads (-1: not a chain wavenumber, co-moving route only)
-T                      script-T (eq. invv)
-theta_cm               theta in [0, pi] of the co-moving route's worst non-band mode (K = grids[0])
-gamma_cm               (len(grids),) its gamma = q Re lambda / script-T on each grid
-gamma_cm_extrapolated  Richardson value (order 2) from the last three grids
-order_cm               observed order
-band_cm                |mu| - 1 of the scheme's split compacton band on grids[0] (the O(h) artefact, excluded)
-separation_cm          smallest distance from lambda_b to a non-band eigenvalue over theta
-twist_mono             the cell twist Theta of the monodromy route's worst deflated multiplier (nan: not run)
-gamma_mono             ln(max |mu| outside the symmetry cluster) / script-T
-raw_cluster_mono       max |mu| - 1 of the symmetry cluster without deflation (the perturbed Jordan blocks)
-cluster_mono           max |mu - 1| of the deflated cluster (exactly 0 for an exact orbit)
-eigvec_mono            max relative residual ||(P - I) z|| of the known eigenvectors
-invariance_mono        relative residual of the deflated subspace's invariance
-E_orbit                E(q) of the orbit after refinement (N beads over script-T); E_short: on the cell's short map
-slope_cm               largest Re lambda / theta near lambda = 0 at theta_longwave (K = grids[1])
-slope_whitham          |Im c| of the 2x2 Whitham characteristic speeds (nan: elliptic test not computable)
-resolution, verdict    the bound (per unit time) and 1 = slowly unstable, 0 = stable within resolution,
-                       2 = unresolved (a gamma above the target on grids that do not agree)
-seconds                wall time of the point
-=====================  ======================================================================================
+The record file (npz, record store ``hertzpetsc-slow-1``): one record per q, its columns declared in
+:data:`SLOW_KIND`.
 """
 from __future__ import annotations
 
@@ -63,6 +40,7 @@ from ..errors import (ConvergenceError, ParameterError, check_instance, check_in
                       check_reals)
 from ..chain import IntegrationTolerances
 from ..model import ChainSpec
+from ..records import Column, Kind
 from ..resources import check_memory
 from ..richardson import richardson
 from ..roles import uses
@@ -81,10 +59,54 @@ if TYPE_CHECKING:
 
 SLOW_FORMAT = "hertzpetsc-slow-1"
 TARGET = 1e-9                       # the resolution asked for, per unit time
-MONO_FIELDS = ("twist_mono", "gamma_mono", "raw_cluster_mono", "cluster_mono", "eigvec_mono", "invariance_mono",
-               "E_orbit", "E_short")            # the monodromy route's fields (nan where it is not run)
-SLOW_FIELDS = ("q", "m", "T", "theta_cm", "gamma_cm", "gamma_cm_extrapolated", "order_cm", "band_cm",
-               "separation_cm") + MONO_FIELDS + ("slope_cm", "slope_whitham", "resolution", "verdict", "seconds")
+SLOW_KIND = Kind(SLOW_FORMAT, (
+    Column("alpha", "Hertz exponent", constant=True),
+    Column("N", "beads of the chain of the monodromy route", "count", np.int64, "d", constant=True),
+    Column("branch", "the branch file (a label)", "", str, "s", constant=True),
+    Column("grids", "the co-moving route's grids K (h = pi/K), usually 3", "count", np.int64, "d", "G",
+           constant=True),
+    Column("n_theta", "Bloch parameters theta in [0, pi] of the co-moving route", "count", np.int64, "d",
+           constant=True),
+    Column("n_twist", "cell twists of the monodromy route (0: not run)", "count", np.int64, "d", constant=True),
+    Column("refine_tol", "target E of the refinement", constant=True),
+    Column("rtol", "flow tolerance", constant=True),
+    Column("target", "the resolution aimed at (per unit time)", constant=True),
+    Column("theta_longwave", "the small theta of the long-wave slope", constant=True),
+    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
+           "s", constant=True, optional=True),
+    Column("refined_sha256", "sha256 of the refinement file's content, when there is one (absent from files "
+           "written before it)", "", str, "s", constant=True, optional=True),
+    Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
+           "before it)", "", str, "s", constant=True, optional=True),
+    Column("q", "wavenumber"),
+    Column("m", "wavelengths on N beads (-1: not a chain wavenumber, co-moving route only)", "count", np.int64, "d"),
+    Column("T", "script-T (eq. invv)"),
+    Column("theta_cm", "theta in [0, pi] of the co-moving route's worst non-band mode (on grids[0])", format=".3f"),
+    Column("gamma_cm", "its gamma = q Re lambda / script-T on each grid", shape="G", format=".1e"),
+    Column("gamma_cm_extrapolated", "Richardson value (order 2) from the last three grids", format=".2g"),
+    Column("order_cm", "the observed order of the last three grids"),
+    Column("band_cm", "\\|mu\\| - 1 of the scheme's split compacton band on grids[0] (the O(h) artefact, excluded)",
+           format=".1e"),
+    Column("separation_cm", "smallest distance from lambda_b to a non-band eigenvalue over theta"),
+    Column("twist_mono", "the cell twist Theta of the monodromy route's worst deflated multiplier (nan: not run)"),
+    Column("gamma_mono", "ln(max \\|mu\\| outside the symmetry cluster) / script-T", format=".1e"),
+    Column("raw_cluster_mono", "max \\|mu\\| - 1 of the symmetry cluster without deflation (the perturbed Jordan "
+           "blocks)", format=".1e"),
+    Column("cluster_mono", "max \\|mu - 1\\| of the deflated cluster (exactly 0 for an exact orbit)", format=".1e"),
+    Column("eigvec_mono", "max relative residual \\|\\|(P - I) z\\|\\| of the known eigenvectors", format=".1e"),
+    Column("invariance_mono", "relative residual of the deflated subspace's invariance"),
+    Column("E_orbit", "E(q) of the orbit after refinement (N beads over script-T)", format=".1e"),
+    Column("E_short", "E(q) of the orbit after refinement on the cell's short map", format=".1e"),
+    Column("slope_cm", "largest Re lambda / theta near lambda = 0 at theta_longwave (on grids[1])", format=".1e"),
+    Column("slope_whitham", "\\|Im c\\| of the 2x2 Whitham characteristic speeds (nan: not computable)",
+           format=".2f"),
+    Column("resolution", "the bound per unit time: the largest gamma either route measured", format=".1e"),
+    Column("verdict", "1 = slowly unstable, 0 = stable within `resolution`, 2 = unresolved (a gamma above the "
+           "target on grids that do not agree)", "", np.int64, "d"),
+    Column("seconds", "wall time of the point", "s", format=".1f"),
+))
+SLOW_FIELDS = SLOW_KIND.fields
+MONO_FIELDS = SLOW_FIELDS[SLOW_FIELDS.index("twist_mono"):SLOW_FIELDS.index("slope_cm")]   # nan where not run
 # the flow of the refinement and of the sector maps: as tight as rk 8vr allows in double precision
 SLOW_TOLERANCES = IntegrationTolerances(rtol=1e-14, atol=1e-16)
 
@@ -168,8 +190,7 @@ class SlowInstabilityScan(Study):
     the q dealt to the ranks. ``output`` None: the records are kept in memory.
     """
 
-    FORMAT, FIELDS = SLOW_FORMAT, SLOW_FIELDS
-    DTYPES = {"m": np.int64, "verdict": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = SLOW_FORMAT, SLOW_FIELDS, SLOW_KIND.dtypes, SLOW_KIND
     ROLES = uses("cm_", "tw_", "shoot_", "shoot_jac_", floquet_=("ts",))
     WHAT, LABELS = "slow-instability file", ("branch",)
 
@@ -323,15 +344,13 @@ class SlowInstabilityScan(Study):
         for r in rows:
             m = int(r["m"])
             g = " / ".join(f"{v:.1e}" for v in np.asarray(r["gamma_cm"]))
-            mono = (f"{r['gamma_mono']:.1e} | {r['raw_cluster_mono']:.1e} | {r['cluster_mono']:.1e} | "
-                    f"{r['eigvec_mono']:.1e} | {r['E_orbit']:.1e} / {r['E_short']:.1e}") if m > 0 else \
-                "n/a | n/a | n/a | n/a | n/a"
+            mono = ["{gamma_mono}", "{raw_cluster_mono}", "{cluster_mono}", "{eigvec_mono}", "{E_orbit} / {E_short}"] \
+                if m > 0 else ["n/a"] * 5
             verdict = {1: f"slowly unstable, gamma = {r['gamma_cm_extrapolated']:.2g}", 0: "stable within resolution",
                        2: "unresolved (refine the grids)"}[int(r["verdict"])]
-            lines.append(f"| {q_label(float(r['q']))} ({float(r['q']):.4f}) | {m if m > 0 else '-'} | "
-                         f"{float(r['theta_cm']):.3f} | {g} | {mono} | {float(r['band_cm']):.1e} | "
-                         f"{float(r['slope_cm']):.1e} / {float(r['slope_whitham']):.2f} | "
-                         f"{float(r['resolution']):.1e} | {verdict} |")
+            lines.append(SLOW_KIND.row(r, f"{q_label(float(r['q']))} ({r['q']:.4f})", m if m > 0 else "-",
+                                       "{theta_cm}", g, *mono, "{band_cm}", "{slope_cm} / {slope_whitham}",
+                                       "{resolution}", verdict))
         return "\n".join(lines) + "\n"
 
 

@@ -13,11 +13,7 @@ differences of H along the family (delta0 (1 +- 1e-4)); the same wave in the lat
 the truncation (the tails at the window's ends, the change of H, the slope and the point multipliers in a window of
 2M beads).
 
-File ``hertzpetsc-solitary-stability-1`` (npz): constants alphas, sound_speeds (the c0), M, tail, tol_unstable, rtol
-(and the solver options); per record: alpha, c0, delta0, kappa, residual, residual_check, iterations, D, H, log_slope,
-log_slope_fd, speed, H_unit, dHdc_unit, jordan_mean, jordan_split, jordan_translation, jordan_generalized,
-max_nontrivial, essential, eta, points, unstable, tail_front, tail_rear, doubling_change, seconds, multipliers (2M),
-dominant (NDOM), state (M, 2).
+File ``hertzpetsc-solitary-stability-1`` (npz), its columns declared in :data:`SOLITARY_KIND`.
 """
 import math
 import time
@@ -37,7 +33,9 @@ from ..solitary_family import (PrecompressionContinuation, essential_radius, gue
                                precompression_at_unit_speed, symplectic_product, tail_rate, unit_lattice,
                                weighted_multipliers, window_beads, window_energy)
 from .base import ContinuedScan
-from .compacton_stability import CHECK_PREFIX, CHECK_TOLERANCES, NDOM, TOL_UNSTABLE, continue_to, fmt_multiplier
+from ..records import Column, Kind
+from .compacton_stability import (CHECK_PREFIX, CHECK_TOLERANCES, JORDAN_COLUMNS, NDOM, RESIDUAL_COLUMNS, SECONDS,
+                                  TOL_UNSTABLE, UNSTABLE, continue_to, fmt_multiplier)
 
 FORMAT = "hertzpetsc-solitary-stability-1"
 FD_STEP = 1e-4                  # relative step in delta0 of the finite-difference slope (error ~ step^2 ~ 1e-8)
@@ -46,10 +44,48 @@ POINT_MARGIN = 1.001            # multipliers above this times the essential rad
 CONVERGED = 1e-6                # ... and called point multipliers when the 2M window moves them less than this
                                 # (the transport multipliers move by ~1e-3: they approach the essential radius)
 DEFAULT_C0 = "0, 0.2, 0.4, 0.6, 0.7, 0.8, 0.85, 0.9"
-FIELDS = ("alpha", "c0", "delta0", "kappa", "residual", "residual_check", "iterations", "D", "H", "log_slope",
-          "log_slope_fd", "speed", "H_unit", "dHdc_unit", "jordan_mean", "jordan_split", "jordan_translation",
-          "jordan_generalized", "max_nontrivial", "essential", "eta", "points", "unstable", "tail_front", "tail_rear",
-          "doubling_change", "seconds")
+SOLITARY_KIND = Kind(FORMAT, (
+    Column("alphas", "Hertz exponents of the scan", shape="A", constant=True),
+    Column("sound_speeds", "the sound speeds c0 of the scan, 0 first", shape="S", constant=True),
+    Column("M", "beads of the travelling window", "count", np.int64, "d", constant=True),
+    Column("tail", "the tails at the window's ends (relative to the deepest compression) M was chosen for",
+           constant=True),
+    Column("tol_unstable", "unstable when \\|mu\\| > 1 + tol_unstable", constant=True),
+    Column("rtol", "flow tolerance of the window map (prefix `-cwin_`)", constant=True),
+    Column("solver_options", "number-changing options under `-cwin_`, `-ccheck_`, `-sol_`", "", str, "s",
+           constant=True, optional=True),
+    Column("alpha", "Hertz exponent", format="g"),
+    Column("c0", "sound speed sqrt(V''(0)) in units of the wave's speed (1/c0 the Mach number; 0: uncompressed)",
+           format="g"),
+    Column("delta0", "precompression of the unit-speed wave's chain, (c0^2 / alpha)^(1/(alpha-1))", format=".6g"),
+    Column("kappa", "decay rate of the tails per bead, sinh(kappa/2)/(kappa/2) = 1/c0 (inf at c0 = 0)",
+           format=".4f"),
+    *RESIDUAL_COLUMNS,
+    Column("D", "the displacement the wave leaves behind (2 k_alpha at c0 = 0)"),
+    Column("H", "energy sum v^2/2 + sum V(r) of the window at unit speed (V(0) = V'(0) = 0)", format=".10f"),
+    Column("log_slope", "d ln H / d ln c at fixed lattice, omega(v1, v2) / H from the Jordan vectors at 1",
+           format=".8f"),
+    Column("log_slope_fd", "the same from H along the family (finite differences in delta0, +-1e-4 relative); nan "
+           "at c0 = 0", format=".8f"),
+    Column("speed", "the same wave in the lattice of precompression 1: its speed c (inf at c0 = 0)", format=".6f"),
+    Column("H_unit", "there, H(c) (inf at c0 = 0)"),
+    Column("dHdc_unit", "there, dH/dc (inf at c0 = 0)", format=".6g"),
+    *JORDAN_COLUMNS,
+    Column("essential", "radius of the weighted essential spectrum (minimum over eta)", format=".6f"),
+    Column("eta", "the eta attaining it (inf at c0 = 0)", format=".3f"),
+    Column("points", "multipliers above 1.001 `essential` that the window of 2M beads moves by less than 1e-6",
+           "count", np.int64, "d"),
+    UNSTABLE,
+    Column("tail_front", "\\|r\\| of the window's first bond relative to the deepest compression", format=".0e"),
+    Column("tail_rear", "\\|r\\| of the window's last bond relative to the deepest compression", format=".0e"),
+    Column("doubling_change", "in the window of 2M beads: max of the relative change of H and of the slope, and of "
+           "the point multipliers' change", format=".1e"),
+    SECONDS,
+    Column("multipliers", "all window multipliers (LAPACK on the weighted map), by modulus", "1", complex,
+           shape="2M"),
+    Column("dominant", "the dominant nontrivial ones (mu_3, mu_4, ...)", "1", complex, shape="6"),
+    Column("state", "the wave: window state (y, v), 0 ahead, D behind", shape="M, 2"),
+))
 ROLES = uses(WINDOW_PREFIX, CHECK_PREFIX, SOL_PREFIX)
 
 
@@ -91,9 +127,7 @@ class SolitaryStabilityScan(ContinuedScan):
     ``ccheck_`` (independent residual flow), ``sol_`` (eq. adr)."""
 
     Parameters = SolitaryStabilityParameters
-    FORMAT, FIELDS = FORMAT, FIELDS + ("multipliers", "dominant", "state")
-    DTYPES = {"multipliers": complex, "dominant": complex, "iterations": np.int64, "points": np.int64,
-              "unstable": np.int64}
+    FORMAT, FIELDS, DTYPES, COLUMNS = FORMAT, SOLITARY_KIND.fields, SOLITARY_KIND.dtypes, SOLITARY_KIND
     ROLES = ROLES
     WHAT, PARAMETER = "solitary stability file", "c0"
     NAMES = dict(sound_speeds="c0 (-c0)", M="M (-M; 0: from tail, -tail, and the largest c0)")
@@ -209,15 +243,12 @@ class SolitaryStabilityScan(ContinuedScan):
             mach = f"{1 / c0:.4f}" if c0 > 0 else "inf"
             unit = (f"{float(r['speed']):.6f}, {float(r['dHdc_unit']):.6g}" if math.isfinite(float(r["speed"]))
                     else "(scale-free)")
-            eta = float(r["eta"])
             dom = ", ".join(fmt_multiplier(v) for v in r["dominant"][:3])
-            lines.append(f"| {a:g} | {c0:g} | {mach} | {float(r['delta0']):.6g} | {float(r['kappa']):.4f} | "
-                         f"{float(r['residual']):.1e} / {float(r['residual_check']):.1e} | "
-                         f"{float(r['jordan_mean']):.12f} ({float(r['jordan_split']):.0e}) | {dom} | "
-                         f"{float(r['essential']):.6f} ({eta:.3f}) | {int(r['points'])} | "
-                         f"{int(r['unstable']) or 'none'} | {float(r['H']):.10f} | {float(r['log_slope']):.8f} / "
-                         f"{fd_text} | {unit} | {float(r['tail_front']):.0e} / {float(r['tail_rear']):.0e} | "
-                         f"{float(r['doubling_change']):.1e} | {float(r['seconds']):.1f} |")
+            lines.append(SOLITARY_KIND.row(
+                r, "{alpha}", "{c0}", mach, "{delta0}", "{kappa}", "{residual} / {residual_check}",
+                "{jordan_mean} ({jordan_split})", dom, "{essential} ({eta})", "{points}", int(r["unstable"]) or "none",
+                "{H}", "{log_slope} / " + fd_text, unit, "{tail_front} / {tail_rear}", "{doubling_change}",
+                "{seconds}"))
         return "\n".join(lines) + "\n"
 
     def summary(self):

@@ -3,19 +3,10 @@ mass pattern), wavenumbers q and an amplitude A = max |u|, the travelling wave (
 row), put on a periodic chain of N beads, refined by Gauss-Newton on its cell (section 3.4) and its Floquet
 multipliers modulo shift from the Bloch sectors of its cell (section 3.5), on N beads and on longer chains L N.
 
-Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues): constants the model's description
-(:meth:`~hertzpetsc.model.LatticeModel.describe`: Hertz's alpha, delta0 when > 0; any other law its name ``law`` and
-parameters; the file's model is ``LatticeModel.from_description`` of them), masses, A,
-cells_per_pi, N, sizes (the longer chains), tol, tol_rho, solver_options; per record: q, m (wavelengths on N
-beads), omega (of the refined wave), E_profile (E(q) of the wave interpolated from the grid), E_refined, E_floor
-(where E_refined > tol: the refinement's flow's own error at the refined state, within which it was accepted;
-NaN elsewhere and in files written before it), iterations (Gauss-Newton), rho (the largest multiplier modulus,
-trivial ones excluded), outside (multipliers with |mu| > 1 + tol_rho), spread (of the trivial multipliers),
-unstable (1 if rho - 1 > tol_rho), rho_sizes (rho on each longer chain, in the order of ``sizes``), seconds; and
-the objects the rows are about: u (the wave's p profiles on the whole period, on the grid ``xi``), state (the
-refined (N, 2) state on the chain) and dominant (the largest nontrivial multipliers modulo shift). Files written
-before those hold NaN there. A wave of the optical branch of a mass pattern has the constant branch = 'optical'
-(the acoustic waves' files have none, as before it). The columns are declared once, in :data:`WAVE_KIND`.
+Record file ``hertzpetsc-wave-1`` (npz, one record per q, -resume continues), its columns declared once in
+:data:`WAVE_KIND`: the model's description (the file's model is ``LatticeModel.from_description`` of it), the
+rows' numbers and the objects they are about (the wave's profiles, the refined state, the dominant multipliers; NaN
+in files written before those).
 """
 from __future__ import annotations
 
@@ -92,15 +83,15 @@ WAVE_KIND = Kind(WAVE_FORMAT, (
     Column("seconds", "wall time", "s", format=".1f"),
     Column("E_floor", "where `E_refined` > `tol`: the refinement flow's own error at the refined state, within which "
            "the refinement was accepted at that flow's floor; NaN elsewhere (and in files written before this field)",
-           format=".0e"),
+           format=".0e", optional=True),
     Column("u", "the wave's profiles u_c(xi), bead n on profile n mod p (xi = q n - omega t), on the whole period: "
-           "the solution of eq. ad the row is about (NaN in files written before it)", shape="p, 2K"),
+           "the solution of eq. ad the row is about (NaN in files written before it)", shape="p, 2K", optional=True),
     Column("state", "the refined initial state (x_n, x_n') of the N beads (eq. twper; NaN in files written before "
-           "it)", shape="N, 2"),
+           "it)", shape="N, 2", optional=True),
     Column("dominant", f"the {DOMINANT} nontrivial multipliers modulo shift of largest modulus (Bloch sectors; "
            "\\|dominant[0]\\| = rho to 1e-8, moduli equal to 1e-8 ordered by argument; NaN past the spectrum's end and in "
            "files written before it)", "1", complex,
-           shape=str(DOMINANT)),
+           shape=str(DOMINANT), optional=True),
 ))
 WAVE_FIELDS = WAVE_KIND.fields
 MAX_BEADS = 2000             # the refinement's dense Jacobian has (2 M)^2 entries on the wave's cell
@@ -235,11 +226,9 @@ class WaveStudy(Study):
             extra = "".join(f" {float(v) - 1:.2e} |" for v in np.atleast_1d(r["rho_sizes"]))
             # above the target: accepted within the refinement flow's own error (hertzpetsc.shooting)
             floor = "" if math.isnan(float(r["E_floor"])) else f" (flow's floor {float(r['E_floor']):.0e})"
-            lines.append(f"| {float(r['q']):.6f} | {int(r['m'])} | {float(r['omega']):.8f} | "
-                         f"{float(r['E_profile']):.1e} | {float(r['E_refined']):.1e}{floor} | "
-                         f"{float(r['rho']) - 1:.2e} | {int(r['outside'])} | {float(r['spread']):.1e} | "
-                         f"{'unstable' if int(r['unstable']) else 'stable within ' + format(p.tol_rho, 'g')} |"
-                         + extra)
+            lines.append(WAVE_KIND.row(r, "{q}", "{m}", "{omega}", "{E_profile}", "{E_refined}" + floor,
+                                       f"{r['rho'] - 1:.2e}", "{outside}", "{spread}",
+                                       "unstable" if int(r["unstable"]) else f"stable within {p.tol_rho:g}") + extra)
         lines += [f"\nNot computed{'' if isinstance(err, FamilyFold) else ' (-resume retries it)'}: q = {q:.6f}: "
                   f"{err}" for q, err in sorted(getattr(self, "failed", {}).items())]
         return "\n".join(lines) + "\n"

@@ -378,6 +378,18 @@ class Column:
             raise ValueError(f"column {self.name!r}: unit {self.unit!r} is not one of {sorted(UNITS)}")
 
 
+def digest_column(name: str, what: str, when: str = "") -> Column:
+    """The constant column ``<name>_sha256``: the sha256 of the input file ``what`` (:func:`input_digests`), absent
+    from files written before digests were recorded; ``when``: e.g. "when there is one"."""
+    return Column(f"{name}_sha256", f"sha256 of the {what}'s content{', ' + when if when else ''} (absent from files "
+                  "written before it)", "", str, "s", constant=True, optional=True)
+
+
+# the number-changing options given under a study's solver prefixes (its identity's solver_options)
+OPTIONS_COLUMN = Column("solver_options", "number-changing options under the study's prefixes (absent from files "
+                        "written before it)", "", str, "s", constant=True, optional=True)
+
+
 class Kind:
     """A record kind (``hertzpetsc-<kind>-<n>``) declared once: its columns drive the record store's fields and
     dtypes, the units and meanings written into each file (``__columns__``; HDF5 attributes ``units`` and

@@ -14,7 +14,7 @@ from ..compacton_window import DEFAULT_REAR, CompactonRefiner, CompactonWindow, 
 from ..branch import Branch
 from ..errors import ParameterError, check_instance, check_integer, check_real
 from ..model import ChainSpec
-from ..records import Column, Kind
+from ..records import OPTIONS_COLUMN, Column, Kind, digest_column
 from ..resources import MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_work
 from .base import Study
 from .compacton_dynamics import DYNAMICS_SECONDS, DYNAMICS_TOLERANCES, CompactonDynamics, dynamics_integrator
@@ -35,10 +35,8 @@ PAIRS_KIND = Kind(PAIRS_FORMAT, (
     Column("M", "window beads", "count", np.int64, "d", constant=True),
     Column("N", "beads of the free chain", "count", np.int64, "d", constant=True),
     Column("gap", "the common gap Delta = a p q", constant=True),
-    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
-           "s", constant=True, optional=True),
-    Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
-           "before it)", "", str, "s", constant=True, optional=True),
+    digest_column("branch", "branch file"),
+    OPTIONS_COLUMN,
     Column("case", "`single` or `two`", "", str, "s"),
     Column("rear", "the rear compacton: `unrefined` (the branch profile), `refined` (the window map's fixed point) "
            "or '' (none)", "", str, "s"),

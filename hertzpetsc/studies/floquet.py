@@ -27,7 +27,7 @@ from ..errors import (ParameterError, RecordFileError, check_choice, check_insta
                       check_real, check_reals)
 from ..floquet import FLOQUET_TOLERANCES, TOL_RHO, DenseFloquet, dense_multipliers, spectral_radius
 from ..model import ChainSpec
-from ..records import Column, Kind, check_kind, given, load_npz
+from ..records import OPTIONS_COLUMN, Column, Kind, check_kind, digest_column, given, load_npz
 from ..roles import FLOQUET_ROUTES, floquet_route, uses
 from ..verdicts import critical_wavenumbers
 from ..waves import orbit_on_chain
@@ -49,12 +49,9 @@ FLOQUET_KIND = Kind(FLOQUET_FORMAT, (
     Column("refined_file", "the refinement file of the waves ('' for the unrefined branch waves)", "", str, "s",
            constant=True),
     Column("note", "which waves were scanned (e.g. `refined waves`)", "", str, "s", constant=True),
-    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
-           "s", constant=True, optional=True),
-    Column("refined_sha256", "sha256 of the refinement file's content, when there is one (absent from files written "
-           "before it)", "", str, "s", constant=True, optional=True),
-    Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
-           "before it)", "", str, "s", constant=True, optional=True),
+    digest_column("branch", "branch file"),
+    digest_column("refined", "refinement file", "when there is one"),
+    OPTIONS_COLUMN,
     Column("q", "wavenumbers", format=".4f"),
     Column("rho", "spectral radius of F_q, the four trivial multipliers excluded", format=".8f"),
     Column("outside", "multipliers with \\|mu\\| > 1 + tol_rho", "count", np.int64, "d"),
@@ -78,10 +75,8 @@ BLOCH_KIND = Kind(BLOCH_FORMAT, (
            constant=True),
     Column("rtol", "flow tolerance", constant=True),
     Column("refined_file", "the refinement file of the cell (a label)", "", str, "s", constant=True),
-    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
-           "s", constant=True, optional=True),
-    Column("refined_sha256", "sha256 of the refinement file's content (absent from files written before it)", "",
-           str, "s", constant=True, optional=True),
+    digest_column("branch", "branch file"),
+    digest_column("refined", "refinement file"),
     Column("solver_options", "number-changing options under `-floquet_` (absent from files written before it)", "",
            str, "s", constant=True, optional=True),
     Column("N", "beads of the long chain (a multiple of M)", **_INT),

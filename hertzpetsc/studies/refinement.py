@@ -17,7 +17,7 @@ from ..branch import Branch
 from ..dealing import dealt
 from ..errors import ParameterError, RecordFileError, check_instance, check_integer, check_real, check_reals
 from ..model import ChainSpec
-from ..records import Column, Kind, given, on_rank0, read_kind
+from ..records import OPTIONS_COLUMN, Column, Kind, digest_column, given, on_rank0, read_kind
 from ..roles import uses
 from ..shooting import PAPER_TOLERANCES, SHOOT_PREFIX, Refiner, ShiftMap
 from ..symmetry import WaveSymmetry
@@ -34,10 +34,8 @@ REFINED_KIND = Kind(REFINED_FORMAT, (
     Column("N", "beads of the periodic chain", "count", np.int64, "d", constant=True),
     Column("branch", "path of the branch file the waves came from (a label)", "", str, "s", constant=True),
     Column("tol", "target E of the refinement", constant=True),
-    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
-           "s", constant=True, optional=True),
-    Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
-           "before it)", "", str, "s", constant=True, optional=True),
+    digest_column("branch", "branch file"),
+    OPTIONS_COLUMN,
     Column("q", "wavenumbers 2 pi m / N", format=".4f"),
     Column("E_before_paper_flow", "E(q) of the interpolated branch wave with the paper's flow (rtol 1e-12, atol "
            "1e-14)", format=".2e"),

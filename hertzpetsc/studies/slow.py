@@ -40,7 +40,7 @@ from ..errors import (ConvergenceError, ParameterError, check_instance, check_in
                       check_reals)
 from ..chain import IntegrationTolerances
 from ..model import ChainSpec
-from ..records import Column, Kind
+from ..records import OPTIONS_COLUMN, Column, Kind, digest_column
 from ..resources import check_memory
 from ..richardson import richardson
 from ..roles import uses
@@ -72,12 +72,9 @@ SLOW_KIND = Kind(SLOW_FORMAT, (
     Column("rtol", "flow tolerance", constant=True),
     Column("target", "the resolution aimed at (per unit time)", constant=True),
     Column("theta_longwave", "the small theta of the long-wave slope", constant=True),
-    Column("branch_sha256", "sha256 of the branch file's content (absent from files written before it)", "", str,
-           "s", constant=True, optional=True),
-    Column("refined_sha256", "sha256 of the refinement file's content, when there is one (absent from files "
-           "written before it)", "", str, "s", constant=True, optional=True),
-    Column("solver_options", "number-changing options under the study's prefixes (absent from files written "
-           "before it)", "", str, "s", constant=True, optional=True),
+    digest_column("branch", "branch file"),
+    digest_column("refined", "refinement file", "when there is one"),
+    OPTIONS_COLUMN,
     Column("q", "wavenumber"),
     Column("m", "wavelengths on N beads (-1: not a chain wavenumber, co-moving route only)", "count", np.int64, "d"),
     Column("T", "script-T (eq. invv)"),

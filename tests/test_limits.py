@@ -197,6 +197,9 @@ def test_sigint_in_process_interrupts_the_compiled_flow_and_the_next_flow_runs()
         return Y.getArray().copy()
 
     killer = None
+    # a notebook's handler (a shell ignores SIGINT for its background jobs, and Python then installs none: the flow
+    # would run on for hours)
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         before = short_flow()
         chain.set_from_array(X, x)
@@ -209,6 +212,7 @@ def test_sigint_in_process_interrupts_the_compiled_flow_and_the_next_flow_runs()
         assert 0.0 < integ.ts.getTime() < 1e5
         assert np.array_equal(short_flow(), before)
     finally:
+        signal.signal(signal.SIGINT, previous)
         if killer is not None:
             killer.wait()
         for obj in (X, Y, integ, short, chain, small):

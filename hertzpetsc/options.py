@@ -545,16 +545,31 @@ def _wait(child, timeout):
 
 
 def _end_group(child, grace):
-    for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, None)):
+    for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, 60.0)):
         try:
             os.killpg(child.pid, sig)
         except ProcessLookupError:
             return
-        try:
-            child.wait(timeout=wait)
+        if _reaped(child, wait):
             return
-        except subprocess.TimeoutExpired:
-            continue
+
+
+def _reaped(child, wait):
+    """Whether ``child`` ended within ``wait`` seconds (reaped here). Not Popen.wait: a signal whose handler raised
+    inside an earlier Popen.wait may have left its lock held, and the next wait would block for ever (a held
+    pipeline that SIGTERM did not end, its mpiexec a zombie)."""
+    end = time.monotonic() + wait
+    while True:
+        try:
+            pid, status = os.waitpid(child.pid, os.WNOHANG)
+        except ChildProcessError:           # reaped already
+            return True
+        if pid:
+            child.returncode = os.waitstatus_to_exitcode(status)
+            return True
+        if time.monotonic() >= end:
+            return False
+        time.sleep(0.02)
 
 
 def guarded_main(main):

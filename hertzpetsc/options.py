@@ -531,17 +531,10 @@ def run_child(cmd, cwd=None, out=None, grace=5.0, err=subprocess.STDOUT, env=Non
 
 
 def _wait(child, timeout):
-    """child.wait(timeout), returning to the interpreter every 0.2 s: a signal that the kernel gave another thread
-    of this process (an MPI progress thread) is seen by Python's handler only there, never inside a blocking
-    wait for the child."""
-    end = None if timeout is None else time.monotonic() + timeout
-    while True:
-        step = 0.2 if end is None else min(0.2, max(end - time.monotonic(), 0.0))
-        try:
-            return child.wait(timeout=step)
-        except subprocess.TimeoutExpired:
-            if end is not None and time.monotonic() >= end:
-                raise
+    """The exit status of ``child`` (TimeoutExpired after ``timeout`` seconds, None: no limit), by :func:`_reaped`."""
+    if not _reaped(child, math.inf if timeout is None else timeout):
+        raise subprocess.TimeoutExpired(child.args, timeout)
+    return child.returncode
 
 
 def _end_group(child, grace):
@@ -555,9 +548,10 @@ def _end_group(child, grace):
 
 
 def _reaped(child, wait):
-    """Whether ``child`` ended within ``wait`` seconds (reaped here). Not Popen.wait: a signal whose handler raised
-    inside an earlier Popen.wait may have left its lock held, and the next wait would block for ever (a held
-    pipeline that SIGTERM did not end, its mpiexec a zombie)."""
+    """Whether ``child`` ended within ``wait`` seconds (reaped here), polling os.waitpid from the interpreter: a
+    signal that the kernel gave another thread of this process (an MPI progress thread) is seen by Python's handler
+    only there, and a handler that raises inside Popen.wait can leave that wait's lock held, so that the next wait
+    blocks for ever (a held pipeline that SIGTERM did not end, its mpiexec a zombie)."""
     end = time.monotonic() + wait
     while True:
         try:

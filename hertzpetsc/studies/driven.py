@@ -36,7 +36,7 @@ from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, H
 from ..errors import ConvergenceError, ParameterError, check_integer, check_real
 from ..floquet import DenseFloquet
 from ..model import Damping, LatticeModel, law_options
-from ..records import Column, Kind
+from ..records import Column, Kind, digest_column
 from ..resources import (INTEGRATE_SECONDS, MAX_DENSE_BEADS, chain_seconds, check_chain_memory, check_chain_size,
                          check_work)
 from ..roles import configure, uses
@@ -53,9 +53,6 @@ GOLDEN = (math.sqrt(5) - 1) / 2     # the interval of a golden-section search sh
 RESPONSE_FORMAT = "hertzpetsc-driven-response-1"
 _OPTIONS = Column("solver_options", "the options given under `-drive_` and `-floquet_` that change numbers "
                   "(`name=value ...`; absent from files before issue 37)", "", str, "s", constant=True, optional=True)
-_SHA = {name: Column(f"{name}_sha256", f"SHA-256 of the {what} file's content (absent from files before issue 37)",
-                     "", str, "s", constant=True, optional=True) for name, what in (("branch", "branch"),
-                                                                                   ("refined", "refinement"))}
 _STR, _INT = dict(unit="", dtype=str, format="s"), dict(unit="count", dtype=np.int64, format="d")
 _CODE = dict(unit="", dtype=np.int64, format="d")
 RESPONSE_KIND = Kind(RESPONSE_FORMAT, (
@@ -145,7 +142,7 @@ WAVE_ENDS_KIND = Kind(WAVE_ENDS_FORMAT, (
     Column("refined", "the refinement file read (a label)", constant=True, **_STR),
     Column("samples", "least number of points of the sampled wave profile", constant=True, **_INT),
     Column("rtols", "the flow tolerances", shape="R", constant=True),
-    _SHA["branch"], _SHA["refined"], _OPTIONS,
+    digest_column("branch", "branch file"), digest_column("refined", "refinement file"), _OPTIONS,
     Column("q", "wavenumber per bead (x_n = U(q n - omega t))"),
     Column("m", "wavelengths on the periodic chain", **_INT),
     Column("N", "beads of the driven chain", **_INT),
@@ -173,7 +170,7 @@ GENERATION_KIND = Kind(GENERATION_FORMAT, (
            optional=True),
     Column("samples", "samples per period (absent from files before issue 37)", constant=True, optional=True,
            **_INT),
-    _SHA["branch"], _OPTIONS,
+    digest_column("branch", "branch file"), _OPTIONS,
     Column("waveform", "0 harmonic, 1 half-sine pulses", **_CODE),
     Column("omega", "driving frequency", format="g"),
     Column("amplitude", "driving amplitude", format="g"),

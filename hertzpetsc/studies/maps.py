@@ -726,7 +726,8 @@ class QBoundary(Study):
     def constants(self) -> dict:
         p = self.params
         return dict(self.model.law_identity(), masses=list(self.model.masses), levels=list(p.A), grid_q=list(p.q),
-                    cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists, locate_tol=p.locate_tol, max_cell=p.max_cell)
+                    cells_per_pi=self.K, rtol=self.tolerances.rtol, tol_rho=self.tol_rho, twists=self.twists,
+                    locate_tol=p.locate_tol, max_cell=p.max_cell)
 
     def evaluate(self, x: Fraction, A: float) -> dict:
         """The record of the wave at q = 2 pi x (x a Fraction), amplitude A, on the infinite chain."""

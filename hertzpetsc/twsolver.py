@@ -293,7 +293,7 @@ class TravellingWaveSolver:
     def __init__(self, grid, prefix=TW_PREFIX, solver=None, layout=None, extended=False):
         self.grid, self.prefix = grid, prefix
         self.solver = tw_solver(prefix, solver)
-        self.problem = None
+        self.problem = self._deferred = None
         self.snes = PETSc.SNES().create(comm=grid.comm)
         self.snes.setOptionsPrefix(prefix)
         self.snes.setType(PETSc.SNES.Type.NEWTONLS)
@@ -315,19 +315,35 @@ class TravellingWaveSolver:
         self._user_set = user_set(prefix + "snes_", ("rtol", "atol", "stol", "max_it"))
 
     def _reset(self):
-        """After a solve that an exception left (a callback's, a signal's): PETSc 3.26 leaves its work vectors locked,
-        so they are freed and the next solve makes new ones. On one rank only: on two, 3.26 deadlocked in the
-        reset's wake (tests/test_dimer.py's fold tests under mpiexec -n 2), where the next solve fails instead
-        (PETSc error 73: not resolved). 3.18 needs no reset."""
+        """After a solve that an exception left from a callback this class does not own (a shell product's, the
+        preconditioner's: a signal's): PETSc 3.26 leaves its work vectors locked, so they are freed and the next
+        solve makes new ones. On one rank only: on two, 3.26 deadlocked in the reset's wake; the residual and the
+        Jacobian, where the exceptions of a Newton iterate arise, defer theirs instead (:meth:`_function`)."""
         if self.snes.getComm().getSize() == 1:
             self.snes.reset()
             self.snes.setFunction(self._function, self.F)
 
     def _function(self, snes, X, F):
-        self.problem.formFunction(snes, X, F)
+        """The residual; an exception it raises (a Newton iterate out of the parameter's range, a signal) is kept
+        and F set to NaN, which ends the solve at once (SNES's NaN checks, on every rank through the norm), and
+        :meth:`solve` raises it after SNES has returned: raised through PETSc, it would leave SNES's vectors
+        locked (PETSc 3.26)."""
+        if self._deferred is None:
+            try:
+                self.problem.formFunction(snes, X, F)
+                return
+            except BaseException as err:
+                self._deferred = err
+        F.set(math.nan)
 
     def _jacobian(self, snes, X, J, P):
-        self.problem.formJacobian(snes, X, J, P)
+        """The Jacobian; an exception is kept as in :meth:`_function` (J left as it was: the next residual ends
+        the solve)."""
+        if self._deferred is None:
+            try:
+                self.problem.formJacobian(snes, X, J, P)
+            except BaseException as err:
+                self._deferred = err
 
     def _tolerances(self, problem, u):
         tol = default_tolerances(self.grid, problem.tolerance_scale(u))
@@ -346,6 +362,7 @@ class TravellingWaveSolver:
         self.problem = problem
         problem.preconditioner = self.pc_context if isinstance(self.pc_context, BlockSecondDifferencePC) else None
         self.snes.setJacobian(self._jacobian, J, J)
+        self._deferred = None
         try:
             try:
                 with callbacks_raise():
@@ -353,13 +370,15 @@ class TravellingWaveSolver:
             except BaseException:
                 self._reset()
                 raise
+            if self._deferred is not None:
+                raise self._deferred
             snes = self.snes
             result = SolveStats(reason=int(snes.getConvergedReason()),
                                  iterations=snes.getIterationNumber(),
                                  linear_iterations=snes.getLinearSolveIterations(),
                                  residual_norm=float(snes.getFunctionNorm()), wall_time=time.perf_counter() - t0)
         finally:
-            self.problem = None
+            self.problem = self._deferred = None
             J.destroy()        # SNES keeps its reference until the next solve
         what = "travelling-wave SNES (prefix -%s)" % self.prefix
         where = dict(q=problem.q)

@@ -74,6 +74,11 @@ typedef struct {
     double *bond, *stiff, *dv;  /* work arrays, nloc + 1 each */
     int harmonic_left, harmonic_right;   /* that end is an actuator offset + a cos(omega t + phase) ... */
     double harmonic[2][4];      /* ... with (offset, a, omega, phase): its position and velocity computed here */
+    /* dissipation in the contacts (hertzpetsc.dissipation), read only by the build with HZ_CONTACT defined: */
+    int contact_clipped;        /* a contact never pulls: f_d <= P */
+    double contact_g, contact_g_exp;        /* g(d) = contact_g d^contact_g_exp of its tension f_d = g(d) dv, ... */
+    double contact_dg, contact_dg_exp;      /* ... g'(d) = contact_dg d^contact_dg_exp */
+    double *contact_dfv;        /* work array (nloc + 1): the bonds' df_d/d(dv) */
 } ChainKernel;
 
 /* a^e for a >= 0 as hertzpetsc.hertz.abs_power: whole or half-whole e up to 4 by products and one sqrt. */
@@ -84,6 +89,20 @@ static inline double abs_power(double a, double e, int k, int half)
     for (int i = 0; i < k; i++) out = out * a;
     return out;
 }
+
+#ifdef HZ_CONTACT
+/* d^e for d > 0 as numpy's d ** e with a scalar e (its exponents 1, -1, 0, 1/2 and 2 by a copy, a division, one,
+ * sqrt and a product; pow otherwise). */
+static inline double scalar_power(double d, double e)
+{
+    if (e == 1.0) return d;
+    if (e == -1.0) return 1.0 / d;
+    if (e == 0.0) return 1.0;
+    if (e == 0.5) return sqrt(d);
+    if (e == 2.0) return d * d;
+    return pow(d, e);
+}
+#endif
 
 /* min(x, 0) and max(x, 0) that keep a NaN (as numpy's minimum / maximum do). */
 static inline double min0(double x) { return x > 0.0 ? 0.0 : x; }
@@ -122,6 +141,31 @@ static inline double stiffness(const ChainKernel *k, double r)
         return k->alpha * abs_power(max0(k->delta0 - r), k->alpha - 1.0, k->stiff_k, k->stiff_half);
     return k->alpha * abs_power(-min0(r), k->alpha - 1.0, k->stiff_k, k->stiff_half);
 }
+
+#ifdef HZ_CONTACT
+/* The contact dissipation of a bond of length r and velocity difference dv (hertzpetsc.dissipation.
+ * ContactDissipation.bond_terms, in its operations' order): its tension f_d = g(d) dv, d = delta0 - r, and the
+ * derivatives df_d/dr = -g'(d) dv, df_d/d(dv) = g(d), all 0 out of contact (d <= 0); clipped, a contact never pulls:
+ * where f_d > P = d^alpha, f_d = P, df_d/dr = -alpha d^(alpha - 1), df_d/d(dv) = 0. */
+static inline void contact_terms(const ChainKernel *k, double r, double dv, double *f, double *dfr, double *dfv)
+{
+    double d = k->delta0 - r;
+    *f = *dfr = *dfv = 0.0;
+    if (!(d > 0.0)) return;
+    double g = k->contact_g * scalar_power(d, k->contact_g_exp);
+    *f = g * dv;
+    *dfr = -(k->contact_dg * scalar_power(d, k->contact_dg_exp)) * dv;
+    *dfv = g;
+    if (k->contact_clipped) {
+        double P = scalar_power(d, k->alpha);
+        if (*f > P) {
+            *f = P;
+            *dfr = -k->alpha * scalar_power(d, k->alpha - 1.0);
+            *dfv = 0.0;
+        }
+    }
+}
+#endif
 
 /* The ghost row ``row`` of an end: a wall at rest (all zero), an actuator (its position and velocity, zero
  * tangents). */
@@ -172,6 +216,17 @@ static void evaluate(const ChainKernel *k, const double *gl, const double *x, co
         if (i == k->step_bond) r = r + k->step;
         bond[i] = force(k, r) * mask;
         if (ntan) stiff[i] = stiffness(k, r) * mask;
+#ifdef HZ_CONTACT
+        {
+            double f, dfr, dfv;
+            contact_terms(k, r, ROW(i + 1)[1] - ROW(i)[1], &f, &dfr, &dfv);
+            bond[i] = bond[i] + f * mask;
+            if (ntan) {
+                stiff[i] = stiff[i] + dfr * mask;
+                k->contact_dfv[i] = dfv * mask;
+            }
+        }
+#endif
     }
     for (int i = 0; i < n; i++) {
         const double *left = ROW(i), *self = ROW(i + 1), *right = ROW(i + 2);
@@ -183,6 +238,13 @@ static void evaluate(const ChainKernel *k, const double *gl, const double *x, co
             for (int c = 2; c < d; c += 2) {
                 o[c] = self[c + 1];
                 o[c + 1] = sr * (right[c] - self[c]) - sl * (self[c] - left[c]);
+#ifdef HZ_CONTACT
+                {                         /* the contacts' df_d/d(dv) on the tangents' velocity differences */
+                    const double wr = k->contact_dfv[i + 1] * (right[c + 1] - self[c + 1]);
+                    const double wl = k->contact_dfv[i] * (self[c + 1] - left[c + 1]);
+                    o[c + 1] = o[c + 1] + (wr - wl);
+                }
+#endif
             }
         }
     }

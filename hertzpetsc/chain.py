@@ -22,9 +22,9 @@ gap-lattice coordinates, whose bonds are r = gap + y_{n+1} - y_n (:attr:`Chain.g
 the beads behind it stored relative to their rest position, so that bonds closed by less than the positions'
 round-off are computed without cancellation).
 
-The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law without contact
-dissipation; :meth:`Chain.rhs_reference` is the same arithmetic in numpy (any law, any damping; the reference the
-kernel is tested against).
+The right-hand side a TS calls is compiled (:mod:`hertzpetsc.kernels`) for the Hertz law, with or without the
+contact dissipations of :mod:`hertzpetsc.dissipation`; :meth:`Chain.rhs_reference` is the same arithmetic in numpy
+(any law, any damping; the reference the kernel is tested against).
 """
 from __future__ import annotations
 
@@ -101,12 +101,14 @@ class Chain:
         self._shift = None
         self._theta, self._complex_modes, self._gap, self._step = 0.0, False, 0.0, (-1, 0.0)
         # the compiled right-hand side: one law in every bond, which it evaluates exactly (the law says so: Hertz's
-        # form), no dissipation in the contacts, and this class's ghost rows (any other law, a bond pattern or another
-        # term, or a subclass that redefines the ghost rows or the right-hand side, evaluates in numpy)
+        # form), a contact dissipation it evaluates exactly (the dissipation says so: its power form) or none, and
+        # this class's ghost rows (any other law, a bond pattern or another term, or a subclass that redefines the
+        # ghost rows or the right-hand side, evaluates in numpy)
+        contact = self.model.damping.contact
         compiled = self.model.law.kernel_form == "hertz" and self.model.bonds is None \
-            and self.model.damping.contact is None \
+            and (contact is None or contact.kernel_form(self.model.law) is not None) \
             and type(self)._ghosted is Chain._ghosted and type(self).rhs_reference is Chain.rhs_reference
-        lib = kernels.library() if compiled else None
+        lib = None if not compiled else kernels.library() if contact is None else kernels.contact_library()
         self.kernel = kernels.ChainKernel(self, lib) if lib is not None else None
         self._sync()
 
@@ -488,7 +490,7 @@ class ChainIntegrator:
         self.compiled = False                 # the TS calls the compiled function itself (no Python per stage)
         if not PETSc.Options(prefix).getBool("rhs_compiled", True) or chain.kernel is None:
             ts.setRHSFunction(chain.rhs_reference, self._F)
-        elif chain.kernel.python_signals:
+        elif chain.kernel.needs_python:
             ts.setRHSFunction(chain.rhs, self._F)
         else:
             chain.kernel.install(ts, self._F)

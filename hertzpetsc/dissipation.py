@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -46,7 +47,8 @@ def contact_exponent(law) -> tuple[float, float]:
 
 class ContactDissipation:
     """The protocol of a contact damping (module docstring): frozen dataclasses with the field ``clipped`` that give
-    g(d) and g'(d)."""
+    g(d) and g'(d) (:meth:`power_form`, or :meth:`coefficient` and :meth:`derivative` of their own, evaluated in
+    numpy only)."""
 
     #: the name in records (LatticeModel.describe)
     kind = ""
@@ -55,13 +57,29 @@ class ContactDissipation:
     def __post_init__(self):
         object.__setattr__(self, "clipped", check_flag("clipped", self.clipped))
 
+    def power_form(self, alpha: float) -> tuple[tuple[float, float], tuple[float, float]]:
+        """((G, e), (G', e')) with g(d) = G d^e and g'(d) = G' d^e' (both dampings are powers of the overlap)."""
+        raise NotImplementedError
+
     def coefficient(self, d: np.ndarray, alpha: float) -> np.ndarray:
         """g(d) >= 0 of f_d = g(d) dv, for d > 0."""
-        raise NotImplementedError
+        (g, e), _ = self.power_form(alpha)
+        return g * d ** e
 
     def derivative(self, d: np.ndarray, alpha: float) -> np.ndarray:
         """g'(d), for d > 0."""
-        raise NotImplementedError
+        _, (g, e) = self.power_form(alpha)
+        return g * d ** e
+
+    def kernel_form(self, law) -> Optional[tuple[tuple[float, float], tuple[float, float]]]:
+        """:meth:`power_form` at the law's exponent for the compiled right-hand side (:mod:`hertzpetsc.kernels`),
+        which evaluates :meth:`bond_terms` in the same operations; None (numpy) when a subclass redefines g, g' or
+        the bond terms."""
+        cls = type(self)
+        if any(getattr(cls, n) is not getattr(ContactDissipation, n) for n in ("coefficient", "derivative",
+                                                                             "bond_terms")):
+            return None
+        return self.power_form(contact_exponent(law)[0])
 
     def describe(self) -> dict:
         raise NotImplementedError
@@ -109,11 +127,8 @@ class HuntCrossley(ContactDissipation):
         super().__post_init__()
         object.__setattr__(self, "c", check_real("c", self.c, "the Hunt-Crossley damping", 0.0, lo_open=False))
 
-    def coefficient(self, d, alpha):
-        return 1.5 * self.c * d ** alpha
-
-    def derivative(self, d, alpha):
-        return 1.5 * self.c * alpha * d ** (alpha - 1.0)
+    def power_form(self, alpha):
+        return (1.5 * self.c, alpha), (1.5 * self.c * alpha, alpha - 1.0)
 
     def describe(self):
         return dict(contact=self.kind, contact_c=self.c, contact_clipped=self.clipped)
@@ -134,11 +149,8 @@ class KuwabaraKono(ContactDissipation):
         object.__setattr__(self, "eta", check_real("eta_c", self.eta, "the Kuwabara-Kono damping", 0.0,
                                                    lo_open=False))
 
-    def coefficient(self, d, alpha):
-        return self.eta * d ** (alpha - 1.0)
-
-    def derivative(self, d, alpha):
-        return self.eta * (alpha - 1.0) * d ** (alpha - 2.0)
+    def power_form(self, alpha):
+        return (self.eta, alpha - 1.0), (self.eta * (alpha - 1.0), alpha - 2.0)
 
     def describe(self):
         return dict(contact=self.kind, contact_eta=self.eta, contact_clipped=self.clipped)

@@ -29,6 +29,9 @@ from .hertz import power_recipe
 HERE = os.path.dirname(os.path.abspath(__file__))
 SOURCE = os.path.join(HERE, "_chain_kernel.c")
 LIBRARY = os.path.join(HERE, "_chain_kernel.so")
+# the same source built with HZ_CONTACT: the right-hand side with a contact dissipation, a library of its own so
+# that the chains without one run the very code (and code layout) they ran before it existed
+CONTACT_LIBRARY = os.path.join(HERE, "_chain_kernel_contact.so")
 # IEEE arithmetic as numpy does it: no fast-math, no fused multiply-adds (the kernel matches the reference to the bit)
 CFLAGS = ["-O3", "-fPIC", "-shared", "-std=c99", "-ffp-contract=off", "-fno-fast-math"]
 
@@ -58,7 +61,11 @@ class KernelContext(ctypes.Structure):
                 ("gap", ctypes.c_double), ("step_bond", ctypes.c_int), ("step", ctypes.c_double),
                 ("bond", ctypes.c_void_p), ("stiff", ctypes.c_void_p), ("dv", ctypes.c_void_p),
                 ("harmonic_left", ctypes.c_int), ("harmonic_right", ctypes.c_int),
-                ("harmonic", (ctypes.c_double * 4) * 2)]
+                ("harmonic", (ctypes.c_double * 4) * 2),
+                ("contact_clipped", ctypes.c_int),
+                ("contact_g", ctypes.c_double), ("contact_g_exp", ctypes.c_double),
+                ("contact_dg", ctypes.c_double), ("contact_dg_exp", ctypes.c_double),
+                ("contact_dfv", ctypes.c_void_p)]
 
 
 def petsc_library():
@@ -84,13 +91,13 @@ def source_digest():
     return digest.hexdigest()[:16]
 
 
-def built_digest():
-    """The source digest the library was built from, or None if there is no library."""
-    if not os.path.exists(LIBRARY):
+def built_digest(path=LIBRARY):
+    """The source digest the library ``path`` was built from, or None if there is no library."""
+    if not os.path.exists(path):
         return None
     petsc_library()                               # libpetsc first: the kernel resolves its symbols there
     try:
-        lib = ctypes.CDLL(LIBRARY)
+        lib = ctypes.CDLL(path)
         lib.hz_kernel_source.restype = ctypes.c_char_p
         return lib.hz_kernel_source().decode()
     except (OSError, AttributeError):               # not a library of this module (or from before the digest)
@@ -98,27 +105,55 @@ def built_digest():
 
 
 def build(compiler=None, force=False):
-    """Compile ``_chain_kernel.c`` into ``_chain_kernel.so`` (atomically) unless the library was built from this
-    source; returns the library's path. ``compiler``: default $CC, else gcc."""
+    """Compile ``_chain_kernel.c`` into ``_chain_kernel.so`` and, with HZ_CONTACT, ``_chain_kernel_contact.so``
+    (atomically) unless a library was built from this source; returns the first library's path. ``compiler``:
+    default $CC, else gcc."""
     compiler = compiler or os.environ.get("CC", "gcc")
     digest = source_digest()
-    if not force and os.path.exists(LIBRARY) and built_digest() == digest:
-        return LIBRARY
-    fd, tmp = tempfile.mkstemp(suffix=".so", dir=HERE)
-    os.close(fd)
-    try:
-        subprocess.run([compiler, *CFLAGS, f'-DHZ_KERNEL_SOURCE="{digest}"', "-o", tmp, SOURCE, petsc_library(),
-                        "-lm"], check=True)
-        os.chmod(tmp, 0o755)
-        os.replace(tmp, LIBRARY)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
+    for path, defines in ((LIBRARY, []), (CONTACT_LIBRARY, ["-DHZ_CONTACT"])):
+        if not force and os.path.exists(path) and built_digest(path) == digest:
+            continue
+        fd, tmp = tempfile.mkstemp(suffix=".so", dir=HERE)
+        os.close(fd)
+        try:
+            subprocess.run([compiler, *CFLAGS, *defines, f'-DHZ_KERNEL_SOURCE="{digest}"', "-o", tmp, SOURCE,
+                            petsc_library(), "-lm"], check=True)
+            os.chmod(tmp, 0o755)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
     return LIBRARY
 
 
 _lib = None
 _status = None
+_contact_lib = None
+
+
+def _load(path):
+    lib = ctypes.CDLL(path)
+    ptr, vp = ctypes.POINTER(KernelContext), ctypes.c_void_p
+    lib.hz_chain_rhs.argtypes = [vp, ctypes.c_double, vp, vp, ptr]
+    lib.hz_chain_rhs.restype = ctypes.c_int
+    lib.hz_install_rhs.argtypes = [vp, vp, ptr]
+    lib.hz_install_rhs.restype = ctypes.c_int
+    lib.hz_watch_signals.restype = lib.hz_release_signals.restype = ctypes.c_int
+    return lib
+
+
+def contact_library():
+    """The library of the chains with a contact dissipation (built beside :func:`library`, from the same source),
+    or None (their chains then evaluate in numpy; said once when the library is stale or missing)."""
+    global _contact_lib
+    if _contact_lib is None and library() is not None:
+        if built_digest(CONTACT_LIBRARY) == source_digest():
+            _contact_lib = _load(CONTACT_LIBRARY)
+        else:
+            _contact_lib = False
+            note(f"the compiled chain kernel {CONTACT_LIBRARY} is not built from this source (run: python -m "
+                 "hertzpetsc.kernels); chains with contact dissipation use the numpy right-hand side")
+    return _contact_lib or None
 
 
 def library():
@@ -142,14 +177,7 @@ def library():
             # same numbers, much slower: say so once
             note(f"the compiled chain kernel {LIBRARY} is {_status}; using the numpy right-hand side")
         else:
-            lib = ctypes.CDLL(LIBRARY)
-            ptr, vp = ctypes.POINTER(KernelContext), ctypes.c_void_p
-            lib.hz_chain_rhs.argtypes = [vp, ctypes.c_double, vp, vp, ptr]
-            lib.hz_chain_rhs.restype = ctypes.c_int
-            lib.hz_install_rhs.argtypes = [vp, vp, ptr]
-            lib.hz_install_rhs.restype = ctypes.c_int
-            lib.hz_watch_signals.restype = lib.hz_release_signals.restype = ctypes.c_int
-            _lib, _status = lib, "compiled"
+            _lib, _status = _load(LIBRARY), "compiled"
     return _lib
 
 
@@ -189,7 +217,7 @@ class ChainKernel:
     def __init__(self, chain, lib):
         self.lib = lib
         n = chain.nloc
-        self.work = np.zeros((3, n + 1))
+        self.work = np.zeros((4, n + 1))
         self.ghost = np.zeros(2 * chain.dof)
         ctx = KernelContext()
         ctx.nloc, ctx.dof, ctx.ntan = n, chain.dof, chain.n_tangent
@@ -199,7 +227,7 @@ class ChainKernel:
         if not ctx.serial:
             self.scatter, self.ghost_vec = ghost_scatter(chain)
             ctx.ghost_scatter, ctx.ghost_vec = self.scatter.handle, self.ghost_vec.handle
-        ctx.bond, ctx.stiff, ctx.dv = (self.work[i].ctypes.data for i in range(3))
+        ctx.bond, ctx.stiff, ctx.dv, ctx.contact_dfv = (self.work[i].ctypes.data for i in range(4))
         self.ctx = ctx
         self.ref = ctypes.byref(ctx)
         self.set_physics(chain)
@@ -216,6 +244,10 @@ class ChainKernel:
         ctx.stiff_k, ctx.stiff_half = power_recipe(law.alpha - 1.0)
         damping = chain.model.damping
         ctx.gamma, ctx.eta = damping.gamma, damping.eta
+        if damping.contact is not None:          # this chain's library is contact_library() (Chain.__init__)
+            ctx.contact_clipped = int(damping.contact.clipped)
+            (ctx.contact_g, ctx.contact_g_exp), (ctx.contact_dg, ctx.contact_dg_exp) = \
+                damping.contact.kernel_form(law)
         self.inverse_mass = None if chain.inverse_mass is None else np.ascontiguousarray(chain.inverse_mass, float)
         ctx.inv_mass = None if self.inverse_mass is None else self.inverse_mass.ctypes.data
         # harmonic actuators move in C; any other signal is evaluated in Python at each right-hand side (set_time)
@@ -254,6 +286,13 @@ class ChainKernel:
         err = self.lib.hz_chain_rhs(None, t, X.handle, F.handle, self.ref)
         if err:
             raise RuntimeError(f"the compiled chain right-hand side failed with PETSc error {err}")
+
+    @property
+    def needs_python(self) -> bool:
+        """The TS calls :meth:`hertzpetsc.chain.Chain.rhs`, not this function itself: an actuator's signal is
+        evaluated in Python, or the library is the contact one, which leaves signals to Python's handlers (they run
+        between the evaluations; only :func:`library`'s are armed by :func:`watch_signals`)."""
+        return bool(self.python_signals) or self.lib is not _lib
 
     def install(self, ts, F):
         """Make the compiled function the right-hand side of the TS ``ts`` (residual vector F)."""

@@ -83,7 +83,6 @@ def test_exact_jacobian_with_velocity_derivatives(contact, boundary, ends):
     spec = ChainSpec(model_with(contact), 8, boundary, **ends)
     x = np.random.default_rng(3).normal(size=(8, 2)) * 0.3
     f, J, fd, kernel = chain_arrays(spec, x, t=0.7)
-    assert kernel is None                                  # the compiled kernel does not compute the term
     r = np.diff(x[:, 0])
     assert np.any(0.2 - r > 0) and np.any(0.2 - r < 0)   # in and out of contact
     assert np.max(np.abs(J - fd)) < 1e-6 * max(1.0, np.max(np.abs(J)))
@@ -92,13 +91,23 @@ def test_exact_jacobian_with_velocity_derivatives(contact, boundary, ends):
     assert np.max(np.abs(f - plain)) > 1e-3
 
 
-def test_compiled_path_only_without_contact_dissipation():
-    """The compiled kernel's guard looks at the damping's terms too: a chain with contact dissipation evaluates in
-    numpy (the kernel does not compute the term: see docs/dissipation.md), one without takes the kernel; set_spec
-    keeps the kind of contact dissipation and moves its coefficient."""
+class _OwnCoefficient(HuntCrossley):
+    """A Hunt-Crossley whose g(d) is its own (not the power form the kernel evaluates)."""
+
+    def coefficient(self, d, alpha):
+        return 1.5 * self.c * d ** alpha * (1.0 + d)
+
+
+def test_the_kernel_takes_the_contact_dissipations_it_evaluates_and_no_other():
+    """The compiled kernel's guard looks at the damping's terms too: Hunt-Crossley and Kuwabara-Kono (their power
+    form) take the contact build of the kernel (the TS calls Chain.rhs, whose signals Python handles), a subclass
+    with its own g(d) evaluates in numpy, a chain without contact dissipation takes the plain build; set_spec keeps
+    the kind of contact dissipation and moves its coefficient."""
+    compiled = kernels.status() == "compiled"
     ch = Chain(ChainSpec(model_with(None), 6, "fixed"), COMM)
     try:
-        assert (ch.kernel is not None) == (kernels.status() == "compiled")
+        assert (ch.kernel is not None) == compiled
+        assert ch.kernel is None or (ch.kernel.lib is kernels.library() and not ch.kernel.needs_python)
         with pytest.raises(ParameterError, match="contact dissipation"):
             ch.set_spec(ChainSpec(model_with(HuntCrossley(0.5)), 6, "fixed"))
     finally:
@@ -106,14 +115,80 @@ def test_compiled_path_only_without_contact_dissipation():
     for contact in (HuntCrossley(0.5), KuwabaraKono(0.5, False)):
         ch = Chain(ChainSpec(model_with(contact), 6, "fixed"), COMM)
         try:
-            assert ch.kernel is None
+            assert (ch.kernel is not None) == compiled
+            assert ch.kernel is None or (ch.kernel.lib is kernels.contact_library() and ch.kernel.needs_python)
             ch.set_spec(ChainSpec(model_with(type(contact)(0.9)), 6, "fixed"))
             assert ch.model.damping.contact == type(contact)(0.9)
+            if ch.kernel is not None:
+                assert ch.kernel.ctx.contact_g == (1.5 * 0.9 if type(contact) is HuntCrossley else 0.9)
         finally:
             ch.destroy()
+    ch = Chain(ChainSpec(model_with(_OwnCoefficient(0.5)), 6, "fixed"), COMM)
+    try:
+        assert ch.kernel is None
+    finally:
+        ch.destroy()
     no_contact = RescaledLaw(HertzLaw(), 2.0, 1.5)          # a law that names no exponent: contact unknown
     with pytest.raises(ParameterError, match="law"):
         Chain(ChainSpec(LatticeModel(no_contact, damping=Damping(contact=HuntCrossley(0.5))), 6, "fixed"), COMM)
+
+
+@pytest.mark.parametrize("contact", CONTACTS)
+@pytest.mark.parametrize("alpha,delta0,boundary,ends", [
+    (1.5, 0.2, "periodic", {}), (2.0, 0.0, "free", {}), (1.7, 0.3, "fixed", dict(left=Actuator(Harmonic(0.2, 1.3))))])
+def test_the_compiled_contact_terms_equal_the_numpy_reference(contact, alpha, delta0, boundary, ends):
+    """The contact build of the kernel against Chain.rhs_reference, state and 3 tangent columns, at states where
+    bonds touch, clip (where clipped) and separate: the same operations in the same order (numpy's d ** e: sqrt for
+    e = 1/2, pow otherwise, as the kernel's scalar_power), within 8 eps of the largest value as the Hertz kernel's
+    test (libm's pow may differ from numpy's by an ulp)."""
+    model = LatticeModel(HertzLaw(alpha, delta0), (1.0, 0.6), Damping(0.01, 0.02, contact))
+    ch = Chain(ChainSpec(model, 12, boundary, **ends), COMM, 3)
+    if ch.kernel is None:
+        ch.destroy()
+        pytest.skip(f"the compiled kernel is {kernels.status()}")
+    X, F, G = ch.create_state(), ch.create_state(), ch.create_state()
+    rng = np.random.default_rng(11)
+    try:
+        for t in (0.0, 0.7):
+            x = rng.normal(size=(12, ch.dof)) * 0.3
+            x[:, 1] *= 4.0                                 # fast enough that clipped contacts clip
+            ch.set_from_array(X, x)
+            ch.rhs(None, t, X, F)
+            ch.rhs_reference(None, t, X, G)
+            f, g = ch.gather(F), ch.gather(G)
+            assert np.max(np.abs(f - g)) <= 8 * np.finfo(float).eps * np.max(np.abs(g))
+        r = np.diff(x[:, 0]) if boundary != "periodic" else np.diff(np.append(x[:, 0], x[0, 0]))
+        dv = np.diff(x[:, 1]) if boundary != "periodic" else np.diff(np.append(x[:, 1], x[0, 1]))
+        d = delta0 - r
+        fd = contact.coefficient(np.where(d > 0, d, 1.0), alpha) * dv
+        assert np.any(d > 0) and np.any(d < 0)
+        if contact.clipped:
+            assert np.any((d > 0) & (fd > np.where(d > 0, d, 1.0) ** alpha))
+    finally:
+        for v in (X, F, G):
+            v.destroy()
+        ch.destroy()
+
+
+def test_a_flow_with_contact_dissipation_is_the_same_compiled_or_in_numpy(clean_options):
+    """A driven tangent flow with Hunt-Crossley contacts, compiled (the contact build through Chain.rhs) and with
+    -chain_rhs_compiled 0 (numpy). The right-hand sides differ by ulps (sqrt against pow), and where a contact clips
+    or opens, an ulp can flip a step's acceptance, so the adaptive step sequences may part: the two flows then agree
+    to the integration's global error at rtol 1e-12 through the contacts' kinks, bounded here by 1e-9 relative."""
+    spec = ChainSpec(model_with(HuntCrossley(0.8)), 10, "fixed", left=Actuator(Harmonic(0.2, 1.3)))
+    rng = np.random.default_rng(5)
+    x0 = np.stack([0.05 * rng.normal(size=10), 0.2 * rng.normal(size=10)], axis=1)
+    Y0 = rng.normal(size=(10, 2, 2))
+    out = []
+    for compiled in ("1", "0"):
+        clean_options.setValue("chain_rhs_compiled", compiled)
+        flow = TangentFlow(spec, 2, COMM, TIGHT, "chain_")
+        assert (flow.aug.kernel is not None) == (kernels.status() == "compiled")
+        out.append(flow.run(x0, 6.0, Y0))
+        flow.destroy()
+    (x1, R1), (x2, R2) = out
+    assert np.max(np.abs(x1 - x2)) <= 1e-9 * np.max(np.abs(x2))
+    assert np.max(np.abs(R1 - R2)) <= 1e-9 * np.max(np.abs(R2))
 
 
 @pytest.mark.parametrize("contact", [HuntCrossley(3.0), HuntCrossley(0.8, clipped=False), KuwabaraKono(0.3)])

@@ -227,8 +227,14 @@ def test_signals_declare_the_time_scale_that_limits_every_flow():
     prob = PeriodicShooting(small_drive(N=6, right=HalfSinePulses(0.1), omega=2.0, amplitude=0.05), COMM)
     try:
         for integ in (prob.integrator, prob.dense.flow.integrator, prob.jacobian_flow.integrator):
-            steps = []
-            integ.ts.setMonitor(lambda ts, i, t, X: steps.append(ts.getTimeStep()))
+            steps, last = [], {}
+
+            def taken(ts, i, t, X):         # the steps taken: t between consecutive monitor calls of one solve
+                if i > 0 and last.get("i") == i - 1:
+                    steps.append(t - last["t"])
+                last.update(i=i, t=t)
+
+            integ.ts.setMonitor(taken)
             prob.monodromy(np.zeros((6, 2)), 2.0, accurate=integ is not prob.jacobian_flow.integrator)
             prob.map(np.zeros((6, 2)))
             integ.ts.monitorCancel()

@@ -100,7 +100,7 @@ def members(name, values, what):
 def _distinct(name, values, what):
     """Refuse a repeated member (equal to 1e-12 relative, as AppOptions.numbers(distinct=True) does)."""
     for i, v in enumerate(values):
-        if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in values[:i]):
+        if any(math.isclose(v, s, rel_tol=1e-12) for s in values[:i]):
             raise ParameterError(name, values, f"lists {v!r} twice; the {what} must be different")
 
 
@@ -165,12 +165,12 @@ def _bound(b):
 
 @dataclass(frozen=True)
 class Spec:
-    """A parameter declared once (:func:`param`): its ``kind`` (real, integer, reals, integers, choice, flag, text),
-    range (``lo``, ``hi``, open ends by default for reals; ``choices``; lists: ``distinct``, at least ``count``
-    members), ``unit``, one line of meaning ``what``, and the command-line ``option`` where its name differs (a flag
-    whose default is True: the option that turns it off, its meaning ``help``); ``expr``: the option accepts
-    ``pi/50``. :meth:`check` validates a value (errors name the Python argument);
-    :meth:`hertzpetsc.options.AppOptions.parameters` reads it as an option (errors name ``-option``)."""
+    """A parameter declared once (:func:`param`): one line of meaning ``what``, its ``kind`` (real, integer, reals,
+    integers, choice, words: a list of choices, flag, text) and range (``lo``, ``hi``, open ends by default for
+    reals; ``choices``; lists: ``distinct``, at least ``count`` members), its command-line ``option`` where the name
+    differs (a flag whose default is True: the option that turns it off, meaning ``help``); ``expr``: the option
+    takes ``pi/50``. :meth:`check` validates a value (errors name the Python argument);
+    :meth:`hertzpetsc.options.AppOptions.parameters` reads it as its option (errors name ``-option``)."""
 
     what: str
     kind: str
@@ -181,7 +181,6 @@ class Spec:
     choices: tuple = ()
     distinct: bool = False
     count: int = 1
-    unit: str = ""
     option: Optional[str] = None
     help: str = ""
     expr: bool = False
@@ -193,18 +192,23 @@ class Spec:
             return check_real(name, value, what, self.lo, self.hi, self.lo_open, self.hi_open)
         if k == "integer":
             return check_integer(name, value, self.lo, what, self.hi)
-        if k in ("reals", "integers"):
-            out = check_reals(name, value, what, self.lo, self.hi, self.lo_open, self.hi_open, self.distinct,
-                              not self.count) if k == "reals" else \
-                check_integers(name, value, self.lo, what, self.hi, self.distinct, not self.count)
-            if len(out) < self.count:
-                raise ParameterError(name, value, f"give at least {self.count} {what}")
-            return out
         if k == "choice":
             return check_choice(name, value, self.choices)
         if k == "flag":
             return check_flag(name, value)
-        return check_instance(name, value, str, "text")
+        if k == "text":
+            return check_instance(name, value, str, "text")
+        if k == "words":
+            out = tuple(check_choice(name, v, self.choices, "each must be one of")
+                        for v in members(name, [value] if isinstance(value, str) else value, "names"))
+        elif k == "reals":
+            out = check_reals(name, value, what, self.lo, self.hi, self.lo_open, self.hi_open, self.distinct,
+                              not self.count)
+        else:
+            out = check_integers(name, value, self.lo, what, self.hi, self.distinct, not self.count)
+        if len(out) < self.count:
+            raise ParameterError(name, value, f"give at least {self.count} {what}")
+        return out
 
     def holds(self, value: Any) -> bool:
         """Whether one value (a member, for a list) is in the range."""
@@ -252,7 +256,9 @@ class Checked:
 
     def __post_init__(self) -> None:
         for f, spec in specs(self):
-            object.__setattr__(self, f.name, spec.check(f.name, getattr(self, f.name)))
+            value = getattr(self, f.name)
+            if not (value is None and f.default is None):          # None where it is the default: not given
+                object.__setattr__(self, f.name, spec.check(f.name, value))
 
 
 class OptionError(ParameterError):

@@ -19,7 +19,7 @@ from petsc4py import PETSc
 from numpy.typing import ArrayLike
 
 from .assembly import gathered
-from .errors import ParameterError, check_integer, check_real, param
+from .errors import ParameterError, check_real, param
 
 
 def check_cells_per_pi(cells_per_pi):

@@ -21,6 +21,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Mapping
+from dataclasses import MISSING
 from typing import Any, Iterator, Optional
 
 import numpy as np
@@ -270,13 +271,15 @@ class AppOptions:
     def parameters(self, cls, skip=(), **defaults):
         """{field: value} of the declared parameters of the dataclass ``cls`` (:func:`hertzpetsc.errors.param`),
         each read as its option (``-field`` or the spec's ``option``) with its meaning and range, the errors naming
-        the option; ``defaults`` replace the dataclass's (a list's as its text: ``q="2*pi/15"``); ``skip``: fields the driver reads otherwise. An error that
-        the dataclass raises naming a field then names its option (:func:`guarded_main`)."""
+        the option; ``defaults`` replace the dataclass's (a list's as its text: ``q="2*pi/15"``); ``skip``: fields
+        the driver reads otherwise. An error that the dataclass raises naming a field then names its option
+        (:meth:`names`, :func:`guarded_main`)."""
         out = {}
         for f, spec in specs(cls):
             if f.name in skip:
                 continue
             option, default = spec.option or f.name, defaults.get(f.name, f.default)
+            default = "" if default is MISSING else default         # a required field: the option must be given
             self.spelled[f.name] = option
             valid = (spec.holds, spec.rule()) if spec.rule() else None
             if spec.kind == "real":
@@ -284,13 +287,16 @@ class AppOptions:
             elif spec.kind == "integer":
                 value = self.integer(option, default, spec.what, minimum=spec.lo, maximum=spec.hi)
             elif spec.kind in ("reals", "integers"):
-                text = default if isinstance(default, str) else ",".join(f"{v:g}" for v in default)
+                text = default if isinstance(default, str) else ",".join(f"{v:g}" for v in default or ())
                 value = self.numbers(option, text, spec.what, expr=spec.expr,
                                      kind=int if spec.kind == "integers" else float, valid=valid,
-                                     distinct=spec.distinct, minimum_count=spec.count)
-                value = tuple(value) if not self.help else default
+                                     distinct=spec.distinct, minimum_count=0 if default is None else spec.count)
+                value = default if self.help else tuple(value) if value or default is not None else None
             elif spec.kind == "choice":
                 value = self.string(option, default, spec.what, choices=spec.choices)
+            elif spec.kind == "words":
+                value = tuple(self.words(option, default if isinstance(default, str) else ",".join(default),
+                                         spec.what, choices=spec.choices))
             elif spec.kind == "flag":          # a flag on by default: its option turns it off
                 value = self.flag(option, spec.help or spec.what) != bool(default)
             else:

@@ -22,7 +22,9 @@ import ctypes
 import math
 import numbers
 import signal
+from collections.abc import Mapping
 from contextlib import contextmanager
+from dataclasses import MISSING, dataclass, field, fields
 from typing import Any, Collection, Optional, Union
 
 
@@ -46,10 +48,11 @@ class ParameterError(HertzPetscError, ValueError):
 
     def as_option(self, options: Collection[str]) -> ParameterError:
         """The same error naming the command-line option ``-name`` when ``name`` (a Python argument of the API)
-        is one of the driver's ``options``; else itself."""
+        is one of the driver's ``options`` (a mapping: {argument: its option}); else itself."""
         name = self.name
         if isinstance(name, str) and not name.startswith("-") and name in options:
-            return ParameterError(f"-{name}", self.value, self.valid)
+            return ParameterError(f"-{options[name] if isinstance(options, Mapping) else name}", self.value,
+                                  self.valid)
         return self
 
 
@@ -97,7 +100,7 @@ def members(name, values, what):
 def _distinct(name, values, what):
     """Refuse a repeated member (equal to 1e-12 relative, as AppOptions.numbers(distinct=True) does)."""
     for i, v in enumerate(values):
-        if any(abs(v - s) <= 1e-12 * max(1.0, abs(s)) for s in values[:i]):
+        if any(math.isclose(v, s, rel_tol=1e-12) for s in values[:i]):
             raise ParameterError(name, values, f"lists {v!r} twice; the {what} must be different")
 
 
@@ -154,6 +157,108 @@ def check_flag(name, value):
     if isinstance(value, bool) or type(value).__name__ == "bool_":
         return bool(value)
     raise ParameterError(name, value, f"must be True or False, not {type(value).__name__}")
+
+
+def _bound(b):
+    return {math.pi: "pi", math.pi / 2: "pi/2"}.get(b, f"{b:g}" if isinstance(b, float) else str(b))
+
+
+@dataclass(frozen=True)
+class Spec:
+    """A parameter declared once (:func:`param`): one line of meaning ``what``, its ``kind`` (real, integer, reals,
+    integers, choice, words: a list of choices, flag, text) and range (``lo``, ``hi``, open ends by default for
+    reals; ``choices``; lists: ``distinct``, at least ``count`` members), its command-line ``option`` where the name
+    differs (a flag whose default is True: the option that turns it off, meaning ``help``); ``expr``: the option
+    takes ``pi/50``. :meth:`check` validates a value (errors name the Python argument);
+    :meth:`hertzpetsc.options.AppOptions.parameters` reads it as its option (errors name ``-option``)."""
+
+    what: str
+    kind: str
+    lo: Any = None
+    hi: Any = None
+    lo_open: bool = True
+    hi_open: bool = True
+    choices: tuple = ()
+    distinct: bool = False
+    count: int = 1
+    option: Optional[str] = None
+    help: str = ""
+    expr: bool = False
+
+    def check(self, name: str, value: Any) -> Any:
+        """``value`` normalised (a float, an int, a tuple ...) if valid, else a ParameterError naming ``name``."""
+        k, what = self.kind, self.what
+        if k == "real":
+            return check_real(name, value, what, self.lo, self.hi, self.lo_open, self.hi_open)
+        if k == "integer":
+            return check_integer(name, value, self.lo, what, self.hi)
+        if k == "choice":
+            return check_choice(name, value, self.choices)
+        if k == "flag":
+            return check_flag(name, value)
+        if k == "text":
+            return check_instance(name, value, str, "text")
+        if k == "words":
+            out = tuple(check_choice(name, v, self.choices, "each must be one of")
+                        for v in members(name, [value] if isinstance(value, str) else value, "names"))
+        elif k == "reals":
+            out = check_reals(name, value, what, self.lo, self.hi, self.lo_open, self.hi_open, self.distinct,
+                              not self.count)
+        else:
+            out = check_integers(name, value, self.lo, what, self.hi, self.distinct, not self.count)
+        if len(out) < self.count:
+            raise ParameterError(name, value, f"give at least {self.count} {what}")
+        return out
+
+    def holds(self, value: Any) -> bool:
+        """Whether one value (a member, for a list) is in the range."""
+        try:
+            Spec(self.what, self.kind.rstrip("s"), self.lo, self.hi, self.lo_open, self.hi_open).check("", value)
+        except ParameterError:
+            return False
+        return True
+
+    def rule(self) -> str:
+        """The range as -help shows it (of a member, for a list)."""
+        lo, hi = self.lo, self.hi
+        if self.kind.startswith("integer"):
+            return f">= {lo}" if hi is None else f"in [{lo}, {hi}]"
+        if lo is not None and hi is not None:
+            return f"in {'(' if self.lo_open else '['}{_bound(lo)}, {_bound(hi)}{')' if self.hi_open else ']'}"
+        if lo is not None:
+            return f"{'>' if self.lo_open else '>='} {_bound(lo)}"
+        return f"{'<' if self.hi_open else '<='} {_bound(hi)}" if hi is not None else ""
+
+
+_KINDS = {float: "real", int: "integer", bool: "flag", str: "text"}
+
+
+def param(default: Any = MISSING, what: str = "", kind: Optional[str] = None, **spec: Any) -> Any:
+    """A field of a study's parameters dataclass declared once (:class:`Spec`: ``kind`` from the default where
+    not given: a float real, an int integer, a bool flag, a str text, or with ``choices`` a choice, a tuple of
+    floats reals): validated by :class:`Checked`, read as an option by
+    :meth:`hertzpetsc.options.AppOptions.parameters`."""
+    if kind is None:
+        kind = "choice" if spec.get("choices") else "reals" if isinstance(default, tuple) else \
+            _KINDS[type(default)]
+    return field(default=default, metadata={"param": Spec(what, kind, **spec)})
+
+
+def specs(cls: Any) -> list:
+    """[(field, Spec)] of the declared parameters of a dataclass (or of an instance), in field order."""
+    return [(f, f.metadata["param"]) for f in fields(cls) if "param" in f.metadata]
+
+
+class Checked:
+    """A parameters dataclass whose :func:`param` fields are validated (and normalised) when it is built, errors
+    naming the Python argument; a subclass adds the rules between fields in its own ``__post_init__`` after
+    ``super().__post_init__()``."""
+
+    def __post_init__(self) -> None:
+        for f, spec in specs(self):
+            value = getattr(self, f.name)
+            if not (value is None and f.default is None):          # None where it is the default: not given
+                object.__setattr__(self, f.name, spec.check(f.name, value))
 
 
 class OptionError(ParameterError):

@@ -19,14 +19,20 @@ from petsc4py import PETSc
 from numpy.typing import ArrayLike
 
 from .assembly import gathered
-from .errors import ParameterError, check_integer, check_real
+from .errors import ParameterError, check_real, param
 
 
 def check_cells_per_pi(cells_per_pi):
     """K must be an integer >= 4 (h = pi/K) whose whole period's 2K values PETSc's index type can count; returns it
     as int (the memory a solver needs on it: :func:`~hertzpetsc.resources.check_memory`)."""
+    return cells_per_pi_param(4).metadata["param"].check("cells_per_pi", cells_per_pi)
+
+
+def cells_per_pi_param(default):
+    """The field ``cells_per_pi`` of a study's parameters (:func:`~hertzpetsc.errors.param`), K as
+    :func:`check_cells_per_pi` takes it."""
     from .resources import MAX_UNKNOWNS
-    return check_integer("cells_per_pi", cells_per_pi, 4, hi=MAX_UNKNOWNS // 2, note="(h = pi / cells_per_pi)")
+    return param(default, "the grid h = pi / cells_per_pi", lo=4, hi=MAX_UNKNOWNS // 2)
 
 
 class ProfileGrid:

@@ -21,6 +21,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Mapping
+from dataclasses import MISSING
 from typing import Any, Iterator, Optional
 
 import numpy as np
@@ -28,7 +29,7 @@ from petsc4py import PETSc
 
 from . import kernels
 from .console import print0
-from .errors import (HertzPetscError, OptionError, ParameterError, PetscFailure, RecordFileError, Terminated,
+from .errors import (HertzPetscError, OptionError, ParameterError, PetscFailure, RecordFileError, Terminated, specs,
                      unwrapped)
 from .records import check_stores, name_path, prepare_outputs, provenance
 
@@ -143,6 +144,7 @@ class AppOptions:
         self.doc = (doc or "").strip()
         self.roles = dict(roles or {})
         self.declared = []          # (name, default text, valid text, help)
+        self.spelled = {}           # {parameter: its option} of the parameters read by parameters()
         self.help = self.db.hasName("help")
 
     # --- declaration helpers ---------------------------------------------------------------------------------
@@ -265,6 +267,47 @@ class AppOptions:
         if not values or "" in values or (choices is not None and any(v not in choices for v in values)):
             raise ParameterError(f"-{name}", text, f"must be {rule}")
         return values
+
+    def parameters(self, cls, skip=(), **defaults):
+        """{field: value} of the declared parameters of the dataclass ``cls`` (:func:`hertzpetsc.errors.param`),
+        each read as its option (``-field`` or the spec's ``option``) with its meaning and range, the errors naming
+        the option; ``defaults`` replace the dataclass's (a list's as its text: ``q="2*pi/15"``); ``skip``: fields
+        the driver reads otherwise. An error that the dataclass raises naming a field then names its option
+        (:meth:`names`, :func:`guarded_main`)."""
+        out = {}
+        for f, spec in specs(cls):
+            if f.name in skip:
+                continue
+            option, default = spec.option or f.name, defaults.get(f.name, f.default)
+            default = "" if default is MISSING else default         # a required field: the option must be given
+            self.spelled[f.name] = option
+            valid = (spec.holds, spec.rule()) if spec.rule() else None
+            if spec.kind == "real":
+                value = self.real(option, default, spec.what, valid=valid, expr=spec.expr)
+            elif spec.kind == "integer":
+                value = self.integer(option, default, spec.what, minimum=spec.lo, maximum=spec.hi)
+            elif spec.kind in ("reals", "integers"):
+                text = default if isinstance(default, str) else ",".join(f"{v:g}" for v in default or ())
+                value = self.numbers(option, text, spec.what, expr=spec.expr,
+                                     kind=int if spec.kind == "integers" else float, valid=valid,
+                                     distinct=spec.distinct, minimum_count=0 if default is None else spec.count)
+                value = default if self.help else tuple(value) if value or default is not None else None
+            elif spec.kind == "choice":
+                value = self.string(option, default, spec.what, choices=spec.choices)
+            elif spec.kind == "words":
+                value = tuple(self.words(option, default if isinstance(default, str) else ",".join(default),
+                                         spec.what, choices=spec.choices))
+            elif spec.kind == "flag":          # a flag on by default: its option turns it off
+                value = self.flag(option, spec.help or spec.what) != bool(default)
+            else:
+                value = self.string(option, default, spec.what)
+            out[f.name] = value
+        return out
+
+    def names(self):
+        """{name: option} of every declared option and of each parameter read by :meth:`parameters` (an error
+        naming the parameter then names its option)."""
+        return dict({name: name for name in self.known()}, **self.spelled)
 
     def table_and_figures(self, table, figures):
         """The -output table (default ``table``) and the -figures directory (its figures named by ``figures``;
@@ -628,7 +671,7 @@ def _report(err):
         raise err
     elif isinstance(err, HertzPetscError):
         if AppOptions.current is not None:
-            err = err.as_option(AppOptions.current.known())
+            err = err.as_option(AppOptions.current.names())
         _exit(err.exit_status, str(err), True)
     elif isinstance(err, PETSc.Error):
         _exit(PetscFailure.exit_status, petsc_message(err), True)

@@ -38,8 +38,8 @@ from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import check_kind, load_npz, on_rank0, prepare_outputs, write_text  # noqa: E402
-from hertzpetsc.studies.maps import (MAX_MAP_BEADS, QB_MAX_CELL, QMAP_FORMAT, QMAP_FORMAT_V1, QBoundary,  # noqa: E402
-                                     QBoundaryParameters, check_same_chain, q_boundary_table, read_map)
+from hertzpetsc.studies.maps import (QMAP_FORMAT, QMAP_FORMAT_V1, QBoundary, QBoundaryParameters,  # noqa: E402
+                                     check_same_chain, q_boundary_table, read_map)
 from hertzpetsc.verdicts import KIND_EDGE_INF  # noqa: E402
 from hertzpetsc.units import BEAD_OPTIONS, bead_options, si_numbers  # noqa: E402
 
@@ -70,14 +70,8 @@ def main():
                       valid=(lambda m: 1 <= m <= N // 2, "in [1, N/2]"), distinct=True, minimum_count=0)
     extra_q = opts.numbers("q", "", "further grid wavenumbers (q / 2 pi a fraction; pi allowed)",
                            valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"), distinct=True, minimum_count=0)
-    K = opts.integer("cells_per_pi", 1000, "coarser grid of the Richardson pair (h = pi/K and pi/2K)", minimum=4)
     rtol = opts.real("rtol", 1e-11, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    tol_rho = opts.real("tol_rho", 1e-6, "unstable when rho - 1 > tol_rho", valid=(lambda x: x > 0, "> 0"))
-    twists = opts.integer("twists", 512, "bead-level Bloch parameters per pi", minimum=1, maximum=10 ** 6)
-    locate_tol = opts.real("locate_tol", 1e-3, "relative bracket of a located edge is at most half of it",
-                           valid=(lambda x: 0 < x < 0.5, "in (0, 0.5)"))
-    max_cell = opts.integer("max_cell", QB_MAX_CELL, "largest cell (beads) of a bisection wavenumber (time and "
-                            "memory grow as its cube and square)", minimum=2, maximum=MAX_MAP_BEADS)
+    p = opts.parameters(QBoundaryParameters)
     map_path = opts.path("map", "", "a stability-map file (precompression_map.py) drawn with the edges (none if "
                          "empty)")
     output, mode, table_path, figures = opts.record_table_figures(
@@ -110,9 +104,9 @@ def main():
                              "which to locate")
     prepare_outputs(comm, table_path, figures=figures)
     qs = [2 * math.pi * m / N for m in ms] + list(extra_q)
-    study = QBoundary(QBoundaryParameters(model, tuple(levels), tuple(qs), K,
-                                          IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho, twists,
-                                          locate_tol, max_cell), comm, output, mode)
+    study = QBoundary(QBoundaryParameters(model, tuple(levels), tuple(qs), **p, tolerances=IntegrationTolerances(
+        rtol=rtol, atol=rtol / 100)), comm, output, mode)
+    K, twists = p["cells_per_pi"], p["twists"]
     study.configure()
     opts.check_unused()
     study.open()

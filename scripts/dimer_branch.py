@@ -14,7 +14,6 @@ reached, omega at both ends, ||v|| / ||u||, folds. Figure: dimer_epsilon.png.
 ratio) does; the waves of a dimer of given beads (e.g. steel,brass) in SI units are scripts/wave.py's and
 scripts/precompressed_branch.py's -beads.
 """
-import math
 import sys
 
 from hertzpetsc.start import init_petsc
@@ -22,7 +21,6 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
-from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
 from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
@@ -35,30 +33,20 @@ def main():
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     law_options(opts, supported=False)      # -law: refused but hertz
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
-    qs = opts.numbers("q", "3*pi/10", "per-bead wavenumbers in (0, pi/2)",
-                      valid=(lambda q: 0 < q < math.pi / 2, "in (0, pi/2)"), distinct=True)
-    a = opts.real("a", 0.5, "amplitude (first sine coefficient of u)", valid=(lambda x: x > 0, "> 0"))
-    K = opts.integer("cells_per_pi", 200, "grid h = pi / cells_per_pi", minimum=4)
-    eps_end = opts.real("epsilon_end", 0.3, "stop once epsilon passes it", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    max_steps = opts.integer("max_steps", 200, "arclength steps per q", minimum=1)
-    ds = opts.real("ds", 0.02, "first arclength step", valid=(lambda x: x > 0, "> 0"))
-    ds_max = opts.real("ds_max", 0.1, "largest arclength step", valid=(lambda x: x > 0, "> 0"))
+    p = opts.parameters(DimerParameters, q="3*pi/10")
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/dimer.npz", "dimer file", "runs/dimer.md", "dimer_epsilon.png")
     bead_options(opts, refused="this driver continues the mass ratio epsilon from 1, which no pattern of beads does "
                  "(one ratio): the waves of a dimer of given beads in SI units are scripts/wave.py -beads steel,brass "
                  "and scripts/precompressed_branch.py -beads steel,brass")
     opts.done()
-    for q in qs:
-        check_wavenumber(q, math.pi / K)
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)
-    study = DimerFamilies(DimerParameters(LatticeModel.hertz(alpha, delta0=delta0), qs, a, K, eps_end, max_steps, ds,
-                                          ds_max), comm, output, mode)
+    study = DimerFamilies(DimerParameters(LatticeModel.hertz(alpha, delta0=delta0), **p), comm, output, mode)
     study.configure()
     opts.check_unused()
     study.open()
-    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, a = {a:g}, h = pi/{K}")
+    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, a = {p['a']:g}, h = pi/{p['cells_per_pi']}")
     print0(f"# {'q':>8} {'epsilon':>9} {'omega':>10} {'||v||/||u||':>11} {'d eps/ds':>10}")
     text = study.run_to_table(table_path, lambda r: print0(
         f"  {r['q']:8.5f} {r['epsilon']:9.5f} {r['omega']:10.6f} {r['norm_v'] / r['norm_u']:11.4f} "

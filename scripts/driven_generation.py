@@ -47,7 +47,6 @@ SI_COLUMNS = [("f", "frequency", lambda r: r["omega"]), ("a", "length", lambda r
 def main():
     opts = AppOptions(__doc__, Generation.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file (the travelling-wave family)")
-    N = opts.integer("N", 60, "beads", minimum=1)
     alpha = opts.real("alpha", 1.5, "Hertz exponent (must be the branch's)", valid=(lambda x: x > 1, "> 1"))
     law_options(opts, supported=False)      # -law: refused but hertz
     delta0 = opts.real("delta0", 0.0, "precompression")
@@ -56,18 +55,8 @@ def main():
                          "family: give one material (a pattern's driven responses: scripts/driven_response.py "
                          "-beads)")
     contact = contact_options(opts, beads, si=True)
-    signals = opts.words("signals", "harmonic,half_sine", "actuator waveforms", choices=WAVEFORMS)
-    width = opts.real("width", 0.5, "half_sine: pulse duration in periods")
-    omegas = opts.numbers("omegas", "0.2,0.3,0.5", "driving frequencies", valid=(lambda x: x > 0, "> 0"),
-                          distinct=True)
-    amps = opts.numbers("amplitudes", "0.1,0.5", "actuator amplitudes", valid=(lambda x: x >= 0, ">= 0"),
-                        distinct=True)
-    gammas = opts.numbers("gammas", "0.02,0.05", "on-site damping", valid=(lambda x: x >= 0, ">= 0"), distinct=True)
-    run_in = opts.integer("run_in", 60, "driving periods of transient from rest", minimum=0)
-    tol = opts.real("tol", 1e-9, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    bulk = opts.numbers("bulk", "0.25,0.75", "the bulk: fractions (lo, hi) of the chain", expr=False)
-    samples = opts.integer("samples", 128, "samples per period", minimum=8)
+    p = opts.parameters(GenerationParameters, N=60, signals="harmonic,half_sine", omegas="0.2,0.3,0.5",
+                        amplitudes="0.1,0.5", gammas="0.02,0.05")
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/driven_generation.npz", "driven-generation file", "runs/driven_generation.md",
         "driven_generation.png")
@@ -78,9 +67,7 @@ def main():
     model = LatticeModel.hertz(alpha, (1.0,), delta0, 0.0, eta) if beads is None else beads.model(0.0, eta)
     if contact is not None:
         model = LatticeModel(model.law, model.masses, Damping(0.0, eta, contact))
-    study = Generation(GenerationParameters(branch, model, N, tuple(signals), tuple(omegas), tuple(amps),
-                                            tuple(gammas), run_in, tol, rtol, tuple(bulk), samples, width,
-                                            branch_path), comm, output, mode)
+    study = Generation(GenerationParameters(branch, model, **p, branch_path=branch_path), comm, output, mode)
     opts.check_unused()
     study.open()
     table = None

@@ -41,18 +41,14 @@ SI_COLUMNS = [("f_k", "frequency", lambda r: r["omega_k"]), ("peak linear", "fre
 def main():
     opts = AppOptions(__doc__, LinearResonances.ROLES)
     drive, beads = drive_options(opts, N=20, delta0=1.0, gamma=0.01, amplitude=1e-6, omega=1.0, beads=True)
-    modes = opts.numbers("modes", "", "mode numbers k (default: all 1..N)", expr=False, kind=int,
-                         valid=(lambda k: k >= 1, ">= 1"), distinct=True, minimum_count=0)
-    golden = opts.integer("golden", 40, "golden-section steps per peak (shooting)", minimum=4)
-    tol = opts.real("tol", 1e-10, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    p = opts.parameters(ResonanceParameters)
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/driven_resonances.npz", "driven-resonances file", "runs/driven_resonances.md",
         "driven_resonances.png")
     opts.done()
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path, figures=figures)
-    study = LinearResonances(ResonanceParameters(drive, tuple(modes) or None, tol, rtol, golden), comm, output, mode)
+    study = LinearResonances(ResonanceParameters(drive, **p), comm, output, mode)
     opts.check_unused()
     study.open()
     table = None

@@ -48,22 +48,15 @@ def main():
     opts = AppOptions(__doc__, ResponseCurve.ROLES)
     drive, beads = drive_options(opts, beads=True)
     parameter = opts.string("parameter", "omega", "continuation parameter", choices=("omega", "amplitude"))
-    p_end = opts.real("p_end", 0.3, "end value of the parameter", expr=True)
+    p = opts.parameters(ResponseParameters, skip=("nmult",), p_end=0.3)
     p_end_si = opts.string("p_end_si", "", "-beads: the end value in SI units (a frequency for omega, e.g. 12kHz; "
                            "a length for amplitude), instead of -p_end")
     si_kind = "frequency" if parameter == "omega" else "length"
     if p_end_si and not opts.help:
-        p_end = beads.from_si("angular_frequency" if parameter == "omega" else "length",
-                              si_p_end(p_end_si, si_kind, opts, beads))
+        p["p_end"] = beads.from_si("angular_frequency" if parameter == "omega" else "length",
+                                   si_p_end(p_end_si, si_kind, opts, beads))
     mode = opts.string("mode", "arclength", "pseudo-arclength or a grid of values", choices=("arclength", "grid"))
     points = opts.integer("points", 200, "grid mode: number of parameter values (start and p_end included)", minimum=2)
-    periods = opts.integer("periods", 1, "response period in driving periods", minimum=1)
-    jacobian = opts.string("jacobian", "dense", "Newton's Jacobian", choices=("dense", "mf"))
-    floquet = opts.string("floquet", "dense", "multipliers (radius: every one outside -floquet_radius, long chains)",
-                          choices=("dense", "slepc", "radius", "none"))
-    nev = opts.integer("nev", 8, "SLEPc: dominant multipliers (radius: at most this many outside)", minimum=1)
-    tol = opts.real("tol", 1e-10, "shooting tolerance (relative)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    rtol = opts.real("rtol", 1e-12, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
     ds = opts.real("ds", 0.02, "first arclength step")
     ds_max = opts.real("ds_max", 0.05, "largest arclength step (>= -ds)")
     max_corrector = opts.real("max_corrector", 1.5, "largest corrector distance, in steps (corners of the curve)",
@@ -72,13 +65,6 @@ def main():
                                    "of the state by one corrector before the step is halved (a long chain, whose "
                                    "response changes entirely between frequencies: large)",
                                    valid=(lambda x: x > 0, "> 0"))
-    run_in = opts.integer("run_in", 50, "driving periods of transient from rest before the first Newton", minimum=0)
-    samples = opts.integer("samples_per_period", 64, "samples per period for forces and energy balance (0: none, "
-                           "else at least 2)", minimum=0)
-    if samples == 1:
-        raise ParameterError("-samples_per_period", samples, "must be 0 (none) or an integer >= 2")
-    switch = opts.integer("switch", 0, "steps on each period-doubled branch (branch switching)", minimum=0)
-    max_steps = opts.integer("max_steps", 400, "largest number of continuation steps", minimum=1)
     output, omode, table_path, figures = opts.record_table_figures(
         "runs/driven_response.npz", "driven-response file", "runs/driven_response.md", "the response figure")
     name = opts.string("name", "driven_response", "figure name (without .png)")
@@ -88,11 +74,11 @@ def main():
     p0 = drive.value(parameter)
     grid = None
     if mode == "grid":
-        grid = [p0 + (p_end - p0) * k / (points - 1) for k in range(1, points)]
+        grid = [p0 + (p["p_end"] - p0) * k / (points - 1) for k in range(1, points)]
     algorithm = corner_arclength(ds, ds_max, max_corrector) if mode == "arclength" else \
         Natural(max_corrector=grid_max_corrector)
-    study = ResponseCurve(ResponseParameters(drive, parameter, p_end, periods, jacobian, floquet, nev, tol, rtol,
-                                             algorithm, grid, run_in, samples, switch, max_steps), comm, output, omode)
+    study = ResponseCurve(ResponseParameters(drive, parameter, algorithm=algorithm, grid=grid, **p), comm, output,
+                          omode)
     opts.check_unused()
     study.open()
     print0(f"# {drive.describe()}")

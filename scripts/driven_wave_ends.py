@@ -13,7 +13,6 @@ of the wave (its profile sampled from the refined chain on >= -samples points); 
 multipliers over tau = 2 pi / omega; rho(F_q)^(P/m) of the periodic chain for comparison; each at every flow
 tolerance of -rtols (the convergence of the multipliers). Records: schema hertzpetsc-driven-wave-ends-1.
 """
-import math
 import sys
 
 from hertzpetsc.start import init_petsc
@@ -24,7 +23,6 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.branch import Branch  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
-from hertzpetsc.resources import MAX_DENSE_BEADS  # noqa: E402
 from hertzpetsc.studies.driven import WaveEnds, WaveEndsParameters  # noqa: E402
 from hertzpetsc.studies.refinement import RefinedStates  # noqa: E402
 
@@ -33,15 +31,8 @@ def main():
     opts = AppOptions(__doc__, WaveEnds.ROLES)
     branch_path = opts.path("branch", "results/branch_alpha1.5.npz", "branch file")
     refined_path = opts.path("refined", "results/refined_N100.npz", "refinement file (the periodic chain's waves)")
-    qs = opts.numbers("q", "5*pi/50,9*pi/50,13*pi/50,14*pi/50,15*pi/50,16*pi/50,20*pi/50,30*pi/50,40*pi/50",
-                      "wavenumbers (refined in the file)", valid=(lambda q: 0 < q <= math.pi, "in (0, pi]"),
-                      distinct=True)
-    sizes = opts.numbers("sizes", "10,20,40", "beads of the driven chains", expr=False, kind=int,
-                         valid=(lambda n: 1 <= n <= MAX_DENSE_BEADS, f"in [1, {MAX_DENSE_BEADS}] (dense multipliers)"),
-                         distinct=True)
-    rtols = opts.numbers("rtols", "1e-12,1e-14", "flow tolerances (atol = rtol/100)", expr=False, distinct=True,
-                         valid=(lambda r: 0 < r < 1, "in (0, 1)"))
-    samples = opts.integer("samples", 8192, "least number of points of the sampled wave profile", minimum=64)
+    p = opts.parameters(WaveEndsParameters, skip=("nmult",), sizes="10,20,40",
+                        q="5*pi/50,9*pi/50,13*pi/50,14*pi/50,15*pi/50,16*pi/50,20*pi/50,30*pi/50,40*pi/50")
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/driven_wave_ends.npz", "driven wave-ends file", "runs/driven_wave_ends.md", "driven_wave_ends.png")
     opts.done()
@@ -49,8 +40,8 @@ def main():
     prepare_outputs(comm, table_path, figures=figures)
     branch = Branch.load(branch_path, comm)
     refined = RefinedStates.load(refined_path, comm)
-    study = WaveEnds(WaveEndsParameters(branch, refined, tuple(branch.point(q).q for q in qs), tuple(sizes),
-                                        tuple(rtols), samples, branch_path=branch_path, refined_path=refined_path),
+    p["q"] = tuple(branch.point(q).q for q in p["q"])
+    study = WaveEnds(WaveEndsParameters(branch, refined, **p, branch_path=branch_path, refined_path=refined_path),
                      comm, output, mode)
     opts.check_unused()
     study.open()

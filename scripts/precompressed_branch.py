@@ -31,7 +31,6 @@ from hertzpetsc.start import init_petsc
 init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
-from hertzpetsc.advdelay import check_wavenumber  # noqa: E402
 from hertzpetsc.hertz import check_delta0  # noqa: E402
 from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
@@ -62,32 +61,23 @@ def main():
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
     law_options(opts, supported=False)      # -law: refused but hertz (the study's families are Hertz's)
     masses = opts.numbers("masses", "1", "the repeating mass pattern", valid=(lambda m: m > 0, "> 0"))
-    branch = opts.string("branch", "acoustic", "the linear branch the families start from",
-                         choices=("acoustic", "optical"))
-    qs = opts.numbers("q", "3*pi/10,7*pi/25,pi/2,4*pi/5", "wavenumbers in (0, pi]",
-                      valid=(lambda q: 0 < q <= math.pi * (1 + 1e-14), "in (0, pi]"), distinct=True)
-    K = opts.integer("cells_per_pi", 1000, "grid h = pi / cells_per_pi", minimum=4)
-    a_min = opts.real("a_min", 1e-3, "first amplitude (first sine coefficient of u), in [delta0 max(sqrt(eps), "
-                      "eps^(1/(2(alpha-1)))), 0.1 delta0]", valid=(lambda x: x > 0, "> 0"))
-    a_max = opts.real("a_max", 1e3, "last amplitude", valid=(lambda x: x > 0, "> 0"))
-    ds = opts.real("ds", 0.1, "step in s = log a", valid=(lambda x: x > 0, "> 0"))
+    p = opts.parameters(AmplitudeParameters, q="3*pi/10,7*pi/25,pi/2,4*pi/5")
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/precompressed.npz", "precompressed-wave file", "runs/precompressed.md", "precompressed_omega.png")
     beads = bead_options(opts)
     opts.done()
     if beads is not None:
         alpha, delta0, masses = 1.5, beads.model().delta0, beads.model().masses
-    for q in qs:
-        check_wavenumber(q, math.pi / K)
     comm = PETSc.COMM_WORLD
     model = LatticeModel.hertz(alpha, tuple(masses), check_delta0(delta0)) if beads is None else beads.model()
     prepare_outputs(comm, table_path, figures=figures)
-    study = AmplitudeFamilies(AmplitudeParameters(model, qs, K, a_min, a_max, ds, branch), comm, output, mode)
+    study = AmplitudeFamilies(AmplitudeParameters(model, **p), comm, output, mode)
     study.configure()
     opts.check_unused()
     study.open()
-    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, masses {','.join(f'{m:g}' for m in masses)}, {branch}, "
-           f"h = pi/{K}, a in [{a_min:g}, {a_max:g}], ds = {ds:g}")
+    P = study.params
+    print0(f"# alpha = {alpha:g}, delta0 = {delta0:g}, masses {','.join(f'{m:g}' for m in masses)}, {P.branch}, "
+           f"h = pi/{P.cells_per_pi}, a in [{P.a_min:g}, {P.a_max:g}], ds = {P.ds:g}")
     table = None
     if beads is not None:
         print0(beads.summary())

@@ -77,7 +77,8 @@ def main():
     alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda x: x > 1, "> 1"))
     law_options(opts, supported=False)      # -law: refused but hertz
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap)", valid=(lambda x: x > 0, "> 0"))
-    N = opts.integer("N", 100, "beads of the periodic chain", minimum=3)
+    p = opts.parameters(MapParameters)
+    N = p.pop("N")
     epsilon = opts.real("epsilon", 1.0, "mass of every second bead (1: monatomic chain; else the dimer's acoustic "
                         "waves)", valid=(lambda x: x > 0, "> 0"))
     ms = opts.numbers("m", "10,12,14,15,16,18,20,22,24,25", "wavelengths on the chain (q = 2 pi m / N)", kind=int,
@@ -92,15 +93,9 @@ def main():
     a_max = opts.real("a_max", 1000.0, "largest amplitude of the geometric grid", valid=(lambda x: x > 0, "> 0"))
     ds = opts.real("ds", 0.0, "step in log a of the geometric grid added to -a (0: none)",
                    valid=(lambda x: x >= 0, ">= 0"))
-    K = opts.integer("cells_per_pi", 1000, "coarser grid of the Richardson pair (h = pi/K and pi/2K)", minimum=4)
     rtol = opts.real("rtol", 1e-11, "flow tolerance (atol = rtol/100)", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    tol_rho = opts.real("tol_rho", 1e-6, "unstable when rho - 1 > tol_rho", valid=(lambda x: x > 0, "> 0"))
-    twists = opts.integer("twists", 0, "infinite chain: bead-level Bloch parameters per pi (0: not computed)",
-                          minimum=0, maximum=10 ** 6)
     locate = opts.words("locate", "chain", "verdicts whose changes are located: chain, infinite, or none",
                         choices=TESTS + ("none",))
-    locate_tol = opts.real("locate_tol", 1e-3, "relative bracket of a located boundary point",
-                           valid=(lambda x: 0 < x < 0.5, "in (0, 0.5)"))
     output, mode, table_path, figures = opts.record_table_figures(
         "runs/precompression_map.npz", "stability-map file", "runs/precompression_map.md",
         "precompression_map.png")
@@ -131,9 +126,9 @@ def main():
     model = LatticeModel.hertz(alpha, masses, delta0) if beads is None else beads.model()
     if beads is not None:
         alpha, delta0, masses = model.alpha, model.delta0, model.masses
-    study = StabilityMap(MapParameters(model, qs, tuple(amps) + tuple(grid), N, K,
-                                       IntegrationTolerances(rtol=rtol, atol=rtol / 100), tol_rho, twists,
-                                       tuple(w for w in locate if w != "none"), locate_tol), comm, output, mode)
+    study = StabilityMap(MapParameters(model, qs, tuple(amps) + tuple(grid), N, **p, tolerances=IntegrationTolerances(
+        rtol=rtol, atol=rtol / 100), locate=tuple(w for w in locate if w != "none")), comm, output, mode)
+    K, twists = p["cells_per_pi"], p["twists"]
     if compare:                                        # before any computation: a map of the same computation
         check_comparable(study.constants(), read_map(compare, comm), compare)
     study.configure()

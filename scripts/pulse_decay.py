@@ -27,7 +27,6 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.model import law_options  # noqa: E402
-from hertzpetsc.dissipation import KINDS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.contacts import ROLES, PulseDecay, PulseParameters  # noqa: E402
@@ -36,17 +35,8 @@ from hertzpetsc.units import bead_options, impact_damping, si_numbers  # noqa: E
 
 def main():
     opts = AppOptions(__doc__, ROLES)
-    contact = opts.string("contact", "hunt-crossley", "the contact dissipation", choices=tuple(KINDS))
-    damping = opts.real("damping", 0.01, "Hunt-Crossley c or Kuwabara-Kono eta", valid=(lambda x: x > 0, "> 0"))
-    unclipped = opts.flag("unclipped", "let a contact pull (no clipping of the contact force at 0)")
-    velocities = opts.numbers("velocities", "1,0.5", "striker velocities v0", expr=False,
-                              valid=(lambda v: v > 0, "> 0"), distinct=True)
-    N = opts.integer("N", 200, "beads", minimum=10)
-    skip = opts.integer("skip", 20, "beads left out of the fit at each end", minimum=0)
-    sample = opts.real("sample", 0.02, "sampling interval of the velocities", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
+    p = opts.parameters(PulseParameters)
     law_options(opts, supported=False)      # -law: refused but hertz
-    rtol = opts.real("rtol", 1e-10, "flow tolerance", valid=(lambda x: 0 < x < 1e-4, "in (0, 1e-4)"))
     output = opts.path("output", "runs/pulse_decay.npz", "pulse file (record store)")
     mode = opts.mode()
     table_path = opts.path("table", "runs/pulse_decay.md", "table")
@@ -60,19 +50,19 @@ def main():
                                "velocities")
     opts.done()
     if beads is not None:
-        alpha = 1.5
-        velocities = velocities if si_velocities is None else si_velocities
-    damping = impact_damping(opts, beads, contact, damping, coefficient)
+        p["alpha"] = 1.5
+        p["velocities"] = p["velocities"] if si_velocities is None else tuple(si_velocities)
+    p["damping"] = damping = impact_damping(opts, beads, p["contact"], p["damping"], coefficient)
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path)
-    study = PulseDecay(PulseParameters(contact, damping, tuple(velocities), N, not unclipped, alpha, skip, sample,
-                                       rtol), comm, output, mode)
+    study = PulseDecay(PulseParameters(**p), comm, output, mode)
+    N, skip = p["N"], p["skip"]
     opts.check_unused()
     study.open()
     table, si = None, [("v0", "velocity", lambda r: r["v0"]), (f"A_{skip}", "velocity", lambda r: r["amplitude"][skip]),
                        (f"A_{N - 1 - skip}", "velocity", lambda r: r["amplitude"][N - 1 - skip])]
     if beads is not None:
-        print0(beads.summary() + f"\n# {contact} damping {damping:.6g} in the chain's units")
+        print0(beads.summary() + f"\n# {p['contact']} damping {damping:.6g} in the chain's units")
 
         def table():
             return study.table() + beads.table(study.store.records, si, [

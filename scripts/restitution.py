@@ -27,7 +27,6 @@ init_petsc(sys.argv)
 from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.model import law_options  # noqa: E402
-from hertzpetsc.dissipation import KINDS  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
 from hertzpetsc.studies.contacts import ROLES, Restitution, RestitutionParameters  # noqa: E402
@@ -37,17 +36,8 @@ from hertzpetsc.units import bead_options, impact_damping, si_numbers  # noqa: E
 
 def main():
     opts = AppOptions(__doc__, ROLES)
-    contact = opts.string("contact", "hunt-crossley", "the contact dissipation", choices=tuple(KINDS))
-    damping = opts.real("damping", 0.1, "Hunt-Crossley c or Kuwabara-Kono eta", valid=(lambda x: x >= 0, ">= 0"))
-    unclipped = opts.flag("unclipped", "let a contact pull (no clipping of the contact force at 0)")
-    velocities = opts.numbers("velocities", "1e-3,3e-3,1e-2,3e-2,0.1,0.3,1", "impact velocities", expr=False,
-                              valid=(lambda v: v > 0, "> 0"), distinct=True)
-    alpha = opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1"))
+    p = opts.parameters(RestitutionParameters)
     law_options(opts, supported=False)      # -law: refused but hertz
-    masses = opts.numbers("masses", "1,1", "the two beads' masses", expr=False, valid=(lambda m: m > 0, "> 0"),
-                          minimum_count=2)
-    rtol = opts.real("rtol", 1e-11, "flow tolerance (also 100 rtol: the refinement)",
-                     valid=(lambda x: 0 < x < 1e-4, "in (0, 1e-4)"))
     output = opts.path("output", "runs/restitution.npz", "restitution file (record store)")
     mode = opts.mode()
     table_path = opts.path("table", "runs/restitution.md", "table")
@@ -62,18 +52,17 @@ def main():
         if len(beads.masses) > 2:
             raise ParameterError("-beads", ",".join(b.material.name for b in beads.beads), "an impact is of two "
                                  "beads: give one material (both beads) or two")
-        alpha, masses = 1.5, beads.model().masses * (3 - len(beads.masses))
-        velocities = velocities if si_velocities is None else si_velocities
-    damping = impact_damping(opts, beads, contact, damping, coefficient)
+        p.update(alpha=1.5, masses=tuple(beads.model().masses * (3 - len(beads.masses))))
+        p["velocities"] = p["velocities"] if si_velocities is None else tuple(si_velocities)
+    p["damping"] = damping = impact_damping(opts, beads, p["contact"], p["damping"], coefficient)
     comm = PETSc.COMM_WORLD
     prepare_outputs(comm, table_path)
-    study = Restitution(RestitutionParameters(contact, damping, tuple(velocities), not unclipped, alpha,
-                                              tuple(masses), rtol), comm, output, mode)
+    study = Restitution(RestitutionParameters(**p), comm, output, mode)
     opts.check_unused()
     study.open()
     table = None
     if beads is not None:
-        print0(beads.summary() + f"\n# {contact} damping {damping:.6g} in the chain's units")
+        print0(beads.summary() + f"\n# {p['contact']} damping {damping:.6g} in the chain's units")
 
         def table():
             return study.table() + beads.table(study.store.records, [("v", "velocity", lambda r: r["v"])], [

@@ -34,13 +34,7 @@ from hertzpetsc.studies.solitary import k_alpha_extrapolated  # noqa: E402
 def main():
     opts = AppOptions(__doc__, uses("tw_", "sol_"))
     law_options(opts, supported=False)      # -law: refused but hertz
-    params = SmallQParameters(
-        alpha=opts.real("alpha", 1.5, "Hertz exponent", valid=(lambda a: a > 1, "> 1")),
-        q_stop=opts.real("q_stop", math.pi / 400, "smallest wavenumber, in (0, pi/50]", expr=True,
-                         valid=(lambda q: 0 < q <= math.pi / 50 * (1 + 1e-12), "in (0, pi/50]")),
-        per_halving=opts.integer("per_halving", 4, "targets per halving of q", minimum=1),
-        cells_per_q=opts.integer("cells_per_q", 20, "grid cells per unit of q at pi/50 on level 0", minimum=4),
-        levels=opts.integer("levels", 3, "resolutions (Richardson from the three finest)", minimum=3))
+    params = SmallQParameters(**opts.parameters(SmallQParameters, skip=("q_first",)))
     progress = opts.path("progress", "runs/small_q.npz", "progress file (record store)")
     mode = opts.mode()
     output, figures = opts.table_and_figures("runs/small_q.md", "smallq.png")

@@ -24,31 +24,24 @@ from petsc4py import PETSc  # noqa: E402
 
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
-from hertzpetsc.studies.solitary_stability import (DEFAULT_C0, ROLES, TOL_UNSTABLE,  # noqa: E402
-                                                   SolitaryStabilityParameters, SolitaryStabilityScan)
+from hertzpetsc.studies.solitary_stability import (ROLES, SolitaryStabilityParameters,  # noqa: E402
+                                                   SolitaryStabilityScan)
 
 
 def main():
     opts = AppOptions(__doc__, ROLES)
-    alphas = opts.numbers("alphas", "1.5,2,2.5", "Hertz exponents", expr=False, valid=(lambda a: a > 1, "> 1"),
-                          distinct=True)
-    c0 = opts.numbers("c0", DEFAULT_C0, "sound speeds sqrt(V''(0)) in units of the wave's speed (0: uncompressed)",
-                      expr=False, valid=(lambda c: 0 <= c < 1, "in [0, 1)"), distinct=True)
-    M = opts.integer("M", 0, "beads of the window (0: from the tails of the largest c0)", minimum=0)
-    tail = opts.real("tail", 1e-12, "the tails at the window's ends, relative to the deepest compression",
-                     valid=(lambda x: 0 < x < 1e-6, "in (0, 1e-6)"))
-    tol = opts.real("tol_unstable", TOL_UNSTABLE, "unstable: |mu| > 1 + tol_unstable", valid=(lambda x: x > 0, "> 0"))
+    p = opts.parameters(SolitaryStabilityParameters)
     output, mode, table, figures = opts.record_table_figures(
         "runs/solitary_stability.npz", "solitary stability file", "runs/solitary_stability.md",
         "solitary_stability.png")
     opts.done()
     comm = PETSc.COMM_WORLD
-    params = SolitaryStabilityParameters(tuple(alphas), tuple(c0), M, tail, tol)
+    params = SolitaryStabilityParameters(**p)
     prepare_outputs(comm, table, figures=figures)
     scan = SolitaryStabilityScan(params, comm, output, mode)
     opts.check_unused()
     scan.open()
-    print0(f"# M = {params.M}, tail {tail:g}; c0: " + ", ".join(f"{c:g}" for c in params.c0))
+    print0(f"# M = {params.M}, tail {params.tail:g}; c0: " + ", ".join(f"{c:g}" for c in params.c0))
     print0(f"# {'alpha':>5} {'c0':>5} {'residual':>9} {'max|mu|':>9} {'r_ess':>9} {'unst':>4} {'dlnH/dlnc':>12} "
            f"{'FD':>12} {'2M chg':>8} {'s':>5}")
     try:                                         # on a stop: the table of the records done

@@ -23,7 +23,6 @@ modulo shift from the Bloch sectors of the wave's cell on N beads and on each lo
 and one table row per q; a q that does not converge is named below the table, the others go on, and the
 driver exits with status 3; a family that folds before A says at which A and which branch to try.
 """
-import math
 import sys
 
 from hertzpetsc.start import init_petsc
@@ -34,7 +33,7 @@ from petsc4py import PETSc  # noqa: E402
 from hertzpetsc.model import LatticeModel, law_options  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
-from hertzpetsc.studies.wave import MAX_BEADS, MAX_SIZE, WaveParameters, WaveStudy  # noqa: E402
+from hertzpetsc.studies.wave import WaveParameters, WaveStudy  # noqa: E402
 from hertzpetsc.units import bead_options  # noqa: E402
 
 # the SI columns of a row (hertzpetsc.units.BeadChain.table)
@@ -47,20 +46,7 @@ def main():
     delta0 = opts.real("delta0", 1.0, "precompression (static overlap); 0: the sonic vacuum (one mass only)",
                        valid=(lambda x: x >= 0, ">= 0"))
     masses = opts.numbers("masses", "1", "the repeating mass pattern", valid=(lambda m: m > 0, "> 0"))
-    qs = opts.numbers("q", "2*pi/15", "per-bead wavenumbers (q N / (2 pi) whole)",
-                      valid=(lambda q: 0 < q <= math.pi * (1 + 1e-14), "in (0, pi]"), distinct=True)
-    A = opts.real("A", 0.5, "amplitude max |u| (delta0 > 0: at least delta0 max(sqrt(eps), eps^(1/(2(alpha-1)))))",
-                  valid=(lambda x: x > 0, "> 0"))
-    branch = opts.string("branch", "acoustic", "the linear wave the family starts from (a mass pattern: the "
-                         "lowest frequency at q, or the highest)", choices=("acoustic", "optical"))
-    K = opts.integer("cells_per_pi", 400, "grid h = pi / cells_per_pi", minimum=4)
-    N = opts.integer("N", 90, "beads of the periodic chain of the refinement", minimum=2, maximum=MAX_BEADS)
-    sizes = opts.numbers("sizes", "", "longer chains for the Bloch spectra (multiples of N; none if empty)",
-                         expr=False, kind=int, valid=(lambda L: 2 <= L <= MAX_SIZE, f"in [2, {MAX_SIZE}]"),
-                         distinct=True, minimum_count=0)
-    tol = opts.real("tol", 1e-10, "the refinement's target E (at least the flow's -shoot_ts_rtol, 1e-14)",
-                    valid=(lambda x: 0 < x < 1, "in (0, 1)"))
-    tol_rho = opts.real("tol_rho", 1e-4, "unstable when rho - 1 > tol_rho", valid=(lambda x: 0 < x < 1, "in (0, 1)"))
+    p = opts.parameters(WaveParameters, q="2*pi/15", A=0.5, N=90)
     output = opts.path("output", "runs/wave.npz", "wave file (record store)")
     mode = opts.mode()
     table_path = opts.path("table", "runs/wave.md", "table")
@@ -71,18 +57,18 @@ def main():
     model = LatticeModel.hertz(alpha, tuple(masses), delta0) if beads is None else beads.model()
     if law is not None:
         model = LatticeModel(law, tuple(masses))
-    study = WaveStudy(WaveParameters(model, tuple(qs), A, K, N, tuple(sizes), tol, tol_rho, branch), comm, output,
-                      mode)
+    study = WaveStudy(WaveParameters(model, **p), comm, output, mode)
     prepare_outputs(comm, table_path)
     study.configure()
     opts.check_unused()
     study.open()
-    print0(f"# chain {model.describe()}, {branch} branch, A = {A:g}, h = pi/{K}, N = {N}"
-           + (f", sizes {sizes}" if sizes else ""))
+    P = study.params
+    print0(f"# chain {model.describe()}, {P.branch} branch, A = {P.A:g}, h = pi/{P.cells_per_pi}, N = {P.N}"
+           + (f", sizes {list(P.sizes)}" if P.sizes else ""))
     si, table = None, None
     if beads is not None:
-        print0(beads.summary() + f"\n# A = {beads.show('length', A)}")
-        si = [("A", "length", lambda r: A)] + SI_COLUMNS
+        print0(beads.summary() + f"\n# A = {beads.show('length', P.A)}")
+        si = [("A", "length", lambda r: P.A)] + SI_COLUMNS
 
         def table():
             return study.table() + beads.table(study.store.records, si, [("q", lambda r: r["q"]),

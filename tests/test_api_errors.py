@@ -126,3 +126,55 @@ def test_a_count_that_would_run_for_hours_is_refused_with_the_estimate():
 def test_no_package_error_escapes_as_another_type():
     """ParameterError is a ValueError (callers that catch ValueError keep working) and a package error."""
     assert issubclass(ParameterError, ValueError) and issubclass(ParameterError, HertzPetscError)
+
+
+# --- a parameter declared once (issue 39 item 1) ------------------------------------------------------------------
+DECLARED = [hz.WaveParameters, hz.DimerParameters, hz.ResonanceParameters, hz.ResponseParameters,
+            SolitaryStabilityParameters, hz.SmallQParameters]
+
+
+@pytest.mark.parametrize("cls", DECLARED, ids=lambda c: c.__name__)
+def test_a_declared_parameter_is_checked_by_its_field_and_read_as_its_option(cls):
+    """Each declared field (errors.param) is one source: the dataclass refuses a value out of its range naming the
+    Python argument, and AppOptions.parameters declares it as its option with the same range, refuses the same
+    value naming -option, and maps an error the dataclass raises about the field to the option."""
+    from dataclasses import MISSING
+    from hertzpetsc.errors import specs
+    from hertzpetsc.options import AppOptions
+    db, kept = PETSc.Options(), AppOptions.current
+    required = [f.name for f, _ in specs(cls) if f.default is MISSING]         # a driver gives their defaults
+    for f, spec in specs(cls):
+        if spec.kind not in ("real", "integer") or spec.lo is None:
+            continue
+        bad = spec.lo - 1 if spec.kind == "integer" else spec.lo - 1.0
+        with pytest.raises(ParameterError, match=rf"invalid {f.name} = "):
+            spec.check(f.name, bad)
+        option = spec.option or f.name
+        db.setValue(option, str(bad))
+        try:
+            opts = AppOptions()
+            with pytest.raises(ParameterError, match=rf"invalid -{option} = '{bad}'"):
+                opts.parameters(cls, skip=required)
+            shown = {name: valid for name, _, valid, _ in opts.declared}[option]      # -help shows its range
+            assert spec.rule() in shown if spec.kind == "real" else \
+                f">= {spec.lo}" in shown and (spec.hi is None or f"<= {spec.hi}" in shown)
+            assert ParameterError(f.name, bad, "x").as_option(opts.names()).name == f"-{option}"
+        finally:
+            db.delValue(option)
+            AppOptions.current = kept
+
+
+def test_an_option_of_another_name_names_the_option_in_errors_between_fields():
+    """ResponseParameters.samples is read as -samples_per_period: the dataclass's own rule (0 or >= 2) reported by a
+    driver names that option."""
+    from hertzpetsc.options import AppOptions
+    kept = AppOptions.current
+    try:
+        opts = AppOptions()
+        values = opts.parameters(hz.ResponseParameters, p_end=0.3)
+        assert values["samples"] == 64 and "samples_per_period" in opts.known() and "samples" not in opts.known()
+        with pytest.raises(ParameterError) as err:
+            hz.ResponseParameters(DRIVE, **dict(values, samples=1, parameter="omega"))
+        assert str(err.value.as_option(opts.names())).startswith("invalid -samples_per_period = 1:")
+    finally:
+        AppOptions.current = kept

@@ -768,7 +768,7 @@ def test_wave_ends_and_generation_parameters_are_checked():
     p = WaveEndsParameters(branch, refined, [q], [4, 10], [1e-12])
     assert p.q == (q,) and p.sizes == (4, 10) and p.rtols == (1e-12,)
     for kw, name in ((dict(rtols=[1e-12, 1e-12]), "rtols"), (dict(sizes=[4, 4]), "sizes"), (dict(q=[q, q]), "q")):
-        with pytest.raises(ParameterError, match=f"invalid {name} = .* must be distinct"):
+        with pytest.raises(ParameterError, match=f"invalid {name} = .* twice; the .* must be different"):
             WaveEndsParameters(**dict(dict(branch=branch, refined=refined, q=[q], sizes=[4]), **kw))
     with pytest.raises(ParameterError, match=r"invalid sizes = 99: .* 1 <= N <= P - 2 = 98"):
         WaveEndsParameters(branch, refined, [q], [99])

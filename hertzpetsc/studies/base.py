@@ -3,8 +3,10 @@ BifurcationProblem shape: one documented base class whose hooks have a default o
 
 A study is a loop over parameters whose records are written as they are computed. It declares, once:
 
-* ``Parameters``: a frozen dataclass validated when built (its field names are the Python arguments; drivers name
-  their options alike, so an error names ``-field`` on the command line and ``field`` in the API);
+* ``Parameters``: a frozen dataclass validated when built, each parameter declared once in its field
+  (:func:`hertzpetsc.errors.param`, :class:`~hertzpetsc.errors.Checked`), which drivers read as their options
+  (:meth:`hertzpetsc.options.AppOptions.parameters`): errors name ``-option`` on the command line, ``field`` in the
+  API;
 * ``FORMAT``, ``FIELDS`` (and ``DTYPES``, ``SHAPES``): the record kind and the per-record fields, which the record
   store, the file schema and the identity checks read;
 * ``ROLES``: the solver roles it configures, from the registry (:func:`hertzpetsc.roles.uses`);

@@ -12,9 +12,8 @@ import numpy as np
 from ..branch import BRANCH_FORMAT, BRANCH_KIND, Branch, BranchPoint, branch_store
 from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid, continue_branch,
                             paper_targets)
-from ..errors import (ParameterError, RecordFileError, check_instance, check_integer, check_integers, check_prefix,
-                      check_real)
-from ..hertz import check_alpha
+from ..errors import (Checked, ParameterError, RecordFileError, check_instance, check_integer, check_integers,
+                      check_prefix, param)
 from ..model import LatticeModel
 from ..records import Column, Kind, is_checking, load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
@@ -162,27 +161,24 @@ SMALLQ_FIELDS = SMALLQ_KIND.fields[3:]
 
 
 @dataclass(frozen=True)
-class SmallQParameters:
+class SmallQParameters(Checked):
     """q from pi down to q_stop through the targets q_first 2^(-i / per_halving); on ``levels`` resolutions, level
     l keeping at least cells_per_q 2^l cells per unit of q below q_first (:class:`RefiningGrid`)."""
 
-    alpha: float = 1.5
-    q_stop: float = math.pi / 400
-    q_first: float = math.pi / 50
-    per_halving: int = 4
-    cells_per_q: int = 20
-    levels: int = 3
+    alpha: float = param(1.5, "the Hertz exponent", lo=1.0)
+    q_stop: float = param(math.pi / 400, "the smallest wavenumber (at most q_first)", lo=0.0, hi=math.pi,
+                          hi_open=False, expr=True)
+    q_first: float = param(math.pi / 50, "the first wavenumber of the targets", lo=0.0, hi=math.pi, hi_open=False)
+    per_halving: int = param(4, "targets per halving of q", lo=1)
+    cells_per_q: int = param(20, "grid cells per unit of q at q_first on level 0", lo=4)
+    levels: int = param(3, "resolutions (Richardson from the three finest; an order needs three grids)", lo=3)
 
     def __post_init__(self):
-        object.__setattr__(self, "alpha", check_alpha(self.alpha))
-        for name in ("q_first", "q_stop"):
-            object.__setattr__(self, name, check_real(name, getattr(self, name), "the wavenumber", 0.0, math.pi,
-                                                      hi_open=False))
-        if not (0 < self.q_stop <= self.q_first <= math.pi):
-            raise ParameterError("q_stop", self.q_stop, f"must satisfy 0 < q_stop <= q_first = {self.q_first:.6g} <= pi")
-        object.__setattr__(self, "per_halving", check_integer("per_halving", self.per_halving, 1))
-        object.__setattr__(self, "levels", check_integer("levels", self.levels, 3, note="(an order needs three grids)"))
-        RefiningGrid(self.q_first, self.cells_per_q)          # validates cells_per_q
+        super().__post_init__()
+        if not self.q_stop <= self.q_first:
+            raise ParameterError("q_stop", self.q_stop, f"must satisfy 0 < q_stop <= q_first = {self.q_first:.6g} "
+                                 "<= pi")
+        RefiningGrid(self.q_first, self.cells_per_q)          # validates cells_per_q against q_first
 
     @property
     def model(self) -> LatticeModel:

@@ -27,7 +27,7 @@ from ..chain import Chain, ChainIntegrator, IntegrationTolerances
 from ..continuation import golden_maximum
 from ..dealing import dealt
 from ..dissipation import KINDS, contact_dissipation, hunt_crossley_restitution, kuwabara_kono_restitution
-from ..errors import ConvergenceError, ParameterError, check_flag, check_integer, check_real, check_reals
+from ..errors import Checked, ConvergenceError, ParameterError, check_integer, check_real, param
 from ..model import ChainSpec, Damping, LatticeModel
 from ..records import Column, Kind
 from ..resources import check_chain_size
@@ -73,6 +73,9 @@ IMPACT_CHUNKS = 64
 MAX_IMPACT_DURATIONS = 1000
 
 
+UNCLIPPED = "let a contact pull (no clipping of the contact force at 0)"
+
+
 def _contact(kind, damping, clipped):
     if kind not in KINDS:
         raise ParameterError("contact", kind, "must be one of " + ", ".join(KINDS))
@@ -115,27 +118,23 @@ def restitution(model, v, rtol, comm=PETSc.COMM_SELF, prefix="chain_"):
 
 
 @dataclass(frozen=True)
-class RestitutionParameters:
+class RestitutionParameters(Checked):
     """Impacts of two beads (masses ``masses``) with contact dissipation ``contact`` ('hunt-crossley': c =
     ``damping``; 'kuwabara-kono': eta = ``damping``), ``clipped`` or not, Hertz exponent ``alpha``, at the impact
     velocities ``velocities``; flows at ``rtol`` and 100 rtol."""
 
-    contact: str = "hunt-crossley"
-    damping: float = 0.1
-    velocities: tuple = (1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0)
-    clipped: bool = True
-    alpha: float = 1.5
-    masses: tuple = (1.0, 1.0)
-    rtol: float = 1e-11
+    contact: str = param("hunt-crossley", "the contact dissipation", choices=tuple(KINDS))
+    damping: float = param(0.1, "the contact damping (Hunt-Crossley c or Kuwabara-Kono eta)", lo=0.0)
+    velocities: tuple = param((1e-3, 3e-3, 1e-2, 3e-2, 0.1, 0.3, 1.0), "impact velocities", lo=0.0, distinct=True)
+    clipped: bool = param(True, "clip the contact force at 0", option="unclipped", help=UNCLIPPED)
+    alpha: float = param(1.5, "the Hertz exponent", lo=1.0)
+    masses: tuple = param((1.0, 1.0), "two bead masses", lo=0.0, count=2)
+    rtol: float = param(1e-11, "the flow tolerance (also 100 rtol: the refinement)", lo=0.0, hi=1e-4)
 
     def __post_init__(self):
-        _contact(self.contact, self.damping, check_flag("clipped", self.clipped))
-        object.__setattr__(self, "velocities", check_reals("velocities", self.velocities, "impact velocities", 0.0,
-                                                           distinct=True))
-        object.__setattr__(self, "masses", check_reals("masses", self.masses, "two bead masses", 0.0))
+        super().__post_init__()
         if len(self.masses) != 2:
             raise ParameterError("masses", self.masses, "must be the two beads' masses")
-        check_real("rtol", self.rtol, "the flow tolerance", 0.0, 1e-4)
 
     @property
     def model(self) -> LatticeModel:
@@ -269,29 +268,24 @@ def pulse_amplitudes(model, N, v0, rtol, sample, comm, prefix="chain_", last=Non
 
 
 @dataclass(frozen=True)
-class PulseParameters:
+class PulseParameters(Checked):
     """A pulse launched at ``velocities`` (one run each) into a free Hertz chain (exponent ``alpha``) of N beads
-    with contact dissipation ``contact`` ('hunt-crossley' c, 'kuwabara-kono' eta = ``damping``), ``clipped`` or not; the decay fitted over beads ``skip``..
-    N - 1 - ``skip``; peaks sampled every ``sample``; flows at ``rtol``."""
+    with contact dissipation ``contact`` ('hunt-crossley' c, 'kuwabara-kono' eta = ``damping``), ``clipped`` or not;
+    the decay fitted over beads ``skip``..N - 1 - ``skip``; peaks sampled every ``sample``; flows at ``rtol``."""
 
-    contact: str = "hunt-crossley"
-    damping: float = 0.01
-    velocities: tuple = (1.0, 0.5)
-    N: int = 200
-    clipped: bool = True
-    alpha: float = 1.5
-    skip: int = 20
-    sample: float = 0.02
-    rtol: float = 1e-10
+    contact: str = param("hunt-crossley", "the contact dissipation", choices=tuple(KINDS))
+    damping: float = param(0.01, "the contact damping (Hunt-Crossley c or Kuwabara-Kono eta)", lo=0.0)
+    velocities: tuple = param((1.0, 0.5), "striker velocities v0", lo=0.0, distinct=True)
+    N: int = param(200, "the number of beads", lo=10)
+    clipped: bool = param(True, "clip the contact force at 0", option="unclipped", help=UNCLIPPED)
+    alpha: float = param(1.5, "the Hertz exponent", lo=1.0)
+    skip: int = param(20, "the beads left out at each end of the fit", lo=0)
+    sample: float = param(0.02, "the sampling interval of the velocities", lo=0.0, hi=1.0)
+    rtol: float = param(1e-10, "the flow tolerance", lo=0.0, hi=1e-4)
 
     def __post_init__(self):
-        _contact(self.contact, self.damping, check_flag("clipped", self.clipped))
-        object.__setattr__(self, "velocities", check_reals("velocities", self.velocities, "striker velocities", 0.0,
-                                                           distinct=True))
-        check_integer("N", self.N, 10, "the number of beads")
+        super().__post_init__()
         check_integer("skip", self.skip, 0, "the beads left out at each end of the fit", (self.N - 6) // 2)
-        check_real("sample", self.sample, "the sampling interval", 0.0, 1.0)
-        check_real("rtol", self.rtol, "the flow tolerance", 0.0, 1e-4)
 
     @property
     def model(self) -> LatticeModel:

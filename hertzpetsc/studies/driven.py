@@ -33,7 +33,7 @@ from ..driven import (FLOQUET_METHODS, JACOBIANS, TOL_MU, BranchFamily, Drive, H
                       HarmonicWave, PeriodicShooting, SampledWave, _check_parameter, _one_of, check_dense_beads,
                       crossing, local_wave, neutral_saddle, refined_profile, switch_to_doubled,
                       verdict, wave_ends_drive)
-from ..errors import ConvergenceError, ParameterError, check_integer, check_real
+from ..errors import Checked, ConvergenceError, ParameterError, check_real, param
 from ..floquet import DenseFloquet
 from ..model import Damping, LatticeModel, law_options
 from ..records import Column, Kind, digest_column
@@ -329,7 +329,7 @@ def corner_arclength(ds=0.02, ds_max=0.05, max_corrector=1.5):
 
 
 @dataclass(frozen=True)
-class ResponseParameters:
+class ResponseParameters(Checked):
     """A response curve: the ``drive`` continued in ``parameter`` (omega, amplitude or gamma) from its value to
     ``p_end``; the response's period in driving ``periods``; Newton's ``jacobian`` (dense, mf) and the multipliers'
     route ``floquet`` (dense, slepc with ``nev``, none); the shooting tolerance ``tol`` and the flows' ``rtol``
@@ -342,37 +342,31 @@ class ResponseParameters:
 
     drive: Drive
     parameter: str
-    p_end: float
-    periods: int = 1
-    jacobian: str = "dense"
-    floquet: str = "dense"
-    nev: int = 8
-    tol: float = 1e-10
-    rtol: float = 1e-12
+    p_end: float = param(MISSING, "the end value of the parameter", expr=True, kind="real")
+    periods: int = param(1, "the response period in driving periods", lo=1, hi=MAX_PERIODS)
+    jacobian: str = param("dense", "Newton's Jacobian", choices=JACOBIANS)
+    floquet: str = param("dense", "the multipliers (radius: every one outside -floquet_radius, long chains)",
+                         choices=FLOQUET_METHODS)
+    nev: int = param(8, "the number of dominant multipliers (SLEPc; radius: at most this many outside)", lo=1)
+    tol: float = param(1e-10, "the shooting tolerance (relative)", lo=0.0, hi=1.0)
+    rtol: float = param(1e-12, "the flow tolerance (atol = rtol/100)", lo=0.0, hi=1.0)
     algorithm: object = None
     grid: tuple = None
-    run_in: int = 50
-    samples: int = 64
-    switch: int = 0
-    max_steps: int = 400
-    nmult: int = 64
+    run_in: int = param(50, "the run-in: driving periods of transient from rest before the first Newton", lo=0)
+    samples: int = param(64, "the samples per period for forces and energy balance (0: none, else at least 2)", lo=0,
+                         option="samples_per_period")
+    switch: int = param(0, "the steps on each period-doubled branch (branch switching)", lo=0, hi=MAX_POINTS)
+    max_steps: int = param(400, "the number of continuation steps", lo=1, hi=MAX_POINTS)
+    nmult: int = param(64, "the number of recorded multipliers", lo=1)
 
     def __post_init__(self):
         drive = _drive(self.drive)
         _check_parameter(self.parameter)
-        p0 = drive.value(self.parameter)
-        p_end = check_real("p_end", self.p_end, "the end value of the parameter")
-        if not p_end != p0 and self.grid is None:
-            raise ParameterError("p_end", self.p_end, f"must differ from the start {self.parameter} = {p0:g}")
+        super().__post_init__()
+        if not self.p_end != drive.value(self.parameter) and self.grid is None:
+            raise ParameterError("p_end", self.p_end, f"must differ from the start {self.parameter} = "
+                                 f"{drive.value(self.parameter):g}")
         _check_end("p_end", self.p_end, drive, self.parameter)
-        object.__setattr__(self, "p_end", p_end)
-        object.__setattr__(self, "periods", check_integer("periods", self.periods, 1, "the response period in driving "
-                                                   "periods", MAX_PERIODS))
-        _one_of("jacobian", self.jacobian, JACOBIANS)
-        _one_of("floquet", self.floquet, FLOQUET_METHODS)
-        object.__setattr__(self, "nev", check_integer("nev", self.nev, 1, "the number of dominant multipliers"))
-        for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
-            check_real(name, getattr(self, name), what, 0.0, 1.0)
         if self.algorithm is not None and not isinstance(self.algorithm, (PseudoArclength, Natural)):
             raise ParameterError("algorithm", self.algorithm, "a continuation.PseudoArclength (None: "
                                  "corner_arclength()) or, with a grid, a continuation.Natural")
@@ -383,12 +377,6 @@ class ResponseParameters:
                 raise ParameterError("grid", len(self.grid), f"at most {MAX_POINTS} values (a run of days)")
             for value in self.grid:
                 _check_end("grid", value, drive, self.parameter)
-        for name, lo, what, hi in (("run_in", 0, "the run-in in driving periods", None),
-                                   ("samples", 0, "the samples per period", None),
-                                   ("switch", 0, "the steps on each doubled branch", MAX_POINTS),
-                                   ("max_steps", 1, "the number of continuation steps", MAX_POINTS),
-                                   ("nmult", 1, "the number of recorded multipliers", None)):
-            object.__setattr__(self, name, check_integer(name, getattr(self, name), lo, what, hi))
         dense = check_dense_beads(drive.N, self.jacobian, self.floquet)
         check_chain_size(drive.N, 2 + 2 * drive.N if dense else 3)
         _check_run_in(self.run_in, [(drive.N, drive.period)])
@@ -916,19 +904,21 @@ def _match(mu, ref):
 
 
 @dataclass(frozen=True)
-class ResonanceParameters:
+class ResonanceParameters(Checked):
     """The linear resonances: the ``drive`` of a precompressed chain (delta0 > 0, at most
     :data:`~hertzpetsc.resources.MAX_DENSE_BEADS` beads), the mode numbers ``modes`` in [1, N] (None: all), the
     shooting tolerance ``tol`` and the flows' ``rtol``, ``golden`` golden-section steps per peak."""
 
     drive: Drive
-    modes: tuple = None
-    tol: float = 1e-10
-    rtol: float = 1e-12
-    golden: int = 40
+    modes: tuple = param(None, "mode numbers k (None: all 1..N)", "integers", lo=1, distinct=True)
+    tol: float = param(1e-10, "the shooting tolerance (relative)", lo=0.0, hi=1.0)
+    rtol: float = param(1e-12, "the flow tolerance (atol = rtol/100)", lo=0.0, hi=1.0)
+    golden: int = param(40, "the golden-section steps per peak (more shrink the bracket below round-off)", lo=1,
+                        hi=GOLDEN_MAX)
 
     def __post_init__(self):
         drive = _drive(self.drive)
+        super().__post_init__()
         if not drive.model.law.linear_stiffness > 0:
             raise ParameterError("delta0", drive.model.delta0, "the linear resonances need a precompressed chain "
                                  "(delta0 > 0; another law: V''(0) > 0)")
@@ -937,17 +927,9 @@ class ResonanceParameters:
                                  "undamped, the response at omega_k is unbounded and not isolated (the multiplier 1)")
         if drive.N > MAX_DENSE_BEADS:
             raise ParameterError("N", drive.N, f"at most {MAX_DENSE_BEADS} beads (dense linear chain and multipliers)")
-        if self.modes is not None:
-            modes = _several("modes", self.modes, "mode number (None: all)",
-                             check=lambda k: check_integer("modes", k, 1, "a mode number"))
-            for k in modes:
-                if not 1 <= k <= drive.N:
-                    raise ParameterError("modes", k, f"a mode number in [1, N] = [1, {drive.N}]")
-            object.__setattr__(self, "modes", modes)
-        for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
-            check_real(name, getattr(self, name), what, 0.0, 1.0)
-        object.__setattr__(self, "golden", check_integer("golden", self.golden, 1, "the golden-section steps per peak",
-                                                         GOLDEN_MAX, "(more shrink the bracket below round-off)"))
+        for k in self.modes or ():
+            if not 1 <= k <= drive.N:
+                raise ParameterError("modes", k, f"a mode number in [1, N] = [1, {drive.N}]")
 
 
 class LinearResonances(DrivenStudy):
@@ -1062,7 +1044,7 @@ class LinearResonances(DrivenStudy):
 
 # --- the paper's exact boundary driving ------------------------------------------------------------------------------
 @dataclass(frozen=True)
-class WaveEndsParameters:
+class WaveEndsParameters(Checked):
     """The exact boundary driving: the ``branch`` and the ``refined`` waves of its periodic chain of P beads
     (:class:`~hertzpetsc.studies.refinement.RefinedStates`), the wavenumbers ``q`` (refined in it), the driven
     chains' ``sizes`` N in [1, P - 2], the flow tolerances ``rtols``, at least ``samples`` points of the sampled
@@ -1071,34 +1053,28 @@ class WaveEndsParameters:
 
     branch: object
     refined: object
-    q: tuple
-    sizes: tuple
-    rtols: tuple = (1e-12, 1e-14)
-    samples: int = 8192
-    nmult: int = 12
+    q: tuple = param(MISSING, "wavenumbers (refined in the file)", "reals", lo=0.0, hi=math.pi, hi_open=False,
+                     distinct=True, expr=True)
+    sizes: tuple = param(MISSING, "beads of the driven chains (dense multipliers)", "integers", lo=1,
+                         hi=MAX_DENSE_BEADS, distinct=True)
+    rtols: tuple = param((1e-12, 1e-14), "flow tolerances (atol = rtol/100)", lo=0.0, hi=1.0, distinct=True)
+    samples: int = param(8192, "the least number of points of the sampled wave profile", lo=64,
+                         hi=MAX_PROFILE_SAMPLES)
+    nmult: int = param(12, "the number of recorded multipliers", lo=1)
     branch_path: str = ""
     refined_path: str = ""
 
     def __post_init__(self):
+        super().__post_init__()
         P = self.refined.N
         self.refined.check_alpha(self.branch.alpha)
-        sizes = _several("sizes", self.sizes, "chain size",
-                         check=lambda N: check_integer("sizes", N, 1, "the beads of a driven chain"))
-        for N in sizes:
+        for N in self.sizes:
             if not 1 <= N <= P - 2:
                 raise ParameterError("sizes", N, f"the driven chain must be a window of the periodic chain: "
                                      f"1 <= N <= P - 2 = {P - 2}")
-        qs = _several("q", self.q, "wavenumber", 0.0, math.pi, hi_open=False)
-        for q in qs:
+        for q in self.q:
             if not self.refined.has(q):
                 raise ParameterError("q", q, f"the refinement file has no refined wave at q = {q:.12g}")
-        object.__setattr__(self, "sizes", _distinct("sizes", sizes, "chain size"))
-        object.__setattr__(self, "q", _distinct("q", qs, "wavenumber"))
-        object.__setattr__(self, "rtols", _distinct("rtols", _several("rtols", self.rtols, "flow tolerance", 0.0, 1.0),
-                                                    "flow tolerance"))
-        for name, what, hi in (("samples", "the points of the sampled profile", MAX_PROFILE_SAMPLES),
-                               ("nmult", "the number of recorded multipliers", None)):
-            object.__setattr__(self, name, check_integer(name, getattr(self, name), 1, what, hi))
 
 
 class WaveEnds(DrivenStudy):
@@ -1209,7 +1185,7 @@ def make_waveform(name, width=0.5):
 
 
 @dataclass(frozen=True)
-class GenerationParameters:
+class GenerationParameters(Checked):
     """Simple signals at one end: the ``branch`` (its travelling-wave family; ``branch_path`` names its file,
     recorded; its content's hash is part of the identity) and a ``model`` of the same exponent (its damping is replaced by each
     gamma), N beads, the actuator's ``signals`` (of :data:`WAVEFORMS`; half_sine pulses of ``width`` periods), the
@@ -1219,17 +1195,18 @@ class GenerationParameters:
 
     branch: object
     model: LatticeModel
-    N: int
-    signals: tuple
-    omegas: tuple
-    amplitudes: tuple
-    gammas: tuple
-    run_in: int = 60
-    tol: float = 1e-9
-    rtol: float = 1e-12
-    bulk: tuple = (0.25, 0.75)
-    samples: int = 128
-    width: float = 0.5
+    N: int = param(MISSING, "the number of beads", kind="integer", lo=1)
+    signals: tuple = param(MISSING, "actuator waveforms, of " + ", ".join(WAVEFORMS), "words", choices=WAVEFORMS)
+    omegas: tuple = param(MISSING, "driving frequencies", "reals", lo=0.0, distinct=True, expr=True)
+    amplitudes: tuple = param(MISSING, "actuator amplitudes", "reals", lo=0.0, lo_open=False, distinct=True,
+                              expr=True)
+    gammas: tuple = param(MISSING, "on-site dampings", "reals", lo=0.0, lo_open=False, distinct=True, expr=True)
+    run_in: int = param(60, "the run-in: driving periods of transient from rest", lo=0)
+    tol: float = param(1e-9, "the shooting tolerance (relative)", lo=0.0, hi=1.0)
+    rtol: float = param(1e-12, "the flow tolerance (atol = rtol/100)", lo=0.0, hi=1.0)
+    bulk: tuple = param((0.25, 0.75), "the bulk: fractions (lo, hi) of the chain", count=2)
+    samples: int = param(128, "the samples per period", lo=8)
+    width: float = param(0.5, "half_sine: the pulse duration in periods", kind="real")
     branch_path: str = ""
 
     def __post_init__(self):
@@ -1237,25 +1214,11 @@ class GenerationParameters:
             raise ParameterError("model", self.model, "must be a LatticeModel")
         if abs(self.model.alpha - self.branch.alpha) > 1e-12:
             raise ParameterError("alpha", self.model.alpha, f"must be the branch's exponent {self.branch.alpha:g}")
-        object.__setattr__(self, "N", check_integer("N", self.N, 1, "the number of beads"))
-        def signal(w):
-            _one_of("signals", w, WAVEFORMS, "one of")
+        super().__post_init__()
+        for w in self.signals:
             make_waveform(w, self.width)                # a half_sine train checks the width
-            return w
-        object.__setattr__(self, "signals", _several("signals", self.signals, "of " + ", ".join(WAVEFORMS),
-                                                     check=signal))
-        object.__setattr__(self, "omegas", _several("omegas", self.omegas, "driving frequency", 0.0))
-        object.__setattr__(self, "amplitudes", _several("amplitudes", self.amplitudes, "actuator amplitude", 0.0,
-                                                      lo_open=False))
-        object.__setattr__(self, "gammas", _several("gammas", self.gammas, "on-site damping", 0.0, lo_open=False))
-        object.__setattr__(self, "run_in", check_integer("run_in", self.run_in, 0, "the run-in in driving periods"))
-        for name, what in (("tol", "the shooting tolerance"), ("rtol", "the flow tolerance")):
-            check_real(name, getattr(self, name), what, 0.0, 1.0)
-        bulk = tuple(np.atleast_1d(self.bulk).tolist())
-        if not (len(bulk) == 2 and all(isinstance(x, (int, float)) for x in bulk) and 0 <= bulk[0] < bulk[1] <= 1):
+        if not (len(self.bulk) == 2 and 0 <= self.bulk[0] < self.bulk[1] <= 1):
             raise ParameterError("bulk", self.bulk, "two fractions lo, hi of the chain with 0 <= lo < hi <= 1")
-        object.__setattr__(self, "bulk", bulk)
-        object.__setattr__(self, "samples", check_integer("samples", self.samples, 8, "the samples per period"))
         check_chain_size(self.N, 2 + 2 * self.N if self.N <= 200 else 3)
         per_omega = len(self.signals) * len(self.amplitudes) * len(self.gammas)
         _check_run_in(self.run_in, [(self.N, 2 * math.pi / om) for om in self.omegas] * per_omega)

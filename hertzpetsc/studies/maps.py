@@ -54,12 +54,12 @@ from ..chain import IntegrationTolerances
 from ..console import note
 from ..dealing import dealt
 from ..diagnostics import sup_norm
-from ..errors import (ConvergenceError, ParameterError, check_flag, check_instance, check_integer, check_real,
-                      check_reals, members)
+from ..errors import (Checked, ConvergenceError, ParameterError, check_flag, check_instance, check_reals, members,
+                      param)
 from ..families import (PRECOMP_PREFIX, AmplitudeFamily, FamilyProblem, check_family_amplitude, uncompressed_limit,
                         wave_at)
 from ..floquet import FLOQUET_PREFIX
-from ..grid import ProfileGrid, check_cells_per_pi
+from ..grid import ProfileGrid, cells_per_pi_param
 from ..model import ChainSpec
 from ..options import inserted_options
 from ..qbranch import regrid_half_profile
@@ -134,7 +134,7 @@ def wave_cell(q, p=1):
 
 
 @dataclass(frozen=True)
-class MapParameters:
+class MapParameters(Checked):
     """The stability map: the precompressed ``model`` (any mass pattern), wavenumbers ``q`` (whole numbers of
     wavelengths on N beads), amplitudes ``a`` (first sine coefficient of the first bead type's profile), N beads (at
     most :data:`MAX_MAP_BEADS`), the coarser grid of the Richardson pair (K, 2K), the flow's tolerances, the
@@ -145,19 +145,18 @@ class MapParameters:
     model: object
     q: tuple
     a: tuple
-    N: int = 100
-    cells_per_pi: int = 1000
+    N: int = param(100, "beads of the periodic chain", lo=1, hi=MAX_MAP_BEADS)
+    cells_per_pi: int = cells_per_pi_param(1000)
     tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
-    tol_rho: float = MAP_TOL_RHO
-    twists: int = 0
+    tol_rho: float = param(MAP_TOL_RHO, "the verdict's threshold: unstable when rho - 1 > tol_rho", lo=0.0)
+    twists: int = param(0, "infinite chain: bead-level Bloch parameters per pi (0: not computed)", lo=0, hi=10 ** 6)
     locate: tuple = ("chain",)
-    locate_tol: float = 1e-3
+    locate_tol: float = param(1e-3, "the relative bracket of a located boundary point", lo=0.0, hi=0.5)
     limit: bool = True
 
     def __post_init__(self):
         _check_shared(self)
         p = self.model.cell
-        object.__setattr__(self, "N", check_integer("N", self.N, p, hi=MAX_MAP_BEADS))
         if self.N % p:
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {p} in [{p}, "
                                  f"{MAX_MAP_BEADS}]")
@@ -176,8 +175,6 @@ class MapParameters:
         if not amps:
             raise ParameterError("a", self.a, "give at least one amplitude")
         object.__setattr__(self, "a", tuple(amps))
-        object.__setattr__(self, "twists", check_integer("twists", self.twists, 0, hi=10 ** 6,
-                                                         note="(0: no infinite chain)"))
         locate = (self.locate,) if isinstance(self.locate, str) else self.locate
         if not (isinstance(locate, (tuple, list)) and all(isinstance(name, str) and name in TESTS for name in locate)):
             raise ParameterError("locate", self.locate, f"must be a subset of {', '.join(TESTS)}")
@@ -190,7 +187,7 @@ class MapParameters:
 def _check_shared(params):
     """The checks the map and the boundary in q share: a precompressed model of the Hertz law in every bond (the
     uncompressed limit delta0 / A = 0 and the gap opening are that law's: another law, or bonds of laws of their own,
-    is refused), the grid, tol_rho and locate_tol."""
+    is refused), then the declared fields (:class:`~hertzpetsc.errors.Checked`) and the flow's tolerances."""
     _check_delta0_positive(params.model)
     law = params.model.law.describe()
     if "law" in law or params.model.bonds is not None:
@@ -198,11 +195,8 @@ def _check_shared(params):
                              "precompressed Hertz chain, one law in every bond (the uncompressed limit delta0 / A = 0 "
                              "and the gap opening are that law's): another law's or bond pattern's waves and "
                              "multipliers are scripts/wave.py's (-law, -beads) and hertzpetsc.api.wave's")
-    object.__setattr__(params, "cells_per_pi", check_cells_per_pi(params.cells_per_pi))
+    Checked.__post_init__(params)
     check_instance("tolerances", params.tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
-    object.__setattr__(params, "tol_rho", check_real("tol_rho", params.tol_rho, "the verdict's threshold", 0.0))
-    object.__setattr__(params, "locate_tol", check_real("locate_tol", params.locate_tol, "the relative bracket of a "
-                                                        "located change", 0.0, 0.5))
 
 
 class RichardsonCompanion:
@@ -657,7 +651,7 @@ def simplest_fraction(lo, hi):
 
 
 @dataclass(frozen=True)
-class QBoundaryParameters:
+class QBoundaryParameters(Checked):
     """The stability boundary on the infinite chain located in q at fixed amplitudes: the precompressed monatomic
     ``model``, the amplitudes ``A`` = ||u||_inf (inf: the uncompressed limit), the grid of wavenumbers ``q`` between
     which the verdict's changes are located to ``locate_tol`` (a bracket of at most locate_tol / 2 relative in q),
@@ -667,19 +661,18 @@ class QBoundaryParameters:
     model: object
     A: tuple
     q: tuple
-    cells_per_pi: int = 1000
+    cells_per_pi: int = cells_per_pi_param(1000)
     tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
-    tol_rho: float = MAP_TOL_RHO
-    twists: int = 512
-    locate_tol: float = 1e-3
-    max_cell: int = QB_MAX_CELL
+    tol_rho: float = param(MAP_TOL_RHO, "the verdict's threshold: unstable when rho - 1 > tol_rho", lo=0.0)
+    twists: int = param(512, "bead-level Bloch parameters per pi", lo=1, hi=10 ** 6)
+    locate_tol: float = param(1e-3, "the relative bracket of a located edge (at most half of it)", lo=0.0, hi=0.5)
+    max_cell: int = param(QB_MAX_CELL, "the largest cell (beads) of a bisection wavenumber", lo=2, hi=MAX_MAP_BEADS)
 
     def __post_init__(self):
         _check_shared(self)
         if self.model.cell != 1:
             raise ParameterError("masses", list(self.model.masses), "the boundary in q is located for monatomic "
                                  "chains (the dimers' infinite chains are unstable at every amplitude of their maps)")
-        object.__setattr__(self, "max_cell", check_integer("max_cell", self.max_cell, 2, hi=MAX_MAP_BEADS))
         qs = sorted(set(_check_qs(self.q, math.pi / self.cells_per_pi, distinct=False)))
         for q in qs:
             if wave_cell(q).M > self.max_cell:
@@ -691,7 +684,6 @@ class QBoundaryParameters:
         if not amps:
             raise ParameterError("A", self.A, "give at least one amplitude")
         object.__setattr__(self, "A", tuple(sorted(amps)))
-        object.__setattr__(self, "twists", check_integer("twists", self.twists, 1, hi=10 ** 6))
 
 
 class QBoundary(Study):

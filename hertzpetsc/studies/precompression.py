@@ -12,15 +12,15 @@ on the waves of :func:`richardson_wave` / :func:`wave_orbit` here.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass
 from typing import TYPE_CHECKING, Iterator, Optional
 
 import numpy as np
 
 from ..diagnostics import sup_norm
-from ..errors import (ConvergenceError, ParameterError, RecordFileError, check_choice, check_instance,
-                      check_integer, check_real, check_reals)
-from ..grid import ProfileGrid, check_cells_per_pi
+from ..errors import (Checked, ConvergenceError, ParameterError, RecordFileError, check_instance, check_real,
+                      check_reals, param)
+from ..grid import ProfileGrid, cells_per_pi_param
 from ..advdelay import check_branch, check_wavenumber
 from ..model import ChainSpec, LatticeModel
 from ..families import AmplitudeFamily, MassFamily, check_amplitude, check_family_amplitude, uncompressed_limit
@@ -135,25 +135,25 @@ def _check_qs(q, h=None, name="q", distinct=True):
 
 
 @dataclass(frozen=True)
-class AmplitudeParameters:
+class AmplitudeParameters(Checked):
     """The amplitude families: the precompressed ``model`` (any mass pattern), per-bead wavenumbers ``q``, grid
     h = pi / cells_per_pi, amplitudes a_min exp(k ds) up to a_max (at most :data:`MAX_AMPLITUDES`), each family
     from the linear wave of ``branch`` ('acoustic': the lowest frequency of the pattern; 'optical': the highest)."""
 
     model: LatticeModel
-    q: tuple
-    cells_per_pi: int = 1000
-    a_min: float = 1e-3
-    a_max: float = 1e3
-    ds: float = 0.1
-    branch: str = "acoustic"
+    q: tuple = param(MISSING, "per-bead wavenumbers", "reals", lo=0.0, hi=math.pi, hi_open=False, distinct=True,
+                     expr=True)
+    cells_per_pi: int = cells_per_pi_param(1000)
+    a_min: float = param(1e-3, "the first amplitude (first sine coefficient of u), in [delta0 max(sqrt(eps), "
+                         "eps^(1/(2(alpha-1)))), 0.1 delta0]", lo=0.0)
+    a_max: float = param(1e3, "the last amplitude", lo=0.0)
+    ds: float = param(0.1, "the step in s = log a", lo=0.0)
+    branch: str = param("acoustic", "the linear branch the families start from", choices=("acoustic", "optical"))
 
     def __post_init__(self):
         _check_delta0_positive(self.model)
-        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
-        check_choice("branch", self.branch, ("acoustic", "optical"))
-        for q in self.q:
+        super().__post_init__()
+        for q in _check_qs(self.q, math.pi / self.cells_per_pi):
             check_branch(self.model, q, self.branch)
         amplitude_grid(self.a_min, self.a_max, self.ds)
         check_family_amplitude(self.model, self.a_min, "a_min", start=True)
@@ -311,35 +311,30 @@ MAX_STEPS = 100000
 
 
 @dataclass(frozen=True)
-class DimerParameters:
+class DimerParameters(Checked):
     """The dimer families: the precompressed monatomic ``model`` (the dimer has masses 1, epsilon), per-bead
     wavenumbers ``q``, amplitude a (first sine coefficient of the heavy bead's profile), grid h = pi /
     cells_per_pi, pseudo-arclength from epsilon = 1 until epsilon_end or max_steps (at most :data:`MAX_STEPS`)
     steps of ds (first) .. ds_max."""
 
     model: LatticeModel
-    q: tuple
-    a: float = 0.5
-    cells_per_pi: int = 200
-    epsilon_end: float = 0.3
-    max_steps: int = 200
-    ds: float = 0.02
-    ds_max: float = 0.1
+    q: tuple = param(MISSING, "per-bead wavenumbers (the dimer's zone: q < pi/2)", "reals", lo=0.0,
+                     hi=math.pi / 2, distinct=True, expr=True)
+    a: float = param(0.5, "the amplitude (first sine coefficient of u)", lo=0.0)
+    cells_per_pi: int = cells_per_pi_param(200)
+    epsilon_end: float = param(0.3, "the last mass ratio (continuation from epsilon = 1 down)", lo=0.0, hi=1.0)
+    max_steps: int = param(200, "the arclength steps per q", lo=1, hi=MAX_STEPS)
+    ds: float = param(0.02, "the first arclength step", lo=0.0, hi=1.0, hi_open=False)
+    ds_max: float = param(0.1, "the largest arclength step", lo=0.0, hi=1.0, hi_open=False)
 
     def __post_init__(self):
         _check_delta0_positive(self.model)
         if self.model.cell != 1:
             raise ParameterError("masses", list(self.model.masses), "give the monatomic model; the dimer is built "
                                  "from it")
-        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
+        super().__post_init__()
+        _check_qs(self.q, math.pi / self.cells_per_pi)
         object.__setattr__(self, "a", check_amplitude(self.a, "a"))
-        object.__setattr__(self, "epsilon_end", check_real("epsilon_end", self.epsilon_end, "the last mass ratio "
-                                                           "(continuation from epsilon = 1 down)", 0.0, 1.0))
-        object.__setattr__(self, "max_steps", check_integer("max_steps", self.max_steps, 1, hi=MAX_STEPS))
-        for name in ("ds", "ds_max"):
-            object.__setattr__(self, name, check_real(name, getattr(self, name), "the arclength step", 0.0, 1.0,
-                                                      hi_open=False))
         if self.ds > self.ds_max:
             raise ParameterError("ds", self.ds, f"must not exceed ds_max = {self.ds_max:g}")
 

@@ -24,7 +24,7 @@ from petsc4py import PETSc
 
 from ..compacton_spectrum import window_spectrum
 from ..compacton_window import WINDOW_PREFIX, WINDOW_TOLERANCES, embed
-from ..errors import ParameterError, check_integer, check_real, check_reals
+from ..errors import Checked, ParameterError, param
 from ..model import LatticeModel
 from ..resources import MAX_DENSE_BEADS
 from ..roles import uses
@@ -43,7 +43,6 @@ POINT_MARGIN = 1.001            # multipliers above this times the essential rad
                                 # (a finite window's transport multipliers lie just below it)
 CONVERGED = 1e-6                # ... and called point multipliers when the 2M window moves them less than this
                                 # (the transport multipliers move by ~1e-3: they approach the essential radius)
-DEFAULT_C0 = "0, 0.2, 0.4, 0.6, 0.7, 0.8, 0.85, 0.9"
 SOLITARY_KIND = Kind(FORMAT, (
     Column("alphas", "Hertz exponents of the scan", shape="A", constant=True),
     Column("sound_speeds", "the sound speeds c0 of the scan, 0 first", shape="S", constant=True),
@@ -90,35 +89,32 @@ ROLES = uses(WINDOW_PREFIX, CHECK_PREFIX, SOL_PREFIX)
 
 
 @dataclass(frozen=True)
-class SolitaryStabilityParameters:
+class SolitaryStabilityParameters(Checked):
     """alphas > 1; sound speeds c0 in [0, 1) (0, the uncompressed chain, is always computed first); M beads of the
     window (0: the fewest whose ends see the tails of the largest c0 at ``tail``); unstable: |mu| > 1 +
     tol_unstable."""
 
-    alphas: tuple = (1.5, 2.0, 2.5)
-    c0: tuple = (0.0, 0.2, 0.4, 0.6, 0.7, 0.8, 0.85, 0.9)
-    M: int = 0
-    tail: float = 1e-12
-    tol_unstable: float = TOL_UNSTABLE
+    alphas: tuple = param((1.5, 2.0, 2.5), "Hertz exponents", lo=1.0, distinct=True)
+    c0: tuple = param((0.0, 0.2, 0.4, 0.6, 0.7, 0.8, 0.85, 0.9), "sound speeds sqrt(V''(0)) in units of the wave's "
+                      "speed (0: the uncompressed chain; a solitary wave is supersonic)", lo=0.0, lo_open=False,
+                      hi=1.0, distinct=True)
+    M: int = param(0, "beads of the window (0: from the tails of the largest c0)", lo=0)
+    tail: float = param(1e-12, "the tails at the window's ends, relative to the deepest compression", lo=0.0,
+                        hi=1e-6)
+    tol_unstable: float = param(TOL_UNSTABLE, "the instability threshold: unstable when |mu| > 1 + tol_unstable",
+                                lo=0.0)
 
     def __post_init__(self):
-        alphas = check_reals("alphas", self.alphas, "Hertz exponents", 1.0, distinct=True)
-        given = check_reals("c0", self.c0, "sound speeds in units of the wave's speed (0: the uncompressed chain; a "
-                            "solitary wave is supersonic)", 0.0, 1.0, lo_open=False, distinct=True)
-        c0 = tuple(sorted(set(given) | {0.0}))
-        object.__setattr__(self, "alphas", alphas)
+        super().__post_init__()
+        c0 = tuple(sorted(set(self.c0) | {0.0}))
         object.__setattr__(self, "c0", c0)
-        object.__setattr__(self, "tail", check_real("tail", self.tail, "the tail level at the window's ends", 0.0,
-                                                    1e-6))
         need = window_beads(c0[-1], self.tail)
-        M = need if check_integer("M", self.M, 0) == 0 else int(self.M)
+        M = self.M or need
         if not need <= M <= MAX_DENSE_BEADS // 4:
             raise ParameterError("M", self.M, f"the window needs {need} beads for tails of {self.tail:g} at c0 = "
                                               f"{c0[-1]:g} (0: that many), and at most {MAX_DENSE_BEADS // 4} "
                                               "(its dense map and the doubled window's)")
-        object.__setattr__(self, "M", int(M))
-        object.__setattr__(self, "tol_unstable", check_real("tol_unstable", self.tol_unstable, "the instability "
-                                                            "threshold on |mu| - 1", 0.0))
+        object.__setattr__(self, "M", M)
 
 
 class SolitaryStabilityScan(ContinuedScan):

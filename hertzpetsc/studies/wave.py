@@ -12,18 +12,17 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import MISSING, dataclass
 from typing import TYPE_CHECKING, Iterator, Optional
 
 import numpy as np
 
 from ..advdelay import check_branch
 from ..bloch import SymmetricFloquet
-from ..errors import (ConvergenceError, ParameterError, check_instance, check_integer, check_integers,
-                      check_real)
+from ..errors import Checked, ConvergenceError, ParameterError, check_instance, param
 from ..families import FamilyFold, check_amplitude, check_family_amplitude, wave_of_amplitude
 from ..floquet import TOL_RHO
-from ..grid import ProfileGrid, check_cells_per_pi
+from ..grid import ProfileGrid, cells_per_pi_param
 from ..model import ChainSpec, LatticeModel
 from ..records import Column, Kind
 from ..resources import check_memory
@@ -99,7 +98,7 @@ MAX_SIZE = 10 ** 6           # beads of the longer chains (Bloch sectors: the ce
 
 
 @dataclass(frozen=True)
-class WaveParameters:
+class WaveParameters(Checked):
     """The chain (``model``), wavenumbers ``q`` (per bead; one number or a sequence), amplitude A = max |u| (with
     delta0 = 0 and one mass: any A, the waves scale), grid h = pi / cells_per_pi, N beads of the periodic chain (a
     whole number of wavelengths and of pattern cells), longer chains ``sizes`` (multiples of N), the refinement's
@@ -107,17 +106,22 @@ class WaveParameters:
     its family starts from: 'acoustic', the lowest frequency, or 'optical', the highest)."""
 
     model: LatticeModel
-    q: tuple
-    A: float = 1.0
-    cells_per_pi: int = 400
-    N: int = 100
-    sizes: tuple = ()
-    tol: float = 1e-10
-    tol_rho: float = TOL_RHO
-    branch: str = "acoustic"
+    q: tuple = param(MISSING, "per-bead wavenumbers (q N / (2 pi) whole)", "reals", lo=0.0, hi=math.pi,
+                     hi_open=False, distinct=True, expr=True)
+    A: float = param(1.0, "the amplitude max |u| (delta0 > 0: at least delta0 max(sqrt(eps), eps^(1/(2(alpha-1)))))",
+                     lo=0.0)
+    cells_per_pi: int = cells_per_pi_param(400)
+    N: int = param(100, "beads of the periodic chain of the refinement", lo=2, hi=MAX_BEADS)
+    sizes: tuple = param((), "longer chains for the Bloch spectra (multiples of N; none if empty)", "integers", lo=3,
+                         hi=MAX_SIZE, distinct=True, count=0)
+    tol: float = param(1e-10, "the refinement's target E (at least the flow's -shoot_ts_rtol, 1e-14)", lo=0.0, hi=1.0)
+    tol_rho: float = param(TOL_RHO, "the verdict's threshold: unstable when rho - 1 > tol_rho", lo=0.0, hi=1.0)
+    branch: str = param("acoustic", "the linear wave the family starts from (a mass pattern: the lowest frequency "
+                        "at q, or the highest)", choices=("acoustic", "optical"))
 
     def __post_init__(self):
         m = check_instance("model", self.model, LatticeModel, "a LatticeModel (LatticeModel.hertz(1.5, delta0=1))")
+        super().__post_init__()
         m.require_conservative("a travelling wave")
         linear = m.law.linear_stiffness > 0              # the waves start from the linear wave (else: scale-invariant)
         if not linear and m.cell > 1:
@@ -125,24 +129,16 @@ class WaveParameters:
                                  "precompression > 0 (the sonic-vacuum dimer: dimer_branch.py from epsilon = 1)")
         object.__setattr__(self, "A", check_family_amplitude(m, self.A, "A") if linear else
                            check_amplitude(self.A, "A"))
-        object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
-        object.__setattr__(self, "N", check_integer("N", self.N, 2, hi=MAX_BEADS))
         if self.N % m.cell:
             raise ParameterError("N", self.N, f"must be a multiple of the mass pattern's length {m.cell} in "
                                  f"[2, {MAX_BEADS}]")
-        qs = _check_qs(self.q, math.pi / self.cells_per_pi)
-        for q in qs:
+        for q in _check_qs(self.q, math.pi / self.cells_per_pi):
             check_chain_wavenumber(q, self.N)
             check_branch(m, q, self.branch)
-        object.__setattr__(self, "q", qs)
-        sizes = check_integers("sizes", self.sizes, 3, "longer chains", MAX_SIZE, distinct=True, empty=True)
-        for L in sizes:
-            if not (L > self.N and L % self.N == 0 and L <= MAX_SIZE):
+        for L in self.sizes:
+            if not (L > self.N and L % self.N == 0):
                 raise ParameterError("sizes", L, f"each longer chain must be a multiple of N = {self.N} beads, at "
                                      f"most {MAX_SIZE}")
-        object.__setattr__(self, "sizes", sizes)
-        for name, what in (("tol", "the refinement's target E"), ("tol_rho", "the verdict's threshold on rho - 1")):
-            object.__setattr__(self, name, check_real(name, getattr(self, name), what, 0.0, 1.0))
 
 
 class WaveStudy(Study):

@@ -359,6 +359,8 @@ class DominantFloquet(FloquetSolver):
         slow = 0
         if found is not None and len(found[0]):
             slow = len(found[0])
+            if len(values):
+                vectors = self._undeflated(values, vectors, found)
             values, vectors = np.concatenate([found[0], values]), np.concatenate([found[2], vectors], axis=1)
             resolved = resolved and len(values) <= self.nev
         order = np.argsort(-np.abs(values), kind="stable")
@@ -367,6 +369,18 @@ class DominantFloquet(FloquetSolver):
             converged=nconv, iterations=eps.getIterationNumber(), products=self.op.products - products0, radius=r,
             resolved=bool(resolved), reason=int(reason), slow=slow,
             krylov_products=self.op.products - self._products0))
+
+    def _undeflated(self, values, W, found):
+        """The eigenvectors of F from the deflated solve's (2N, k): SLEPc's lie in the complement of the deflated
+        span U (F U = U diag(mu), ``found``), where they are eigenvectors of the projected operator only. With
+        g = F w - lambda w = U b (one block product of the k columns), v = w + U a, a_j = b_j / (lambda - mu_j),
+        satisfies F v = lambda v."""
+        mu, U = found[0], found[2]
+        N, k = self.op.spec.N, W.shape[1]
+        FW = self.op.apply(np.concatenate([W.real, W.imag], axis=1).reshape(N, 2, 2 * k)).reshape(2 * N, 2 * k)
+        G = FW[:, :k] + 1j * FW[:, k:] - W * values
+        b = np.linalg.lstsq(U, G, rcond=None)[0]
+        return W + U @ (b / (values[None, :] - mu[:, None]))
 
     def _deflate(self, basis):
         """Make the columns of ``basis`` (2N x m real, orthonormal, on every rank: an invariant subspace of F) the

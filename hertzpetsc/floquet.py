@@ -410,9 +410,11 @@ class DominantFloquet(FloquetSolver):
 
 
 # The slow modes' refinement (slow_eigenpairs): at most this many block products, the basis at most
-# SLOW_BASIS x the start's columns (then restarted on the wanted Ritz vectors).
+# SLOW_BASIS x the start's columns (then restarted on the wanted Ritz vectors); the start: R_lin's modes outside the
+# radius and as many more as half their number, at least SLOW_MARGIN (the next ones inside, which F may move out).
 SLOW_ROUNDS = 30
 SLOW_BASIS = 4
+SLOW_MARGIN = 4
 
 
 def _orthonormal(W, against=None, drop=1e-10):
@@ -434,7 +436,8 @@ def slow_eigenpairs(op, slow, radius, cluster, tol, cap, rounds=SLOW_ROUNDS):
     O(N) products to separate them), by a block Davidson iteration on F = ``op``
     (:meth:`~hertzpetsc.tangent.MonodromyModShift.apply`: each round one integration of a block of columns,
     dealt to the ranks), started from ``slow.slow_modes(r0)`` (R_lin's eigenvectors with |mu| > r0, r0 halfway
-    in log between ``cluster`` and ``radius``) and expanded by Olsen's correction with the preconditioner
+    in log between ``cluster`` and ``radius``; those outside ``radius`` and :data:`SLOW_MARGIN` or half as many
+    more) and expanded by Olsen's correction with the preconditioner
     ``slow.shifted_solve`` = (R_lin - theta I)^-1 (closed form in the sine modes). Rayleigh-Ritz on the basis V
     (orthonormal): the Ritz pairs (theta, u = V s) of V^T F V with |theta| > ``radius``, at most ``cap`` + 1.
 
@@ -445,7 +448,9 @@ def slow_eigenpairs(op, slow, radius, cluster, tol, cap, rounds=SLOW_ROUNDS):
     N = op.spec.N
     empty = (np.zeros(0, complex), np.zeros((2 * N, 0)), np.zeros((2 * N, 0), complex))
     r0 = math.sqrt(radius * cluster) if cluster is not None else radius
-    _, U0 = slow.slow_modes(r0)
+    mu0, U0 = slow.slow_modes(r0)
+    outside = int(np.sum(np.abs(mu0) > radius))
+    U0 = U0[:, np.argsort(-np.abs(mu0), kind="stable")[:outside + max(SLOW_MARGIN, outside // 2)]]
     V = _orthonormal(np.concatenate([U0.real, U0.imag], axis=1))
     if not V.shape[1]:
         return empty

@@ -226,6 +226,7 @@ class DominantFloquet(FloquetSolver):
         # the radius route's slow modes (slow_eigenpairs): set per solve by the caller that knows them, unless
         # -floquet_slow_modes 0
         self.slow, self.use_slow = None, PETSc.Options(prefix).getBool("slow_modes", True)
+        self._deflation = []                     # the deflation space's Vecs of the solve under way
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
         # the radius route stops with fewer than nev converged: below the whole space (SLEPc's eigenvectors of such
@@ -386,7 +387,7 @@ class DominantFloquet(FloquetSolver):
         """Make the columns of ``basis`` (2N x m real, orthonormal, on every rank: an invariant subspace of F) the
         EPS's deflation space, or clear it (None): the Krylov space then lives in its complement, whose
         operator has the remaining multipliers of F (the block triangular form of F in [basis, complement])."""
-        for v in getattr(self, "_deflation", []):
+        for v in self._deflation:
             v.destroy()
         self._deflation = []
         if basis is None or not basis.shape[1]:
@@ -401,7 +402,7 @@ class DominantFloquet(FloquetSolver):
 
     def destroy(self) -> None:
         self._release()
-        for v in getattr(self, "_deflation", []):
+        for v in self._deflation:
             v.destroy()
         self._deflation = []
         self.eps.destroy()

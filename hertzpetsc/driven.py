@@ -660,6 +660,7 @@ class PeriodicShooting(ContinuationProblem):
         self._checked = None           # the version of the last monodromy whose closed forms were checked
         self._spectra = {}             # key of (x, p) -> multipliers
         self.radius = None             # the radius of the last spectrum outside one (floquet 'radius')
+        self.floquet_work = {}         # and its work (products; 'slow': multipliers from the slow modes, ...)
         self.counters = dict(state_flows=0, tangent_flows=0, products=0, jacobians=0)
         self._tight = False            # the corrector's retry: Jacobians from the fully resolved flow
         self._solves, self._assembled, self._mono_version = 0, None, 0
@@ -1111,6 +1112,8 @@ class PeriodicShooting(ContinuationProblem):
                 self.dominant.cluster = phonon_radius(spec, self.T)
                 if self.dominant.fixed_radius is None:
                     self.dominant.radius = default_radius(spec, self.T)
+                self.dominant.slow = LinearChainPreconditioner(self) if self.dominant.use_slow and \
+                    LinearChainPreconditioner.applies(self.drive) else None
             res = self.dominant.spectrum(Response(self.drive, self.periods, x, math.nan))
             self.counters["products"] += res.work["products"] + 2 * len(res.multipliers)
             mu = res.multipliers
@@ -1121,6 +1124,7 @@ class PeriodicShooting(ContinuationProblem):
                                        f"-{self.dominant.prefix}eps_nev = {self.dominant.nev} outside, or the "
                                        "restarts ran out)", **{self.parameter: float(p)})
             self.radius = res.work.get("radius")
+            self.floquet_work = res.work
             check_eigenpairs(self.dominant.op, mu, self.dominant.vectors, self.drive.spec(), self.T,
                              {self.parameter: float(p)})
         else:
@@ -1198,6 +1202,7 @@ class LinearChainPreconditioner:
         phi[:, 0, 1] = (decay * sinc).real
         phi[:, 1, 0] = (-decay * w2 * sinc).real
         phi[:, 1, 1] = (decay * (cosh - half * sinc)).real
+        self.phi = phi
         self.inverse = np.linalg.inv(phi - np.eye(2))
         self._key = (drive, T)
 
@@ -1207,6 +1212,38 @@ class LinearChainPreconditioner:
         z = np.zeros((self.ext, x.shape[1]))
         z[into] = x
         return -np.fft.rfft(z, axis=0).imag[out]
+
+    def _real_sine(self, x, into, out):
+        """:meth:`_sine` of complex columns (the transform is real-linear)."""
+        if not np.iscomplexobj(x):
+            return self._sine(x, into, out)
+        return self._sine(x.real, into, out) + 1j * self._sine(x.imag, into, out)
+
+    def slow_modes(self, radius):
+        """The eigenpairs of R_lin with |mu| > ``radius`` (every mode's 2 x 2 block in closed form): multipliers
+        (m,) and eigenvectors (2N, m), complex, index 2n + c; the start of the slow modes' refinement
+        (:func:`hertzpetsc.floquet.slow_eigenpairs`)."""
+        self._modes()
+        N = self.problem.N
+        lam, vec = np.linalg.eig(self.phi)                    # (N, 2), (N, 2, 2)
+        modes, values = [], []
+        for j, i in zip(*np.nonzero(np.abs(lam) > radius)):
+            z = np.zeros((N, 2), complex)
+            z[j] = vec[j, :, i]
+            modes.append(self._real_sine(z, self.freq, slice(1, N + 1)).reshape(2 * N) / self.norm)
+            values.append(lam[j, i])
+        return np.array(values, complex), np.array(modes, complex).T.reshape(2 * N, len(modes))
+
+    def shifted_solve(self, theta, B):
+        """(R_lin - theta_j I)^-1 B[:, j] for complex shifts ``theta`` (k,) and columns B (2N, k), index 2n + c."""
+        self._modes()
+        N, k = self.problem.N, B.shape[1]
+        beads = slice(1, N + 1)
+        modes = self._real_sine(B.reshape(N, 2 * k), beads, self.freq).reshape(N, 2, k)
+        M = self.phi[:, None, :, :] - np.asarray(theta)[None, :, None, None] * np.eye(2)     # (N, k, 2, 2)
+        solved = np.linalg.solve(M, modes.transpose(0, 2, 1)[..., None])[..., 0]            # (N, k, 2)
+        return self._real_sine(solved.transpose(0, 2, 1).reshape(N, 2 * k), self.freq, beads).reshape(2 * N, k) \
+            / self.norm
 
     def apply(self, pc, x, y):
         prob = self.problem

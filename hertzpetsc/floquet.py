@@ -223,6 +223,10 @@ class DominantFloquet(FloquetSolver):
             radius = check_real("radius", radius, "the radius outside which every multiplier is wanted", 0.0)
         self.fixed_radius = given                # the option's, which a caller's default does not replace
         self.radius, self.cluster, self._products0 = radius, None, 0
+        # the radius route's slow modes (slow_eigenpairs): set per solve by the caller that knows them, unless
+        # -floquet_slow_modes 0
+        self.slow, self.use_slow = None, PETSc.Options(prefix).getBool("slow_modes", True)
+        self._deflation = []                     # the deflation space's Vecs of the solve under way
         self.op = MonodromyModShift(spec, np.zeros((spec.N, 2)), 1.0, comm, tolerances, prefix, shift)
         self.A = self.op.create_mat()
         # the radius route stops with fewer than nev converged: below the whole space (SLEPc's eigenvectors of such
@@ -259,17 +263,26 @@ class DominantFloquet(FloquetSolver):
         if self.start or self.previous:
             eps.setInitialSpace(self.start or self.previous)
         self.start = []
+        found = None
         if self.radius is not None:
             if self.cluster is not None and not self.radius > self.cluster:
                 raise ParameterError("-%sradius" % self.prefix, self.radius, "the radius must exceed the modulus of "
                                      f"the cluster of multipliers inside, {self.cluster:.6g}")
             self.eps.getRG().setEllipseParameters(0.0, float(self.radius), 1.0)
-            self._products0 = products0
-        with callbacks_raise():
-            eps.solve()
+            if self.slow is not None:
+                found = slow_eigenpairs(op, self.slow, self.radius, self.cluster, self.eps.getTolerances()[0],
+                                        self.nev)
+                self._deflate(found[1])
+            self._products0 = op.products
+        try:
+            with callbacks_raise():
+                eps.solve()
+        finally:
+            if found is not None:
+                self._deflate(None)
         nconv = eps.getConverged()
         if self.radius is not None:
-            return self._outside(orbit, tol_rho, nconv, products0)
+            return self._outside(orbit, tol_rho, nconv, products0, found)
         if nconv < self.nev:
             raise ConvergenceError("Floquet eigensolver (prefix -%s)" % self.prefix,
                                    f"{nconv} of {self.nev} multipliers converged ({eps.getConvergedReason()})",
@@ -321,9 +334,10 @@ class DominantFloquet(FloquetSolver):
             out = reason.ITERATING
         return self.op.base.comm.tompi4py().bcast(out, root=0)
 
-    def _outside(self, orbit, tol_rho, nconv, products0):
-        """The multipliers outside the radius of the last solve, their eigenvectors kept; ``work['resolved']``: the
-        stopping test closed the spectrum outside r (module docstring of the class)."""
+    def _outside(self, orbit, tol_rho, nconv, products0, found=None):
+        """The multipliers outside the radius of the last solve (with the slow modes ``found`` before it, which the
+        solve deflated), their eigenvectors kept; ``work['resolved']``: the stopping test closed the spectrum
+        outside r (module docstring of the class)."""
         from slepc4py import SLEPc
         eps, A, r = self.eps, self.A, float(self.radius)
         values = np.array([eps.getEigenvalue(i) for i in range(nconv)], dtype=complex)
@@ -341,16 +355,142 @@ class DominantFloquet(FloquetSolver):
         finally:
             vr.destroy()
             vi.destroy()
-        self.vectors = np.array(columns).T if columns else np.zeros((A.getSize()[0], 0), complex)
-        return Spectrum(values[keep], False, tol_rho, work=dict(
+        values = values[keep]
+        vectors = np.array(columns).T if columns else np.zeros((A.getSize()[0], 0), complex)
+        slow = 0
+        if found is not None and len(found[0]):
+            slow = len(found[0])
+            if len(values):
+                vectors = self._undeflated(values, vectors, found)
+            values, vectors = np.concatenate([found[0], values]), np.concatenate([found[2], vectors], axis=1)
+            resolved = resolved and len(values) <= self.nev
+        order = np.argsort(-np.abs(values), kind="stable")
+        self.vectors = vectors[:, order]
+        return Spectrum(values[order], False, tol_rho, work=dict(
             converged=nconv, iterations=eps.getIterationNumber(), products=self.op.products - products0, radius=r,
-            resolved=bool(resolved), reason=int(reason)))
+            resolved=bool(resolved), reason=int(reason), slow=slow,
+            krylov_products=self.op.products - self._products0))
+
+    def _undeflated(self, values, W, found):
+        """The eigenvectors of F from the deflated solve's (2N, k): SLEPc's lie in the complement of the deflated
+        span U (F U = U diag(mu), ``found``), where they are eigenvectors of the projected operator only. With
+        g = F w - lambda w = U b (one block product of the k columns), v = w + U a, a_j = b_j / (lambda - mu_j),
+        satisfies F v = lambda v."""
+        mu, U = found[0], found[2]
+        N, k = self.op.spec.N, W.shape[1]
+        FW = self.op.apply(np.concatenate([W.real, W.imag], axis=1).reshape(N, 2, 2 * k)).reshape(2 * N, 2 * k)
+        G = FW[:, :k] + 1j * FW[:, k:] - W * values
+        b = np.linalg.lstsq(U, G, rcond=None)[0]
+        return W + U @ (b / (values[None, :] - mu[:, None]))
+
+    def _deflate(self, basis):
+        """Make the columns of ``basis`` (2N x m real, orthonormal, on every rank: an invariant subspace of F) the
+        EPS's deflation space, or clear it (None): the Krylov space then lives in its complement, whose
+        operator has the remaining multipliers of F (the block triangular form of F in [basis, complement])."""
+        for v in self._deflation:
+            v.destroy()
+        self._deflation = []
+        if basis is None or not basis.shape[1]:
+            self.eps.setDeflationSpace([])
+            return
+        lo, hi = self.A.getOwnershipRange()
+        for j in range(basis.shape[1]):
+            v = self.A.createVecRight()
+            v.getArray()[:] = basis[lo:hi, j]
+            self._deflation.append(v)
+        self.eps.setDeflationSpace(self._deflation)
 
     def destroy(self) -> None:
         self._release()
+        for v in self._deflation:
+            v.destroy()
+        self._deflation = []
         self.eps.destroy()
         self.A.destroy()
         self.op.destroy()
+
+
+# The slow modes' refinement (slow_eigenpairs): at most this many block products, the basis at most
+# SLOW_BASIS x the start's columns (then restarted on the wanted Ritz vectors); the start: R_lin's modes outside the
+# radius and as many more as half their number, at least SLOW_MARGIN (the next ones inside, which F may move out).
+SLOW_ROUNDS = 30
+SLOW_BASIS = 4
+SLOW_MARGIN = 4
+
+
+def _orthonormal(W, against=None, drop=1e-10):
+    """An orthonormal basis of the columns of W (real), orthogonalised twice against the orthonormal ``against``
+    first; columns that keep less than ``drop`` of their norm are left out."""
+    W = np.asarray(W, float)
+    if against is not None and against.shape[1]:
+        for _ in range(2):
+            W = W - against @ (against.T @ W)
+    if not W.shape[1]:
+        return W
+    U, s, _ = np.linalg.svd(W, full_matrices=False)
+    return U[:, s > drop * max(1.0, float(np.max(np.linalg.norm(W, axis=0))))] if s.size else U[:, :0]
+
+
+def slow_eigenpairs(op, slow, radius, cluster, tol, cap, rounds=SLOW_ROUNDS):
+    """The multipliers outside ``radius`` that continue the slow modes of the chain linearised about rest (the
+    overdamped long waves of a long damped chain, which crowd at 1 within O(1 / N^2): single-vector Krylov needs
+    O(N) products to separate them), by a block Davidson iteration on F = ``op``
+    (:meth:`~hertzpetsc.tangent.MonodromyModShift.apply`: each round one integration of a block of columns,
+    dealt to the ranks), started from ``slow.slow_modes(r0)`` (R_lin's eigenvectors with |mu| > r0, r0 halfway
+    in log between ``cluster`` and ``radius``; those outside ``radius`` and :data:`SLOW_MARGIN` or half as many
+    more) and expanded by Olsen's correction with the preconditioner
+    ``slow.shifted_solve`` = (R_lin - theta I)^-1 (closed form in the sine modes). Rayleigh-Ritz on the basis V
+    (orthonormal): the Ritz pairs (theta, u = V s) of V^T F V with |theta| > ``radius``, at most ``cap`` + 1.
+
+    Returns (multipliers (m,), an orthonormal real basis of their eigenvectors' span (2N, m'), the eigenvectors
+    (2N, m), complex, unit norm) of the Ritz pairs whose relative residual ||F u - theta u|| / (|theta| ||u||) is
+    within ``tol``: an invariant subspace to that residual, which the Krylov stage deflates. The structure only
+    speeds the search: whatever it misses or leaves unconverged, the Krylov stage finds."""
+    N = op.spec.N
+    empty = (np.zeros(0, complex), np.zeros((2 * N, 0)), np.zeros((2 * N, 0), complex))
+    r0 = math.sqrt(radius * cluster) if cluster is not None else radius
+    mu0, U0 = slow.slow_modes(r0)
+    outside = int(np.sum(np.abs(mu0) > radius))
+    U0 = U0[:, np.argsort(-np.abs(mu0), kind="stable")[:outside + max(SLOW_MARGIN, outside // 2)]]
+    V = _orthonormal(np.concatenate([U0.real, U0.imag], axis=1))
+    if not V.shape[1]:
+        return empty
+
+    def apply(Y):
+        return op.apply(Y.reshape(N, 2, Y.shape[1])).reshape(2 * N, Y.shape[1])
+    start, AV = V.shape[1], apply(V)
+    for _ in range(rounds):
+        theta, S = np.linalg.eig(V.T @ AV)
+        order = np.argsort(-np.abs(theta), kind="stable")
+        theta, S = theta[order], S[:, order]
+        want = np.nonzero(np.abs(theta) > radius)[0][:cap + 1]
+        U, W = V @ S[:, want], AV @ S[:, want]
+        U_norm = np.linalg.norm(U, axis=0)
+        R = W - U * theta[want]
+        res = np.linalg.norm(R, axis=0) / (np.abs(theta[want]) * U_norm)
+        todo = [j for j in range(len(want)) if res[j] > tol and theta[want[j]].imag >= 0]
+        if not todo:
+            break
+        th = theta[want][todo]
+        Mr, Mu = slow.shifted_solve(th, R[:, todo]), slow.shifted_solve(th, U[:, todo])
+        e = np.sum(np.conj(U[:, todo]) * Mr, axis=0) / np.sum(np.conj(U[:, todo]) * Mu, axis=0)
+        T = e * Mu - Mr                                   # Olsen: (R_lin - theta)^-1 (e u - r), orthogonal to u
+        T = np.concatenate([T.real, T.imag[:, np.abs(th.imag) > 0]], axis=1)
+        T = T[:, np.all(np.isfinite(T), axis=0)]          # theta on R_lin's spectrum: no correction from it
+        T = _orthonormal(T, V)
+        if not T.shape[1]:
+            break
+        if V.shape[1] + T.shape[1] > SLOW_BASIS * start:  # restart on the Ritz vectors of the largest
+            keep = S[:, :min(len(theta), max(2 * len(want), start))]
+            Q = _orthonormal(np.concatenate([keep.real, keep.imag], axis=1))
+            V, AV = V @ Q, AV @ Q
+            T = _orthonormal(T, V)
+        V, AV = np.concatenate([V, T], axis=1), np.concatenate([AV, apply(T)], axis=1)
+    done = [j for j in range(len(want)) if res[j] <= tol]
+    if not done:
+        return empty
+    mu, vec = theta[want][done], U[:, done] / U_norm[done]
+    return mu, _orthonormal(np.concatenate([vec.real, vec.imag], axis=1)), vec
 
 
 def largest_magnitude(comm, prefix, nev, ncv, tol, outside=None):

@@ -103,7 +103,7 @@ REGISTRY = {r.prefix: r for r in (
          "RK 8(7), rtol 1e-10, atol 1e-12"),
     Role("floquet_", "Floquet spectra: the variational flow (`-floquet_ts_*`), the eigensolver (`-floquet_eps_*`)",
          ("ts", "eps"), "RK 8(7) rtol 1e-14 (scan) or 1e-12 (Bloch table); Krylov-Schur, largest magnitude, ncv = "
-         "max(2 nev + 20, 60)", ("radius R",)),
+         "max(2 nev + 20, 60)", ("radius R", "slow_modes 0|1")),
     Role("drive_", "driven chains: Newton on P(X) - X (bordered) and the state flow", ("snes", "ts"),
          "Newton, LU of the dense R - I (MUMPS on several ranks) or GMRES (restart 200, rtol 1e-8) on tangent-flow "
          "products; max_it 20, atol tol max(\\|X\\|_inf, a); RK 8(7), rtol 1e-12, atol 1e-14", probe=_probe_drive),

@@ -126,13 +126,18 @@ def liouville_integral(spec: ChainSpec, x0: ArrayLike, T: float, comm: PETSc.Com
     return float(fine), float(abs(fine - coarse))
 
 
+# The block flows MonodromyModShift keeps (one per column count and communicator): a block Davidson's blocks change
+# size from round to round, and each flow holds its Runge-Kutta stages, O(N k) each.
+BLOCK_FLOWS = 3
+
+
 class MonodromyModShift:
     """Matrix-free F = S^shift R(T; 0) around the orbit from ``x0``: a ``Mat.createPython`` context (``shift`` 0:
     the plain monodromy R(T; 0), e.g. of a driven chain, which has no shift symmetry).
 
     Each product integrates the chain and one tangent vector over [0, T] (the orbit is recomputed, which keeps
     memory at O(N)); :meth:`apply` takes a block of vectors through one integration. ``products`` counts the
-    vectors, ``integrations`` the TS runs.
+    vectors, ``integrations`` the TS runs; the flows of the last :data:`BLOCK_FLOWS` block sizes are kept.
     """
 
     def __init__(self, spec, x0, T, comm, tolerances, prefix, shift=1):
@@ -185,6 +190,8 @@ class MonodromyModShift:
         """S^shift R(T; 0) Y by one TangentFlow on ``comm`` (built once per column count and communicator)."""
         key = (Y.shape[2], comm.getSize())
         if key not in self._blocks:
+            while len(self._blocks) >= BLOCK_FLOWS:      # the oldest first (dicts keep their insertion order)
+                self._blocks.pop(next(iter(self._blocks))).destroy()
             self._blocks[key] = TangentFlow(self.spec, Y.shape[2], comm, self.tolerances, self.prefix)
         _, RY = self._blocks[key].run(self.x0, self.T, Y)
         return np.roll(RY, -self.spec.model.cell, axis=0) if self.shift else RY

@@ -43,7 +43,8 @@ OPTIONS_READERS = {
     "hertzpetsc.twsolver": "-<prefix>solver and -<prefix>jacobian (the code's own role options); snes_type",
     "hertzpetsc.chain": "-<prefix>rhs_compiled",
     "hertzpetsc.shooting": "-shoot_gn_max_it, the Gauss-Newton's iteration limit",
-    "hertzpetsc.floquet": "-<prefix>radius, the radius route's r (every multiplier outside it)",
+    "hertzpetsc.floquet": "-<prefix>radius, the radius route's r (every multiplier outside it), and "
+                          "-<prefix>slow_modes (its slow modes' stage)",
     "hertzpetsc.studies.base": "the roles' number-changing options, part of a record file's identity",
 }
 # where files are written: the record store and its atomic writers; the paper pipeline's step logs (a child's output)

@@ -23,7 +23,8 @@ from ..errors import (ConvergenceError, ParameterError, RecordFileError, check_c
 from ..grid import ProfileGrid, check_cells_per_pi
 from ..advdelay import check_branch, check_wavenumber
 from ..model import ChainSpec, LatticeModel
-from ..families import AmplitudeFamily, MassFamily, check_amplitude, check_family_amplitude, uncompressed_limit
+from ..families import (AmplitudeFamily, MassFamily, check_amplitude, check_family_amplitude, check_wave_amplitude,
+                        uncompressed_limit)
 from ..records import Column, Kind
 from ..resources import check_memory
 from ..roles import uses
@@ -333,7 +334,7 @@ class DimerParameters:
                                  "from it")
         object.__setattr__(self, "cells_per_pi", check_cells_per_pi(self.cells_per_pi))
         object.__setattr__(self, "q", _check_qs(self.q, math.pi / self.cells_per_pi))
-        object.__setattr__(self, "a", check_amplitude(self.a, "a"))
+        object.__setattr__(self, "a", check_wave_amplitude(self.model, self.a, "a"))
         object.__setattr__(self, "epsilon_end", check_real("epsilon_end", self.epsilon_end, "the last mass ratio "
                                                            "(continuation from epsilon = 1 down)", 0.0, 1.0))
         object.__setattr__(self, "max_steps", check_integer("max_steps", self.max_steps, 1, hi=MAX_STEPS))

@@ -161,6 +161,11 @@ SMALLQ_KIND = Kind(SMALLQ_FORMAT, (
 SMALLQ_FIELDS = SMALLQ_KIND.fields[3:]
 
 
+# grid levels of the small-q branch: level L has 2^L times the cells of level 0 (at least 4 cells per pi), and
+# 4 x 2^29 is PETSc's 32-bit index range
+MAX_LEVELS = 30
+
+
 @dataclass(frozen=True)
 class SmallQParameters:
     """q from pi down to q_stop through the targets q_first 2^(-i / per_halving); on ``levels`` resolutions, level
@@ -181,7 +186,9 @@ class SmallQParameters:
         if not (0 < self.q_stop <= self.q_first <= math.pi):
             raise ParameterError("q_stop", self.q_stop, f"must satisfy 0 < q_stop <= q_first = {self.q_first:.6g} <= pi")
         object.__setattr__(self, "per_halving", check_integer("per_halving", self.per_halving, 1))
-        object.__setattr__(self, "levels", check_integer("levels", self.levels, 3, note="(an order needs three grids)"))
+        object.__setattr__(self, "levels", check_integer("levels", self.levels, 3, hi=MAX_LEVELS,
+                                                         note="(an order needs three grids; each level doubles the "
+                                                              "grid, beyond 2^29 cells PETSc's index type overflows)"))
         RefiningGrid(self.q_first, self.cells_per_q)          # validates cells_per_q
 
     @property

@@ -317,7 +317,8 @@ def test_a_signal_ends_a_polynomial_eigensolve_that_calls_no_python(monkeypatch)
 def test_the_sweeps_bad_driver_inputs_end_in_one_line_on_every_rank(tmp_path, ranks):
     """Found by the sweep of issue 37 (each ended otherwise): -levels 10^9 (an internal error converting 2^(10^9) to
     text; 10^20 ran until killed), -points 10^9 (a list of 10^9 grid values built for minutes before the study's
-    limit), -p_end_si without -beads (an internal AttributeError): one error line naming the option and its range,
+    limit), -p_end_si without -beads (an internal AttributeError), wave.py -cells_per_pi 10^9 (16 GB of NaN profiles
+    made before the memory check, killed after 90 s): one error line naming the option and its range,
     status 2, within the timeout, on every rank."""
     out = ["-output", tmp_path / "r.npz", "-table", tmp_path / "r.md"]
     for script, args, words in [
@@ -327,7 +328,8 @@ def test_the_sweeps_bad_driver_inputs_end_in_one_line_on_every_rank(tmp_path, ra
             ("driven_response.py", ["-mode", "grid", "-points", 10 ** 9, *out], "invalid -points = '1000000000': "
              "must be an integer >= 2 and <= 100001"),
             ("driven_response.py", ["-p_end_si", "12kHz", *out], "invalid -p_end_si = '12kHz': is in SI units: "
-             "give -beads")]:
+             "give -beads"),
+            ("wave.py", ["-cells_per_pi", 10 ** 9, *out], "invalid -cells_per_pi = 1000000000: needs about")]:
         r = run_script(script, *args, ranks=ranks, timeout=60)
         assert r.returncode == 2 and words in one_error_line(r), (script, args, r.stderr[-500:])
 

@@ -218,3 +218,15 @@ def test_masses_of_another_kind_are_refused_not_converted():
             hz.LatticeModel.hertz(1.5, masses=value)
         assert err.value.name == "masses", value
     assert hz.LatticeModel.hertz(1.5, masses=np.array([1.0, 0.5])).masses == (1.0, 0.5)
+
+
+def test_a_maps_threshold_beyond_one_is_refused_as_the_other_verdicts():
+    """tol_rho = 1e300 made every map point and boundary stable (boundary_in_q.py, precompression_map.py took it);
+    the threshold on rho - 1 lies in (0, 1) as for the wave and the Floquet scans."""
+    base = dict(CONSTRUCTORS)
+    for fn in (hz.MapParameters, hz.QBoundaryParameters):
+        assert fn(**dict(base[fn], tol_rho=0.5)).tol_rho == 0.5
+        for value in (1.0, 1e300):
+            with pytest.raises(ParameterError, match="< 1") as err:
+                fn(**dict(base[fn], tol_rho=value))
+            assert err.value.name == "tol_rho"

@@ -200,7 +200,8 @@ def _check_shared(params):
                              "multipliers are scripts/wave.py's (-law, -beads) and hertzpetsc.api.wave's")
     object.__setattr__(params, "cells_per_pi", check_cells_per_pi(params.cells_per_pi))
     check_instance("tolerances", params.tolerances, IntegrationTolerances, "an IntegrationTolerances(rtol, atol)")
-    object.__setattr__(params, "tol_rho", check_real("tol_rho", params.tol_rho, "the verdict's threshold", 0.0))
+    object.__setattr__(params, "tol_rho", check_real("tol_rho", params.tol_rho, "the verdict's threshold on rho - 1",
+                                                     0.0, 1.0))          # as the wave's and the Floquet scans
     object.__setattr__(params, "locate_tol", check_real("locate_tol", params.locate_tol, "the relative bracket of a "
                                                         "located change", 0.0, 0.5))
 

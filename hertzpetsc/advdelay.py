@@ -57,9 +57,11 @@ MEASURES = ("a1", "sup")
 def check_wavenumber(q, h=None, name="q"):
     """q must lie in (0, pi] (and span at least one grid step h if h is given); ``name`` is used in errors."""
     try:
+        if isinstance(q, (str, bytes, bool)) or type(q).__name__ == "bool_":
+            raise TypeError(q)                  # float() would take '0.5' and True
         qf = float(q)
     except (TypeError, ValueError):
-        raise ParameterError(name, q, "must be a real number in (0, pi]") from None
+        raise ParameterError(name, q, f"must be a real number in (0, pi], not {type(q).__name__}") from None
     if not (0.0 < qf <= math.pi * (1 + 1e-14)):
         raise ParameterError(name, q, "the wavenumber must lie in (0, pi]")
     if h is not None and qf < h * (1 - 1e-12):
@@ -207,6 +209,8 @@ class AdvanceDelayProblem(ContinuationProblem):
             from .grid import ProfileGrid
             grid = ProfileGrid(grid.K, grid.comm, parity=0)
         self.model, self.grid = model, grid
+        from .resources import check_memory
+        check_memory(grid.K, grid.comm, "nk", profiles=self.p)    # the least a solver needs, before the stencils
         self.masses = np.array(model.masses, dtype=float)
         self.normalised = check_integer("normalised", normalised, 0, "the normalised profile's index", self.p - 1)
         self.measure = measure

@@ -98,9 +98,11 @@ def wave(model: Optional[LatticeModel], q: float, A: float, N: int, cells_per_pi
         beads.check_chain(model, "the model")
     elif model is None:
         raise ParameterError("model", None, "give the LatticeModel (or the beads: beads=BeadChain(...))")
+    spec = ChainSpec(model, N)                     # the chain checked before the wave is computed, as in orbit()
+    check_chain_size(spec.N, 1)
     with call_options(options):
         point, scale = wave_of_amplitude(model, q, A, ProfileGrid(cells_per_pi, _comm(comm)), branch=branch)
-    return orbit_on_chain(point, ChainSpec(model, N), scale=scale)
+    return orbit_on_chain(point, spec, scale=scale)
 
 
 def orbit(point: BranchPoint, N: int, A: Optional[float] = None) -> Orbit:

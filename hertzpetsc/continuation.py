@@ -221,7 +221,7 @@ def _check_algorithm(alg, positive, **integers):
         object.__setattr__(alg, name, check_integer(name, getattr(alg, name), least))
     for name in ("max_corrector",) + positive:
         value = getattr(alg, name)
-        if value != math.inf:                      # max_step, max_corrector: inf, no bound
+        if not (isinstance(value, float) and value == math.inf):      # max_step, max_corrector: inf, no bound
             object.__setattr__(alg, name, check_real(name, value, f"{name}", 0.0))
 
 

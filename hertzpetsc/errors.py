@@ -61,7 +61,7 @@ def check_real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
     default; no bound where None), else a :class:`ParameterError` naming the parameter ``name`` (``what`` it is)
     and its valid range: the one check of a real parameter."""
     try:
-        v = math.nan if isinstance(value, (bool, str, bytes)) else float(value)
+        v = math.nan if isinstance(value, (bool, str, bytes)) or _is_numpy_bool(value) else float(value)
     except (TypeError, ValueError):
         v = math.nan
     if not (math.isfinite(v) and (lo is None or (v > lo if lo_open else v >= lo))
@@ -72,6 +72,11 @@ def check_real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
             f", not {type(value).__name__}"
         raise ParameterError(name, value, f"{what} must be a finite number" + (f" {rng}" if rng else "") + kind)
     return v
+
+
+def _is_numpy_bool(value):
+    """numpy's bool (np.True_): float() takes it, but it is a flag, not a number (check_flag's other spelling)."""
+    return type(value).__name__ == "bool_"
 
 
 def check_integer(name, value, lo, what="", hi=None, note=""):
@@ -88,7 +93,10 @@ def check_integer(name, value, lo, what="", hi=None, note=""):
 
 
 def members(name, values, what):
-    """``values`` (one number, or a sequence of them: a list, tuple, range or numpy array; not a string) as a list."""
+    """``values`` (one number, or a sequence of them: a list, tuple, range or numpy array, 0-d included; not a
+    string) as a list."""
+    if getattr(values, "ndim", None) == 0 and hasattr(values, "item"):      # a 0-d numpy array: its one number
+        values = values.item()
     if isinstance(values, numbers.Number):
         return [values]
     if isinstance(values, (str, bytes)) or not hasattr(values, "__iter__") or isinstance(values, dict):
@@ -154,7 +162,7 @@ def check_prefix(name, value):
 
 def check_flag(name, value):
     """``value`` as a bool if it is one (Python's or numpy's), else a :class:`ParameterError` naming ``name``."""
-    if isinstance(value, bool) or type(value).__name__ == "bool_":
+    if isinstance(value, bool) or _is_numpy_bool(value):
         return bool(value)
     raise ParameterError(name, value, f"must be True or False, not {type(value).__name__}")
 

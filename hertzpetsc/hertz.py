@@ -16,14 +16,23 @@ from .errors import ParameterError, check_real
 from .law import InteractionLaw, check_scale
 
 
+# The largest Hertz exponent: the binary oscillation's scale 2^alpha (eq. vhertz at overlap 2 |u|) is a finite float
+# up to alpha = 1023; beyond, the paper's starting wave overflows.
+ALPHA_MAX = 1000.0
+
+
 def check_alpha(alpha):
-    """Return ``alpha`` as a float, or raise :class:`ParameterError` unless alpha > 1 (eq. vhertz)."""
-    return check_real("alpha", alpha, "the Hertz exponent", 1.0)
+    """Return ``alpha`` as a float, or raise :class:`ParameterError` unless 1 < alpha <= :data:`ALPHA_MAX` (eq.
+    vhertz)."""
+    return check_real("alpha", alpha, "the Hertz exponent", 1.0, ALPHA_MAX, hi_open=False)
 
 
-def check_delta0(delta0):
-    """Return the precompression ``delta0`` as a float, or raise :class:`ParameterError` unless delta0 >= 0."""
-    return check_real("delta0", delta0, "the precompression (static overlap)", 0.0, lo_open=False)
+def check_delta0(delta0, alpha=None):
+    """Return the precompression ``delta0`` as a float, or raise :class:`ParameterError` unless delta0 >= 0 and, for
+    the exponent ``alpha``, delta0^(alpha+1) (the static bond's energy) and its square are finite floats (the bound
+    of :func:`hertzpetsc.families.amplitude_ceiling`: beyond it no wave has a finite energy)."""
+    hi = None if alpha is None else math.sqrt(float(np.finfo(float).max)) ** (1.0 / (alpha + 1.0))
+    return check_real("delta0", delta0, "the precompression (static overlap)", 0.0, hi, lo_open=False)
 
 
 def abs_power(a, e):
@@ -92,7 +101,7 @@ class HertzLaw(InteractionLaw):
 
     def __post_init__(self):
         object.__setattr__(self, "alpha", check_alpha(self.alpha))
-        object.__setattr__(self, "delta0", check_delta0(self.delta0))
+        object.__setattr__(self, "delta0", check_delta0(self.delta0, self.alpha))
 
     @property
     def degree(self) -> float:

@@ -30,7 +30,7 @@ from numpy.typing import ArrayLike
 
 from .dissipation import ContactDissipation
 from .dissipation import from_description as contact_from_description
-from .errors import ParameterError, check_integer, check_real
+from .errors import ParameterError, check_integer, check_real, check_reals
 from . import fpu, toda  # noqa: F401  (the package's laws, registered by name for from_description)
 from .hertz import HertzLaw
 from .law import LAWS, InteractionLaw, ScaledLaw
@@ -80,12 +80,7 @@ class LatticeModel:
         if not isinstance(self.law, InteractionLaw):
             raise ParameterError("law", self.law, "must be an InteractionLaw (V, V', V'' of a bond), e.g. HertzLaw()")
         self.law.check_consistency()
-        try:
-            masses = tuple(float(x) for x in self.masses)
-        except (TypeError, ValueError):
-            raise ParameterError("masses", self.masses, "must be a non-empty list of positive numbers") from None
-        if not masses or not all(math.isfinite(x) and x > 0 for x in masses):
-            raise ParameterError("masses", self.masses, "every mass of the pattern must be a finite number > 0")
+        masses = check_reals("masses", self.masses, "masses of the pattern", 0.0)    # b"1" is not (49.0,)
         object.__setattr__(self, "masses", masses)
         if not isinstance(self.damping, Damping):
             raise ParameterError("damping", self.damping, "must be a Damping(gamma, eta)")

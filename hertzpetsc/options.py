@@ -12,6 +12,7 @@ stderr and the exit status of :mod:`hertzpetsc.errors`, on every rank.
 import contextlib
 import ctypes
 import difflib
+import gc
 import math
 import os
 import re
@@ -618,17 +619,30 @@ def guarded_main(main):
     as well (configuration and solver calls are) and are reported with PETSc's own message. Anything else is a
     failure of one rank: that rank prints it and aborts the others, so an MPI run never hangs.
     """
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        signal.signal(sig, _raise_terminated)
     try:
+        # inside the try: a signal that arrives as soon as its handler is in place (mpiexec ending the ranks of a
+        # job another rank aborted at start-up) is reported as any other, not a traceback
+        for sig in (signal.SIGTERM, signal.SIGHUP):
+            signal.signal(sig, _raise_terminated)
         main()
-    except SystemExit:
-        raise
+        return
+    except SystemExit as exit_:                 # -help, -check: every rank at once
+        code, collective = exit_.code, True
     except BaseException as err:
         # from here on a signal (mpiexec ending the ranks of a job another rank aborted) ends this rank quietly
         for sig in (signal.SIGTERM, signal.SIGHUP):
             signal.signal(sig, signal.SIG_DFL)
-        _report(err)
+        try:
+            _report(err)                        # one rank: sys.exit; several: the job aborted
+        except SystemExit as exit_:
+            code, collective = exit_.code, PETSc.COMM_WORLD.getSize() == 1
+    # main's frames (held by the exception's traceback until here) and the solver objects they hold are freed while
+    # Python runs: left to PETSc's finalize at the interpreter's exit, a shell matrix whose destroy calls Python
+    # (a Floquet operator) crashed it (SEGV, status 139, after -check's line)
+    gc.collect()
+    if collective:
+        PETSc.garbage_cleanup()
+    raise SystemExit(code)
 
 
 def _interruption(err):

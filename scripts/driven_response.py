@@ -31,7 +31,7 @@ from hertzpetsc.continuation import Natural  # noqa: E402
 from hertzpetsc.errors import ParameterError  # noqa: E402
 from hertzpetsc.options import AppOptions, guarded_main, print0  # noqa: E402
 from hertzpetsc.records import prepare_outputs  # noqa: E402
-from hertzpetsc.studies.driven import (EVENT_NAMES, ResponseCurve, ResponseParameters,  # noqa: E402
+from hertzpetsc.studies.driven import (EVENT_NAMES, MAX_POINTS, ResponseCurve, ResponseParameters,  # noqa: E402
                                        corner_arclength, drive_options)
 from hertzpetsc.units import parse_quantity  # noqa: E402
 
@@ -53,10 +53,11 @@ def main():
                            "a length for amplitude), instead of -p_end")
     si_kind = "frequency" if parameter == "omega" else "length"
     if p_end_si and not opts.help:
-        p["p_end"] = beads.from_si("angular_frequency" if parameter == "omega" else "length",
-                                   si_p_end(p_end_si, si_kind, opts, beads))
+        value = si_p_end(p_end_si, si_kind, opts, beads)          # refused first without -beads
+        p["p_end"] = beads.from_si("angular_frequency" if parameter == "omega" else "length", value)
     mode = opts.string("mode", "arclength", "pseudo-arclength or a grid of values", choices=("arclength", "grid"))
-    points = opts.integer("points", 200, "grid mode: number of parameter values (start and p_end included)", minimum=2)
+    points = opts.integer("points", 200, "grid mode: number of parameter values (start and p_end included)", minimum=2,
+                          maximum=MAX_POINTS + 1)          # the study's limit of the grid (the start excluded)
     ds = opts.real("ds", 0.02, "first arclength step")
     ds_max = opts.real("ds_max", 0.05, "largest arclength step (>= -ds)")
     max_corrector = opts.real("max_corrector", 1.5, "largest corrector distance, in steps (corners of the curve)",

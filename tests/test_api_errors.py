@@ -5,6 +5,7 @@ AttributeError from inside. The sweep passes every kind of wrong value to every 
 of the public surface."""
 import math
 
+import numpy as np
 import pytest
 from petsc4py import PETSc
 
@@ -178,3 +179,106 @@ def test_an_option_of_another_name_names_the_option_in_errors_between_fields():
         assert str(err.value.as_option(opts.names())).startswith("invalid -samples_per_period = 1:")
     finally:
         AppOptions.current = kept
+
+
+# values numpy hands a user that float() or iteration takes silently (the sweep of issue 37): a flag where a number
+# is needed, a 0-d array where a list is, a 1-d array where one number is
+NUMPY_WRONG = {"np.bool_": np.True_, "1-d array": np.array([0.1, 0.2])}
+
+
+def _numpy_cases():
+    for fn, base in CONSTRUCTORS:
+        for arg, good in base.items():
+            if isinstance(good, float) and not isinstance(good, bool):
+                for kind, value in NUMPY_WRONG.items():
+                    yield pytest.param(fn, base, arg, value, id=f"{getattr(fn, '__qualname__', fn)}-{arg}-{kind}")
+
+
+@pytest.mark.parametrize("fn, base, arg, value", list(_numpy_cases()))
+def test_a_numpy_flag_or_array_for_a_real_argument_is_a_parameter_error_naming_it(fn, base, arg, value):
+    """np.True_ for a real (float() takes it as 1.0) and an array for one number (its truth value raised a bare
+    ValueError in the continuation algorithms' inf test) are refused naming the argument."""
+    with pytest.raises(ParameterError) as err:
+        fn(**dict(base, **{arg: value}))
+    assert err.value.name == arg, str(err.value)
+
+
+@pytest.mark.parametrize("fn, base, arg", [(fn, base, arg) for fn, base in CONSTRUCTORS for arg, good in base.items()
+                                           if isinstance(good, tuple) and good and isinstance(good[0], float)])
+def test_a_0d_array_is_one_member_of_a_list_argument(fn, base, arg):
+    """np.array(x) (what np.float64 arithmetic or a reduction gives) for a list argument is the list [x], as the
+    number x is (it raised a bare TypeError: 'float' object is not iterable)."""
+    assert fn(**dict(base, **{arg: np.array(base[arg][0])})) == fn(**dict(base, **{arg: base[arg][0]}))
+
+
+def test_an_exponent_or_precompression_that_overflows_is_refused_naming_it():
+    """alpha = 1e300 overflowed 2^alpha in the starting wave (OverflowError, an internal error of continuation.py)
+    and delta0 = 1e300 overflowed delta0^alpha in the chain's kernel (driven_resonances.py): both are refused, with
+    the bound: alpha <= ALPHA_MAX, delta0 below sqrt(max float)^(1/(alpha+1)) (the amplitudes' ceiling)."""
+    from hertzpetsc.hertz import ALPHA_MAX
+    with pytest.raises(ParameterError, match=r"<= 1000") as err:
+        hz.LatticeModel.hertz(1e300)
+    assert err.value.name == "alpha"
+    assert 2.0 ** ALPHA_MAX < math.inf
+    with pytest.raises(ParameterError, match=r"< 4.4\d*e\+61") as err:
+        hz.LatticeModel.hertz(1.5, delta0=1e300)
+    assert err.value.name == "delta0"
+    bound = math.sqrt(np.finfo(float).max) ** (1 / 2.5)
+    assert hz.LatticeModel.hertz(1.5, delta0=0.5 * bound).law.delta0 ** 2.5 < math.inf
+
+
+def test_a_dimer_amplitude_beyond_the_ceiling_is_refused_before_computing():
+    """a = 1e300 in DimerParameters ran the amplitude family for minutes (dimer_branch.py, killed after 90 s);
+    refused now by the amplitudes' one ceiling (families.amplitude_ceiling)."""
+    from hertzpetsc.families import amplitude_ceiling
+    with pytest.raises(ParameterError, match="overflow") as err:
+        hz.DimerParameters(PRE, q=(0.5,), a=1e300)
+    assert err.value.name == "a"
+    assert hz.DimerParameters(PRE, q=(0.5,), a=amplitude_ceiling(PRE)).a == amplitude_ceiling(PRE)
+
+
+def test_a_grid_or_chain_beyond_memory_is_refused_before_the_wave_is_computed(monkeypatch):
+    """hz.wave_at on cells_per_pi = 10^8 built the stencils of 10^8 points for minutes before the solver's memory
+    check; hz.wave computed the wave before it checked N (N = 10^9, N = None). Both refuse up front now: the wave
+    is never computed (families.wave_of_amplitude is replaced by a function that fails the test)."""
+    import hertzpetsc.api as api
+
+    def never(*args, **kwargs):
+        raise AssertionError("the wave was computed before its arguments were checked")
+    with pytest.raises(ParameterError, match="GiB") as err:
+        hz.wave_at(PRE, 0.5, 0.5, cells_per_pi=10 ** 8, comm=PETSc.COMM_SELF)
+    assert err.value.name == "cells_per_pi"
+    monkeypatch.setattr(api, "wave_of_amplitude", never)
+    for N, words in ((10 ** 9, "GiB"), (None, "not NoneType")):
+        with pytest.raises(ParameterError, match=words) as err:
+            hz.wave(PRE, 2 * math.pi / 10, 0.5, N=N, comm=PETSc.COMM_SELF)
+        assert err.value.name == "N"
+
+
+def test_a_wavenumber_given_as_text_is_refused():
+    """float('0.5') made q = '0.5' a wavenumber; the error named N instead (its wavelengths did not fit)."""
+    with pytest.raises(ParameterError, match="not str") as err:
+        hz.wave(PRE, "0.5", 0.5, N=10, comm=PETSc.COMM_SELF)
+    assert err.value.name == "q"
+
+
+def test_masses_of_another_kind_are_refused_not_converted():
+    """masses = b'1' iterated as the byte 49 (a pattern of one bead of mass 49); ['1'] as text: both refused by the
+    one check of a list of reals (errors.check_reals), naming masses."""
+    for value in (b"1", ["1"], "1", (1.0, None)):
+        with pytest.raises(ParameterError) as err:
+            hz.LatticeModel.hertz(1.5, masses=value)
+        assert err.value.name == "masses", value
+    assert hz.LatticeModel.hertz(1.5, masses=np.array([1.0, 0.5])).masses == (1.0, 0.5)
+
+
+def test_a_maps_threshold_beyond_one_is_refused_as_the_other_verdicts():
+    """tol_rho = 1e300 made every map point and boundary stable (boundary_in_q.py, precompression_map.py took it);
+    the threshold on rho - 1 lies in (0, 1) as for the wave and the Floquet scans."""
+    base = dict(CONSTRUCTORS)
+    for fn in (hz.MapParameters, hz.QBoundaryParameters):
+        assert fn(**dict(base[fn], tol_rho=0.5)).tol_rho == 0.5
+        for value in (1.0, 1e300):
+            with pytest.raises(ParameterError, match="< 1") as err:
+                fn(**dict(base[fn], tol_rho=value))
+            assert err.value.name == "tol_rho"

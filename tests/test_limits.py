@@ -310,3 +310,40 @@ def test_a_signal_ends_a_polynomial_eigensolve_that_calls_no_python(monkeypatch)
     with pytest.raises(Terminated):
         solver.solve(mats, -0.5, 40)
     assert len(calls) == 2
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_the_sweeps_bad_driver_inputs_end_in_one_line_on_every_rank(tmp_path, ranks):
+    """Found by the sweep of issue 37 (each ended otherwise): -levels 10^9 (an internal error converting 2^(10^9) to
+    text; 10^20 ran until killed), -points 10^9 (a list of 10^9 grid values built for minutes before the study's
+    limit), -p_end_si without -beads (an internal AttributeError), wave.py -cells_per_pi 10^9 (16 GB of NaN profiles
+    made before the memory check, killed after 90 s): one error line naming the option and its range,
+    status 2, within the timeout, on every rank."""
+    out = ["-output", tmp_path / "r.npz", "-table", tmp_path / "r.md"]
+    for script, args, words in [
+            ("small_q.py", ["-levels", 10 ** 9, "-progress", tmp_path / "p.npz"], "invalid -levels = '1000000000': "
+             "must be an integer >= 3 and <= 30"),
+            ("small_q.py", ["-levels", "99999999999999999999", "-progress", tmp_path / "p.npz"], "invalid -levels"),
+            ("driven_response.py", ["-mode", "grid", "-points", 10 ** 9, *out], "invalid -points = '1000000000': "
+             "must be an integer >= 2 and <= 100001"),
+            ("driven_response.py", ["-p_end_si", "12kHz", *out], "invalid -p_end_si = '12kHz': is in SI units: "
+             "give -beads"),
+            ("wave.py", ["-cells_per_pi", 10 ** 9, *out], "invalid -cells_per_pi = 1000000000: needs about")]:
+        r = run_script(script, *args, ranks=ranks, timeout=60)
+        assert r.returncode == 2 and words in one_error_line(r), (script, args, r.stderr[-500:])
+
+
+@pytest.mark.serial
+@pytest.mark.parametrize("ranks", [1, 2])
+def test_check_and_errors_with_a_shell_floquet_operator_end_without_a_crash(tmp_path, ranks):
+    """driven_response.py -floquet slepc builds SLEPc's shell operator before the options are checked: -check (and an
+    error after it is built: an unknown option) left it to PETSc's finalize at the interpreter's exit, whose
+    destroy called into a finalized Python (SEGV, status 59/139 after the check line). guarded_main frees main's
+    objects first: status 0 with the check line, status 2 with the error line."""
+    out = ["-N", 10, "-floquet", "slepc", "-output", tmp_path / "r.npz", "-table", tmp_path / "r.md"]
+    r = run_script("driven_response.py", *out, "-check", ranks=ranks, timeout=60)
+    assert r.returncode == 0 and r.stderr.strip() == "", r.stderr[-500:]
+    assert r.stdout.strip().splitlines()[-1].startswith("check: options, inputs and outputs valid")
+    r = run_script("driven_response.py", *out, "-bogus", 1, ranks=ranks, timeout=60)
+    assert r.returncode == 2 and one_error_line(r).startswith("error: unknown option -bogus 1"), r.stderr[-500:]

@@ -14,6 +14,7 @@ from ..qbranch import (BranchContinuation, ContinuationParameters, RefiningGrid,
                             paper_targets)
 from ..errors import (Checked, ParameterError, RecordFileError, check_instance, check_integer, check_integers,
                       check_prefix, param)
+from ..hertz import ALPHA_MAX
 from ..model import LatticeModel
 from ..records import Column, Kind, is_checking, load_npz, npz_arrays, on_rank0, write_npz
 from ..resources import check_memory
@@ -160,18 +161,24 @@ SMALLQ_KIND = Kind(SMALLQ_FORMAT, (
 SMALLQ_FIELDS = SMALLQ_KIND.fields[3:]
 
 
+# grid levels of the small-q branch: level L has 2^L times the cells of level 0 (at least 4 cells per pi), and
+# 4 x 2^29 is PETSc's 32-bit index range
+MAX_LEVELS = 30
+
+
 @dataclass(frozen=True)
 class SmallQParameters(Checked):
     """q from pi down to q_stop through the targets q_first 2^(-i / per_halving); on ``levels`` resolutions, level
     l keeping at least cells_per_q 2^l cells per unit of q below q_first (:class:`RefiningGrid`)."""
 
-    alpha: float = param(1.5, "the Hertz exponent", lo=1.0)
+    alpha: float = param(1.5, "the Hertz exponent", lo=1.0, hi=ALPHA_MAX, hi_open=False)
     q_stop: float = param(math.pi / 400, "the smallest wavenumber (at most q_first)", lo=0.0, hi=math.pi,
                           hi_open=False, expr=True)
     q_first: float = param(math.pi / 50, "the first wavenumber of the targets", lo=0.0, hi=math.pi, hi_open=False)
     per_halving: int = param(4, "targets per halving of q", lo=1)
     cells_per_q: int = param(20, "grid cells per unit of q at q_first on level 0", lo=4)
-    levels: int = param(3, "resolutions (Richardson from the three finest; an order needs three grids)", lo=3)
+    levels: int = param(3, "resolutions (Richardson from the three finest; an order needs three grids; each level "
+                        "doubles the grid, beyond 2^29 cells PETSc's index type overflows)", lo=3, hi=MAX_LEVELS)
 
     def __post_init__(self):
         super().__post_init__()

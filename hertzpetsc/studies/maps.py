@@ -148,7 +148,8 @@ class MapParameters(Checked):
     N: int = param(100, "beads of the periodic chain", lo=1, hi=MAX_MAP_BEADS)
     cells_per_pi: int = cells_per_pi_param(1000)
     tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
-    tol_rho: float = param(MAP_TOL_RHO, "the verdict's threshold: unstable when rho - 1 > tol_rho", lo=0.0)
+    tol_rho: float = param(MAP_TOL_RHO, "the verdict's threshold: unstable when rho - 1 > tol_rho", lo=0.0,
+                           hi=1.0)
     twists: int = param(0, "infinite chain: bead-level Bloch parameters per pi (0: not computed)", lo=0, hi=10 ** 6)
     locate: tuple = ("chain",)
     locate_tol: float = param(1e-3, "the relative bracket of a located boundary point", lo=0.0, hi=0.5)
@@ -663,7 +664,8 @@ class QBoundaryParameters(Checked):
     q: tuple
     cells_per_pi: int = cells_per_pi_param(1000)
     tolerances: IntegrationTolerances = IntegrationTolerances(rtol=1e-11, atol=1e-13)
-    tol_rho: float = param(MAP_TOL_RHO, "the verdict's threshold: unstable when rho - 1 > tol_rho", lo=0.0)
+    tol_rho: float = param(MAP_TOL_RHO, "the verdict's threshold: unstable when rho - 1 > tol_rho", lo=0.0,
+                           hi=1.0)
     twists: int = param(512, "bead-level Bloch parameters per pi", lo=1, hi=10 ** 6)
     locate_tol: float = param(1e-3, "the relative bracket of a located edge (at most half of it)", lo=0.0, hi=0.5)
     max_cell: int = param(QB_MAX_CELL, "the largest cell (beads) of a bisection wavenumber", lo=2, hi=MAX_MAP_BEADS)

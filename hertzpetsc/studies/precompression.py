@@ -23,7 +23,8 @@ from ..errors import (Checked, ConvergenceError, ParameterError, RecordFileError
 from ..grid import ProfileGrid, cells_per_pi_param
 from ..advdelay import check_branch, check_wavenumber
 from ..model import ChainSpec, LatticeModel
-from ..families import AmplitudeFamily, MassFamily, check_amplitude, check_family_amplitude, uncompressed_limit
+from ..families import (AmplitudeFamily, MassFamily, check_amplitude, check_family_amplitude, check_wave_amplitude,
+                        uncompressed_limit)
 from ..records import Column, Kind
 from ..resources import check_memory
 from ..roles import uses
@@ -318,8 +319,8 @@ class DimerParameters(Checked):
     steps of ds (first) .. ds_max."""
 
     model: LatticeModel
-    q: tuple = param(MISSING, "per-bead wavenumbers (the dimer's zone: q < pi/2)", "reals", lo=0.0,
-                     hi=math.pi / 2, distinct=True, expr=True)
+    q: tuple = param(MISSING, "per-bead wavenumbers (the dimer's zone: q <= pi/2)", "reals", lo=0.0,
+                     hi=math.pi / 2, hi_open=False, distinct=True, expr=True)
     a: float = param(0.5, "the amplitude (first sine coefficient of u)", lo=0.0)
     cells_per_pi: int = cells_per_pi_param(200)
     epsilon_end: float = param(0.3, "the last mass ratio (continuation from epsilon = 1 down)", lo=0.0, hi=1.0)
@@ -334,7 +335,7 @@ class DimerParameters(Checked):
                                  "from it")
         super().__post_init__()
         _check_qs(self.q, math.pi / self.cells_per_pi)
-        object.__setattr__(self, "a", check_amplitude(self.a, "a"))
+        object.__setattr__(self, "a", check_wave_amplitude(self.model, self.a, "a"))
         if self.ds > self.ds_max:
             raise ParameterError("ds", self.ds, f"must not exceed ds_max = {self.ds_max:g}")
 

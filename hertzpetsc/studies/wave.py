@@ -153,13 +153,14 @@ class WaveStudy(Study):
     def __init__(self, params: WaveParameters, comm: Optional[PETSc.Comm] = None, output: Optional[str] = None,
                  mode: str = "new") -> None:
         super().__init__(params, comm, output, mode)
+        # before the file's arrays of the profiles' size are made (10^9 cells: 16 GB of NaN before the refusal)
+        check_memory(params.cells_per_pi, self.comm, tw_solver("precomp_"), profiles=params.model.cell)
         K2, p = 2 * params.cells_per_pi, params.model.cell
         self.SHAPES = {"rho_sizes": (len(params.sizes),), "u": (p, K2), "state": (params.N, 2),
                        "dominant": (DOMINANT,)}
         # a file written before the profiles, states and multipliers resumes with NaN in their place
         self.ADDED = dict(self.ADDED, **{k: np.full(self.SHAPES[k], math.nan, dtype=complex if k == "dominant" else
                                                     float) for k in ("u", "state", "dominant")})
-        check_memory(params.cells_per_pi, self.comm, tw_solver("precomp_"), profiles=params.model.cell)
 
     def configure(self) -> None:
         """The solver roles' options, and the refiner's (-shoot_gn_max_it, tol against the flow's rtol), now."""

@@ -42,7 +42,7 @@ from petsc4py import PETSc
 from .assembly import RowAssembler, StencilGather, gathered, merged_csr
 from .continuation import ContinuationProblem
 from .diagnostics import sup_norm
-from .errors import ConvergenceError, ParameterError, check_integer, check_real
+from .errors import ConvergenceError, ParameterError, is_numpy_bool, check_integer, check_real
 from .model import LatticeModel
 from .stencil import shift_stencil
 
@@ -57,7 +57,7 @@ MEASURES = ("a1", "sup")
 def check_wavenumber(q, h=None, name="q"):
     """q must lie in (0, pi] (and span at least one grid step h if h is given); ``name`` is used in errors."""
     try:
-        if isinstance(q, (str, bytes, bool)) or type(q).__name__ == "bool_":
+        if isinstance(q, (str, bytes, bool)) or is_numpy_bool(q):
             raise TypeError(q)                  # float() would take '0.5' and True
         qf = float(q)
     except (TypeError, ValueError):

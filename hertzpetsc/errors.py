@@ -61,7 +61,7 @@ def check_real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
     default; no bound where None), else a :class:`ParameterError` naming the parameter ``name`` (``what`` it is)
     and its valid range: the one check of a real parameter."""
     try:
-        v = math.nan if isinstance(value, (bool, str, bytes)) or _is_numpy_bool(value) else float(value)
+        v = math.nan if isinstance(value, (bool, str, bytes)) or is_numpy_bool(value) else float(value)
     except (TypeError, ValueError):
         v = math.nan
     if not (math.isfinite(v) and (lo is None or (v > lo if lo_open else v >= lo))
@@ -74,9 +74,10 @@ def check_real(name, value, what, lo=None, hi=None, lo_open=True, hi_open=True):
     return v
 
 
-def _is_numpy_bool(value):
-    """numpy's bool (np.True_): float() takes it, but it is a flag, not a number (check_flag's other spelling)."""
-    return type(value).__name__ == "bool_"
+def is_numpy_bool(value) -> bool:
+    """numpy's bool (np.True_): float() takes it, but it is a flag, not a number (check_flag's other spelling); its
+    type is numpy.bool_, named numpy.bool from numpy 2."""
+    return type(value).__module__ == "numpy" and type(value).__name__ in ("bool_", "bool")
 
 
 def check_integer(name, value, lo, what="", hi=None, note=""):
@@ -162,7 +163,7 @@ def check_prefix(name, value):
 
 def check_flag(name, value):
     """``value`` as a bool if it is one (Python's or numpy's), else a :class:`ParameterError` naming ``name``."""
-    if isinstance(value, bool) or _is_numpy_bool(value):
+    if isinstance(value, bool) or is_numpy_bool(value):
         return bool(value)
     raise ParameterError(name, value, f"must be True or False, not {type(value).__name__}")
 
